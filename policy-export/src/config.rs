@@ -1,0 +1,441 @@
+//! Every hyperparameter of a training run, its presets, and their validation.
+//!
+//! A run's configuration is built in layers: a preset ([`Config::paper`], the paper's Table
+//! 2, or [`Config::robust`], tuned here for a deployable controller), then a TOML file whose
+//! keys are the field names below, then single command-line flags. The result is written
+//! whole into the run's `summary.json`, so a run can always be repeated.
+
+use std::fmt;
+
+use serde::{Deserialize, Serialize};
+
+use crate::nn::{Kernel, Loss};
+
+/// Which TD target the learner regresses on.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Algo {
+    /// Double DQN: the online net picks `a* = argmax Q_online(s')`, the target net scores it.
+    Ddqn,
+    /// DQN: the target net both picks and scores, `max_a Q_target(s', a)`.
+    Dqn,
+}
+
+/// Weight initialisation; biases start at 0.01 either way.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+pub enum Init {
+    /// Xavier/Glorot normal: `N(0, 2 / (fan_in + fan_out))`.
+    #[serde(rename = "xavier")]
+    #[value(name = "xavier")]
+    Xavier,
+    /// Fixed `N(0, 0.1^2)`.
+    #[serde(rename = "normal0.1")]
+    #[value(name = "normal0.1")]
+    Normal01,
+}
+
+/// How the target network follows the online one.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum TargetUpdate {
+    /// Copy the online weights every `target_period` units.
+    Hard,
+    /// Polyak-average every environment step with weight `tau`.
+    Soft,
+}
+
+/// What `target_period` and the epsilon schedule count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum Unit {
+    /// Completed episodes.
+    Episodes,
+    /// Environment steps.
+    Steps,
+}
+
+/// The kernel choice as configured: `auto` picks the fastest this CPU has.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
+#[serde(rename_all = "lowercase")]
+pub enum KernelChoice {
+    /// The fastest supported kernel.
+    Auto,
+    /// Baseline x86-64, no fused multiply-add.
+    Portable,
+    /// AVX2 + FMA.
+    Avx2,
+    /// AVX-512F + FMA.
+    Avx512,
+}
+
+impl KernelChoice {
+    /// The kernel to run, or an error if this CPU lacks it.
+    pub fn resolve(self) -> Result<Kernel, ConfigError> {
+        let k = match self {
+            KernelChoice::Auto => return Ok(Kernel::detect()),
+            KernelChoice::Portable => Kernel::Portable,
+            KernelChoice::Avx2 => Kernel::Avx2,
+            KernelChoice::Avx512 => Kernel::Avx512,
+        };
+        if k.supported() {
+            Ok(k)
+        } else {
+            Err(ConfigError(format!(
+                "kernel {self:?} is not supported by this CPU"
+            )))
+        }
+    }
+}
+
+/// The named starting points of a configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Preset {
+    /// The paper's Table 2.
+    Paper,
+    /// Tuned for a controller worth deploying (see `docs/TRAINING.md`).
+    Robust,
+}
+
+/// Every hyperparameter of a run. Field names are the TOML keys and, with `-` for `_`, the
+/// command-line flags.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Config {
+    /// TD target.
+    pub algo: Algo,
+    /// Hidden width: 16, 32, 64, 128 or 256 (64 ships).
+    pub width: usize,
+    /// Adam learning rate.
+    pub lr: f64,
+    /// Adam beta1.
+    pub adam_beta1: f64,
+    /// Adam beta2.
+    pub adam_beta2: f64,
+    /// Adam epsilon.
+    pub adam_eps: f64,
+    /// Discount factor.
+    pub gamma: f64,
+    /// FIFO replay capacity, transitions.
+    pub buffer_size: usize,
+    /// Minibatch size.
+    pub batch_size: usize,
+    /// Transitions stored before the first gradient step (at least `batch_size`).
+    pub learning_starts: usize,
+    /// Environment steps per gradient step.
+    pub train_every: usize,
+    /// Hard copies or soft averaging.
+    pub target_update: TargetUpdate,
+    /// Hard update period, in `target_period_unit`.
+    pub target_period: usize,
+    /// What `target_period` counts.
+    pub target_period_unit: Unit,
+    /// Soft update weight.
+    pub tau: f64,
+    /// Exploration at t = 0.
+    pub eps_start: f64,
+    /// Exploration floor.
+    pub eps_end: f64,
+    /// Decay scale: `eps = end + (start - end) * exp(-t / eps_decay)`.
+    pub eps_decay: f64,
+    /// What t counts in the epsilon schedule.
+    pub eps_unit: Unit,
+    /// Training episodes.
+    pub episodes: usize,
+    /// Episode truncation: 200 (the paper) or 500 (`CartPole-v1`).
+    pub max_steps: u32,
+    /// Global gradient-norm clip; 0 disables it.
+    pub grad_clip: f64,
+    /// Regression loss.
+    pub loss: Loss,
+    /// Weight initialisation.
+    pub init: Init,
+    /// Every this many episodes, score the greedy policy and keep the best one as the run's
+    /// policy; 0 keeps the last weights.
+    pub eval_every: usize,
+    /// Episodes per such evaluation (their starts are fixed for the run).
+    pub eval_episodes: usize,
+    /// Episode length of those evaluations and of the final one.
+    pub eval_max_steps: u32,
+    /// Stop early once a periodic evaluation is perfect (every episode reaches the limit).
+    pub stop_when_perfect: bool,
+    /// Fresh greedy episodes that score the exported policy at the end of a run.
+    pub final_eval_episodes: usize,
+    /// Which compiled kernel to train with.
+    pub kernel: KernelChoice,
+}
+
+impl Config {
+    /// The paper's Table 2 and section 3: Double DQN, 4-64-64-2, Adam 5e-4, gamma 0.98,
+    /// replay 2,000, batch 32, hard target copy every 50 episodes, epsilon 0.9 -> 0.01 with
+    /// scale 200 steps, 300 episodes of 200 steps, clip 10, MSE, Xavier-normal.
+    pub fn paper() -> Config {
+        Config {
+            algo: Algo::Ddqn,
+            width: 64,
+            lr: 5e-4,
+            adam_beta1: 0.9,
+            adam_beta2: 0.999,
+            adam_eps: 1e-8,
+            gamma: 0.98,
+            buffer_size: 2000,
+            batch_size: 32,
+            learning_starts: 32,
+            train_every: 1,
+            target_update: TargetUpdate::Hard,
+            target_period: 50,
+            target_period_unit: Unit::Episodes,
+            tau: 0.005,
+            eps_start: 0.9,
+            eps_end: 0.01,
+            eps_decay: 200.0,
+            eps_unit: Unit::Steps,
+            episodes: 300,
+            max_steps: 200,
+            grad_clip: 10.0,
+            loss: Loss::Mse,
+            init: Init::Xavier,
+            eval_every: 0,
+            eval_episodes: 10,
+            eval_max_steps: 500,
+            stop_when_perfect: false,
+            final_eval_episodes: 100,
+            kernel: KernelChoice::Auto,
+        }
+    }
+
+    /// The deployable preset: same network, chosen by experiment (`docs/TRAINING.md`).
+    pub fn robust() -> Config {
+        Config {
+            gamma: 0.99,
+            lr: 1e-3,
+            buffer_size: 50_000,
+            batch_size: 64,
+            learning_starts: 1_000,
+            target_update: TargetUpdate::Soft,
+            tau: 0.005,
+            eps_start: 1.0,
+            eps_end: 0.01,
+            eps_decay: 2_000.0,
+            episodes: 400,
+            max_steps: 500,
+            loss: Loss::Huber,
+            eval_every: 10,
+            eval_episodes: 20,
+            stop_when_perfect: true,
+            ..Config::paper()
+        }
+    }
+
+    /// The preset's configuration.
+    pub fn preset(p: Preset) -> Config {
+        match p {
+            Preset::Paper => Config::paper(),
+            Preset::Robust => Config::robust(),
+        }
+    }
+
+    /// Overlays the keys of a TOML document; an unknown key or a wrongly typed value is an
+    /// error that names it.
+    pub fn overlay_toml(&self, text: &str, origin: &str) -> Result<Config, ConfigError> {
+        let file: toml::Table =
+            toml::from_str(text).map_err(|e| ConfigError(format!("{origin}: {e}")))?;
+        let mut merged = toml::Table::try_from(self)
+            .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))?;
+        for (k, v) in file {
+            if !merged.contains_key(&k) {
+                let known: Vec<&str> = merged.keys().map(String::as_str).collect();
+                return Err(ConfigError(format!(
+                    "{origin}: unknown key `{k}` (known keys: {})",
+                    known.join(", ")
+                )));
+            }
+            merged.insert(k, v);
+        }
+        merged
+            .try_into()
+            .map_err(|e| ConfigError(format!("{origin}: {e}")))
+    }
+
+    /// Checks every value before any work starts.
+    pub fn validate(&self) -> Result<(), ConfigError> {
+        let mut errs = Vec::new();
+        let mut check = |ok: bool, msg: String| {
+            if !ok {
+                errs.push(msg);
+            }
+        };
+        check(
+            SUPPORTED_WIDTHS.contains(&self.width),
+            format!(
+                "width must be one of {SUPPORTED_WIDTHS:?}, got {}",
+                self.width
+            ),
+        );
+        check(
+            self.lr.is_finite() && self.lr > 0.0,
+            format!("lr must be > 0, got {}", self.lr),
+        );
+        for (name, b) in [
+            ("adam_beta1", self.adam_beta1),
+            ("adam_beta2", self.adam_beta2),
+        ] {
+            check(
+                (0.0..1.0).contains(&b),
+                format!("{name} must be in [0, 1), got {b}"),
+            );
+        }
+        check(
+            self.adam_eps > 0.0,
+            format!("adam_eps must be > 0, got {}", self.adam_eps),
+        );
+        check(
+            (0.0..=1.0).contains(&self.gamma),
+            format!("gamma must be in [0, 1], got {}", self.gamma),
+        );
+        check(
+            self.buffer_size >= 1,
+            "buffer_size must be at least 1".into(),
+        );
+        check(self.batch_size >= 1, "batch_size must be at least 1".into());
+        check(
+            self.batch_size <= self.buffer_size,
+            format!(
+                "batch_size ({}) must not exceed buffer_size ({})",
+                self.batch_size, self.buffer_size
+            ),
+        );
+        check(
+            self.learning_starts <= self.buffer_size,
+            format!(
+                "learning_starts ({}) must not exceed buffer_size ({})",
+                self.learning_starts, self.buffer_size
+            ),
+        );
+        check(
+            self.train_every >= 1,
+            "train_every must be at least 1".into(),
+        );
+        check(
+            self.target_period >= 1,
+            "target_period must be at least 1".into(),
+        );
+        check(
+            self.tau > 0.0 && self.tau <= 1.0,
+            format!("tau must be in (0, 1], got {}", self.tau),
+        );
+        for (name, e) in [("eps_start", self.eps_start), ("eps_end", self.eps_end)] {
+            check(
+                (0.0..=1.0).contains(&e),
+                format!("{name} must be in [0, 1], got {e}"),
+            );
+        }
+        check(
+            self.eps_decay > 0.0,
+            format!("eps_decay must be > 0, got {}", self.eps_decay),
+        );
+        check(self.episodes >= 1, "episodes must be at least 1".into());
+        check(self.max_steps >= 1, "max_steps must be at least 1".into());
+        check(
+            self.eval_max_steps >= 1,
+            "eval_max_steps must be at least 1".into(),
+        );
+        check(
+            self.grad_clip >= 0.0 && self.grad_clip.is_finite(),
+            format!(
+                "grad_clip must be >= 0 (0 disables it), got {}",
+                self.grad_clip
+            ),
+        );
+        check(
+            self.eval_every == 0 || self.eval_episodes >= 1,
+            "eval_episodes must be at least 1 when eval_every is set".into(),
+        );
+        if errs.is_empty() {
+            self.kernel.resolve().map(|_| ())
+        } else {
+            Err(ConfigError(errs.join("; ")))
+        }
+    }
+}
+
+/// Hidden widths the trainer is compiled for (the network's width is a const generic).
+pub const SUPPORTED_WIDTHS: [usize; 5] = [16, 32, 64, 128, 256];
+
+/// A configuration that cannot be run; the command line exits with status 2 on it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConfigError(pub String);
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "invalid configuration: {}", self.0)
+    }
+}
+
+impl std::error::Error for ConfigError {}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_are_valid_and_the_paper_preset_is_table_2() {
+        Config::robust().validate().unwrap();
+        let p = Config::paper();
+        p.validate().unwrap();
+        assert_eq!(
+            (p.lr, p.gamma, p.buffer_size, p.batch_size),
+            (5e-4, 0.98, 2000, 32)
+        );
+        assert_eq!(
+            (p.target_period, p.target_period_unit),
+            (50, Unit::Episodes)
+        );
+        assert_eq!((p.eps_start, p.eps_end, p.eps_decay), (0.9, 0.01, 200.0));
+        assert_eq!((p.episodes, p.max_steps, p.grad_clip), (300, 200, 10.0));
+        assert_eq!(
+            (p.algo, p.init, p.loss, p.width),
+            (Algo::Ddqn, Init::Xavier, Loss::Mse, 64)
+        );
+    }
+
+    #[test]
+    fn bad_values_are_named() {
+        let bad = |f: fn(&mut Config), want: &str| {
+            let mut c = Config::paper();
+            f(&mut c);
+            let e = c.validate().unwrap_err().to_string();
+            assert!(e.contains(want), "{e:?} lacks {want:?}");
+        };
+        bad(|c| c.lr = 0.0, "lr must be > 0");
+        bad(|c| c.lr = -1e-3, "lr must be > 0");
+        bad(
+            |c| c.batch_size = 4000,
+            "batch_size (4000) must not exceed buffer_size (2000)",
+        );
+        bad(|c| c.width = 0, "width must be one of");
+        bad(|c| c.gamma = 1.5, "gamma must be in [0, 1]");
+        bad(|c| c.gamma = -0.1, "gamma must be in [0, 1]");
+        bad(|c| c.episodes = 0, "episodes must be at least 1");
+        bad(|c| c.tau = 0.0, "tau must be in (0, 1]");
+    }
+
+    #[test]
+    fn toml_overlays_known_keys_and_rejects_unknown_ones() {
+        let c = Config::paper()
+            .overlay_toml(
+                "gamma = 0.99\nalgo = \"dqn\"\ninit = \"normal0.1\"\n",
+                "t.toml",
+            )
+            .unwrap();
+        assert_eq!((c.gamma, c.algo, c.init), (0.99, Algo::Dqn, Init::Normal01));
+        assert_eq!(c.lr, 5e-4);
+        let e = Config::paper()
+            .overlay_toml("gama = 0.99\n", "t.toml")
+            .unwrap_err();
+        assert!(e.0.contains("unknown key `gama`"), "{e}");
+        let e = Config::paper()
+            .overlay_toml("gamma = \"high\"\n", "t.toml")
+            .unwrap_err();
+        assert!(e.0.contains("t.toml"), "{e}");
+    }
+}

@@ -1,0 +1,356 @@
+//! `policy-export`: trains the cart-pole controller and exports it for firmware.
+
+use std::io::IsTerminal;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::sync::Mutex;
+
+use anyhow::{Context, Result};
+use clap::{Args, Parser, Subcommand};
+use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
+use policy_export::config::{
+    Algo, Config, ConfigError, Init, KernelChoice, Preset, TargetUpdate, Unit,
+};
+use policy_export::export::{self, Format};
+use policy_export::nn::Loss;
+use policy_export::run::{self, Summary};
+use policy_export::train::{self, EpisodeRecord};
+use policy_export::weights::{Weights, write_atomic};
+use rayon::prelude::*;
+
+#[derive(Parser)]
+#[command(version, about)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Train a Double DQN (or DQN) controller and write a run directory.
+    Train(Box<TrainArgs>),
+    /// Write a policy (run directory or .safetensors) as Rust const arrays or a C header.
+    Export {
+        /// A run directory (its policy.safetensors) or a .safetensors file.
+        src: PathBuf,
+        /// Output file.
+        #[arg(long)]
+        out: PathBuf,
+        /// Rust module (what `firmware` compiles) or C header.
+        #[arg(long, value_enum, default_value = "rust")]
+        format: Format,
+    },
+}
+
+#[derive(Args)]
+struct TrainArgs {
+    /// Starting point: the paper's Table 2, or the deployable preset.
+    #[arg(long, value_enum, default_value = "paper")]
+    preset: Preset,
+    /// TOML file of config keys overriding the preset (flags override it in turn).
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// One seed.
+    #[arg(long, default_value_t = 0, conflicts_with = "seeds")]
+    seed: u64,
+    /// A range of seeds run in parallel, e.g. 0..10; each gets DIR/seed-N.
+    #[arg(long, value_parser = parse_range)]
+    seeds: Option<Range<u64>>,
+    /// Run directory (omit to train without writing anything).
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print the final configuration as TOML and exit.
+    #[arg(long)]
+    print_config: bool,
+    #[command(flatten)]
+    set: Overrides,
+}
+
+/// One flag per configuration key; see `Config` for their meaning.
+#[derive(Args)]
+struct Overrides {
+    #[arg(long, value_enum)]
+    algo: Option<Algo>,
+    #[arg(long)]
+    width: Option<usize>,
+    #[arg(long)]
+    lr: Option<f64>,
+    #[arg(long)]
+    adam_beta1: Option<f64>,
+    #[arg(long)]
+    adam_beta2: Option<f64>,
+    #[arg(long)]
+    adam_eps: Option<f64>,
+    #[arg(long)]
+    gamma: Option<f64>,
+    #[arg(long)]
+    buffer_size: Option<usize>,
+    #[arg(long)]
+    batch_size: Option<usize>,
+    #[arg(long)]
+    learning_starts: Option<usize>,
+    #[arg(long)]
+    train_every: Option<usize>,
+    #[arg(long, value_enum)]
+    target_update: Option<TargetUpdate>,
+    #[arg(long)]
+    target_period: Option<usize>,
+    #[arg(long, value_enum)]
+    target_period_unit: Option<Unit>,
+    #[arg(long)]
+    tau: Option<f64>,
+    #[arg(long)]
+    eps_start: Option<f64>,
+    #[arg(long)]
+    eps_end: Option<f64>,
+    #[arg(long)]
+    eps_decay: Option<f64>,
+    #[arg(long, value_enum)]
+    eps_unit: Option<Unit>,
+    #[arg(long)]
+    episodes: Option<usize>,
+    #[arg(long)]
+    max_steps: Option<u32>,
+    #[arg(long)]
+    grad_clip: Option<f64>,
+    #[arg(long, value_enum)]
+    loss: Option<Loss>,
+    #[arg(long, value_enum)]
+    init: Option<Init>,
+    #[arg(long)]
+    eval_every: Option<usize>,
+    #[arg(long)]
+    eval_episodes: Option<usize>,
+    #[arg(long)]
+    eval_max_steps: Option<u32>,
+    #[arg(long)]
+    stop_when_perfect: Option<bool>,
+    #[arg(long)]
+    final_eval_episodes: Option<usize>,
+    #[arg(long, value_enum)]
+    kernel: Option<KernelChoice>,
+}
+
+impl Overrides {
+    fn apply(&self, c: &mut Config) {
+        macro_rules! set {
+            ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
+        }
+        set!(
+            algo,
+            width,
+            lr,
+            adam_beta1,
+            adam_beta2,
+            adam_eps,
+            gamma,
+            buffer_size,
+            batch_size,
+            learning_starts,
+            train_every,
+            target_update,
+            target_period,
+            target_period_unit,
+            tau,
+            eps_start,
+            eps_end,
+            eps_decay,
+            eps_unit,
+            episodes,
+            max_steps,
+            grad_clip,
+            loss,
+            init,
+            eval_every,
+            eval_episodes,
+            eval_max_steps,
+            stop_when_perfect,
+            final_eval_episodes,
+            kernel
+        );
+    }
+}
+
+fn parse_range(s: &str) -> Result<Range<u64>, String> {
+    let (a, b) = s
+        .split_once("..")
+        .ok_or("expected START..END, e.g. 0..10")?;
+    let (a, b): (u64, u64) = (
+        a.parse().map_err(|e| format!("{a:?}: {e}"))?,
+        b.parse().map_err(|e| format!("{b:?}: {e}"))?,
+    );
+    if a >= b {
+        return Err(format!("empty range {a}..{b}"));
+    }
+    Ok(a..b)
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Train(args) => cmd_train(*args),
+        Command::Export { src, out, format } => cmd_export(&src, &out, format),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            if e.downcast_ref::<ConfigError>().is_some() {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn build_config(args: &TrainArgs) -> Result<Config> {
+    let mut cfg = Config::preset(args.preset);
+    if let Some(path) = &args.config {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| ConfigError(format!("{}: {e}", path.display())))?;
+        cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
+    }
+    args.set.apply(&mut cfg);
+    cfg.validate()?;
+    Ok(cfg)
+}
+
+fn cmd_train(args: TrainArgs) -> Result<()> {
+    let cfg = build_config(&args)?;
+    if args.print_config {
+        print!("{}", toml::to_string(&cfg)?);
+        return Ok(());
+    }
+    let seeds: Vec<u64> = args
+        .seeds
+        .clone()
+        .map_or(vec![args.seed], Iterator::collect);
+    let multi = args.seeds.is_some();
+    let tty = std::io::stderr().is_terminal();
+    let bars = MultiProgress::new();
+    let log = Mutex::new(());
+
+    let one = |seed: u64| -> Result<Summary> {
+        let bar = tty.then(|| {
+            let b = bars.add(ProgressBar::new(cfg.episodes as u64));
+            b.set_style(
+                ProgressStyle::with_template(
+                    "{prefix:>8} {bar:30} {pos:>4}/{len} ep {elapsed:>4} {msg}",
+                )
+                .expect("static template"),
+            );
+            b.set_prefix(format!("seed {seed}"));
+            b
+        });
+        let every = (cfg.episodes / 10).max(1);
+        let mut window = Vec::with_capacity(100);
+        let mut on_episode = |e: &EpisodeRecord| {
+            if window.len() == 100 {
+                window.remove(0);
+            }
+            window.push(e.ret);
+            let mean = window.iter().sum::<f64>() / window.len() as f64;
+            let msg = format!(
+                "return {:>3} mean100 {mean:>6.1} eps {:.3}",
+                e.ret, e.epsilon
+            );
+            match &bar {
+                Some(b) => {
+                    b.set_position(e.episode as u64);
+                    b.set_message(msg);
+                }
+                None if e.episode.is_multiple_of(every) => {
+                    let _g = log.lock();
+                    eprintln!("seed {seed} episode {}/{}: {msg}", e.episode, cfg.episodes);
+                }
+                None => {}
+            }
+        };
+        let result =
+            train::train(&cfg, seed, &mut on_episode).with_context(|| format!("seed {seed}"))?;
+        if let Some(b) = &bar {
+            b.finish();
+        }
+        let summary = match &args.out {
+            Some(dir) => {
+                let dir = if multi {
+                    dir.join(format!("seed-{seed}"))
+                } else {
+                    dir.clone()
+                };
+                run::write_run(&dir, &cfg, seed, &result)?
+            }
+            None => run::summarize(&cfg, seed, &result),
+        };
+        Ok(summary)
+    };
+
+    let summaries: Vec<Summary> = if multi {
+        seeds.par_iter().map(|&s| one(s)).collect::<Result<_>>()?
+    } else {
+        vec![one(seeds[0])?]
+    };
+    for s in &summaries {
+        println!(
+            "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, greedy eval {:>6.1} \
+             (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
+            s.seed,
+            s.episodes_run,
+            s.final_mean100,
+            s.solved_episode_195.map_or("-".into(), |e| e.to_string()),
+            s.final_eval.mean,
+            s.final_eval.min,
+            s.final_eval.episodes,
+            s.final_eval.max_steps,
+            s.wall_s,
+            s.us_per_env_step
+        );
+    }
+    if multi {
+        let agg = run::aggregate(&summaries);
+        println!(
+            "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475, median {:.1} s",
+            summaries.len(),
+            agg.median_final_mean100,
+            agg.seeds_greedy_at_least_475,
+            summaries.len(),
+            agg.median_wall_s
+        );
+        if let Some(dir) = &args.out {
+            write_atomic(
+                &dir.join("aggregate.json"),
+                &serde_json::to_vec_pretty(&agg)?,
+            )?;
+        }
+    }
+    Ok(())
+}
+
+fn cmd_export(src: &Path, out: &Path, format: Format) -> Result<()> {
+    let weights = Weights::load(src)?;
+    let summary_path = src.join("summary.json");
+    let prov = if src.is_dir() && summary_path.exists() {
+        let s: Summary = serde_json::from_slice(&std::fs::read(&summary_path)?)
+            .with_context(|| format!("{}", summary_path.display()))?;
+        run::provenance(&s)
+    } else {
+        vec![format!(
+            "source: {}",
+            src.file_name().unwrap_or_default().to_string_lossy()
+        )]
+    };
+    let text = match format {
+        Format::Rust => export::rust_module(&weights, &prov),
+        Format::C => export::c_header(&weights, &prov),
+    };
+    write_atomic(out, text.as_bytes())?;
+    eprintln!(
+        "wrote {} ({} parameters, hidden width {})",
+        out.display(),
+        weights.tensors.iter().map(Vec::len).sum::<usize>(),
+        weights.width
+    );
+    Ok(())
+}

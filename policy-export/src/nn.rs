@@ -1,0 +1,675 @@
+//! Batched training math for the 4-H-H-2 network: forward with activations kept, backward,
+//! global-norm clipping and Adam, written by hand for this one network shape.
+//!
+//! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
+//! with is the policy that ships. Inference during training goes through
+//! `firmware::network`; this module is only the learning side. Its forward pass is laid out
+//! for batches (`y += x_i * W^T[i]`, vectorised across outputs) instead of the firmware's
+//! per-output dot products, so its outputs agree with `Mlp::forward` to rounding (tested to
+//! 1e-6 relative), not bit for bit.
+//!
+//! Speed comes from the layout and from compiling the same generic kernels three times:
+//! with AVX-512F + FMA, with AVX2 + FMA, and for the baseline target, picked at run time
+//! ([`Kernel::detect`]). Results are bit-identical for a given kernel; different kernels
+//! round differently (FMA fuses), so a run records which one it used.
+
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, dot};
+
+/// Which compilation of the kernels to run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Kernel {
+    /// Baseline x86-64 (SSE2) or any other architecture; separate multiply and add.
+    Portable,
+    /// AVX2 with fused multiply-add.
+    Avx2,
+    /// AVX-512F with fused multiply-add.
+    Avx512,
+}
+
+impl Kernel {
+    /// The fastest kernel this CPU supports.
+    pub fn detect() -> Kernel {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("fma") {
+                return Kernel::Avx512;
+            }
+            if is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma") {
+                return Kernel::Avx2;
+            }
+        }
+        Kernel::Portable
+    }
+
+    /// Whether this CPU can run `self`.
+    pub fn supported(self) -> bool {
+        match self {
+            Kernel::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx2 => is_x86_feature_detected!("avx2") && is_x86_feature_detected!("fma"),
+            #[cfg(target_arch = "x86_64")]
+            Kernel::Avx512 => {
+                is_x86_feature_detected!("avx512f") && is_x86_feature_detected!("fma")
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            _ => false,
+        }
+    }
+}
+
+/// The regression loss on the TD error `d = Q(s, a) - y`, averaged over the batch.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Loss {
+    /// `d^2` (PyTorch `MSELoss`).
+    Mse,
+    /// `d^2 / 2` for `|d| < 1`, else `|d| - 1/2` (PyTorch `SmoothL1Loss`, beta 1).
+    Huber,
+}
+
+/// Adam's constants (PyTorch's form: `eps` added to `sqrt(v_hat)`). Kept in f64 because
+/// PyTorch derives `1 - beta` and the bias corrections in double precision and rounds each
+/// to f32 once; `1.0f32 - 0.999f32` would be 5e-5 off.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AdamParams {
+    /// Learning rate.
+    pub lr: f64,
+    /// First-moment decay.
+    pub beta1: f64,
+    /// Second-moment decay.
+    pub beta2: f64,
+    /// Added to the denominator.
+    pub eps: f64,
+}
+
+/// Moments below this are flushed to zero. Dead-ReLU parameters get zero gradients and their
+/// first moments decay geometrically into subnormal floats, which x86 processes about 100x
+/// slower; at 1e-30 a moment is irrelevant to any update (lr * 1e-30 / sqrt(v)).
+const FLUSH: f32 = 1e-30;
+
+/// Per-batch activations and gradients, allocated once.
+pub struct Scratch<const H: usize> {
+    a1: Vec<[f32; H]>,
+    a2: Vec<[f32; H]>,
+    d1: Vec<[f32; H]>,
+    d2: Vec<[f32; H]>,
+    dq: Vec<[f32; N_ACTIONS]>,
+    /// Q-values of the last [`forward_batch`].
+    pub q: Vec<[f32; N_ACTIONS]>,
+    w1t: Box<[[f32; H]; OBS_DIM]>,
+    w2t: Box<[[f32; H]; H]>,
+}
+
+impl<const H: usize> Scratch<H> {
+    /// Room for batches of up to `batch` samples.
+    pub fn new(batch: usize) -> Self {
+        Scratch {
+            a1: vec![[0.0; H]; batch],
+            a2: vec![[0.0; H]; batch],
+            d1: vec![[0.0; H]; batch],
+            d2: vec![[0.0; H]; batch],
+            dq: vec![[0.0; N_ACTIONS]; batch],
+            q: vec![[0.0; N_ACTIONS]; batch],
+            w1t: Box::new([[0.0; H]; OBS_DIM]),
+            w2t: Box::new([[0.0; H]; H]),
+        }
+    }
+}
+
+/// A zeroed network on the heap (`Mlp<128>` is 70 KB: too big to move around on stacks).
+pub fn boxed_zero<const H: usize>() -> Box<Mlp<H>> {
+    Box::new(Mlp::zeroed())
+}
+
+/// Generates a public entry point per kernel implementation: it runs `$imp` compiled for the
+/// chosen kernel, with fused multiply-add where that kernel has it. A kernel this CPU lacks
+/// falls back to the portable build (the command line refuses such a choice up front).
+macro_rules! kernel_entry {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty => $imp:ident) => {
+        $(#[$doc])*
+        #[allow(clippy::too_many_arguments)]
+        pub fn $name<const H: usize>(kernel: Kernel, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
+                    $imp::<H, Fused>($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
+                    $imp::<H, Fused>($($arg),*)
+                }
+                match kernel {
+                    // SAFETY: the CPU was just checked for every feature the function enables.
+                    Kernel::Avx512 if Kernel::Avx512.supported() => {
+                        return unsafe { avx512::<H>($($arg),*) };
+                    }
+                    // SAFETY: as above.
+                    Kernel::Avx2 if Kernel::Avx2.supported() => {
+                        return unsafe { avx2::<H>($($arg),*) };
+                    }
+                    _ => {}
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = kernel;
+            $imp::<H, Unfused>($($arg),*)
+        }
+    };
+}
+
+kernel_entry! {
+    /// Forward pass of `x` (one row per sample) through `net`, keeping the activations for
+    /// [`backward`]; Q-values land in `s.q[..x.len()]`.
+    fn forward_batch(net: &Mlp<H>, x: &[[f32; OBS_DIM]], s: &mut Scratch<H>) -> ()
+        => forward_impl
+}
+
+kernel_entry! {
+    /// Gradients of the mean loss over the batch of the last [`forward_batch`] of `net` on
+    /// `x`, where sample `b` regresses `Q(x_b, actions[b])` towards `targets[b]`. Overwrites
+    /// `grad`; returns the loss.
+    fn backward(
+        net: &Mlp<H>,
+        x: &[[f32; OBS_DIM]],
+        actions: &[u8],
+        targets: &[f32],
+        loss: Loss,
+        s: &mut Scratch<H>,
+        grad: &mut Mlp<H>
+    ) -> f32 => backward_impl
+}
+
+kernel_entry! {
+    /// One Adam step (`t` counts from 1) of `params` along `grad`, updating the moments.
+    fn adam_step(
+        hp: &AdamParams,
+        t: u64,
+        params: &mut Mlp<H>,
+        grad: &Mlp<H>,
+        m: &mut Mlp<H>,
+        v: &mut Mlp<H>
+    ) -> () => adam_impl
+}
+
+/// Scales `grad` so that its global L2 norm is at most `max_norm` (PyTorch's
+/// `clip_grad_norm_`, which scales by `max_norm / (norm + 1e-6)`); returns the norm before.
+pub fn clip_grad_norm<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) -> f32 {
+    let norm = grad
+        .tensors()
+        .iter()
+        .flat_map(|t| t.iter())
+        .map(|&g| f64::from(g) * f64::from(g))
+        .sum::<f64>()
+        .sqrt() as f32;
+    if norm > max_norm {
+        let scale = max_norm / (norm + 1e-6);
+        for t in grad.tensors_mut() {
+            t.iter_mut().for_each(|g| *g *= scale);
+        }
+    }
+    norm
+}
+
+/// `target <- tau * online + (1 - tau) * target`, elementwise.
+pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f32) {
+    for (t, o) in target.tensors_mut().into_iter().zip(online.tensors()) {
+        for (t, o) in t.iter_mut().zip(o) {
+            *t = tau * o + (1.0 - tau) * *t;
+        }
+    }
+}
+
+/// Multiply-add as a type, so one generic kernel compiles with and without fusion.
+trait MulAdd {
+    fn mul_add(a: f32, b: f32, c: f32) -> f32;
+}
+struct Fused;
+struct Unfused;
+impl MulAdd for Fused {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a.mul_add(b, c)
+    }
+}
+impl MulAdd for Unfused {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a * b + c
+    }
+}
+
+/// `y += a * x`, the kernels' one inner loop.
+#[inline(always)]
+fn axpy<const H: usize, F: MulAdd>(y: &mut [f32; H], a: f32, x: &[f32; H]) {
+    for (y, x) in y.iter_mut().zip(x) {
+        *y = F::mul_add(a, *x, *y);
+    }
+}
+
+#[inline(always)]
+fn relu_in_place<const H: usize>(y: &mut [f32; H]) {
+    for v in y.iter_mut() {
+        *v = if *v > 0.0 { *v } else { 0.0 };
+    }
+}
+
+#[inline(always)]
+fn forward_impl<const H: usize, F: MulAdd>(net: &Mlp<H>, x: &[[f32; OBS_DIM]], s: &mut Scratch<H>) {
+    for (o, (w1, w2)) in net.fc1_weight.iter().zip(&net.fc2_weight).enumerate() {
+        for (i, w) in w1.iter().enumerate() {
+            s.w1t[i][o] = *w;
+        }
+        for (i, w) in w2.iter().enumerate() {
+            s.w2t[i][o] = *w;
+        }
+    }
+    let n = x.len();
+    for (b, xb) in x.iter().enumerate() {
+        let mut y = net.fc1_bias;
+        for (xi, wt) in xb.iter().zip(s.w1t.iter()) {
+            axpy::<H, F>(&mut y, *xi, wt);
+        }
+        relu_in_place(&mut y);
+        s.a1[b] = y;
+    }
+    for (a1, a2) in s.a1[..n].iter().zip(s.a2[..n].iter_mut()) {
+        let mut y = net.fc2_bias;
+        for (ai, wt) in a1.iter().zip(s.w2t.iter()) {
+            // Inactive units contribute nothing; after ReLU about half are inactive.
+            if *ai != 0.0 {
+                axpy::<H, F>(&mut y, *ai, wt);
+            }
+        }
+        relu_in_place(&mut y);
+        *a2 = y;
+    }
+    for (a2, q) in s.a2[..n].iter().zip(s.q[..n].iter_mut()) {
+        for ((q, w), bias) in q.iter_mut().zip(&net.fc3_weight).zip(&net.fc3_bias) {
+            *q = dot(w, a2) + bias;
+        }
+    }
+}
+
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn backward_impl<const H: usize, F: MulAdd>(
+    net: &Mlp<H>,
+    x: &[[f32; OBS_DIM]],
+    actions: &[u8],
+    targets: &[f32],
+    loss: Loss,
+    s: &mut Scratch<H>,
+    grad: &mut Mlp<H>,
+) -> f32 {
+    let n = x.len();
+    let inv_n = 1.0 / n as f32;
+    let mut total = 0.0f64;
+    // dL/dQ is non-zero only at the taken action.
+    let dq = &mut s.dq[..n];
+    for b in 0..n {
+        let a = usize::from(actions[b].min(1));
+        let d = s.q[b][a] - targets[b];
+        let (l, g) = match loss {
+            Loss::Mse => (d * d, 2.0 * d),
+            Loss::Huber if d.abs() < 1.0 => (0.5 * d * d, d),
+            Loss::Huber => (d.abs() - 0.5, d.signum()),
+        };
+        total += f64::from(l);
+        dq[b] = [0.0; N_ACTIONS];
+        dq[b][a] = g * inv_n;
+    }
+
+    // Output layer, and the gradient flowing into the second hidden layer.
+    *grad = Mlp::zeroed();
+    for b in 0..n {
+        let mut d2 = [0.0f32; H];
+        for o in 0..N_ACTIONS {
+            let g = s.dq[b][o];
+            if g != 0.0 {
+                axpy::<H, F>(&mut grad.fc3_weight[o], g, &s.a2[b]);
+                grad.fc3_bias[o] += g;
+                axpy::<H, F>(&mut d2, g, &net.fc3_weight[o]);
+            }
+        }
+        for (d, a) in d2.iter_mut().zip(&s.a2[b]) {
+            if *a <= 0.0 {
+                *d = 0.0;
+            }
+        }
+        s.d2[b] = d2;
+    }
+    // Second hidden layer: weights, biases, and the gradient into the first.
+    for o in 0..H {
+        let mut gw = [0.0f32; H];
+        let mut gb = 0.0f32;
+        for b in 0..n {
+            let g = s.d2[b][o];
+            if g != 0.0 {
+                axpy::<H, F>(&mut gw, g, &s.a1[b]);
+                gb += g;
+            }
+        }
+        grad.fc2_weight[o] = gw;
+        grad.fc2_bias[o] = gb;
+    }
+    for b in 0..n {
+        let mut d1 = [0.0f32; H];
+        for (g, w) in s.d2[b].iter().zip(&net.fc2_weight) {
+            if *g != 0.0 {
+                axpy::<H, F>(&mut d1, *g, w);
+            }
+        }
+        for (d, a) in d1.iter_mut().zip(&s.a1[b]) {
+            if *a <= 0.0 {
+                *d = 0.0;
+            }
+        }
+        s.d1[b] = d1;
+    }
+    // First layer, accumulated transposed (contiguous over outputs), then stored [out][in].
+    let mut gw1t = [[0.0f32; H]; OBS_DIM];
+    let mut gb1 = [0.0f32; H];
+    for (xb, d1) in x.iter().zip(&s.d1[..n]) {
+        for (g, xi) in gw1t.iter_mut().zip(xb) {
+            axpy::<H, F>(g, *xi, d1);
+        }
+        for (g, d) in gb1.iter_mut().zip(d1) {
+            *g += d;
+        }
+    }
+    for (o, row) in grad.fc1_weight.iter_mut().enumerate() {
+        for (i, w) in row.iter_mut().enumerate() {
+            *w = gw1t[i][o];
+        }
+    }
+    grad.fc1_bias = gb1;
+    (total / n as f64) as f32
+}
+
+#[inline(always)]
+fn adam_impl<const H: usize, F: MulAdd>(
+    hp: &AdamParams,
+    t: u64,
+    params: &mut Mlp<H>,
+    grad: &Mlp<H>,
+    m: &mut Mlp<H>,
+    v: &mut Mlp<H>,
+) {
+    let t = t.min(i32::MAX as u64) as i32;
+    let bc1 = 1.0 - hp.beta1.powi(t);
+    let bc2 = 1.0 - hp.beta2.powi(t);
+    let step = (hp.lr / bc1) as f32;
+    let sqrt_bc2 = bc2.sqrt() as f32;
+    let (b1, b2, eps) = (hp.beta1 as f32, hp.beta2 as f32, hp.eps as f32);
+    let (c1, c2) = ((1.0 - hp.beta1) as f32, (1.0 - hp.beta2) as f32);
+    let moments = m.tensors_mut().into_iter().zip(v.tensors_mut());
+    for ((p, g), (m, v)) in params
+        .tensors_mut()
+        .into_iter()
+        .zip(grad.tensors())
+        .zip(moments)
+    {
+        for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+            let m1 = F::mul_add(b1, *m, c1 * g);
+            let v1 = F::mul_add(b2, *v, c2 * g * g);
+            *m = if m1.abs() < FLUSH { 0.0 } else { m1 };
+            *v = if v1 < FLUSH { 0.0 } else { v1 };
+            *p -= step * *m / (v.sqrt() / sqrt_bc2 + eps);
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::config::Init;
+    use crate::train::{Stream, init_weights, rng};
+    use rand_core::Rng;
+
+    fn kernels() -> Vec<Kernel> {
+        [Kernel::Portable, Kernel::Avx2, Kernel::Avx512]
+            .into_iter()
+            .filter(|k| k.supported())
+            .collect()
+    }
+
+    fn uniform(r: &mut impl Rng, lo: f32, hi: f32) -> f32 {
+        lo + (hi - lo) * ((r.next_u32() >> 8) as f32 / (1u32 << 24) as f32)
+    }
+
+    fn random_net<const H: usize>(seed: u64) -> Box<Mlp<H>> {
+        let mut net = boxed_zero::<H>();
+        init_weights(&mut net, Init::Xavier, &mut rng(seed, Stream::Init));
+        // Non-trivial biases so that ReLU boundaries are exercised from both sides.
+        let mut r = rng(seed, Stream::Sample);
+        for b in [
+            &mut net.fc1_bias[..],
+            &mut net.fc2_bias[..],
+            &mut net.fc3_bias[..],
+        ] {
+            b.iter_mut().for_each(|v| *v = uniform(&mut r, -0.3, 0.3));
+        }
+        net
+    }
+
+    fn random_obs(r: &mut impl Rng, n: usize) -> Vec<[f32; 4]> {
+        (0..n)
+            .map(|_| [2.4, 2.0, 0.21, 2.0].map(|s| uniform(r, -s, s)))
+            .collect()
+    }
+
+    /// The loss written out in f64 from the equations, sharing no code with the kernels.
+    fn reference_loss(
+        p: &[Vec<f64>; 6],
+        h: usize,
+        x: &[[f32; 4]],
+        a: &[u8],
+        y: &[f32],
+        loss: Loss,
+    ) -> f64 {
+        let mut total = 0.0;
+        for b in 0..x.len() {
+            let l1: Vec<f64> = (0..h)
+                .map(|o| {
+                    (p[1][o]
+                        + (0..4)
+                            .map(|i| p[0][o * 4 + i] * f64::from(x[b][i]))
+                            .sum::<f64>())
+                    .max(0.0)
+                })
+                .collect();
+            let l2: Vec<f64> = (0..h)
+                .map(|o| (p[3][o] + (0..h).map(|i| p[2][o * h + i] * l1[i]).sum::<f64>()).max(0.0))
+                .collect();
+            let act = usize::from(a[b]);
+            let q = p[5][act] + (0..h).map(|i| p[4][act * h + i] * l2[i]).sum::<f64>();
+            let d = q - f64::from(y[b]);
+            total += match loss {
+                Loss::Mse => d * d,
+                Loss::Huber if d.abs() < 1.0 => 0.5 * d * d,
+                Loss::Huber => d.abs() - 0.5,
+            };
+        }
+        total / x.len() as f64
+    }
+
+    fn check_gradients<const H: usize>(loss: Loss) {
+        let net = random_net::<H>(11);
+        let mut r = rng(12, Stream::Sample);
+        let x = random_obs(&mut r, 6);
+        let actions: Vec<u8> = (0..6).map(|i| (i % 2) as u8).collect();
+        // Targets far and near, so Huber's both branches are taken.
+        let targets: Vec<f32> = (0..6).map(|i| if i < 3 { 3.0 } else { 0.1 }).collect();
+        let p64: [Vec<f64>; 6] = net
+            .tensors()
+            .map(|t| t.iter().map(|&v| f64::from(v)).collect());
+        for kernel in kernels() {
+            let mut s = Scratch::<H>::new(6);
+            let mut grad = boxed_zero::<H>();
+            forward_batch(kernel, &net, &x, &mut s);
+            let l = backward(
+                kernel, &net, &x, &actions, &targets, loss, &mut s, &mut grad,
+            );
+            let want = reference_loss(&p64, H, &x, &actions, &targets, loss);
+            assert!(
+                (f64::from(l) - want).abs() <= 1e-5 * want.max(1.0),
+                "{kernel:?}: {l} vs {want}"
+            );
+            for (ti, g) in grad.tensors().iter().enumerate() {
+                for (j, &g) in g.iter().enumerate() {
+                    let eps = 1e-6;
+                    let mut plus = p64.clone();
+                    plus[ti][j] += eps;
+                    let mut minus = p64.clone();
+                    minus[ti][j] -= eps;
+                    let fd = (reference_loss(&plus, H, &x, &actions, &targets, loss)
+                        - reference_loss(&minus, H, &x, &actions, &targets, loss))
+                        / (2.0 * eps);
+                    let err = (f64::from(g) - fd).abs();
+                    assert!(
+                        err <= 1e-4 * fd.abs().max(1.0),
+                        "{kernel:?} {loss:?} tensor {ti} element {j}: analytic {g} vs finite difference {fd}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn gradients_match_central_finite_differences() {
+        check_gradients::<8>(Loss::Mse);
+        check_gradients::<8>(Loss::Huber);
+        check_gradients::<16>(Loss::Mse);
+    }
+
+    #[test]
+    fn batched_forward_matches_the_firmware_forward() {
+        let mut r = rng(5, Stream::Env);
+        for seed in 0..5 {
+            let net = random_net::<64>(seed);
+            let x = random_obs(&mut r, 32);
+            for kernel in kernels() {
+                let mut s = Scratch::<64>::new(32);
+                forward_batch(kernel, &net, &x, &mut s);
+                for (xb, q) in x.iter().zip(&s.q) {
+                    let want = net.forward(xb);
+                    assert_eq!(
+                        firmware::network::argmax(q),
+                        firmware::network::argmax(&want)
+                    );
+                    for (g, w) in q.iter().zip(&want) {
+                        assert!(
+                            (g - w).abs() <= 1e-6 * w.abs().max(1.0),
+                            "{kernel:?}: {q:?} vs {want:?}"
+                        );
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn adam_steps_match_hand_computed_values() {
+        let hp = AdamParams {
+            lr: 0.1,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        };
+        for kernel in kernels() {
+            let mut p = boxed_zero::<8>();
+            let (mut m, mut v, mut g) = (boxed_zero::<8>(), boxed_zero::<8>(), boxed_zero::<8>());
+            p.fc2_weight[3][4] = 1.0;
+            g.fc2_weight[3][4] = 0.5;
+            adam_step(kernel, &hp, 1, &mut p, &g, &mut m, &mut v);
+            // m = 0.05, v = 0.00025; m_hat = 0.5, v_hat = 0.25: p = 1 - 0.1 * 0.5 / (0.5 + 1e-8).
+            let p1 = 1.0 - 0.1 * 0.5 / (0.5 + 1e-8);
+            assert!(
+                (f64::from(p.fc2_weight[3][4]) - p1).abs() < 1e-7,
+                "{kernel:?}"
+            );
+            assert!(
+                (m.fc2_weight[3][4] - 0.05).abs() < 1e-9
+                    && (v.fc2_weight[3][4] - 0.00025).abs() < 1e-11
+            );
+            g.fc2_weight[3][4] = -0.25;
+            adam_step(kernel, &hp, 2, &mut p, &g, &mut m, &mut v);
+            // m = 0.9 * 0.05 - 0.1 * 0.25 = 0.02; v = 0.999 * 0.00025 + 0.001 * 0.0625 = 0.00031225.
+            let (m2, v2) = (0.02f64, 0.00031225f64);
+            let p2 =
+                p1 - (0.1 / (1.0 - 0.81)) * m2 / (v2.sqrt() / (1.0 - 0.998001f64).sqrt() + 1e-8);
+            assert!(
+                (f64::from(p.fc2_weight[3][4]) - p2).abs() < 1e-6,
+                "{kernel:?}: {} vs {p2}",
+                p.fc2_weight[3][4]
+            );
+            // Untouched parameters (zero gradient) stay exactly where they were.
+            assert_eq!(p.fc2_weight[0][0], 0.0);
+        }
+    }
+
+    #[test]
+    fn dead_units_moments_are_flushed_not_subnormal() {
+        let hp = AdamParams {
+            lr: 1e-3,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        };
+        let (mut p, mut m, mut v, mut g) = (
+            boxed_zero::<8>(),
+            boxed_zero::<8>(),
+            boxed_zero::<8>(),
+            boxed_zero::<8>(),
+        );
+        g.fc1_bias[0] = 1e-3;
+        adam_step(Kernel::Portable, &hp, 1, &mut p, &g, &mut m, &mut v);
+        g.fc1_bias[0] = 0.0;
+        for t in 2..2000 {
+            adam_step(Kernel::Portable, &hp, t, &mut p, &g, &mut m, &mut v);
+            assert!(m.fc1_bias[0] == 0.0 || m.fc1_bias[0].is_normal());
+            assert!(v.fc1_bias[0] == 0.0 || v.fc1_bias[0].is_normal());
+        }
+        assert_eq!(m.fc1_bias[0], 0.0);
+    }
+
+    #[test]
+    fn clipping_rescales_to_the_threshold() {
+        let mut g = boxed_zero::<8>();
+        g.fc1_weight[0][0] = 12.0;
+        g.fc3_bias[1] = -16.0; // norm 20
+        let before = clip_grad_norm(&mut g, 10.0);
+        assert_eq!(before, 20.0);
+        let after = g
+            .tensors()
+            .iter()
+            .flat_map(|t| t.iter())
+            .map(|v| v * v)
+            .sum::<f32>()
+            .sqrt();
+        assert!((after - 10.0).abs() < 1e-5, "{after}");
+        assert!(
+            (g.fc1_weight[0][0] / g.fc3_bias[1] + 0.75).abs() < 1e-7,
+            "direction kept"
+        );
+        let mut small = boxed_zero::<8>();
+        small.fc2_bias[2] = 3.0;
+        clip_grad_norm(&mut small, 10.0);
+        assert_eq!(small.fc2_bias[2], 3.0);
+    }
+
+    #[test]
+    fn soft_update_interpolates() {
+        let (mut t, mut o) = (boxed_zero::<8>(), boxed_zero::<8>());
+        t.fc2_weight[1][2] = 1.0;
+        o.fc2_weight[1][2] = 3.0;
+        soft_update(&mut t, &o, 0.25);
+        assert_eq!(t.fc2_weight[1][2], 1.5);
+    }
+}
