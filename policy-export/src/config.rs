@@ -216,11 +216,11 @@ impl Config {
             eps_start: 1.0,
             eps_end: 0.01,
             eps_decay: 2_000.0,
-            episodes: 400,
+            episodes: 800,
             max_steps: 500,
             loss: Loss::Huber,
-            eval_every: 10,
-            eval_episodes: 20,
+            eval_every: 5,
+            eval_episodes: 100,
             stop_when_perfect: true,
             ..Config::paper()
         }

@@ -44,6 +44,7 @@ enum Command {
 }
 
 #[derive(Args)]
+#[command(allow_negative_numbers = true)]
 struct TrainArgs {
     /// Starting point: the paper's Table 2, or the deployable preset.
     #[arg(long, value_enum, default_value = "paper")]

@@ -1,0 +1,181 @@
+//! The command line as a user meets it: bad input is refused up front with exit status 2
+//! and a message naming the problem; a run directory exports to Rust and C bit for bit.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use policy_export::weights::Weights;
+
+fn exe() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_policy-export"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pe-cli-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn invalid_hyperparameters_exit_2_before_any_work() {
+    let dir = scratch("bad");
+    let cases: &[(&[&str], &str)] = &[
+        (&["--lr", "0"], "lr must be > 0"),
+        (&["--lr", "-0.1"], "lr must be > 0"),
+        (
+            &["--batch-size", "4096"],
+            "batch_size (4096) must not exceed buffer_size (2000)",
+        ),
+        (&["--width", "0"], "width must be one of"),
+        (&["--gamma", "1.01"], "gamma must be in [0, 1]"),
+        (&["--episodes", "0"], "episodes must be at least 1"),
+    ];
+    for (args, want) in cases {
+        let out_dir = dir.join("run");
+        let o = exe()
+            .arg("train")
+            .args(*args)
+            .arg("--out")
+            .arg(&out_dir)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+        assert!(
+            !out_dir.exists(),
+            "{args:?} must fail before writing anything"
+        );
+    }
+    let toml = dir.join("typo.toml");
+    std::fs::write(&toml, "gamma = 0.99\nlearning_rate = 0.001\n").unwrap();
+    let o = exe()
+        .args(["train", "--config"])
+        .arg(&toml)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("unknown key `learning_rate`"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
+    let dir = scratch("run");
+    let run = dir.join("run");
+    let o = exe()
+        .args(["train", "--episodes", "20", "--seed", "2", "--out"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "metrics.csv",
+        "summary.json",
+        "policy.safetensors",
+        "policy.rs",
+    ] {
+        assert!(run.join(f).is_file(), "{f} missing");
+    }
+    let csv = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    assert!(csv.starts_with(
+        "episode,return,length,epsilon,mean_loss,mean_max_q,mean_discounted_return,env_steps,wall_s\n"
+    ));
+    assert_eq!(csv.lines().count(), 21);
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("summary.json")).unwrap()).unwrap();
+    for key in [
+        "solved_episode_195",
+        "solved_episode_475",
+        "final_mean100",
+        "best_mean100",
+    ] {
+        assert!(summary.get(key).is_some(), "summary lacks {key}");
+    }
+    assert_eq!(summary["config"]["gamma"], 0.98);
+    assert_eq!(summary["seed"], 2);
+    assert_eq!(summary["parameters"], 4610);
+
+    // Exporting the run directory reproduces the run's own policy.rs exactly.
+    let rs = dir.join("exported.rs");
+    let o = exe()
+        .arg("export")
+        .arg(&run)
+        .arg("--out")
+        .arg(&rs)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(&rs).unwrap(),
+        std::fs::read(run.join("policy.rs")).unwrap()
+    );
+
+    let h = dir.join("policy.h");
+    let st = run.join("policy.safetensors");
+    let o = exe()
+        .arg("export")
+        .arg(&st)
+        .args(["--format", "c", "--out"])
+        .arg(&h)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let w = Weights::load(&st).unwrap();
+    let header = std::fs::read_to_string(&h).unwrap();
+    let first = format!("{:?}f", w.tensors[0][0]);
+    assert!(
+        header.contains(&format!("{{{first}, ")),
+        "{first} not in header"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exporting_a_broken_policy_names_the_tensor() {
+    let dir = scratch("broken");
+    let path = dir.join("short.safetensors");
+    // A width-8 policy missing its output bias.
+    let shapes = policy_export::weights::shapes(8);
+    let data: Vec<Vec<u8>> = shapes
+        .iter()
+        .map(|s| vec![0u8; 4 * s.iter().product::<usize>()])
+        .collect();
+    let views: Vec<_> = firmware::network::TENSOR_NAMES[..5]
+        .iter()
+        .zip(&shapes)
+        .zip(&data)
+        .map(|((n, s), d)| {
+            (
+                *n,
+                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), d)
+                    .unwrap(),
+            )
+        })
+        .collect();
+    std::fs::write(&path, safetensors::serialize(views, None).unwrap()).unwrap();
+    let out = dir.join("x.rs");
+    let o = exe()
+        .arg("export")
+        .arg(&path)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("tensor `fc3.bias` is missing"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!Path::new(&out).exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}

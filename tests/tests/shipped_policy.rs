@@ -1,0 +1,78 @@
+//! The policy compiled into `firmware`: where it came from, that it is what it claims to be,
+//! and that it balances.
+
+use std::path::PathBuf;
+
+use firmware::cartpole::{CartPole, Params, V1_EPISODE_STEPS};
+use firmware::policy::POLICY;
+use policy_export::config::{Config, KernelChoice};
+use policy_export::export::rust_module;
+use policy_export::run::{provenance, summarize};
+use policy_export::train::{self, Stream, rng};
+use policy_export::weights::Weights;
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+/// The one documented recipe of the shipped policy (README, "The shipped policy").
+const SHIPPED_SEED: u64 = 1;
+fn shipped_config() -> Config {
+    Config {
+        kernel: KernelChoice::Portable,
+        ..Config::robust()
+    }
+}
+
+fn bits(tensors: &[Vec<f32>; 6]) -> Vec<u32> {
+    tensors.iter().flatten().map(|v| v.to_bits()).collect()
+}
+
+#[test]
+fn compiled_constants_equal_the_committed_safetensors_bit_for_bit() {
+    let w = Weights::load(&repo().join("firmware/policy.safetensors")).unwrap();
+    assert_eq!(bits(&w.tensors), bits(&Weights::from_mlp(&POLICY).tensors));
+}
+
+#[test]
+fn the_shipped_policy_regenerates_bit_identically() {
+    let cfg = shipped_config();
+    let result = train::train(&cfg, SHIPPED_SEED, &mut |_| {}).unwrap();
+    assert_eq!(
+        bits(&result.policy.tensors),
+        bits(&Weights::from_mlp(&POLICY).tensors),
+        "retraining the recipe no longer gives the shipped weights: \
+         regenerate firmware/src/policy.rs as the README says, or find what changed"
+    );
+    let source = rust_module(
+        &result.policy,
+        &provenance(&summarize(&cfg, SHIPPED_SEED, &result)),
+    );
+    let committed = std::fs::read_to_string(repo().join("firmware/src/policy.rs")).unwrap();
+    assert_eq!(
+        source, committed,
+        "firmware/src/policy.rs is not the exporter's output"
+    );
+}
+
+#[test]
+fn the_shipped_policy_balances_500_steps_from_100_seeded_starts() {
+    let mut env = CartPole::new(Params::default(), V1_EPISODE_STEPS);
+    let mut starts = rng(2024, Stream::Final);
+    for episode in 0..100 {
+        let mut obs = env.reset(&mut starts);
+        loop {
+            let t = env.step(POLICY.greedy_action(&obs));
+            assert!(
+                !t.terminated,
+                "episode {episode} fell at step {}",
+                env.steps()
+            );
+            if t.truncated {
+                break;
+            }
+            obs = t.obs;
+        }
+        assert_eq!(env.steps(), 500);
+    }
+}
