@@ -97,10 +97,43 @@ pub struct Scratch<const H: usize> {
     d1: Vec<[f32; H]>,
     d2: Vec<[f32; H]>,
     dq: Vec<[f32; N_ACTIONS]>,
+    /// `d2` transposed: per unit, its gradient across the batch.
+    d2t: Vec<Vec<f32>>,
+    /// The batch's observations transposed: per input, its values across the batch.
+    xt: [Vec<f32>; OBS_DIM],
     /// Q-values of the last [`forward_batch`].
     pub q: Vec<[f32; N_ACTIONS]>,
-    w1t: Box<[[f32; H]; OBS_DIM]>,
-    w2t: Box<[[f32; H]; H]>,
+}
+
+/// A network's first two weight matrices transposed (`[in][out]`), so that the batched
+/// forward pass reads contiguous rows. Re-pack whenever the weights change.
+pub struct Packed<const H: usize> {
+    w1t: [[f32; H]; OBS_DIM],
+    w2t: [[f32; H]; H],
+}
+
+impl<const H: usize> Packed<H> {
+    /// The transposes of `net`'s weights, on the heap.
+    pub fn new(net: &Mlp<H>) -> Box<Self> {
+        let mut p = Box::new(Packed {
+            w1t: [[0.0; H]; OBS_DIM],
+            w2t: [[0.0; H]; H],
+        });
+        p.pack(net);
+        p
+    }
+
+    /// Refreshes the transposes from `net`.
+    pub fn pack(&mut self, net: &Mlp<H>) {
+        for (o, (w1, w2)) in net.fc1_weight.iter().zip(&net.fc2_weight).enumerate() {
+            for (i, w) in w1.iter().enumerate() {
+                self.w1t[i][o] = *w;
+            }
+            for (i, w) in w2.iter().enumerate() {
+                self.w2t[i][o] = *w;
+            }
+        }
+    }
 }
 
 impl<const H: usize> Scratch<H> {
@@ -112,9 +145,9 @@ impl<const H: usize> Scratch<H> {
             d1: vec![[0.0; H]; batch],
             d2: vec![[0.0; H]; batch],
             dq: vec![[0.0; N_ACTIONS]; batch],
+            d2t: vec![vec![0.0; batch]; H],
+            xt: std::array::from_fn(|_| vec![0.0; batch]),
             q: vec![[0.0; N_ACTIONS]; batch],
-            w1t: Box::new([[0.0; H]; OBS_DIM]),
-            w2t: Box::new([[0.0; H]; H]),
         }
     }
 }
@@ -137,12 +170,12 @@ macro_rules! kernel_entry {
                 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Fused>($($arg),*)
+                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
                 }
                 #[target_feature(enable = "avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Fused>($($arg),*)
+                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
                 }
                 match kernel {
                     // SAFETY: the CPU was just checked for every feature the function enables.
@@ -158,15 +191,21 @@ macro_rules! kernel_entry {
             }
             #[cfg(not(target_arch = "x86_64"))]
             let _ = kernel;
-            $imp::<H, Unfused>($($arg),*)
+            $imp::<H, Unfused, UNFUSED_ROWS>($($arg),*)
         }
     };
 }
 
 kernel_entry! {
-    /// Forward pass of `x` (one row per sample) through `net`, keeping the activations for
-    /// [`backward`]; Q-values land in `s.q[..x.len()]`.
-    fn forward_batch(net: &Mlp<H>, x: &[[f32; OBS_DIM]], s: &mut Scratch<H>) -> ()
+    /// Forward pass of `x` (one row per sample) through `net` (with `packed` its current
+    /// transposes), keeping the activations for [`backward`]; Q-values land in
+    /// `s.q[..x.len()]`.
+    fn forward_batch(
+        net: &Mlp<H>,
+        packed: &Packed<H>,
+        x: &[[f32; OBS_DIM]],
+        s: &mut Scratch<H>
+    ) -> ()
         => forward_impl
 }
 
@@ -225,10 +264,15 @@ pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f3
     }
 }
 
-/// Multiply-add as a type, so one generic kernel compiles with and without fusion.
+/// Multiply-add as a type, so one generic kernel compiles with and without fusion, and
+/// how many batch rows a kernel computes together: each weight chunk is then loaded once for
+/// all of them, and their accumulators form independent chains that hide the multiply-add
+/// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
 trait MulAdd {
     fn mul_add(a: f32, b: f32, c: f32) -> f32;
 }
+const FUSED_ROWS: usize = 4;
+const UNFUSED_ROWS: usize = 2;
 struct Fused;
 struct Unfused;
 impl MulAdd for Fused {
@@ -244,51 +288,92 @@ impl MulAdd for Unfused {
     }
 }
 
-/// `y += a * x`, the kernels' one inner loop.
-#[inline(always)]
-fn axpy<const H: usize, F: MulAdd>(y: &mut [f32; H], a: f32, x: &[f32; H]) {
-    for (y, x) in y.iter_mut().zip(x) {
-        *y = F::mul_add(a, *x, *y);
-    }
-}
+/// Output lanes per accumulator: one AVX-512 register, two AVX2 ones, four SSE ones.
+/// Every supported width is a multiple of it.
+const L: usize = 16;
 
+/// The kernels' one building block, for `R2` rows at once:
+/// `y[r] = init + sum_i x[r][i] * w[i]` with `n = w.len()` terms, then ReLU if asked.
+/// Accumulators are `[f32; L]` values the compiler keeps in registers; a whole `[f32; H]`
+/// accumulator would live in memory and turn every term into a load-add-store chain.
 #[inline(always)]
-fn relu_in_place<const H: usize>(y: &mut [f32; H]) {
-    for v in y.iter_mut() {
-        *v = if *v > 0.0 { *v } else { 0.0 };
-    }
-}
-
-#[inline(always)]
-fn forward_impl<const H: usize, F: MulAdd>(net: &Mlp<H>, x: &[[f32; OBS_DIM]], s: &mut Scratch<H>) {
-    for (o, (w1, w2)) in net.fc1_weight.iter().zip(&net.fc2_weight).enumerate() {
-        for (i, w) in w1.iter().enumerate() {
-            s.w1t[i][o] = *w;
-        }
-        for (i, w) in w2.iter().enumerate() {
-            s.w2t[i][o] = *w;
-        }
-    }
-    let n = x.len();
-    for (b, xb) in x.iter().enumerate() {
-        let mut y = net.fc1_bias;
-        for (xi, wt) in xb.iter().zip(s.w1t.iter()) {
-            axpy::<H, F>(&mut y, *xi, wt);
-        }
-        relu_in_place(&mut y);
-        s.a1[b] = y;
-    }
-    for (a1, a2) in s.a1[..n].iter().zip(s.a2[..n].iter_mut()) {
-        let mut y = net.fc2_bias;
-        for (ai, wt) in a1.iter().zip(s.w2t.iter()) {
-            // Inactive units contribute nothing; after ReLU about half are inactive.
-            if *ai != 0.0 {
-                axpy::<H, F>(&mut y, *ai, wt);
+fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
+    x: [&[f32]; R2],
+    w: &[[f32; H]],
+    init: Option<&[f32; H]>,
+    relu: bool,
+    y: [&mut [f32; H]; R2],
+) {
+    const {
+        assert!(
+            H.is_multiple_of(L),
+            "hidden width must be a multiple of the lane block"
+        )
+    };
+    let n = w.len();
+    let x = x.map(|r| &r[..n]);
+    let mut y = y.map(|r| r.as_chunks_mut::<L>().0);
+    for c in 0..H / L {
+        let start = init.map_or([0.0; L], |b| b.as_chunks::<L>().0[c]);
+        let mut acc = [start; R2];
+        for (i, wi) in w.iter().enumerate() {
+            let wc = &wi.as_chunks::<L>().0[c];
+            for (acc, x) in acc.iter_mut().zip(&x) {
+                let xi = x[i];
+                for (a, w) in acc.iter_mut().zip(wc) {
+                    *a = F::mul_add(xi, *w, *a);
+                }
             }
         }
-        relu_in_place(&mut y);
-        *a2 = y;
+        for (acc, y) in acc.iter().zip(y.iter_mut()) {
+            for (o, a) in y[c].iter_mut().zip(acc) {
+                *o = if relu && *a <= 0.0 { 0.0 } else { *a };
+            }
+        }
     }
+}
+
+/// [`rows_times`] over every row of `xs`/`ys`, `R` at a time, the remainder one by one.
+#[inline(always)]
+fn all_rows<const H: usize, const N: usize, F: MulAdd, const R: usize>(
+    xs: &[[f32; N]],
+    w: &[[f32; H]],
+    init: Option<&[f32; H]>,
+    relu: bool,
+    ys: &mut [[f32; H]],
+) {
+    let (xb, xr) = xs.as_chunks::<R>();
+    let (yb, yr) = ys[..xs.len()].as_chunks_mut::<R>();
+    for (x, y) in xb.iter().zip(yb) {
+        rows_times::<H, R, F>(
+            x.each_ref().map(|r| r.as_slice()),
+            w,
+            init,
+            relu,
+            y.each_mut(),
+        );
+    }
+    for (x, y) in xr.iter().zip(yr) {
+        rows_times::<H, 1, F>([x.as_slice()], w, init, relu, [y]);
+    }
+}
+
+#[inline(always)]
+fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
+    net: &Mlp<H>,
+    packed: &Packed<H>,
+    x: &[[f32; OBS_DIM]],
+    s: &mut Scratch<H>,
+) {
+    let n = x.len();
+    all_rows::<H, OBS_DIM, F, R>(x, &packed.w1t, Some(&net.fc1_bias), true, &mut s.a1);
+    all_rows::<H, H, F, R>(
+        &s.a1[..n],
+        &packed.w2t,
+        Some(&net.fc2_bias),
+        true,
+        &mut s.a2,
+    );
     for (a2, q) in s.a2[..n].iter().zip(s.q[..n].iter_mut()) {
         for ((q, w), bias) in q.iter_mut().zip(&net.fc3_weight).zip(&net.fc3_bias) {
             *q = dot(w, a2) + bias;
@@ -298,7 +383,7 @@ fn forward_impl<const H: usize, F: MulAdd>(net: &Mlp<H>, x: &[[f32; OBS_DIM]], s
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-fn backward_impl<const H: usize, F: MulAdd>(
+fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
     net: &Mlp<H>,
     x: &[[f32; OBS_DIM]],
     actions: &[u8],
@@ -311,7 +396,6 @@ fn backward_impl<const H: usize, F: MulAdd>(
     let inv_n = 1.0 / n as f32;
     let mut total = 0.0f64;
     // dL/dQ is non-zero only at the taken action.
-    let dq = &mut s.dq[..n];
     for b in 0..n {
         let a = usize::from(actions[b].min(1));
         let d = s.q[b][a] - targets[b];
@@ -321,79 +405,90 @@ fn backward_impl<const H: usize, F: MulAdd>(
             Loss::Huber => (d.abs() - 0.5, d.signum()),
         };
         total += f64::from(l);
-        dq[b] = [0.0; N_ACTIONS];
-        dq[b][a] = g * inv_n;
+        s.dq[b] = [0.0; N_ACTIONS];
+        s.dq[b][a] = g * inv_n;
     }
 
-    // Output layer, and the gradient flowing into the second hidden layer.
-    *grad = Mlp::zeroed();
+    // Output layer (2 x H, small): direct sums.
+    grad.fc3_weight = [[0.0; H]; N_ACTIONS];
+    grad.fc3_bias = [0.0; N_ACTIONS];
     for b in 0..n {
-        let mut d2 = [0.0f32; H];
         for o in 0..N_ACTIONS {
             let g = s.dq[b][o];
-            if g != 0.0 {
-                axpy::<H, F>(&mut grad.fc3_weight[o], g, &s.a2[b]);
-                grad.fc3_bias[o] += g;
-                axpy::<H, F>(&mut d2, g, &net.fc3_weight[o]);
+            for (gw, a) in grad.fc3_weight[o].iter_mut().zip(&s.a2[b]) {
+                *gw = F::mul_add(g, *a, *gw);
             }
+            grad.fc3_bias[o] += g;
         }
-        for (d, a) in d2.iter_mut().zip(&s.a2[b]) {
+    }
+    // Into the second hidden layer: d2 = (dq W3) masked by ReLU'.
+    all_rows::<H, N_ACTIONS, F, R>(&s.dq[..n], &net.fc3_weight, None, false, &mut s.d2);
+    for (d, a) in s.d2[..n].iter_mut().zip(&s.a2[..n]) {
+        for (d, a) in d.iter_mut().zip(a) {
             if *a <= 0.0 {
                 *d = 0.0;
             }
         }
-        s.d2[b] = d2;
     }
-    // Second hidden layer: weights, biases, and the gradient into the first.
-    for o in 0..H {
-        let mut gw = [0.0f32; H];
-        let mut gb = 0.0f32;
-        for b in 0..n {
-            let g = s.d2[b][o];
-            if g != 0.0 {
-                axpy::<H, F>(&mut gw, g, &s.a1[b]);
-                gb += g;
-            }
-        }
-        grad.fc2_weight[o] = gw;
-        grad.fc2_bias[o] = gb;
+    // Second layer weights: dW2[o] = sum_b d2[b][o] * a1[b], rows over o, terms over b.
+    for (o, (t, gb)) in s.d2t.iter_mut().zip(grad.fc2_bias.iter_mut()).enumerate() {
+        t[..n]
+            .iter_mut()
+            .zip(&s.d2[..n])
+            .for_each(|(t, d)| *t = d[o]);
+        *gb = t[..n].iter().sum();
     }
-    for b in 0..n {
-        let mut d1 = [0.0f32; H];
-        for (g, w) in s.d2[b].iter().zip(&net.fc2_weight) {
-            if *g != 0.0 {
-                axpy::<H, F>(&mut d1, *g, w);
-            }
-        }
-        for (d, a) in d1.iter_mut().zip(&s.a1[b]) {
+    let (gb, gr) = grad.fc2_weight.as_chunks_mut::<R>();
+    let (tb, tr) = s.d2t.as_chunks::<R>();
+    for (g, t) in gb.iter_mut().zip(tb) {
+        rows_times::<H, R, F>(
+            t.each_ref().map(|r| &r[..n]),
+            &s.a1[..n],
+            None,
+            false,
+            g.each_mut(),
+        );
+    }
+    for (g, t) in gr.iter_mut().zip(tr) {
+        rows_times::<H, 1, F>([&t[..n]], &s.a1[..n], None, false, [g]);
+    }
+    // Into the first hidden layer: d1 = (d2 W2) masked by ReLU'.
+    all_rows::<H, H, F, R>(&s.d2[..n], &net.fc2_weight, None, false, &mut s.d1);
+    for (d, a) in s.d1[..n].iter_mut().zip(&s.a1[..n]) {
+        for (d, a) in d.iter_mut().zip(a) {
             if *a <= 0.0 {
                 *d = 0.0;
             }
         }
-        s.d1[b] = d1;
     }
     // First layer, accumulated transposed (contiguous over outputs), then stored [out][in].
-    let mut gw1t = [[0.0f32; H]; OBS_DIM];
-    let mut gb1 = [0.0f32; H];
-    for (xb, d1) in x.iter().zip(&s.d1[..n]) {
-        for (g, xi) in gw1t.iter_mut().zip(xb) {
-            axpy::<H, F>(g, *xi, d1);
-        }
-        for (g, d) in gb1.iter_mut().zip(d1) {
-            *g += d;
-        }
+    for (i, row) in s.xt.iter_mut().enumerate() {
+        row[..n].iter_mut().zip(x).for_each(|(t, xb)| *t = xb[i]);
     }
+    let mut gw1t = [[0.0f32; H]; OBS_DIM];
+    rows_times::<H, OBS_DIM, F>(
+        s.xt.each_ref().map(|r| &r[..n]),
+        &s.d1[..n],
+        None,
+        false,
+        gw1t.each_mut(),
+    );
     for (o, row) in grad.fc1_weight.iter_mut().enumerate() {
         for (i, w) in row.iter_mut().enumerate() {
             *w = gw1t[i][o];
         }
     }
-    grad.fc1_bias = gb1;
+    grad.fc1_bias = [0.0; H];
+    for d1 in &s.d1[..n] {
+        for (g, d) in grad.fc1_bias.iter_mut().zip(d1) {
+            *g += d;
+        }
+    }
     (total / n as f64) as f32
 }
 
 #[inline(always)]
-fn adam_impl<const H: usize, F: MulAdd>(
+fn adam_impl<const H: usize, F: MulAdd, const R: usize>(
     hp: &AdamParams,
     t: u64,
     params: &mut Mlp<H>,
@@ -512,7 +607,7 @@ mod tests {
         for kernel in kernels() {
             let mut s = Scratch::<H>::new(6);
             let mut grad = boxed_zero::<H>();
-            forward_batch(kernel, &net, &x, &mut s);
+            forward_batch(kernel, &net, &Packed::new(&net), &x, &mut s);
             let l = backward(
                 kernel, &net, &x, &actions, &targets, loss, &mut s, &mut grad,
             );
@@ -543,9 +638,9 @@ mod tests {
 
     #[test]
     fn gradients_match_central_finite_differences() {
-        check_gradients::<8>(Loss::Mse);
-        check_gradients::<8>(Loss::Huber);
         check_gradients::<16>(Loss::Mse);
+        check_gradients::<16>(Loss::Huber);
+        check_gradients::<32>(Loss::Mse);
     }
 
     #[test]
@@ -556,7 +651,7 @@ mod tests {
             let x = random_obs(&mut r, 32);
             for kernel in kernels() {
                 let mut s = Scratch::<64>::new(32);
-                forward_batch(kernel, &net, &x, &mut s);
+                forward_batch(kernel, &net, &Packed::new(&net), &x, &mut s);
                 for (xb, q) in x.iter().zip(&s.q) {
                     let want = net.forward(xb);
                     assert_eq!(

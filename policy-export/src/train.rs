@@ -18,7 +18,7 @@ use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
 
 use crate::config::{Algo, Config, Init, TargetUpdate, Unit};
-use crate::nn::{self, AdamParams, Kernel, Scratch};
+use crate::nn::{self, AdamParams, Kernel, Packed, Scratch};
 use crate::weights::Weights;
 
 /// Independent random streams of a run, so that changing how often one is drawn from (say,
@@ -158,6 +158,8 @@ pub struct Learner<const H: usize> {
     pub online: Box<Mlp<H>>,
     /// The slowly-following network that scores TD targets.
     pub target: Box<Mlp<H>>,
+    online_packed: Box<Packed<H>>,
+    target_packed: Box<Packed<H>>,
     grad: Box<Mlp<H>>,
     m: Box<Mlp<H>>,
     v: Box<Mlp<H>>,
@@ -184,6 +186,8 @@ impl<const H: usize> Learner<H> {
         let b = cfg.batch_size;
         Learner {
             target: online.clone(),
+            online_packed: Packed::new(&online),
+            target_packed: Packed::new(&online),
             online,
             grad: nn::boxed_zero(),
             m: nn::boxed_zero(),
@@ -223,10 +227,24 @@ impl<const H: usize> Learner<H> {
             ) = (s, a, r, s2, t);
         }
         let k = self.kernel;
-        nn::forward_batch(k, &self.target, &self.x_next, &mut self.scratch);
+        nn::forward_batch(
+            k,
+            &self.target,
+            &self.target_packed,
+            &self.x_next,
+            &mut self.scratch,
+        );
         self.q_target.copy_from_slice(&self.scratch.q);
+        // The online weights changed in the previous step; the target's only when synced.
+        self.online_packed.pack(&self.online);
         if cfg.algo == Algo::Ddqn {
-            nn::forward_batch(k, &self.online, &self.x_next, &mut self.scratch);
+            nn::forward_batch(
+                k,
+                &self.online,
+                &self.online_packed,
+                &self.x_next,
+                &mut self.scratch,
+            );
             self.q_online.copy_from_slice(&self.scratch.q);
         }
         td_targets(
@@ -238,7 +256,13 @@ impl<const H: usize> Learner<H> {
             &self.q_online,
             &mut self.targets,
         );
-        nn::forward_batch(k, &self.online, &self.x, &mut self.scratch);
+        nn::forward_batch(
+            k,
+            &self.online,
+            &self.online_packed,
+            &self.x,
+            &mut self.scratch,
+        );
         let loss = nn::backward(
             k,
             &self.online,
@@ -264,6 +288,7 @@ impl<const H: usize> Learner<H> {
         );
         if cfg.target_update == TargetUpdate::Soft {
             nn::soft_update(&mut self.target, &self.online, cfg.tau as f32);
+            self.target_packed.pack(&self.target);
         }
         loss
     }
@@ -271,6 +296,7 @@ impl<const H: usize> Learner<H> {
     /// Hard target update: copy the online weights.
     pub fn sync_target(&mut self) {
         self.target.clone_from(&self.online);
+        self.target_packed.pack(&self.target);
     }
 }
 
