@@ -1,0 +1,23 @@
+#!/usr/bin/env bash
+# The main job, from a fresh machine: train the shipped policy's recipe, export it as Rust
+# const arrays and a C header, compare with the policy compiled into firmware, and check the
+# compiled policy in closed loop against the plant.
+#   scripts/main-job.sh [RUN_DIR]      (default runs/shipped)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+scripts/setup.sh
+out=${1:-runs/shipped}
+pe() { cargo run -q --release -p policy-export -- "$@"; }
+
+echo "== train (robust preset, seed 1, portable kernel) -> $out"
+pe train --preset robust --kernel portable --seed 1 --out "$out"
+echo "== export"
+pe export "$out" --format c --out "$out/cartpole_policy.h"
+if cmp -s "$out/policy.rs" firmware/src/policy.rs; then
+  echo "$out/policy.rs is identical to the shipped firmware/src/policy.rs"
+else
+  echo "$out/policy.rs differs from firmware/src/policy.rs; to ship it:"
+  echo "  cp $out/policy.rs firmware/src/policy.rs && cp $out/policy.safetensors firmware/"
+fi
+echo "== closed loop: the compiled firmware policy against the plant"
+cargo test -q --release -p e2e
