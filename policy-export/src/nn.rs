@@ -381,6 +381,18 @@ fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
     }
 }
 
+/// Zeroes the gradient of every unit whose ReLU output was 0 (its derivative there).
+#[inline(always)]
+fn relu_backward<const H: usize>(grad: &mut [[f32; H]], activation: &[[f32; H]]) {
+    for (g, a) in grad.iter_mut().zip(activation) {
+        for (g, a) in g.iter_mut().zip(a) {
+            if *a <= 0.0 {
+                *g = 0.0;
+            }
+        }
+    }
+}
+
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
@@ -423,13 +435,7 @@ fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
     }
     // Into the second hidden layer: d2 = (dq W3) masked by ReLU'.
     all_rows::<H, N_ACTIONS, F, R>(&s.dq[..n], &net.fc3_weight, None, false, &mut s.d2);
-    for (d, a) in s.d2[..n].iter_mut().zip(&s.a2[..n]) {
-        for (d, a) in d.iter_mut().zip(a) {
-            if *a <= 0.0 {
-                *d = 0.0;
-            }
-        }
-    }
+    relu_backward(&mut s.d2[..n], &s.a2[..n]);
     // Second layer weights: dW2[o] = sum_b d2[b][o] * a1[b], rows over o, terms over b.
     for (o, (t, gb)) in s.d2t.iter_mut().zip(grad.fc2_bias.iter_mut()).enumerate() {
         t[..n]
@@ -454,13 +460,7 @@ fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
     }
     // Into the first hidden layer: d1 = (d2 W2) masked by ReLU'.
     all_rows::<H, H, F, R>(&s.d2[..n], &net.fc2_weight, None, false, &mut s.d1);
-    for (d, a) in s.d1[..n].iter_mut().zip(&s.a1[..n]) {
-        for (d, a) in d.iter_mut().zip(a) {
-            if *a <= 0.0 {
-                *d = 0.0;
-            }
-        }
-    }
+    relu_backward(&mut s.d1[..n], &s.a1[..n]);
     // First layer, accumulated transposed (contiguous over outputs), then stored [out][in].
     for (i, row) in s.xt.iter_mut().enumerate() {
         row[..n].iter_mut().zip(x).for_each(|(t, xb)| *t = xb[i]);
