@@ -19,5 +19,8 @@ else
   echo "$out/policy.rs differs from firmware/src/policy.rs; to ship it:"
   echo "  cp $out/policy.rs firmware/src/policy.rs && cp $out/policy.safetensors firmware/"
 fi
-echo "== closed loop: the compiled firmware policy against the plant"
+echo "== closed loop: the trained policy through firmware::controller against the plant"
+cargo run -q --release -p host-sim -- eval --policy "$out" --scenario nominal \
+    --horizon 500,10000 --controller policy,lqr,random --min-success 1.0
+echo "== end-to-end tests (the compiled firmware policy, train -> export -> load -> balance)"
 cargo test -q --release -p e2e

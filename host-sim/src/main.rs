@@ -3,9 +3,14 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use firmware::cartpole::Params;
-use host_sim::replay;
+use host_sim::eval::{self, ControllerKind, Net, Row};
+use host_sim::twin::Scenario;
+use host_sim::{render, replay};
+use indicatif::{ProgressBar, ProgressStyle};
+use policy_export::weights::Weights;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -24,12 +29,102 @@ enum Command {
         #[arg(required = true)]
         files: Vec<PathBuf>,
     },
+    /// Run the unchanged firmware controller in closed loop against the plant: N seeded
+    /// episodes per controller, scenario and horizon, and a table with 95% confidence
+    /// intervals. Exits 2 on bad input.
+    Eval {
+        /// Episodes per row.
+        #[arg(long, default_value_t = 1000)]
+        episodes: u64,
+        /// Periods per episode (50 per second); several give several tables.
+        #[arg(long, value_delimiter = ',', default_value = "500")]
+        horizon: Vec<u32>,
+        /// Scenarios, one row each: `nominal`, or parts joined by `+` from noise[=SCALE],
+        /// delay, force=F, length=F, polemass=F, cartmass=F, push[=IMPULSE[/EVERY]];
+        /// `all` is the robustness set of docs/CONTROL.md.
+        #[arg(long, value_delimiter = ',', default_value = "all")]
+        scenario: Vec<String>,
+        /// Controllers to compare.
+        #[arg(long, value_delimiter = ',', default_value = "policy,lqr,rule,random")]
+        controller: Vec<ControllerKind>,
+        /// A policy (.safetensors or run directory) instead of the one compiled into firmware.
+        #[arg(long)]
+        policy: Option<PathBuf>,
+        /// Seed of the starts, noise and pushes.
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        /// Print one JSON object with a `rows` array instead of the table.
+        #[arg(long)]
+        json: bool,
+        /// Exit 1 if the network's success rate falls below this in any row (0 to 1).
+        #[arg(long)]
+        min_success: Option<f64>,
+    },
+    /// Draw one episode: an animated GIF of the cart and pole, and a PNG of x, theta and the
+    /// commands over time.
+    Render {
+        /// Output directory; gets episode.gif and episode.png.
+        #[arg(long, default_value = "render")]
+        out: PathBuf,
+        /// Which controller drives.
+        #[arg(long, default_value = "policy")]
+        controller: ControllerKind,
+        /// A policy file instead of the compiled-in one.
+        #[arg(long)]
+        policy: Option<PathBuf>,
+        /// One scenario spec (see `eval`).
+        #[arg(long, default_value = "nominal")]
+        scenario: String,
+        /// Periods to run at most.
+        #[arg(long, default_value_t = 500)]
+        horizon: u32,
+        /// Seed and episode number of the start (as in `eval`).
+        #[arg(long, default_value_t = 0)]
+        seed: u64,
+        #[arg(long, default_value_t = 0)]
+        episode: u64,
+        /// Draw every k-th period in the GIF (it plays in real time).
+        #[arg(long, default_value_t = 2)]
+        stride: usize,
+    },
 }
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Replay { files } => run_replay(&files),
+        Command::Eval {
+            episodes,
+            horizon,
+            scenario,
+            controller,
+            policy,
+            seed,
+            json,
+            min_success,
+        } => run_eval(
+            episodes,
+            &horizon,
+            &scenario,
+            &controller,
+            policy,
+            seed,
+            json,
+            min_success,
+        ),
+        Command::Render {
+            out,
+            controller,
+            policy,
+            scenario,
+            horizon,
+            seed,
+            episode,
+            stride,
+        } => run_render(
+            &out, controller, policy, &scenario, horizon, seed, episode, stride,
+        )
+        .map(|()| true),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,
@@ -39,6 +134,134 @@ fn main() -> ExitCode {
             ExitCode::from(2)
         }
     }
+}
+
+fn load_net(policy: Option<PathBuf>) -> Result<Net> {
+    match policy {
+        None => Ok(Net::shipped()),
+        Some(path) => Net::from_weights(&Weights::load(&path)?)
+            .with_context(|| format!("policy {}", path.display())),
+    }
+}
+
+fn parse_scenarios(specs: &[String]) -> Result<Vec<Scenario>> {
+    let mut out = Vec::new();
+    for spec in specs {
+        if spec == "all" {
+            out.extend(Scenario::default_set());
+        } else {
+            out.push(Scenario::parse(spec).map_err(anyhow::Error::msg)?);
+        }
+    }
+    Ok(out)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_eval(
+    episodes: u64,
+    horizons: &[u32],
+    scenarios: &[String],
+    controllers: &[ControllerKind],
+    policy: Option<PathBuf>,
+    seed: u64,
+    json: bool,
+    min_success: Option<f64>,
+) -> Result<bool> {
+    if let Some(m) = min_success {
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&m),
+            "--min-success must lie in [0, 1], got {m}"
+        );
+    }
+    anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
+    anyhow::ensure!(
+        horizons.iter().all(|&h| h > 0),
+        "--horizon must be at least 1"
+    );
+    let scenarios = parse_scenarios(scenarios)?;
+    let net = load_net(policy)?;
+    let jobs: Vec<(u32, &Scenario, ControllerKind)> = horizons
+        .iter()
+        .flat_map(|&h| {
+            scenarios
+                .iter()
+                .flat_map(move |s| controllers.iter().map(move |&c| (h, s, c)))
+        })
+        .collect();
+    let bar = ProgressBar::new(jobs.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} rows, {elapsed} {msg}")
+            .expect("static template"),
+    );
+    let mut rows: Vec<Row> = Vec::with_capacity(jobs.len());
+    for (h, s, c) in jobs {
+        bar.set_message(format!("{c} on {} at {h}", s.name));
+        rows.push(eval::evaluate(c, &net, s, h, seed, episodes));
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "seed": seed, "rows": rows }))?
+        );
+    } else {
+        print!("{}", eval::format_table(&rows));
+    }
+    let failing: Vec<&Row> = rows
+        .iter()
+        .filter(|r| {
+            r.controller == ControllerKind::Policy.to_string()
+                && min_success.is_some_and(|m| r.success_rate < m)
+        })
+        .collect();
+    for r in &failing {
+        eprintln!(
+            "policy below --min-success on {} at horizon {}: {:.1}%",
+            r.scenario,
+            r.horizon,
+            100.0 * r.success_rate
+        );
+    }
+    Ok(failing.is_empty())
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_render(
+    out: &std::path::Path,
+    controller: ControllerKind,
+    policy: Option<PathBuf>,
+    scenario: &str,
+    horizon: u32,
+    seed: u64,
+    episode: u64,
+    stride: usize,
+) -> Result<()> {
+    anyhow::ensure!(
+        horizon > 0 && stride > 0,
+        "--horizon and --stride must be at least 1"
+    );
+    let scenario = Scenario::parse(scenario).map_err(anyhow::Error::msg)?;
+    let net = load_net(policy)?;
+    let mut frames = Vec::new();
+    let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
+        frames.push(f)
+    });
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let title = format!("{controller}, {}", scenario.name);
+    let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
+    render::gif(&gif, &frames, &scenario.params, stride, &title)?;
+    render::timeseries(
+        &png,
+        &frames,
+        &scenario.params,
+        &format!(
+            "{title}: {} of {horizon} periods, {}",
+            stats.steps,
+            if stats.success { "balanced" } else { "fell" }
+        ),
+    )?;
+    println!("{}\n{}", gif.display(), png.display());
+    Ok(())
 }
 
 fn run_replay(files: &[PathBuf]) -> anyhow::Result<bool> {

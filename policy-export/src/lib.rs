@@ -6,12 +6,14 @@
 //! - [`weights`]: policies as tensors, safetensors in and out, atomic writes.
 //! - [`export`]: Rust const-array modules and C headers.
 //! - [`run`]: the run directory (metrics, summary, policy files).
+//! - [`plot`]: the bundled font every figure uses.
 #![deny(unsafe_code)]
 
 pub mod config;
 pub mod export;
 #[allow(unsafe_code)]
 pub mod nn;
+pub mod plot;
 pub mod run;
 pub mod train;
 pub mod weights;

@@ -1,0 +1,572 @@
+//! The control step: read the state, sanitise it, run the policy, drive the motor.
+//!
+//! [`Controller::step`] is everything a board does once per control period
+//! ([`CONTROL_PERIOD_S`], the plant's tau): it reads `[x, x_dot, theta, theta_dot]` through a
+//! [`StateSensor`], checks every channel, asks a [`Policy`] for its two scores and drives an
+//! H-bridge through embedded-hal 1.0: a direction [`OutputPin`] (high pushes towards +x) and
+//! an enable [`SetDutyCycle`] whose full duty is the plant's full 10 N push. The same code
+//! runs on the microcontroller against real pins and in `host-sim` against a digital twin.
+//!
+//! This module is not a scheduler: the caller decides when a period starts (a timer
+//! interrupt, `DelayNs`, or a simulation loop). It is not a filter either: it acts on the
+//! reading it is given.
+//!
+//! # Faults and the fallback
+//!
+//! A reading is rejected when the sensor returns an error, or when any channel is NaN,
+//! infinite, or outside [`Limits`]. A rejected reading never reaches the policy: the
+//! controller *coasts* (duty cycle off, the motor pushes neither way), counts the fault in
+//! [`FaultCounters`] and flags it in the telemetry record. Coasting is the one command that
+//! cannot make a wrong reading worse; one coasting period in a balanced run costs a small
+//! fraction of a push. An actuator error is counted too, and the next command re-sends the
+//! whole pin sequence because the bridge's state is then unknown.
+//!
+//! # Pin sequence
+//!
+//! Changing direction is break-before-make: duty off, then the direction pin, then full duty,
+//! so the bridge never drives the old way with the new direction's half-bridge. Repeating the
+//! current command writes nothing.
+//!
+//! ```
+//! use core::convert::Infallible;
+//! use embedded_hal::{digital::{ErrorType as PinErrorType, OutputPin},
+//!                    pwm::{ErrorType as PwmErrorType, SetDutyCycle}};
+//! use firmware::controller::{Command, Controller, Limits, StateSensor};
+//! use firmware::{policy::POLICY, Action};
+//!
+//! struct Level(bool);
+//! impl PinErrorType for Level { type Error = Infallible; }
+//! impl OutputPin for Level {
+//!     fn set_low(&mut self) -> Result<(), Infallible> { self.0 = false; Ok(()) }
+//!     fn set_high(&mut self) -> Result<(), Infallible> { self.0 = true; Ok(()) }
+//! }
+//! struct Duty(u16);
+//! impl PwmErrorType for Duty { type Error = Infallible; }
+//! impl SetDutyCycle for Duty {
+//!     fn max_duty_cycle(&self) -> u16 { 1000 }
+//!     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> { self.0 = duty; Ok(()) }
+//! }
+//! struct Tilted;
+//! impl StateSensor for Tilted {
+//!     type Error = ();
+//!     fn read(&mut self) -> Result<[f32; 4], ()> { Ok([0.0, 0.0, 0.05, 0.2]) }
+//! }
+//!
+//! let mut c: Controller<_, _, _, _, 16> =
+//!     Controller::new(&POLICY, Tilted, Level(false), Duty(0), Limits::default());
+//! // The pole leans towards +x, so the cart must move under it: a push to the right.
+//! assert_eq!(c.step(), Command::Push(Action::Right));
+//! let (_, _, dir, duty) = c.release();
+//! assert!(dir.0);
+//! assert_eq!(duty.0, 1000);
+//! ```
+
+use embedded_hal::digital::OutputPin;
+use embedded_hal::pwm::SetDutyCycle;
+use heapless::HistoryBuf;
+
+use crate::cartpole::Action;
+use crate::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
+
+/// The control period in seconds: the plant's Euler step, 50 Hz.
+pub const CONTROL_PERIOD_S: f64 = 0.02;
+
+/// Where the controller gets the plant's state, once per period: encoders on a board, the
+/// simulated plant in `host-sim`. Units as in Gymnasium: m, m/s, rad, rad/s.
+pub trait StateSensor {
+    /// Why a reading failed (a bus error, a timeout); it only gets counted.
+    type Error;
+    /// One reading of `[x, x_dot, theta, theta_dot]`.
+    fn read(&mut self) -> Result<[f32; OBS_DIM], Self::Error>;
+}
+
+/// Maps a sanitised observation to two scores, `[left, right]`; the controller pushes right
+/// only if the right score is strictly larger (ties and NaN push left, see
+/// [`argmax`](crate::network::argmax)). The Q-network's scores are its Q-values; a baseline's
+/// may be anything with that meaning.
+pub trait Policy {
+    /// Scores for `[Left, Right]`.
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS];
+}
+
+impl<const H: usize> Policy for &Mlp<H> {
+    #[inline]
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+        self.forward(obs)
+    }
+}
+
+/// What the controller asked of the motor in one period.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Command {
+    /// Full duty in this direction: the plant's +-10 N.
+    Push(Action),
+    /// Duty off: the fallback for a rejected reading.
+    Coast,
+}
+
+/// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Per-channel bound on `|reading|`, inclusive.
+    pub max_abs: [f32; OBS_DIM],
+}
+
+impl Default for Limits {
+    /// Twice what a balancing run can reach: twice the 2.4 m track half-length and twice the
+    /// 12 degree failure angle, and 20 m/s and 20 rad/s, far beyond any rate the plant
+    /// reaches before it fails.
+    fn default() -> Limits {
+        Limits {
+            max_abs: [4.8, 20.0, 0.42, 20.0],
+        }
+    }
+}
+
+/// Why one period's reading was rejected, as bits: per channel `i`, bit `i` is "not finite"
+/// and bit `4 + i` "out of range"; then a sensor error and an actuator error.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct FaultFlags(pub u16);
+
+impl FaultFlags {
+    /// The sensor returned an error.
+    pub const SENSOR_ERROR: FaultFlags = FaultFlags(1 << 8);
+    /// The direction pin or the duty cycle returned an error.
+    pub const ACTUATOR_ERROR: FaultFlags = FaultFlags(1 << 9);
+
+    /// Channel `channel` (0..4) was NaN or infinite.
+    pub const fn non_finite(channel: usize) -> FaultFlags {
+        FaultFlags(1 << (channel % OBS_DIM))
+    }
+
+    /// Channel `channel` (0..4) was finite but beyond its limit.
+    pub const fn out_of_range(channel: usize) -> FaultFlags {
+        FaultFlags(1 << (OBS_DIM + channel % OBS_DIM))
+    }
+
+    /// No flag set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Every flag of `other` is set in `self`.
+    pub const fn contains(self, other: FaultFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Any reading fault: an error, a non-finite or an out-of-range channel.
+    pub const fn reading_rejected(self) -> bool {
+        self.0 & !Self::ACTUATOR_ERROR.0 != 0
+    }
+
+    const fn with(self, other: FaultFlags) -> FaultFlags {
+        FaultFlags(self.0 | other.0)
+    }
+}
+
+/// Totals since the controller started; they saturate rather than wrap.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaultCounters {
+    /// Periods whose reading was rejected (and so coasted).
+    pub rejected_readings: u32,
+    /// Sensor errors.
+    pub sensor_errors: u32,
+    /// Channels read as NaN or infinite.
+    pub non_finite: u32,
+    /// Channels read beyond their limit.
+    pub out_of_range: u32,
+    /// Periods in which a pin or duty-cycle write failed.
+    pub actuator_errors: u32,
+}
+
+/// One period, as the telemetry ring keeps it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Record {
+    /// Period number, from 0.
+    pub step: u32,
+    /// The reading as received (zeros if the sensor returned an error).
+    pub obs: [f32; OBS_DIM],
+    /// The policy's scores; NaN when the reading was rejected and the policy did not run.
+    pub q: [f32; N_ACTIONS],
+    /// What the motor was asked to do.
+    pub command: Command,
+    /// What went wrong, if anything.
+    pub faults: FaultFlags,
+}
+
+/// What the bridge is known to be doing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Drive {
+    Unknown,
+    Off,
+    Pushing(Action),
+}
+
+/// The balance controller: owns its sensor, its two actuator outputs and a ring of the last
+/// `N` [`Record`]s. Everything is fixed-size; [`Controller::step`] cannot panic.
+pub struct Controller<P, S, D, E, const N: usize> {
+    policy: P,
+    sensor: S,
+    direction: D,
+    enable: E,
+    limits: Limits,
+    drive: Drive,
+    steps: u32,
+    faults: FaultCounters,
+    telemetry: HistoryBuf<Record, N>,
+}
+
+impl<P, S, D, E, const N: usize> Controller<P, S, D, E, N>
+where
+    P: Policy,
+    S: StateSensor,
+    D: OutputPin,
+    E: SetDutyCycle,
+{
+    /// A controller that has not yet driven the bridge: its first command sends the whole
+    /// pin sequence.
+    pub fn new(policy: P, sensor: S, direction: D, enable: E, limits: Limits) -> Self {
+        Controller {
+            policy,
+            sensor,
+            direction,
+            enable,
+            limits,
+            drive: Drive::Unknown,
+            steps: 0,
+            faults: FaultCounters::default(),
+            telemetry: HistoryBuf::new(),
+        }
+    }
+
+    /// One control period: read, sanitise, decide, actuate, record.
+    #[inline]
+    pub fn step(&mut self) -> Command {
+        let (obs, mut flags) = match self.sensor.read() {
+            Ok(obs) => (obs, sanitise(&obs, &self.limits)),
+            Err(_) => ([0.0; OBS_DIM], FaultFlags::SENSOR_ERROR),
+        };
+        let (q, command) = if flags.is_empty() {
+            let q = self.policy.scores(&obs);
+            (q, Command::Push(argmax(&q)))
+        } else {
+            self.count_rejected(flags);
+            ([f32::NAN; N_ACTIONS], Command::Coast)
+        };
+        if self.actuate(command).is_err() {
+            self.drive = Drive::Unknown;
+            self.faults.actuator_errors = self.faults.actuator_errors.saturating_add(1);
+            flags = flags.with(FaultFlags::ACTUATOR_ERROR);
+        }
+        self.telemetry.write(Record {
+            step: self.steps,
+            obs,
+            q,
+            command,
+            faults: flags,
+        });
+        self.steps = self.steps.saturating_add(1);
+        command
+    }
+
+    /// Periods run so far.
+    pub fn steps(&self) -> u32 {
+        self.steps
+    }
+
+    /// Fault totals so far.
+    pub fn faults(&self) -> FaultCounters {
+        self.faults
+    }
+
+    /// The last `N` periods, oldest first.
+    pub fn telemetry(&self) -> impl Iterator<Item = &Record> {
+        self.telemetry.oldest_ordered()
+    }
+
+    /// The most recent period, if any.
+    pub fn last(&self) -> Option<&Record> {
+        self.telemetry.recent()
+    }
+
+    /// The policy, for inspection.
+    pub fn policy(&self) -> &P {
+        &self.policy
+    }
+
+    /// Gives the peripherals back: `(policy, sensor, direction, enable)`.
+    pub fn release(self) -> (P, S, D, E) {
+        (self.policy, self.sensor, self.direction, self.enable)
+    }
+
+    fn count_rejected(&mut self, flags: FaultFlags) {
+        let c = &mut self.faults;
+        c.rejected_readings = c.rejected_readings.saturating_add(1);
+        if flags.contains(FaultFlags::SENSOR_ERROR) {
+            c.sensor_errors = c.sensor_errors.saturating_add(1);
+        }
+        let non_finite = (flags.0 & 0x0f).count_ones();
+        let out_of_range = ((flags.0 >> OBS_DIM) & 0x0f).count_ones();
+        c.non_finite = c.non_finite.saturating_add(non_finite);
+        c.out_of_range = c.out_of_range.saturating_add(out_of_range);
+    }
+
+    /// Brings the bridge to `command`; an error leaves it in an unknown state.
+    fn actuate(&mut self, command: Command) -> Result<(), ()> {
+        match command {
+            Command::Coast => {
+                if self.drive != Drive::Off {
+                    self.enable.set_duty_cycle_fully_off().map_err(drop)?;
+                    self.drive = Drive::Off;
+                }
+            }
+            Command::Push(action) => {
+                if self.drive != Drive::Pushing(action) {
+                    if self.drive != Drive::Off {
+                        self.enable.set_duty_cycle_fully_off().map_err(drop)?;
+                        self.drive = Drive::Off;
+                    }
+                    match action {
+                        Action::Right => self.direction.set_high(),
+                        Action::Left => self.direction.set_low(),
+                    }
+                    .map_err(drop)?;
+                    self.enable.set_duty_cycle_fully_on().map_err(drop)?;
+                    self.drive = Drive::Pushing(action);
+                }
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The flags of one reading: non-finite channels, then finite ones beyond their limit.
+pub fn sanitise(obs: &[f32; OBS_DIM], limits: &Limits) -> FaultFlags {
+    let mut flags = FaultFlags::default();
+    for (i, (&v, &max)) in obs.iter().zip(&limits.max_abs).enumerate() {
+        if !v.is_finite() {
+            flags = flags.with(FaultFlags::non_finite(i));
+        } else if v.abs() > max {
+            flags = flags.with(FaultFlags::out_of_range(i));
+        }
+    }
+    flags
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::policy::POLICY;
+    use embedded_hal_mock::eh1::MockError;
+    use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as PinTx};
+    use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as PwmTx};
+
+    /// Replays a fixed list of readings, then reports errors.
+    struct Script<'a> {
+        readings: &'a [Result<[f32; 4], ()>],
+        next: usize,
+    }
+
+    impl StateSensor for Script<'_> {
+        type Error = ();
+        fn read(&mut self) -> Result<[f32; 4], ()> {
+            let r = self.readings.get(self.next).copied().unwrap_or(Err(()));
+            self.next += 1;
+            r
+        }
+    }
+
+    /// Scores fixed by the sign of theta, so the test knows each action in advance.
+    struct SignOfTheta;
+
+    impl Policy for SignOfTheta {
+        fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
+            [0.0, obs[2]]
+        }
+    }
+
+    const MAX: u16 = 255;
+    const LEAN_RIGHT: [f32; 4] = [0.0, 0.0, 0.1, 0.0];
+    const LEAN_LEFT: [f32; 4] = [0.0, 0.0, -0.1, 0.0];
+
+    fn run(
+        readings: &[Result<[f32; 4], ()>],
+        pin: &[PinTx],
+        pwm: &[PwmTx],
+    ) -> (Vec<Command>, Vec<Record>, FaultCounters) {
+        let mut dir = PinMock::new(pin);
+        let mut en = PwmMock::new(pwm);
+        let sensor = Script { readings, next: 0 };
+        let mut c: Controller<_, _, _, _, 8> = Controller::new(
+            SignOfTheta,
+            sensor,
+            dir.clone(),
+            en.clone(),
+            Limits::default(),
+        );
+        let commands = (0..readings.len()).map(|_| c.step()).collect();
+        let records = c.telemetry().copied().collect();
+        let faults = c.faults();
+        dir.done();
+        en.done();
+        (commands, records, faults)
+    }
+
+    extern crate std;
+    use std::vec::Vec;
+
+    /// What `set_duty_cycle_fully_on` / `_off` send.
+    fn push(on: bool) -> Vec<PwmTx> {
+        if on {
+            std::vec![PwmTx::max_duty_cycle(MAX), PwmTx::set_duty_cycle(MAX)]
+        } else {
+            std::vec![PwmTx::set_duty_cycle(0)]
+        }
+    }
+
+    #[test]
+    fn first_push_is_off_direction_on() {
+        for (reading, level, action) in [
+            (LEAN_RIGHT, State::High, Action::Right),
+            (LEAN_LEFT, State::Low, Action::Left),
+        ] {
+            let pwm = [push(false), push(true)].concat();
+            let (cmds, _, faults) = run(&[Ok(reading)], &[PinTx::set(level)], &pwm);
+            assert_eq!(cmds, [Command::Push(action)]);
+            assert_eq!(faults, FaultCounters::default());
+        }
+    }
+
+    #[test]
+    fn repeated_push_writes_nothing_and_reversal_breaks_before_make() {
+        let readings = [
+            Ok(LEAN_RIGHT),
+            Ok(LEAN_RIGHT),
+            Ok(LEAN_LEFT),
+            Ok(LEAN_RIGHT),
+        ];
+        let pin = [
+            PinTx::set(State::High),
+            PinTx::set(State::Low),
+            PinTx::set(State::High),
+        ];
+        let pwm = [
+            push(false),
+            push(true),
+            push(false),
+            push(true),
+            push(false),
+            push(true),
+        ]
+        .concat();
+        let (cmds, records, _) = run(&readings, &pin, &pwm);
+        assert_eq!(
+            cmds,
+            [
+                Command::Push(Action::Right),
+                Command::Push(Action::Right),
+                Command::Push(Action::Left),
+                Command::Push(Action::Right)
+            ]
+        );
+        assert_eq!(records.len(), 4);
+        assert_eq!(records[2].q, [0.0, -0.1]);
+        assert!(records.iter().enumerate().all(|(i, r)| r.step == i as u32));
+    }
+
+    #[test]
+    fn every_bad_value_on_every_channel_coasts_and_counts() {
+        for channel in 0..4 {
+            for (bad, flag) in [
+                (f32::NAN, FaultFlags::non_finite(channel)),
+                (f32::INFINITY, FaultFlags::non_finite(channel)),
+                (f32::NEG_INFINITY, FaultFlags::non_finite(channel)),
+                (1e30, FaultFlags::out_of_range(channel)),
+                (-1e30, FaultFlags::out_of_range(channel)),
+            ] {
+                let mut reading = LEAN_RIGHT;
+                reading[channel] = bad;
+                // Push right, then coast on the bad reading, then push right again.
+                let readings = [Ok(LEAN_RIGHT), Ok(reading), Ok(LEAN_RIGHT)];
+                let pin = [PinTx::set(State::High), PinTx::set(State::High)];
+                let pwm = [push(false), push(true), push(false), push(true)].concat();
+                let (cmds, records, faults) = run(&readings, &pin, &pwm);
+                let what = std::format!("channel {channel}, value {bad}");
+                assert_eq!(cmds[1], Command::Coast, "{what}");
+                assert_eq!(records[1].faults, flag, "{what}");
+                assert!(records[1].q.iter().all(|q| q.is_nan()), "{what}");
+                assert_eq!(records[1].obs[channel].to_bits(), bad.to_bits(), "{what}");
+                assert!(records[0].faults.is_empty() && records[2].faults.is_empty());
+                let (nf, oor) = if bad.is_finite() { (0, 1) } else { (1, 0) };
+                assert_eq!(
+                    faults,
+                    FaultCounters {
+                        rejected_readings: 1,
+                        non_finite: nf,
+                        out_of_range: oor,
+                        ..FaultCounters::default()
+                    },
+                    "{what}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn limits_are_inclusive_and_all_bad_channels_are_flagged() {
+        let l = Limits::default();
+        assert!(sanitise(&l.max_abs, &l).is_empty());
+        let neg = l.max_abs.map(|v| -v);
+        assert!(sanitise(&neg, &l).is_empty());
+        let flags = sanitise(&[f32::NAN, 21.0, -0.5, f32::INFINITY], &l);
+        assert_eq!(flags.0, 0b0110_1001);
+        assert!(flags.reading_rejected());
+    }
+
+    #[test]
+    fn sensor_error_coasts_with_zeros_recorded() {
+        let pwm = push(false);
+        let (cmds, records, faults) = run(&[Err(())], &[], &pwm);
+        assert_eq!(cmds, [Command::Coast]);
+        assert_eq!(records[0].faults, FaultFlags::SENSOR_ERROR);
+        assert_eq!(records[0].obs, [0.0; 4]);
+        assert_eq!(faults.sensor_errors, 1);
+        assert_eq!(faults.rejected_readings, 1);
+    }
+
+    #[test]
+    fn actuator_error_is_counted_and_the_next_push_resends_everything() {
+        let readings = [Ok(LEAN_RIGHT), Ok(LEAN_RIGHT)];
+        let pin = [
+            PinTx::set(State::High).with_error(MockError::Io(std::io::ErrorKind::Other)),
+            PinTx::set(State::High),
+        ];
+        let pwm = [push(false), push(false), push(true)].concat();
+        let (cmds, records, faults) = run(&readings, &pin, &pwm);
+        assert_eq!(cmds, [Command::Push(Action::Right); 2]);
+        assert_eq!(records[0].faults, FaultFlags::ACTUATOR_ERROR);
+        assert!(!records[0].faults.reading_rejected());
+        assert!(records[1].faults.is_empty());
+        assert_eq!(faults.actuator_errors, 1);
+        assert_eq!(faults.rejected_readings, 0);
+    }
+
+    #[test]
+    fn telemetry_keeps_the_last_n_oldest_first() {
+        let readings = [Ok(LEAN_RIGHT); 11];
+        let pwm = [push(false), push(true)].concat();
+        let (_, records, _) = run(&readings, &[PinTx::set(State::High)], &pwm);
+        let steps: Vec<u32> = records.iter().map(|r| r.step).collect();
+        assert_eq!(steps, (3..11).collect::<Vec<_>>());
+    }
+
+    #[test]
+    fn the_network_policy_runs_the_shipped_forward_pass() {
+        let obs = [0.01, -0.2, 0.03, 0.4];
+        let mut policy = &POLICY;
+        assert_eq!(
+            policy.scores(&obs).map(f32::to_bits),
+            POLICY.forward(&obs).map(f32::to_bits)
+        );
+    }
+}

@@ -1,0 +1,366 @@
+//! Closed-loop evaluation: many seeded episodes per controller, scenario and horizon, and
+//! the statistics of the robustness table with 95% confidence intervals.
+//!
+//! Episode `i` of seed `s` starts from the same state, meets the same noise and the same
+//! pushes whichever controller runs it, so rows compare controllers on identical worlds.
+//! Episodes run in parallel (rayon) and are gathered in order, so results do not depend on
+//! the number of threads.
+
+use std::fmt;
+
+use anyhow::{Result, bail};
+use firmware::controller::Policy;
+use firmware::network::Mlp;
+use firmware::policy::POLICY;
+use policy_export::weights::Weights;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::baselines::{AngleRule, Lqr, Random};
+use crate::twin::{EpisodeStats, Frame, Scenario, policy_rng, run_episode};
+
+/// A Q-network of any width the trainer supports, loaded at run time.
+#[derive(Clone, Debug)]
+pub enum Net {
+    /// Width 16.
+    W16(Box<Mlp<16>>),
+    /// Width 32.
+    W32(Box<Mlp<32>>),
+    /// Width 64: the firmware's.
+    W64(Box<Mlp<64>>),
+    /// Width 128.
+    W128(Box<Mlp<128>>),
+    /// Width 256.
+    W256(Box<Mlp<256>>),
+}
+
+impl Net {
+    /// The policy compiled into `firmware`.
+    pub fn shipped() -> Net {
+        Net::W64(Box::new(POLICY.clone()))
+    }
+
+    /// A network from checked safetensors weights.
+    pub fn from_weights(w: &Weights) -> Result<Net> {
+        Ok(match w.width {
+            16 => Net::W16(w.to_mlp()?),
+            32 => Net::W32(w.to_mlp()?),
+            64 => Net::W64(w.to_mlp()?),
+            128 => Net::W128(w.to_mlp()?),
+            256 => Net::W256(w.to_mlp()?),
+            other => bail!("hidden width {other} is not one of 16, 32, 64, 128, 256"),
+        })
+    }
+}
+
+impl Policy for &Net {
+    #[inline]
+    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
+        match self {
+            Net::W16(n) => n.forward(obs),
+            Net::W32(n) => n.forward(obs),
+            Net::W64(n) => n.forward(obs),
+            Net::W128(n) => n.forward(obs),
+            Net::W256(n) => n.forward(obs),
+        }
+    }
+}
+
+/// Which controller drives the cart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ControllerKind {
+    /// The Q-network (shipped, or `--policy FILE`).
+    Policy,
+    /// Bang-bang discrete LQR, Q = I, R = 1.
+    Lqr,
+    /// Push towards `theta + 0.5 theta_dot`.
+    Rule,
+    /// A fair coin every period.
+    Random,
+}
+
+impl fmt::Display for ControllerKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ControllerKind::Policy => "policy",
+            ControllerKind::Lqr => "lqr",
+            ControllerKind::Rule => "rule",
+            ControllerKind::Random => "random",
+        })
+    }
+}
+
+/// Runs episode `episode` with controller `kind`; `on_frame` sees every period.
+pub fn episode(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episode: u64,
+    on_frame: impl FnMut(Frame),
+) -> EpisodeStats {
+    match kind {
+        ControllerKind::Policy => run_episode(net, scenario, horizon, seed, episode, on_frame),
+        ControllerKind::Lqr => {
+            run_episode(Lqr::nominal(), scenario, horizon, seed, episode, on_frame)
+        }
+        ControllerKind::Rule => run_episode(AngleRule, scenario, horizon, seed, episode, on_frame),
+        ControllerKind::Random => run_episode(
+            Random(policy_rng(seed, episode)),
+            scenario,
+            horizon,
+            seed,
+            episode,
+            on_frame,
+        ),
+    }
+}
+
+/// A mean and the half-width of its 95% confidence interval (normal approximation).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Estimate {
+    /// Sample mean.
+    pub mean: f64,
+    /// 1.96 standard errors.
+    pub ci95: f64,
+}
+
+impl Estimate {
+    /// Mean and 95% half-width of `values`.
+    pub fn of(values: &[f64]) -> Estimate {
+        let n = values.len() as f64;
+        if values.is_empty() {
+            return Estimate {
+                mean: f64::NAN,
+                ci95: f64::NAN,
+            };
+        }
+        let mean = values.iter().sum::<f64>() / n;
+        let var = if values.len() > 1 {
+            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
+        } else {
+            0.0
+        };
+        Estimate {
+            mean,
+            ci95: 1.96 * (var / n).sqrt(),
+        }
+    }
+}
+
+/// Wilson's 95% score interval for `k` successes in `n` trials: honest at 0% and 100%,
+/// where the normal approximation collapses to a point.
+pub fn wilson(k: usize, n: usize) -> [f64; 2] {
+    if n == 0 {
+        return [0.0, 1.0];
+    }
+    let (k, n, z) = (k as f64, n as f64, 1.96f64);
+    let p = k / n;
+    let denom = 1.0 + z * z / n;
+    let centre = (p + z * z / (2.0 * n)) / denom;
+    let half = z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt() / denom;
+    [(centre - half).max(0.0), (centre + half).min(1.0)]
+}
+
+/// One line of the table: a controller on a scenario at a horizon.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Row {
+    /// Controller name.
+    pub controller: String,
+    /// Scenario spec.
+    pub scenario: String,
+    /// Periods an episode may last.
+    pub horizon: u32,
+    /// Episodes run.
+    pub episodes: usize,
+    /// Share that reached the horizon.
+    pub success_rate: f64,
+    /// Wilson 95% interval of the success rate.
+    pub success_ci95: [f64; 2],
+    /// Mean periods survived.
+    pub mean_steps: f64,
+    /// Its 95% half-width.
+    pub mean_steps_ci95: f64,
+    /// Shortest episode.
+    pub min_steps: u32,
+    /// 5th percentile of episode length (nearest rank).
+    pub p5_steps: u32,
+    /// Per-episode RMS of theta, degrees, averaged over episodes.
+    pub rms_theta_deg: Estimate,
+    /// Per-episode RMS of x, m.
+    pub rms_x_m: Estimate,
+    /// Per-episode mean |x|, m.
+    pub mean_abs_x_m: Estimate,
+    /// Command changes per second of balance.
+    pub switches_per_s: Estimate,
+    /// Periods that coasted on a rejected reading, over all episodes.
+    pub faults: u64,
+}
+
+impl Row {
+    /// The statistics of a set of episodes.
+    pub fn from_episodes(
+        controller: &str,
+        scenario: &str,
+        horizon: u32,
+        eps: &[EpisodeStats],
+    ) -> Row {
+        let per = |f: &dyn Fn(&EpisodeStats) -> f64| -> Vec<f64> { eps.iter().map(f).collect() };
+        let steps = |e: &EpisodeStats| f64::from(e.steps.max(1));
+        let mut sorted: Vec<u32> = eps.iter().map(|e| e.steps).collect();
+        sorted.sort_unstable();
+        let successes = eps.iter().filter(|e| e.success).count();
+        let steps_est = Estimate::of(&per(&|e| f64::from(e.steps)));
+        let p5_rank = (eps.len() * 5).div_ceil(100).max(1) - 1;
+        Row {
+            controller: controller.to_string(),
+            scenario: scenario.to_string(),
+            horizon,
+            episodes: eps.len(),
+            success_rate: successes as f64 / eps.len().max(1) as f64,
+            success_ci95: wilson(successes, eps.len()),
+            mean_steps: steps_est.mean,
+            mean_steps_ci95: steps_est.ci95,
+            min_steps: sorted.first().copied().unwrap_or(0),
+            p5_steps: sorted.get(p5_rank).copied().unwrap_or(0),
+            rms_theta_deg: Estimate::of(&per(&|e| (e.sum_theta2 / steps(e)).sqrt().to_degrees())),
+            rms_x_m: Estimate::of(&per(&|e| (e.sum_x2 / steps(e)).sqrt())),
+            mean_abs_x_m: Estimate::of(&per(&|e| e.sum_abs_x / steps(e))),
+            switches_per_s: Estimate::of(&per(&|e| {
+                f64::from(e.switches) / (steps(e) * firmware::controller::CONTROL_PERIOD_S)
+            })),
+            faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
+        }
+    }
+}
+
+/// `episodes` seeded episodes of one controller in one scenario, in parallel, in order.
+pub fn evaluate(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: u64,
+) -> Row {
+    let eps: Vec<EpisodeStats> = (0..episodes)
+        .into_par_iter()
+        .map(|i| episode(kind, net, scenario, horizon, seed, i, |_| {}))
+        .collect();
+    Row::from_episodes(&kind.to_string(), &scenario.name, horizon, &eps)
+}
+
+/// The table, grouped by horizon and scenario, one line per controller.
+pub fn format_table(rows: &[Row]) -> String {
+    let mut out = String::new();
+    let mut last: Option<u32> = None;
+    for r in rows {
+        if last != Some(r.horizon) {
+            if last.is_some() {
+                out.push('\n');
+            }
+            out += &format!(
+                "horizon {} ({} s), {} episodes per row, 95% CI\n",
+                r.horizon,
+                f64::from(r.horizon) * firmware::controller::CONTROL_PERIOD_S,
+                r.episodes
+            );
+            out += &format!(
+                "{:<18} {:<7} {:>22} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+                "scenario",
+                "ctrl",
+                "success",
+                "mean steps",
+                "min",
+                "p5",
+                "RMS theta deg",
+                "RMS x m",
+                "mean |x| m",
+                "switch/s",
+                "faults"
+            );
+            last = Some(r.horizon);
+        }
+        let pm = |e: &Estimate, p: usize| format!("{:.p$} ± {:.p$}", e.mean, e.ci95);
+        out += &format!(
+            "{:<18} {:<7} {:>6.1}% [{:>5.1}, {:>5.1}] {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+            r.scenario,
+            r.controller,
+            100.0 * r.success_rate,
+            100.0 * r.success_ci95[0],
+            100.0 * r.success_ci95[1],
+            pm(
+                &Estimate {
+                    mean: r.mean_steps,
+                    ci95: r.mean_steps_ci95
+                },
+                1
+            ),
+            r.min_steps,
+            r.p5_steps,
+            pm(&r.rms_theta_deg, 2),
+            pm(&r.rms_x_m, 3),
+            pm(&r.mean_abs_x_m, 3),
+            pm(&r.switches_per_s, 1),
+            r.faults
+        );
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn wilson_matches_hand_computed_values() {
+        // 1000 of 1000: upper 1, lower n / (n + z^2) = 1000 / 1003.8416.
+        let [lo, hi] = wilson(1000, 1000);
+        assert!((lo - 1000.0 / 1003.8416).abs() < 1e-12 && hi == 1.0);
+        // 50 of 100: centre 0.5, half-width z sqrt(0.0025 + z^2/40000) / (1 + z^2/100).
+        let [lo, hi] = wilson(50, 100);
+        let half = 1.96 * (0.0025f64 + 1.96 * 1.96 / 40_000.0).sqrt() / (1.0 + 1.96 * 1.96 / 100.0);
+        assert!((lo - (0.5 - half)).abs() < 1e-12 && (hi - (0.5 + half)).abs() < 1e-12);
+    }
+
+    #[test]
+    fn estimate_and_row_statistics() {
+        let e = Estimate::of(&[1.0, 2.0, 3.0, 4.0]);
+        assert_eq!(e.mean, 2.5);
+        // sample sd = sqrt(5/3); half-width 1.96 sd / 2.
+        assert!((e.ci95 - 1.96 * (5.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-12);
+        let eps: Vec<EpisodeStats> = (1..=40u32)
+            .map(|s| EpisodeStats {
+                steps: s * 10,
+                success: s == 40,
+                sum_theta2: f64::from(s * 10) * 0.01,
+                sum_x2: f64::from(s * 10) * 4.0,
+                sum_abs_x: f64::from(s * 10) * 2.0,
+                switches: s * 5,
+                faults: 1,
+            })
+            .collect();
+        let r = Row::from_episodes("c", "s", 400, &eps);
+        assert_eq!((r.min_steps, r.p5_steps, r.faults), (10, 20, 40));
+        assert_eq!(r.success_rate, 1.0 / 40.0);
+        assert!((r.rms_theta_deg.mean - 0.1f64.to_degrees()).abs() < 1e-12);
+        assert!((r.rms_x_m.mean - 2.0).abs() < 1e-12 && r.rms_x_m.ci95 < 1e-12);
+        assert!((r.mean_abs_x_m.mean - 2.0).abs() < 1e-12);
+        assert!((r.switches_per_s.mean - 25.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn results_do_not_depend_on_threads() {
+        let net = Net::shipped();
+        let s = Scenario::parse("noise").unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let a = one.install(|| evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64));
+        let b = evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64);
+        assert_eq!(a, b);
+    }
+}

@@ -1,0 +1,233 @@
+//! Pictures of one episode: an animated GIF of the cart and pole, and a PNG of x, theta and
+//! the commands over time.
+
+use std::path::Path;
+
+use anyhow::{Context, Result, anyhow};
+use firmware::cartpole::{Action, Params};
+use firmware::controller::{CONTROL_PERIOD_S, Command};
+use plotters::coord::Shift;
+use plotters::prelude::*;
+use policy_export::plot::{FONT, ensure_font};
+
+use crate::twin::Frame;
+
+/// Pixels per metre in the animation; the track is drawn to scale.
+const PX_PER_M: f64 = 100.0;
+
+fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
+    anyhow!("drawing: {e:?}")
+}
+
+/// Writes an animated GIF of `frames` (every `stride`-th period, in real time).
+pub fn gif(
+    path: &Path,
+    frames: &[Frame],
+    params: &Params,
+    stride: usize,
+    title: &str,
+) -> Result<()> {
+    ensure_font()?;
+    let half_track = params.x_threshold + 0.3;
+    let pole = 2.0 * params.length;
+    let (w, h) = (
+        (2.0 * half_track * PX_PER_M) as u32,
+        ((pole + 0.6) * PX_PER_M) as u32,
+    );
+    let delay_ms = (stride as f64 * CONTROL_PERIOD_S * 1000.0).round() as u32;
+    let root = BitMapBackend::gif(path, (w, h), delay_ms)
+        .map_err(err)
+        .with_context(|| format!("creating {}", path.display()))?
+        .into_drawing_area();
+    let to_px = |x: f64, y: f64| -> (i32, i32) {
+        (
+            ((x + half_track) * PX_PER_M).round() as i32,
+            (f64::from(h) - (y + 0.3) * PX_PER_M).round() as i32,
+        )
+    };
+    let font = (FONT, 15).into_font();
+    for (i, f) in frames.iter().enumerate().step_by(stride.max(1)) {
+        root.fill(&WHITE).map_err(err)?;
+        let (x, theta) = (f.state.x, f.state.theta);
+        // Track with the failure limits.
+        root.draw(&PathElement::new(
+            [to_px(-half_track, 0.0), to_px(half_track, 0.0)],
+            BLACK.stroke_width(2),
+        ))
+        .map_err(err)?;
+        for edge in [-params.x_threshold, params.x_threshold] {
+            root.draw(&PathElement::new(
+                [to_px(edge, -0.15), to_px(edge, 0.15)],
+                RED.stroke_width(2),
+            ))
+            .map_err(err)?;
+        }
+        // Cart, coloured by the push it is given, and the pole.
+        let colour = match f.command {
+            Command::Push(Action::Right) => RGBColor(40, 110, 200),
+            Command::Push(Action::Left) => RGBColor(230, 130, 30),
+            Command::Coast => RGBColor(128, 128, 128),
+        };
+        root.draw(&Rectangle::new(
+            [to_px(x - 0.25, 0.12), to_px(x + 0.25, -0.08)],
+            colour.filled(),
+        ))
+        .map_err(err)?;
+        let tip = (x + pole * theta.sin(), 0.12 + pole * theta.cos());
+        root.draw(&PathElement::new(
+            [to_px(x, 0.12), to_px(tip.0, tip.1)],
+            RGBColor(140, 80, 40).stroke_width(6),
+        ))
+        .map_err(err)?;
+        root.draw(&Circle::new(to_px(x, 0.12), 4, BLACK.filled()))
+            .map_err(err)?;
+        let t = (i + 1) as f64 * CONTROL_PERIOD_S;
+        root.draw(&Text::new(
+            format!(
+                "{title}   t = {t:5.2} s   x = {x:+.2} m   theta = {:+.1} deg",
+                theta.to_degrees()
+            ),
+            (8, 6),
+            font.clone(),
+        ))
+        .map_err(err)?;
+        root.present().map_err(err)?;
+    }
+    Ok(())
+}
+
+/// Writes a PNG with three panels over time: cart position, pole angle, and the command.
+pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -> Result<()> {
+    ensure_font()?;
+    let root = BitMapBackend::new(path, (1000, 720)).into_drawing_area();
+    root.fill(&WHITE).map_err(err)?;
+    let root = root.titled(title, (FONT, 22).into_font()).map_err(err)?;
+    let panels = root.split_evenly((3, 1));
+    let t_end = frames.len() as f64 * CONTROL_PERIOD_S;
+    let series = |f: &dyn Fn(&Frame) -> f64| -> Vec<(f64, f64)> {
+        frames
+            .iter()
+            .enumerate()
+            .map(|(i, fr)| ((i + 1) as f64 * CONTROL_PERIOD_S, f(fr)))
+            .collect()
+    };
+    let x_lim = params.x_threshold;
+    let th_lim = params.theta_threshold_radians.to_degrees();
+    panel(
+        &panels[0],
+        t_end,
+        (-x_lim, x_lim),
+        "x (m)",
+        &series(&|f| f.state.x),
+        x_lim,
+    )?;
+    panel(
+        &panels[1],
+        t_end,
+        (-th_lim, th_lim),
+        "theta (deg)",
+        &series(&|f| f.state.theta.to_degrees()),
+        th_lim,
+    )?;
+    let command = series(&|f| match f.command {
+        Command::Push(Action::Right) => 1.0,
+        Command::Push(Action::Left) => -1.0,
+        Command::Coast => 0.0,
+    });
+    let mut chart = ChartBuilder::on(&panels[2])
+        .margin(8)
+        .x_label_area_size(36)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_end, -1.3..1.3)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .x_desc("time (s)")
+        .y_desc("push (+1 right)")
+        .label_style((FONT, 14))
+        .y_labels(3)
+        .draw()
+        .map_err(err)?;
+    // A step plot: the command holds for the whole period.
+    let steps: Vec<(f64, f64)> = command
+        .iter()
+        .flat_map(|&(t, v)| [(t - CONTROL_PERIOD_S, v), (t, v)])
+        .collect();
+    chart
+        .draw_series(LineSeries::new(steps, BLUE.stroke_width(1)))
+        .map_err(err)?;
+    root.present()
+        .map_err(err)
+        .with_context(|| format!("writing {}", path.display()))
+}
+
+fn panel(
+    area: &DrawingArea<BitMapBackend<'_>, Shift>,
+    t_end: f64,
+    (lo, hi): (f64, f64),
+    label: &str,
+    points: &[(f64, f64)],
+    limit: f64,
+) -> Result<()> {
+    let mut chart = ChartBuilder::on(area)
+        .margin(8)
+        .x_label_area_size(30)
+        .y_label_area_size(70)
+        .build_cartesian_2d(0.0..t_end, lo * 1.05..hi * 1.05)
+        .map_err(err)?;
+    chart
+        .configure_mesh()
+        .y_desc(label)
+        .label_style((FONT, 14))
+        .draw()
+        .map_err(err)?;
+    for l in [-limit, limit] {
+        chart
+            .draw_series(LineSeries::new([(0.0, l), (t_end, l)], RED.mix(0.6)))
+            .map_err(err)?;
+    }
+    chart
+        .draw_series(LineSeries::new(
+            points.iter().copied(),
+            BLUE.stroke_width(2),
+        ))
+        .map_err(err)?;
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::eval::{ControllerKind, Net, episode};
+    use crate::twin::Scenario;
+
+    #[test]
+    fn writes_a_gif_and_a_png_that_decode() {
+        let dir = std::env::temp_dir().join(format!("host-sim-render-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let mut frames = Vec::new();
+        let s = Scenario::nominal();
+        episode(ControllerKind::Policy, &Net::shipped(), &s, 60, 0, 0, |f| {
+            frames.push(f)
+        });
+        let (g, p) = (dir.join("e.gif"), dir.join("e.png"));
+        gif(&g, &frames, &s.params, 2, "policy").unwrap();
+        timeseries(&p, &frames, &s.params, "policy").unwrap();
+        let mut decoder = gif::DecodeOptions::new()
+            .read_info(std::fs::File::open(&g).unwrap())
+            .unwrap();
+        let (w, h) = (decoder.width(), decoder.height());
+        // 2 * (2.4 + 0.3) m and 1.0 + 0.6 m at 100 px/m.
+        assert_eq!((w, h), (540, 160));
+        let mut n = 0;
+        while decoder.read_next_frame().unwrap().is_some() {
+            n += 1;
+        }
+        assert_eq!(n, frames.len().div_ceil(2));
+        let png = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&p).unwrap()))
+            .read_info()
+            .unwrap();
+        assert_eq!((png.info().width, png.info().height), (1000, 720));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

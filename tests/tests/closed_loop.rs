@@ -1,0 +1,79 @@
+//! Train -> export -> load -> balance, across the three crates, through the firmware's
+//! `Controller` and the digital twin.
+
+use firmware::policy::POLICY;
+use host_sim::eval::{ControllerKind, Net, evaluate};
+use host_sim::twin::Scenario;
+use policy_export::config::{Config, KernelChoice};
+use policy_export::export::rust_module;
+use policy_export::train;
+use policy_export::weights::{Weights, write_atomic};
+
+#[test]
+fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
+    // A short robust-preset run: 120 episodes, seconds of training, far from the full budget.
+    let cfg = Config {
+        episodes: 120,
+        kernel: KernelChoice::Portable,
+        ..Config::robust()
+    };
+    let run = train::train(&cfg, 3, &mut |_| {}).unwrap();
+    let dir = std::env::temp_dir().join(format!("e2e-closed-loop-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("policy.safetensors");
+    write_atomic(
+        &file,
+        &run.policy.to_safetensors(&Default::default()).unwrap(),
+    )
+    .unwrap();
+
+    // The exported source carries exactly these bits: every literal parses back to them.
+    let source = rust_module(&run.policy, &[]);
+    let body = &source[source.find("= Mlp {").unwrap()..];
+    let literals: Vec<u32> = body
+        .split(|c: char| c == ',' || c == '[' || c == ']' || c.is_whitespace())
+        .filter_map(|t| t.parse::<f32>().ok())
+        .map(f32::to_bits)
+        .collect();
+    let expected: Vec<u32> = run
+        .policy
+        .tensors
+        .iter()
+        .flatten()
+        .map(|v| v.to_bits())
+        .collect();
+    assert_eq!(literals, expected);
+
+    let loaded = Weights::load(&file).unwrap();
+    assert_eq!(loaded.tensors, run.policy.tensors);
+    let net = Net::from_weights(&loaded).unwrap();
+    let nominal = Scenario::nominal();
+    let policy = evaluate(ControllerKind::Policy, &net, &nominal, 500, 9, 100);
+    let random = evaluate(ControllerKind::Random, &net, &nominal, 500, 9, 100);
+    assert!(
+        policy.mean_steps - policy.mean_steps_ci95 > random.mean_steps + random.mean_steps_ci95,
+        "trained {:.1} ± {:.1} steps vs random {:.1} ± {:.1}",
+        policy.mean_steps,
+        policy.mean_steps_ci95,
+        random.mean_steps,
+        random.mean_steps_ci95
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn the_shipped_policy_passes_the_500_step_horizon_on_100_seeded_starts() {
+    let net = Net::W64(Box::new(POLICY.clone()));
+    let row = evaluate(
+        ControllerKind::Policy,
+        &net,
+        &Scenario::nominal(),
+        500,
+        2024,
+        100,
+    );
+    assert_eq!(row.episodes, 100);
+    assert_eq!(row.success_rate, 1.0, "{row:?}");
+    assert_eq!(row.min_steps, 500);
+    assert_eq!(row.faults, 0);
+}
