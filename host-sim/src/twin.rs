@@ -1,5 +1,7 @@
 //! The digital twin: the firmware's sensor and actuator traits implemented over the
-//! simulated plant, and the loop that runs the unchanged [`Controller`] against it.
+//! simulated plant, and the loop that runs the unchanged [`Controller`] against it. The pins
+//! are `firmware::loopback`'s, the same the microcontroller's self-test uses; the sensor adds
+//! the scenario's noise.
 //!
 //! A period goes: the controller reads the twin's sensor (the true state, plus noise if the
 //! scenario asks), decides and writes the twin's direction pin and duty cycle; the twin turns
@@ -10,16 +12,12 @@
 use std::cell::Cell;
 use std::convert::Infallible;
 
-use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
-use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 use firmware::cartpole::{CartPole, Params, State, unit_f64};
 use firmware::controller::{Command, Controller, Limits, Policy, StateSensor};
+use firmware::loopback::{CellDuty, CellPin, force as bridge_force};
 use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64Mcg;
-
-/// Full scale of the twin's duty cycle.
-pub const MAX_DUTY: u16 = 1000;
 
 /// Sensor noise standard deviations of the `noise` scenario, per channel: 1 cm, 5 cm/s,
 /// 0.3 degrees, 0.05 rad/s; a cheap encoder and a finite-difference velocity.
@@ -178,45 +176,6 @@ impl StateSensor for TwinSensor<'_> {
     }
 }
 
-/// The direction pin: high pushes towards +x.
-pub struct TwinPin<'a>(&'a Cell<bool>);
-
-impl PinErrorType for TwinPin<'_> {
-    type Error = Infallible;
-}
-
-impl OutputPin for TwinPin<'_> {
-    #[inline]
-    fn set_low(&mut self) -> Result<(), Infallible> {
-        self.0.set(false);
-        Ok(())
-    }
-    #[inline]
-    fn set_high(&mut self) -> Result<(), Infallible> {
-        self.0.set(true);
-        Ok(())
-    }
-}
-
-/// The enable's duty cycle; full duty is the plant's full push.
-pub struct TwinDuty<'a>(&'a Cell<u16>);
-
-impl PwmErrorType for TwinDuty<'_> {
-    type Error = Infallible;
-}
-
-impl SetDutyCycle for TwinDuty<'_> {
-    #[inline]
-    fn max_duty_cycle(&self) -> u16 {
-        MAX_DUTY
-    }
-    #[inline]
-    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-        self.0.set(duty.min(MAX_DUTY));
-        Ok(())
-    }
-}
-
 /// What one episode did, summed over its periods.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct EpisodeStats {
@@ -284,8 +243,8 @@ pub fn run_episode<P: Policy>(
     let mut controller: Controller<_, _, _, _, 1> = Controller::new(
         policy,
         sensor,
-        TwinPin(&direction),
-        TwinDuty(&duty),
+        CellPin(&direction),
+        CellDuty(&duty),
         Limits::default(),
     );
     let force_mag = scenario.params.force_mag;
@@ -301,12 +260,7 @@ pub fn run_episode<P: Policy>(
             stats.faults += 1;
         }
         previous = Some(command);
-        let sign = if direction.get() { 1.0 } else { -1.0 };
-        let commanded = match duty.get() {
-            0 => 0.0,
-            MAX_DUTY => sign * force_mag,
-            d => sign * force_mag * f64::from(d) / f64::from(MAX_DUTY),
-        };
+        let commanded = bridge_force(direction.get(), duty.get(), force_mag);
         let mut force = if scenario.delay {
             std::mem::replace(&mut pending, commanded)
         } else {

@@ -1,0 +1,160 @@
+//! A plant in place of the hardware: a sensor and two actuator outputs that read and write
+//! shared cells, so the [`Controller`](crate::controller::Controller) can close the loop
+//! against [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in
+//! `host-sim` (the digital twin) with exactly the code that drives real pins.
+//!
+//! This module is the wiring only. Scenarios (noise, delay, pushes) belong to `host-sim`.
+
+use core::cell::Cell;
+use core::convert::Infallible;
+
+use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
+use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
+
+use crate::cartpole::{CartPole, State};
+use crate::controller::{Controller, Limits, Policy, StateSensor};
+
+/// Full scale of [`CellDuty`].
+pub const MAX_DUTY: u16 = 1000;
+
+/// Reads the plant's true state, rounded to f32 like its observation.
+pub struct PlantSensor<'a>(pub &'a Cell<State>);
+
+impl StateSensor for PlantSensor<'_> {
+    type Error = Infallible;
+    #[inline]
+    fn read(&mut self) -> Result<[f32; 4], Infallible> {
+        Ok(self.0.get().observation())
+    }
+}
+
+/// A direction pin whose level is a cell: high pushes towards +x.
+pub struct CellPin<'a>(pub &'a Cell<bool>);
+
+impl PinErrorType for CellPin<'_> {
+    type Error = Infallible;
+}
+
+impl OutputPin for CellPin<'_> {
+    #[inline]
+    fn set_low(&mut self) -> Result<(), Infallible> {
+        self.0.set(false);
+        Ok(())
+    }
+    #[inline]
+    fn set_high(&mut self) -> Result<(), Infallible> {
+        self.0.set(true);
+        Ok(())
+    }
+}
+
+/// An enable whose duty cycle is a cell, out of [`MAX_DUTY`].
+pub struct CellDuty<'a>(pub &'a Cell<u16>);
+
+impl PwmErrorType for CellDuty<'_> {
+    type Error = Infallible;
+}
+
+impl SetDutyCycle for CellDuty<'_> {
+    #[inline]
+    fn max_duty_cycle(&self) -> u16 {
+        MAX_DUTY
+    }
+    #[inline]
+    fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
+        self.0.set(duty.min(MAX_DUTY));
+        Ok(())
+    }
+}
+
+/// The force the bridge applies for a direction level and duty cycle, in newtons.
+#[inline]
+pub fn force(direction: bool, duty: u16, force_mag: f64) -> f64 {
+    let sign = if direction { 1.0 } else { -1.0 };
+    match duty {
+        0 => 0.0,
+        MAX_DUTY => sign * force_mag,
+        d => sign * force_mag * f64::from(d) / f64::from(MAX_DUTY),
+    }
+}
+
+/// How one closed-loop episode ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Outcome {
+    /// Periods survived.
+    pub steps: u32,
+    /// Reached the plant's step limit without failing.
+    pub success: bool,
+    /// Periods that coasted on a rejected reading.
+    pub faults: u32,
+}
+
+/// Runs `policy` through a [`Controller`] against `plant` from its current state until it
+/// terminates or truncates. `wait` runs before every period: a real-time loop sleeps there
+/// until its timer fires, a simulation passes `|| {}`.
+pub fn run<P: Policy>(policy: P, plant: &mut CartPole, mut wait: impl FnMut()) -> Outcome {
+    let state = Cell::new(plant.state());
+    let direction = Cell::new(false);
+    let duty = Cell::new(0);
+    let mut c: Controller<_, _, _, _, 1> = Controller::new(
+        policy,
+        PlantSensor(&state),
+        CellPin(&direction),
+        CellDuty(&duty),
+        Limits::default(),
+    );
+    loop {
+        wait();
+        c.step();
+        let t = plant.step_force(force(direction.get(), duty.get(), plant.params.force_mag));
+        state.set(plant.state());
+        if t.terminated || t.truncated {
+            return Outcome {
+                steps: plant.steps(),
+                success: !t.terminated,
+                faults: c.faults().rejected_readings,
+            };
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cartpole::Params;
+    use crate::policy::POLICY;
+
+    #[test]
+    fn loopback_episode_equals_the_plant_under_greedy_actions() {
+        let start = State::from_array([0.03, -0.02, 0.04, 0.01]);
+        let mut plant = CartPole::new(Params::default(), 300);
+        plant.reset_to(start);
+        let out = run(&POLICY, &mut plant, || {});
+        let mut reference = CartPole::new(Params::default(), 300);
+        let mut obs = reference.reset_to(start);
+        loop {
+            let t = reference.step(POLICY.greedy_action(&obs));
+            obs = t.obs;
+            if t.terminated || t.truncated {
+                break;
+            }
+        }
+        assert_eq!(reference.state(), plant.state());
+        assert_eq!(
+            out,
+            Outcome {
+                steps: 300,
+                success: true,
+                faults: 0
+            }
+        );
+    }
+
+    #[test]
+    fn force_follows_the_pins() {
+        assert_eq!(force(true, MAX_DUTY, 10.0), 10.0);
+        assert_eq!(force(false, MAX_DUTY, 10.0), -10.0);
+        assert_eq!(force(true, 0, 10.0), 0.0);
+        assert_eq!(force(false, 500, 10.0), -5.0);
+    }
+}
