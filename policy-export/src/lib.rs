@@ -6,7 +6,8 @@
 //! - [`weights`]: policies as tensors, safetensors in and out, atomic writes.
 //! - [`export`]: Rust const-array modules and C headers.
 //! - [`run`]: the run directory (metrics, summary, policy files).
-//! - [`plot`]: the bundled font every figure uses.
+//! - [`plot`]: the bundled font and the line charts every figure uses.
+//! - [`reproduce`]: the paper's ablations over many seeds, tables and figures.
 #![deny(unsafe_code)]
 
 pub mod config;
@@ -14,6 +15,7 @@ pub mod export;
 #[allow(unsafe_code)]
 pub mod nn;
 pub mod plot;
+pub mod reproduce;
 pub mod run;
 pub mod train;
 pub mod weights;

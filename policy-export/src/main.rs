@@ -41,6 +41,22 @@ enum Command {
         #[arg(long, value_enum, default_value = "rust")]
         format: Format,
     },
+    /// Rerun the paper's Tables 1, 4, 5, 6, its initialisation and target-update choices and
+    /// single changes to its preset, with many seeds; write tables, JSON and figures.
+    Reproduce {
+        /// Seeds per configuration.
+        #[arg(long, default_value_t = 20)]
+        seeds: u64,
+        /// Output directory (results.json, tables.md, SVG and PNG figures).
+        #[arg(long, default_value = "runs/reproduce")]
+        out: PathBuf,
+        /// Studies to run (default all): table1, table4, table5, table6, init, target, fix.
+        #[arg(long, value_delimiter = ',')]
+        study: Vec<String>,
+        /// Training kernel for every run.
+        #[arg(long, value_enum, default_value = "auto")]
+        kernel: KernelChoice,
+    },
 }
 
 #[derive(Args)]
@@ -187,11 +203,70 @@ fn parse_range(s: &str) -> Result<Range<u64>, String> {
     Ok(a..b)
 }
 
+fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoice) -> Result<()> {
+    use policy_export::reproduce;
+    anyhow::ensure!(
+        seeds >= 2,
+        "--seeds must be at least 2 for confidence intervals"
+    );
+    let base = Config {
+        kernel,
+        ..Config::paper()
+    };
+    let all = reproduce::variants(&base);
+    for s in studies {
+        anyhow::ensure!(
+            all.iter().any(|v| v.study == s),
+            "unknown study {s:?} (table1, table4, table5, table6, init, target, fix)"
+        );
+    }
+    let variants: Vec<_> = all
+        .into_iter()
+        .filter(|v| studies.is_empty() || studies.iter().any(|s| s == v.study))
+        .collect();
+    let total = reproduce::distinct_runs(&variants, seeds);
+    let bar = if std::io::stderr().is_terminal() {
+        ProgressBar::new(total).with_style(
+            ProgressStyle::with_template("{bar:40} {pos}/{len} runs, {elapsed} (eta {eta})")
+                .expect("static template"),
+        )
+    } else {
+        ProgressBar::hidden()
+    };
+    let done = std::sync::atomic::AtomicU64::new(0);
+    let started = std::time::Instant::now();
+    let tick = || {
+        bar.inc(1);
+        let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
+        if bar.is_hidden() && (n.is_multiple_of((total / 10).max(1)) || n == total) {
+            eprintln!("{n}/{total} runs, {:.0} s", started.elapsed().as_secs_f64());
+        }
+    };
+    let runs = reproduce::run(&variants, seeds, &tick)?;
+    bar.finish_and_clear();
+    let command = std::env::args().collect::<Vec<_>>().join(" ");
+    let rows = reproduce::write(out, &variants, &runs, &command)?;
+    print!("{}", reproduce::tables_md(&rows));
+    eprintln!(
+        "{total} runs in {:.1} s on {} threads; results in {}",
+        started.elapsed().as_secs_f64(),
+        rayon::current_num_threads(),
+        out.display()
+    );
+    Ok(())
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Train(args) => cmd_train(*args),
         Command::Export { src, out, format } => cmd_export(&src, &out, format),
+        Command::Reproduce {
+            seeds,
+            out,
+            study,
+            kernel,
+        } => cmd_reproduce(seeds, &out, &study, kernel),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

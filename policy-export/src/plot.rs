@@ -25,3 +25,132 @@ pub fn ensure_font() -> Result<()> {
     }
     Ok(())
 }
+
+/// One line of a chart: a mean per x with a shaded band (lower, upper), or no band.
+pub struct Curve {
+    /// Legend text.
+    pub label: String,
+    /// y values, one per x = 1, 2, ...
+    pub mean: Vec<f64>,
+    /// Band edges, the same length as `mean`; empty for none.
+    pub band: Vec<(f64, f64)>,
+    /// Dashed instead of solid.
+    pub dashed: bool,
+}
+
+/// Draws `curves` against x = 1..n into `stem.svg` and `stem.png`.
+pub fn line_chart(
+    stem: &std::path::Path,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    curves: &[Curve],
+) -> Result<()> {
+    use plotters::prelude::*;
+    ensure_font()?;
+    let svg = stem.with_extension("svg");
+    let png = stem.with_extension("png");
+    draw(
+        SVGBackend::new(&svg, (900, 540)).into_drawing_area(),
+        title,
+        x_label,
+        y_label,
+        curves,
+    )
+    .map_err(|e| anyhow::anyhow!("drawing {}: {e}", svg.display()))?;
+    draw(
+        BitMapBackend::new(&png, (900, 540)).into_drawing_area(),
+        title,
+        x_label,
+        y_label,
+        curves,
+    )
+    .map_err(|e| anyhow::anyhow!("drawing {}: {e}", png.display()))?;
+    Ok(())
+}
+
+fn draw<DB: plotters::prelude::DrawingBackend>(
+    root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    curves: &[Curve],
+) -> std::result::Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    root.fill(&WHITE)?;
+    let n = curves
+        .iter()
+        .map(|c| c.mean.len())
+        .max()
+        .unwrap_or(1)
+        .max(2);
+    let values = curves
+        .iter()
+        .flat_map(|c| {
+            c.mean
+                .iter()
+                .copied()
+                .chain(c.band.iter().flat_map(|&(a, b)| [a, b]))
+        })
+        .filter(|v| v.is_finite());
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    let (lo, hi) = if lo < hi { (lo, hi) } else { (0.0, 1.0) };
+    let pad = 0.05 * (hi - lo);
+    let mut chart = ChartBuilder::on(&root)
+        .caption(title, (FONT, 22))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(60)
+        .build_cartesian_2d(1f64..n as f64, (lo - pad)..(hi + pad))?;
+    chart
+        .configure_mesh()
+        .x_desc(x_label)
+        .y_desc(y_label)
+        .label_style((FONT, 14))
+        .draw()?;
+    for (i, c) in curves.iter().enumerate() {
+        let colour = Palette99::pick(i).to_rgba();
+        let xy = |v: &[f64]| -> Vec<(f64, f64)> {
+            v.iter()
+                .enumerate()
+                .map(|(k, &y)| ((k + 1) as f64, y))
+                .collect()
+        };
+        if !c.band.is_empty() {
+            let mut poly: Vec<(f64, f64)> = xy(&c.band.iter().map(|b| b.1).collect::<Vec<_>>());
+            let lower = xy(&c.band.iter().map(|b| b.0).collect::<Vec<_>>());
+            poly.extend(lower.into_iter().rev());
+            chart.draw_series(std::iter::once(Polygon::new(
+                poly,
+                colour.mix(0.18).filled(),
+            )))?;
+        }
+        let style = colour.stroke_width(2);
+        let points = xy(&c.mean);
+        if c.dashed {
+            chart
+                .draw_series(DashedLineSeries::new(points, 6, 4, style))?
+                .label(c.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
+        } else {
+            chart
+                .draw_series(LineSeries::new(points, style))?
+                .label(c.label.clone())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
+        }
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.85))
+        .border_style(BLACK)
+        .label_font((FONT, 14))
+        .position(SeriesLabelPosition::LowerRight)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
