@@ -73,7 +73,7 @@ pub fn report<const H: usize>(
         let mut q = [0.0; 2];
         forward(obs, &mut q);
         let mut text = heapless::String::<96>::new();
-        // 96 bytes hold the longest probe line (83); a shorter line is still a mismatch the
+        // 96 bytes hold a probe line (64 characters); a truncated line is still a mismatch the
         // host test reports, never a panic.
         let _ = probe_line(&mut text, i, obs, &q);
         line(format_args!("{text}"));

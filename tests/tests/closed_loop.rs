@@ -1,7 +1,6 @@
 //! Train -> export -> load -> balance, across the three crates, through the firmware's
 //! `Controller` and the digital twin.
 
-use firmware::policy::POLICY;
 use host_sim::eval::{ControllerKind, Net, evaluate};
 use host_sim::twin::Scenario;
 use policy_export::config::{Config, KernelChoice};
@@ -63,7 +62,7 @@ fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
 
 #[test]
 fn the_shipped_policy_passes_the_500_step_horizon_on_100_seeded_starts() {
-    let net = Net::W64(Box::new(POLICY.clone()));
+    let net = Net::shipped();
     let row = evaluate(
         ControllerKind::Policy,
         &net,
