@@ -82,7 +82,7 @@ pub trait StateSensor {
 
 /// Maps a sanitised observation to two scores, `[left, right]`; the controller pushes right
 /// only if the right score is strictly larger (ties and NaN push left, see
-/// [`argmax`](crate::network::argmax)). The Q-network's scores are its Q-values; a baseline's
+/// [`argmax`]). The Q-network's scores are its Q-values; a baseline's
 /// may be anything with that meaning.
 pub trait Policy {
     /// Scores for `[Left, Right]`.

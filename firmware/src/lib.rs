@@ -8,9 +8,11 @@
 //! - [`selftest`]: bit-exactness probes and closed-loop episodes the MCU runs at start-up.
 //! - [`ffi`]: `cartpole_policy_forward`, the C ABI.
 //!
-//! The crate is `no_std`, links neither `std` nor `alloc`, and has no `unsafe` code; the one
-//! `unsafe` attribute is `no_mangle` on the C entry point (see [`ffi`]). Host crates
-//! (`policy-export`, `host-sim`) build on it; it depends on none of them.
+//! The crate is `no_std` and links neither `std` nor `alloc`. Its `unsafe` is confined to two
+//! places: `no_mangle` on the C entry point (see [`ffi`]), and on hard-float Arm targets the
+//! hand-written VFP dot product (`network::vfp`), which the self-test checks against the
+//! portable one on the device. Host crates (`policy-export`, `host-sim`) build on it; it
+//! depends on none of them.
 #![no_std]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]

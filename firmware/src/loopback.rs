@@ -1,5 +1,5 @@
 //! A plant in place of the hardware: a sensor and two actuator outputs that read and write
-//! shared cells, so the [`Controller`](crate::controller::Controller) can close the loop
+//! shared cells, so the [`Controller`] can close the loop
 //! against [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in
 //! `host-sim` (the digital twin) with exactly the code that drives real pins.
 //!

@@ -5,12 +5,12 @@
 //! The firmware binary prints the results; `host-sim probes` prints the host's values in the
 //! same format, and an end-to-end test runs both and compares the text.
 
-use rand_core::SeedableRng;
+use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
 use crate::cartpole::{CartPole, Params};
 use crate::loopback::{Outcome, run};
-use crate::network::Mlp;
+use crate::network::{Mlp, dot, dot_portable};
 
 /// Observations whose Q-values must agree bit for bit on every target: a balanced state,
 /// leaning states, the edges of the failure box, large rates, and values with long mantissas.
@@ -24,6 +24,46 @@ pub const PROBES: [[f32; 4]; 8] = [
     [1.0e-7, -3.3333333, 0.12345679, -0.9876543],
     [-1.1754944e-38, 19.99, -0.41, 19.99],
 ];
+
+/// Random vector pairs per length in [`dot_check`].
+pub const DOT_CASES: u32 = 200;
+
+/// How many of [`DOT_CASES`] seeded random vector pairs, at each of the lengths 4, 8, 16, 24
+/// and 64, give a different result from [`dot`] (the target's own path, hand-written VFP code on
+/// a Cortex-M4F) and from [`dot_portable`] (the order's definition, compiled by LLVM). Bits
+/// must be equal; two NaNs count as equal, since which operand's payload survives is not part
+/// of the order. Half the pairs are raw random bit patterns (NaNs, infinities, subnormals,
+/// signed zeros), half are moderate values whose sums cancel.
+pub fn dot_check() -> u32 {
+    let mut rng = Pcg32::seed_from_u64(0xD07);
+    mismatches::<4>(&mut rng)
+        + mismatches::<8>(&mut rng)
+        + mismatches::<16>(&mut rng)
+        + mismatches::<24>(&mut rng)
+        + mismatches::<64>(&mut rng)
+}
+
+fn mismatches<const N: usize>(rng: &mut Pcg32) -> u32 {
+    let mut bad = 0;
+    for case in 0..DOT_CASES {
+        let mut value = || {
+            let bits = rng.next_u32();
+            if case % 2 == 0 {
+                f32::from_bits(bits)
+            } else {
+                // Sign and mantissa random, exponent within 2^-8 .. 2^8.
+                f32::from_bits((bits & 0x807f_ffff) | ((127 - 8 + (bits >> 23) % 17) << 23))
+            }
+        };
+        let w: [f32; N] = core::array::from_fn(|_| value());
+        let x: [f32; N] = core::array::from_fn(|_| value());
+        let (a, b) = (dot(&w, &x), dot_portable(&w, &x));
+        if a.to_bits() != b.to_bits() && !(a.is_nan() && b.is_nan()) {
+            bad += 1;
+        }
+    }
+    bad
+}
 
 /// Self-test episodes run by the firmware binary.
 pub const EPISODES: u32 = 5;
@@ -58,8 +98,8 @@ pub fn episode<const H: usize>(net: &Mlp<H>, episode: u32) -> Outcome {
 }
 
 /// Writes the self-test report, one line per `line` call: the probe lines (Q-values from
-/// `forward`, the entry point under test), then one line per episode and a verdict. Returns
-/// whether every episode balanced.
+/// `forward`, the entry point under test), the [`dot_check`] result, then one line per
+/// episode and a verdict. Returns whether every episode balanced and no dot product differed.
 pub fn report<const H: usize>(
     net: &Mlp<H>,
     forward: impl Fn(&[f32; 4], &mut [f32; 2]),
@@ -78,6 +118,11 @@ pub fn report<const H: usize>(
         let _ = probe_line(&mut text, i, obs, &q);
         line(format_args!("{text}"));
     }
+    let dot_bad = dot_check();
+    line(format_args!(
+        "dot: {dot_bad} of {} random vector pairs differ from the portable order",
+        5 * DOT_CASES
+    ));
     let mut balanced = 0;
     for e in 0..EPISODES {
         let o = episode(net, e);
@@ -92,7 +137,7 @@ pub fn report<const H: usize>(
     line(format_args!(
         "self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
     ));
-    balanced == EPISODES
+    balanced == EPISODES && dot_bad == 0
 }
 
 #[cfg(test)]

@@ -61,6 +61,10 @@ fn run_on(target: &str) {
         "{target} Q-values differ from the host's"
     );
     assert!(
+        stdout.contains("dot: 0 of 1000 random vector pairs differ"),
+        "{target}: {stdout}"
+    );
+    assert!(
         stdout.contains("self-test: 5 of 5 episodes balanced"),
         "{stdout}"
     );
