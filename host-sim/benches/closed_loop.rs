@@ -12,6 +12,7 @@ use firmware::cartpole::{Action, CartPole, Params};
 use firmware::policy::POLICY;
 use host_sim::eval::{ControllerKind, Net, episode};
 use host_sim::twin::Scenario;
+use host_sim::wide::{Kernel, WideMlp};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64Mcg;
 
@@ -37,9 +38,17 @@ fn line(name: &str, (steps, secs): (u64, f64)) {
     );
 }
 
+fn run(kind: ControllerKind, net: &Net) -> (u64, f64) {
+    let nominal = Scenario::nominal();
+    best_of(5, || {
+        (0..EPISODES)
+            .map(|i| u64::from(episode(kind, net, &nominal, HORIZON, 0, i, |_| {}).steps))
+            .sum()
+    })
+}
+
 fn main() {
     let net = Net::shipped();
-    let nominal = Scenario::nominal();
     println!(
         "{:<52} {:>9} {:>10} {:>12}",
         "configuration", "steps", "ns/step", "Msteps/s"
@@ -49,18 +58,20 @@ fn main() {
         ControllerKind::Lqr,
         ControllerKind::Rule,
     ] {
-        line(
-            &format!("controller + {kind} + plant"),
-            best_of(5, || {
-                (0..EPISODES)
-                    .map(|i| u64::from(episode(kind, &net, &nominal, HORIZON, 0, i, |_| {}).steps))
-                    .sum()
-            }),
-        );
+        line(&format!("controller + {kind} + plant"), run(kind, &net));
+    }
+    // What a CPU without this one's best vector unit gets.
+    for kernel in Kernel::ALL {
+        if let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) {
+            line(
+                &format!("controller + policy ({kernel:?}) + plant"),
+                run(ControllerKind::Policy, &Net::W64(wide)),
+            );
+        }
     }
     let obs = [0.01f32, -0.02, 0.03, 0.04];
     line(
-        "policy forward pass alone",
+        "firmware forward pass alone",
         best_of(5, || {
             for _ in 0..200_000 {
                 black_box(POLICY.forward(black_box(&obs)));
@@ -68,6 +79,20 @@ fn main() {
             200_000
         }),
     );
+    for kernel in Kernel::ALL {
+        let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) else {
+            continue;
+        };
+        line(
+            &format!("host-sim forward pass alone ({kernel:?})"),
+            best_of(5, || {
+                for _ in 0..200_000 {
+                    black_box(wide.forward(black_box(&obs)));
+                }
+                200_000
+            }),
+        );
+    }
     line(
         "plant step alone",
         best_of(5, || {

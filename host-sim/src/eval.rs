@@ -10,7 +10,6 @@ use std::fmt;
 
 use anyhow::{Result, bail};
 use firmware::controller::Policy;
-use firmware::network::Mlp;
 use firmware::policy::POLICY;
 use policy_export::weights::Weights;
 use rayon::prelude::*;
@@ -18,36 +17,38 @@ use serde::Serialize;
 
 use crate::baselines::{AngleRule, Lqr, Random};
 use crate::twin::{EpisodeStats, Frame, Scenario, policy_rng, run_episode};
+use crate::wide::WideMlp;
 
-/// A Q-network of any width the trainer supports, loaded at run time.
+/// A Q-network of any width the trainer supports, loaded at run time, laid out for the
+/// host's vector units ([`WideMlp`]: the firmware's forward pass, bit for bit).
 #[derive(Clone, Debug)]
 pub enum Net {
     /// Width 16.
-    W16(Box<Mlp<16>>),
+    W16(Box<WideMlp<16>>),
     /// Width 32.
-    W32(Box<Mlp<32>>),
+    W32(Box<WideMlp<32>>),
     /// Width 64: the firmware's.
-    W64(Box<Mlp<64>>),
+    W64(Box<WideMlp<64>>),
     /// Width 128.
-    W128(Box<Mlp<128>>),
+    W128(Box<WideMlp<128>>),
     /// Width 256.
-    W256(Box<Mlp<256>>),
+    W256(Box<WideMlp<256>>),
 }
 
 impl Net {
     /// The policy compiled into `firmware`.
     pub fn shipped() -> Net {
-        Net::W64(Box::new(POLICY.clone()))
+        Net::W64(WideMlp::new(&POLICY))
     }
 
     /// A network from checked safetensors weights.
     pub fn from_weights(w: &Weights) -> Result<Net> {
         Ok(match w.width {
-            16 => Net::W16(w.to_mlp()?),
-            32 => Net::W32(w.to_mlp()?),
-            64 => Net::W64(w.to_mlp()?),
-            128 => Net::W128(w.to_mlp()?),
-            256 => Net::W256(w.to_mlp()?),
+            16 => Net::W16(WideMlp::new(&*w.to_mlp()?)),
+            32 => Net::W32(WideMlp::new(&*w.to_mlp()?)),
+            64 => Net::W64(WideMlp::new(&*w.to_mlp()?)),
+            128 => Net::W128(WideMlp::new(&*w.to_mlp()?)),
+            256 => Net::W256(WideMlp::new(&*w.to_mlp()?)),
             other => bail!("hidden width {other} is not one of 16, 32, 64, 128, 256"),
         })
     }

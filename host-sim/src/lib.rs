@@ -8,11 +8,15 @@
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
+//! - [`wide`]: the firmware's forward pass laid out for host SIMD, bit-identical.
+//!
+//! The one `unsafe` block calls the AVX2 build of [`wide`] after checking the CPU.
 
-#![forbid(unsafe_code)]
+#![deny(unsafe_code)]
 
 pub mod baselines;
 pub mod eval;
 pub mod render;
 pub mod replay;
 pub mod twin;
+pub mod wide;
