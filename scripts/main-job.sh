@@ -13,8 +13,9 @@ echo "== train (robust preset, seed 1, portable kernel) -> $out"
 pe train --preset robust --kernel portable --seed 1 --out "$out"
 echo "== export"
 pe export "$out" --format c --out "$out/cartpole_policy.h"
-if cmp -s "$out/policy.rs" firmware/src/policy.rs; then
-  echo "$out/policy.rs is identical to the shipped firmware/src/policy.rs"
+if cmp -s "$out/policy.rs" firmware/src/policy.rs &&
+   cmp -s "$out/policy.safetensors" firmware/policy.safetensors; then
+  echo "$out/policy.rs and policy.safetensors are byte-identical to the shipped ones"
 else
   echo "$out/policy.rs differs from firmware/src/policy.rs; to ship it:"
   echo "  cp $out/policy.rs firmware/src/policy.rs && cp $out/policy.safetensors firmware/"

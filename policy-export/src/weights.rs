@@ -1,7 +1,7 @@
 //! A trained policy's six tensors, independent of the compile-time width, and their
 //! safetensors form (PyTorch names and shapes, f32, so `torch` and `safetensors` load it).
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use anyhow::{Context, Result, bail, ensure};
@@ -60,7 +60,7 @@ impl Weights {
             .map(|((name, shape), data)| Ok((*name, TensorView::new(Dtype::F32, shape, data)?)))
             .collect::<Result<Vec<_>>>()?;
         let meta = (!metadata.is_empty()).then(|| metadata.clone());
-        Ok(safetensors::serialize(views, meta)?)
+        canonical_header(&safetensors::serialize(views, meta)?)
     }
 
     /// Parses safetensors bytes, checking every tensor's presence, dtype, shape and values.
@@ -147,6 +147,33 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::rename(&tmp, path).with_context(|| format!("renaming onto {}", path.display()))
 }
 
+/// `bytes` with its JSON header's keys sorted. The safetensors crate writes the metadata (and
+/// may write the tensor entries) in `HashMap` order, which differs from run to run; sorted,
+/// the same weights and metadata always give the same file. The header stays padded with
+/// spaces to a multiple of 8 bytes, as the format recommends; tensor offsets are relative to
+/// the data, so they do not change.
+fn canonical_header(bytes: &[u8]) -> Result<Vec<u8>> {
+    let (len, rest) = bytes
+        .split_first_chunk::<8>()
+        .context("safetensors output shorter than its length prefix")?;
+    let len = usize::try_from(u64::from_le_bytes(*len))?;
+    let (header, data) = rest
+        .split_at_checked(len)
+        .context("safetensors header longer than the output")?;
+    let mut fields: BTreeMap<String, serde_json::Value> = serde_json::from_slice(header)?;
+    if let Some(meta) = fields.remove("__metadata__") {
+        let meta: BTreeMap<String, String> = serde_json::from_value(meta)?;
+        fields.insert("__metadata__".into(), serde_json::to_value(meta)?);
+    }
+    let mut header = serde_json::to_vec(&fields)?;
+    header.resize(header.len().next_multiple_of(8), b' ');
+    let mut out = Vec::with_capacity(8 + header.len() + data.len());
+    out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(data);
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -159,6 +186,37 @@ mod tests {
                 .collect()
         });
         Weights { width, tensors }
+    }
+
+    #[test]
+    fn the_same_weights_and_metadata_give_the_same_bytes() {
+        let w = sample(16);
+        // Each map hashes with its own random state, so its iteration order varies.
+        let meta = || -> HashMap<String, String> {
+            (0..12)
+                .map(|i| (format!("key{i}"), format!("{i}")))
+                .collect()
+        };
+        let first = w.to_safetensors(&meta()).unwrap();
+        for _ in 0..10 {
+            assert_eq!(w.to_safetensors(&meta()).unwrap(), first);
+        }
+        assert_eq!(u64::from_le_bytes(first[..8].try_into().unwrap()) % 8, 0);
+        let st = SafeTensors::deserialize(&first).unwrap();
+        assert_eq!(st.tensor("fc3.bias").unwrap().data().len(), 8);
+        let (_, header) = SafeTensors::read_metadata(&first).unwrap();
+        let keys: Vec<_> = header
+            .metadata()
+            .as_ref()
+            .unwrap()
+            .keys()
+            .cloned()
+            .collect();
+        assert_eq!(keys.len(), 12);
+        assert_eq!(
+            Weights::from_safetensors(&first).unwrap().tensors,
+            w.tensors
+        );
     }
 
     #[test]
