@@ -177,44 +177,34 @@ mod x86 {
 
     use super::*;
 
-    /// The forward pass, eight outputs per AVX2 register.
-    pub(super) fn avx2<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; 2] {
-        #[target_feature(enable = "avx2")]
-        fn imp<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-            let mut h1 = [0.0; H];
-            layer8(&mut h1, net.fc1.get().as_chunks().0, &net.net.fc1_bias, obs);
-            let mut h2 = [0.0; H];
-            layer8(&mut h2, net.fc2.get().as_chunks().0, &net.net.fc2_bias, &h1);
-            output(net, &h2)
-        }
-        // SAFETY: a `WideMlp` gets this kernel only from `with_kernel`, after checking that
-        // the CPU has AVX2.
-        unsafe { imp(net, obs) }
-    }
-
-    /// The forward pass, sixteen outputs per AVX-512 register.
-    pub(super) fn avx512<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; 2] {
-        #[target_feature(enable = "avx512f")]
-        fn imp<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-            let mut h1 = [0.0; H];
-            layer16(&mut h1, net.fc1.get().as_chunks().0, &net.net.fc1_bias, obs);
-            let mut h2 = [0.0; H];
-            layer16(&mut h2, net.fc2.get().as_chunks().0, &net.net.fc2_bias, &h1);
-            output(net, &h2)
-        }
-        // SAFETY: a `WideMlp` gets this kernel only from `with_kernel`, after checking that
-        // the CPU has AVX-512F.
-        unsafe { imp(net, obs) }
-    }
-
-    /// `fn $name(y, w, b, x)`: `y = relu(W x + b)` for `W` packed in blocks of `$width`
-    /// outputs (see [`WideMlp`]). Register `k` holds partial sum `k` of a block's outputs, so
-    /// each output follows `dot`'s order exactly. `$group` blocks run together and share each
-    /// input's broadcast: two with AVX-512's 32 registers (16 partial sums, 8 broadcasts), one
-    /// with AVX2's 16. One definition for both vector widths.
+    /// `fn $entry(net, obs)`, the forward pass, and `fn $name(y, w, b, x)`:
+    /// `y = relu(W x + b)` for `W` packed in blocks of `$width` outputs (see [`WideMlp`]).
+    /// Register `k` holds partial sum `k` of a block's outputs, so each output follows `dot`'s
+    /// order exactly. `$group` blocks run together and share each input's broadcast: two with
+    /// AVX-512's 32 registers (16 partial sums, 8 broadcasts), one with AVX2's 16. One
+    /// definition for both vector widths.
     macro_rules! layer {
-        ($name:ident, $feature:literal, $width:literal, $group:literal, $vec:ty, $load:ident,
-         $store:ident, $set1:ident, $add:ident, $mul:ident, $max:ident, $zero:ident) => {
+        ($entry:ident, $name:ident, $feature:literal, $width:literal, $group:literal,
+         $vec:ty, $load:ident, $store:ident, $set1:ident, $add:ident, $mul:ident, $max:ident,
+         $zero:ident) => {
+            /// The forward pass with `$width` outputs per register.
+            pub(super) fn $entry<const H: usize>(
+                net: &WideMlp<H>,
+                obs: &[f32; OBS_DIM],
+            ) -> [f32; N_ACTIONS] {
+                #[target_feature(enable = $feature)]
+                fn imp<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+                    let mut h1 = [0.0; H];
+                    $name(&mut h1, net.fc1.get().as_chunks().0, &net.net.fc1_bias, obs);
+                    let mut h2 = [0.0; H];
+                    $name(&mut h2, net.fc2.get().as_chunks().0, &net.net.fc2_bias, &h1);
+                    output(net, &h2)
+                }
+                // SAFETY: a `WideMlp` gets this kernel only from `with_kernel`, after
+                // checking that the CPU has `$feature`.
+                unsafe { imp(net, obs) }
+            }
+
             #[inline]
             #[target_feature(enable = $feature)]
             fn $name<const I: usize, const O: usize>(
@@ -284,6 +274,7 @@ mod x86 {
     }
 
     layer!(
+        avx2,
         layer8,
         "avx2",
         8,
@@ -298,6 +289,7 @@ mod x86 {
         _mm256_setzero_ps
     );
     layer!(
+        avx512,
         layer16,
         "avx512f",
         16,
