@@ -52,6 +52,10 @@ pub struct ReplayBuffer {
     action: Vec<u8>,
     reward: Vec<f32>,
     terminated: Vec<bool>,
+    /// Per slot, which push filled it (1 = the first): tells a cache keyed by slot whether
+    /// the slot still holds the transition it saw.
+    write_ids: Vec<u64>,
+    pushes: u64,
     capacity: usize,
     pos: usize,
 }
@@ -65,6 +69,8 @@ impl ReplayBuffer {
             action: Vec::with_capacity(capacity),
             reward: Vec::with_capacity(capacity),
             terminated: Vec::with_capacity(capacity),
+            write_ids: Vec::with_capacity(capacity),
+            pushes: 0,
             capacity,
             pos: 0,
         }
@@ -83,18 +89,21 @@ impl ReplayBuffer {
     /// Stores a transition, overwriting the oldest once full.
     pub fn push(&mut self, obs: [f32; 4], action: Action, reward: f32, next: [f32; 4], term: bool) {
         let a = action.index() as u8;
+        self.pushes += 1;
         if self.len() < self.capacity {
             self.obs.push(obs);
             self.next.push(next);
             self.action.push(a);
             self.reward.push(reward);
             self.terminated.push(term);
+            self.write_ids.push(self.pushes);
         } else {
             self.obs[self.pos] = obs;
             self.next[self.pos] = next;
             self.action[self.pos] = a;
             self.reward[self.pos] = reward;
             self.terminated[self.pos] = term;
+            self.write_ids[self.pos] = self.pushes;
         }
         self.pos = (self.pos + 1) % self.capacity;
     }
@@ -121,6 +130,11 @@ impl ReplayBuffer {
             self.next[i],
             self.terminated[i],
         )
+    }
+
+    /// Which push wrote slot `i`: unique over the buffer's life.
+    pub fn write_id(&self, i: usize) -> u64 {
+        self.write_ids[i]
     }
 }
 
@@ -152,6 +166,15 @@ pub fn td_targets(
     }
 }
 
+/// `Q_target(s')` of one replay slot, valid while the target net and the slot are the ones
+/// it was computed for.
+#[derive(Clone, Copy, Default)]
+struct CachedQ {
+    q: [f32; N_ACTIONS],
+    target_version: u64,
+    write_id: u64,
+}
+
 /// One gradient step's state: the two networks, Adam's moments and the batch buffers.
 pub struct Learner<const H: usize> {
     /// The network being trained; acting uses it.
@@ -176,6 +199,16 @@ pub struct Learner<const H: usize> {
     q_target: Vec<[f32; N_ACTIONS]>,
     q_online: Vec<[f32; N_ACTIONS]>,
     targets: Vec<f32>,
+    /// Per replay slot, its target Q-values. A hard-updated target net stays fixed for
+    /// thousands of updates while each slot is drawn many times, so scoring a slot once
+    /// per target version saves most of the target forward passes. A row's Q-values do
+    /// not depend on the rows batched with it, so the result is the same bit for bit.
+    target_q: Vec<CachedQ>,
+    /// Bumped whenever the target net changes; 0 marks a never-filled cache entry.
+    target_version: u64,
+    /// Batch rows whose target Q-values were not cached, and their next states.
+    miss_rows: Vec<usize>,
+    x_miss: Vec<[f32; OBS_DIM]>,
 }
 
 impl<const H: usize> Learner<H> {
@@ -210,6 +243,10 @@ impl<const H: usize> Learner<H> {
             q_target: vec![[0.0; N_ACTIONS]; b],
             q_online: vec![[0.0; N_ACTIONS]; b],
             targets: vec![0.0; b],
+            target_q: vec![CachedQ::default(); cfg.buffer_size],
+            target_version: 1,
+            miss_rows: Vec::with_capacity(b),
+            x_miss: Vec::with_capacity(b),
         }
     }
 
@@ -227,14 +264,7 @@ impl<const H: usize> Learner<H> {
             ) = (s, a, r, s2, t);
         }
         let k = self.kernel;
-        nn::forward_batch(
-            k,
-            &self.target,
-            &self.target_packed,
-            &self.x_next,
-            &mut self.scratch,
-        );
-        self.q_target.copy_from_slice(&self.scratch.q);
+        self.score_targets(k, buf);
         // The online weights changed in the previous step; the target's only when synced.
         self.online_packed.pack(&self.online);
         if cfg.algo == Algo::Ddqn {
@@ -289,14 +319,50 @@ impl<const H: usize> Learner<H> {
         if cfg.target_update == TargetUpdate::Soft {
             nn::soft_update(&mut self.target, &self.online, cfg.tau as f32);
             self.target_packed.pack(&self.target);
+            self.target_version += 1;
         }
         loss
+    }
+
+    /// Fills `q_target` with the target net's Q-values of the batch's next states, from the
+    /// cache where it is current, with one batched forward pass for the rest.
+    fn score_targets(&mut self, k: Kernel, buf: &ReplayBuffer) {
+        self.miss_rows.clear();
+        self.x_miss.clear();
+        for (b, &i) in self.idx.iter().enumerate() {
+            let c = &self.target_q[i];
+            if c.target_version == self.target_version && c.write_id == buf.write_id(i) {
+                self.q_target[b] = c.q;
+            } else {
+                self.miss_rows.push(b);
+                self.x_miss.push(self.x_next[b]);
+            }
+        }
+        if self.miss_rows.is_empty() {
+            return;
+        }
+        nn::forward_batch(
+            k,
+            &self.target,
+            &self.target_packed,
+            &self.x_miss,
+            &mut self.scratch,
+        );
+        for (&b, q) in self.miss_rows.iter().zip(&self.scratch.q) {
+            self.q_target[b] = *q;
+            self.target_q[self.idx[b]] = CachedQ {
+                q: *q,
+                target_version: self.target_version,
+                write_id: buf.write_id(self.idx[b]),
+            };
+        }
     }
 
     /// Hard target update: copy the online weights.
     pub fn sync_target(&mut self) {
         self.target.clone_from(&self.online);
         self.target_packed.pack(&self.target);
+        self.target_version += 1;
     }
 }
 
@@ -648,6 +714,61 @@ mod tests {
         // Window ending at episode e has (e - 150) returns of 200: mean 100 + (e - 150).
         assert_eq!(solved_episode(&r, 195.0), Some(245));
         assert_eq!(solved_episode(&r[..99], 0.0), None);
+    }
+
+    #[test]
+    fn cached_target_q_values_equal_a_fresh_forward_pass() {
+        let kernel = Kernel::detect();
+        for target_update in [TargetUpdate::Hard, TargetUpdate::Soft] {
+            // A small buffer, so slots are overwritten many times over.
+            let cfg = Config {
+                buffer_size: 48,
+                target_update,
+                ..Config::paper()
+            };
+            let mut learner = Learner::<64>::new(&cfg, kernel, 7);
+            let mut buf = ReplayBuffer::new(cfg.buffer_size);
+            let (mut r, mut sample) = (rng(7, Stream::Env), rng(7, Stream::Sample));
+            let mut state = || [0; OBS_DIM].map(|_| (unit_f64(&mut r) as f32 - 0.5) * 4.0);
+            let mut fresh = Scratch::<64>::new(cfg.batch_size);
+            let (mut rows, mut misses) = (0, 0);
+            for step in 0..400 {
+                let (s, s2) = (state(), state());
+                buf.push(s, Action::from_index(step % 2), 1.0, s2, step % 7 == 0);
+                if buf.len() < cfg.batch_size {
+                    continue;
+                }
+                let target = learner.target.clone();
+                learner.update(&cfg, &buf, &mut sample);
+                nn::forward_batch(
+                    kernel,
+                    &target,
+                    &Packed::new(&target),
+                    &learner.x_next,
+                    &mut fresh,
+                );
+                let bits =
+                    |q: &[[f32; 2]]| q.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+                assert_eq!(
+                    bits(&learner.q_target),
+                    bits(&fresh.q),
+                    "{target_update:?} step {step}"
+                );
+                rows += cfg.batch_size;
+                misses += learner.miss_rows.len();
+                if step % 100 == 99 {
+                    learner.sync_target();
+                }
+            }
+            match target_update {
+                // Most rows come from the cache, but new and overwritten slots do not.
+                TargetUpdate::Hard => {
+                    assert!(misses > 0 && misses * 4 < rows, "{misses} of {rows}")
+                }
+                // The target changes every step: nothing can be reused.
+                TargetUpdate::Soft => assert_eq!(misses, rows),
+            }
+        }
     }
 
     fn small() -> Config {
