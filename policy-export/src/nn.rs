@@ -97,10 +97,6 @@ pub struct Scratch<const H: usize> {
     d1: Vec<[f32; H]>,
     d2: Vec<[f32; H]>,
     dq: Vec<[f32; N_ACTIONS]>,
-    /// `d2` transposed: per unit, its gradient across the batch.
-    d2t: Vec<Vec<f32>>,
-    /// The batch's observations transposed: per input, its values across the batch.
-    xt: [Vec<f32>; OBS_DIM],
     /// Q-values of the last [`forward_batch`].
     pub q: Vec<[f32; N_ACTIONS]>,
 }
@@ -145,8 +141,6 @@ impl<const H: usize> Scratch<H> {
             d1: vec![[0.0; H]; batch],
             d2: vec![[0.0; H]; batch],
             dq: vec![[0.0; N_ACTIONS]; batch],
-            d2t: vec![vec![0.0; batch]; H],
-            xt: std::array::from_fn(|_| vec![0.0; batch]),
             q: vec![[0.0; N_ACTIONS]; batch],
         }
     }
@@ -326,12 +320,14 @@ impl MulAdd for Unfused {
 const L: usize = 16;
 
 /// The kernels' one building block, for `R2` rows at once:
-/// `y[r] = init + sum_i x[r][i] * w[i]` with `n = w.len()` terms, then ReLU if asked.
+/// `y[r] = init + sum_i x(i)[r] * w[i]` over the `w.len()` terms, then ReLU if asked.
 /// Accumulators are `[f32; L]` values the compiler keeps in registers; a whole `[f32; H]`
 /// accumulator would live in memory and turn every term into a load-add-store chain.
+/// `x(i)` gathers term `i`'s coefficient for each row, so a matrix can be read along either
+/// axis without first being transposed.
 #[inline(always)]
 fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
-    x: [&[f32]; R2],
+    x: impl Fn(usize) -> [f32; R2],
     w: &[[f32; H]],
     init: Option<&[f32; H]>,
     relu: bool,
@@ -343,16 +339,13 @@ fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
             "hidden width must be a multiple of the lane block"
         )
     };
-    let n = w.len();
-    let x = x.map(|r| &r[..n]);
     let mut y = y.map(|r| r.as_chunks_mut::<L>().0);
     for c in 0..H / L {
         let start = init.map_or([0.0; L], |b| b.as_chunks::<L>().0[c]);
         let mut acc = [start; R2];
         for (i, wi) in w.iter().enumerate() {
             let wc = &wi.as_chunks::<L>().0[c];
-            for (acc, x) in acc.iter_mut().zip(&x) {
-                let xi = x[i];
+            for (acc, xi) in acc.iter_mut().zip(x(i)) {
                 for (a, w) in acc.iter_mut().zip(wc) {
                     *a = F::mul_add(xi, *w, *a);
                 }
@@ -375,19 +368,16 @@ fn all_rows<const H: usize, const N: usize, F: MulAdd, const R: usize>(
     relu: bool,
     ys: &mut [[f32; H]],
 ) {
+    let n = w.len();
     let (xb, xr) = xs.as_chunks::<R>();
     let (yb, yr) = ys[..xs.len()].as_chunks_mut::<R>();
     for (x, y) in xb.iter().zip(yb) {
-        rows_times::<H, R, F>(
-            x.each_ref().map(|r| r.as_slice()),
-            w,
-            init,
-            relu,
-            y.each_mut(),
-        );
+        let x = x.each_ref().map(|r| &r[..n]);
+        rows_times::<H, R, F>(|i| x.map(|r| r[i]), w, init, relu, y.each_mut());
     }
     for (x, y) in xr.iter().zip(yr) {
-        rows_times::<H, 1, F>([x.as_slice()], w, init, relu, [y]);
+        let x = &x[..n];
+        rows_times::<H, 1, F>(|i| [x[i]], w, init, relu, [y]);
     }
 }
 
@@ -437,6 +427,12 @@ fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
     s: &mut Scratch<H>,
     grad: &mut Mlp<H>,
 ) -> f32 {
+    const {
+        assert!(
+            H.is_multiple_of(R),
+            "hidden width must be a multiple of the rows per block"
+        )
+    };
     let n = x.len();
     let inv_n = 1.0 / n as f32;
     let mut total = 0.0f64;
@@ -469,43 +465,39 @@ fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
     // Into the second hidden layer: d2 = (dq W3) masked by ReLU'.
     all_rows::<H, N_ACTIONS, F, R>(&s.dq[..n], &net.fc3_weight, None, false, &mut s.d2);
     relu_backward(&mut s.d2[..n], &s.a2[..n]);
-    // Second layer weights: dW2[o] = sum_b d2[b][o] * a1[b], rows over o, terms over b.
-    for (o, (t, gb)) in s.d2t.iter_mut().zip(grad.fc2_bias.iter_mut()).enumerate() {
-        t[..n]
-            .iter_mut()
-            .zip(&s.d2[..n])
-            .for_each(|(t, d)| *t = d[o]);
-        *gb = t[..n].iter().sum();
-    }
-    let (gb, gr) = grad.fc2_weight.as_chunks_mut::<R>();
-    let (tb, tr) = s.d2t.as_chunks::<R>();
-    for (g, t) in gb.iter_mut().zip(tb) {
+    // Second layer weights: dW2[o] = sum_b d2[b][o] * a1[b], rows over o, terms over b,
+    // reading d2 down its columns, R units at a time.
+    let d2 = &s.d2[..n];
+    let a1 = &s.a1[..n];
+    for (k, g) in grad
+        .fc2_weight
+        .as_chunks_mut::<R>()
+        .0
+        .iter_mut()
+        .enumerate()
+    {
         rows_times::<H, R, F>(
-            t.each_ref().map(|r| &r[..n]),
-            &s.a1[..n],
+            |b| d2[b].as_chunks::<R>().0[k],
+            a1,
             None,
             false,
             g.each_mut(),
         );
     }
-    for (g, t) in gr.iter_mut().zip(tr) {
-        rows_times::<H, 1, F>([&t[..n]], &s.a1[..n], None, false, [g]);
+    // Summed row after row, vectorised across units; each unit still adds its column in
+    // batch order starting from -0.0, exactly as `Iterator::sum` over the column would.
+    grad.fc2_bias = [-0.0; H];
+    for d in d2 {
+        for (g, d) in grad.fc2_bias.iter_mut().zip(d) {
+            *g += d;
+        }
     }
     // Into the first hidden layer: d1 = (d2 W2) masked by ReLU'.
-    all_rows::<H, H, F, R>(&s.d2[..n], &net.fc2_weight, None, false, &mut s.d1);
-    relu_backward(&mut s.d1[..n], &s.a1[..n]);
+    all_rows::<H, H, F, R>(d2, &net.fc2_weight, None, false, &mut s.d1);
+    relu_backward(&mut s.d1[..n], a1);
     // First layer, accumulated transposed (contiguous over outputs), then stored [out][in].
-    for (i, row) in s.xt.iter_mut().enumerate() {
-        row[..n].iter_mut().zip(x).for_each(|(t, xb)| *t = xb[i]);
-    }
     let mut gw1t = [[0.0f32; H]; OBS_DIM];
-    rows_times::<H, OBS_DIM, F>(
-        s.xt.each_ref().map(|r| &r[..n]),
-        &s.d1[..n],
-        None,
-        false,
-        gw1t.each_mut(),
-    );
+    rows_times::<H, OBS_DIM, F>(|b| x[b], &s.d1[..n], None, false, gw1t.each_mut());
     for (o, row) in grad.fc1_weight.iter_mut().enumerate() {
         for (i, w) in row.iter_mut().enumerate() {
             *w = gw1t[i][o];
