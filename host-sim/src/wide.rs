@@ -304,25 +304,13 @@ mod x86 {
         _mm512_setzero_ps
     );
 
-    /// The output layer: per action, lane `k` of one register is partial sum `k` of `dot`,
-    /// then the tree across lanes, then the bias.
+    /// The output layer: per action, `dot` in one AVX register (the trainer's rendering,
+    /// which is tested bit-identical to `dot`), then the bias.
     #[inline]
     #[target_feature(enable = "avx2")]
     fn output<const H: usize>(net: &WideMlp<H>, h: &[f32; H]) -> [f32; N_ACTIONS] {
-        // SAFETY: `v` is eight readable floats; `loadu` needs no alignment.
-        let load = |v: &[f32; LANES]| unsafe { _mm256_loadu_ps(v.as_ptr()) };
         let (w, b) = (&net.net.fc3_weight, &net.net.fc3_bias);
-        core::array::from_fn(|a| {
-            let mut acc = _mm256_set1_ps(-0.0);
-            for (w, x) in w[a].as_chunks::<LANES>().0.iter().zip(h.as_chunks().0) {
-                acc = _mm256_add_ps(acc, _mm256_mul_ps(load(w), load(x)));
-            }
-            // [l0 + l4, l1 + l5, l2 + l6, l3 + l7]
-            let quad = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
-            // [(l0 + l4) + (l2 + l6), (l1 + l5) + (l3 + l7), ..]
-            let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
-            _mm_cvtss_f32(_mm_add_ss(pair, _mm_shuffle_ps::<0b01>(pair, pair))) + b[a]
-        })
+        core::array::from_fn(|a| policy_export::nn::dot_avx(&w[a], h) + b[a])
     }
 }
 
