@@ -305,7 +305,7 @@ mod x86 {
     );
 
     /// The output layer: per action, `dot` in one AVX register (the trainer's rendering,
-    /// which is tested bit-identical to `dot`), then the bias.
+    /// tested bit-identical to `dot`), then the bias.
     #[inline]
     #[target_feature(enable = "avx2")]
     fn output<const H: usize>(net: &WideMlp<H>, h: &[f32; H]) -> [f32; N_ACTIONS] {

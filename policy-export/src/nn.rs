@@ -13,7 +13,9 @@
 //! ([`Kernel::detect`]). Results are bit-identical for a given kernel; different kernels
 //! round differently (FMA fuses), so a run records which one it used.
 
-use firmware::network::{LANES, Mlp, N_ACTIONS, OBS_DIM, dot};
+#[cfg(any(test, not(target_arch = "x86_64")))]
+use firmware::network::dot;
+use firmware::network::{LANES, Mlp, N_ACTIONS, OBS_DIM};
 
 /// Which compilation of the kernels to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -297,8 +299,6 @@ pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f3
 /// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
 trait MulAdd {
     fn mul_add(a: f32, b: f32, c: f32) -> f32;
-    /// `firmware::network::dot`, bit for bit.
-    fn dot<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32;
 }
 const FUSED_ROWS: usize = 4;
 const UNFUSED_ROWS: usize = 2;
@@ -309,24 +309,11 @@ impl MulAdd for Fused {
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
-    #[inline(always)]
-    fn dot<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `Fused` is instantiated only inside `kernel_entry!`'s AVX2 and AVX-512
-        // functions, which run after the CPU was checked for AVX2.
-        return unsafe { dot_avx(w, x) };
-        #[cfg(not(target_arch = "x86_64"))]
-        dot(w, x)
-    }
 }
 impl MulAdd for Unfused {
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a * b + c
-    }
-    #[inline(always)]
-    fn dot<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
-        dot(w, x)
     }
 }
 
@@ -414,17 +401,60 @@ fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
     );
     for (a2, q) in s.a2[..n].iter().zip(s.q[..n].iter_mut()) {
         for ((q, w), bias) in q.iter_mut().zip(&net.fc3_weight).zip(&net.fc3_bias) {
-            *q = F::dot(w, a2) + bias;
+            #[cfg(target_arch = "x86_64")]
+            let d = dot_x86(w, a2);
+            #[cfg(not(target_arch = "x86_64"))]
+            let d = dot(w, a2);
+            *q = d + bias;
         }
     }
 }
 
-/// `firmware::network::dot` in AVX registers, operation for operation: register lane `k`
-/// is the dot product's partial sum `k` (eight products at a time, multiplied then added,
-/// never fused), then the lanes meet in `dot`'s tree. Bit-identical to `dot` (tested).
+/// `firmware::network::dot` in SSE registers, operation for operation: lane `k` of the
+/// register pair is the dot product's partial sum `k` (eight products at a time, multiplied
+/// then added, never fused), then the lanes meet in `dot`'s tree. Bit-identical to `dot`
+/// (tested). SSE2 is part of x86-64 itself, so every x86-64 CPU runs it.
 ///
 /// LLVM does not find this form by itself: inlined into the kernels it compiled the output
-/// layer's dot products to scalar code, 8% of a training step.
+/// layer's dot products to scalar code, 8% of a training step. Every kernel uses this one;
+/// [`dot_avx`] would save the AVX-512 kernel only 0.2 us of 16.
+#[cfg(target_arch = "x86_64")]
+#[inline]
+pub fn dot_x86<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
+    use std::arch::x86_64::*;
+    const {
+        assert!(
+            N.is_multiple_of(LANES),
+            "dot_x86 takes whole chunks of eight"
+        )
+    };
+    fn pairs<const N: usize>(v: &[f32; N]) -> &[[[f32; 4]; 2]] {
+        v.as_chunks::<4>().0.as_chunks::<2>().0
+    }
+    // SAFETY: SSE and SSE2 are part of x86-64, so every CPU this runs on has them; each
+    // load reads four floats of a `[f32; 4]`, and `loadu` needs no alignment.
+    unsafe {
+        let (mut lo, mut hi) = (_mm_set1_ps(-0.0), _mm_set1_ps(-0.0));
+        for (w, x) in pairs(w).iter().zip(pairs(x)) {
+            lo = _mm_add_ps(
+                lo,
+                _mm_mul_ps(_mm_loadu_ps(w[0].as_ptr()), _mm_loadu_ps(x[0].as_ptr())),
+            );
+            hi = _mm_add_ps(
+                hi,
+                _mm_mul_ps(_mm_loadu_ps(w[1].as_ptr()), _mm_loadu_ps(x[1].as_ptr())),
+            );
+        }
+        // [l0 + l4, l1 + l5, l2 + l6, l3 + l7]
+        let quad = _mm_add_ps(lo, hi);
+        // [(l0 + l4) + (l2 + l6), (l1 + l5) + (l3 + l7), ..]
+        let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
+        _mm_cvtss_f32(_mm_add_ss(pair, _mm_shuffle_ps::<0b01>(pair, pair)))
+    }
+}
+
+/// [`dot_x86`] in one AVX register, for code already compiled with AVX: host-sim's
+/// one-observation forward pass, where its shorter chain is 5 ns of 127.
 ///
 /// # Safety
 ///
@@ -447,9 +477,7 @@ pub fn dot_avx<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
     for (w, x) in w.as_chunks::<LANES>().0.iter().zip(x.as_chunks().0) {
         acc = _mm256_add_ps(acc, _mm256_mul_ps(load(w), load(x)));
     }
-    // [l0 + l4, l1 + l5, l2 + l6, l3 + l7]
     let quad = _mm_add_ps(_mm256_castps256_ps128(acc), _mm256_extractf128_ps::<1>(acc));
-    // [(l0 + l4) + (l2 + l6), (l1 + l5) + (l3 + l7), ..]
     let pair = _mm_add_ps(quad, _mm_movehl_ps(quad, quad));
     _mm_cvtss_f32(_mm_add_ss(pair, _mm_shuffle_ps::<0b01>(pair, pair)))
 }
@@ -744,9 +772,13 @@ mod tests {
         }
     }
 
+    /// How many of 500 random pairs `dot_x86` and (where the CPU has AVX) `dot_avx` get
+    /// other bits than `dot` for.
     #[cfg(target_arch = "x86_64")]
-    fn check_dot_avx<const N: usize>(r: &mut impl Rng) -> usize {
-        let mut differ = 0;
+    fn check_dot_x86<const N: usize>(r: &mut impl Rng) -> [usize; 2] {
+        let avx = is_x86_feature_detected!("avx");
+        let differs = |a: f32, b: f32| a.to_bits() != b.to_bits() && !(a.is_nan() && b.is_nan());
+        let mut differ = [0; 2];
         for case in 0..500 {
             // Half ordinary values, half raw bit patterns: NaNs, infinities, subnormals and
             // signed zeros, where a wrong order or a fused step would show.
@@ -759,11 +791,11 @@ mod tests {
             };
             let w: [f32; N] = std::array::from_fn(|_| draw());
             let x: [f32; N] = std::array::from_fn(|_| draw());
-            // SAFETY: the caller checked the CPU for AVX.
-            let got = unsafe { dot_avx(&w, &x) };
             let want = dot(&w, &x);
-            if got.to_bits() != want.to_bits() && !(got.is_nan() && want.is_nan()) {
-                differ += 1;
+            differ[0] += usize::from(differs(dot_x86(&w, &x), want));
+            if avx {
+                // SAFETY: the CPU was just checked for AVX.
+                differ[1] += usize::from(differs(unsafe { dot_avx(&w, &x) }, want));
             }
         }
         differ
@@ -771,18 +803,15 @@ mod tests {
 
     #[test]
     #[cfg(target_arch = "x86_64")]
-    fn the_avx_dot_product_equals_the_firmwares_bit_for_bit() {
-        if !is_x86_feature_detected!("avx") {
-            return;
-        }
+    fn the_x86_dot_products_equal_the_firmwares_bit_for_bit() {
         let mut r = rng(21, Stream::Sample);
         let differ = [
-            check_dot_avx::<8>(&mut r),
-            check_dot_avx::<16>(&mut r),
-            check_dot_avx::<64>(&mut r),
-            check_dot_avx::<256>(&mut r),
+            check_dot_x86::<8>(&mut r),
+            check_dot_x86::<16>(&mut r),
+            check_dot_x86::<64>(&mut r),
+            check_dot_x86::<256>(&mut r),
         ];
-        assert_eq!(differ, [0; 4]);
+        assert_eq!(differ, [[0; 2]; 4]);
     }
 
     #[test]
