@@ -15,7 +15,7 @@
 
 #[cfg(any(test, not(target_arch = "x86_64")))]
 use firmware::network::dot;
-use firmware::network::{LANES, Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
 /// Which compilation of the kernels to run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -421,6 +421,7 @@ fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
 #[cfg(target_arch = "x86_64")]
 #[inline]
 pub fn dot_x86<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
+    use firmware::network::LANES;
     use std::arch::x86_64::*;
     const {
         assert!(
@@ -464,6 +465,7 @@ pub fn dot_x86<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
 #[inline]
 #[target_feature(enable = "avx")]
 pub fn dot_avx<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
+    use firmware::network::LANES;
     use std::arch::x86_64::*;
     const {
         assert!(
