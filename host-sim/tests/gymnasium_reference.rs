@@ -1,5 +1,5 @@
-//! The plant against Gymnasium's own trajectories (`shared/reference/` beside the repo, or
-//! `$CARTPOLE_REFERENCE_DIR`): every state, bit for bit, and every termination.
+//! The plant against Gymnasium's own trajectories (`tests/data/`, recorded by
+//! `tests/data/record_gymnasium.py`): every state, bit for bit, and every termination.
 
 use std::path::PathBuf;
 use std::process::Command;
@@ -8,9 +8,7 @@ use firmware::cartpole::{self, Action, CartPole, Params, State};
 use host_sim::replay::{self, Case};
 
 fn reference_dir() -> PathBuf {
-    std::env::var_os("CARTPOLE_REFERENCE_DIR")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/reference"))
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../tests/data")
 }
 
 fn cases(file: &str) -> Vec<Case> {
