@@ -1,4 +1,4 @@
-//! `libcartpole_policy.a`: the shipped policy's forward pass for C firmware.
+//! `libcartpole_policy.a`: the cart-pole controller's forward pass for C firmware.
 //!
 //! Link it and include `capi/include/cartpole_policy.h`:
 //!
@@ -7,12 +7,14 @@
 //! # -> target/thumbv7em-none-eabihf/release/libcartpole_policy.a
 //! ```
 //!
-//! The symbol is `firmware::ffi::cartpole_policy_forward`, the very function the Rust
-//! firmware binary calls; this crate only packages it (and, on a microcontroller, supplies
-//! the panic handler a static library must have; the forward pass cannot panic).
+//! The symbols are `firmware::ffi`'s, the very functions the Rust firmware runs:
+//! `cartpole_policy_forward` (the shipped policy) and `cartpole_mlpH_forward` for every
+//! supported width (any weights, such as a header `policy-export export --format c` wrote).
+//! This crate only packages them and, on a microcontroller, supplies the panic handler a
+//! static library must have (the forward passes cannot panic).
 #![cfg_attr(target_os = "none", no_std)]
 
-pub use firmware::ffi::cartpole_policy_forward;
+pub use firmware::ffi::*;
 
 #[cfg(target_os = "none")]
 #[panic_handler]

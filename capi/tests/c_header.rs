@@ -1,23 +1,30 @@
-//! Compiles `tests/main.c` against `include/cartpole_policy.h` and the static library with
-//! the system C compiler, runs it, and compares its Q-values with Rust's bit for bit.
+//! C against the static library, compiled by the system C compiler: the shipped policy through
+//! `cartpole_policy.h`, and headers written by `policy-export export --format c` through
+//! `cartpole_mlpH_forward`. Their literals are parsed by the C compiler and the Q-values
+//! computed by the library; both must equal Rust's, bit for bit.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
 use firmware::policy::POLICY;
 use firmware::selftest::PROBES;
+use weights::Weights;
+use weights::source::{c_header, c_struct};
 
-#[test]
-fn a_c_program_gets_the_rust_q_values_through_the_header() {
-    let manifest = PathBuf::from(env!("CARGO_MANIFEST_DIR"));
-    // Cargo builds this package's static library beside this test, in target/<profile>/deps,
-    // as libcartpole_policy-<hash>.a; the newest is the one of this build.
+fn manifest() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+/// Cargo builds this package's static library beside this test, in target/<profile>/deps,
+/// as libcartpole_policy-<hash>.a; the newest is the one of this build.
+fn static_lib() -> PathBuf {
     let deps = std::env::current_exe()
         .unwrap()
         .parent()
         .unwrap()
         .to_path_buf();
-    let lib = std::fs::read_dir(&deps)
+    std::fs::read_dir(&deps)
         .unwrap()
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
@@ -25,34 +32,151 @@ fn a_c_program_gets_the_rust_q_values_through_the_header() {
             name.starts_with("libcartpole_policy-") && name.ends_with(".a")
         })
         .max_by_key(|p| p.metadata().and_then(|m| m.modified()).ok())
-        .unwrap_or_else(|| panic!("no libcartpole_policy-*.a in {}", deps.display()));
-    let out = std::env::temp_dir().join(format!("cartpole-c-{}", std::process::id()));
+        .unwrap_or_else(|| panic!("no libcartpole_policy-*.a in {}", deps.display()))
+}
+
+/// Compiles `sources` with the system C compiler against the library, strictly, and runs the
+/// program with `args`; its standard output.
+fn compile_and_run(name: &str, sources: &[&Path], include: &[&Path], args: &[String]) -> String {
+    let exe = std::env::temp_dir().join(format!("cartpole-c-{name}-{}", std::process::id()));
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let status = Command::new(&cc)
-        .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-I"])
-        .arg(manifest.join("include"))
-        .arg(manifest.join("tests/main.c"))
-        .arg(&lib)
+    let mut cmd = Command::new(&cc);
+    cmd.args(["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]);
+    for dir in include {
+        cmd.arg("-I").arg(dir);
+    }
+    let status = cmd
+        .args(sources)
+        .arg(static_lib())
         .args(["-lpthread", "-ldl", "-lm", "-o"])
-        .arg(&out)
+        .arg(&exe)
         .status()
         .unwrap_or_else(|e| panic!("running the C compiler `{cc}`: {e}"));
-    assert!(status.success(), "C compile failed");
-    // %.9g prints every float exactly enough to read back the same bits.
-    let args: Vec<String> = PROBES
+    assert!(status.success(), "C compile of {name} failed");
+    let run = Command::new(&exe).args(args).output().unwrap();
+    assert!(
+        run.status.success(),
+        "{name}: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    std::fs::remove_file(&exe).unwrap();
+    String::from_utf8(run.stdout).unwrap()
+}
+
+/// The probes as exact decimal arguments (`{:e}` is the shortest form that reads back).
+fn probe_args() -> Vec<String> {
+    PROBES.iter().flatten().map(|v| format!("{v:e}")).collect()
+}
+
+fn q_line(q: [f32; 2]) -> String {
+    format!("{:08x} {:08x}\n", q[0].to_bits(), q[1].to_bits())
+}
+
+#[test]
+fn a_c_program_gets_the_shipped_policys_q_values_through_the_header() {
+    let out = compile_and_run(
+        "shipped",
+        &[&manifest().join("tests/main.c")],
+        &[&manifest().join("include")],
+        &probe_args(),
+    );
+    let expected: String = PROBES.iter().map(|o| q_line(POLICY.forward(o))).collect();
+    assert_eq!(out, expected);
+}
+
+#[test]
+fn the_library_header_declares_every_width_as_exported_headers_do() {
+    let header = std::fs::read_to_string(manifest().join("include/cartpole_policy.h")).unwrap();
+    for &h in SUPPORTED_WIDTHS {
+        assert!(
+            header.contains(&c_struct(h)),
+            "include/cartpole_policy.h lacks (or differs from) the exporter's block for width \
+             {h}; it should read:\n{}",
+            c_struct(h)
+        );
+    }
+}
+
+/// Weights whose decimal forms are awkward for a parser: subnormals, extremes, signed zeros
+/// and values that need nine significant digits.
+fn awkward(width: usize) -> Weights {
+    let special = [
+        f32::MIN_POSITIVE,
+        -f32::MAX,
+        -0.0,
+        1e-45,
+        0.1,
+        16_777_217.0,
+        2.718_281_7,
+        1.175_494_2e-38,
+        f32::from_bits(0x8000_0005),
+    ];
+    let tensors = shapes(width).map(|s| {
+        (0..s.len())
+            .map(|i| {
+                special
+                    .get(i)
+                    .copied()
+                    .unwrap_or(((i * 7919) % 1000) as f32 * -0.000_987_654_3 + 0.25)
+            })
+            .collect()
+    });
+    Weights::new(width, tensors).unwrap()
+}
+
+fn exported_header_case<const H: usize>() {
+    let w = awkward(H);
+    let dir = std::env::temp_dir().join(format!("cartpole-export-c-{H}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("exported.h"),
+        c_header(&w, "test_policy", &["source: the capi test".into()]).unwrap(),
+    )
+    .unwrap();
+    // Both headers in one translation unit: their shared definitions are guarded.
+    let main = format!(
+        "#include <stdio.h>\n#include <stdlib.h>\n#include <string.h>\n\
+         #include \"cartpole_policy.h\"\n#include \"exported.h\"\n\
+         int main(int argc, char **argv) {{\n\
+         \x20   unsigned int bits[sizeof test_policy / 4];\n\
+         \x20   size_t i;\n\
+         \x20   int k;\n\
+         \x20   memcpy(bits, &test_policy, sizeof bits);\n\
+         \x20   for (i = 0; i < sizeof bits / 4; i++) printf(\"%08x\\n\", bits[i]);\n\
+         \x20   for (k = 1; k + 3 < argc; k += 4) {{\n\
+         \x20       float obs[4], q[2];\n\
+         \x20       unsigned int qb[2];\n\
+         \x20       int j;\n\
+         \x20       for (j = 0; j < 4; j++) obs[j] = strtof(argv[k + j], NULL);\n\
+         \x20       cartpole_mlp{H}_forward(&test_policy, obs, q);\n\
+         \x20       memcpy(qb, q, sizeof qb);\n\
+         \x20       printf(\"%08x %08x\\n\", qb[0], qb[1]);\n\
+         \x20   }}\n\
+         \x20   cartpole_mlp{H}_forward(NULL, NULL, NULL);\n\
+         \x20   return 0;\n}}\n"
+    );
+    std::fs::write(dir.join("main.c"), main).unwrap();
+    let out = compile_and_run(
+        &format!("export-{H}"),
+        &[&dir.join("main.c")],
+        &[&manifest().join("include"), &dir],
+        &probe_args(),
+    );
+    let mut want: String = w
+        .tensors()
         .iter()
         .flatten()
-        .map(|v| format!("{v:.9e}"))
+        .map(|v| format!("{:08x}\n", v.to_bits()))
         .collect();
-    let run = Command::new(&out).args(&args).output().unwrap();
-    assert!(run.status.success());
-    let expected: String = PROBES
-        .iter()
-        .map(|o| {
-            let q = POLICY.forward(o);
-            format!("{:08x} {:08x}\n", q[0].to_bits(), q[1].to_bits())
-        })
-        .collect();
-    assert_eq!(String::from_utf8(run.stdout).unwrap(), expected);
-    std::fs::remove_file(&out).unwrap();
+    let net: Box<Mlp<H>> = w.to_mlp().unwrap();
+    want.extend(PROBES.iter().map(|o| q_line(net.forward(o))));
+    assert_eq!(out, want, "width {H}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exported_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() {
+    exported_header_case::<16>();
+    exported_header_case::<64>();
+    exported_header_case::<256>();
 }

@@ -16,6 +16,7 @@ pub const PAPER_EPISODE_STEPS: u32 = 200;
 pub const V1_EPISODE_STEPS: u32 = 500;
 
 /// A push of the cart: the plant's whole action space.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 #[repr(u8)]
 pub enum Action {

@@ -1,23 +1,66 @@
-//! The C ABI: the shipped policy's forward pass for C firmware (STM32Cube, Zephyr, ...).
+//! The C ABI, declared in `capi/include/cartpole_policy.h` (the `capi` crate builds the static
+//! library; the self-test ELF carries the same symbols):
 //!
 //! ```c
-//! void cartpole_policy_forward(const float obs[4], float q[2]);
+//! void cartpole_policy_forward(const float obs[4], float q[2]);   /* the shipped policy */
+//! void cartpole_mlp64_forward(const struct cartpole_mlp64 *w,     /* any exported weights */
+//!                             const float obs[4], float q[2]);
 //! ```
 //!
-//! declared in `capi/include/cartpole_policy.h`; the `capi` crate builds the static library.
-//! Rust references are non-null and aligned, as C callers must guarantee for these pointers.
+//! and `cartpole_mlpH_forward` for every width of
+//! [`SUPPORTED_WIDTHS`](crate::network::SUPPORTED_WIDTHS). `struct cartpole_mlpH` is
+//! [`Mlp<H>`] (`repr(C)`), as `policy-export export --format c` writes it. All of them run
+//! [`Mlp::forward`], the one forward pass, so C gets the Rust Q-values bit for bit.
+//!
+//! Pointers arrive as `Option<&T>`, which has the ABI of a C pointer with NULL as `None`: a
+//! NULL argument makes the call write nothing instead of being undefined behaviour. Non-NULL
+//! pointers must be valid and aligned, as for any C function taking arrays.
 
+use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
 use crate::policy::POLICY;
 
+fn forward<const H: usize>(
+    w: Option<&Mlp<H>>,
+    obs: Option<&[f32; OBS_DIM]>,
+    q: Option<&mut [f32; N_ACTIONS]>,
+) {
+    if let (Some(w), Some(obs), Some(q)) = (w, obs, q) {
+        *q = w.forward(obs);
+    }
+}
+
 /// `q = [Q(obs, left), Q(obs, right)]` of the shipped policy; push right iff `q[1] > q[0]`.
-/// Allocation-free and panic-free; about 600 bytes of stack.
+/// Allocation-free and panic-free; about 600 bytes of stack on a Cortex-M4F.
 // SAFETY: exporting an unmangled symbol is `unsafe` because two such symbols with one name
-// would clash at link time; this is the only definition of `cartpole_policy_forward`.
+// would clash at link time; this crate defines each C name once.
 #[allow(unsafe_code)]
 #[unsafe(no_mangle)]
-pub extern "C" fn cartpole_policy_forward(obs: &[f32; 4], q: &mut [f32; 2]) {
-    *q = POLICY.forward(obs);
+pub extern "C" fn cartpole_policy_forward(
+    obs: Option<&[f32; OBS_DIM]>,
+    q: Option<&mut [f32; N_ACTIONS]>,
+) {
+    forward(Some(&POLICY), obs, q);
 }
+
+macro_rules! c_forwards {
+    ($($h:literal => $name:ident,)*) => { $(
+        #[doc = concat!(
+            "`q = [Q(obs, left), Q(obs, right)]` of the 4-", stringify!($h), "-",
+            stringify!($h), "-2 network `w`; push right iff `q[1] > q[0]`."
+        )]
+        // SAFETY: as for `cartpole_policy_forward`: one definition per C name.
+        #[allow(unsafe_code)]
+        #[unsafe(no_mangle)]
+        pub extern "C" fn $name(
+            w: Option<&Mlp<$h>>,
+            obs: Option<&[f32; OBS_DIM]>,
+            q: Option<&mut [f32; N_ACTIONS]>,
+        ) {
+            forward(w, obs, q);
+        }
+    )* };
+}
+crate::for_each_width!(c_forwards);
 
 #[cfg(test)]
 mod tests {
@@ -25,11 +68,12 @@ mod tests {
     use crate::selftest::PROBES;
 
     #[test]
-    fn the_c_entry_point_is_the_forward_pass() {
-        for obs in &PROBES {
-            let mut q = [f32::NAN; 2];
-            cartpole_policy_forward(obs, &mut q);
-            assert_eq!(q.map(f32::to_bits), POLICY.forward(obs).map(f32::to_bits));
-        }
+    fn a_null_argument_writes_nothing() {
+        let mut q = [7.0f32; 2];
+        cartpole_policy_forward(None, Some(&mut q));
+        cartpole_mlp64_forward(None, Some(&PROBES[1]), Some(&mut q));
+        cartpole_mlp64_forward(Some(&POLICY), None, Some(&mut q));
+        assert_eq!(q, [7.0; 2]);
+        cartpole_mlp64_forward(Some(&POLICY), Some(&PROBES[1]), None);
     }
 }

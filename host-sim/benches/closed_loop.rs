@@ -65,7 +65,7 @@ fn main() {
         if let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) {
             line(
                 &format!("controller + policy ({kernel:?}) + plant"),
-                run(ControllerKind::Policy, &Net::W64(wide)),
+                run(ControllerKind::Policy, &Net::new(wide)),
             );
         }
     }

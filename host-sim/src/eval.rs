@@ -11,59 +11,64 @@ use std::fmt;
 use anyhow::{Result, bail};
 use firmware::controller::Policy;
 use firmware::policy::POLICY;
-use policy_export::weights::Weights;
+use host_common::stats::{Estimate, wilson};
 use rayon::prelude::*;
 use serde::Serialize;
+use weights::Weights;
 
 use crate::baselines::{AngleRule, Lqr, Random};
 use crate::twin::{EpisodeStats, Frame, Scenario, policy_rng, run_episode};
 use crate::wide::WideMlp;
 
-/// A Q-network of any width the trainer supports, loaded at run time, laid out for the
-/// host's vector units ([`WideMlp`]: the firmware's forward pass, bit for bit).
-#[derive(Clone, Debug)]
-pub enum Net {
-    /// Width 16.
-    W16(Box<WideMlp<16>>),
-    /// Width 32.
-    W32(Box<WideMlp<32>>),
-    /// Width 64: the firmware's.
-    W64(Box<WideMlp<64>>),
-    /// Width 128.
-    W128(Box<WideMlp<128>>),
-    /// Width 256.
-    W256(Box<WideMlp<256>>),
+/// A Q-network of any supported width, loaded at run time, laid out for the host's vector
+/// units ([`WideMlp`]: the firmware's forward pass, bit for bit).
+#[derive(Debug)]
+pub struct Net(Box<dyn Forward>);
+
+/// A [`WideMlp`] of some width, behind one type.
+trait Forward: fmt::Debug + Send + Sync {
+    fn forward(&self, obs: &[f32; 4]) -> [f32; 2];
+}
+
+impl<const H: usize> Forward for WideMlp<H> {
+    #[inline]
+    fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
+        WideMlp::forward(self, obs)
+    }
 }
 
 impl Net {
-    /// The policy compiled into `firmware`.
-    pub fn shipped() -> Net {
-        Net::W64(WideMlp::new(&POLICY))
+    /// A laid-out network of width `H`.
+    pub fn new<const H: usize>(wide: Box<WideMlp<H>>) -> Net {
+        Net(wide)
     }
 
-    /// A network from checked safetensors weights.
+    /// The policy compiled into `firmware`.
+    pub fn shipped() -> Net {
+        Net::new(WideMlp::new(&POLICY))
+    }
+
+    /// A network from checked weights of any supported width.
     pub fn from_weights(w: &Weights) -> Result<Net> {
-        Ok(match w.width {
-            16 => Net::W16(WideMlp::new(&*w.to_mlp()?)),
-            32 => Net::W32(WideMlp::new(&*w.to_mlp()?)),
-            64 => Net::W64(WideMlp::new(&*w.to_mlp()?)),
-            128 => Net::W128(WideMlp::new(&*w.to_mlp()?)),
-            256 => Net::W256(WideMlp::new(&*w.to_mlp()?)),
-            other => bail!("hidden width {other} is not one of 16, 32, 64, 128, 256"),
-        })
+        macro_rules! by_width {
+            ($($h:literal => $c:ident,)*) => {
+                match w.width() {
+                    $($h => Net::new(WideMlp::<$h>::new(&*w.to_mlp()?)),)*
+                    other => bail!(
+                        "hidden width {other} is not one of {:?}",
+                        firmware::network::SUPPORTED_WIDTHS
+                    ),
+                }
+            };
+        }
+        Ok(firmware::for_each_width!(by_width))
     }
 }
 
 impl Policy for &Net {
     #[inline]
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        match self {
-            Net::W16(n) => n.forward(obs),
-            Net::W32(n) => n.forward(obs),
-            Net::W64(n) => n.forward(obs),
-            Net::W128(n) => n.forward(obs),
-            Net::W256(n) => n.forward(obs),
-        }
+        self.0.forward(obs)
     }
 }
 
@@ -117,52 +122,6 @@ pub fn episode(
             on_frame,
         ),
     }
-}
-
-/// A mean and the half-width of its 95% confidence interval (normal approximation).
-#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
-pub struct Estimate {
-    /// Sample mean.
-    pub mean: f64,
-    /// 1.96 standard errors.
-    pub ci95: f64,
-}
-
-impl Estimate {
-    /// Mean and 95% half-width of `values`.
-    pub fn of(values: &[f64]) -> Estimate {
-        let n = values.len() as f64;
-        if values.is_empty() {
-            return Estimate {
-                mean: f64::NAN,
-                ci95: f64::NAN,
-            };
-        }
-        let mean = values.iter().sum::<f64>() / n;
-        let var = if values.len() > 1 {
-            values.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (n - 1.0)
-        } else {
-            0.0
-        };
-        Estimate {
-            mean,
-            ci95: 1.96 * (var / n).sqrt(),
-        }
-    }
-}
-
-/// Wilson's 95% score interval for `k` successes in `n` trials: honest at 0% and 100%,
-/// where the normal approximation collapses to a point.
-pub fn wilson(k: usize, n: usize) -> [f64; 2] {
-    if n == 0 {
-        return [0.0, 1.0];
-    }
-    let (k, n, z) = (k as f64, n as f64, 1.96f64);
-    let p = k / n;
-    let denom = 1.0 + z * z / n;
-    let centre = (p + z * z / (2.0 * n)) / denom;
-    let half = z * (p * (1.0 - p) / n + z * z / (4.0 * n * n)).sqrt() / denom;
-    [(centre - half).max(0.0), (centre + half).min(1.0)]
 }
 
 /// One line of the table: a controller on a scenario at a horizon.
@@ -316,22 +275,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn wilson_matches_hand_computed_values() {
-        // 1000 of 1000: upper 1, lower n / (n + z^2) = 1000 / 1003.8416.
-        let [lo, hi] = wilson(1000, 1000);
-        assert!((lo - 1000.0 / 1003.8416).abs() < 1e-12 && hi == 1.0);
-        // 50 of 100: centre 0.5, half-width z sqrt(0.0025 + z^2/40000) / (1 + z^2/100).
-        let [lo, hi] = wilson(50, 100);
-        let half = 1.96 * (0.0025f64 + 1.96 * 1.96 / 40_000.0).sqrt() / (1.0 + 1.96 * 1.96 / 100.0);
-        assert!((lo - (0.5 - half)).abs() < 1e-12 && (hi - (0.5 + half)).abs() < 1e-12);
-    }
-
-    #[test]
-    fn estimate_and_row_statistics() {
-        let e = Estimate::of(&[1.0, 2.0, 3.0, 4.0]);
-        assert_eq!(e.mean, 2.5);
-        // sample sd = sqrt(5/3); half-width 1.96 sd / 2.
-        assert!((e.ci95 - 1.96 * (5.0f64 / 3.0).sqrt() / 2.0).abs() < 1e-12);
+    fn row_statistics() {
         let eps: Vec<EpisodeStats> = (1..=40u32)
             .map(|s| EpisodeStats {
                 steps: s * 10,

@@ -10,7 +10,6 @@ use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::twin::Scenario;
 use host_sim::{render, replay};
 use indicatif::{ProgressBar, ProgressStyle};
-use policy_export::weights::Weights;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -47,9 +46,14 @@ enum Command {
         /// Controllers to compare.
         #[arg(long, value_delimiter = ',', default_value = "policy,lqr,rule,random")]
         controller: Vec<ControllerKind>,
-        /// A policy (.safetensors or run directory) instead of the one compiled into firmware.
+        /// A policy instead of the one compiled into firmware: a run directory, or a
+        /// safetensors state dict as PyTorch saves it (fc1/fc2/fc3, nn.Sequential indices,
+        /// prefixed layouts), of any supported width.
         #[arg(long)]
         policy: Option<PathBuf>,
+        /// Tensor-name prefix of the network in --policy, when it holds several.
+        #[arg(long, requires = "policy")]
+        prefix: Option<String>,
         /// Seed of the starts, noise and pushes.
         #[arg(long, default_value_t = 0)]
         seed: u64,
@@ -69,9 +73,12 @@ enum Command {
         /// Which controller drives.
         #[arg(long, default_value = "policy")]
         controller: ControllerKind,
-        /// A policy file instead of the compiled-in one.
+        /// A policy file instead of the compiled-in one (see `eval`).
         #[arg(long)]
         policy: Option<PathBuf>,
+        /// Tensor-name prefix of the network in --policy, when it holds several.
+        #[arg(long, requires = "policy")]
+        prefix: Option<String>,
         /// One scenario spec (see `eval`).
         #[arg(long, default_value = "nominal")]
         scenario: String,
@@ -99,6 +106,7 @@ fn main() -> ExitCode {
             scenario,
             controller,
             policy,
+            prefix,
             seed,
             json,
             min_success,
@@ -107,7 +115,7 @@ fn main() -> ExitCode {
             &horizon,
             &scenario,
             &controller,
-            policy,
+            load_net(policy, prefix.as_deref()),
             seed,
             json,
             min_success,
@@ -116,13 +124,21 @@ fn main() -> ExitCode {
             out,
             controller,
             policy,
+            prefix,
             scenario,
             horizon,
             seed,
             episode,
             stride,
         } => run_render(
-            &out, controller, policy, &scenario, horizon, seed, episode, stride,
+            &out,
+            controller,
+            load_net(policy, prefix.as_deref()),
+            &scenario,
+            horizon,
+            seed,
+            episode,
+            stride,
         )
         .map(|()| true),
     };
@@ -136,11 +152,15 @@ fn main() -> ExitCode {
     }
 }
 
-fn load_net(policy: Option<PathBuf>) -> Result<Net> {
-    match policy {
+/// The network to run: the compiled-in policy, or `--policy`'s. Loaded lazily by the
+/// commands, after their cheaper checks.
+fn load_net(policy: Option<PathBuf>, prefix: Option<&str>) -> impl FnOnce() -> Result<Net> {
+    move || match policy {
         None => Ok(Net::shipped()),
-        Some(path) => Net::from_weights(&Weights::load(&path)?)
-            .with_context(|| format!("policy {}", path.display())),
+        Some(path) => {
+            let import = weights::checkpoint::load(&path, prefix)?;
+            Net::from_weights(&import.weights).with_context(|| format!("policy {}", path.display()))
+        }
     }
 }
 
@@ -162,7 +182,7 @@ fn run_eval(
     horizons: &[u32],
     scenarios: &[String],
     controllers: &[ControllerKind],
-    policy: Option<PathBuf>,
+    net: impl FnOnce() -> Result<Net>,
     seed: u64,
     json: bool,
     min_success: Option<f64>,
@@ -179,7 +199,7 @@ fn run_eval(
         "--horizon must be at least 1"
     );
     let scenarios = parse_scenarios(scenarios)?;
-    let net = load_net(policy)?;
+    let net = net()?;
     let jobs: Vec<(u32, &Scenario, ControllerKind)> = horizons
         .iter()
         .flat_map(|&h| {
@@ -229,7 +249,7 @@ fn run_eval(
 fn run_render(
     out: &std::path::Path,
     controller: ControllerKind,
-    policy: Option<PathBuf>,
+    net: impl FnOnce() -> Result<Net>,
     scenario: &str,
     horizon: u32,
     seed: u64,
@@ -241,7 +261,7 @@ fn run_render(
         "--horizon and --stride must be at least 1"
     );
     let scenario = Scenario::parse(scenario).map_err(anyhow::Error::msg)?;
-    let net = load_net(policy)?;
+    let net = net()?;
     let mut frames = Vec::new();
     let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
         frames.push(f)

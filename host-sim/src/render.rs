@@ -6,9 +6,9 @@ use std::path::Path;
 use anyhow::{Context, Result, anyhow};
 use firmware::cartpole::{Action, Params};
 use firmware::controller::{CONTROL_PERIOD_S, Command};
+use host_common::plot::{FONT, ensure_font};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use policy_export::plot::{FONT, ensure_font};
 
 use crate::twin::Frame;
 

@@ -1,7 +1,7 @@
 //! Replay of recorded Gymnasium `CartPole-v1` trajectories through `firmware::cartpole`.
 //!
-//! The file format is JSON Lines, one case a line, as in the project's shared reference
-//! set: `initial_state`, `actions` (0/1), `states` (`len(actions) + 1` states, each
+//! The file format is JSON Lines, one case a line, as `tests/data/record_gymnasium.py`
+//! writes it: `initial_state`, `actions` (0/1), `states` (`len(actions) + 1` states, each
 //! `[x, x_dot, theta, theta_dot]`), optionally `states_hex` (the same as `float.hex()`
 //! strings, preferred because they are exact whatever the decimal parser), `terminated`
 //! (per step) and `terminated_at` (1-based, or null). Other keys are ignored.

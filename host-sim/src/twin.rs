@@ -15,7 +15,6 @@ use std::convert::Infallible;
 use firmware::cartpole::{CartPole, Params, State, unit_f64};
 use firmware::controller::{Command, Controller, Limits, Policy, StateSensor};
 use firmware::loopback::{CellDuty, CellPin, force as bridge_force};
-use rand_core::SeedableRng;
 use rand_distr::{Distribution, StandardNormal};
 use rand_pcg::Pcg64Mcg;
 
@@ -204,13 +203,9 @@ pub struct Frame {
     pub command: Command,
 }
 
-/// Independent seeded streams of one episode.
+/// Independent seeded streams of one episode: the project's one mixer.
 fn episode_rng(seed: u64, episode: u64, stream: u64) -> Pcg64Mcg {
-    Pcg64Mcg::seed_from_u64(
-        seed.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            ^ episode.wrapping_mul(0xD1B5_4A32_D192_ED03)
-            ^ stream,
-    )
+    host_common::seed::rng(seed, episode, stream)
 }
 
 /// Seeded stream for a controller's own randomness (the random baseline) in `episode`.

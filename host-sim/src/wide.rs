@@ -16,7 +16,10 @@
 //! slower). Without AVX2 (chosen at run time) it runs the firmware's own forward pass.
 
 use firmware::controller::Policy;
-use firmware::network::{LANES, Mlp, N_ACTIONS, OBS_DIM};
+#[cfg(target_arch = "x86_64")]
+use firmware::network::LANES;
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+pub use host_common::kernel::Kernel;
 
 /// A 4-H-H-2 network laid out for one [`Kernel`]; `H` must be a multiple of 16.
 #[derive(Clone, Debug)]
@@ -24,9 +27,11 @@ pub struct WideMlp<const H: usize> {
     net: Mlp<H>,
     kernel: Kernel,
     /// `fc1.weight` in blocks of the kernel's width `W`: element `(b * 4 + i) * W + j` is
-    /// `fc1_weight[b * W + j][i]`.
+    /// `fc1_weight[b * W + j][i]`. Only the x86 kernels read it (elsewhere it is empty).
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     fc1: Aligned,
     /// `fc2.weight` likewise: element `(b * H + i) * W + j` is `fc2_weight[b * W + j][i]`.
+    #[cfg_attr(not(target_arch = "x86_64"), allow(dead_code))]
     fc2: Aligned,
 }
 
@@ -76,7 +81,7 @@ impl<const H: usize> WideMlp<H> {
         if !kernel.supported() {
             return None;
         }
-        let width = kernel.block();
+        let width = block(kernel);
         Some(Box::new(WideMlp {
             net: net.clone(),
             kernel,
@@ -124,49 +129,12 @@ impl<const H: usize> Policy for &WideMlp<H> {
     }
 }
 
-/// Which build of the forward pass runs.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Kernel {
-    /// The firmware's forward pass as compiled for this CPU's baseline.
-    Portable,
-    /// AVX2 intrinsics: a block of eight outputs per register.
-    Avx2,
-    /// AVX-512F intrinsics: a block of sixteen outputs per register.
-    Avx512,
-}
-
-impl Kernel {
-    /// Every kernel, portable first.
-    pub const ALL: [Kernel; 3] = [Kernel::Portable, Kernel::Avx2, Kernel::Avx512];
-
-    /// The fastest kernel this CPU runs.
-    pub fn detect() -> Kernel {
-        [Kernel::Avx512, Kernel::Avx2]
-            .into_iter()
-            .find(|k| k.supported())
-            .unwrap_or(Kernel::Portable)
-    }
-
-    /// Whether this CPU runs `self`.
-    pub fn supported(self) -> bool {
-        match self {
-            Kernel::Portable => true,
-            #[cfg(target_arch = "x86_64")]
-            Kernel::Avx2 => std::arch::is_x86_feature_detected!("avx2"),
-            #[cfg(target_arch = "x86_64")]
-            Kernel::Avx512 => std::arch::is_x86_feature_detected!("avx512f"),
-            #[cfg(not(target_arch = "x86_64"))]
-            Kernel::Avx2 | Kernel::Avx512 => false,
-        }
-    }
-
-    /// Outputs per register (0: no repacking).
-    fn block(self) -> usize {
-        match self {
-            Kernel::Portable => 0,
-            Kernel::Avx2 => 8,
-            Kernel::Avx512 => 16,
-        }
+/// Outputs per register of `kernel`'s build (0: no repacking, the firmware's own pass).
+fn block(kernel: Kernel) -> usize {
+    match kernel {
+        Kernel::Portable => 0,
+        Kernel::Avx2 => 8,
+        Kernel::Avx512 => 16,
     }
 }
 
@@ -310,7 +278,7 @@ mod x86 {
     #[target_feature(enable = "avx2")]
     fn output<const H: usize>(net: &WideMlp<H>, h: &[f32; H]) -> [f32; N_ACTIONS] {
         let (w, b) = (&net.net.fc3_weight, &net.net.fc3_bias);
-        core::array::from_fn(|a| policy_export::nn::dot_avx(&w[a], h) + b[a])
+        core::array::from_fn(|a| firmware::network::x86::dot_avx(&w[a], h) + b[a])
     }
 }
 

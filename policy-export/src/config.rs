@@ -9,6 +9,8 @@ use std::fmt;
 
 use serde::{Deserialize, Serialize};
 
+use firmware::network::SUPPORTED_WIDTHS;
+
 use crate::nn::{Kernel, Loss};
 
 /// Which TD target the learner regresses on.
@@ -357,9 +359,6 @@ impl Config {
         }
     }
 }
-
-/// Hidden widths the trainer is compiled for (the network's width is a const generic).
-pub const SUPPORTED_WIDTHS: [usize; 5] = [16, 32, 64, 128, 256];
 
 /// A configuration that cannot be run; the command line exits with status 2 on it.
 #[derive(Clone, Debug, PartialEq, Eq)]

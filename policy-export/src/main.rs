@@ -12,12 +12,13 @@ use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use policy_export::config::{
     Algo, Config, ConfigError, Init, KernelChoice, Preset, TargetUpdate, Unit,
 };
-use policy_export::export::{self, Format};
 use policy_export::nn::Loss;
-use policy_export::run::{self, Summary};
+use policy_export::run::{self, Staging, Summary};
 use policy_export::train::{self, EpisodeRecord};
-use policy_export::weights::{Weights, write_atomic};
 use rayon::prelude::*;
+use weights::checkpoint;
+use weights::files::{MAX_POLICY_BYTES, check_output, read_capped, write_atomic};
+use weights::source;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -30,17 +31,9 @@ struct Cli {
 enum Command {
     /// Train a Double DQN (or DQN) controller and write a run directory.
     Train(Box<TrainArgs>),
-    /// Write a policy (run directory or .safetensors) as Rust const arrays or a C header.
-    Export {
-        /// A run directory (its policy.safetensors) or a .safetensors file.
-        src: PathBuf,
-        /// Output file.
-        #[arg(long)]
-        out: PathBuf,
-        /// Rust module (what `firmware` compiles) or C header.
-        #[arg(long, value_enum, default_value = "rust")]
-        format: Format,
-    },
+    /// Write a policy (a run directory, or a safetensors state dict as PyTorch saves it) as a
+    /// Rust module of const arrays or a C header.
+    Export(ExportArgs),
     /// Rerun the paper's Tables 1, 4, 5, 6, its initialisation and target-update choices and
     /// single changes to its preset, with many seeds; write tables, JSON and figures.
     Reproduce {
@@ -57,6 +50,36 @@ enum Command {
         #[arg(long, value_enum, default_value = "auto")]
         kernel: KernelChoice,
     },
+}
+
+#[derive(Args)]
+struct ExportArgs {
+    /// A run directory (its policy.safetensors) or a .safetensors file: tensors named
+    /// fc1/fc2/fc3, nn.Sequential indices (0, 2, 4), or either under a prefix (network.,
+    /// q_net.q_net., ...), found by their chain of shapes 4 -> H -> H -> 2.
+    src: PathBuf,
+    /// Output file (replaced atomically; never the input, never a device or directory).
+    #[arg(long)]
+    out: PathBuf,
+    /// Rust module (for any crate that depends on `firmware`) or C header.
+    #[arg(long, value_enum, default_value = "rust")]
+    format: Format,
+    /// Name of the static: default POLICY (Rust) or cartpole_policy (C).
+    #[arg(long)]
+    name: Option<String>,
+    /// Tensor-name prefix of the network to take, when the file holds several (an online
+    /// and a target net); "" for none.
+    #[arg(long)]
+    prefix: Option<String>,
+}
+
+/// The target language of an export.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Format {
+    /// A Rust module defining `pub static NAME: ::firmware::network::Mlp<H>`.
+    Rust,
+    /// A C header defining `static const struct cartpole_mlpH NAME`.
+    C,
 }
 
 #[derive(Args)]
@@ -260,7 +283,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Train(args) => cmd_train(*args),
-        Command::Export { src, out, format } => cmd_export(&src, &out, format),
+        Command::Export(args) => cmd_export(&args),
         Command::Reproduce {
             seeds,
             out,
@@ -272,11 +295,10 @@ fn main() -> ExitCode {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e:#}");
-            if e.downcast_ref::<ConfigError>().is_some() {
-                ExitCode::from(2)
-            } else {
-                ExitCode::from(1)
-            }
+            let input = e.downcast_ref::<ConfigError>().is_some()
+                || e.downcast_ref::<weights::Error>()
+                    .is_some_and(weights::Error::is_input);
+            ExitCode::from(if input { 2 } else { 1 })
         }
     }
 }
@@ -304,6 +326,8 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
         .clone()
         .map_or(vec![args.seed], Iterator::collect);
     let multi = args.seeds.is_some();
+    // The run directory is checked before the work and written beside, then renamed.
+    let staging = args.out.as_deref().map(Staging::new).transpose()?;
     let tty = std::io::stderr().is_terminal();
     let bars = MultiProgress::new();
     let log = Mutex::new(());
@@ -349,12 +373,12 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
         if let Some(b) = &bar {
             b.finish();
         }
-        let summary = match &args.out {
-            Some(dir) => {
+        let summary = match &staging {
+            Some(st) => {
                 let dir = if multi {
-                    dir.join(format!("seed-{seed}"))
+                    st.path().join(format!("seed-{seed}"))
                 } else {
-                    dir.clone()
+                    st.path().to_path_buf()
                 };
                 run::write_run(&dir, &cfg, seed, &result)?
             }
@@ -394,39 +418,65 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
             summaries.len(),
             agg.median_wall_s
         );
-        if let Some(dir) = &args.out {
+        if let Some(st) = &staging {
             write_atomic(
-                &dir.join("aggregate.json"),
+                &st.path().join("aggregate.json"),
                 &serde_json::to_vec_pretty(&agg)?,
             )?;
         }
     }
+    if let Some(st) = staging {
+        st.commit()?;
+    }
     Ok(())
 }
 
-fn cmd_export(src: &Path, out: &Path, format: Format) -> Result<()> {
-    let weights = Weights::load(src)?;
-    let summary_path = src.join("summary.json");
-    let prov = if src.is_dir() && summary_path.exists() {
-        let s: Summary = serde_json::from_slice(&std::fs::read(&summary_path)?)
-            .with_context(|| format!("{}", summary_path.display()))?;
+fn cmd_export(a: &ExportArgs) -> Result<()> {
+    let name = a.name.clone().unwrap_or_else(|| {
+        match a.format {
+            Format::Rust => source::DEFAULT_RUST_NAME,
+            Format::C => source::DEFAULT_C_NAME,
+        }
+        .to_string()
+    });
+    match a.format {
+        Format::Rust => source::check_rust_name(&name)?,
+        Format::C => source::check_c_name(&name)?,
+    }
+    let src_file = if a.src.is_dir() {
+        a.src.join("policy.safetensors")
+    } else {
+        a.src.clone()
+    };
+    check_output(&a.out, &[&a.src, &src_file])?;
+    let import = checkpoint::load(&a.src, a.prefix.as_deref())?;
+    let summary_path = a.src.join("summary.json");
+    let prov = if a.src.is_dir() && summary_path.is_file() {
+        let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
+        let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
+            weights::Error::Input(format!(
+                "{}: not a run summary: {e}",
+                summary_path.display()
+            ))
+        })?;
         run::provenance(&s)
     } else {
         vec![format!(
-            "source: {}",
-            src.file_name().unwrap_or_default().to_string_lossy()
+            "source: {} ({})",
+            a.src.file_name().unwrap_or_default().to_string_lossy(),
+            import.describe()
         )]
     };
-    let text = match format {
-        Format::Rust => export::rust_module(&weights, &prov),
-        Format::C => export::c_header(&weights, &prov),
+    let text = match a.format {
+        Format::Rust => source::rust_module(&import.weights, &name, &prov)?,
+        Format::C => source::c_header(&import.weights, &name, &prov)?,
     };
-    write_atomic(out, text.as_bytes())?;
+    write_atomic(&a.out, text.as_bytes())?;
     eprintln!(
-        "wrote {} ({} parameters, hidden width {})",
-        out.display(),
-        weights.tensors.iter().map(Vec::len).sum::<usize>(),
-        weights.width
+        "wrote {}: {name}, {} parameters ({})",
+        a.out.display(),
+        import.weights.params(),
+        import.describe()
     );
     Ok(())
 }

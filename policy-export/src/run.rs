@@ -2,19 +2,25 @@
 //!
 //! `metrics.csv` (one row per episode), `summary.json` (the full configuration, the seed,
 //! the headline numbers), `policy.safetensors` (PyTorch names) and `policy.rs` (the const-
-//! array module `firmware` compiles). Every file is written atomically.
+//! array module `firmware` compiles); with `--seeds`, one such directory per seed under
+//! `seed-N/` and `aggregate.json`.
+//!
+//! A run directory is written as a unit: into a hidden sibling first ([`Staging`]), renamed
+//! into place when complete. A killed run leaves the old directory (or none) and a stale
+//! sibling, which the next run removes; never a mix of two runs.
 
-use std::collections::HashMap;
-use std::path::Path;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
+use weights::checkpoint::to_safetensors;
+use weights::files::write_atomic;
+use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 use crate::config::Config;
-use crate::export;
 use crate::nn::Kernel;
 use crate::train::{EvalResult, RunResult, solved_episode, trailing_means};
-use crate::weights::write_atomic;
 
 /// The contents of `summary.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -75,7 +81,7 @@ pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
         config: cfg.clone(),
         seed,
         kernel: r.kernel,
-        parameters: r.policy.tensors.iter().map(Vec::len).sum(),
+        parameters: r.policy.params(),
         episodes_run: returns.len(),
         solved_episode_195: solved_episode(&returns, 195.0),
         solved_episode_475: solved_episode(&returns, 475.0),
@@ -114,7 +120,131 @@ pub fn provenance(s: &Summary) -> Vec<String> {
     ]
 }
 
-/// Writes the whole run directory.
+/// Files that mark a directory as a run directory, which a new run may replace.
+const MARKERS: [&str; 2] = ["summary.json", "aggregate.json"];
+
+/// Checks, before any work, that `dir` can receive a run: absent, empty, or an earlier run
+/// directory (which the new run replaces as a whole).
+pub fn check_run_dir(dir: &Path) -> Result<()> {
+    if dir.file_name().is_none() {
+        bail!(weights::Error::Input(format!(
+            "--out {}: expected a directory name",
+            dir.display()
+        )));
+    }
+    match std::fs::symlink_metadata(dir) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => bail!(weights::Error::Input(format!(
+            "--out {}: {e}",
+            dir.display()
+        ))),
+        Ok(m) if !m.is_dir() => bail!(weights::Error::Input(format!(
+            "--out {}: expected a run directory (or a new path), found a file",
+            dir.display()
+        ))),
+        Ok(_) => {
+            let mut entries = std::fs::read_dir(dir)
+                .with_context(|| format!("reading {}", dir.display()))?
+                .peekable();
+            let empty = entries.peek().is_none();
+            if empty || MARKERS.iter().any(|m| dir.join(m).is_file()) {
+                Ok(())
+            } else {
+                bail!(weights::Error::Input(format!(
+                    "--out {}: expected a new path or an earlier run directory (with \
+                     summary.json), found a directory with other files; not replacing it",
+                    dir.display()
+                )))
+            }
+        }
+    }
+}
+
+/// A run directory being written: a hidden sibling of the destination, renamed over it by
+/// [`Staging::commit`], removed if dropped uncommitted.
+pub struct Staging {
+    tmp: PathBuf,
+    dest: PathBuf,
+}
+
+impl Staging {
+    /// A fresh staging directory for `dest`; stale ones of killed runs are removed first.
+    pub fn new(dest: &Path) -> Result<Staging> {
+        check_run_dir(dest)?;
+        let parent = match dest.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent)
+            .with_context(|| format!("creating {}", parent.display()))?;
+        let name = dest
+            .file_name()
+            .unwrap_or_default()
+            .to_string_lossy()
+            .into_owned();
+        remove_stale(&parent, &name);
+        let tmp = parent.join(format!(".{name}.{}.partial", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
+        Ok(Staging {
+            tmp,
+            dest: dest.to_path_buf(),
+        })
+    }
+
+    /// Where to write the run's files.
+    pub fn path(&self) -> &Path {
+        &self.tmp
+    }
+
+    /// Puts the finished directory in place of the destination.
+    pub fn commit(self) -> Result<()> {
+        check_run_dir(&self.dest)?;
+        let old = self.tmp.with_extension("old");
+        let had_old = self.dest.exists();
+        if had_old {
+            std::fs::rename(&self.dest, &old)
+                .with_context(|| format!("moving {} aside", self.dest.display()))?;
+        }
+        std::fs::rename(&self.tmp, &self.dest)
+            .with_context(|| format!("renaming onto {}", self.dest.display()))?;
+        if had_old {
+            std::fs::remove_dir_all(&old).with_context(|| format!("removing {}", old.display()))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for Staging {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.tmp);
+    }
+}
+
+/// Removes `.NAME.PID.partial` (and `.old`) siblings whose process is gone.
+fn remove_stale(parent: &Path, name: &str) {
+    let Ok(entries) = std::fs::read_dir(parent) else {
+        return;
+    };
+    let prefix = format!(".{name}.");
+    for e in entries.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix) else {
+            continue;
+        };
+        let Some((pid, "partial" | "partial.old")) = rest.split_once('.') else {
+            continue;
+        };
+        let alive = pid
+            .parse::<u32>()
+            .is_ok_and(|p| p == std::process::id() || Path::new(&format!("/proc/{p}")).exists());
+        if !alive {
+            let _ = std::fs::remove_dir_all(e.path());
+        }
+    }
+}
+
+/// Writes one run's files into `dir` (a [`Staging`] path or one of its `seed-N`).
 pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<Summary> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let summary = summarize(cfg, seed, r);
@@ -128,21 +258,20 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
         &dir.join("summary.json"),
         &serde_json::to_vec_pretty(&summary)?,
     )?;
-
-    let meta = HashMap::from([
+    let meta = BTreeMap::from([
         ("format".to_string(), "pt".to_string()),
         ("seed".to_string(), seed.to_string()),
-        ("width".to_string(), r.policy.width.to_string()),
+        ("width".to_string(), r.policy.width().to_string()),
         ("config".to_string(), serde_json::to_string(cfg)?),
     ]);
     write_atomic(
         &dir.join("policy.safetensors"),
-        &r.policy.to_safetensors(&meta)?,
+        &to_safetensors(&r.policy, &meta)?,
     )?;
     let prov = provenance(&summary);
     write_atomic(
         &dir.join("policy.rs"),
-        export::rust_module(&r.policy, &prov).as_bytes(),
+        rust_module(&r.policy, DEFAULT_RUST_NAME, &prov)?.as_bytes(),
     )?;
     Ok(summary)
 }
@@ -168,15 +297,7 @@ pub struct Aggregate {
 
 /// Summarises several seeds' summaries.
 pub fn aggregate(summaries: &[Summary]) -> Aggregate {
-    let median = |mut v: Vec<f64>| {
-        v.sort_by(f64::total_cmp);
-        let n = v.len();
-        if n == 0 {
-            f64::NAN
-        } else {
-            (v[(n - 1) / 2] + v[n / 2]) / 2.0
-        }
-    };
+    let median = |v: Vec<f64>| host_common::stats::median(&v);
     Aggregate {
         seeds: summaries.iter().map(|s| s.seed).collect(),
         final_mean100: summaries.iter().map(|s| s.final_mean100).collect(),

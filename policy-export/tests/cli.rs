@@ -4,8 +4,6 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use policy_export::weights::Weights;
-
 fn exe() -> Command {
     Command::new(env!("CARGO_BIN_EXE_policy-export"))
 }
@@ -124,17 +122,131 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
     let o = exe()
         .arg("export")
         .arg(&st)
-        .args(["--format", "c", "--out"])
+        .args(["--format", "c", "--name", "balance", "--out"])
         .arg(&h)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
-    let w = Weights::load(&st).unwrap();
     let header = std::fs::read_to_string(&h).unwrap();
-    let first = format!("{:?}f", w.tensors[0][0]);
     assert!(
-        header.contains(&format!("{{{first}, ")),
-        "{first} not in header"
+        header.contains("static const struct cartpole_mlp64 balance = {")
+            && header.contains("source: policy.safetensors (layers fc1, fc2, fc3 under no prefix"),
+        "{header}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn fixture(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../weights/tests/fixtures")
+        .join(name)
+}
+
+fn export(args: &[&str]) -> Output {
+    exe().arg("export").args(args).output().unwrap()
+}
+
+#[test]
+fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
+    let dir = scratch("torch");
+    let out = dir.join("p.rs");
+    let o = export(&[
+        fixture("cleanrl.safetensors").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains("pub static POLICY: ::firmware::network::Mlp<16>"),
+        "{text}"
+    );
+    assert!(
+        text.contains("layers 0, 2, 4 under prefix `network.`"),
+        "{text}"
+    );
+
+    let sb3 = fixture("sb3_policy.safetensors");
+    let o = export(&[sb3.to_str().unwrap(), "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("under the prefixes q_net.q_net., q_net_target.q_net."),
+        "{}",
+        stderr(&o)
+    );
+    let o = export(&[
+        sb3.to_str().unwrap(),
+        "--prefix",
+        "q_net.q_net.",
+        "--name",
+        "SB3_ONLINE",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(text.contains("pub static SB3_ONLINE:") && text.contains("6 other tensors ignored"));
+
+    let o = export(&[
+        fixture("cleanrl_default.safetensors").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("hidden widths 120 and 84 differ"),
+        "{}",
+        stderr(&o)
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn bad_names_and_outputs_exit_2_and_touch_nothing() {
+    let dir = scratch("outs");
+    let input = dir.join("w.safetensors");
+    std::fs::copy(fixture("sequential.safetensors"), &input).unwrap();
+    let before = std::fs::read(&input).unwrap();
+    let inp = input.to_str().unwrap();
+    let out = dir.join("p.rs");
+    for (args, want) in [
+        (vec![inp, "--out", inp], "would overwrite the input"),
+        (vec![inp, "--out", "/dev/null"], "found a device"),
+        (
+            vec![inp, "--out", dir.to_str().unwrap()],
+            "found a directory",
+        ),
+        (
+            vec![inp, "--name", "lower", "--out", out.to_str().unwrap()],
+            "--name: expected a Rust static's name",
+        ),
+        (
+            vec![
+                inp,
+                "--format",
+                "c",
+                "--name",
+                "int",
+                "--out",
+                out.to_str().unwrap(),
+            ],
+            "--name: expected a C identifier",
+        ),
+        (
+            vec![inp, "--prefix", "nope.", "--out", out.to_str().unwrap()],
+            "no tensors under prefix \"nope.\"",
+        ),
+    ] {
+        let o = export(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+    }
+    assert_eq!(std::fs::read(&input).unwrap(), before);
+    assert!(!out.exists());
+    assert_eq!(
+        std::fs::read_dir(&dir).unwrap().count(),
+        1,
+        "no temporary left behind"
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -143,12 +255,9 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
 fn exporting_a_broken_policy_names_the_tensor() {
     let dir = scratch("broken");
     let path = dir.join("short.safetensors");
-    // A width-8 policy missing its output bias.
-    let shapes = policy_export::weights::shapes(8);
-    let data: Vec<Vec<u8>> = shapes
-        .iter()
-        .map(|s| vec![0u8; 4 * s.iter().product::<usize>()])
-        .collect();
+    // A width-16 policy missing its output bias.
+    let shapes = firmware::network::shapes(16);
+    let data: Vec<Vec<u8>> = shapes.iter().map(|s| vec![0u8; 4 * s.len()]).collect();
     let views: Vec<_> = firmware::network::TENSOR_NAMES[..5]
         .iter()
         .zip(&shapes)
@@ -156,7 +265,7 @@ fn exporting_a_broken_policy_names_the_tensor() {
         .map(|((n, s), d)| {
             (
                 *n,
-                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.clone(), d)
+                safetensors::tensor::TensorView::new(safetensors::Dtype::F32, s.dims().to_vec(), d)
                     .unwrap(),
             )
         })
@@ -170,9 +279,9 @@ fn exporting_a_broken_policy_names_the_tensor() {
         .arg(&out)
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("tensor `fc3.bias` is missing"),
+        stderr(&o).contains("layer `fc3` lacks its bias"),
         "{}",
         stderr(&o)
     );

@@ -4,11 +4,15 @@
 //! the `defmt` feature) and exits with the self-test's verdict, which is what QEMU runs:
 //!
 //! ```sh
-//! cargo run --release -p firmware --target thumbv7em-none-eabihf   # Cortex-M4F, mps2-an386
-//! cargo run --release -p firmware --target thumbv6m-none-eabi      # Cortex-M0, micro:bit
+//! cargo run --release -p selftest-app --target thumbv7em-none-eabihf   # Cortex-M4F, mps2-an386
+//! cargo run --release -p selftest-app --target thumbv6m-none-eabi      # Cortex-M0, micro:bit
 //! ```
 //!
 //! On the host the same self-test runs natively, so the two reports can be compared.
+//!
+//! This crate owns what a board's own application would: the runtime (`cortex-m-rt`), the
+//! critical-section implementation, the memory map (the workspace's `memory.x`, through
+//! `build.rs`) and the panic handler. The `firmware` library it runs has none of them.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 #![deny(unsafe_code)]
@@ -21,7 +25,7 @@ fn main() -> std::process::ExitCode {
     use firmware::{ffi::cartpole_policy_forward, policy::POLICY, selftest};
     let ok = selftest::report(
         &POLICY,
-        |o, q| cartpole_policy_forward(o, q),
+        |o, q| cartpole_policy_forward(Some(o), Some(q)),
         |l| println!("{l}"),
     );
     if ok {

@@ -1,12 +1,12 @@
-//! Train -> export -> load -> balance, across the three crates, through the firmware's
+//! Train -> save -> load -> balance, across the crates, through the firmware's
 //! `Controller` and the digital twin.
 
 use host_sim::eval::{ControllerKind, Net, evaluate};
 use host_sim::twin::Scenario;
 use policy_export::config::{Config, KernelChoice};
-use policy_export::export::rust_module;
 use policy_export::train;
-use policy_export::weights::{Weights, write_atomic};
+use weights::checkpoint::{load, to_safetensors};
+use weights::files::write_atomic;
 
 #[test]
 fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
@@ -22,29 +22,12 @@ fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
     let file = dir.join("policy.safetensors");
     write_atomic(
         &file,
-        &run.policy.to_safetensors(&Default::default()).unwrap(),
+        &to_safetensors(&run.policy, &Default::default()).unwrap(),
     )
     .unwrap();
 
-    // The exported source carries exactly these bits: every literal parses back to them.
-    let source = rust_module(&run.policy, &[]);
-    let body = &source[source.find("= Mlp {").unwrap()..];
-    let literals: Vec<u32> = body
-        .split(|c: char| c == ',' || c == '[' || c == ']' || c.is_whitespace())
-        .filter_map(|t| t.parse::<f32>().ok())
-        .map(f32::to_bits)
-        .collect();
-    let expected: Vec<u32> = run
-        .policy
-        .tensors
-        .iter()
-        .flatten()
-        .map(|v| v.to_bits())
-        .collect();
-    assert_eq!(literals, expected);
-
-    let loaded = Weights::load(&file).unwrap();
-    assert_eq!(loaded.tensors, run.policy.tensors);
+    let loaded = load(&file, None).unwrap().weights;
+    assert_eq!(loaded, run.policy);
     let net = Net::from_weights(&loaded).unwrap();
     let nominal = Scenario::nominal();
     let policy = evaluate(ControllerKind::Policy, &net, &nominal, 500, 9, 100);

@@ -1,4 +1,4 @@
-//! The firmware binary on emulated Cortex-M4F (mps2-an386) and Cortex-M0 (micro:bit) cores:
+//! The self-test application on emulated Cortex-M4F (mps2-an386) and Cortex-M0 (micro:bit) cores:
 //! its self-test must pass and its Q-values must equal the host's bit for bit.
 //!
 //! Needs `qemu-system-arm` (Debian: `apt-get install qemu-system-arm`) and the two thumb
@@ -40,7 +40,7 @@ fn run_on(target: &str) {
             "-q",
             "--release",
             "-p",
-            "firmware",
+            "selftest-app",
             "--target",
             target,
         ])

@@ -5,10 +5,10 @@ use std::path::PathBuf;
 
 use firmware::policy::POLICY;
 use policy_export::config::{Config, KernelChoice};
-use policy_export::export::rust_module;
 use policy_export::run::{provenance, summarize};
 use policy_export::train;
-use policy_export::weights::Weights;
+use weights::Weights;
+use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -29,8 +29,9 @@ fn bits(tensors: &[Vec<f32>; 6]) -> Vec<u32> {
 
 #[test]
 fn compiled_constants_equal_the_committed_safetensors_bit_for_bit() {
-    let w = Weights::load(&repo().join("firmware/policy.safetensors")).unwrap();
-    assert_eq!(bits(&w.tensors), bits(&Weights::from_mlp(&POLICY).tensors));
+    let w = weights::checkpoint::load(&repo().join("firmware/policy.safetensors"), None).unwrap();
+    let compiled = Weights::from_mlp(&POLICY).unwrap();
+    assert_eq!(bits(w.weights.tensors()), bits(compiled.tensors()));
 }
 
 #[test]
@@ -38,15 +39,17 @@ fn the_shipped_policy_regenerates_bit_identically() {
     let cfg = shipped_config();
     let result = train::train(&cfg, SHIPPED_SEED, &mut |_| {}).unwrap();
     assert_eq!(
-        bits(&result.policy.tensors),
-        bits(&Weights::from_mlp(&POLICY).tensors),
+        bits(result.policy.tensors()),
+        bits(Weights::from_mlp(&POLICY).unwrap().tensors()),
         "retraining the recipe no longer gives the shipped weights: \
          regenerate firmware/src/policy.rs as the README says, or find what changed"
     );
     let source = rust_module(
         &result.policy,
+        DEFAULT_RUST_NAME,
         &provenance(&summarize(&cfg, SHIPPED_SEED, &result)),
-    );
+    )
+    .unwrap();
     let committed = std::fs::read_to_string(repo().join("firmware/src/policy.rs")).unwrap();
     assert_eq!(
         source, committed,

@@ -1,0 +1,203 @@
+use super::*;
+use embedded_hal_mock::eh1::MockError;
+use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as PinTx};
+use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as PwmTx};
+
+/// Replays a fixed list of readings, then reports errors.
+struct Script<'a> {
+    readings: &'a [Result<[f32; 4], ()>],
+    next: usize,
+}
+
+impl StateSensor for Script<'_> {
+    type Error = ();
+    fn read(&mut self) -> Result<[f32; 4], ()> {
+        let r = self.readings.get(self.next).copied().unwrap_or(Err(()));
+        self.next += 1;
+        r
+    }
+}
+
+/// Scores fixed by the sign of theta, so the test knows each action in advance.
+struct SignOfTheta;
+
+impl Policy for SignOfTheta {
+    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
+        [0.0, obs[2]]
+    }
+}
+
+const MAX: u16 = 255;
+const LEAN_RIGHT: [f32; 4] = [0.0, 0.0, 0.1, 0.0];
+const LEAN_LEFT: [f32; 4] = [0.0, 0.0, -0.1, 0.0];
+
+fn run(
+    readings: &[Result<[f32; 4], ()>],
+    pin: &[PinTx],
+    pwm: &[PwmTx],
+) -> (Vec<Command>, Vec<Record>, FaultCounters) {
+    let mut dir = PinMock::new(pin);
+    let mut en = PwmMock::new(pwm);
+    let sensor = Script { readings, next: 0 };
+    let mut c: Controller<_, _, _, _, 8> = Controller::new(
+        SignOfTheta,
+        sensor,
+        dir.clone(),
+        en.clone(),
+        Limits::default(),
+    );
+    let commands = (0..readings.len()).map(|_| c.step()).collect();
+    let records = c.telemetry().copied().collect();
+    let faults = c.faults();
+    dir.done();
+    en.done();
+    (commands, records, faults)
+}
+
+extern crate std;
+use std::vec::Vec;
+
+/// What `set_duty_cycle_fully_on` / `_off` send.
+fn push(on: bool) -> Vec<PwmTx> {
+    if on {
+        std::vec![PwmTx::max_duty_cycle(MAX), PwmTx::set_duty_cycle(MAX)]
+    } else {
+        std::vec![PwmTx::set_duty_cycle(0)]
+    }
+}
+
+#[test]
+fn first_push_is_off_direction_on() {
+    for (reading, level, action) in [
+        (LEAN_RIGHT, State::High, Action::Right),
+        (LEAN_LEFT, State::Low, Action::Left),
+    ] {
+        let pwm = [push(false), push(true)].concat();
+        let (cmds, _, faults) = run(&[Ok(reading)], &[PinTx::set(level)], &pwm);
+        assert_eq!(cmds, [Command::Push(action)]);
+        assert_eq!(faults, FaultCounters::default());
+    }
+}
+
+#[test]
+fn repeated_push_writes_nothing_and_reversal_breaks_before_make() {
+    let readings = [
+        Ok(LEAN_RIGHT),
+        Ok(LEAN_RIGHT),
+        Ok(LEAN_LEFT),
+        Ok(LEAN_RIGHT),
+    ];
+    let pin = [
+        PinTx::set(State::High),
+        PinTx::set(State::Low),
+        PinTx::set(State::High),
+    ];
+    let pwm = [
+        push(false),
+        push(true),
+        push(false),
+        push(true),
+        push(false),
+        push(true),
+    ]
+    .concat();
+    let (cmds, records, _) = run(&readings, &pin, &pwm);
+    assert_eq!(
+        cmds,
+        [
+            Command::Push(Action::Right),
+            Command::Push(Action::Right),
+            Command::Push(Action::Left),
+            Command::Push(Action::Right)
+        ]
+    );
+    assert_eq!(records.len(), 4);
+    assert_eq!(records[2].q, [0.0, -0.1]);
+    assert!(records.iter().enumerate().all(|(i, r)| r.step == i as u32));
+}
+
+#[test]
+fn every_bad_value_on_every_channel_coasts_and_counts() {
+    for channel in 0..4 {
+        for (bad, flag) in [
+            (f32::NAN, FaultFlags::non_finite(channel)),
+            (f32::INFINITY, FaultFlags::non_finite(channel)),
+            (f32::NEG_INFINITY, FaultFlags::non_finite(channel)),
+            (1e30, FaultFlags::out_of_range(channel)),
+            (-1e30, FaultFlags::out_of_range(channel)),
+        ] {
+            let mut reading = LEAN_RIGHT;
+            reading[channel] = bad;
+            // Push right, then coast on the bad reading, then push right again.
+            let readings = [Ok(LEAN_RIGHT), Ok(reading), Ok(LEAN_RIGHT)];
+            let pin = [PinTx::set(State::High), PinTx::set(State::High)];
+            let pwm = [push(false), push(true), push(false), push(true)].concat();
+            let (cmds, records, faults) = run(&readings, &pin, &pwm);
+            let what = std::format!("channel {channel}, value {bad}");
+            assert_eq!(cmds[1], Command::Coast, "{what}");
+            assert_eq!(records[1].faults, flag, "{what}");
+            assert!(records[1].q.iter().all(|q| q.is_nan()), "{what}");
+            assert_eq!(records[1].obs[channel].to_bits(), bad.to_bits(), "{what}");
+            assert!(records[0].faults.is_empty() && records[2].faults.is_empty());
+            let (nf, oor) = if bad.is_finite() { (0, 1) } else { (1, 0) };
+            assert_eq!(
+                faults,
+                FaultCounters {
+                    rejected_readings: 1,
+                    non_finite: nf,
+                    out_of_range: oor,
+                    ..FaultCounters::default()
+                },
+                "{what}"
+            );
+        }
+    }
+}
+
+#[test]
+fn limits_are_inclusive_and_all_bad_channels_are_flagged() {
+    let l = Limits::default();
+    assert!(sanitise(&l.max_abs, &l).is_empty());
+    let neg = l.max_abs.map(|v| -v);
+    assert!(sanitise(&neg, &l).is_empty());
+    let flags = sanitise(&[f32::NAN, 21.0, -0.5, f32::INFINITY], &l);
+    assert_eq!(flags.0, 0b0110_1001);
+    assert!(flags.reading_rejected());
+}
+
+#[test]
+fn sensor_error_coasts_with_zeros_recorded() {
+    let pwm = push(false);
+    let (cmds, records, faults) = run(&[Err(())], &[], &pwm);
+    assert_eq!(cmds, [Command::Coast]);
+    assert_eq!(records[0].faults, FaultFlags::SENSOR_ERROR);
+    assert_eq!(records[0].obs, [0.0; 4]);
+    assert_eq!(faults.sensor_errors, 1);
+    assert_eq!(faults.rejected_readings, 1);
+}
+
+#[test]
+fn actuator_error_is_counted_and_the_next_push_resends_everything() {
+    let readings = [Ok(LEAN_RIGHT), Ok(LEAN_RIGHT)];
+    let pin = [
+        PinTx::set(State::High).with_error(MockError::Io(std::io::ErrorKind::Other)),
+        PinTx::set(State::High),
+    ];
+    let pwm = [push(false), push(false), push(true)].concat();
+    let (cmds, records, faults) = run(&readings, &pin, &pwm);
+    assert_eq!(cmds, [Command::Push(Action::Right); 2]);
+    assert_eq!(records[0].faults, FaultFlags::ACTUATOR_ERROR);
+    assert!(!records[0].faults.reading_rejected());
+    assert!(records[1].faults.is_empty());
+    assert_eq!(faults.actuator_errors, 1);
+    assert_eq!(faults.rejected_readings, 0);
+}
+
+#[test]
+fn telemetry_keeps_the_last_n_oldest_first() {
+    let readings = [Ok(LEAN_RIGHT); 11];
+    let pwm = [push(false), push(true)].concat();
+    let (_, records, _) = run(&readings, &[PinTx::set(State::High)], &pwm);
+    let steps: Vec<u32> = records.iter().map(|r| r.step).collect();
+    assert_eq!(steps, (3..11).collect::<Vec<_>>());
+}

@@ -1,0 +1,128 @@
+//! The batched forward pass, and the one building block every matrix product of the
+//! trainer is made of.
+
+use firmware::network::{Mlp, OBS_DIM};
+
+use super::{Packed, Scratch};
+
+/// Multiply-add as a type, so one generic kernel compiles with and without fusion, and
+/// how many batch rows a kernel computes together: each weight chunk is then loaded once for
+/// all of them, and their accumulators form independent chains that hide the multiply-add
+/// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
+pub(super) trait MulAdd {
+    fn mul_add(a: f32, b: f32, c: f32) -> f32;
+}
+#[cfg(target_arch = "x86_64")]
+pub(super) const FUSED_ROWS: usize = 4;
+pub(super) const UNFUSED_ROWS: usize = 2;
+#[cfg(target_arch = "x86_64")]
+pub(super) struct Fused;
+pub(super) struct Unfused;
+#[cfg(target_arch = "x86_64")]
+impl MulAdd for Fused {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a.mul_add(b, c)
+    }
+}
+impl MulAdd for Unfused {
+    #[inline(always)]
+    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
+        a * b + c
+    }
+}
+
+/// Output lanes per accumulator: one AVX-512 register, two AVX2 ones, four SSE ones.
+/// Every supported width is a multiple of it.
+const L: usize = 16;
+
+/// The kernels' one building block, for `R2` rows at once:
+/// `y[r] = init + sum_i x(i)[r] * w[i]` over the `w.len()` terms, then ReLU if asked.
+/// Accumulators are `[f32; L]` values the compiler keeps in registers; a whole `[f32; H]`
+/// accumulator would live in memory and turn every term into a load-add-store chain.
+/// `x(i)` gathers term `i`'s coefficient for each row, so a matrix can be read along either
+/// axis without first being transposed.
+#[inline(always)]
+pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
+    x: impl Fn(usize) -> [f32; R2],
+    w: &[[f32; H]],
+    init: Option<&[f32; H]>,
+    relu: bool,
+    y: [&mut [f32; H]; R2],
+) {
+    const {
+        assert!(
+            H.is_multiple_of(L),
+            "hidden width must be a multiple of the lane block"
+        )
+    };
+    let mut y = y.map(|r| r.as_chunks_mut::<L>().0);
+    for c in 0..H / L {
+        let start = init.map_or([0.0; L], |b| b.as_chunks::<L>().0[c]);
+        let mut acc = [start; R2];
+        for (i, wi) in w.iter().enumerate() {
+            let wc = &wi.as_chunks::<L>().0[c];
+            for (acc, xi) in acc.iter_mut().zip(x(i)) {
+                for (a, w) in acc.iter_mut().zip(wc) {
+                    *a = F::mul_add(xi, *w, *a);
+                }
+            }
+        }
+        for (acc, y) in acc.iter().zip(y.iter_mut()) {
+            for (o, a) in y[c].iter_mut().zip(acc) {
+                *o = if relu && *a <= 0.0 { 0.0 } else { *a };
+            }
+        }
+    }
+}
+
+/// [`rows_times`] over every row of `xs`/`ys`, `R` at a time, the remainder one by one.
+#[inline(always)]
+pub(super) fn all_rows<const H: usize, const N: usize, F: MulAdd, const R: usize>(
+    xs: &[[f32; N]],
+    w: &[[f32; H]],
+    init: Option<&[f32; H]>,
+    relu: bool,
+    ys: &mut [[f32; H]],
+) {
+    let n = w.len();
+    let (xb, xr) = xs.as_chunks::<R>();
+    let (yb, yr) = ys[..xs.len()].as_chunks_mut::<R>();
+    for (x, y) in xb.iter().zip(yb) {
+        let x = x.each_ref().map(|r| &r[..n]);
+        rows_times::<H, R, F>(|i| x.map(|r| r[i]), w, init, relu, y.each_mut());
+    }
+    for (x, y) in xr.iter().zip(yr) {
+        let x = &x[..n];
+        rows_times::<H, 1, F>(|i| [x[i]], w, init, relu, [y]);
+    }
+}
+
+#[inline(always)]
+pub(super) fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
+    net: &Mlp<H>,
+    packed: &Packed<H>,
+    x: &[[f32; OBS_DIM]],
+    s: &mut Scratch<H>,
+) {
+    let n = x.len();
+    all_rows::<H, OBS_DIM, F, R>(x, &packed.w1t, Some(&net.fc1_bias), true, &mut s.a1);
+    all_rows::<H, H, F, R>(
+        &s.a1[..n],
+        &packed.w2t,
+        Some(&net.fc2_bias),
+        true,
+        &mut s.a2,
+    );
+    for (a2, q) in s.a2[..n].iter().zip(s.q[..n].iter_mut()) {
+        for ((q, w), bias) in q.iter_mut().zip(&net.fc3_weight).zip(&net.fc3_bias) {
+            // `dot`'s order in SSE registers: inlined here, LLVM compiles `dot` itself to
+            // scalar code, which cost 8% of a training step.
+            #[cfg(target_arch = "x86_64")]
+            let d = firmware::network::x86::dot_sse(w, a2);
+            #[cfg(not(target_arch = "x86_64"))]
+            let d = firmware::network::dot(w, a2);
+            *q = d + bias;
+        }
+    }
+}

@@ -1,0 +1,187 @@
+//! Batched training math for the 4-H-H-2 network: forward with activations kept, backward,
+//! global-norm clipping and Adam, written by hand for this one network shape.
+//!
+//! - `kernels`: the batched forward pass and the building block every matrix product uses.
+//! - `backprop`: gradients of the TD loss.
+//! - `optim`: Adam, gradient clipping, soft target updates.
+//!
+//! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
+//! with is the policy that ships. Inference during training goes through
+//! `firmware::network`; this module is only the learning side. Its forward pass is laid out
+//! for batches (`y += x_i * W^T[i]`, vectorised across outputs) instead of the firmware's
+//! per-output dot products, so its outputs agree with `Mlp::forward` to rounding (tested to
+//! 1e-6 relative), not bit for bit.
+//!
+//! Speed comes from the layout and from compiling the same generic kernels three times:
+//! with AVX-512F + AVX-512VL + FMA, with AVX2 + FMA, and for the baseline target, picked at
+//! run time ([`Kernel::detect`]). Results are bit-identical for a given kernel; different
+//! kernels round differently (FMA fuses), so a run records which one it used.
+
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+pub use host_common::kernel::Kernel;
+
+mod backprop;
+mod kernels;
+mod optim;
+
+use backprop::backward_impl;
+#[cfg(target_arch = "x86_64")]
+use kernels::{FUSED_ROWS, Fused};
+use kernels::{UNFUSED_ROWS, Unfused, forward_impl};
+use optim::adam_impl;
+pub use optim::{AdamParams, clip_grad_norm, soft_update};
+
+/// The regression loss on the TD error `d = Q(s, a) - y`, averaged over the batch.
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize, clap::ValueEnum,
+)]
+#[serde(rename_all = "lowercase")]
+pub enum Loss {
+    /// `d^2` (PyTorch `MSELoss`).
+    Mse,
+    /// `d^2 / 2` for `|d| < 1`, else `|d| - 1/2` (PyTorch `SmoothL1Loss`, beta 1).
+    Huber,
+}
+
+/// Per-batch activations and gradients, allocated once.
+pub struct Scratch<const H: usize> {
+    a1: Vec<[f32; H]>,
+    a2: Vec<[f32; H]>,
+    d1: Vec<[f32; H]>,
+    d2: Vec<[f32; H]>,
+    dq: Vec<[f32; N_ACTIONS]>,
+    /// Q-values of the last [`forward_batch`].
+    pub q: Vec<[f32; N_ACTIONS]>,
+}
+
+/// A network's first two weight matrices transposed (`[in][out]`), so that the batched
+/// forward pass reads contiguous rows. Re-pack whenever the weights change.
+pub struct Packed<const H: usize> {
+    w1t: [[f32; H]; OBS_DIM],
+    w2t: [[f32; H]; H],
+}
+
+impl<const H: usize> Packed<H> {
+    /// The transposes of `net`'s weights, on the heap.
+    pub fn new(net: &Mlp<H>) -> Box<Self> {
+        let mut p = Box::new(Packed {
+            w1t: [[0.0; H]; OBS_DIM],
+            w2t: [[0.0; H]; H],
+        });
+        p.pack(net);
+        p
+    }
+
+    /// Refreshes the transposes from `net`.
+    pub fn pack(&mut self, net: &Mlp<H>) {
+        for (o, (w1, w2)) in net.fc1_weight.iter().zip(&net.fc2_weight).enumerate() {
+            for (i, w) in w1.iter().enumerate() {
+                self.w1t[i][o] = *w;
+            }
+            for (i, w) in w2.iter().enumerate() {
+                self.w2t[i][o] = *w;
+            }
+        }
+    }
+}
+
+impl<const H: usize> Scratch<H> {
+    /// Room for batches of up to `batch` samples.
+    pub fn new(batch: usize) -> Self {
+        Scratch {
+            a1: vec![[0.0; H]; batch],
+            a2: vec![[0.0; H]; batch],
+            d1: vec![[0.0; H]; batch],
+            d2: vec![[0.0; H]; batch],
+            dq: vec![[0.0; N_ACTIONS]; batch],
+            q: vec![[0.0; N_ACTIONS]; batch],
+        }
+    }
+}
+
+/// A zeroed network on the heap (`Mlp<128>` is 70 KB: too big to move around on stacks).
+pub fn boxed_zero<const H: usize>() -> Box<Mlp<H>> {
+    Box::new(Mlp::zeroed())
+}
+
+/// Generates a public entry point per kernel implementation: it runs `$imp` compiled for the
+/// chosen kernel, with fused multiply-add where that kernel has it. A kernel this CPU lacks
+/// falls back to the portable build (the command line refuses such a choice up front).
+macro_rules! kernel_entry {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty => $imp:ident) => {
+        $(#[$doc])*
+        #[allow(clippy::too_many_arguments)]
+        pub fn $name<const H: usize>(kernel: Kernel, $($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
+                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
+                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
+                }
+                match kernel {
+                    // SAFETY: the CPU was just checked for every feature the function enables.
+                    Kernel::Avx512 if Kernel::Avx512.supported() => {
+                        return unsafe { avx512::<H>($($arg),*) };
+                    }
+                    // SAFETY: as above.
+                    Kernel::Avx2 if Kernel::Avx2.supported() => {
+                        return unsafe { avx2::<H>($($arg),*) };
+                    }
+                    _ => {}
+                }
+            }
+            #[cfg(not(target_arch = "x86_64"))]
+            let _ = kernel;
+            $imp::<H, Unfused, UNFUSED_ROWS>($($arg),*)
+        }
+    };
+}
+
+kernel_entry! {
+    /// Forward pass of `x` (one row per sample) through `net` (with `packed` its current
+    /// transposes), keeping the activations for [`backward`]; Q-values land in
+    /// `s.q[..x.len()]`.
+    fn forward_batch(
+        net: &Mlp<H>,
+        packed: &Packed<H>,
+        x: &[[f32; OBS_DIM]],
+        s: &mut Scratch<H>
+    ) -> ()
+        => forward_impl
+}
+
+kernel_entry! {
+    /// Gradients of the mean loss over the batch of the last [`forward_batch`] of `net` on
+    /// `x`, where sample `b` regresses `Q(x_b, actions[b])` towards `targets[b]`. Overwrites
+    /// `grad`; returns the loss.
+    fn backward(
+        net: &Mlp<H>,
+        x: &[[f32; OBS_DIM]],
+        actions: &[u8],
+        targets: &[f32],
+        loss: Loss,
+        s: &mut Scratch<H>,
+        grad: &mut Mlp<H>
+    ) -> f32 => backward_impl
+}
+
+kernel_entry! {
+    /// One Adam step (`t` counts from 1) of `params` along `grad`, updating the moments.
+    fn adam_step(
+        hp: &AdamParams,
+        t: u64,
+        params: &mut Mlp<H>,
+        grad: &Mlp<H>,
+        m: &mut Mlp<H>,
+        v: &mut Mlp<H>
+    ) -> () => adam_impl
+}
+
+#[cfg(test)]
+mod tests;

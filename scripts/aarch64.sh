@@ -1,0 +1,32 @@
+#!/usr/bin/env bash
+# The host crates on 64-bit Arm Linux (Apple Silicon under Linux, Graviton), from an x86-64
+# machine: cross-builds the plant, network, weights, trainer and determinism tests for
+# aarch64-unknown-linux-gnu and runs them under qemu-aarch64 (user-mode emulation). The
+# trainer's determinism test checks a fingerprint recorded on x86-64, so a platform that
+# computes other bits fails it. `--full` also retrains the shipped policy and requires it bit
+# for bit (about 7 minutes under emulation). Installs what it needs on Debian/Ubuntu: the Rust
+# target, gcc-aarch64-linux-gnu (the linker), the aarch64 C library and qemu-user.
+#   scripts/aarch64.sh [--full]
+set -euo pipefail
+cd "$(dirname "$0")/.."
+toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+rustup target add --toolchain "$toolchain" aarch64-unknown-linux-gnu >/dev/null
+if ! command -v qemu-aarch64 >/dev/null || ! command -v aarch64-linux-gnu-gcc >/dev/null; then
+  sudo_=""
+  [ "$(id -u)" -eq 0 ] || sudo_="sudo"
+  echo "installing gcc-aarch64-linux-gnu, libc6-dev-arm64-cross, qemu-user (apt-get)"
+  $sudo_ apt-get update -qq
+  DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq \
+    gcc-aarch64-linux-gnu libc6-dev-arm64-cross qemu-user >/dev/null
+fi
+export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
+export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
+run() { cargo test -q --profile cross --target aarch64-unknown-linux-gnu "$@"; }
+# In-process tests only: a test that starts one of the tools would exec an aarch64 binary
+# outside the emulator.
+run -p firmware -p weights -p host-common --lib --tests
+run -p policy-export --lib
+run -p host-sim --test gymnasium_reference -- --skip replay_cli
+if [ "${1:-}" = "--full" ]; then
+  run -p e2e --test shipped_policy
+fi

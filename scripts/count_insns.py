@@ -1,0 +1,145 @@
+#!/usr/bin/env python3
+"""Instructions one call of an `extern "C" fn(input: *const T, output: *mut U)` executes in a
+Cortex-M ELF: the figure docs/PERFORMANCE.md gives per forward pass. Deterministic (an
+emulator, not a clock), so machines agree on it.
+
+    python3 -m venv .venv && .venv/bin/pip install -r scripts/requirements-dev.txt
+    .venv/bin/python scripts/count_insns.py \
+        target/thumbv7em-none-eabihf/release/selftest-app cartpole_policy_forward --mix
+
+The function runs in Unicorn (QEMU's CPU core) from its symbol until it returns, with
+`r0` pointing at the input array, `r1` at the output array and the stack at the top of RAM.
+An instruction inside an IT block whose condition fails executes (it takes its cycle) but
+Unicorn does not report it; those are added back, so the count is what the CPU retires.
+"""
+
+import argparse
+import bisect
+import collections
+import struct
+import sys
+
+from capstone import CS_ARCH_ARM, CS_MODE_MCLASS, CS_MODE_THUMB, Cs
+from elftools.elf.elffile import ELFFile
+from unicorn import UC_ARCH_ARM, UC_HOOK_CODE, UC_MODE_MCLASS, UC_MODE_THUMB, Uc
+from unicorn import arm_const as arm
+
+CPUS = {
+    "m0": arm.UC_CPU_ARM_CORTEX_M0,
+    "m3": arm.UC_CPU_ARM_CORTEX_M3,
+    "m4": arm.UC_CPU_ARM_CORTEX_M4,
+    "m33": arm.UC_CPU_ARM_CORTEX_M33,
+    "m7": arm.UC_CPU_ARM_CORTEX_M7,
+}
+TYPES = {"f32": ("f", 4), "i8": ("b", 1), "i16": ("h", 2), "i32": ("i", 4)}
+RAM, RAM_SIZE = 0x2000_0000, 0x40_0000
+INPUT, OUTPUT = RAM + 0x100, RAM + 0x200
+# A return address inside mapped memory that no code occupies: the run stops there.
+RETURN = 0x00FF_F000
+
+
+def fail(msg):
+    print(f"count_insns.py: {msg}", file=sys.stderr)
+    sys.exit(2)
+
+
+def parse_args():
+    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p.add_argument("elf")
+    p.add_argument("symbol", nargs="?", default="cartpole_policy_forward")
+    p.add_argument("--in", dest="values", default="0.01,-0.02,0.03,0.04",
+                   help="input array, comma-separated")
+    p.add_argument("--in-type", default="f32", choices=TYPES)
+    p.add_argument("--out-type", default="f32", choices=TYPES)
+    p.add_argument("--nout", type=int, default=2, help="output array length")
+    p.add_argument("--cpu", default="m4", choices=CPUS)
+    p.add_argument("--mix", action="store_true", help="print mnemonics and functions")
+    return p.parse_args()
+
+
+def load(elf_path, cpu):
+    try:
+        elf = ELFFile(open(elf_path, "rb"))
+    except OSError as e:
+        fail(f"{elf_path}: {e}")
+    uc = Uc(UC_ARCH_ARM, UC_MODE_THUMB | UC_MODE_MCLASS)
+    uc.ctl_set_cpu_model(CPUS[cpu])
+    uc.mem_map(0, 0x0100_0000)  # flash at 0, and the return page
+    uc.mem_map(RAM, RAM_SIZE)
+    for seg in elf.iter_segments():
+        if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
+            continue
+        # The image where it is stored, and initialised data where the startup code would
+        # have copied it.
+        uc.mem_write(seg["p_paddr"], seg.data())
+        if seg["p_vaddr"] != seg["p_paddr"]:
+            uc.mem_write(seg["p_vaddr"], seg.data())
+    symtab = elf.get_section_by_name(".symtab")
+    if symtab is None:
+        fail(f"{elf_path}: no symbol table")
+    funcs = sorted(
+        (s["st_value"] & ~1, s.name) for s in symtab.iter_symbols()
+        if s["st_info"]["type"] == "STT_FUNC"
+    )
+    return uc, funcs, symtab
+
+
+def main():
+    a = parse_args()
+    uc, funcs, symtab = load(a.elf, a.cpu)
+    found = symtab.get_symbol_by_name(a.symbol)
+    if not found:
+        fail(f"{a.elf}: no symbol {a.symbol!r}")
+    code, size_in = TYPES[a.in_type]
+    try:
+        xs = [float(v) if a.in_type == "f32" else int(v) for v in a.values.split(",")]
+    except ValueError:
+        fail(f"--in: expected numbers separated by commas, found {a.values[:200]!r}")
+    uc.mem_write(INPUT, struct.pack(f"<{len(xs)}{code}", *xs))
+    uc.reg_write(arm.UC_ARM_REG_R0, INPUT)
+    uc.reg_write(arm.UC_ARM_REG_R1, OUTPUT)
+    uc.reg_write(arm.UC_ARM_REG_SP, RAM + RAM_SIZE)
+    uc.reg_write(arm.UC_ARM_REG_LR, RETURN | 1)
+
+    seen = collections.Counter()
+    uc.hook_add(UC_HOOK_CODE, lambda _uc, addr, size, _d: seen.update([(addr, size)]))
+    uc.emu_start((found[0]["st_value"] & ~1) | 1, RETURN)
+
+    out_code, out_size = TYPES[a.out_type]
+    ys = struct.unpack(f"<{a.nout}{out_code}", uc.mem_read(OUTPUT, out_size * a.nout))
+
+    dis = Cs(CS_ARCH_ARM, CS_MODE_THUMB | CS_MODE_MCLASS)
+
+    def decode(addr):
+        return next(dis.disasm(bytes(uc.mem_read(addr, 4)), addr), None)
+
+    mnemonic = {k: (decode(k[0]).mnemonic if decode(k[0]) else "?") for k in seen}
+    # Each IT block's conditional instructions: those not reported ran with a false condition.
+    it_false = 0
+    for (addr, size), count in seen.items():
+        m = mnemonic[(addr, size)]
+        if m.startswith("it") and len(m) <= 5:
+            pc = addr + size
+            for _ in range(len(m) - 1):
+                ins = decode(pc)
+                it_false += count - seen.get((pc, ins.size), 0)
+                pc += ins.size
+    total = sum(seen.values()) + it_false
+    print(f"{a.symbol}({', '.join(map(str, xs))}) = [{', '.join(map(str, ys))}]")
+    print(f"instructions: {total} ({a.cpu}; {it_false} of them IT-block instructions whose "
+          f"condition failed)")
+    if a.mix:
+        mix = collections.Counter()
+        for k, count in seen.items():
+            mix[mnemonic[k]] += count
+        print("mnemonics: " + ", ".join(f"{m} {c}" for m, c in mix.most_common(12)))
+        starts = [f[0] for f in funcs]
+        per_fn = collections.Counter()
+        for (addr, _), count in seen.items():
+            i = bisect.bisect_right(starts, addr) - 1
+            per_fn[funcs[i][1] if i >= 0 else "?"] += count
+        print("functions: " + ", ".join(f"{n} {c}" for n, c in per_fn.most_common(8)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,236 @@
+//! Files in and out, the careful way: inputs are read only if they are regular files, never
+//! past a size cap and never blocking (a FIFO or a device is refused, not read); outputs go
+//! to a temporary file beside the target and are renamed over it, and only over a regular
+//! file, so a crash leaves the old file or the new one and a device node or a directory is
+//! never replaced.
+
+use std::fs::File;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use crate::{Error, Result};
+
+/// Largest policy file read: every supported network fits many times over (width 256 is 270
+/// KB), yet `/dev/zero` or a runaway file cannot exhaust memory.
+pub const MAX_POLICY_BYTES: u64 = 64 << 20;
+
+/// Opens `path` for reading if it is a regular file, without blocking on a FIFO.
+fn open_regular(path: &Path) -> Result<File> {
+    let mut opts = std::fs::OpenOptions::new();
+    opts.read(true);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::OpenOptionsExt;
+        // A FIFO opened for reading blocks until a writer appears; non-blocking, the open
+        // returns at once and the type check below refuses it.
+        opts.custom_flags(libc::O_NONBLOCK);
+    }
+    let file = opts
+        .open(path)
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    let meta = file
+        .metadata()
+        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    if !meta.is_file() {
+        return Err(Error::Input(format!(
+            "{}: expected a regular file, found {}",
+            path.display(),
+            kind(&meta.file_type())
+        )));
+    }
+    Ok(file)
+}
+
+/// The bytes of the regular file `path`, refusing files larger than `max` bytes.
+pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
+    let file = open_regular(path)?;
+    let mut bytes = Vec::new();
+    file.take(max + 1)
+        .read_to_end(&mut bytes)
+        .map_err(|e| Error::Input(format!("reading {}: {e}", path.display())))?;
+    if bytes.len() as u64 > max {
+        return Err(Error::Input(format!(
+            "{}: expected at most {max} bytes, found more",
+            path.display()
+        )));
+    }
+    Ok(bytes)
+}
+
+fn kind(t: &std::fs::FileType) -> &'static str {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if t.is_fifo() {
+            return "a FIFO";
+        }
+        if t.is_char_device() || t.is_block_device() {
+            return "a device";
+        }
+        if t.is_socket() {
+            return "a socket";
+        }
+    }
+    if t.is_dir() {
+        "a directory"
+    } else if t.is_symlink() {
+        "a symbolic link"
+    } else {
+        "something that is not a regular file"
+    }
+}
+
+/// Checks that `path` can be an output: absent, or a regular file (which will be replaced),
+/// and not the same file as any of `inputs`. Call it before the work that produces the
+/// output, so a bad `--out` costs nothing.
+pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
+    if path.file_name().is_none() {
+        return Err(Error::Input(format!(
+            "{}: expected an output file name",
+            path.display()
+        )));
+    }
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) => return Err(Error::Input(format!("{}: {e}", path.display()))),
+        Ok(meta) if !meta.is_file() => {
+            return Err(Error::Input(format!(
+                "{}: expected a regular file to replace (or no file), found {}",
+                path.display(),
+                kind(&meta.file_type())
+            )));
+        }
+        Ok(_) => {}
+    }
+    for input in inputs {
+        if same_file(path, input) {
+            return Err(Error::Input(format!(
+                "{}: the output would overwrite the input {}",
+                path.display(),
+                input.display()
+            )));
+        }
+    }
+    Ok(())
+}
+
+fn same_file(a: &Path, b: &Path) -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::MetadataExt;
+        if let (Ok(a), Ok(b)) = (std::fs::metadata(a), std::fs::metadata(b)) {
+            return a.dev() == b.dev() && a.ino() == b.ino();
+        }
+    }
+    matches!(
+        (a.canonicalize(), b.canonicalize()),
+        (Ok(a), Ok(b)) if a == b
+    )
+}
+
+/// The temporary name `write_atomic` uses for `path`: hidden, beside it, unique to this
+/// process.
+pub fn temp_path(path: &Path) -> PathBuf {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+/// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so
+/// a crash leaves either the old file or the new one, never half of one. Refuses (before
+/// writing anything) a `path` that exists and is not a regular file.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
+    check_output(path, &[])?;
+    let dir = path
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    std::fs::create_dir_all(dir)
+        .map_err(|e| Error::Io(format!("creating {}: {e}", dir.display())))?;
+    let tmp = temp_path(path);
+    std::fs::write(&tmp, bytes)
+        .and_then(|()| std::fs::rename(&tmp, path))
+        .map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            Error::Io(format!("writing {}: {e}", path.display()))
+        })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("weights-files-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn atomic_write_replaces_whole_files_and_leaves_no_temporary() {
+        let dir = scratch("atomic");
+        let p = dir.join("x.bin");
+        write_atomic(&p, b"first").unwrap();
+        write_atomic(&p, b"second").unwrap();
+        assert_eq!(std::fs::read(&p).unwrap(), b"second");
+        assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn outputs_never_replace_directories_devices_or_inputs() {
+        let dir = scratch("out");
+        let e = write_atomic(&dir, b"x").unwrap_err().to_string();
+        assert!(e.contains("found a directory"), "{e}");
+        #[cfg(unix)]
+        {
+            let e = check_output(Path::new("/dev/null"), &[]).unwrap_err();
+            assert!(e.to_string().contains("found a device"), "{e}");
+            assert!(e.is_input());
+        }
+        let input = dir.join("in.bin");
+        std::fs::write(&input, b"weights").unwrap();
+        let e = check_output(&input, &[&input]).unwrap_err().to_string();
+        assert!(e.contains("would overwrite the input"), "{e}");
+        // The same file by another name.
+        let other = dir.join(".").join("in.bin");
+        assert!(check_output(&other, &[&input]).is_err());
+        assert!(check_output(&dir.join("new.rs"), &[&input]).is_ok());
+        assert_eq!(std::fs::read(&input).unwrap(), b"weights");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn reads_are_capped_and_only_of_regular_files() {
+        let dir = scratch("read");
+        let p = dir.join("w.bin");
+        std::fs::write(&p, vec![7u8; 100]).unwrap();
+        assert_eq!(read_capped(&p, 100).unwrap().len(), 100);
+        let e = read_capped(&p, 99).unwrap_err().to_string();
+        assert!(e.contains("expected at most 99 bytes"), "{e}");
+        let e = read_capped(&dir, 10).unwrap_err().to_string();
+        assert!(
+            e.contains("expected a regular file, found a directory"),
+            "{e}"
+        );
+        #[cfg(unix)]
+        {
+            let e = read_capped(Path::new("/dev/zero"), 10)
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("found a device"), "{e}");
+            let fifo = dir.join("fifo");
+            let status = std::process::Command::new("mkfifo")
+                .arg(&fifo)
+                .status()
+                .unwrap();
+            assert!(status.success());
+            // Without O_NONBLOCK this would wait for a writer forever.
+            let e = read_capped(&fifo, 10).unwrap_err().to_string();
+            assert!(e.contains("found a FIFO"), "{e}");
+        }
+        let e = read_capped(&dir.join("missing"), 10).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("missing"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,157 @@
+//! Policy files: how a trained 4-H-H-2 Q-network travels from a trainer to a board.
+//!
+//! - [`Weights`]: the six tensors of a network of any supported width, in PyTorch's layout.
+//! - [`checkpoint`]: safetensors state dicts as PyTorch users save them (`fc1`/`fc2`/`fc3`,
+//!   `nn.Sequential` indices, prefixes such as CleanRL's `network.` or Stable-Baselines3's
+//!   `q_net.q_net.`), recognised by their chain of shapes; and the canonical file the trainer
+//!   writes.
+//! - [`source`]: Rust modules and C headers that compile the weights into flash, bit for bit.
+//! - [`files`]: reading only regular files, with a size cap, and writing outputs atomically
+//!   without replacing anything that is not a regular file.
+//!
+//! Both host tools use this crate: the trainer (`policy-export`) writes and exports policies,
+//! the simulator (`host-sim`) loads them. It depends on `firmware` for the network's shape
+//! and nothing else of the project. It is not a trainer and not a simulator.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod checkpoint;
+pub mod files;
+pub mod source;
+
+use firmware::network::{Mlp, SUPPORTED_WIDTHS, TENSOR_NAMES, shapes};
+
+/// What went wrong with a policy file or an output path.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The input is not what it should be: a missing or malformed file, a wrong shape, a
+    /// non-finite value, an ambiguous checkpoint, a bad name. Command lines exit 2 on it.
+    #[error("{0}")]
+    Input(String),
+    /// Reading or writing failed for a reason that is not the input's fault (a full disk).
+    #[error("{0}")]
+    Io(String),
+}
+
+impl Error {
+    /// Whether the caller's input caused it (exit status 2) rather than the system (1).
+    pub fn is_input(&self) -> bool {
+        matches!(self, Error::Input(_))
+    }
+}
+
+/// Shorthand for this crate's results.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Input strings quoted in messages are cut to this many characters: enough to recognise,
+/// short enough that a hostile input cannot flood the terminal.
+pub const QUOTE_MAX: usize = 200;
+
+/// `s` for an error message: debug-quoted, cut at [`QUOTE_MAX`] characters.
+pub fn quote(s: &str) -> String {
+    let mut q: String = format!("{s:?}");
+    if q.chars().count() > QUOTE_MAX {
+        q = q.chars().take(QUOTE_MAX).collect::<String>() + "...";
+    }
+    q
+}
+
+/// The parameters of a 4-H-H-2 network as flat row-major tensors in [`TENSOR_NAMES`] order.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Weights {
+    /// Hidden width H, one of [`SUPPORTED_WIDTHS`].
+    width: usize,
+    /// `fc1.weight`, `fc1.bias`, `fc2.weight`, `fc2.bias`, `fc3.weight`, `fc3.bias`.
+    tensors: [Vec<f32>; 6],
+}
+
+impl Weights {
+    /// Checked weights: a supported width, six tensors of its shapes, every value finite.
+    pub fn new(width: usize, tensors: [Vec<f32>; 6]) -> Result<Weights> {
+        if !SUPPORTED_WIDTHS.contains(&width) {
+            return Err(Error::Input(format!(
+                "hidden width {width} is not supported: the tools are built for {SUPPORTED_WIDTHS:?}"
+            )));
+        }
+        for ((name, shape), t) in TENSOR_NAMES.iter().zip(shapes(width)).zip(&tensors) {
+            if t.len() != shape.len() {
+                return Err(Error::Input(format!(
+                    "tensor `{name}`: expected {} values for shape {:?}, found {}",
+                    shape.len(),
+                    shape.dims(),
+                    t.len()
+                )));
+            }
+            if let Some(i) = t.iter().position(|v| !v.is_finite()) {
+                return Err(Error::Input(format!(
+                    "tensor `{name}`: element {i} is {}, expected a finite value",
+                    t[i]
+                )));
+            }
+        }
+        Ok(Weights { width, tensors })
+    }
+
+    /// Copies a network's parameters (checked like [`Weights::new`]).
+    pub fn from_mlp<const H: usize>(net: &Mlp<H>) -> Result<Weights> {
+        Weights::new(H, net.tensors().map(<[f32]>::to_vec))
+    }
+
+    /// The network, if the width is `H`; on the heap (`Mlp<256>` is 270 KB).
+    pub fn to_mlp<const H: usize>(&self) -> Result<Box<Mlp<H>>> {
+        if self.width != H {
+            return Err(Error::Input(format!(
+                "policy has hidden width {}, expected {H}",
+                self.width
+            )));
+        }
+        let mut net = Box::new(Mlp::<H>::zeroed());
+        for (dst, src) in net.tensors_mut().into_iter().zip(&self.tensors) {
+            dst.copy_from_slice(src);
+        }
+        Ok(net)
+    }
+
+    /// Hidden width H.
+    pub fn width(&self) -> usize {
+        self.width
+    }
+
+    /// The six tensors, flat and row-major, in [`TENSOR_NAMES`] order.
+    pub fn tensors(&self) -> &[Vec<f32>; 6] {
+        &self.tensors
+    }
+
+    /// Number of parameters.
+    pub fn params(&self) -> usize {
+        firmware::network::params(self.width)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn new_checks_width_lengths_and_values() {
+        let ok = shapes(16).map(|s| vec![0.5; s.len()]);
+        assert_eq!(Weights::new(16, ok.clone()).unwrap().params(), 386);
+        let e = Weights::new(24, ok.clone()).unwrap_err().to_string();
+        assert!(e.contains("hidden width 24 is not supported"), "{e}");
+        let mut short = ok.clone();
+        short[3].pop();
+        let e = Weights::new(16, short).unwrap_err().to_string();
+        assert!(e.contains("`fc2.bias`: expected 16 values"), "{e}");
+        let mut nan = ok;
+        nan[4][7] = f32::NAN;
+        let e = Weights::new(16, nan).unwrap_err().to_string();
+        assert!(e.contains("`fc3.weight`: element 7 is NaN"), "{e}");
+    }
+
+    #[test]
+    fn quotes_are_cut() {
+        assert_eq!(quote("ab"), "\"ab\"");
+        let long = "x".repeat(10_000);
+        assert_eq!(quote(&long).chars().count(), QUOTE_MAX + 3);
+    }
+}
