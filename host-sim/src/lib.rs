@@ -10,7 +10,8 @@
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
 //! - [`wide`]: the firmware's forward pass laid out for host SIMD, bit-identical.
 //!
-//! The one `unsafe` block calls the AVX2 build of [`wide`] after checking the CPU.
+//! `unsafe` is confined to [`wide`]: its intrinsics' unaligned loads and stores, and the
+//! calls into its `#[target_feature]` kernels after checking the CPU.
 
 #![deny(unsafe_code)]
 

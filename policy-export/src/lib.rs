@@ -8,6 +8,9 @@
 //!
 //! Policy files (safetensors in and out, Rust and C source) are the `weights` crate's;
 //! statistics, seeds, CPU kernels and figures are `host_common`'s.
+//!
+//! `unsafe` is confined to [`nn`]'s entry points, which call a kernel compiled with
+//! `#[target_feature]` after checking that the CPU has every feature it enables.
 #![deny(unsafe_code)]
 
 pub mod config;
