@@ -106,7 +106,9 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         .and_then(|(_, m)| m.metadata().clone())
         .map(|m| m.into_iter().collect())
         .unwrap_or_default();
-    let names = st.names();
+    // Sorted, so that messages naming a tensor name the same one every time.
+    let mut names = st.names();
+    names.sort_unstable();
     // prefix -> layer name -> tensors.
     let mut groups: BTreeMap<&str, BTreeMap<&str, Layer>> = BTreeMap::new();
     for &name in &names {
