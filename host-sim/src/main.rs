@@ -10,6 +10,18 @@ use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::twin::Scenario;
 use host_sim::{render, replay};
 use indicatif::{ProgressBar, ProgressStyle};
+use weights::files::{check_output, temp_path};
+
+/// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
+/// 480 MB at the limit.
+const MAX_EPISODES: u64 = 10_000_000;
+/// Longest episode `eval` runs, in periods (about 5.6 hours of control).
+const MAX_HORIZON: u32 = 1_000_000;
+/// Most rows of one `eval`.
+const MAX_ROWS: usize = 10_000;
+/// Longest episode `render` draws: it keeps every period (40 bytes) and draws each
+/// `--stride`-th into the GIF.
+const MAX_RENDER_HORIZON: u32 = 100_000;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -97,7 +109,7 @@ enum Command {
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli: Cli = host_common::cli::parse();
     let result = match cli.command {
         Command::Replay { files } => run_replay(&files),
         Command::Eval {
@@ -147,7 +159,12 @@ fn main() -> ExitCode {
         Ok(false) => ExitCode::from(1),
         Err(e) => {
             eprintln!("error: {e:#}");
-            ExitCode::from(2)
+            // Everything but a failure to write is the input's fault.
+            let system = matches!(
+                e.downcast_ref::<weights::Error>(),
+                Some(weights::Error::Io(_))
+            );
+            ExitCode::from(if system { 1 } else { 2 })
         }
     }
 }
@@ -193,12 +210,19 @@ fn run_eval(
             "--min-success must lie in [0, 1], got {m}"
         );
     }
-    anyhow::ensure!(episodes > 0, "--episodes must be at least 1");
     anyhow::ensure!(
-        horizons.iter().all(|&h| h > 0),
-        "--horizon must be at least 1"
+        (1..=MAX_EPISODES).contains(&episodes),
+        "--episodes must be in [1, {MAX_EPISODES}], got {episodes}"
     );
+    if let Some(h) = horizons.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
+        anyhow::bail!("--horizon must be in [1, {MAX_HORIZON}], got {h}");
+    }
     let scenarios = parse_scenarios(scenarios)?;
+    let rows = horizons.len() * scenarios.len() * controllers.len();
+    anyhow::ensure!(
+        rows <= MAX_ROWS,
+        "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
+    );
     let net = net()?;
     let jobs: Vec<(u32, &Scenario, ControllerKind)> = horizons
         .iter()
@@ -257,21 +281,41 @@ fn run_render(
     stride: usize,
 ) -> Result<()> {
     anyhow::ensure!(
-        horizon > 0 && stride > 0,
-        "--horizon and --stride must be at least 1"
+        (1..=MAX_RENDER_HORIZON).contains(&horizon),
+        "--horizon must be in [1, {MAX_RENDER_HORIZON}] for render, got {horizon}"
+    );
+    anyhow::ensure!(
+        (1..=1000).contains(&stride),
+        "--stride must be in [1, 1000], got {stride}"
     );
     let scenario = Scenario::parse(scenario).map_err(anyhow::Error::msg)?;
+    // The outputs are checked before the work: a directory (or a new path) holding, if
+    // anything, regular files by those names, which are replaced whole.
+    let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
+    if let Ok(m) = std::fs::symlink_metadata(out)
+        && !m.is_dir()
+    {
+        anyhow::bail!(
+            "--out {}: expected a directory (or a new path), found {}",
+            out.display(),
+            weights::files::kind(&m.file_type())
+        );
+    }
+    check_output(&gif, &[])?;
+    check_output(&png, &[])?;
     let net = net()?;
     let mut frames = Vec::new();
     let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
         frames.push(f)
     });
-    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    std::fs::create_dir_all(out)
+        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", out.display())))?;
     let title = format!("{controller}, {}", scenario.name);
-    let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
-    render::gif(&gif, &frames, &scenario.params, stride, &title)?;
+    // Drawn under temporary names and renamed, so a failure leaves no half-written picture.
+    let (gif_tmp, png_tmp) = (temp_path(&gif), temp_path(&png));
+    render::gif(&gif_tmp, &frames, &scenario.params, stride, &title)?;
     render::timeseries(
-        &png,
+        &png_tmp,
         &frames,
         &scenario.params,
         &format!(
@@ -280,6 +324,10 @@ fn run_render(
             if stats.success { "balanced" } else { "fell" }
         ),
     )?;
+    for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
+        std::fs::rename(tmp, path)
+            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;
+    }
     println!("{}\n{}", gif.display(), png.display());
     Ok(())
 }

@@ -82,26 +82,49 @@ impl Case {
         if let Some(bad) = self.actions.iter().find(|&&a| a > 1) {
             bail!("action {bad} is not 0 (left) or 1 (right)");
         }
+        ensure!(
+            self.actions.len() <= MAX_ACTIONS,
+            "expected at most {MAX_ACTIONS} actions, found {}",
+            self.actions.len()
+        );
+        self.exact_states()?;
         Ok(())
     }
 }
 
-/// Reads every case of a JSON Lines file; blank lines are skipped.
+/// Largest trajectory file read (the repository's two are 0.1 and 0.9 MB).
+pub const MAX_FILE_BYTES: u64 = 64 << 20;
+/// Most actions in one case.
+pub const MAX_ACTIONS: usize = 1_000_000;
+
+/// Reads every case of a JSON Lines file (a regular file of at most [`MAX_FILE_BYTES`]).
 pub fn load(path: &Path) -> Result<Vec<Case>> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let bytes = weights::files::read_capped(path, MAX_FILE_BYTES)?;
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|e| anyhow::anyhow!("{}: expected UTF-8 JSON Lines, {e}", path.display()))?;
+    parse(text, &path.display().to_string())
+}
+
+/// Every case of JSON Lines `text`; blank lines are skipped. Errors name `origin` and the
+/// line.
+pub fn parse(text: &str, origin: &str) -> Result<Vec<Case>> {
     let mut cases = Vec::new();
     for (n, line) in text.lines().enumerate() {
         if line.trim().is_empty() {
             continue;
         }
-        let case: Case = serde_json::from_str(line)
-            .with_context(|| format!("{}:{}: not a trajectory case", path.display(), n + 1))?;
+        let case: Case = serde_json::from_str(line).map_err(|e| {
+            anyhow::anyhow!(
+                "{origin}:{}: not a trajectory case: {}",
+                n + 1,
+                weights::excerpt(&e.to_string())
+            )
+        })?;
         case.validate()
-            .with_context(|| format!("{}:{}", path.display(), n + 1))?;
+            .with_context(|| format!("{origin}:{}", n + 1))?;
         cases.push(case);
     }
-    ensure!(!cases.is_empty(), "{}: no cases", path.display());
+    ensure!(!cases.is_empty(), "{origin}: no cases");
     Ok(cases)
 }
 
@@ -179,7 +202,7 @@ fn bit_equal(a: &[f64; 4], b: &[f64; 4]) -> bool {
 /// Parses Python's `float.hex()` form (`-0x1.921fb54442d18p+1`, `0x0.0p+0`, subnormals as
 /// `0x0.<13 digits>p-1022`, `inf`, `nan`) into the exact f64.
 pub fn parse_hex_f64(s: &str) -> Result<f64> {
-    let err = || anyhow::anyhow!("{s:?} is not a hexadecimal float");
+    let err = || anyhow::anyhow!("{} is not a hexadecimal float", weights::quote(s));
     let (neg, body) = match s.strip_prefix('-') {
         Some(rest) => (true, rest),
         None => (false, s.strip_prefix('+').unwrap_or(s)),

@@ -22,6 +22,14 @@ use rand_pcg::Pcg64Mcg;
 /// 0.3 degrees, 0.05 rad/s; a cheap encoder and a finite-difference velocity.
 pub const NOISE_STD: [f64; 4] = [0.01, 0.05, 0.005, 0.05];
 
+/// The range a physical quantity of a scenario may take, as a factor on its nominal value:
+/// wide enough for any robustness study, narrow enough that the plant's arithmetic stays
+/// finite.
+pub const FACTOR_RANGE: (f64, f64) = (1e-3, 1e3);
+
+/// Longest scenario spec accepted.
+pub const MAX_SPEC_BYTES: usize = 1000;
+
 /// A disturbance: an extra force of `impulse / tau` for one period, every `every` periods,
 /// towards a random side.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -62,8 +70,16 @@ impl Scenario {
     /// Parses a spec: `nominal`, or parts joined by `+`, each one of `noise[=SCALE]` (times
     /// [`NOISE_STD`]), `delay`, `force=F`, `length=F`, `polemass=F`, `cartmass=F` (F
     /// multiplies the nominal value), `push[=IMPULSE[/EVERY]]` (default 0.5 N*s every 100
-    /// periods).
+    /// periods). Factors of one quantity multiply; every resulting quantity must lie within
+    /// [`FACTOR_RANGE`] of nominal, noise scales and impulses within `[0, 1000]`.
     pub fn parse(spec: &str) -> Result<Scenario, String> {
+        let shown = weights::quote(spec);
+        if spec.len() > MAX_SPEC_BYTES {
+            return Err(format!(
+                "scenario: expected at most {MAX_SPEC_BYTES} bytes, found {} ({shown})",
+                spec.len()
+            ));
+        }
         let mut s = Scenario::nominal();
         s.name = spec.to_string();
         if spec == "nominal" {
@@ -76,16 +92,17 @@ impl Scenario {
             };
             let number = |v: &str| -> Result<f64, String> {
                 match v.parse::<f64>() {
-                    Ok(x) if x.is_finite() && x > 0.0 => Ok(x),
+                    Ok(x) if x.is_finite() && (0.0..=1000.0).contains(&x) => Ok(x),
                     _ => Err(format!(
-                        "scenario {spec:?}: {key} needs a positive number, got {v:?}"
+                        "scenario {shown}: {key} needs a number in [0, 1000], found {}",
+                        weights::quote(v)
                     )),
                 }
             };
             let factor = || -> Result<f64, String> {
                 value
                     .ok_or_else(|| {
-                        format!("scenario {spec:?}: {key} needs a factor, e.g. {key}=1.2")
+                        format!("scenario {shown}: {key} needs a factor, e.g. {key}=1.2")
                     })
                     .and_then(number)
             };
@@ -107,7 +124,11 @@ impl Scenario {
                             Some((i, k)) => (
                                 number(i)?,
                                 k.parse::<u32>().ok().filter(|&k| k > 0).ok_or_else(|| {
-                                    format!("scenario {spec:?}: push interval must be a positive integer, got {k:?}")
+                                    format!(
+                                        "scenario {shown}: push interval must be a whole number \
+                                         of periods >= 1, found {}",
+                                        weights::quote(k)
+                                    )
                                 })?,
                             ),
                         },
@@ -116,10 +137,27 @@ impl Scenario {
                 }
                 _ => {
                     return Err(format!(
-                        "scenario {spec:?}: unknown part {part:?} (expected nominal, noise[=S], delay, \
-                         force=F, length=F, polemass=F, cartmass=F, push[=I[/K]])"
+                        "scenario {shown}: unknown part {} (expected nominal, noise[=S], delay, \
+                         force=F, length=F, polemass=F, cartmass=F, push[=I[/K]])",
+                        weights::quote(part)
                     ));
                 }
+            }
+        }
+        let nominal = Params::default();
+        for (name, v, n) in [
+            ("force", s.params.force_mag, nominal.force_mag),
+            ("length", s.params.length, nominal.length),
+            ("polemass", s.params.masspole, nominal.masspole),
+            ("cartmass", s.params.masscart, nominal.masscart),
+        ] {
+            let f = v / n;
+            if !(FACTOR_RANGE.0..=FACTOR_RANGE.1).contains(&f) {
+                return Err(format!(
+                    "scenario {shown}: {name} comes to {f:e} times nominal, expected a factor \
+                     in [{}, {}] (factors of one quantity multiply)",
+                    FACTOR_RANGE.0, FACTOR_RANGE.1
+                ));
             }
         }
         Ok(s)
@@ -364,13 +402,27 @@ mod tests {
         for (spec, needle) in [
             ("wind", "unknown part"),
             ("force", "needs a factor"),
-            ("force=-1", "positive number"),
-            ("push=0.5/0", "positive integer"),
-            ("noise=x", "positive number"),
+            ("force=-1", "needs a number in [0, 1000], found \"-1\""),
+            ("push=0.5/0", "whole number of periods >= 1"),
+            ("noise=x", "needs a number in [0, 1000]"),
+            ("force=0", "force comes to 0e0 times nominal"),
+            // One quantity's factors multiply: each is fine, their product is not.
+            ("length=999+length=999", "length comes to 9.98"),
+            (
+                "length=1e300+length=1e300",
+                "needs a number in [0, 1000], found \"1e300\"",
+            ),
+            ("push=1e9", "needs a number in [0, 1000]"),
         ] {
             let e = Scenario::parse(spec).unwrap_err();
             assert!(e.contains(needle), "{spec}: {e}");
         }
+        let long = "noise+".repeat(10_000);
+        let e = Scenario::parse(&long).unwrap_err();
+        assert!(
+            e.contains("expected at most 1000 bytes") && e.len() < 400,
+            "{e}"
+        );
     }
 
     #[test]

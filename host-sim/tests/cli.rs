@@ -59,3 +59,109 @@ fn eval_runs_pytorch_checkpoints_and_names_the_networks_of_an_ambiguous_one() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("hidden widths 120 and 84 differ"));
 }
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Exit 2, quickly, with `want` in a short message and nothing on stdout.
+fn refused(args: &[&str], want: &str) {
+    let started = std::time::Instant::now();
+    let o = run(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(want), "{args:?}: {err}");
+    assert!(
+        err.len() < 1_000,
+        "{args:?}: {} bytes of message",
+        err.len()
+    );
+    assert!(o.stdout.is_empty(), "{args:?}");
+    assert!(
+        started.elapsed() < std::time::Duration::from_secs(10),
+        "{args:?}"
+    );
+}
+
+#[test]
+fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
+    let max = "18446744073709551615";
+    refused(
+        &["eval", "--episodes", max],
+        "--episodes must be in [1, 10000000]",
+    );
+    refused(
+        &["eval", "--horizon", "4294967295"],
+        "--horizon must be in [1, 1000000]",
+    );
+    refused(
+        &["render", "--horizon", "4294967295"],
+        "--horizon must be in [1, 100000]",
+    );
+    // Each factor is finite; their product would not be, and 1e300 is refused on its own.
+    refused(
+        &["eval", "--scenario", "length=1e300+length=1e300"],
+        "needs a number in [0, 1000]",
+    );
+    refused(
+        &["eval", "--scenario", "length=999+length=999"],
+        "length comes to 9.98",
+    );
+    refused(
+        &["eval", "--scenario", &"noise+".repeat(10_000)],
+        "expected at most 1000 bytes",
+    );
+    refused(
+        &["eval", "--policy", "/dev/zero"],
+        "expected a regular file, found a device",
+    );
+    let dir = std::env::temp_dir().join(format!("hs-hostile-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let fifo = dir.join("fifo");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    refused(
+        &["eval", "--policy", fifo.to_str().unwrap()],
+        "found a FIFO",
+    );
+    refused(&["replay", fifo.to_str().unwrap()], "found a FIFO");
+    // A bad hexadecimal state names the file and the line.
+    let good = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/../tests/data/gym_traj_public.jsonl"
+    ))
+    .unwrap();
+    let mut lines: Vec<String> = good.lines().take(3).map(String::from).collect();
+    lines[2] = lines[2].replacen("0x1.", "0xZ.", 1);
+    let bad = dir.join("bad.jsonl");
+    std::fs::write(&bad, lines.join("\n")).unwrap();
+    refused(&["replay", bad.to_str().unwrap()], "bad.jsonl:3: ");
+    refused(&["replay", bad.to_str().unwrap()], "0xZ.");
+    // render's outputs: never onto a file that is not a directory, never over a FIFO.
+    let file = dir.join("notes.txt");
+    std::fs::write(&file, b"mine").unwrap();
+    refused(
+        &["render", "--out", file.to_str().unwrap()],
+        "expected a directory (or a new path)",
+    );
+    let pics = dir.join("pics");
+    std::fs::create_dir(&pics).unwrap();
+    assert!(
+        Command::new("mkfifo")
+            .arg(pics.join("episode.gif"))
+            .status()
+            .unwrap()
+            .success()
+    );
+    refused(&["render", "--out", pics.to_str().unwrap()], "found a FIFO");
+    assert_eq!(std::fs::read(&file).unwrap(), b"mine");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -10,7 +10,8 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use policy_export::config::{
-    Algo, Config, ConfigError, Init, KernelChoice, Preset, TargetUpdate, Unit,
+    Algo, Config, ConfigError, Init, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
+    TargetUpdate, Unit,
 };
 use policy_export::nn::Loss;
 use policy_export::run::{self, Staging, Summary};
@@ -213,36 +214,55 @@ impl Overrides {
 }
 
 fn parse_range(s: &str) -> Result<Range<u64>, String> {
+    let shown = weights::quote(s);
     let (a, b) = s
         .split_once("..")
-        .ok_or("expected START..END, e.g. 0..10")?;
-    let (a, b): (u64, u64) = (
-        a.parse().map_err(|e| format!("{a:?}: {e}"))?,
-        b.parse().map_err(|e| format!("{b:?}: {e}"))?,
-    );
+        .ok_or_else(|| format!("found {shown}; expected START..END, e.g. 0..10"))?;
+    let (a, b): (u64, u64) = match (a.parse(), b.parse()) {
+        (Ok(a), Ok(b)) => (a, b),
+        _ => {
+            return Err(format!(
+                "expected two whole numbers START..END, found {shown}"
+            ));
+        }
+    };
     if a >= b {
-        return Err(format!("empty range {a}..{b}"));
+        return Err(format!("expected a non-empty range, found {a}..{b}"));
+    }
+    if b - a > MAX_SEEDS {
+        return Err(format!(
+            "expected at most {MAX_SEEDS} seeds, found {} in {a}..{b}",
+            b - a
+        ));
     }
     Ok(a..b)
 }
 
 fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoice) -> Result<()> {
     use policy_export::reproduce;
-    anyhow::ensure!(
-        seeds >= 2,
-        "--seeds must be at least 2 for confidence intervals"
-    );
+    if !(2..=MAX_SEEDS).contains(&seeds) {
+        return Err(ConfigError(format!(
+            "--seeds must be in [2, {MAX_SEEDS}] (two at least, for confidence intervals), got {seeds}"
+        ))
+        .into());
+    }
     let base = Config {
         kernel,
         ..Config::paper()
     };
     let all = reproduce::variants(&base);
     for s in studies {
-        anyhow::ensure!(
-            all.iter().any(|v| v.study == s),
-            "unknown study {s:?} (table1, table4, table5, table6, init, target, fix)"
-        );
+        if !all.iter().any(|v| v.study == s) {
+            return Err(ConfigError(format!(
+                "--study: expected table1, table4, table5, table6, init, target or fix, found {}",
+                weights::quote(s)
+            ))
+            .into());
+        }
     }
+    base.validate()?;
+    // The output is checked now and written beside, then renamed: all of it or none.
+    let staging = Staging::new(out, &["results.json"])?;
     let variants: Vec<_> = all
         .into_iter()
         .filter(|v| studies.is_empty() || studies.iter().any(|s| s == v.study))
@@ -268,7 +288,8 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
     let runs = reproduce::run(&variants, seeds, &tick)?;
     bar.finish_and_clear();
     let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let rows = reproduce::write(out, &variants, &runs, &command)?;
+    let rows = reproduce::write(staging.path(), &variants, &runs, &command)?;
+    staging.commit()?;
     print!("{}", reproduce::tables_md(&rows));
     eprintln!(
         "{total} runs in {:.1} s on {} threads; results in {}",
@@ -280,7 +301,7 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
 }
 
 fn main() -> ExitCode {
-    let cli = Cli::parse();
+    let cli: Cli = host_common::cli::parse();
     let result = match cli.command {
         Command::Train(args) => cmd_train(*args),
         Command::Export(args) => cmd_export(&args),
@@ -306,8 +327,13 @@ fn main() -> ExitCode {
 fn build_config(args: &TrainArgs) -> Result<Config> {
     let mut cfg = Config::preset(args.preset);
     if let Some(path) = &args.config {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| ConfigError(format!("{}: {e}", path.display())))?;
+        let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            ConfigError(format!(
+                "--config {}: expected UTF-8 text, {e}",
+                path.display()
+            ))
+        })?;
         cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
     }
     args.set.apply(&mut cfg);
@@ -327,7 +353,11 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
         .map_or(vec![args.seed], Iterator::collect);
     let multi = args.seeds.is_some();
     // The run directory is checked before the work and written beside, then renamed.
-    let staging = args.out.as_deref().map(Staging::new).transpose()?;
+    let staging = args
+        .out
+        .as_deref()
+        .map(|d| Staging::new(d, run::RUN_MARKERS))
+        .transpose()?;
     let tty = std::io::stderr().is_terminal();
     let bars = MultiProgress::new();
     let log = Mutex::new(());

@@ -121,11 +121,12 @@ pub fn provenance(s: &Summary) -> Vec<String> {
 }
 
 /// Files that mark a directory as a run directory, which a new run may replace.
-const MARKERS: [&str; 2] = ["summary.json", "aggregate.json"];
+pub const RUN_MARKERS: &[&str] = &["summary.json", "aggregate.json"];
 
-/// Checks, before any work, that `dir` can receive a run: absent, empty, or an earlier run
-/// directory (which the new run replaces as a whole).
-pub fn check_run_dir(dir: &Path) -> Result<()> {
+/// Checks, before any work, that `dir` can receive a tool's output directory: absent, empty,
+/// or an earlier output of the same kind (holding one of `markers`), which the new output
+/// replaces as a whole.
+pub fn check_output_dir(dir: &Path, markers: &[&str]) -> Result<()> {
     if dir.file_name().is_none() {
         bail!(weights::Error::Input(format!(
             "--out {}: expected a directory name",
@@ -139,21 +140,23 @@ pub fn check_run_dir(dir: &Path) -> Result<()> {
             dir.display()
         ))),
         Ok(m) if !m.is_dir() => bail!(weights::Error::Input(format!(
-            "--out {}: expected a run directory (or a new path), found a file",
-            dir.display()
+            "--out {}: expected a directory (or a new path), found {}",
+            dir.display(),
+            weights::files::kind(&m.file_type())
         ))),
         Ok(_) => {
             let mut entries = std::fs::read_dir(dir)
                 .with_context(|| format!("reading {}", dir.display()))?
                 .peekable();
             let empty = entries.peek().is_none();
-            if empty || MARKERS.iter().any(|m| dir.join(m).is_file()) {
+            if empty || markers.iter().any(|m| dir.join(m).is_file()) {
                 Ok(())
             } else {
                 bail!(weights::Error::Input(format!(
-                    "--out {}: expected a new path or an earlier run directory (with \
-                     summary.json), found a directory with other files; not replacing it",
-                    dir.display()
+                    "--out {}: expected a new path, an empty directory or an earlier output \
+                     (with {}), found a directory with other files; not replacing it",
+                    dir.display(),
+                    markers.join(" or ")
                 )))
             }
         }
@@ -165,12 +168,14 @@ pub fn check_run_dir(dir: &Path) -> Result<()> {
 pub struct Staging {
     tmp: PathBuf,
     dest: PathBuf,
+    markers: &'static [&'static str],
 }
 
 impl Staging {
-    /// A fresh staging directory for `dest`; stale ones of killed runs are removed first.
-    pub fn new(dest: &Path) -> Result<Staging> {
-        check_run_dir(dest)?;
+    /// A fresh staging directory for `dest`, which must pass [`check_output_dir`] with
+    /// `markers`; stale ones of killed runs are removed first.
+    pub fn new(dest: &Path, markers: &'static [&'static str]) -> Result<Staging> {
+        check_output_dir(dest, markers)?;
         let parent = match dest.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
@@ -182,13 +187,14 @@ impl Staging {
             .unwrap_or_default()
             .to_string_lossy()
             .into_owned();
-        remove_stale(&parent, &name);
+        weights::files::remove_stale(dest, &["partial", "old"]);
         let tmp = parent.join(format!(".{name}.{}.partial", std::process::id()));
         let _ = std::fs::remove_dir_all(&tmp);
         std::fs::create_dir(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
         Ok(Staging {
             tmp,
             dest: dest.to_path_buf(),
+            markers,
         })
     }
 
@@ -199,7 +205,7 @@ impl Staging {
 
     /// Puts the finished directory in place of the destination.
     pub fn commit(self) -> Result<()> {
-        check_run_dir(&self.dest)?;
+        check_output_dir(&self.dest, self.markers)?;
         let old = self.tmp.with_extension("old");
         let had_old = self.dest.exists();
         if had_old {
@@ -218,29 +224,6 @@ impl Staging {
 impl Drop for Staging {
     fn drop(&mut self) {
         let _ = std::fs::remove_dir_all(&self.tmp);
-    }
-}
-
-/// Removes `.NAME.PID.partial` (and `.old`) siblings whose process is gone.
-fn remove_stale(parent: &Path, name: &str) {
-    let Ok(entries) = std::fs::read_dir(parent) else {
-        return;
-    };
-    let prefix = format!(".{name}.");
-    for e in entries.flatten() {
-        let file = e.file_name().to_string_lossy().into_owned();
-        let Some(rest) = file.strip_prefix(&prefix) else {
-            continue;
-        };
-        let Some((pid, "partial" | "partial.old")) = rest.split_once('.') else {
-            continue;
-        };
-        let alive = pid
-            .parse::<u32>()
-            .is_ok_and(|p| p == std::process::id() || Path::new(&format!("/proc/{p}")).exists());
-        if !alive {
-            let _ = std::fs::remove_dir_all(e.path());
-        }
     }
 }
 

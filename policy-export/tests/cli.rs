@@ -31,7 +31,10 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
         ),
         (&["--width", "0"], "width must be one of"),
         (&["--gamma", "1.01"], "gamma must be in [0, 1]"),
-        (&["--episodes", "0"], "episodes must be at least 1"),
+        (
+            &["--episodes", "0"],
+            "episodes must be in [1, 1000000], got 0",
+        ),
     ];
     for (args, want) in cases {
         let out_dir = dir.join("run");
@@ -58,7 +61,7 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("unknown key `learning_rate`"),
+        stderr(&o).contains("unknown key \"learning_rate\""),
         "{}",
         stderr(&o)
     );

@@ -109,6 +109,15 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
     // Sorted, so that messages naming a tensor name the same one every time.
     let mut names = st.names();
     names.sort_unstable();
+    // Messages quote names; PyTorch's are short (`q_net_target.q_net.4.weight` is 27 bytes).
+    if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
+        return Err(Error::Input(format!(
+            "tensor names must be at most {} bytes, found one of {} bytes: {}",
+            crate::QUOTE_MAX,
+            long.len(),
+            quote(long)
+        )));
+    }
     // prefix -> layer name -> tensors.
     let mut groups: BTreeMap<&str, BTreeMap<&str, Layer>> = BTreeMap::new();
     for &name in &names {

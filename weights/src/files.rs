@@ -57,7 +57,8 @@ pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-fn kind(t: &std::fs::FileType) -> &'static str {
+/// What a non-regular file is, for messages: "a FIFO", "a device", "a directory", ...
+pub fn kind(t: &std::fs::FileType) -> &'static str {
     #[cfg(unix)]
     {
         use std::os::unix::fs::FileTypeExt;
@@ -129,10 +130,45 @@ fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// The temporary name `write_atomic` uses for `path`: hidden, beside it, unique to this
-/// process.
+/// process: `.NAME.PID.tmp`.
 pub fn temp_path(path: &Path) -> PathBuf {
     let name = path.file_name().unwrap_or_default().to_string_lossy();
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+}
+
+/// Whether process `pid` is still running. Only Linux can tell (`/proc`); elsewhere every
+/// process counts as running, so nothing a live writer owns is ever removed.
+pub fn pid_alive(pid: u32) -> bool {
+    pid == std::process::id()
+        || !Path::new("/proc/self").exists()
+        || Path::new(&format!("/proc/{pid}")).exists()
+}
+
+/// Removes what killed writers left beside `path`: entries `.NAME.PID.SUFFIX` (for each of
+/// `suffixes`) whose process is gone.
+pub fn remove_stale(path: &Path, suffixes: &[&str]) {
+    let (Some(name), Some(dir)) = (path.file_name(), path.parent()) else {
+        return;
+    };
+    let dir = if dir.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        dir
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return;
+    };
+    for e in entries.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some((pid, suffix)) = file.strip_prefix(&prefix).and_then(|r| r.split_once('.')) else {
+            continue;
+        };
+        if suffixes.contains(&suffix) && pid.parse().is_ok_and(|p| !pid_alive(p)) {
+            let p = e.path();
+            let _ = std::fs::remove_file(&p).or_else(|_| std::fs::remove_dir_all(&p));
+        }
+    }
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so
@@ -146,6 +182,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::Io(format!("creating {}: {e}", dir.display())))?;
+    remove_stale(path, &["tmp"]);
     let tmp = temp_path(path);
     std::fs::write(&tmp, bytes)
         .and_then(|()| std::fs::rename(&tmp, path))
@@ -174,6 +211,24 @@ mod tests {
         write_atomic(&p, b"second").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"second");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_killed_writers_temporary_is_removed_and_a_live_ones_kept() {
+        let dir = scratch("stale");
+        let p = dir.join("policy.rs");
+        // No process has PID 4,000,000,000 (Linux caps PIDs at 2^22).
+        let dead = dir.join(".policy.rs.4000000000.tmp");
+        // PID 1 (init) always runs.
+        let live = dir.join(".policy.rs.1.tmp");
+        let other = dir.join(".other.rs.4000000000.tmp");
+        for f in [&dead, &live, &other] {
+            std::fs::write(f, b"half").unwrap();
+        }
+        write_atomic(&p, b"whole").unwrap();
+        assert_eq!(dead.exists(), !Path::new("/proc/self").exists());
+        assert!(live.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

@@ -56,6 +56,15 @@ pub fn quote(s: &str) -> String {
     q
 }
 
+/// Another component's message about an input (a parser's, which may quote the input at
+/// length), cut at [`QUOTE_MAX`] characters.
+pub fn excerpt(s: &str) -> String {
+    if s.chars().count() <= QUOTE_MAX {
+        return s.to_string();
+    }
+    s.chars().take(QUOTE_MAX).collect::<String>() + "..."
+}
+
 /// The parameters of a 4-H-H-2 network as flat row-major tensors in [`TENSOR_NAMES`] order.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Weights {

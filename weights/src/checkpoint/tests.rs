@@ -310,3 +310,25 @@ fn the_canonical_file_round_trips_and_is_byte_deterministic() {
     assert_eq!(back.metadata, meta);
     assert_eq!(back.layers, ["fc1", "fc2", "fc3"].map(String::from));
 }
+
+#[test]
+fn a_long_tensor_name_is_refused_and_quoted_short() {
+    let long = format!("{}.weight", "x".repeat(100_000));
+    let bytes = file(
+        [
+            "fc1.weight",
+            "fc1.bias",
+            "fc2.weight",
+            "fc2.bias",
+            "fc3.weight",
+            "fc3.bias",
+        ],
+        &[&long],
+    );
+    let e = err(&bytes, None);
+    assert!(
+        e.contains("tensor names must be at most 200 bytes, found one of 100007") && e.len() < 400,
+        "{}",
+        e.len()
+    );
+}

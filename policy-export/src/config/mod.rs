@@ -8,10 +8,13 @@
 use std::fmt;
 
 use serde::{Deserialize, Serialize};
-
-use firmware::network::SUPPORTED_WIDTHS;
+use weights::{excerpt, quote};
 
 use crate::nn::{Kernel, Loss};
+
+mod limits;
+
+pub use limits::{COUNTS, Count, MAX_CONFIG_BYTES, MAX_SEEDS};
 
 /// Which TD target the learner regresses on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -239,15 +242,16 @@ impl Config {
     /// Overlays the keys of a TOML document; an unknown key or a wrongly typed value is an
     /// error that names it.
     pub fn overlay_toml(&self, text: &str, origin: &str) -> Result<Config, ConfigError> {
-        let file: toml::Table =
-            toml::from_str(text).map_err(|e| ConfigError(format!("{origin}: {e}")))?;
+        let file: toml::Table = toml::from_str(text)
+            .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))?;
         let mut merged = toml::Table::try_from(self)
             .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))?;
         for (k, v) in file {
             if !merged.contains_key(&k) {
                 let known: Vec<&str> = merged.keys().map(String::as_str).collect();
                 return Err(ConfigError(format!(
-                    "{origin}: unknown key `{k}` (known keys: {})",
+                    "{origin}: unknown key {} (known keys: {})",
+                    quote(&k),
                     known.join(", ")
                 )));
             }
@@ -255,108 +259,7 @@ impl Config {
         }
         merged
             .try_into()
-            .map_err(|e| ConfigError(format!("{origin}: {e}")))
-    }
-
-    /// Checks every value before any work starts.
-    pub fn validate(&self) -> Result<(), ConfigError> {
-        let mut errs = Vec::new();
-        let mut check = |ok: bool, msg: String| {
-            if !ok {
-                errs.push(msg);
-            }
-        };
-        check(
-            SUPPORTED_WIDTHS.contains(&self.width),
-            format!(
-                "width must be one of {SUPPORTED_WIDTHS:?}, got {}",
-                self.width
-            ),
-        );
-        check(
-            self.lr.is_finite() && self.lr > 0.0,
-            format!("lr must be > 0, got {}", self.lr),
-        );
-        for (name, b) in [
-            ("adam_beta1", self.adam_beta1),
-            ("adam_beta2", self.adam_beta2),
-        ] {
-            check(
-                (0.0..1.0).contains(&b),
-                format!("{name} must be in [0, 1), got {b}"),
-            );
-        }
-        check(
-            self.adam_eps > 0.0,
-            format!("adam_eps must be > 0, got {}", self.adam_eps),
-        );
-        check(
-            (0.0..=1.0).contains(&self.gamma),
-            format!("gamma must be in [0, 1], got {}", self.gamma),
-        );
-        check(
-            self.buffer_size >= 1,
-            "buffer_size must be at least 1".into(),
-        );
-        check(self.batch_size >= 1, "batch_size must be at least 1".into());
-        check(
-            self.batch_size <= self.buffer_size,
-            format!(
-                "batch_size ({}) must not exceed buffer_size ({})",
-                self.batch_size, self.buffer_size
-            ),
-        );
-        check(
-            self.learning_starts <= self.buffer_size,
-            format!(
-                "learning_starts ({}) must not exceed buffer_size ({})",
-                self.learning_starts, self.buffer_size
-            ),
-        );
-        check(
-            self.train_every >= 1,
-            "train_every must be at least 1".into(),
-        );
-        check(
-            self.target_period >= 1,
-            "target_period must be at least 1".into(),
-        );
-        check(
-            self.tau > 0.0 && self.tau <= 1.0,
-            format!("tau must be in (0, 1], got {}", self.tau),
-        );
-        for (name, e) in [("eps_start", self.eps_start), ("eps_end", self.eps_end)] {
-            check(
-                (0.0..=1.0).contains(&e),
-                format!("{name} must be in [0, 1], got {e}"),
-            );
-        }
-        check(
-            self.eps_decay > 0.0,
-            format!("eps_decay must be > 0, got {}", self.eps_decay),
-        );
-        check(self.episodes >= 1, "episodes must be at least 1".into());
-        check(self.max_steps >= 1, "max_steps must be at least 1".into());
-        check(
-            self.eval_max_steps >= 1,
-            "eval_max_steps must be at least 1".into(),
-        );
-        check(
-            self.grad_clip >= 0.0 && self.grad_clip.is_finite(),
-            format!(
-                "grad_clip must be >= 0 (0 disables it), got {}",
-                self.grad_clip
-            ),
-        );
-        check(
-            self.eval_every == 0 || self.eval_episodes >= 1,
-            "eval_episodes must be at least 1 when eval_every is set".into(),
-        );
-        if errs.is_empty() {
-            self.kernel.resolve().map(|_| ())
-        } else {
-            Err(ConfigError(errs.join("; ")))
-        }
+            .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))
     }
 }
 
@@ -407,6 +310,7 @@ mod tests {
         };
         bad(|c| c.lr = 0.0, "lr must be > 0");
         bad(|c| c.lr = -1e-3, "lr must be > 0");
+        bad(|c| c.lr = 1e39, "lr must be > 0 and finite in f32");
         bad(
             |c| c.batch_size = 4000,
             "batch_size (4000) must not exceed buffer_size (2000)",
@@ -414,8 +318,51 @@ mod tests {
         bad(|c| c.width = 0, "width must be one of");
         bad(|c| c.gamma = 1.5, "gamma must be in [0, 1]");
         bad(|c| c.gamma = -0.1, "gamma must be in [0, 1]");
-        bad(|c| c.episodes = 0, "episodes must be at least 1");
+        bad(
+            |c| c.episodes = 0,
+            "episodes must be in [1, 1000000], got 0",
+        );
+        bad(
+            |c| c.episodes = usize::MAX,
+            "episodes must be in [1, 1000000]",
+        );
+        bad(
+            |c| c.buffer_size = 10_000_000_000,
+            "buffer_size must be in [1, 5000000]",
+        );
+        bad(
+            |c| c.max_steps = u32::MAX,
+            "max_steps must be in [1, 1000000]",
+        );
+        bad(
+            |c| c.final_eval_episodes = 0,
+            "final_eval_episodes must be in [1, 100000]",
+        );
+        bad(|c| c.adam_eps = 1e-50, "adam_eps must be a normal f32 > 0");
         bad(|c| c.tau = 0.0, "tau must be in (0, 1]");
+    }
+
+    #[test]
+    fn the_documented_limits_are_the_checked_ones() {
+        let doc = include_str!("../../../docs/HOSTILE_INPUT.md");
+        for c in &COUNTS {
+            let row = format!("| `{}` | {} to {}", c.key, c.min, c.max);
+            assert!(doc.contains(&row), "docs/HOSTILE_INPUT.md lacks {row:?}");
+            let mut at_max = Config::paper();
+            let mut over = Config::paper();
+            set(&mut at_max, c.key, c.max);
+            set(&mut over, c.key, c.max + 1);
+            assert!(over.validate().unwrap_err().0.contains(c.key), "{}", c.key);
+            // The limit itself is accepted (where other fields allow it).
+            if let Err(e) = at_max.validate() {
+                assert!(!e.0.contains(&format!("{} must be in", c.key)), "{e}");
+            }
+        }
+    }
+
+    /// Sets the count named `key` through the TOML overlay, as a user would.
+    fn set(c: &mut Config, key: &str, v: u64) {
+        *c = c.overlay_toml(&format!("{key} = {v}"), "t.toml").unwrap();
     }
 
     #[test]
@@ -431,10 +378,14 @@ mod tests {
         let e = Config::paper()
             .overlay_toml("gama = 0.99\n", "t.toml")
             .unwrap_err();
-        assert!(e.0.contains("unknown key `gama`"), "{e}");
+        assert!(e.0.contains("unknown key \"gama\""), "{e}");
         let e = Config::paper()
             .overlay_toml("gamma = \"high\"\n", "t.toml")
             .unwrap_err();
         assert!(e.0.contains("t.toml"), "{e}");
+        // A parser message that quotes a huge line is cut.
+        let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
+        let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
+        assert!(e.0.len() < 600, "{}", e.0.len());
     }
 }

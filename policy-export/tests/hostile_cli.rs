@@ -1,0 +1,250 @@
+//! The command line against hostile use: huge counts, outputs that are not ours, inputs
+//! that never end, runs that diverge. Every refusal exits 2 before any work, names what was
+//! expected and what was found, quotes little of the input, and touches nothing.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+fn exe() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_policy-export"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pe-hostile-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    exe().args(args).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Exit 2, quickly, with `want` in a short message.
+fn refused(args: &[&str], want: &str) {
+    let started = Instant::now();
+    let o = run(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(want), "{args:?}: {err}");
+    assert!(
+        err.len() < 1_000,
+        "{args:?}: {} bytes of message",
+        err.len()
+    );
+    assert!(
+        started.elapsed() < Duration::from_secs(10),
+        "{args:?} took {:?}: the check came after work",
+        started.elapsed()
+    );
+}
+
+#[test]
+fn huge_counts_are_refused_before_any_allocation() {
+    let max = "18446744073709551615";
+    refused(
+        &["train", "--episodes", max],
+        "episodes must be in [1, 1000000]",
+    );
+    refused(
+        &["train", "--seeds", &format!("0..{max}")],
+        "expected at most 10000 seeds",
+    );
+    refused(
+        &["train", "--buffer-size", "10000000000"],
+        "buffer_size must be in [1, 5000000]",
+    );
+    refused(
+        &["train", "--max-steps", "4294967295"],
+        "max_steps must be in [1, 1000000]",
+    );
+    refused(
+        &["train", "--batch-size", "100000"],
+        "batch_size must be in [1, 4096]",
+    );
+    refused(
+        &["train", "--final-eval-episodes", "0"],
+        "final_eval_episodes must be in [1, 100000]",
+    );
+    refused(
+        &["train", "--adam-eps", "1e-50"],
+        "adam_eps must be a normal f32 > 0",
+    );
+    refused(
+        &["train", "--lr", "1e39"],
+        "lr must be > 0 and finite in f32",
+    );
+    refused(
+        &["reproduce", "--seeds", max],
+        "--seeds must be in [2, 10000]",
+    );
+    refused(
+        &["reproduce", "--seeds", "1"],
+        "--seeds must be in [2, 10000]",
+    );
+    refused(
+        &["reproduce", "--study", "bogus"],
+        "--study: expected table1",
+    );
+    let long = "x".repeat(100_000);
+    refused(&["reproduce", "--study", &long], "--study: expected table1");
+    refused(&["train", "--seeds", &long], "expected START..END");
+}
+
+#[test]
+fn outputs_that_are_not_the_tools_are_refused_before_the_work() {
+    let dir = scratch("outs");
+    let file = dir.join("notes.txt");
+    std::fs::write(&file, b"mine").unwrap();
+    let f = file.to_str().unwrap();
+    refused(
+        &["train", "--seeds", "0..3", "--out", f],
+        "expected a directory (or a new path), found",
+    );
+    refused(
+        &["reproduce", "--seeds", "2", "--out", f],
+        "expected a directory (or a new path), found",
+    );
+    refused(&["train", "--out", "/dev/null"], "found a device");
+    let foreign = dir.join("photos");
+    std::fs::create_dir(&foreign).unwrap();
+    std::fs::write(foreign.join("cat.jpg"), b"meow").unwrap();
+    refused(
+        &["train", "--out", foreign.to_str().unwrap()],
+        "found a directory with other files",
+    );
+    assert_eq!(std::fs::read(&file).unwrap(), b"mine");
+    assert_eq!(std::fs::read(foreign.join("cat.jpg")).unwrap(), b"meow");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_directory_is_replaced_whole_and_stale_stagings_are_removed() {
+    let dir = scratch("whole");
+    let out = dir.join("run");
+    // What a killed run of a process that no longer exists leaves behind.
+    let stale = dir.join(".run.4000000000.partial");
+    std::fs::create_dir(&stale).unwrap();
+    std::fs::write(stale.join("summary.json"), b"{}").unwrap();
+    let train = |seed: &str| {
+        let o = run(&[
+            "train",
+            "--episodes",
+            "5",
+            "--seed",
+            seed,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(out.join("policy.safetensors")).unwrap()
+    };
+    let first = train("1");
+    std::fs::write(out.join("cartpole_policy.h"), b"an export of the first run").unwrap();
+    let second = train("2");
+    assert_ne!(first, second);
+    let mut names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    // The second run replaced the whole directory: no file of the first is left in it.
+    assert_eq!(
+        names,
+        [
+            "metrics.csv",
+            "policy.rs",
+            "policy.safetensors",
+            "summary.json"
+        ]
+    );
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["seed"], 2);
+    let left: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(left, ["run"], "stale staging left behind");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_that_diverges_on_its_last_update_writes_nothing() {
+    let dir = scratch("diverge");
+    let out = dir.join("d");
+    let o = run(&[
+        "train",
+        "--episodes",
+        "1",
+        "--max-steps",
+        "1",
+        "--batch-size",
+        "1",
+        "--learning-starts",
+        "1",
+        "--lr",
+        "1e38",
+        "--grad-clip",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("weights are unusable"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+    assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 0);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn mkfifo(path: &Path) {
+    assert!(Command::new("mkfifo").arg(path).status().unwrap().success());
+}
+
+#[test]
+fn endless_or_huge_inputs_are_refused_without_reading_them() {
+    let dir = scratch("inputs");
+    let fifo = dir.join("fifo");
+    mkfifo(&fifo);
+    let out = dir.join("p.rs");
+    let o = out.to_str().unwrap();
+    refused(
+        &["export", "/dev/zero", "--out", o],
+        "expected a regular file, found a device",
+    );
+    refused(
+        &["export", fifo.to_str().unwrap(), "--out", o],
+        "found a FIFO",
+    );
+    refused(&["train", "--config", "/dev/zero"], "found a device");
+    refused(
+        &["train", "--config", fifo.to_str().unwrap()],
+        "found a FIFO",
+    );
+    let big = dir.join("big.toml");
+    std::fs::write(&big, format!("gamma = [{}]\n", "1, ".repeat(1_000_000))).unwrap();
+    refused(
+        &["train", "--config", big.to_str().unwrap()],
+        "expected at most 1048576 bytes",
+    );
+    // A header that declares far more than any checkpoint needs.
+    let header = dir.join("header.safetensors");
+    let mut bytes = (2u64 << 30).to_le_bytes().to_vec();
+    bytes.extend_from_slice(b"{}");
+    std::fs::write(&header, bytes).unwrap();
+    refused(
+        &["export", header.to_str().unwrap(), "--out", o],
+        "expected at most 1048576",
+    );
+    assert!(!out.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
