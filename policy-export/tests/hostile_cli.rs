@@ -81,11 +81,11 @@ fn huge_counts_are_refused_before_any_allocation() {
     );
     refused(
         &["reproduce", "--seeds", max],
-        "--seeds must be in [2, 10000]",
+        "--seeds must be in [2, 1000]",
     );
     refused(
         &["reproduce", "--seeds", "1"],
-        "--seeds must be in [2, 10000]",
+        "--seeds must be in [2, 1000]",
     );
     refused(
         &["reproduce", "--study", "bogus"],
