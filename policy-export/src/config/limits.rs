@@ -9,7 +9,7 @@ use super::{Config, ConfigError};
 
 /// Largest TOML file `--config` reads.
 pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
-/// Most seeds one `train --seeds` or `reproduce --seeds` runs.
+/// Most seeds one `train --seeds` runs.
 pub const MAX_SEEDS: u64 = 10_000;
 
 /// One count of a configuration and the range it accepts.
