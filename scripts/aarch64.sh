@@ -25,7 +25,8 @@ run() { cargo test -q --profile cross --target aarch64-unknown-linux-gnu "$@"; }
 # In-process tests only: a test that starts one of the tools would exec an aarch64 binary
 # outside the emulator.
 run -p firmware -p weights -p host-common --lib --tests
-run -p policy-export --lib
+# The trainer: its determinism test, which compares bits recorded on x86-64.
+run -p policy-export --lib train::tests::the_same_seed
 run -p host-sim --test gymnasium_reference -- --skip replay_cli
 if [ "${1:-}" = "--full" ]; then
   run -p e2e --test shipped_policy
