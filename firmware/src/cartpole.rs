@@ -62,6 +62,13 @@ pub struct Params {
     pub theta_threshold_radians: f64,
     /// The episode terminates once |x| exceeds this, m.
     pub x_threshold: f64,
+    /// Coulomb friction coefficient between cart and track (dimensionless; Florian's
+    /// `mu_c`): a force `mu_c * N_c` against the cart's motion, `N_c` the track's normal
+    /// force. Zero, as in Gymnasium, by default.
+    pub cart_friction: f64,
+    /// Viscous friction at the pivot, N m s/rad (Florian's `mu_p`): a torque
+    /// `-mu_p * theta_dot` on the pole. Zero by default.
+    pub pole_friction: f64,
 }
 
 impl Default for Params {
@@ -76,6 +83,8 @@ impl Default for Params {
             // Gymnasium writes `12 * 2 * math.pi / 360`; the same order gives the same bits.
             theta_threshold_radians: 12.0 * 2.0 * core::f64::consts::PI / 360.0,
             x_threshold: 2.4,
+            cart_friction: 0.0,
+            pole_friction: 0.0,
         }
     }
 }
@@ -149,7 +158,13 @@ pub fn step(p: &Params, s: &State, action: Action) -> State {
 
 /// One Euler step under an arbitrary horizontal force (N): pushes, disturbances, a motor
 /// that delivers less than its rating. With `force = +-force_mag` it is exactly [`step`].
+///
+/// Without friction (both coefficients zero, the default) this is Gymnasium's step in
+/// Gymnasium's order of operations, bit for bit. With friction it is [`step_with_friction`].
 pub fn step_with_force(p: &Params, s: &State, force: f64) -> State {
+    if p.cart_friction != 0.0 || p.pole_friction != 0.0 {
+        return step_with_friction(p, s, force);
+    }
     let total_mass = p.total_mass();
     let polemass_length = p.polemass_length();
     let costheta = libm::cos(s.theta);
@@ -160,6 +175,65 @@ pub fn step_with_force(p: &Params, s: &State, force: f64) -> State {
     let thetaacc = (p.gravity * sintheta - costheta * temp)
         / (p.length * (4.0 / 3.0 - p.masspole * (costheta * costheta) / total_mass));
     let xacc = temp - polemass_length * thetaacc * costheta / total_mass;
+    euler(p, s, xacc, thetaacc)
+}
+
+/// One Euler step with friction on the cart and at the pivot, by R. V. Florian, "Correct
+/// equations for the dynamics of the cart-pole system" (Center for Cognitive and Neural
+/// Studies, Romania, 2007), equations (21), (22) and (23) in this project's sign convention
+/// (Gymnasium's: `theta` and `force` positive towards `+x`):
+///
+/// ```text
+/// theta_acc = [ g sin - cos ((F + m l w^2 (sin + mu_c sgn(N_c x_dot) cos)) / M
+///                            - mu_c g sgn(N_c x_dot))
+///               - mu_p w / (m l) ]
+///             / ( l (4/3 - (m cos / M) (cos - mu_c sgn(N_c x_dot))) )
+/// N_c       = M g - m l (theta_acc sin + w^2 cos)
+/// x_acc     = (F + m l (w^2 sin - theta_acc cos) - mu_c N_c sgn(N_c x_dot)) / M
+/// ```
+///
+/// with `M = m_c + m`, `w = theta_dot`. The cart's Coulomb friction is proportional to the
+/// track's normal force `N_c`, which depends on `theta_acc`; as Florian suggests, the sign of
+/// `N_c` is taken as positive first (the pole is far lighter than what holds the cart down)
+/// and `theta_acc` is recomputed in the rare step where it comes out negative. At zero
+/// friction the equations reduce to Gymnasium's (the textbook form of Barto, Sutton and
+/// Anderson 1983, whose friction terms Florian corrects).
+pub fn step_with_friction(p: &Params, s: &State, force: f64) -> State {
+    let (mc, mp) = (p.cart_friction, p.pole_friction);
+    let total_mass = p.total_mass();
+    let ml = p.polemass_length();
+    let (sin, cos) = (libm::sin(s.theta), libm::cos(s.theta));
+    let w2 = s.theta_dot * s.theta_dot;
+    let sgn = |v: f64| {
+        if v > 0.0 {
+            1.0
+        } else if v < 0.0 {
+            -1.0
+        } else {
+            0.0
+        }
+    };
+    let theta_acc = |nc_sign: f64| {
+        let f = mc * sgn(nc_sign * s.x_dot);
+        let num = p.gravity * sin
+            - cos * ((force + ml * w2 * (sin + f * cos)) / total_mass - f * p.gravity)
+            - mp * s.theta_dot / ml;
+        num / (p.length * (4.0 / 3.0 - p.masspole * cos / total_mass * (cos - f)))
+    };
+    let normal = |ta: f64| total_mass * p.gravity - ml * (ta * sin + w2 * cos);
+    let mut ta = theta_acc(1.0);
+    let mut nc = normal(ta);
+    if nc < 0.0 {
+        ta = theta_acc(-1.0);
+        nc = normal(ta);
+    }
+    let xacc = (force + ml * (w2 * sin - ta * cos) - mc * nc * sgn(nc * s.x_dot)) / total_mass;
+    euler(p, s, xacc, ta)
+}
+
+/// Gymnasium's semi-implicit-free Euler update: positions advance with the old velocities.
+#[inline(always)]
+fn euler(p: &Params, s: &State, xacc: f64, thetaacc: f64) -> State {
     State {
         x: s.x + p.tau * s.x_dot,
         x_dot: s.x_dot + p.tau * xacc,
@@ -308,6 +382,59 @@ mod tests {
         }
         assert!((-0.05..-0.0499).contains(&lo), "{lo}");
         assert!((0.0499..0.05).contains(&hi), "{hi}");
+    }
+
+    #[test]
+    fn friction_follows_florians_equations() {
+        let p = Params {
+            cart_friction: 0.1,
+            ..Params::default()
+        };
+        // A cart sliding at 1 m/s under an upright pole at rest, no force: the track's normal
+        // force is the whole weight M g, the pole tips forward with
+        // theta_acc = mu_c g / (l (4/3 - m / M (1 - mu_c))), and the cart decelerates by the
+        // friction and the pole's reaction: x_acc = (-m l theta_acc - mu_c M g) / M.
+        let s = State {
+            x_dot: 1.0,
+            ..State::default()
+        };
+        let n = step_with_force(&p, &s, 0.0);
+        let xacc = (n.x_dot - s.x_dot) / p.tau;
+        let tacc = (n.theta_dot - s.theta_dot) / p.tau;
+        let want = 0.1 * 9.8 / (0.5 * (4.0 / 3.0 - 0.1 / 1.1 * 0.9));
+        assert!((tacc - want).abs() < 1e-12, "{tacc} vs {want}");
+        let want_x = (-0.05 * want - 0.1 * 1.1 * 9.8) / 1.1;
+        assert!((xacc - want_x).abs() < 1e-12, "{xacc} vs {want_x}");
+        // At rest, Coulomb friction exerts nothing.
+        let rest = step_with_force(&p, &State::default(), 0.0);
+        assert_eq!(rest, State::default());
+    }
+
+    #[test]
+    fn without_friction_the_friction_equations_are_gymnasiums_to_rounding() {
+        let s = State::from_array([0.1, -0.4, 0.15, 1.3]);
+        let p = Params::default();
+        let a = step_with_force(&p, &s, 7.0);
+        let b = step_with_friction(&p, &s, 7.0);
+        for (x, y) in a.to_array().iter().zip(b.to_array()) {
+            assert!((x - y).abs() <= 1e-15 * x.abs().max(1.0), "{a:?} {b:?}");
+        }
+    }
+
+    #[test]
+    fn pivot_friction_takes_energy_out_of_a_swinging_pole() {
+        // A pole swinging through upright (theta_dot = 2) slows less without friction.
+        let s = State::from_array([0.0, 0.0, 0.0, 2.0]);
+        let free = step_with_force(&Params::default(), &s, 0.0);
+        let damped = step_with_force(
+            &Params {
+                pole_friction: 0.01,
+                ..Params::default()
+            },
+            &s,
+            0.0,
+        );
+        assert!(damped.theta_dot < free.theta_dot, "{damped:?} {free:?}");
     }
 
     #[test]

@@ -11,10 +11,10 @@ use std::time::Instant;
 use firmware::cartpole::{Action, CartPole, Params};
 use firmware::policy::POLICY;
 use host_sim::eval::{ControllerKind, Net, episode};
-use host_sim::twin::Scenario;
 use host_sim::wide::{Kernel, WideMlp};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64Mcg;
+use twin::Scenario;
 
 const EPISODES: u64 = 400;
 const HORIZON: u32 = 500;

@@ -17,8 +17,9 @@ use serde::Serialize;
 use weights::Weights;
 
 use crate::baselines::{AngleRule, Lqr, Random};
-use crate::twin::{EpisodeStats, Frame, Scenario, policy_rng, run_episode};
 use crate::wide::WideMlp;
+use twin::run::{policy_rng, run_episode};
+use twin::{EpisodeStats, Frame, Scenario};
 
 /// A Q-network of any supported width, loaded at run time, laid out for the host's vector
 /// units ([`WideMlp`]: the firmware's forward pass, bit for bit).

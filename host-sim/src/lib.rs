@@ -3,8 +3,6 @@
 //!
 //! - [`replay`]: replays recorded Gymnasium trajectories through `firmware::cartpole` and
 //!   reports, per case, how far the states drift (they should not move by a single bit).
-//! - [`twin`]: the digital twin (sensor and embedded-hal pins over the plant), scenarios, and
-//!   the loop that runs the unchanged `firmware::controller::Controller`.
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
@@ -19,5 +17,4 @@ pub mod baselines;
 pub mod eval;
 pub mod render;
 pub mod replay;
-pub mod twin;
 pub mod wide;

@@ -7,9 +7,9 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use firmware::cartpole::Params;
 use host_sim::eval::{self, ControllerKind, Net, Row};
-use host_sim::twin::Scenario;
 use host_sim::{render, replay};
 use indicatif::{ProgressBar, ProgressStyle};
+use twin::Scenario;
 use weights::files::{check_output, temp_path};
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so

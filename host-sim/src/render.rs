@@ -10,7 +10,7 @@ use host_common::plot::{FONT, ensure_font};
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
-use crate::twin::Frame;
+use twin::Frame;
 
 /// Pixels per metre in the animation; the track is drawn to scale.
 const PX_PER_M: f64 = 100.0;
@@ -199,7 +199,7 @@ fn panel(
 mod tests {
     use super::*;
     use crate::eval::{ControllerKind, Net, episode};
-    use crate::twin::Scenario;
+    use twin::Scenario;
 
     #[test]
     fn writes_a_gif_and_a_png_that_decode() {

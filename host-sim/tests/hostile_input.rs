@@ -2,9 +2,10 @@
 //! is a short message, and whatever is accepted is usable (finite physics, checked cases).
 
 use host_sim::replay;
-use host_sim::twin::{FACTOR_RANGE, Scenario};
 use proptest::prelude::*;
 use proptest::test_runner::Config;
+use twin::Scenario;
+use twin::scenario::FACTOR_RANGE;
 
 fn cases() -> Config {
     Config {

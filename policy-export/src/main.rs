@@ -171,6 +171,12 @@ struct Overrides {
     final_eval_episodes: Option<usize>,
     #[arg(long, value_enum)]
     kernel: Option<KernelChoice>,
+    #[arg(long)]
+    domain: Option<String>,
+    #[arg(long)]
+    eval_domain: Option<String>,
+    #[arg(long)]
+    reward: Option<String>,
 }
 
 impl Overrides {
@@ -210,6 +216,15 @@ impl Overrides {
             final_eval_episodes,
             kernel
         );
+        for (field, v) in [
+            (&mut c.domain, &self.domain),
+            (&mut c.eval_domain, &self.eval_domain),
+            (&mut c.reward, &self.reward),
+        ] {
+            if let Some(v) = v {
+                field.clone_from(v);
+            }
+        }
     }
 }
 

@@ -88,7 +88,7 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
     }
     let csv = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
     assert!(csv.starts_with(
-        "episode,return,length,epsilon,mean_loss,mean_max_q,mean_discounted_return,env_steps,wall_s\n"
+        "episode,return,learning_return,length,epsilon,mean_loss,mean_max_q,mean_discounted_return,env_steps,wall_s\n"
     ));
     assert_eq!(csv.lines().count(), 21);
     let summary: serde_json::Value =

@@ -2,9 +2,9 @@
 //! `Controller` and the digital twin.
 
 use host_sim::eval::{ControllerKind, Net, evaluate};
-use host_sim::twin::Scenario;
 use policy_export::config::{Config, KernelChoice};
 use policy_export::train;
+use twin::Scenario;
 use weights::checkpoint::{load, to_safetensors};
 use weights::files::write_atomic;
 

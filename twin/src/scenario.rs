@@ -1,24 +1,10 @@
-//! The digital twin: the firmware's sensor and actuator traits implemented over the
-//! simulated plant, and the loop that runs the unchanged [`Controller`] against it. The pins
-//! are `firmware::loopback`'s, the same the microcontroller's self-test uses; the sensor adds
-//! the scenario's noise.
-//!
-//! A period goes: the controller reads the twin's sensor (the true state, plus noise if the
-//! scenario asks), decides and writes the twin's direction pin and duty cycle; the twin turns
-//! those into a force (plus any push disturbance, minus one period if the actuator is
-//! delayed) and steps the plant. Every random draw comes from a stream seeded by the episode,
-//! so every controller meets the same starts, noise and pushes.
+//! A scenario: the world one episode runs in, as a spec a person can type (`noise+delay=2`,
+//! `length=0.8+encoder=1024`), and the named sets of them the tables use.
 
-use std::cell::Cell;
-use std::convert::Infallible;
+use firmware::cartpole::Params;
+use firmware::estimator::Encoders;
 
-use firmware::cartpole::{CartPole, Params, State, unit_f64};
-use firmware::controller::{Command, Controller, Limits, Policy, StateSensor};
-use firmware::loopback::{CellDuty, CellPin, force as bridge_force};
-use rand_distr::{Distribution, StandardNormal};
-use rand_pcg::Pcg64Mcg;
-
-/// Sensor noise standard deviations of the `noise` scenario, per channel: 1 cm, 5 cm/s,
+/// Sensor noise standard deviations of the `noise` part, per channel: 1 cm, 5 cm/s,
 /// 0.3 degrees, 0.05 rad/s; a cheap encoder and a finite-difference velocity.
 pub const NOISE_STD: [f64; 4] = [0.01, 0.05, 0.005, 0.05];
 
@@ -29,6 +15,13 @@ pub const FACTOR_RANGE: (f64, f64) = (1e-3, 1e3);
 
 /// Longest scenario spec accepted.
 pub const MAX_SPEC_BYTES: usize = 1000;
+
+/// Most periods of actuator dead time a scenario can have.
+pub const MAX_DELAY: u32 = 16;
+
+/// Discount of the alpha-beta filter that estimates velocities in an `encoder` scenario
+/// (`firmware::estimator`): 0.5, a compromise between quantisation noise and lag at 50 Hz.
+pub const ESTIMATOR_DISCOUNT: f32 = 0.5;
 
 /// A disturbance: an extra force of `impulse / tau` for one period, every `every` periods,
 /// towards a random side.
@@ -45,33 +38,50 @@ pub struct Push {
 pub struct Scenario {
     /// Row label, the spec it was parsed from.
     pub name: String,
-    /// The plant's physics (the controllers are not told).
+    /// The plant's physics, friction included (the controllers are not told).
     pub params: Params,
-    /// Gaussian sensor noise, standard deviation per channel (zero: none).
+    /// Gaussian sensor noise, standard deviation per channel (zero: none). With encoders,
+    /// the position channels' noise is added before quantisation and the velocity channels'
+    /// is unused (velocities are estimated).
     pub noise_std: [f64; 4],
-    /// The actuator applies the previous period's command.
-    pub delay: bool,
+    /// Encoders instead of a state sensor: positions quantised to counts, velocities from
+    /// `firmware::estimator`, as a board must do it.
+    pub encoders: Option<Encoders>,
+    /// Periods of actuator dead time: the force in a period is the command of `delay`
+    /// periods before (none before the first command).
+    pub delay: u32,
     /// Push disturbances.
     pub push: Option<Push>,
 }
 
 impl Scenario {
-    /// The nominal plant, exact sensors, no delay, no pushes.
+    /// The nominal plant, exact sensors, no dead time, no pushes.
     pub fn nominal() -> Scenario {
         Scenario {
             name: "nominal".into(),
             params: Params::default(),
             noise_std: [0.0; 4],
-            delay: false,
+            encoders: None,
+            delay: 0,
             push: None,
         }
     }
 
-    /// Parses a spec: `nominal`, or parts joined by `+`, each one of `noise[=SCALE]` (times
-    /// [`NOISE_STD`]), `delay`, `force=F`, `length=F`, `polemass=F`, `cartmass=F` (F
-    /// multiplies the nominal value), `push[=IMPULSE[/EVERY]]` (default 0.5 N*s every 100
-    /// periods). Factors of one quantity multiply; every resulting quantity must lie within
-    /// [`FACTOR_RANGE`] of nominal, noise scales and impulses within `[0, 1000]`.
+    /// Parses a spec: `nominal`, or parts joined by `+`, each one of
+    ///
+    /// - `noise[=SCALE]`: Gaussian sensor noise, SCALE times [`NOISE_STD`];
+    /// - `delay[=N]`: N periods of actuator dead time (1 without `=N`), at most [`MAX_DELAY`];
+    /// - `force=F`, `length=F`, `polemass=F`, `cartmass=F`: F times the nominal value;
+    /// - `friction=C[/P]`: Coulomb friction coefficient C between cart and track, viscous
+    ///   friction P (N m s/rad, default 0) at the pivot (Florian's model, `firmware::cartpole`);
+    /// - `encoder=N[/M]`: encoders with N counts per revolution on the pole and M counts per
+    ///   metre on the cart (default 5N: the same encoder on a 20 cm drive pulley), velocities
+    ///   estimated;
+    /// - `push[=IMPULSE[/EVERY]]`: pushes of IMPULSE N s (default 0.5) every EVERY periods
+    ///   (default 100).
+    ///
+    /// Factors of one quantity multiply; every quantity must end within [`FACTOR_RANGE`] of
+    /// nominal. Numbers lie in `[0, 1000]`.
     pub fn parse(spec: &str) -> Result<Scenario, String> {
         let shown = weights::quote(spec);
         if spec.len() > MAX_SPEC_BYTES {
@@ -99,74 +109,96 @@ impl Scenario {
                     )),
                 }
             };
-            let factor = || -> Result<f64, String> {
-                value
+            let whole = |v: &str, lo: u32, hi: u32, what: &str| -> Result<u32, String> {
+                v.parse::<u32>()
+                    .ok()
+                    .filter(|n| (lo..=hi).contains(n))
                     .ok_or_else(|| {
-                        format!("scenario {shown}: {key} needs a factor, e.g. {key}=1.2")
+                        format!(
+                            "scenario {shown}: {what} must be a whole number in [{lo}, {hi}], \
+                             found {}",
+                            weights::quote(v)
+                        )
                     })
-                    .and_then(number)
+            };
+            let needed = || -> Result<&str, String> {
+                value
+                    .ok_or_else(|| format!("scenario {shown}: {key} needs a value, e.g. {key}=1.2"))
             };
             match key {
                 "noise" => {
                     let scale = value.map(number).transpose()?.unwrap_or(1.0);
                     s.noise_std = NOISE_STD.map(|v| v * scale);
                 }
-                "delay" if value.is_none() => s.delay = true,
-                "force" => s.params.force_mag *= factor()?,
-                "length" => s.params.length *= factor()?,
-                "polemass" => s.params.masspole *= factor()?,
-                "cartmass" => s.params.masscart *= factor()?,
+                "delay" => {
+                    s.delay = match value {
+                        None => 1,
+                        Some(v) => whole(v, 0, MAX_DELAY, "delay")?,
+                    }
+                }
+                "force" => s.params.force_mag *= number(needed()?)?,
+                "length" => s.params.length *= number(needed()?)?,
+                "polemass" => s.params.masspole *= number(needed()?)?,
+                "cartmass" => s.params.masscart *= number(needed()?)?,
+                "friction" => {
+                    let (c, p) = match needed()?.split_once('/') {
+                        None => (needed()?, "0"),
+                        Some(cp) => cp,
+                    };
+                    let (c, p) = (number(c)?, number(p)?);
+                    if c > 1.0 || p > 0.1 {
+                        return Err(format!(
+                            "scenario {shown}: friction needs a cart coefficient in [0, 1] and \
+                             a pivot coefficient in [0, 0.1] N m s/rad, found {c} and {p}"
+                        ));
+                    }
+                    s.params.cart_friction = c;
+                    s.params.pole_friction = p;
+                }
+                "encoder" => {
+                    let v = needed()?;
+                    let (n, m) = match v.split_once('/') {
+                        None => (v, None),
+                        Some((n, m)) => (n, Some(m)),
+                    };
+                    let n = whole(n, 16, 1 << 24, "encoder counts per revolution")?;
+                    let m = match m {
+                        None => n.saturating_mul(5),
+                        Some(m) => whole(m, 16, 1 << 26, "encoder counts per metre")?,
+                    };
+                    s.encoders = Some(Encoders {
+                        cart_counts_per_m: m,
+                        pole_counts_per_rev: n,
+                    });
+                }
                 "push" => {
                     let (impulse, every) = match value {
                         None => (0.5, 100),
                         Some(v) => match v.split_once('/') {
                             None => (number(v)?, 100),
-                            Some((i, k)) => (
-                                number(i)?,
-                                k.parse::<u32>().ok().filter(|&k| k > 0).ok_or_else(|| {
-                                    format!(
-                                        "scenario {shown}: push interval must be a whole number \
-                                         of periods >= 1, found {}",
-                                        weights::quote(k)
-                                    )
-                                })?,
-                            ),
+                            Some((i, k)) => (number(i)?, whole(k, 1, u32::MAX, "push interval")?),
                         },
                     };
                     s.push = Some(Push { impulse, every });
                 }
                 _ => {
                     return Err(format!(
-                        "scenario {shown}: unknown part {} (expected nominal, noise[=S], delay, \
-                         force=F, length=F, polemass=F, cartmass=F, push[=I[/K]])",
+                        "scenario {shown}: unknown part {} (expected nominal, noise[=S], \
+                         delay[=N], force=F, length=F, polemass=F, cartmass=F, \
+                         friction=C[/P], encoder=N[/M], push[=I[/K]])",
                         weights::quote(part)
                     ));
                 }
             }
         }
-        let nominal = Params::default();
-        for (name, v, n) in [
-            ("force", s.params.force_mag, nominal.force_mag),
-            ("length", s.params.length, nominal.length),
-            ("polemass", s.params.masspole, nominal.masspole),
-            ("cartmass", s.params.masscart, nominal.masscart),
-        ] {
-            let f = v / n;
-            if !(FACTOR_RANGE.0..=FACTOR_RANGE.1).contains(&f) {
-                return Err(format!(
-                    "scenario {shown}: {name} comes to {f:e} times nominal, expected a factor \
-                     in [{}, {}] (factors of one quantity multiply)",
-                    FACTOR_RANGE.0, FACTOR_RANGE.1
-                ));
-            }
-        }
+        check_factors(&s.params).map_err(|e| format!("scenario {shown}: {e}"))?;
         Ok(s)
     }
 
     /// The robustness table's rows: nominal, each perturbation alone, and all three kinds of
     /// trouble at once.
     pub fn default_set() -> Vec<Scenario> {
-        [
+        parse_all(&[
             "nominal",
             "noise",
             "delay",
@@ -180,203 +212,65 @@ impl Scenario {
             "cartmass=1.2",
             "push",
             "noise+delay+push",
-        ]
+        ])
+    }
+
+    /// The `hard` set: perturbations beyond the default set's (longer dead time, much
+    /// shorter or heavier poles, coarse encoders with noise, strong pushes, friction), chosen
+    /// where bang-bang LQR with its nominal gain fails (`docs/CONTROL.md`).
+    pub fn hard_set() -> Vec<Scenario> {
+        parse_all(HARD)
+    }
+}
+
+/// The specs of [`Scenario::hard_set`].
+pub const HARD: &[&str] = &[
+    "delay=2",
+    "delay=3",
+    "length=0.5",
+    "length=0.6+polemass=1.5",
+    "polemass=2",
+    "encoder=256+noise=0.5",
+    "encoder=512+delay",
+    "push=1.2/50",
+    "friction=0.1/0.002",
+    "length=0.7+delay=2+noise",
+];
+
+fn parse_all(specs: &[&str]) -> Vec<Scenario> {
+    specs
         .iter()
         .map(|s| Scenario::parse(s).expect("built-in scenario specs parse"))
         .collect()
-    }
 }
 
-/// The sensor: the twin's true state, rounded to f32 as the plant's observation is, plus
-/// noise.
-pub struct TwinSensor<'a> {
-    state: &'a Cell<State>,
-    noise_std: [f64; 4],
-    rng: Pcg64Mcg,
-}
-
-impl StateSensor for TwinSensor<'_> {
-    type Error = Infallible;
-
-    #[inline]
-    fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        let s = self.state.get();
-        if self.noise_std == [0.0; 4] {
-            return Ok(s.observation());
-        }
-        let mut obs = s.to_array();
-        for (v, sd) in obs.iter_mut().zip(self.noise_std) {
-            let z: f64 = StandardNormal.sample(&mut self.rng);
-            *v += sd * z;
-        }
-        Ok(obs.map(|v| v as f32))
-    }
-}
-
-/// What one episode did, summed over its periods.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct EpisodeStats {
-    /// Periods survived.
-    pub steps: u32,
-    /// Whether it ended by reaching the horizon rather than by a fall or leaving the track.
-    pub success: bool,
-    /// Sum of theta^2, rad^2.
-    pub sum_theta2: f64,
-    /// Sum of x^2, m^2.
-    pub sum_x2: f64,
-    /// Sum of |x|, m.
-    pub sum_abs_x: f64,
-    /// Periods whose command differs from the previous period's.
-    pub switches: u32,
-    /// Periods that coasted on a rejected reading.
-    pub faults: u32,
-}
-
-/// One period of a recorded episode (for rendering).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Frame {
-    /// The true state after the period.
-    pub state: State,
-    /// The command the controller gave in the period.
-    pub command: Command,
-}
-
-/// Independent seeded streams of one episode: the project's one mixer.
-fn episode_rng(seed: u64, episode: u64, stream: u64) -> Pcg64Mcg {
-    host_common::seed::rng(seed, episode, stream)
-}
-
-/// Seeded stream for a controller's own randomness (the random baseline) in `episode`.
-pub fn policy_rng(seed: u64, episode: u64) -> Pcg64Mcg {
-    episode_rng(seed, episode, 4)
-}
-
-/// Runs one episode of `policy` under `scenario` for at most `horizon` periods from the
-/// Gymnasium-style random start of (`seed`, `episode`). `on_frame` sees every period.
-#[inline(always)]
-pub fn run_episode<P: Policy>(
-    policy: P,
-    scenario: &Scenario,
-    horizon: u32,
-    seed: u64,
-    episode: u64,
-    mut on_frame: impl FnMut(Frame),
-) -> EpisodeStats {
-    let mut plant = CartPole::new(scenario.params, horizon);
-    plant.reset(&mut episode_rng(seed, episode, 1));
-    let state = Cell::new(plant.state());
-    let direction = Cell::new(false);
-    let duty = Cell::new(0u16);
-    let sensor = TwinSensor {
-        state: &state,
-        noise_std: scenario.noise_std,
-        rng: episode_rng(seed, episode, 2),
-    };
-    let mut pushes = episode_rng(seed, episode, 3);
-    let mut controller: Controller<_, _, _, _, 1> = Controller::new(
-        policy,
-        sensor,
-        CellPin(&direction),
-        CellDuty(&duty),
-        Limits::default(),
-    );
-    let force_mag = scenario.params.force_mag;
-    let mut stats = EpisodeStats::default();
-    let mut previous: Option<Command> = None;
-    let mut pending = 0.0;
-    loop {
-        let command = controller.step();
-        if previous.is_some_and(|p| p != command) {
-            stats.switches += 1;
-        }
-        if command == Command::Coast {
-            stats.faults += 1;
-        }
-        previous = Some(command);
-        let commanded = bridge_force(direction.get(), duty.get(), force_mag);
-        let mut force = if scenario.delay {
-            std::mem::replace(&mut pending, commanded)
-        } else {
-            commanded
-        };
-        if let Some(push) = scenario.push
-            && (plant.steps() + 1).is_multiple_of(push.every)
-        {
-            let side = if unit_f64(&mut pushes) < 0.5 {
-                -1.0
-            } else {
-                1.0
-            };
-            force += side * push.impulse / scenario.params.tau;
-        }
-        let t = plant.step_force(force);
-        let s = plant.state();
-        state.set(s);
-        stats.steps += 1;
-        stats.sum_theta2 += s.theta * s.theta;
-        stats.sum_x2 += s.x * s.x;
-        stats.sum_abs_x += s.x.abs();
-        on_frame(Frame { state: s, command });
-        if t.terminated || t.truncated {
-            stats.success = !t.terminated;
-            return stats;
+/// Every perturbed quantity within [`FACTOR_RANGE`] of nominal.
+pub(crate) fn check_factors(p: &Params) -> Result<(), String> {
+    let nominal = Params::default();
+    for (name, v, n) in [
+        ("force", p.force_mag, nominal.force_mag),
+        ("length", p.length, nominal.length),
+        ("polemass", p.masspole, nominal.masspole),
+        ("cartmass", p.masscart, nominal.masscart),
+    ] {
+        let f = v / n;
+        if !(FACTOR_RANGE.0..=FACTOR_RANGE.1).contains(&f) {
+            return Err(format!(
+                "{name} comes to {f:e} times nominal, expected a factor in [{}, {}] (factors \
+                 of one quantity multiply)",
+                FACTOR_RANGE.0, FACTOR_RANGE.1
+            ));
         }
     }
+    Ok(())
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::baselines::{AngleRule, Lqr};
-    use firmware::cartpole::step;
-    use firmware::policy::POLICY;
 
     #[test]
-    fn nominal_twin_is_the_plant_under_the_policy_bit_for_bit() {
-        // The same episode, by hand: plant.step(greedy action) from the same start.
-        for episode in 0..20 {
-            let mut frames = Vec::new();
-            let stats = run_episode(&POLICY, &Scenario::nominal(), 500, 7, episode, |f| {
-                frames.push(f)
-            });
-            let mut plant = CartPole::new(Params::default(), 500);
-            let mut obs = plant.reset(&mut episode_rng(7, episode, 1));
-            for f in &frames {
-                let action = POLICY.greedy_action(&obs);
-                assert_eq!(f.command, Command::Push(action));
-                let t = plant.step(action);
-                obs = t.obs;
-                assert_eq!(plant.state(), f.state);
-            }
-            assert_eq!(stats.steps as usize, frames.len());
-        }
-    }
-
-    #[test]
-    fn delay_applies_the_previous_command() {
-        let delayed = Scenario::parse("delay").unwrap();
-        let mut frames = Vec::new();
-        run_episode(AngleRule, &delayed, 50, 3, 0, |f| frames.push(f));
-        let p = Params::default();
-        let mut s = State::from_array({
-            let mut plant = CartPole::new(p, 50);
-            plant.reset(&mut episode_rng(3, 0, 1));
-            plant.state().to_array()
-        });
-        // The first period applies no force; then each applies its predecessor's command.
-        s = firmware::cartpole::step_with_force(&p, &s, 0.0);
-        assert_eq!(frames[0].state, s);
-        for w in frames.windows(2) {
-            let Command::Push(a) = w[0].command else {
-                panic!("exact sensors never coast")
-            };
-            s = step(&p, &s, a);
-            assert_eq!(w[1].state, s);
-        }
-    }
-
-    #[test]
-    fn perturbed_physics_and_pushes_change_the_plant() {
+    fn parts_set_what_they_say() {
         let s = Scenario::parse("force=1.2+length=0.8+polemass=1.2+cartmass=0.8").unwrap();
         let d = Params::default();
         assert_eq!(s.params.force_mag, d.force_mag * 1.2);
@@ -390,20 +284,36 @@ mod tests {
                 every: 40
             })
         );
-        // A 0.5 N s push every period overwhelms the 10 N motor: the pole falls quickly.
-        let brutal = Scenario::parse("push=0.5/1").unwrap();
-        let st = run_episode(Lqr::nominal(), &brutal, 500, 1, 0, |_| {});
-        let calm = run_episode(Lqr::nominal(), &Scenario::nominal(), 500, 1, 0, |_| {});
-        assert!(st.steps < 100 && calm.success, "{st:?} {calm:?}");
+        assert_eq!(Scenario::parse("delay").unwrap().delay, 1);
+        assert_eq!(Scenario::parse("delay=3").unwrap().delay, 3);
+        let f = Scenario::parse("friction=0.05/0.001").unwrap().params;
+        assert_eq!((f.cart_friction, f.pole_friction), (0.05, 0.001));
+        assert_eq!(
+            Scenario::parse("friction=0.05")
+                .unwrap()
+                .params
+                .pole_friction,
+            0.0
+        );
+        let e = Scenario::parse("encoder=1024").unwrap().encoders.unwrap();
+        assert_eq!((e.pole_counts_per_rev, e.cart_counts_per_m), (1024, 5120));
+        let e = Scenario::parse("encoder=4096/20000")
+            .unwrap()
+            .encoders
+            .unwrap();
+        assert_eq!((e.pole_counts_per_rev, e.cart_counts_per_m), (4096, 20000));
+        assert_eq!(Scenario::nominal(), Scenario::parse("nominal").unwrap());
+        assert_eq!(Scenario::default_set().len(), 13);
+        assert_eq!(Scenario::hard_set().len(), HARD.len());
     }
 
     #[test]
     fn bad_specs_are_rejected_with_the_reason() {
         for (spec, needle) in [
             ("wind", "unknown part"),
-            ("force", "needs a factor"),
+            ("force", "needs a value"),
             ("force=-1", "needs a number in [0, 1000], found \"-1\""),
-            ("push=0.5/0", "whole number of periods >= 1"),
+            ("push=0.5/0", "push interval must be a whole number in [1,"),
             ("noise=x", "needs a number in [0, 1000]"),
             ("force=0", "force comes to 0e0 times nominal"),
             // One quantity's factors multiply: each is fine, their product is not.
@@ -413,6 +323,15 @@ mod tests {
                 "needs a number in [0, 1000], found \"1e300\"",
             ),
             ("push=1e9", "needs a number in [0, 1000]"),
+            ("delay=17", "delay must be a whole number in [0, 16]"),
+            ("delay=-1", "delay must be a whole number"),
+            (
+                "encoder=8",
+                "encoder counts per revolution must be a whole number in [16,",
+            ),
+            ("encoder", "needs a value"),
+            ("friction=2", "a cart coefficient in [0, 1]"),
+            ("friction=0.1/0.5", "a pivot coefficient in [0, 0.1]"),
         ] {
             let e = Scenario::parse(spec).unwrap_err();
             assert!(e.contains(needle), "{spec}: {e}");
@@ -423,19 +342,5 @@ mod tests {
             e.contains("expected at most 1000 bytes") && e.len() < 400,
             "{e}"
         );
-    }
-
-    #[test]
-    fn noise_is_seeded_and_reaches_the_controller() {
-        let noisy = Scenario::parse("noise=4").unwrap();
-        let run = |seed| {
-            let mut v = Vec::new();
-            run_episode(&POLICY, &noisy, 300, seed, 0, |f| v.push(f));
-            v
-        };
-        assert_eq!(run(5), run(5));
-        let mut exact = Vec::new();
-        run_episode(&POLICY, &Scenario::nominal(), 300, 5, 0, |f| exact.push(f));
-        assert_ne!(run(5), exact);
     }
 }

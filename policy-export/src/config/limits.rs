@@ -172,6 +172,14 @@ impl Config {
                 self.grad_clip
             ),
         );
+        for (key, spec) in [("domain", &self.domain), ("eval_domain", &self.eval_domain)] {
+            if let Err(e) = twin::Domain::parse(spec) {
+                errs.push(format!("{key}: {e}"));
+            }
+        }
+        if let Err(e) = crate::train::Reward::parse(&self.reward) {
+            errs.push(format!("reward: {e}"));
+        }
         if errs.is_empty() {
             self.kernel.resolve().map(|_| ())
         } else {

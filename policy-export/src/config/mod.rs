@@ -167,6 +167,18 @@ pub struct Config {
     pub final_eval_episodes: usize,
     /// Which compiled kernel to train with.
     pub kernel: KernelChoice,
+    /// Domain randomisation: the distribution of worlds a training episode is drawn from
+    /// (a `twin::Domain` spec, e.g. `length=0.5..1.6+delay=0..3`); empty: the nominal plant.
+    #[serde(default)]
+    pub domain: String,
+    /// The worlds of the periodic and final greedy evaluations (a domain spec); empty: the
+    /// nominal plant.
+    #[serde(default)]
+    pub eval_domain: String,
+    /// The learning reward (`train::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
+    /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
+    #[serde(default)]
+    pub reward: String,
 }
 
 impl Config {
@@ -205,6 +217,9 @@ impl Config {
             stop_when_perfect: false,
             final_eval_episodes: 100,
             kernel: KernelChoice::Auto,
+            domain: String::new(),
+            eval_domain: String::new(),
+            reward: String::new(),
         }
     }
 

@@ -149,6 +149,7 @@ mod tests {
             .map(|i| EpisodeRecord {
                 episode: i,
                 ret: if i > 150 { 200.0 } else { 10.0 },
+                learning_return: 0.0,
                 length: 0,
                 epsilon: 0.0,
                 mean_loss: None,

@@ -1,10 +1,11 @@
 //! How good a policy is: greedy episodes on fresh starts, and the paper's "solved" measure
 //! on a run's returns.
 
-use firmware::cartpole::{CartPole, Params};
+use firmware::cartpole::Action;
 use firmware::network::Mlp;
-use rand_core::Rng;
+use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
+use twin::{Domain, World};
 
 /// A greedy evaluation's outcome.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -19,22 +20,47 @@ pub struct EvalResult {
     pub min: f64,
 }
 
-/// Runs `episodes` greedy episodes of at most `max_steps` with starts from `rng`.
-pub fn evaluate<const H: usize, R: Rng>(
+/// The random streams of one evaluation: starts, the worlds drawn from its domain, and
+/// those worlds' sensor noise and pushes (drawn from only where the world has them, so a
+/// nominal evaluation draws only starts).
+pub struct EvalStreams {
+    /// Start states.
+    pub start: Pcg64Mcg,
+    /// Worlds from the domain.
+    pub world: Pcg64Mcg,
+    /// Sensor noise.
+    pub noise: Pcg64Mcg,
+    /// Push sides.
+    pub pushes: Pcg64Mcg,
+}
+
+/// Runs `episodes` greedy episodes of at most `max_steps`, each in a world of `domain`.
+pub fn evaluate<const H: usize>(
     net: &Mlp<H>,
     episodes: usize,
     max_steps: u32,
-    rng: &mut R,
+    domain: &Domain,
+    rng: &mut EvalStreams,
 ) -> EvalResult {
-    let mut env = CartPole::new(Params::default(), max_steps);
     let (mut sum, mut min) = (0.0, f64::INFINITY);
     for _ in 0..episodes {
-        let mut obs = env.reset(rng);
+        let scenario = domain.sample(&mut rng.world);
+        let mut world = World::start(
+            &scenario,
+            max_steps,
+            &mut rng.start,
+            &mut rng.noise,
+            &mut rng.pushes,
+        );
+        let force = scenario.params.force_mag;
         let mut ret = 0.0;
         loop {
-            let t = env.step(net.greedy_action(&obs));
+            let push = match net.greedy_action(&world.observe()) {
+                Action::Right => force,
+                Action::Left => -force,
+            };
+            let t = world.apply(push);
             ret += f64::from(t.reward);
-            obs = t.obs;
             if t.terminated || t.truncated {
                 break;
             }

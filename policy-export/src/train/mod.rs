@@ -14,11 +14,12 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use firmware::cartpole::{Action, CartPole, Params, unit_f64};
+use firmware::cartpole::{Action, unit_f64};
 use firmware::network::{Mlp, argmax};
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
+use twin::{Domain, World};
 use weights::Weights;
 
 use crate::config::{Config, TargetUpdate, Unit};
@@ -27,10 +28,12 @@ use crate::nn::Kernel;
 mod evaluate;
 mod learner;
 mod replay;
+mod reward;
 
-pub use evaluate::{EvalResult, evaluate, solved_episode, trailing_means};
+pub use evaluate::{EvalResult, EvalStreams, evaluate, solved_episode, trailing_means};
 pub use learner::{Learner, init_weights, td_targets};
 pub use replay::ReplayBuffer;
+pub use reward::Reward;
 
 /// Independent random streams of a run, so that changing how often one is drawn from (say,
 /// the batch size) leaves the others' sequences alone.
@@ -49,11 +52,55 @@ pub enum Stream {
     Eval = 5,
     /// Starts of the final evaluation, disjoint from everything the run trained or selected on.
     Final = 6,
+    /// Worlds drawn from the training domain, one per episode.
+    Domain = 7,
+    /// Sensor noise of the training worlds.
+    Noise = 8,
+    /// Push sides of the training worlds.
+    Pushes = 9,
+    /// Worlds, noise and pushes of the periodic evaluations.
+    EvalWorld = 10,
+    /// See [`Stream::EvalWorld`].
+    EvalNoise = 11,
+    /// See [`Stream::EvalWorld`].
+    EvalPushes = 12,
+    /// Worlds, noise and pushes of the final evaluation.
+    FinalWorld = 13,
+    /// See [`Stream::FinalWorld`].
+    FinalNoise = 14,
+    /// See [`Stream::FinalWorld`].
+    FinalPushes = 15,
 }
 
 /// The generator of one stream of one seed (the project's one mixer, index 0).
 pub fn rng(seed: u64, stream: Stream) -> Pcg64Mcg {
     host_common::seed::rng(seed, 0, stream as u64)
+}
+
+/// The streams of an evaluation: the periodic ones (`final_ = false`, the same every time
+/// within a run) or the final one.
+fn eval_streams(seed: u64, final_: bool) -> EvalStreams {
+    let [a, b, c, d] = if final_ {
+        [
+            Stream::Final,
+            Stream::FinalWorld,
+            Stream::FinalNoise,
+            Stream::FinalPushes,
+        ]
+    } else {
+        [
+            Stream::Eval,
+            Stream::EvalWorld,
+            Stream::EvalNoise,
+            Stream::EvalPushes,
+        ]
+    };
+    EvalStreams {
+        start: rng(seed, a),
+        world: rng(seed, b),
+        noise: rng(seed, c),
+        pushes: rng(seed, d),
+    }
 }
 
 /// Exploration rate at `t` (steps or episodes, per the configuration).
@@ -66,9 +113,11 @@ pub fn epsilon(cfg: &Config, t: f64) -> f64 {
 pub struct EpisodeRecord {
     /// 1-based episode number.
     pub episode: usize,
-    /// Sum of rewards (= steps survived).
+    /// Sum of the task's rewards (= steps survived).
     #[serde(rename = "return")]
     pub ret: f64,
+    /// Sum of the learning rewards (the return itself unless the reward is shaped).
+    pub learning_return: f64,
     /// Steps in the episode.
     pub length: u32,
     /// Exploration rate at the episode's last step.
@@ -77,7 +126,8 @@ pub struct EpisodeRecord {
     pub mean_loss: Option<f64>,
     /// Mean over visited states of `max_a Q(s, a)` predicted by the online net.
     pub mean_max_q: f64,
-    /// Mean over visited states of the discounted return actually obtained from them.
+    /// Mean over visited states of the discounted learning return actually obtained from
+    /// them.
     pub mean_discounted_return: f64,
     /// Environment steps so far.
     pub env_steps: u64,
@@ -140,7 +190,15 @@ fn train_width<const H: usize>(
         rng(seed, Stream::Explore),
         rng(seed, Stream::Sample),
     );
-    let mut env = CartPole::new(Params::default(), cfg.max_steps);
+    let (mut domain_rng, mut noise_rng, mut push_rng) = (
+        rng(seed, Stream::Domain),
+        rng(seed, Stream::Noise),
+        rng(seed, Stream::Pushes),
+    );
+    // validate() has parsed all three.
+    let domain = Domain::parse(&cfg.domain).map_err(anyhow::Error::msg)?;
+    let eval_domain = Domain::parse(&cfg.eval_domain).map_err(anyhow::Error::msg)?;
+    let reward = Reward::parse(&cfg.reward).map_err(anyhow::Error::msg)?;
     let learning_starts = cfg.learning_starts.max(cfg.batch_size);
     let gamma = cfg.gamma;
 
@@ -151,7 +209,17 @@ fn train_width<const H: usize>(
     let mut rewards: Vec<f32> = Vec::with_capacity(cfg.max_steps as usize);
 
     for ep in 0..cfg.episodes {
-        let mut obs = env.reset(&mut env_rng);
+        let scenario = domain.sample(&mut domain_rng);
+        let force = scenario.params.force_mag;
+        let mut world = World::start(
+            &scenario,
+            cfg.max_steps,
+            &mut env_rng,
+            &mut noise_rng,
+            &mut push_rng,
+        );
+        let mut obs = world.observe();
+        let mut ret = 0.0f64;
         rewards.clear();
         let (mut loss_sum, mut losses, mut maxq_sum) = (0.0f64, 0u32, 0.0f64);
         let mut eps;
@@ -168,9 +236,15 @@ fn train_width<const H: usize>(
             } else {
                 argmax(&q)
             };
-            let tr = env.step(action);
-            buf.push(obs, action, tr.reward, tr.obs, tr.terminated);
-            rewards.push(tr.reward);
+            let tr = world.apply(match action {
+                Action::Right => force,
+                Action::Left => -force,
+            });
+            let next = world.observe();
+            let r = reward.of(&scenario.params, &world.state(), tr.terminated);
+            buf.push(obs, action, r, next, tr.terminated);
+            rewards.push(r);
+            ret += f64::from(tr.reward);
             env_steps += 1;
 
             if buf.len() >= learning_starts && env_steps.is_multiple_of(cfg.train_every as u64) {
@@ -192,7 +266,7 @@ fn train_width<const H: usize>(
             {
                 learner.sync_target();
             }
-            obs = tr.obs;
+            obs = next;
             if tr.terminated || tr.truncated {
                 break;
             }
@@ -213,7 +287,8 @@ fn train_width<const H: usize>(
         }
         let rec = EpisodeRecord {
             episode: ep + 1,
-            ret: rewards.iter().map(|&r| f64::from(r)).sum(),
+            ret,
+            learning_return: rewards.iter().map(|&r| f64::from(r)).sum(),
             length: len as u32,
             epsilon: eps,
             mean_loss: (losses > 0).then(|| loss_sum / f64::from(losses)),
@@ -230,7 +305,8 @@ fn train_width<const H: usize>(
                 &learner.online,
                 cfg.eval_episodes,
                 cfg.eval_max_steps,
-                &mut rng(seed, Stream::Eval),
+                &eval_domain,
+                &mut eval_streams(seed, false),
             );
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
             if best.as_ref().is_none_or(|(m, _, _)| res.mean > *m) {
@@ -252,7 +328,8 @@ fn train_width<const H: usize>(
         &policy,
         cfg.final_eval_episodes,
         cfg.eval_max_steps,
-        &mut rng(seed, Stream::Final),
+        &eval_domain,
+        &mut eval_streams(seed, true),
     );
     Ok(RunResult {
         episodes: records,

@@ -1,0 +1,266 @@
+//! Encoder counts to the controller's state `[x, x_dot, theta, theta_dot]`, the way a board
+//! computes it once per control period.
+//!
+//! A real cart-pole measures two angles, not four state variables: an incremental encoder on
+//! the cart's drive (counts per metre of travel) and one on the pole's pivot (counts per
+//! revolution, zero when upright). Positions are quantised to one count; velocities must be
+//! estimated. Each channel runs an **alpha-beta filter** (a steady-state Kalman filter for a
+//! constant-velocity model): predict `p + v`, compare with the new count, and correct the
+//! position by `alpha` and the velocity by `beta` times the residual. Its single parameter,
+//! the discount `d` in `(0, 1)`, sets `alpha = 1 - d^2` and `beta = (1 - d)^2` (the
+//! critically damped g-h filter): `d = 0` trusts each count fully (velocity = plain backward
+//! difference), larger `d` smooths more and lags more.
+//!
+//! The filter runs in integers: positions in 1/4096 count, velocities in 1/4096 count per
+//! period, gains as Q15 fractions. So it costs the same on a core without an FPU, gives the
+//! same bits on every target, and hands out both the physical state in f32
+//! ([`Estimator::state`]) and its raw fixed-point values ([`Estimator::raw`]).
+//!
+//! ```
+//! use firmware::estimator::{Encoders, Estimator};
+//! let enc = Encoders { cart_counts_per_m: 10_000, pole_counts_per_rev: 4_096 };
+//! let mut est = Estimator::new(enc, 0.5, 0.02);
+//! // The cart moves 1 cm (100 counts) per 20 ms period: 0.5 m/s.
+//! let mut s = [0.0; 4];
+//! for k in 0..40 {
+//!     s = est.update(100 * k, 0);
+//! }
+//! assert!((s[0] - 0.39).abs() < 1e-3 && (s[1] - 0.5).abs() < 1e-3, "{s:?}");
+//! ```
+//!
+//! It is not a model-based observer: it knows nothing of the plant's dynamics or of the
+//! commands sent, so it lags a little behind accelerations (the price of needing no model).
+
+/// Sub-count resolution of the filter's state: positions and velocities in 1/4096 count.
+/// Corrections smaller than a unit round away, so this sets the velocity's resolution: with
+/// 12 bits, under 0.02 count per period even at discount 0.9.
+pub const FRACTION_BITS: u32 = 12;
+
+/// The two encoders' resolutions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Encoders {
+    /// Cart encoder counts per metre of travel (e.g. 2,000 counts per revolution on a pulley
+    /// of 20 cm circumference: 10,000).
+    pub cart_counts_per_m: u32,
+    /// Pole encoder counts per revolution of the pivot (quadrature: 4 x lines).
+    pub pole_counts_per_rev: u32,
+}
+
+/// One channel's alpha-beta filter in fixed point.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+struct Channel {
+    /// Position estimate, 1/4096 count.
+    p: i64,
+    /// Velocity estimate, 1/4096 count per period.
+    v: i64,
+}
+
+impl Channel {
+    #[inline]
+    fn update(&mut self, count: i32, alpha_q15: i64, beta_q15: i64) {
+        let predicted = self.p + self.v;
+        let residual = (i64::from(count) << FRACTION_BITS) - predicted;
+        // Round to nearest: an arithmetic shift alone would bias every correction downwards.
+        let half = 1 << 14;
+        self.p = predicted + ((alpha_q15 * residual + half) >> 15);
+        self.v += (beta_q15 * residual + half) >> 15;
+    }
+}
+
+/// The state estimator of [the module](self): two encoders in, `[x, x_dot, theta, theta_dot]`
+/// out, once per period. Fixed-size, allocation-free, panic-free for any counts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Estimator {
+    enc: Encoders,
+    period_s: f32,
+    alpha_q15: i64,
+    beta_q15: i64,
+    cart: Channel,
+    pole: Channel,
+    started: bool,
+}
+
+impl Estimator {
+    /// An estimator for `enc` sampled every `period_s` seconds, with filter discount
+    /// `discount` (clamped to `[0, 0.99]`, NaN taken as 0.5; 0.5 is a good start at 50 Hz).
+    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> Estimator {
+        let d = if discount.is_nan() {
+            0.5
+        } else {
+            discount.clamp(0.0, 0.99)
+        };
+        let q15 = |v: f32| (v * 32_768.0 + 0.5) as i64;
+        Estimator {
+            enc: Encoders {
+                cart_counts_per_m: enc.cart_counts_per_m.max(1),
+                pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
+            },
+            period_s: if period_s > 0.0 { period_s } else { 0.02 },
+            alpha_q15: q15(1.0 - d * d),
+            beta_q15: q15((1.0 - d) * (1.0 - d)),
+            cart: Channel::default(),
+            pole: Channel::default(),
+            started: false,
+        }
+    }
+
+    /// Takes one period's counts (cart, pole) and returns the estimated state in SI units.
+    /// The first call only initialises the positions (velocities start at zero).
+    pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
+        if self.started {
+            self.cart.update(cart_counts, self.alpha_q15, self.beta_q15);
+            self.pole.update(pole_counts, self.alpha_q15, self.beta_q15);
+        } else {
+            self.cart = Channel {
+                p: i64::from(cart_counts) << FRACTION_BITS,
+                v: 0,
+            };
+            self.pole = Channel {
+                p: i64::from(pole_counts) << FRACTION_BITS,
+                v: 0,
+            };
+            self.started = true;
+        }
+        self.state()
+    }
+
+    /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
+    pub fn state(&self) -> [f32; 4] {
+        let unit = (1u32 << FRACTION_BITS) as f32;
+        let m_per_unit = 1.0 / (unit * self.enc.cart_counts_per_m as f32);
+        let rad_per_unit = core::f32::consts::TAU / (unit * self.enc.pole_counts_per_rev as f32);
+        [
+            self.cart.p as f32 * m_per_unit,
+            self.cart.v as f32 * m_per_unit / self.period_s,
+            self.pole.p as f32 * rad_per_unit,
+            self.pole.v as f32 * rad_per_unit / self.period_s,
+        ]
+    }
+
+    /// The filter's fixed-point state `[cart p, cart v, pole p, pole v]`: positions in 1/4096
+    /// count, velocities in 1/4096 count per period.
+    pub fn raw(&self) -> [i64; 4] {
+        [self.cart.p, self.cart.v, self.pole.p, self.pole.v]
+    }
+
+    /// Forgets the history: the next update starts afresh.
+    pub fn reset(&mut self) {
+        self.started = false;
+    }
+
+    /// The encoders' resolutions.
+    pub fn encoders(&self) -> Encoders {
+        self.enc
+    }
+}
+
+/// What an encoder reads for a true position: the count below it, `floor(value * per_unit)`,
+/// saturated to the `i32` range. Counts per metre for the cart, per radian
+/// (`counts_per_rev / 2 pi`) for the pole.
+pub fn quantise(value: f64, counts_per_unit: f64) -> i32 {
+    let c = libm::floor(value * counts_per_unit);
+    if c.is_nan() {
+        0
+    } else {
+        c.clamp(f64::from(i32::MIN), f64::from(i32::MAX)) as i32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ENC: Encoders = Encoders {
+        cart_counts_per_m: 10_000,
+        pole_counts_per_rev: 4_096,
+    };
+
+    #[test]
+    fn the_filter_has_its_documented_gains() {
+        let e = Estimator::new(ENC, 0.5, 0.02);
+        // alpha = 1 - 0.25 = 0.75, beta = 0.25, in Q15.
+        assert_eq!((e.alpha_q15, e.beta_q15), (24_576, 8_192));
+        // Discount 0: the velocity is the plain backward difference.
+        let mut raw = Estimator::new(ENC, 0.0, 0.02);
+        raw.update(0, 0);
+        let s = raw.update(37, -5);
+        let u = 1 << FRACTION_BITS;
+        assert_eq!(raw.raw(), [37 * u, 37 * u, -5 * u, -5 * u]);
+        assert!((s[1] - 37.0 / 10_000.0 / 0.02).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_constant_velocity_is_tracked_without_error() {
+        // 3 counts per period on the pole: 3 * 2 pi / 4096 / 0.02 rad/s.
+        let mut e = Estimator::new(ENC, 0.6, 0.02);
+        let mut s = [0.0; 4];
+        for k in 0..200 {
+            s = e.update(0, 3 * k);
+        }
+        let w = 3.0 * core::f32::consts::TAU / 4096.0 / 0.02;
+        assert!((s[3] - w).abs() < 1e-4 * w, "{s:?} vs {w}");
+        assert!((s[2] - 199.0 * 3.0 * core::f32::consts::TAU / 4096.0).abs() < 1e-5);
+    }
+
+    #[test]
+    fn a_step_settles_and_smoothing_trades_noise_for_lag() {
+        // After a jump of 1000 counts the estimate converges; the filter is stable.
+        for d in [0.0, 0.3, 0.6, 0.9] {
+            let mut e = Estimator::new(ENC, d, 0.02);
+            e.update(0, 0);
+            let mut last = [0.0; 4];
+            for _ in 0..400 {
+                last = e.update(1000, 0);
+            }
+            assert!(
+                (last[0] - 0.1).abs() < 1e-6 && last[1].abs() < 1e-4,
+                "{d}: {last:?}"
+            );
+        }
+        // A position that alternates by one count: the smoother filter reports less speed.
+        let jitter = |d: f32| {
+            let mut e = Estimator::new(ENC, d, 0.02);
+            (0..200)
+                .map(|k| e.update(k % 2, 0)[1].abs())
+                .fold(0.0f32, f32::max)
+        };
+        assert!(
+            jitter(0.8) < 0.3 * jitter(0.0),
+            "{} {}",
+            jitter(0.8),
+            jitter(0.0)
+        );
+    }
+
+    #[test]
+    fn any_counts_are_safe() {
+        let mut e = Estimator::new(ENC, 0.5, 0.02);
+        for (c, p) in [
+            (i32::MAX, i32::MIN),
+            (i32::MIN, i32::MAX),
+            (0, 0),
+            (i32::MAX, i32::MAX),
+        ] {
+            let s = e.update(c, p);
+            assert!(s.iter().all(|v| v.is_finite()), "{s:?}");
+        }
+        let degenerate = Estimator::new(
+            Encoders {
+                cart_counts_per_m: 0,
+                pole_counts_per_rev: 0,
+            },
+            f32::NAN,
+            -1.0,
+        );
+        assert!(degenerate.state().iter().all(|v| v.is_finite()));
+    }
+
+    #[test]
+    fn quantisation_floors_and_saturates() {
+        assert_eq!(quantise(0.01234, 10_000.0), 123);
+        assert_eq!(quantise(-0.00001, 10_000.0), -1);
+        assert_eq!(quantise(1e300, 10_000.0), i32::MAX);
+        assert_eq!(quantise(f64::NAN, 10_000.0), 0);
+    }
+}

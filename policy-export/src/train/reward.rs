@@ -1,0 +1,139 @@
+//! What the learner is rewarded with. The task's reward is Gymnasium's, +1 for every step
+//! (the terminating one included); returns, solve episodes and success are always counted in
+//! it. The *learning* reward may be shaped, and only the learner sees it.
+//!
+//! A spec is parts joined by `+`, applied in this order:
+//!
+//! - `env`: +1 per step (the default, and the base unless `morvan` is given);
+//! - `morvan`: Morvan Zhou's tutorial reward from the next state,
+//!   `(x_max - |x|) / x_max - 0.8 + (theta_max - |theta|) / theta_max - 0.5`;
+//! - `upright=W`: minus `W * (theta / theta_max)^2`, for holding the pole straighter;
+//! - `centre=W`: minus `W * (x / x_max)^2`, for keeping the cart near the middle;
+//! - `fail-penalty=V`: the terminating step's reward is V instead;
+//! - `scale=K`: everything times K (minimalRL's 1/100 is `scale=0.01`).
+
+use firmware::cartpole::{Params, State};
+
+/// A parsed learning reward; see [the module](self).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reward {
+    morvan: bool,
+    upright: f64,
+    centre: f64,
+    fail: Option<f64>,
+    scale: f64,
+}
+
+impl Reward {
+    /// Parses a spec; `""` is `env`.
+    pub fn parse(spec: &str) -> Result<Reward, String> {
+        let mut r = Reward {
+            morvan: false,
+            upright: 0.0,
+            centre: 0.0,
+            fail: None,
+            scale: 1.0,
+        };
+        if spec.is_empty() {
+            return Ok(r);
+        }
+        let shown = weights::quote(spec);
+        for part in spec.split('+') {
+            let (key, value) = match part.split_once('=') {
+                Some((k, v)) => (k, Some(v)),
+                None => (part, None),
+            };
+            let number = || -> Result<f64, String> {
+                value
+                    .and_then(|v| v.parse::<f64>().ok())
+                    .filter(|v| v.is_finite() && v.abs() <= 1e6)
+                    .ok_or_else(|| {
+                        format!("reward {shown}: {key} needs a number in [-1e6, 1e6], e.g. {key}=1")
+                    })
+            };
+            match key {
+                "env" if value.is_none() => {}
+                "morvan" if value.is_none() => r.morvan = true,
+                "upright" => r.upright = number()?,
+                "centre" => r.centre = number()?,
+                "fail-penalty" => r.fail = Some(number()?),
+                "scale" => r.scale = number()?,
+                _ => {
+                    return Err(format!(
+                        "reward {shown}: unknown part {} (expected env, morvan, upright=W, \
+                         centre=W, fail-penalty=V, scale=K)",
+                        weights::quote(part)
+                    ));
+                }
+            }
+        }
+        Ok(r)
+    }
+
+    /// Whether the learner sees the task's own reward.
+    pub fn is_env(&self) -> bool {
+        *self == Reward::parse("").expect("the empty spec parses")
+    }
+
+    /// The learning reward of a step that led to `next` (terminated or not), for a plant
+    /// with limits `p`.
+    pub fn of(&self, p: &Params, next: &State, terminated: bool) -> f32 {
+        if self.is_env() {
+            return 1.0;
+        }
+        let (xr, tr) = (
+            next.x / p.x_threshold,
+            next.theta / p.theta_threshold_radians,
+        );
+        let mut r = if self.morvan {
+            (1.0 - xr.abs() - 0.8) + (1.0 - tr.abs() - 0.5)
+        } else {
+            1.0
+        };
+        r -= self.upright * tr * tr + self.centre * xr * xr;
+        if terminated && let Some(v) = self.fail {
+            r = v;
+        }
+        (r * self.scale) as f32
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn each_part_does_what_it_says() {
+        let p = Params::default();
+        let s = State {
+            x: 1.2,
+            theta: p.theta_threshold_radians / 2.0,
+            ..State::default()
+        };
+        let of = |spec: &str, term| Reward::parse(spec).unwrap().of(&p, &s, term);
+        assert_eq!(of("", false), 1.0);
+        assert_eq!(of("env", true), 1.0);
+        // Morvan: (1 - 0.5 - 0.8) + (1 - 0.5 - 0.5) = -0.3.
+        assert!((of("morvan", false) - -0.3).abs() < 1e-6);
+        // 1 - 2 * 0.25 - 4 * 0.25 = -0.5.
+        assert!((of("upright=2+centre=4", false) - -0.5).abs() < 1e-6);
+        assert_eq!(of("fail-penalty=-100", true), -100.0);
+        assert_eq!(of("fail-penalty=-100", false), 1.0);
+        assert_eq!(of("scale=0.01+fail-penalty=-10", true), -0.1);
+        assert!(Reward::parse("env").unwrap().is_env());
+        assert!(!Reward::parse("scale=1.5").unwrap().is_env());
+    }
+
+    #[test]
+    fn bad_specs_say_why() {
+        for (spec, want) in [
+            ("bonus", "unknown part \"bonus\""),
+            ("scale", "scale needs a number"),
+            ("upright=nan", "upright needs a number"),
+            ("morvan=2", "unknown part"),
+        ] {
+            let e = Reward::parse(spec).unwrap_err();
+            assert!(e.contains(want), "{spec}: {e}");
+        }
+    }
+}

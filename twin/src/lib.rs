@@ -1,0 +1,25 @@
+//! The digital twin: the world around the controller, shared by the simulator that judges a
+//! policy and the trainer that learns it, so both see the same world.
+//!
+//! - [`scenario`]: one world as a spec (`noise+delay=2`, `length=0.8+encoder=1024`): physics
+//!   and friction, sensor noise, encoders with the firmware's estimator, actuator dead time,
+//!   pushes; the named sets the tables use.
+//! - [`world`]: one episode of a scenario, period by period: the reading, then the actuator.
+//! - [`run`]: the unchanged firmware controller against a world, through pins and a sensor,
+//!   with per-episode statistics and seeded streams.
+//! - [`domain`]: distributions over scenarios for domain-randomised training.
+//!
+//! The plant and the estimator are the firmware's; this crate adds only what surrounds them.
+//! It is not an evaluator (the simulator's `eval` is) and not a learner.
+#![forbid(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod domain;
+pub mod run;
+pub mod scenario;
+pub mod world;
+
+pub use domain::Domain;
+pub use run::{EpisodeStats, Frame, run_episode};
+pub use scenario::{Push, Scenario};
+pub use world::World;

@@ -1,0 +1,212 @@
+//! One episode of a scenario, period by period: what the sensors report, then what the
+//! actuator does with a command. The simulator runs the firmware's controller against it; the
+//! trainer learns in it. One code path, so a policy is trained in the world it is judged in.
+//!
+//! A period is [`World::observe`] (the reading the controller gets: the true state rounded to
+//! f32, with noise, or encoder counts through the estimator), then [`World::apply`] (the
+//! command enters the dead-time line; the force that leaves it, plus any push, steps the
+//! plant).
+
+use firmware::cartpole::{CartPole, State, Transition, unit_f64};
+use firmware::estimator::{Estimator, quantise};
+use rand_core::Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use crate::scenario::{ESTIMATOR_DISCOUNT, MAX_DELAY, Scenario};
+
+/// An episode in progress.
+pub struct World<'s, R> {
+    scenario: &'s Scenario,
+    plant: CartPole,
+    noise: R,
+    pushes: R,
+    estimator: Option<Estimator>,
+    /// Commands on their way to the actuator, oldest at `head`.
+    line: [f64; MAX_DELAY as usize],
+    head: usize,
+}
+
+impl<'s, R: Rng> World<'s, R> {
+    /// Starts an episode of at most `horizon` periods from a Gymnasium-style random start
+    /// drawn from `start` (four uniform draws, as `CartPole::reset`), with `noise` and
+    /// `pushes` as the streams of sensor noise and push sides.
+    pub fn start(
+        scenario: &'s Scenario,
+        horizon: u32,
+        start: &mut impl Rng,
+        noise: R,
+        pushes: R,
+    ) -> World<'s, R> {
+        let mut plant = CartPole::new(scenario.params, horizon);
+        plant.reset(start);
+        World {
+            scenario,
+            plant,
+            noise,
+            pushes,
+            estimator: scenario
+                .encoders
+                .map(|e| Estimator::new(e, ESTIMATOR_DISCOUNT, scenario.params.tau as f32)),
+            line: [0.0; MAX_DELAY as usize],
+            head: 0,
+        }
+    }
+
+    /// This period's sensor reading `[x, x_dot, theta, theta_dot]`. Call it once a period:
+    /// it draws noise and advances the estimator.
+    pub fn observe(&mut self) -> [f32; 4] {
+        let s = self.plant.state();
+        let noisy = self.scenario.noise_std != [0.0; 4];
+        if self.estimator.is_some() {
+            let sd = self.scenario.noise_std;
+            let mut x = s.x;
+            let mut theta = s.theta;
+            if noisy {
+                x += sd[0] * self.gauss();
+                theta += sd[2] * self.gauss();
+            }
+            let est = self.estimator.as_mut().expect("checked above");
+            let e = est.encoders();
+            let per_rad = f64::from(e.pole_counts_per_rev) / core::f64::consts::TAU;
+            return est.update(
+                quantise(x, f64::from(e.cart_counts_per_m)),
+                quantise(theta, per_rad),
+            );
+        }
+        if !noisy {
+            return s.observation();
+        }
+        let mut obs = s.to_array();
+        for (v, sd) in obs.iter_mut().zip(self.scenario.noise_std) {
+            *v += sd * self.gauss();
+        }
+        obs.map(|v| v as f32)
+    }
+
+    fn gauss(&mut self) -> f64 {
+        StandardNormal.sample(&mut self.noise)
+    }
+
+    /// Ends the period: the actuator applies the command of `delay` periods ago (`commanded`
+    /// itself without dead time), a push may add its force, the plant steps.
+    pub fn apply(&mut self, commanded: f64) -> Transition {
+        let mut force = match self.scenario.delay as usize {
+            0 => commanded,
+            d => {
+                let out = self.line[self.head];
+                self.line[self.head] = commanded;
+                self.head = (self.head + 1) % d;
+                out
+            }
+        };
+        if let Some(push) = self.scenario.push
+            && (self.plant.steps() + 1).is_multiple_of(push.every)
+        {
+            let side = if unit_f64(&mut self.pushes) < 0.5 {
+                -1.0
+            } else {
+                1.0
+            };
+            force += side * push.impulse / self.scenario.params.tau;
+        }
+        self.plant.step_force(force)
+    }
+
+    /// The plant's true state.
+    pub fn state(&self) -> State {
+        self.plant.state()
+    }
+
+    /// Periods run.
+    pub fn steps(&self) -> u32 {
+        self.plant.steps()
+    }
+
+    /// The scenario.
+    pub fn scenario(&self) -> &Scenario {
+        self.scenario
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use firmware::cartpole::{Action, Params, step_with_force};
+    use rand_pcg::Pcg64Mcg;
+
+    fn world(s: &Scenario) -> World<'_, Pcg64Mcg> {
+        World::start(
+            s,
+            500,
+            &mut Pcg64Mcg::new(1),
+            Pcg64Mcg::new(2),
+            Pcg64Mcg::new(3),
+        )
+    }
+
+    #[test]
+    fn the_nominal_world_is_the_plant() {
+        let nominal = Scenario::nominal();
+        let mut w = world(&nominal);
+        let mut plant = CartPole::new(Params::default(), 500);
+        let mut obs = plant.reset(&mut Pcg64Mcg::new(1));
+        for k in 0..100 {
+            assert_eq!(w.observe(), obs);
+            let a = Action::from_index(k % 3 / 2);
+            let f = if a == Action::Right { 10.0 } else { -10.0 };
+            assert_eq!(w.apply(f), plant.step(a));
+            obs = plant.state().observation();
+        }
+    }
+
+    #[test]
+    fn dead_time_delivers_each_command_n_periods_late() {
+        for d in [1, 2, 5] {
+            let s = Scenario::parse(&format!("delay={d}")).unwrap();
+            let mut w = world(&s);
+            let p = Params::default();
+            let mut state = w.state();
+            for k in 0..40 {
+                w.observe();
+                // Command k is +10 N on odd k: it acts in period k + d.
+                let cmd = |k: i64| {
+                    if k >= 0 && k % 2 == 1 {
+                        10.0
+                    } else if k >= 0 {
+                        -10.0
+                    } else {
+                        0.0
+                    }
+                };
+                w.apply(cmd(k));
+                state = step_with_force(&p, &state, cmd(k - d));
+                assert_eq!(w.state(), state, "delay {d}, period {k}");
+            }
+        }
+    }
+
+    #[test]
+    fn encoders_quantise_and_the_estimator_recovers_the_velocities() {
+        let s = Scenario::parse("encoder=4096").unwrap();
+        let mut w = world(&s);
+        let (mut worst_x, mut worst_w) = (0.0f64, 0.0f64);
+        for k in 0..200 {
+            let obs = w.observe();
+            let truth = w.state();
+            if k > 10 {
+                worst_x = worst_x.max((f64::from(obs[0]) - truth.x).abs());
+                worst_w = worst_w.max((f64::from(obs[3]) - truth.theta_dot).abs());
+            }
+            let f = if truth.theta + 0.5 * truth.theta_dot > 0.0 {
+                10.0
+            } else {
+                -10.0
+            };
+            w.apply(f);
+        }
+        // Positions within 2 mm (a count is 1 / 20480 m; the rest is the lag under the
+        // rule's bang-bang accelerations); rates within the filter's lag.
+        assert!(worst_x < 2e-3, "{worst_x}");
+        assert!(worst_w < 0.5, "{worst_w}");
+    }
+}
