@@ -10,7 +10,7 @@ use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::{render, replay};
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::Scenario;
-use weights::files::{check_output, temp_path};
+use weights::files::{check_output, remove_stale, temp_path_keeping_extension};
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
 /// 480 MB at the limit.
@@ -311,19 +311,31 @@ fn run_render(
     std::fs::create_dir_all(out)
         .map_err(|e| weights::Error::Io(format!("creating {}: {e}", out.display())))?;
     let title = format!("{controller}, {}", scenario.name);
-    // Drawn under temporary names and renamed, so a failure leaves no half-written picture.
-    let (gif_tmp, png_tmp) = (temp_path(&gif), temp_path(&png));
-    render::gif(&gif_tmp, &frames, &scenario.params, stride, &title)?;
-    render::timeseries(
-        &png_tmp,
-        &frames,
-        &scenario.params,
-        &format!(
-            "{title}: {} of {horizon} periods, {}",
-            stats.steps,
-            if stats.success { "balanced" } else { "fell" }
-        ),
-    )?;
+    // Drawn under temporary names and renamed, so a failure leaves no half-written picture;
+    // the names end in the real extension because the encoders choose the format by it.
+    remove_stale(&gif, &["tmp.gif"]);
+    remove_stale(&png, &["tmp.png"]);
+    let (gif_tmp, png_tmp) = (
+        temp_path_keeping_extension(&gif),
+        temp_path_keeping_extension(&png),
+    );
+    let drawn = render::gif(&gif_tmp, &frames, &scenario.params, stride, &title).and_then(|()| {
+        render::timeseries(
+            &png_tmp,
+            &frames,
+            &scenario.params,
+            &format!(
+                "{title}: {} of {horizon} periods, {}",
+                stats.steps,
+                if stats.success { "balanced" } else { "fell" }
+            ),
+        )
+    });
+    if let Err(e) = drawn {
+        let _ = std::fs::remove_file(&gif_tmp);
+        let _ = std::fs::remove_file(&png_tmp);
+        return Err(e);
+    }
     for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
         std::fs::rename(tmp, path)
             .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;

@@ -163,5 +163,20 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     );
     refused(&["render", "--out", pics.to_str().unwrap()], "found a FIFO");
     assert_eq!(std::fs::read(&file).unwrap(), b"mine");
+    // And where all is well, a real GIF and PNG, and nothing else, land in the directory.
+    let fine = dir.join("fine");
+    let o = run(&["render", "--out", fine.to_str().unwrap(), "--horizon", "20"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        std::fs::read(fine.join("episode.gif"))
+            .unwrap()
+            .starts_with(b"GIF89a")
+    );
+    assert!(
+        std::fs::read(fine.join("episode.png"))
+            .unwrap()
+            .starts_with(b"\x89PNG")
+    );
+    assert_eq!(std::fs::read_dir(&fine).unwrap().count(), 2);
     std::fs::remove_dir_all(&dir).unwrap();
 }

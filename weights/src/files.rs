@@ -136,6 +136,17 @@ pub fn temp_path(path: &Path) -> PathBuf {
     path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
 }
 
+/// [`temp_path`] with `path`'s extension kept at the end (`.NAME.PID.tmp.EXT`), for writers
+/// that choose a format by the extension (image encoders); [`remove_stale`] with suffix
+/// `tmp.EXT` finds what a killed one left.
+pub fn temp_path_keeping_extension(path: &Path) -> PathBuf {
+    let tmp = temp_path(path);
+    match path.extension() {
+        Some(ext) => tmp.with_extension(format!("tmp.{}", ext.to_string_lossy())),
+        None => tmp,
+    }
+}
+
 /// Whether process `pid` is still running. Only Linux can tell (`/proc`); elsewhere every
 /// process counts as running, so nothing a live writer owns is ever removed.
 pub fn pid_alive(pid: u32) -> bool {
@@ -219,6 +230,10 @@ mod tests {
         let dir = scratch("stale");
         let p = dir.join("policy.rs");
         // No process has PID 4,000,000,000 (Linux caps PIDs at 2^22).
+        assert_eq!(
+            temp_path_keeping_extension(Path::new("d/episode.png")),
+            Path::new(&format!("d/.episode.png.{}.tmp.png", std::process::id()))
+        );
         let dead = dir.join(".policy.rs.4000000000.tmp");
         // PID 1 (init) always runs.
         let live = dir.join(".policy.rs.1.tmp");
