@@ -9,7 +9,9 @@
 //!
 //! This module is not a scheduler: the caller decides when a period starts (a timer
 //! interrupt, `DelayNs`, or a simulation loop). It is not a filter either: it acts on the
-//! reading it is given.
+//! reading it is given (`crate::estimator` turns encoder counts into one). With a known
+//! actuator dead time, [`Controller::with_predictor`] makes it decide on the state its
+//! command will meet ([`predict`]).
 //!
 //! # Faults and the fallback
 //!
@@ -67,6 +69,10 @@ use heapless::HistoryBuf;
 
 use crate::cartpole::Action;
 use crate::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
+
+pub mod predict;
+
+pub use predict::{Model, Predictor};
 
 /// The control period in seconds: the plant's Euler step, 50 Hz.
 pub const CONTROL_PERIOD_S: f64 = 0.02;
@@ -218,6 +224,7 @@ pub struct Controller<P, S, D, E, const N: usize> {
     steps: u32,
     faults: FaultCounters,
     telemetry: HistoryBuf<Record, N>,
+    predictor: Option<Predictor>,
 }
 
 impl<P, S, D, E, const N: usize> Controller<P, S, D, E, N>
@@ -240,7 +247,15 @@ where
             steps: 0,
             faults: FaultCounters::default(),
             telemetry: HistoryBuf::new(),
+            predictor: None,
         }
+    }
+
+    /// The same controller, deciding on the state its command will meet after the
+    /// predictor's dead time rather than on the reading itself (see [`predict`]).
+    pub fn with_predictor(mut self, predictor: Predictor) -> Self {
+        self.predictor = Some(predictor);
+        self
     }
 
     /// One control period: read, sanitise, decide, actuate, record.
@@ -251,12 +266,23 @@ where
             Err(_) => ([0.0; OBS_DIM], FaultFlags::SENSOR_ERROR),
         };
         let (q, command) = if flags.is_empty() {
-            let q = self.policy.scores(&obs);
+            let q = match &self.predictor {
+                Some(p) => self.policy.scores(&p.predict(&obs)),
+                None => self.policy.scores(&obs),
+            };
             (q, Command::Push(argmax(&q)))
         } else {
             self.count_rejected(flags);
             ([f32::NAN; N_ACTIONS], Command::Coast)
         };
+        if let Some(p) = &mut self.predictor {
+            let f = p.model().force_mag();
+            p.record(match command {
+                Command::Push(Action::Right) => f,
+                Command::Push(Action::Left) => -f,
+                Command::Coast => 0.0,
+            });
+        }
         if self.actuate(command).is_err() {
             self.drive = Drive::Unknown;
             self.faults.actuator_errors = self.faults.actuator_errors.saturating_add(1);
