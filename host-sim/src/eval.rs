@@ -79,8 +79,10 @@ impl Policy for &Net {
 pub enum ControllerKind {
     /// The Q-network (shipped, or `--policy FILE`).
     Policy,
-    /// Bang-bang discrete LQR, Q = I, R = 1.
+    /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
     Lqr,
+    /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
+    LqrPredict,
     /// Push towards `theta + 0.5 theta_dot`.
     Rule,
     /// A fair coin every period.
@@ -92,6 +94,7 @@ impl fmt::Display for ControllerKind {
         f.write_str(match self {
             ControllerKind::Policy => "policy",
             ControllerKind::Lqr => "lqr",
+            ControllerKind::LqrPredict => "lqr-predict",
             ControllerKind::Rule => "rule",
             ControllerKind::Random => "random",
         })
@@ -108,18 +111,22 @@ pub fn episode(
     episode: u64,
     on_frame: impl FnMut(Frame),
 ) -> EpisodeStats {
+    let (s, h) = (scenario, horizon);
     match kind {
-        ControllerKind::Policy => run_episode(net, scenario, horizon, seed, episode, on_frame),
-        ControllerKind::Lqr => {
-            run_episode(Lqr::nominal(), scenario, horizon, seed, episode, on_frame)
+        // The policy is told the dead time, as a board knows its own.
+        ControllerKind::Policy => run_episode(net, s, h, seed, episode, true, on_frame),
+        ControllerKind::Lqr => run_episode(Lqr::nominal(), s, h, seed, episode, false, on_frame),
+        ControllerKind::LqrPredict => {
+            run_episode(Lqr::nominal(), s, h, seed, episode, true, on_frame)
         }
-        ControllerKind::Rule => run_episode(AngleRule, scenario, horizon, seed, episode, on_frame),
+        ControllerKind::Rule => run_episode(AngleRule, s, h, seed, episode, false, on_frame),
         ControllerKind::Random => run_episode(
             Random(policy_rng(seed, episode)),
-            scenario,
-            horizon,
+            s,
+            h,
             seed,
             episode,
+            false,
             on_frame,
         ),
     }
@@ -158,14 +165,33 @@ pub struct Row {
     pub switches_per_s: Estimate,
     /// Periods that coasted on a rejected reading, over all episodes.
     pub faults: u64,
+    /// Episodes that fell or left the track before the horizon.
+    pub failures: usize,
+    /// The shortest failed episodes (at most [`WORST`]), to find out why.
+    pub worst: Vec<Worst>,
+}
+
+/// Failed episodes a row lists.
+pub const WORST: usize = 5;
+
+/// A failed episode: which, how long it lasted, and where it started.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize)]
+pub struct Worst {
+    /// Episode number (with the row's seed, it replays: `render --seed S --episode N`).
+    pub episode: u64,
+    /// Periods it lasted.
+    pub steps: u32,
+    /// Its start `[x, x_dot, theta, theta_dot]`.
+    pub start: [f64; 4],
 }
 
 impl Row {
-    /// The statistics of a set of episodes.
+    /// The statistics of a set of episodes, episode `i` of `seed` at `eps[i]`.
     pub fn from_episodes(
         controller: &str,
         scenario: &str,
         horizon: u32,
+        seed: u64,
         eps: &[EpisodeStats],
     ) -> Row {
         let per = |f: &dyn Fn(&EpisodeStats) -> f64| -> Vec<f64> { eps.iter().map(f).collect() };
@@ -193,8 +219,29 @@ impl Row {
                 f64::from(e.switches) / (steps(e) * firmware::controller::CONTROL_PERIOD_S)
             })),
             faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
+            failures: eps.len() - successes,
+            worst: worst(seed, eps),
         }
     }
+}
+
+fn worst(seed: u64, eps: &[EpisodeStats]) -> Vec<Worst> {
+    let mut failed: Vec<(u32, u64)> = eps
+        .iter()
+        .enumerate()
+        .filter(|(_, e)| !e.success)
+        .map(|(i, e)| (e.steps, i as u64))
+        .collect();
+    failed.sort_unstable();
+    failed
+        .into_iter()
+        .take(WORST)
+        .map(|(steps, episode)| Worst {
+            episode,
+            steps,
+            start: twin::run::start_state(seed, episode).to_array(),
+        })
+        .collect()
 }
 
 /// `episodes` seeded episodes of one controller in one scenario, in parallel, in order.
@@ -210,13 +257,15 @@ pub fn evaluate(
         .into_par_iter()
         .map(|i| episode(kind, net, scenario, horizon, seed, i, |_| {}))
         .collect();
-    Row::from_episodes(&kind.to_string(), &scenario.name, horizon, &eps)
+    Row::from_episodes(&kind.to_string(), &scenario.name, horizon, seed, &eps)
 }
 
 /// The table, grouped by horizon and scenario, one line per controller.
 pub fn format_table(rows: &[Row]) -> String {
     let mut out = String::new();
     let mut last: Option<u32> = None;
+    let sw = rows.iter().map(|r| r.scenario.len()).fold(18, usize::max);
+    let cw = rows.iter().map(|r| r.controller.len()).fold(7, usize::max);
     for r in rows {
         if last != Some(r.horizon) {
             if last.is_some() {
@@ -229,10 +278,11 @@ pub fn format_table(rows: &[Row]) -> String {
                 r.episodes
             );
             out += &format!(
-                "{:<18} {:<7} {:>22} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+                "{:<sw$} {:<cw$} {:>22} {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
                 "scenario",
                 "ctrl",
                 "success",
+                "failed",
                 "mean steps",
                 "min",
                 "p5",
@@ -246,12 +296,13 @@ pub fn format_table(rows: &[Row]) -> String {
         }
         let pm = |e: &Estimate, p: usize| format!("{:.p$} ± {:.p$}", e.mean, e.ci95);
         out += &format!(
-            "{:<18} {:<7} {:>6.1}% [{:>5.1}, {:>5.1}] {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+            "{:<sw$} {:<cw$} {:>6.1}% [{:>5.1}, {:>5.1}] {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
             r.scenario,
             r.controller,
             100.0 * r.success_rate,
             100.0 * r.success_ci95[0],
             100.0 * r.success_ci95[1],
+            group(r.failures),
             pm(
                 &Estimate {
                     mean: r.mean_steps,
@@ -267,6 +318,43 @@ pub fn format_table(rows: &[Row]) -> String {
             pm(&r.switches_per_s, 1),
             r.faults
         );
+    }
+    out
+}
+
+/// For each row with failures: how many of how many, then the shortest episodes, one a line,
+/// with the start that `host-sim eval --seed` reproduces.
+pub fn format_failures(rows: &[Row], seed: u64) -> String {
+    let mut out = String::new();
+    for r in rows.iter().filter(|r| r.failures > 0) {
+        out += &format!(
+            "{} on {} at {} steps: {} of {} failed (seed {seed}); the shortest:\n",
+            r.controller,
+            r.scenario,
+            r.horizon,
+            group(r.failures),
+            group(r.episodes)
+        );
+        for w in &r.worst {
+            let [x, xd, t, td] = w.start;
+            out += &format!(
+                "  episode {:>7}: {:>6} steps from [{x:.4}, {xd:.4}, {t:.4}, {td:.4}]\n",
+                w.episode, w.steps
+            );
+        }
+    }
+    out
+}
+
+/// `1234567` as `1,234,567`.
+fn group(n: usize) -> String {
+    let s = n.to_string();
+    let mut out = String::new();
+    for (i, c) in s.chars().enumerate() {
+        if i > 0 && (s.len() - i).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
     }
     out
 }
@@ -288,8 +376,28 @@ mod tests {
                 faults: 1,
             })
             .collect();
-        let r = Row::from_episodes("c", "s", 400, &eps);
+        let r = Row::from_episodes("c", "s", 400, 9, &eps);
         assert_eq!((r.min_steps, r.p5_steps, r.faults), (10, 20, 40));
+        assert_eq!(r.failures, 39);
+        assert_eq!(
+            r.worst.iter().map(|w| w.episode).collect::<Vec<_>>(),
+            [0, 1, 2, 3, 4]
+        );
+        assert_eq!(r.worst[2].steps, 30);
+        assert_eq!(r.worst[1].start, twin::run::start_state(9, 1).to_array());
+        let text = format_failures(std::slice::from_ref(&r), 9);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(
+            lines[0],
+            "c on s at 400 steps: 39 of 40 failed (seed 9); the shortest:"
+        );
+        assert!(
+            lines[1].starts_with("  episode       0:     10 steps from ["),
+            "{text}"
+        );
+        assert_eq!(lines.len(), 6);
+        assert_eq!(group(1_234_567), "1,234,567");
+        assert_eq!(group(47), "47");
         assert_eq!(r.success_rate, 1.0 / 40.0);
         assert!((r.rms_theta_deg.mean - 0.1f64.to_degrees()).abs() < 1e-12);
         assert!((r.rms_x_m.mean - 2.0).abs() < 1e-12 && r.rms_x_m.ci95 < 1e-12);

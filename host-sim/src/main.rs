@@ -51,8 +51,9 @@ enum Command {
         #[arg(long, value_delimiter = ',', default_value = "500")]
         horizon: Vec<u32>,
         /// Scenarios, one row each: `nominal`, or parts joined by `+` from noise[=SCALE],
-        /// delay, force=F, length=F, polemass=F, cartmass=F, push[=IMPULSE[/EVERY]];
-        /// `all` is the robustness set of docs/CONTROL.md.
+        /// delay[=N], force=F, length=F, polemass=F, cartmass=F, friction=C[/P],
+        /// encoder=N[/M], push[=IMPULSE[/EVERY]]; `all` is the robustness set of
+        /// docs/CONTROL.md, `hard` the set beyond it.
         #[arg(long, value_delimiter = ',', default_value = "all")]
         scenario: Vec<String>,
         /// Controllers to compare.
@@ -186,6 +187,8 @@ fn parse_scenarios(specs: &[String]) -> Result<Vec<Scenario>> {
     for spec in specs {
         if spec == "all" {
             out.extend(Scenario::default_set());
+        } else if spec == "hard" {
+            out.extend(Scenario::hard_set());
         } else {
             out.push(Scenario::parse(spec).map_err(anyhow::Error::msg)?);
         }
@@ -250,6 +253,7 @@ fn run_eval(
         );
     } else {
         print!("{}", eval::format_table(&rows));
+        print!("{}", eval::format_failures(&rows, seed));
     }
     let failing: Vec<&Row> = rows
         .iter()

@@ -9,8 +9,8 @@
 use std::cell::Cell;
 use std::convert::Infallible;
 
-use firmware::cartpole::{CartPole, State};
-use firmware::controller::{Command, Controller, Limits, Policy, StateSensor};
+use firmware::cartpole::{CartPole, Params, State};
+use firmware::controller::{Command, Controller, Limits, Model, Policy, Predictor, StateSensor};
 use firmware::loopback::{CellDuty, CellPin, force as bridge_force};
 use rand_pcg::Pcg64Mcg;
 
@@ -62,6 +62,12 @@ pub fn start_state(seed: u64, episode: u64) -> State {
     plant.state()
 }
 
+/// A predictor over `delay` periods with the nominal plant's model: what a controller that
+/// knows its dead time (but not the plant's perturbations) runs.
+pub fn nominal_predictor(delay: u32) -> Predictor {
+    Predictor::new(Model::of(&Params::default()), delay as usize)
+}
+
 /// The sensor: whatever the world reported this period.
 struct Reading<'a>(&'a Cell<[f32; 4]>);
 
@@ -74,7 +80,9 @@ impl StateSensor for Reading<'_> {
 }
 
 /// Runs one episode of `policy` under `scenario` for at most `horizon` periods from the
-/// Gymnasium-style random start of (`seed`, `episode`). `on_frame` sees every period.
+/// Gymnasium-style random start of (`seed`, `episode`). With `predict`, the controller is
+/// told the scenario's dead time and decides on the state its command will meet
+/// ([`firmware::controller::predict`], with the nominal model). `on_frame` sees every period.
 #[inline(always)]
 pub fn run_episode<P: Policy>(
     policy: P,
@@ -82,6 +90,7 @@ pub fn run_episode<P: Policy>(
     horizon: u32,
     seed: u64,
     episode: u64,
+    predict: bool,
     mut on_frame: impl FnMut(Frame),
 ) -> EpisodeStats {
     let mut world = World::start(
@@ -101,6 +110,9 @@ pub fn run_episode<P: Policy>(
         CellDuty(&duty),
         Limits::default(),
     );
+    if predict && scenario.delay > 0 {
+        controller = controller.with_predictor(nominal_predictor(scenario.delay));
+    }
     let force_mag = scenario.params.force_mag;
     let mut stats = EpisodeStats::default();
     let mut previous: Option<Command> = None;
@@ -146,7 +158,7 @@ mod tests {
     fn nominal_twin_is_the_plant_under_the_policy_bit_for_bit() {
         for episode in 0..20 {
             let mut frames = Vec::new();
-            let stats = run_episode(&POLICY, &Scenario::nominal(), 500, 7, episode, |f| {
+            let stats = run_episode(&POLICY, &Scenario::nominal(), 500, 7, episode, false, |f| {
                 frames.push(f)
             });
             let mut plant = CartPole::new(Params::default(), 500);
@@ -166,7 +178,7 @@ mod tests {
     fn delay_applies_the_previous_command() {
         let delayed = Scenario::parse("delay").unwrap();
         let mut frames = Vec::new();
-        run_episode(Rule, &delayed, 50, 3, 0, |f| frames.push(f));
+        run_episode(Rule, &delayed, 50, 3, 0, false, |f| frames.push(f));
         let p = Params::default();
         let mut s = start_state(3, 0);
         // The first period applies no force; then each applies its predecessor's command.
@@ -182,21 +194,32 @@ mod tests {
     }
 
     #[test]
+    fn prediction_bridges_a_long_dead_time() {
+        // Six periods of dead time topple the shipped policy; told of them, it balances.
+        let late = Scenario::parse("delay=6").unwrap();
+        let blind = run_episode(&POLICY, &late, 500, 2, 0, false, |_| {});
+        let told = run_episode(&POLICY, &late, 500, 2, 0, true, |_| {});
+        assert!(!blind.success && told.success, "{blind:?} {told:?}");
+    }
+
+    #[test]
     fn pushes_topple_and_noise_is_seeded() {
         // A 0.5 N s push every period overwhelms the 10 N motor: the pole falls quickly.
         let brutal = Scenario::parse("push=0.5/1").unwrap();
-        let st = run_episode(&POLICY, &brutal, 500, 1, 0, |_| {});
-        let calm = run_episode(&POLICY, &Scenario::nominal(), 500, 1, 0, |_| {});
+        let st = run_episode(&POLICY, &brutal, 500, 1, 0, false, |_| {});
+        let calm = run_episode(&POLICY, &Scenario::nominal(), 500, 1, 0, false, |_| {});
         assert!(st.steps < 100 && calm.success, "{st:?} {calm:?}");
         let noisy = Scenario::parse("noise=4").unwrap();
         let run = |seed| {
             let mut v = Vec::new();
-            run_episode(&POLICY, &noisy, 300, seed, 0, |f| v.push(f));
+            run_episode(&POLICY, &noisy, 300, seed, 0, false, |f| v.push(f));
             v
         };
         assert_eq!(run(5), run(5));
         let mut exact = Vec::new();
-        run_episode(&POLICY, &Scenario::nominal(), 300, 5, 0, |f| exact.push(f));
+        run_episode(&POLICY, &Scenario::nominal(), 300, 5, 0, false, |f| {
+            exact.push(f)
+        });
         assert_ne!(run(5), exact);
     }
 }
