@@ -1,7 +1,9 @@
-//! Training speed over whole runs of the paper preset, one thread, per kernel:
-//! `cargo bench -p policy-export --bench train_step`. Prints a table of microseconds per
-//! environment step (acting + one batch-32 gradient step), the figure docs/PERFORMANCE.md
-//! records. Whole runs, not a micro-benchmark, so buffer growth and early episodes count.
+//! Training speed over whole runs, one thread, per kernel:
+//! `cargo bench -p policy-export --bench train_step`. Prints two tables, the figures
+//! docs/PERFORMANCE.md records: microseconds per environment step (acting + one batch-32
+//! gradient step) of the paper preset, and what domain randomisation costs per step (the
+//! deploy preset against itself with the plant, sensing and reward left nominal). Whole runs,
+//! not a micro-benchmark, so buffer growth and early episodes count.
 
 use policy_export::config::{Config, KernelChoice};
 use policy_export::train;
@@ -41,5 +43,54 @@ fn main() {
             "{name:<10} {steps:>10} {wall:>10.2} {:>14.1} {best:>14.1}",
             wall * 1e6 / steps as f64
         );
+    }
+    randomisation_cost();
+}
+
+/// The deploy preset's training loop with and without its randomised world, periodic and
+/// finalist evaluations off in both so that only training steps are timed.
+fn randomisation_cost() {
+    let episodes: usize = std::env::var("BENCH_DR_EPISODES")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or(400);
+    println!();
+    println!("deploy preset, {episodes} episodes, seed 0, no evaluations, one thread");
+    println!(
+        "{:<10} {:>14} {:>14} {:>14} {:>8}",
+        "kernel", "world", "env steps", "us/env step", "ratio"
+    );
+    for (name, k) in [
+        ("portable", KernelChoice::Portable),
+        ("auto", KernelChoice::Auto),
+    ] {
+        let randomised = Config {
+            kernel: k,
+            episodes,
+            eval_every: 0,
+            finalists: 0,
+            ..Config::deploy()
+        };
+        let nominal = Config {
+            domain: String::new(),
+            eval_domain: String::new(),
+            finalist_domain: String::new(),
+            compensate: false,
+            reward: String::new(),
+            ..randomised.clone()
+        };
+        let mut base = 0.0;
+        for (world, cfg) in [("nominal", &nominal), ("randomised", &randomised)] {
+            let r = train::train(cfg, 0, &mut |_| {}).expect("deploy preset trains");
+            let us = r.wall_s * 1e6 / r.env_steps as f64;
+            if base == 0.0 {
+                base = us;
+            }
+            println!(
+                "{name:<10} {world:>14} {:>14} {us:>14.1} {:>7.2}x",
+                r.env_steps,
+                us / base
+            );
+        }
     }
 }

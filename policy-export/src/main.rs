@@ -169,12 +169,22 @@ struct Overrides {
     stop_when_perfect: Option<bool>,
     #[arg(long)]
     final_eval_episodes: Option<usize>,
+    #[arg(long)]
+    finalists: Option<usize>,
+    #[arg(long)]
+    finalist_episodes: Option<usize>,
+    #[arg(long)]
+    finalist_max_steps: Option<u32>,
     #[arg(long, value_enum)]
     kernel: Option<KernelChoice>,
+    #[arg(long)]
+    compensate: Option<bool>,
     #[arg(long)]
     domain: Option<String>,
     #[arg(long)]
     eval_domain: Option<String>,
+    #[arg(long)]
+    finalist_domain: Option<String>,
     #[arg(long)]
     reward: Option<String>,
 }
@@ -214,11 +224,16 @@ impl Overrides {
             eval_max_steps,
             stop_when_perfect,
             final_eval_episodes,
-            kernel
+            finalists,
+            finalist_episodes,
+            finalist_max_steps,
+            kernel,
+            compensate
         );
         for (field, v) in [
             (&mut c.domain, &self.domain),
             (&mut c.eval_domain, &self.eval_domain),
+            (&mut c.finalist_domain, &self.finalist_domain),
             (&mut c.reward, &self.reward),
         ] {
             if let Some(v) = v {

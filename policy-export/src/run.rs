@@ -55,8 +55,21 @@ pub struct Summary {
     pub policy_episode: usize,
     /// Periodic greedy evaluations that chose the policy.
     pub periodic_evals: Vec<PeriodicEval>,
+    /// The finalists' longer trial that chose among the best periodic snapshots (empty
+    /// without `finalists`).
+    #[serde(default)]
+    pub finalist_trial: Vec<TrialEval>,
     /// The exported policy, greedy, on fresh starts.
     pub final_eval: EvalResult,
+}
+
+/// One finalist's trial.
+#[derive(Clone, Debug, Serialize, Deserialize)]
+pub struct TrialEval {
+    /// The snapshot taken after this episode.
+    pub episode: usize,
+    /// Its result.
+    pub result: EvalResult,
 }
 
 /// One periodic evaluation.
@@ -99,6 +112,14 @@ pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
                 episode: *episode,
                 mean: e.mean,
                 min: e.min,
+            })
+            .collect(),
+        finalist_trial: r
+            .trial
+            .iter()
+            .map(|(episode, e)| TrialEval {
+                episode: *episode,
+                result: e.clone(),
             })
             .collect(),
         final_eval: r.final_eval.clone(),

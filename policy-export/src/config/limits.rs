@@ -24,7 +24,7 @@ pub struct Count {
 }
 
 /// Every count's accepted range, in the order the README lists them.
-pub const COUNTS: [Count; 10] = [
+pub const COUNTS: [Count; 13] = [
     Count {
         key: "episodes",
         min: 1,
@@ -85,6 +85,24 @@ pub const COUNTS: [Count; 10] = [
         max: 100_000,
         get: |c| c.final_eval_episodes as u64,
     },
+    Count {
+        key: "finalists",
+        min: 0,
+        max: 100,
+        get: |c| c.finalists as u64,
+    },
+    Count {
+        key: "finalist_episodes",
+        min: 0,
+        max: 100_000,
+        get: |c| c.finalist_episodes as u64,
+    },
+    Count {
+        key: "finalist_max_steps",
+        min: 0,
+        max: 1_000_000,
+        get: |c| c.finalist_max_steps.into(),
+    },
 ];
 
 impl Config {
@@ -110,6 +128,13 @@ impl Config {
                 format!("{} must be in [{}, {}], got {v}", c.key, c.min, c.max),
             );
         }
+        check(
+            self.finalists == 0 || (self.finalist_episodes > 0 && self.finalist_max_steps > 0),
+            format!(
+                "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
+                self.finalists, self.finalist_episodes, self.finalist_max_steps
+            ),
+        );
         // The kernels compute in f32: a value must stay positive and finite there.
         let f32_positive = |v: f64| v.is_finite() && v > 0.0 && (v as f32).is_normal();
         check(
@@ -172,7 +197,11 @@ impl Config {
                 self.grad_clip
             ),
         );
-        for (key, spec) in [("domain", &self.domain), ("eval_domain", &self.eval_domain)] {
+        for (key, spec) in [
+            ("domain", &self.domain),
+            ("eval_domain", &self.eval_domain),
+            ("finalist_domain", &self.finalist_domain),
+        ] {
             if let Err(e) = twin::Domain::parse(spec) {
                 errs.push(format!("{key}: {e}"));
             }

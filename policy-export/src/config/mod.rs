@@ -97,8 +97,11 @@ impl KernelChoice {
 pub enum Preset {
     /// The paper's Table 2.
     Paper,
-    /// Tuned for a controller worth deploying (see `docs/TRAINING.md`).
+    /// Tuned to balance the nominal plant perfectly (see `docs/TRAINING.md`).
     Robust,
+    /// The shipped recipe: the robust preset in randomised worlds, with dead-time
+    /// compensation and a reward shaped for an upright, centred pole (`docs/TRAINING.md`).
+    Deploy,
 }
 
 /// Every hyperparameter of a run. Field names are the TOML keys and, with `-` for `_`, the
@@ -165,6 +168,17 @@ pub struct Config {
     pub stop_when_perfect: bool,
     /// Fresh greedy episodes that score the exported policy at the end of a run.
     pub final_eval_episodes: usize,
+    /// How many of the best periodic snapshots a longer trial chooses the policy among, so
+    /// that one which drifts only over long episodes is not shipped; 0: the best periodic
+    /// snapshot is the policy.
+    #[serde(default)]
+    pub finalists: usize,
+    /// Episodes of that trial (starts fixed for the run).
+    #[serde(default)]
+    pub finalist_episodes: usize,
+    /// Their length.
+    #[serde(default)]
+    pub finalist_max_steps: u32,
     /// Which compiled kernel to train with.
     pub kernel: KernelChoice,
     /// Domain randomisation: the distribution of worlds a training episode is drawn from
@@ -175,6 +189,13 @@ pub struct Config {
     /// nominal plant.
     #[serde(default)]
     pub eval_domain: String,
+    /// The worlds of the finalists' trial (a domain spec); empty: `eval_domain`'s.
+    #[serde(default)]
+    pub finalist_domain: String,
+    /// Decide on readings advanced over each world's dead time with the nominal model, as the
+    /// deployed controller does (`firmware::controller::predict`).
+    #[serde(default)]
+    pub compensate: bool,
     /// The learning reward (`train::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
     /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
     #[serde(default)]
@@ -216,9 +237,14 @@ impl Config {
             eval_max_steps: 500,
             stop_when_perfect: false,
             final_eval_episodes: 100,
+            finalists: 0,
+            finalist_episodes: 0,
+            finalist_max_steps: 0,
             kernel: KernelChoice::Auto,
             domain: String::new(),
             eval_domain: String::new(),
+            finalist_domain: String::new(),
+            compensate: false,
             reward: String::new(),
         }
     }
@@ -246,11 +272,35 @@ impl Config {
         }
     }
 
+    /// The shipped recipe: per episode a world drawn from ranges wider than the evaluation's
+    /// default set (physics, friction, noise, encoders, dead time, pushes), the policy told
+    /// each world's dead time, a learning reward that costs leaning and wandering, and the
+    /// snapshot chosen on worlds like the default set's. Every choice and its evidence:
+    /// `docs/TRAINING.md`.
+    pub fn deploy() -> Config {
+        Config {
+            domain: DEPLOY_DOMAIN.into(),
+            eval_domain: DEPLOY_EVAL_DOMAIN.into(),
+            finalist_domain: DEPLOY_FINALIST_DOMAIN.into(),
+            compensate: true,
+            reward: "upright=20+centre=5".into(),
+            episodes: 3000,
+            eval_every: 10,
+            eval_episodes: 50,
+            stop_when_perfect: false,
+            finalists: 20,
+            finalist_episodes: 50,
+            finalist_max_steps: 10_000,
+            ..Config::robust()
+        }
+    }
+
     /// The preset's configuration.
     pub fn preset(p: Preset) -> Config {
         match p {
             Preset::Paper => Config::paper(),
             Preset::Robust => Config::robust(),
+            Preset::Deploy => Config::deploy(),
         }
     }
 
@@ -277,6 +327,20 @@ impl Config {
             .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))
     }
 }
+
+/// The worlds the deploy preset trains in: wider than the default evaluation set's +-20%.
+pub const DEPLOY_DOMAIN: &str = "length=0.6..1.4+polemass=0.6..1.5+cartmass=0.6..1.5\
+    +force=0.7..1.3+friction=0..0.05/0..0.001@0.5+noise=0..1.5@0.5+encoder=512..8192@0.3\
+    +delay=0..2+push=0..0.8/50..200@0.5";
+
+/// The worlds its snapshots are chosen on: like the default evaluation set's.
+pub const DEPLOY_EVAL_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25\
+    +force=0.75..1.25+noise=0..1@0.5+delay=0..1+push=0.5/100@0.5";
+
+/// The worlds its finalists are tried in for 10,000 steps: the default set's hardest row
+/// (noise, a period of dead time and pushes at once) on plants drawn like the other rows'.
+pub const DEPLOY_FINALIST_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25\
+    +cartmass=0.75..1.25+force=0.75..1.25+noise=1+delay=1+push=0.5/100";
 
 /// A configuration that cannot be run; the command line exits with status 2 on it.
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -352,6 +416,10 @@ mod tests {
         bad(
             |c| c.final_eval_episodes = 0,
             "final_eval_episodes must be in [1, 100000]",
+        );
+        bad(
+            |c| c.finalists = 3,
+            "finalists (3) need finalist_episodes and finalist_max_steps >= 1, got 0 and 0",
         );
         bad(|c| c.adam_eps = 1e-50, "adam_eps must be a normal f32 > 0");
         bad(|c| c.tau = 0.0, "tau must be in (0, 1]");

@@ -5,6 +5,7 @@ use firmware::cartpole::Action;
 use firmware::network::Mlp;
 use rand_pcg::Pcg64Mcg;
 use serde::{Deserialize, Serialize};
+use twin::run::nominal_predictor;
 use twin::{Domain, World};
 
 /// A greedy evaluation's outcome.
@@ -18,6 +19,19 @@ pub struct EvalResult {
     pub mean: f64,
     /// Worst return.
     pub min: f64,
+    /// How far from upright and centred it held the plant: the mean over every step of
+    /// `(theta / theta_max)^2 + (x / x_max)^2`. Between snapshots of equal returns, the lower
+    /// is the better controller.
+    #[serde(default)]
+    pub cost: f64,
+}
+
+impl EvalResult {
+    /// Whether `self` beats `other`: a higher mean return, or an equal one held closer to
+    /// upright and centre.
+    pub fn beats(&self, other: &EvalResult) -> bool {
+        self.mean > other.mean || (self.mean == other.mean && self.cost < other.cost)
+    }
 }
 
 /// The random streams of one evaluation: starts, the worlds drawn from its domain, and
@@ -34,15 +48,18 @@ pub struct EvalStreams {
     pub pushes: Pcg64Mcg,
 }
 
-/// Runs `episodes` greedy episodes of at most `max_steps`, each in a world of `domain`.
+/// Runs `episodes` greedy episodes of at most `max_steps`, each in a world of `domain`;
+/// with `compensate`, deciding on readings advanced over the world's dead time.
 pub fn evaluate<const H: usize>(
     net: &Mlp<H>,
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
+    compensate: bool,
     rng: &mut EvalStreams,
 ) -> EvalResult {
     let (mut sum, mut min) = (0.0, f64::INFINITY);
+    let (mut cost, mut steps) = (0.0f64, 0u64);
     for _ in 0..episodes {
         let scenario = domain.sample(&mut rng.world);
         let mut world = World::start(
@@ -53,14 +70,18 @@ pub fn evaluate<const H: usize>(
             &mut rng.pushes,
         );
         let force = scenario.params.force_mag;
+        let mut pred = nominal_predictor(if compensate { scenario.delay } else { 0 });
+        let nominal = pred.model().force_mag();
         let mut ret = 0.0;
         loop {
-            let push = match net.greedy_action(&world.observe()) {
-                Action::Right => force,
-                Action::Left => -force,
-            };
-            let t = world.apply(push);
+            let action = net.greedy_action(&pred.predict(&world.observe()));
+            let sign = if action == Action::Right { 1.0 } else { -1.0 };
+            pred.record(sign * nominal);
+            let t = world.apply(f64::from(sign) * force);
             ret += f64::from(t.reward);
+            let (s, p) = (world.state(), &scenario.params);
+            cost += (s.theta / p.theta_threshold_radians).powi(2) + (s.x / p.x_threshold).powi(2);
+            steps += 1;
             if t.terminated || t.truncated {
                 break;
             }
@@ -73,6 +94,7 @@ pub fn evaluate<const H: usize>(
         max_steps,
         mean: sum / episodes as f64,
         min,
+        cost: cost / steps.max(1) as f64,
     }
 }
 

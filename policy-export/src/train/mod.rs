@@ -19,6 +19,7 @@ use firmware::network::{Mlp, argmax};
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
+use twin::run::nominal_predictor;
 use twin::{Domain, World};
 use weights::Weights;
 
@@ -70,6 +71,14 @@ pub enum Stream {
     FinalNoise = 14,
     /// See [`Stream::FinalWorld`].
     FinalPushes = 15,
+    /// Starts of the finalists' trial.
+    Trial = 16,
+    /// Worlds, noise and pushes of the finalists' trial.
+    TrialWorld = 17,
+    /// See [`Stream::TrialWorld`].
+    TrialNoise = 18,
+    /// See [`Stream::TrialWorld`].
+    TrialPushes = 19,
 }
 
 /// The generator of one stream of one seed (the project's one mixer, index 0).
@@ -77,23 +86,37 @@ pub fn rng(seed: u64, stream: Stream) -> Pcg64Mcg {
     host_common::seed::rng(seed, 0, stream as u64)
 }
 
-/// The streams of an evaluation: the periodic ones (`final_ = false`, the same every time
-/// within a run) or the final one.
-fn eval_streams(seed: u64, final_: bool) -> EvalStreams {
-    let [a, b, c, d] = if final_ {
-        [
-            Stream::Final,
-            Stream::FinalWorld,
-            Stream::FinalNoise,
-            Stream::FinalPushes,
-        ]
-    } else {
-        [
+/// Which evaluation a set of streams serves.
+#[derive(Clone, Copy)]
+enum Eval {
+    /// The periodic ones: the same streams every time within a run.
+    Periodic,
+    /// The finalists' trial: the same streams for every finalist.
+    Trial,
+    /// The final one, disjoint from everything the run trained or selected on.
+    Final,
+}
+
+fn eval_streams(seed: u64, which: Eval) -> EvalStreams {
+    let [a, b, c, d] = match which {
+        Eval::Periodic => [
             Stream::Eval,
             Stream::EvalWorld,
             Stream::EvalNoise,
             Stream::EvalPushes,
-        ]
+        ],
+        Eval::Trial => [
+            Stream::Trial,
+            Stream::TrialWorld,
+            Stream::TrialNoise,
+            Stream::TrialPushes,
+        ],
+        Eval::Final => [
+            Stream::Final,
+            Stream::FinalWorld,
+            Stream::FinalNoise,
+            Stream::FinalPushes,
+        ],
     };
     EvalStreams {
         start: rng(seed, a),
@@ -145,6 +168,9 @@ pub struct RunResult {
     pub policy_episode: usize,
     /// Periodic evaluations: (episode, result).
     pub evals: Vec<(usize, EvalResult)>,
+    /// The finalists' trial, best periodic snapshot first: (episode, result); empty without
+    /// finalists.
+    pub trial: Vec<(usize, EvalResult)>,
     /// `policy` on fresh starts.
     pub final_eval: EvalResult,
     /// Total environment steps.
@@ -198,13 +224,19 @@ fn train_width<const H: usize>(
     // validate() has parsed all three.
     let domain = Domain::parse(&cfg.domain).map_err(anyhow::Error::msg)?;
     let eval_domain = Domain::parse(&cfg.eval_domain).map_err(anyhow::Error::msg)?;
+    let trial_domain = match cfg.finalist_domain.as_str() {
+        "" => eval_domain.clone(),
+        spec => Domain::parse(spec).map_err(anyhow::Error::msg)?,
+    };
     let reward = Reward::parse(&cfg.reward).map_err(anyhow::Error::msg)?;
     let learning_starts = cfg.learning_starts.max(cfg.batch_size);
     let gamma = cfg.gamma;
 
     let mut records = Vec::with_capacity(cfg.episodes);
     let mut evals = Vec::new();
-    let mut best: Option<(f64, usize, Box<Mlp<H>>)> = None;
+    // The best periodic snapshots, best first; among equals the earlier stays ahead.
+    let mut pool: Vec<(EvalResult, usize, Box<Mlp<H>>)> = Vec::new();
+    let pool_size = cfg.finalists.max(1);
     let mut env_steps: u64 = 0;
     let mut rewards: Vec<f32> = Vec::with_capacity(cfg.max_steps as usize);
 
@@ -218,7 +250,10 @@ fn train_width<const H: usize>(
             &mut noise_rng,
             &mut push_rng,
         );
-        let mut obs = world.observe();
+        // The policy decides on the reading advanced over the known dead time, as it will
+        // on the board; with none (or without `compensate`) that is the reading itself.
+        let mut pred = nominal_predictor(if cfg.compensate { scenario.delay } else { 0 });
+        let mut obs = pred.predict(&world.observe());
         let mut ret = 0.0f64;
         rewards.clear();
         let (mut loss_sum, mut losses, mut maxq_sum) = (0.0f64, 0u32, 0.0f64);
@@ -236,11 +271,16 @@ fn train_width<const H: usize>(
             } else {
                 argmax(&q)
             };
+            let nominal = pred.model().force_mag();
+            pred.record(match action {
+                Action::Right => nominal,
+                Action::Left => -nominal,
+            });
             let tr = world.apply(match action {
                 Action::Right => force,
                 Action::Left => -force,
             });
-            let next = world.observe();
+            let next = pred.predict(&world.observe());
             let r = reward.of(&scenario.params, &world.state(), tr.terminated);
             buf.push(obs, action, r, next, tr.terminated);
             rewards.push(r);
@@ -306,11 +346,14 @@ fn train_width<const H: usize>(
                 cfg.eval_episodes,
                 cfg.eval_max_steps,
                 &eval_domain,
-                &mut eval_streams(seed, false),
+                cfg.compensate,
+                &mut eval_streams(seed, Eval::Periodic),
             );
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
-            if best.as_ref().is_none_or(|(m, _, _)| res.mean > *m) {
-                best = Some((res.mean, ep + 1, learner.online.clone()));
+            let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
+            if rank < pool_size {
+                pool.insert(rank, (res.clone(), ep + 1, learner.online.clone()));
+                pool.truncate(pool_size);
             }
             evals.push((ep + 1, res));
             if perfect && cfg.stop_when_perfect {
@@ -320,7 +363,30 @@ fn train_width<const H: usize>(
     }
     let wall_s = start.elapsed().as_secs_f64();
     let last = records.len();
-    let (policy_episode, policy) = match best {
+    let mut trial = Vec::new();
+    if cfg.finalists > 0 {
+        let mut best: Option<(usize, EvalResult)> = None;
+        for (i, (_, ep, net)) in pool.iter().enumerate() {
+            let res = evaluate(
+                net,
+                cfg.finalist_episodes,
+                cfg.finalist_max_steps,
+                &trial_domain,
+                cfg.compensate,
+                &mut eval_streams(seed, Eval::Trial),
+            );
+            // Survival decides; among equals the better periodic rank, since the periodic
+            // cost (nominal-like worlds) measures precision better than the trial's pushes.
+            if best.as_ref().is_none_or(|(_, b)| res.mean > b.mean) {
+                best = Some((i, res.clone()));
+            }
+            trial.push((*ep, res));
+        }
+        if let Some((i, _)) = best {
+            pool.swap(0, i);
+        }
+    }
+    let (policy_episode, policy) = match pool.into_iter().next() {
         Some((_, ep, net)) => (ep, net),
         None => (last, learner.online.clone()),
     };
@@ -329,7 +395,8 @@ fn train_width<const H: usize>(
         cfg.final_eval_episodes,
         cfg.eval_max_steps,
         &eval_domain,
-        &mut eval_streams(seed, true),
+        cfg.compensate,
+        &mut eval_streams(seed, Eval::Final),
     );
     Ok(RunResult {
         episodes: records,
@@ -338,6 +405,7 @@ fn train_width<const H: usize>(
         })?,
         policy_episode,
         evals,
+        trial,
         final_eval,
         env_steps,
         grad_steps: learner.steps(),
