@@ -3,7 +3,8 @@
 //! against [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in
 //! `host-sim` (the digital twin) with exactly the code that drives real pins.
 //!
-//! This module is the wiring only. Scenarios (noise, delay, pushes) belong to `host-sim`.
+//! This module is the wiring only, with the exact state or with encoders and the estimator
+//! as sensors. Scenarios (noise, dead time, pushes) belong to the `twin` crate.
 
 use core::cell::Cell;
 use core::convert::Infallible;
@@ -13,6 +14,7 @@ use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::cartpole::{CartPole, State};
 use crate::controller::{Controller, Limits, Policy, StateSensor};
+use crate::estimator::{Encoders, Estimator, quantise};
 
 /// Full scale of [`CellDuty`].
 pub const MAX_DUTY: u16 = 1000;
@@ -25,6 +27,38 @@ impl StateSensor for PlantSensor<'_> {
     #[inline]
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
         Ok(self.0.get().observation())
+    }
+}
+
+/// Reads the plant the way a board reads its own: two encoders (the true cart position and
+/// pole angle floored to counts) through the [`Estimator`], which supplies the velocities.
+pub struct EncoderSensor<'a> {
+    state: &'a Cell<State>,
+    estimator: Estimator,
+}
+
+impl<'a> EncoderSensor<'a> {
+    /// Encoders of resolution `enc`, estimated with filter discount `discount`, sampled every
+    /// `period_s`.
+    pub fn new(state: &'a Cell<State>, enc: Encoders, discount: f32, period_s: f32) -> Self {
+        EncoderSensor {
+            state,
+            estimator: Estimator::new(enc, discount, period_s),
+        }
+    }
+}
+
+impl StateSensor for EncoderSensor<'_> {
+    type Error = Infallible;
+    #[inline]
+    fn read(&mut self) -> Result<[f32; 4], Infallible> {
+        let s = self.state.get();
+        let e = self.estimator.encoders();
+        let per_rad = f64::from(e.pole_counts_per_rev) / core::f64::consts::TAU;
+        Ok(self.estimator.update(
+            quantise(s.x, f64::from(e.cart_counts_per_m)),
+            quantise(s.theta, per_rad),
+        ))
     }
 }
 
@@ -90,15 +124,39 @@ pub struct Outcome {
 }
 
 /// Runs `policy` through a [`Controller`] against `plant` from its current state until it
-/// terminates or truncates. `wait` runs before every period: a real-time loop sleeps there
-/// until its timer fires, a simulation passes `|| {}`.
-pub fn run<P: Policy>(policy: P, plant: &mut CartPole, mut wait: impl FnMut()) -> Outcome {
+/// terminates or truncates, reading the exact state. `wait` runs before every period: a
+/// real-time loop sleeps there until its timer fires, a simulation passes `|| {}`.
+pub fn run<P: Policy>(policy: P, plant: &mut CartPole, wait: impl FnMut()) -> Outcome {
     let state = Cell::new(plant.state());
+    run_with(policy, plant, PlantSensor(&state), &state, wait)
+}
+
+/// [`run`], reading the plant through encoders of resolution `enc` and the estimator.
+pub fn run_with_encoders<P: Policy>(
+    policy: P,
+    plant: &mut CartPole,
+    enc: Encoders,
+    discount: f32,
+    wait: impl FnMut(),
+) -> Outcome {
+    let state = Cell::new(plant.state());
+    let tau = plant.params.tau as f32;
+    let sensor = EncoderSensor::new(&state, enc, discount, tau);
+    run_with(policy, plant, sensor, &state, wait)
+}
+
+fn run_with<P: Policy, S: StateSensor>(
+    policy: P,
+    plant: &mut CartPole,
+    sensor: S,
+    state: &Cell<State>,
+    mut wait: impl FnMut(),
+) -> Outcome {
     let direction = Cell::new(false);
     let duty = Cell::new(0);
     let mut c: Controller<_, _, _, _, 1> = Controller::new(
         policy,
-        PlantSensor(&state),
+        sensor,
         CellPin(&direction),
         CellDuty(&duty),
         Limits::default(),
@@ -148,6 +206,18 @@ mod tests {
                 faults: 0
             }
         );
+    }
+
+    #[test]
+    fn an_encoder_read_plant_balances_through_the_estimator() {
+        let enc = Encoders {
+            cart_counts_per_m: 20_480,
+            pole_counts_per_rev: 4_096,
+        };
+        let mut plant = CartPole::new(Params::default(), 500);
+        plant.reset_to(State::from_array([0.03, -0.02, 0.04, 0.01]));
+        let out = run_with_encoders(&POLICY, &mut plant, enc, 0.5, || {});
+        assert!(out.success && out.faults == 0, "{out:?}");
     }
 
     #[test]

@@ -9,7 +9,8 @@ use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
 use crate::cartpole::{CartPole, Params};
-use crate::loopback::{Outcome, run};
+use crate::estimator::Encoders;
+use crate::loopback::{Outcome, run, run_with_encoders};
 use crate::network::{Mlp, dot, dot_portable};
 
 /// Observations whose Q-values must agree bit for bit on every target: a balanced state,
@@ -97,9 +98,25 @@ pub fn episode<const H: usize>(net: &Mlp<H>, episode: u32) -> Outcome {
     run(net, &mut plant, || {})
 }
 
+/// The encoders of the self-test's estimator episode: 4,096 counts per revolution on the
+/// pole, 20,480 per metre on the cart (the same encoder on a 20 cm drive pulley).
+pub const ENCODERS: Encoders = Encoders {
+    cart_counts_per_m: 20_480,
+    pole_counts_per_rev: 4_096,
+};
+
+/// Episode `episode` of the self-test read through [`ENCODERS`] and the estimator (discount
+/// 0.5), as a board reads its plant.
+pub fn encoder_episode<const H: usize>(net: &Mlp<H>, episode: u32) -> Outcome {
+    let mut plant = CartPole::new(Params::default(), EPISODE_STEPS);
+    plant.reset(&mut Pcg32::seed_from_u64(u64::from(episode)));
+    run_with_encoders(net, &mut plant, ENCODERS, 0.5, || {})
+}
+
 /// Writes the self-test report, one line per `line` call: the probe lines (Q-values from
 /// `forward`, the entry point under test), the [`dot_check`] result, then one line per
-/// episode and a verdict. Returns whether every episode balanced and no dot product differed.
+/// episode, an episode through encoders and the estimator, and a verdict. Returns whether
+/// every episode balanced and no dot product differed.
 pub fn report<const H: usize>(
     net: &Mlp<H>,
     forward: impl Fn(&[f32; 4], &mut [f32; 2]),
@@ -134,10 +151,17 @@ pub fn report<const H: usize>(
             o.faults
         ));
     }
+    let enc = encoder_episode(net, 0);
+    line(format_args!(
+        "estimator episode: {} steps through {}-count encoders, {}",
+        enc.steps,
+        ENCODERS.pole_counts_per_rev,
+        if enc.success { "balanced" } else { "FELL" }
+    ));
     line(format_args!(
         "self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
     ));
-    balanced == EPISODES && dot_bad == 0
+    balanced == EPISODES && dot_bad == 0 && enc.success
 }
 
 #[cfg(test)]

@@ -68,6 +68,10 @@ fn run_on(target: &str) {
         stdout.contains("self-test: 5 of 5 episodes balanced"),
         "{stdout}"
     );
+    assert!(
+        stdout.contains("estimator episode: 500 steps through 4096-count encoders, balanced"),
+        "{target}: {stdout}"
+    );
     assert!(stdout.lines().any(|l| l == "PASS"), "{stdout}");
 }
 
