@@ -215,9 +215,8 @@ impl Scenario {
         ])
     }
 
-    /// The `hard` set: perturbations beyond the default set's (longer dead time, much
-    /// shorter or heavier poles, coarse encoders with noise, strong pushes, friction), chosen
-    /// where bang-bang LQR with its nominal gain fails (`docs/CONTROL.md`).
+    /// The `hard` set: perturbations beyond the default set's under which bang-bang LQR with
+    /// its nominal gain fails (see [`HARD`] and `docs/CONTROL.md`).
     pub fn hard_set() -> Vec<Scenario> {
         parse_all(HARD)
     }
