@@ -28,6 +28,13 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
 done
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
+# The harness must compile with the project's own toolchain: if it does not, our code broke it
+# (a renamed module, say), which is a failure, not a nightly's quirk.
+if ! cargo check -q --locked --manifest-path fuzz/Cargo.toml --bins >"$log" 2>&1; then
+  tail -n 20 "$log"
+  echo "fuzz: the targets do not compile against the project's code"
+  exit 1
+fi
 if ! cargo +nightly fuzz build -s "${FUZZ_SANITIZER:-address}" >"$log" 2>&1; then
   tail -n 20 "$log"
   echo "fuzz: the targets do not build with this nightly toolchain ($(rustc +nightly --version))"

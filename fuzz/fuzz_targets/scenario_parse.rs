@@ -1,19 +1,28 @@
-//! Scenario specs into the parser; an accepted scenario's plant must stay finite.
+//! Scenario and domain specs into their parsers; an accepted scenario's plant, and that of
+//! a world drawn from an accepted domain, must stay finite.
 #![no_main]
 
-use firmware::cartpole::{State, step_with_force};
-use host_sim::twin::Scenario;
+use firmware::cartpole::{Params, State, step_with_force};
 use libfuzzer_sys::fuzz_target;
+use rand_pcg::Pcg64Mcg;
+use twin::{Domain, Scenario};
+
+fn assert_finite(p: &Params, spec: &str) {
+    let next = step_with_force(p, &State::from_array([0.0, 0.0, 0.1, 0.0]), p.force_mag);
+    assert!(next.to_array().iter().all(|v| v.is_finite()), "{spec:?}");
+}
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(spec) = std::str::from_utf8(data)
-        && let Ok(s) = Scenario::parse(spec)
-    {
-        let next = step_with_force(
-            &s.params,
-            &State::from_array([0.0, 0.0, 0.1, 0.0]),
-            s.params.force_mag,
-        );
-        assert!(next.to_array().iter().all(|v| v.is_finite()), "{spec:?}");
+    let Ok(spec) = std::str::from_utf8(data) else {
+        return;
+    };
+    if let Ok(s) = Scenario::parse(spec) {
+        assert_finite(&s.params, spec);
+    }
+    if let Ok(d) = Domain::parse(spec) {
+        let mut rng = Pcg64Mcg::new(7);
+        for _ in 0..4 {
+            assert_finite(&d.sample(&mut rng).params, spec);
+        }
     }
 });
