@@ -276,12 +276,10 @@ where
             ([f32::NAN; N_ACTIONS], Command::Coast)
         };
         if let Some(p) = &mut self.predictor {
-            let f = p.model().force_mag();
-            p.record(match command {
-                Command::Push(Action::Right) => f,
-                Command::Push(Action::Left) => -f,
-                Command::Coast => 0.0,
-            });
+            match command {
+                Command::Push(a) => p.record_push(a),
+                Command::Coast => p.record(0.0),
+            }
         }
         if self.actuate(command).is_err() {
             self.drive = Drive::Unknown;

@@ -12,7 +12,7 @@
 
 use micromath::F32Ext;
 
-use crate::cartpole::Params;
+use crate::cartpole::{Action, Params};
 use crate::network::OBS_DIM;
 
 /// Most periods of dead time the predictor can bridge.
@@ -107,6 +107,16 @@ impl Predictor {
             s = self.model.step(&s, self.sent[(self.head + k) % self.delay]);
         }
         s
+    }
+
+    /// Records a full push towards `action`'s side, the command of every period but a
+    /// coasting one.
+    pub fn record_push(&mut self, action: Action) {
+        let f = self.model.force_mag;
+        self.record(match action {
+            Action::Right => f,
+            Action::Left => -f,
+        });
     }
 
     /// Records the force commanded this period (`0` for coasting).

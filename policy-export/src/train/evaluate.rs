@@ -71,13 +71,12 @@ pub fn evaluate<const H: usize>(
         );
         let force = scenario.params.force_mag;
         let mut pred = nominal_predictor(if compensate { scenario.delay } else { 0 });
-        let nominal = pred.model().force_mag();
         let mut ret = 0.0;
         loop {
             let action = net.greedy_action(&pred.predict(&world.observe()));
             let sign = if action == Action::Right { 1.0 } else { -1.0 };
-            pred.record(sign * nominal);
-            let t = world.apply(f64::from(sign) * force);
+            pred.record_push(action);
+            let t = world.apply(sign * force);
             ret += f64::from(t.reward);
             let (s, p) = (world.state(), &scenario.params);
             cost += (s.theta / p.theta_threshold_radians).powi(2) + (s.x / p.x_threshold).powi(2);

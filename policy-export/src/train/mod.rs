@@ -271,11 +271,7 @@ fn train_width<const H: usize>(
             } else {
                 argmax(&q)
             };
-            let nominal = pred.model().force_mag();
-            pred.record(match action {
-                Action::Right => nominal,
-                Action::Left => -nominal,
-            });
+            pred.record_push(action);
             let tr = world.apply(match action {
                 Action::Right => force,
                 Action::Left => -force,
