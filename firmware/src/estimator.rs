@@ -68,6 +68,37 @@ impl Channel {
     }
 }
 
+/// One channel's conversion from the filter's raw units to the network's Q3.12 input, in
+/// integers: `round(raw * multiplier / 2^40)`, saturated to `i16`. `raw` is first clamped to
+/// `+-limit`, beyond which the result saturates anyway, so the product stays far inside
+/// `i64` (under 2^56).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct ToFixed {
+    multiplier: i64,
+    limit: i64,
+}
+
+impl ToFixed {
+    const SHIFT: u32 = 40;
+
+    /// For `q12_per_raw` output units per raw unit, capped at 2^20 (a period under a
+    /// microsecond); computed once, at construction.
+    fn new(q12_per_raw: f64) -> ToFixed {
+        let k = q12_per_raw.clamp(1e-12, f64::from(1u32 << 20));
+        ToFixed {
+            multiplier: libm::round(k * (1u64 << Self::SHIFT) as f64) as i64,
+            limit: libm::ceil(32_768.0 / k) as i64 + 1,
+        }
+    }
+
+    #[inline]
+    fn apply(self, raw: i64) -> i16 {
+        let r = raw.clamp(-self.limit, self.limit);
+        let half = 1i64 << (Self::SHIFT - 1);
+        ((r * self.multiplier + half) >> Self::SHIFT).clamp(-32_768, 32_767) as i16
+    }
+}
+
 /// The state estimator of [the module](self): two encoders in, `[x, x_dot, theta, theta_dot]`
 /// out, once per period. Fixed-size, allocation-free, panic-free for any counts.
 #[derive(Clone, Debug, PartialEq)]
@@ -79,6 +110,7 @@ pub struct Estimator {
     cart: Channel,
     pole: Channel,
     started: bool,
+    fixed: [ToFixed; 4],
 }
 
 impl Estimator {
@@ -91,17 +123,30 @@ impl Estimator {
             discount.clamp(0.0, 0.99)
         };
         let q15 = |v: f32| (v * 32_768.0 + 0.5) as i64;
+        let enc = Encoders {
+            cart_counts_per_m: enc.cart_counts_per_m.max(1),
+            pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
+        };
+        let period_s = if period_s > 0.0 { period_s } else { 0.02 };
+        // Raw units are 1/4096 count (per period), the output's 1/4096 SI unit: the 4096s
+        // cancel, leaving SI units per count (per period).
+        let cart = 1.0 / f64::from(enc.cart_counts_per_m);
+        let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
+        let per_s = 1.0 / f64::from(period_s);
         Estimator {
-            enc: Encoders {
-                cart_counts_per_m: enc.cart_counts_per_m.max(1),
-                pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
-            },
-            period_s: if period_s > 0.0 { period_s } else { 0.02 },
+            enc,
+            period_s,
             alpha_q15: q15(1.0 - d * d),
             beta_q15: q15((1.0 - d) * (1.0 - d)),
             cart: Channel::default(),
             pole: Channel::default(),
             started: false,
+            fixed: [
+                ToFixed::new(cart),
+                ToFixed::new(cart * per_s),
+                ToFixed::new(pole),
+                ToFixed::new(pole * per_s),
+            ],
         }
     }
 
@@ -135,6 +180,20 @@ impl Estimator {
             self.cart.v as f32 * m_per_unit / self.period_s,
             self.pole.p as f32 * rad_per_unit,
             self.pole.v as f32 * rad_per_unit / self.period_s,
+        ]
+    }
+
+    /// The current estimate in the integer network's input format
+    /// ([`crate::network::int`]): `[x, x_dot, theta, theta_dot]` in SI units with 12
+    /// fraction bits, rounded to nearest and saturated to `i16` (+-8 units). Integer
+    /// arithmetic only, so an FPU-less core runs it without a float library call.
+    pub fn fixed_state(&self) -> [i16; 4] {
+        let [x, x_dot, theta, theta_dot] = self.fixed;
+        [
+            x.apply(self.cart.p),
+            x_dot.apply(self.cart.v),
+            theta.apply(self.pole.p),
+            theta_dot.apply(self.pole.v),
         ]
     }
 
@@ -262,5 +321,50 @@ mod tests {
         assert_eq!(quantise(-0.00001, 10_000.0), -1);
         assert_eq!(quantise(1e300, 10_000.0), i32::MAX);
         assert_eq!(quantise(f64::NAN, 10_000.0), 0);
+    }
+
+    #[test]
+    fn the_fixed_state_is_the_float_state_correctly_rounded_in_q12() {
+        for (enc, d) in [
+            (ENC, 0.5),
+            (
+                Encoders {
+                    cart_counts_per_m: 37,
+                    pole_counts_per_rev: 16,
+                },
+                0.0,
+            ),
+            (
+                Encoders {
+                    cart_counts_per_m: 1 << 26,
+                    pole_counts_per_rev: 1 << 24,
+                },
+                0.9,
+            ),
+        ] {
+            let mut e = Estimator::new(enc, d, 0.02);
+            let cart = 1.0 / f64::from(enc.cart_counts_per_m);
+            let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
+            let k = [cart, cart / 0.02f32 as f64, pole, pole / 0.02f32 as f64];
+            let mut c = (0i32, 0i32);
+            for step in 0..300i32 {
+                // A wandering, sometimes jumping pair of counts, out to the i32 range.
+                c.0 = c.0.wrapping_add(step.wrapping_mul(7919) % 5003 - 2400);
+                c.1 = c.1.wrapping_add(step.wrapping_mul(104_729) % 977 - 480);
+                if step % 97 == 0 {
+                    c.0 = c.0.wrapping_mul(-3);
+                }
+                e.update(c.0, c.1);
+                let fixed = e.fixed_state();
+                for ((raw, k), got) in e.raw().iter().zip(k).zip(fixed) {
+                    let exact = *raw as f64 * k;
+                    let want = exact.clamp(-32_768.0, 32_767.0);
+                    assert!(
+                        (f64::from(got) - want).abs() <= 0.5 + 1e-6 * want.abs().max(1.0),
+                        "{enc:?} step {step}: raw {raw} -> {got}, exact {exact}"
+                    );
+                }
+            }
+        }
     }
 }

@@ -7,17 +7,30 @@
 //!                             const float obs[4], float q[2]);
 //! ```
 //!
-//! and `cartpole_mlpH_forward` for every width of
+//! and the integer network's, for cores without an FPU (obs in Q3.12, q in the network's
+//! integer scale, see [`crate::network::int`]):
+//!
+//! ```c
+//! void cartpole_policy_forward_int(const int16_t obs[4], int32_t q[2]);  /* the shipped one */
+//! void cartpole_qmlp64_forward(const struct cartpole_qmlp64 *w,
+//!                              const int16_t obs[4], int32_t q[2]);
+//! ```
+//!
+//! and `cartpole_mlpH_forward`, `cartpole_qmlpH_forward` for every width of
 //! [`SUPPORTED_WIDTHS`](crate::network::SUPPORTED_WIDTHS). `struct cartpole_mlpH` is
-//! [`Mlp<H>`] (`repr(C)`), as `policy-export export --format c` writes it. All of them run
-//! [`Mlp::forward`], the one forward pass, so C gets the Rust Q-values bit for bit.
+//! [`Mlp<H>`] (`repr(C)`), as `policy-export export --format c` writes it, and
+//! `struct cartpole_qmlpH` is [`QMlp<H>`] (`--quant int8`). All of them run the one forward
+//! pass of their network ([`Mlp::forward`], [`QMlp::forward`]), so C gets the Rust values bit
+//! for bit.
 //!
 //! Pointers arrive as `Option<&T>`, which has the ABI of a C pointer with NULL as `None`: a
 //! NULL argument makes the call write nothing instead of being undefined behaviour. Non-NULL
 //! pointers must be valid and aligned, as for any C function taking arrays.
 
+use crate::network::int::QMlp;
 use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
 use crate::policy::POLICY;
+use crate::policy_int::POLICY_INT;
 
 fn forward<const H: usize>(
     w: Option<&Mlp<H>>,
@@ -42,8 +55,31 @@ pub extern "C" fn cartpole_policy_forward(
     forward(Some(&POLICY), obs, q);
 }
 
+fn forward_int<const H: usize>(
+    w: Option<&QMlp<H>>,
+    obs: Option<&[i16; OBS_DIM]>,
+    q: Option<&mut [i32; N_ACTIONS]>,
+) {
+    if let (Some(w), Some(obs), Some(q)) = (w, obs, q) {
+        *q = w.forward(obs);
+    }
+}
+
+/// `q` = the advantages `Q - mean(Q)` of left and right by the shipped policy's integer
+/// version, `obs` in Q3.12; push right iff `q[1] > q[0]`. No floating-point operation; allocation-free and
+/// panic-free.
+// SAFETY: as for `cartpole_policy_forward`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_policy_forward_int(
+    obs: Option<&[i16; OBS_DIM]>,
+    q: Option<&mut [i32; N_ACTIONS]>,
+) {
+    forward_int(Some(&POLICY_INT), obs, q);
+}
+
 macro_rules! c_forwards {
-    ($($h:literal => $name:ident,)*) => { $(
+    ($($h:literal => $name:ident / $qname:ident,)*) => { $(
         #[doc = concat!(
             "`q = [Q(obs, left), Q(obs, right)]` of the 4-", stringify!($h), "-",
             stringify!($h), "-2 network `w`; push right iff `q[1] > q[0]`."
@@ -57,6 +93,22 @@ macro_rules! c_forwards {
             q: Option<&mut [f32; N_ACTIONS]>,
         ) {
             forward(w, obs, q);
+        }
+
+        #[doc = concat!(
+            "`q` = the two outputs of the integer 4-", stringify!($h), "-",
+            stringify!($h), "-2 network `w` (as exported: the advantages), `obs` in Q3.12; \
+             push right iff `q[1] > q[0]`."
+        )]
+        // SAFETY: as for `cartpole_policy_forward`: one definition per C name.
+        #[allow(unsafe_code)]
+        #[unsafe(no_mangle)]
+        pub extern "C" fn $qname(
+            w: Option<&QMlp<$h>>,
+            obs: Option<&[i16; OBS_DIM]>,
+            q: Option<&mut [i32; N_ACTIONS]>,
+        ) {
+            forward_int(w, obs, q);
         }
     )* };
 }
@@ -75,5 +127,12 @@ mod tests {
         cartpole_mlp64_forward(Some(&POLICY), None, Some(&mut q));
         assert_eq!(q, [7.0; 2]);
         cartpole_mlp64_forward(Some(&POLICY), Some(&PROBES[1]), None);
+        let mut qi = [7i32; 2];
+        cartpole_policy_forward_int(None, Some(&mut qi));
+        cartpole_qmlp64_forward(None, Some(&[100; 4]), Some(&mut qi));
+        cartpole_qmlp64_forward(Some(&POLICY_INT), None, Some(&mut qi));
+        assert_eq!(qi, [7; 2]);
+        cartpole_policy_forward_int(Some(&[100, -50, 30, 20]), Some(&mut qi));
+        assert_eq!(qi, POLICY_INT.forward(&[100, -50, 30, 20]));
     }
 }

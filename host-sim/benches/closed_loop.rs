@@ -10,6 +10,7 @@ use std::time::Instant;
 
 use firmware::cartpole::{Action, CartPole, Params};
 use firmware::policy::POLICY;
+use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{ControllerKind, Net, episode};
 use host_sim::wide::{Kernel, WideMlp};
 use rand_core::SeedableRng;
@@ -55,6 +56,7 @@ fn main() {
     );
     for kind in [
         ControllerKind::Policy,
+        ControllerKind::PolicyInt,
         ControllerKind::Lqr,
         ControllerKind::Rule,
     ] {
@@ -65,7 +67,10 @@ fn main() {
         if let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) {
             line(
                 &format!("controller + policy ({kernel:?}) + plant"),
-                run(ControllerKind::Policy, &Net::new(wide)),
+                run(
+                    ControllerKind::Policy,
+                    &Net::new(wide, Box::new(POLICY_INT.clone())),
+                ),
             );
         }
     }

@@ -10,11 +10,14 @@ use std::fmt;
 
 use anyhow::{Result, bail};
 use firmware::controller::Policy;
+use firmware::network::int::{QMlp, fixed_obs};
 use firmware::policy::POLICY;
+use firmware::policy_int::POLICY_INT;
 use host_common::stats::{Estimate, wilson};
 use rayon::prelude::*;
 use serde::Serialize;
 use weights::Weights;
+use weights::quant::Granularity;
 
 use crate::baselines::{AngleRule, Lqr, Random};
 use crate::wide::WideMlp;
@@ -22,9 +25,25 @@ use twin::run::{policy_rng, run_episode};
 use twin::{EpisodeStats, Frame, Scenario};
 
 /// A Q-network of any supported width, loaded at run time, laid out for the host's vector
-/// units ([`WideMlp`]: the firmware's forward pass, bit for bit).
+/// units ([`WideMlp`]: the firmware's forward pass, bit for bit), with its integer version
+/// (`firmware::network::int`, as `policy-export export --quant int8` writes it).
 #[derive(Debug)]
-pub struct Net(Box<dyn Forward>);
+pub struct Net {
+    float: Box<dyn Forward>,
+    int: Box<dyn IntForward>,
+}
+
+/// A [`QMlp`] of some width, behind one type.
+trait IntForward: fmt::Debug + Send + Sync {
+    fn forward(&self, obs: &[i16; 4]) -> [i32; 2];
+}
+
+impl<const H: usize> IntForward for QMlp<H> {
+    #[inline]
+    fn forward(&self, obs: &[i16; 4]) -> [i32; 2] {
+        QMlp::forward(self, obs)
+    }
+}
 
 /// A [`WideMlp`] of some width, behind one type.
 trait Forward: fmt::Debug + Send + Sync {
@@ -39,22 +58,24 @@ impl<const H: usize> Forward for WideMlp<H> {
 }
 
 impl Net {
-    /// A laid-out network of width `H`.
-    pub fn new<const H: usize>(wide: Box<WideMlp<H>>) -> Net {
-        Net(wide)
+    /// A laid-out network of width `H` and its integer version.
+    pub fn new<const H: usize>(wide: Box<WideMlp<H>>, int: Box<QMlp<H>>) -> Net {
+        Net { float: wide, int }
     }
 
-    /// The policy compiled into `firmware`.
+    /// The policy compiled into `firmware`, and its integer version compiled beside it.
     pub fn shipped() -> Net {
-        Net::new(WideMlp::new(&POLICY))
+        Net::new(WideMlp::new(&POLICY), Box::new(POLICY_INT.clone()))
     }
 
-    /// A network from checked weights of any supported width.
+    /// A network from checked weights of any supported width, quantised as
+    /// `policy-export export --quant int8` would (per channel, the same calibration).
     pub fn from_weights(w: &Weights) -> Result<Net> {
+        let q = twin::calibrate::quantise_policy(w, Granularity::PerChannel)?;
         macro_rules! by_width {
-            ($($h:literal => $c:ident,)*) => {
+            ($($h:literal => $c:ident / $qc:ident,)*) => {
                 match w.width() {
-                    $($h => Net::new(WideMlp::<$h>::new(&*w.to_mlp()?)),)*
+                    $($h => Net::new(WideMlp::<$h>::new(&*w.to_mlp()?), q.to_qmlp::<$h>()?),)*
                     other => bail!(
                         "hidden width {other} is not one of {:?}",
                         firmware::network::SUPPORTED_WIDTHS
@@ -64,12 +85,34 @@ impl Net {
         }
         Ok(firmware::for_each_width!(by_width))
     }
+
+    /// The float network's Q-values.
+    pub fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
+        self.float.forward(obs)
+    }
+
+    /// The integer network's outputs for a fixed-point observation.
+    pub fn forward_int(&self, obs: &[i16; 4]) -> [i32; 2] {
+        self.int.forward(obs)
+    }
 }
 
 impl Policy for &Net {
     #[inline]
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        self.0.forward(obs)
+        self.float.forward(obs)
+    }
+}
+
+/// The integer network of a [`Net`] as a controller's policy: the reading rounded to Q3.12,
+/// the scores the integer outputs (exact in f32, see `firmware::controller`).
+#[derive(Clone, Copy, Debug)]
+pub struct IntNet<'a>(pub &'a Net);
+
+impl Policy for IntNet<'_> {
+    #[inline]
+    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
+        self.0.int.forward(&fixed_obs(obs)).map(|q| q as f32)
     }
 }
 
@@ -79,6 +122,8 @@ impl Policy for &Net {
 pub enum ControllerKind {
     /// The Q-network (shipped, or `--policy FILE`).
     Policy,
+    /// Its integer version (int8 weights, no floating point in the forward pass).
+    PolicyInt,
     /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
     Lqr,
     /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
@@ -93,6 +138,7 @@ impl fmt::Display for ControllerKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             ControllerKind::Policy => "policy",
+            ControllerKind::PolicyInt => "policy-int",
             ControllerKind::Lqr => "lqr",
             ControllerKind::LqrPredict => "lqr-predict",
             ControllerKind::Rule => "rule",
@@ -115,6 +161,7 @@ pub fn episode(
     match kind {
         // The policy is told the dead time, as a board knows its own.
         ControllerKind::Policy => run_episode(net, s, h, seed, episode, true, on_frame),
+        ControllerKind::PolicyInt => run_episode(IntNet(net), s, h, seed, episode, true, on_frame),
         ControllerKind::Lqr => run_episode(Lqr::nominal(), s, h, seed, episode, false, on_frame),
         ControllerKind::LqrPredict => {
             run_episode(Lqr::nominal(), s, h, seed, episode, true, on_frame)

@@ -3,6 +3,7 @@
 //!
 //! - [`replay`]: replays recorded Gymnasium trajectories through `firmware::cartpole` and
 //!   reports, per case, how far the states drift (they should not move by a single bit).
+//! - [`agree`]: how often the integer network acts as the float one, and where they part.
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
@@ -13,6 +14,7 @@
 
 #![deny(unsafe_code)]
 
+pub mod agree;
 pub mod baselines;
 pub mod eval;
 pub mod render;

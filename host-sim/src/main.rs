@@ -77,6 +77,26 @@ enum Command {
         #[arg(long)]
         min_success: Option<f64>,
     },
+    /// Compare the integer network (what `policy-export export --quant int8` writes) with the
+    /// float one on states the float policy visits: how often they choose the same action,
+    /// and, where they do not, how close the float network was to choosing the other.
+    Agree {
+        /// A policy instead of the one compiled into firmware (see `eval`).
+        #[arg(long)]
+        policy: Option<PathBuf>,
+        /// Tensor-name prefix of the network in --policy, when it holds several.
+        #[arg(long, requires = "policy")]
+        prefix: Option<String>,
+        /// Visited states to compare (spread over the default set's rows).
+        #[arg(long, default_value_t = 1_000_000)]
+        states: u64,
+        /// Seed of the episodes.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Print one JSON object instead of the tables.
+        #[arg(long)]
+        json: bool,
+    },
     /// Draw one episode: an animated GIF of the cart and pole, and a PNG of x, theta and the
     /// commands over time.
     Render {
@@ -133,6 +153,13 @@ fn main() -> ExitCode {
             json,
             min_success,
         ),
+        Command::Agree {
+            policy,
+            prefix,
+            states,
+            seed,
+            json,
+        } => run_agree(load_net(policy, prefix.as_deref()), states, seed, json).map(|()| true),
         Command::Render {
             out,
             controller,
@@ -194,6 +221,24 @@ fn parse_scenarios(specs: &[String]) -> Result<Vec<Scenario>> {
         }
     }
     Ok(out)
+}
+
+/// Most states `agree` compares: a hundred million take minutes.
+const MAX_AGREE_STATES: u64 = 100_000_000;
+
+fn run_agree(net: impl FnOnce() -> Result<Net>, states: u64, seed: u64, json: bool) -> Result<()> {
+    anyhow::ensure!(
+        (1..=MAX_AGREE_STATES).contains(&states),
+        "--states must be in [1, {MAX_AGREE_STATES}], got {states}"
+    );
+    let net = net()?;
+    let report = host_sim::agree::agreement(&net, states, seed);
+    if json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{}", host_sim::agree::format_report(&report));
+    }
+    Ok(())
 }
 
 #[allow(clippy::too_many_arguments)]

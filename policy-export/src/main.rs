@@ -19,6 +19,7 @@ use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
 use weights::checkpoint;
 use weights::files::{MAX_POLICY_BYTES, check_output, read_capped, write_atomic};
+use weights::quant::{self, Granularity};
 use weights::source;
 
 #[derive(Parser)]
@@ -65,13 +66,37 @@ struct ExportArgs {
     /// Rust module (for any crate that depends on `firmware`) or C header.
     #[arg(long, value_enum, default_value = "rust")]
     format: Format,
-    /// Name of the static: default POLICY (Rust) or cartpole_policy (C).
+    /// Name of the static: default POLICY (Rust) or cartpole_policy (C); POLICY_INT or
+    /// cartpole_policy_int with --quant.
     #[arg(long)]
     name: Option<String>,
     /// Tensor-name prefix of the network to take, when the file holds several (an online
     /// and a target net); "" for none.
     #[arg(long)]
     prefix: Option<String>,
+    /// Write the integer network for cores without an FPU (`firmware::network::int`):
+    /// int8 weights calibrated on states the policy visits (`docs/QUANTISATION.md`).
+    #[arg(long, value_enum)]
+    quant: Option<Quant>,
+    /// Weight scales of the hidden layers with --quant: one per unit or one per tensor.
+    #[arg(long, value_enum, default_value = "per-channel", requires = "quant")]
+    granularity: GranularityArg,
+}
+
+/// The integer formats an export can take.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Quant {
+    /// int8 weights, int32 accumulators, u8 activations.
+    Int8,
+}
+
+/// `weights::quant::Granularity` on the command line.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum GranularityArg {
+    /// One scale per hidden unit.
+    PerChannel,
+    /// One scale per weight tensor.
+    PerTensor,
 }
 
 /// The target language of an export.
@@ -496,9 +521,11 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
 
 fn cmd_export(a: &ExportArgs) -> Result<()> {
     let name = a.name.clone().unwrap_or_else(|| {
-        match a.format {
-            Format::Rust => source::DEFAULT_RUST_NAME,
-            Format::C => source::DEFAULT_C_NAME,
+        match (a.format, a.quant.is_some()) {
+            (Format::Rust, false) => source::DEFAULT_RUST_NAME,
+            (Format::C, false) => source::DEFAULT_C_NAME,
+            (Format::Rust, true) => "POLICY_INT",
+            (Format::C, true) => "cartpole_policy_int",
         }
         .to_string()
     });
@@ -530,16 +557,38 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
             import.describe()
         )]
     };
-    let text = match a.format {
-        Format::Rust => source::rust_module(&import.weights, &name, &prov)?,
-        Format::C => source::c_header(&import.weights, &name, &prov)?,
+    let quantised = match a.quant {
+        None => None,
+        Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(
+            &import.weights,
+            match a.granularity {
+                GranularityArg::PerChannel => Granularity::PerChannel,
+                GranularityArg::PerTensor => Granularity::PerTensor,
+            },
+        )?),
+    };
+    let text = match (a.format, &quantised) {
+        (Format::Rust, None) => source::rust_module(&import.weights, &name, &prov)?,
+        (Format::C, None) => source::c_header(&import.weights, &name, &prov)?,
+        (Format::Rust, Some(q)) => quant::rust_module(q, &name, &prov)?,
+        (Format::C, Some(q)) => quant::c_header(q, &name, &prov)?,
     };
     write_atomic(&a.out, text.as_bytes())?;
-    eprintln!(
-        "wrote {}: {name}, {} parameters ({})",
-        a.out.display(),
-        import.weights.params(),
-        import.describe()
-    );
+    match &quantised {
+        None => eprintln!(
+            "wrote {}: {name}, {} parameters ({})",
+            a.out.display(),
+            import.weights.params(),
+            import.describe()
+        ),
+        Some(q) => eprintln!(
+            "wrote {}: {name}, {} parameters in {} bytes ({}; {})",
+            a.out.display(),
+            import.weights.params(),
+            q.flash_bytes(),
+            import.describe(),
+            q.describe()
+        ),
+    }
     Ok(())
 }

@@ -7,6 +7,7 @@
 //! - [`world`]: one episode of a scenario, period by period: the reading, then the actuator.
 //! - [`run`]: the unchanged firmware controller against a world, through pins and a sensor,
 //!   with per-episode statistics and seeded streams.
+//! - [`calibrate`]: the observations a policy visits, to quantise it on.
 //! - [`domain`]: distributions over scenarios for domain-randomised training.
 //!
 //! The plant and the estimator are the firmware's; this crate adds only what surrounds them.
@@ -14,6 +15,7 @@
 #![forbid(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod calibrate;
 pub mod domain;
 pub mod run;
 pub mod scenario;

@@ -5,6 +5,8 @@
 //!   `nn.Sequential` indices, prefixes such as CleanRL's `network.` or Stable-Baselines3's
 //!   `q_net.q_net.`), recognised by their chain of shapes; and the canonical file the trainer
 //!   writes.
+//! - [`quant`]: post-training int8 quantisation for the integer network, and its Rust and C
+//!   source.
 //! - [`source`]: Rust modules and C headers that compile the weights into flash, bit for bit.
 //! - [`files`]: reading only regular files, with a size cap, and writing outputs atomically
 //!   without replacing anything that is not a regular file.
@@ -17,6 +19,7 @@
 
 pub mod checkpoint;
 pub mod files;
+pub mod quant;
 pub mod source;
 
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, TENSOR_NAMES, shapes};

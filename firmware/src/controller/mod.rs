@@ -68,6 +68,7 @@ use embedded_hal::pwm::SetDutyCycle;
 use heapless::HistoryBuf;
 
 use crate::cartpole::Action;
+use crate::network::int::{QMlp, fixed_obs};
 use crate::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
 
 pub mod predict;
@@ -99,6 +100,18 @@ impl<const H: usize> Policy for &Mlp<H> {
     #[inline]
     fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
         self.forward(obs)
+    }
+}
+
+/// The integer network behind a float sensor: the reading is rounded to Q3.12
+/// ([`fixed_obs`]), the forward pass is integer-only, and the scores are the integer outputs
+/// as f32, exact below 2^24 (which every exported network's outputs are, by construction), so
+/// the controller decides as `q[1] > q[0]` does. A board with encoders can skip the float
+/// reading altogether: `QMlp::forward` on `Estimator::fixed_state`.
+impl<const H: usize> Policy for &QMlp<H> {
+    #[inline]
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+        self.forward(&fixed_obs(obs)).map(|q| q as f32)
     }
 }
 
@@ -186,6 +199,10 @@ pub struct FaultCounters {
     pub out_of_range: u32,
     /// Periods in which a pin or duty-cycle write failed.
     pub actuator_errors: u32,
+    /// Timer ticks that arrived while a period's step still ran (reported by the loop that
+    /// paces the controller, [`Controller::record_overruns`]): each is a period the
+    /// controller started late.
+    pub overruns: u32,
 }
 
 /// One period, as the telemetry ring keeps it.
@@ -305,6 +322,13 @@ where
     /// Fault totals so far.
     pub fn faults(&self) -> FaultCounters {
         self.faults
+    }
+
+    /// Counts `ticks` timer ticks that arrived while the last step still ran. The
+    /// controller does not own the timer, so the loop that waits for it reports them: a
+    /// step that overran its period is counted, never hidden.
+    pub fn record_overruns(&mut self, ticks: u32) {
+        self.faults.overruns = self.faults.overruns.saturating_add(ticks);
     }
 
     /// The last `N` periods, oldest first.

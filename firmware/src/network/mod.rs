@@ -36,6 +36,7 @@
 
 use crate::cartpole::Action;
 
+pub mod int;
 #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
 pub mod vfp;
 #[cfg(target_arch = "x86_64")]
@@ -54,7 +55,7 @@ pub const PAPER_WIDTH: usize = 64;
 pub type PolicyNet = Mlp<PAPER_WIDTH>;
 
 macro_rules! supported_widths {
-    ($($h:literal => $c:ident,)*) => {
+    ($($h:literal => $c:ident / $qc:ident,)*) => {
         /// Hidden widths the trainer, the simulator and the C API are built for (any other `H`
         /// compiles as [`Mlp<H>`] too). The list is [`for_each_width!`](crate::for_each_width).
         pub const SUPPORTED_WIDTHS: &[usize] = &[$($h),*];

@@ -192,7 +192,7 @@ pub fn train(
     cfg.validate()?;
     let kernel = cfg.kernel.resolve()?;
     macro_rules! by_width {
-        ($($h:literal => $c:ident,)*) => {
+        ($($h:literal => $c:ident / $qc:ident,)*) => {
             match cfg.width {
                 $($h => train_width::<$h>(cfg, seed, kernel, on_episode),)*
                 w => unreachable!("validate() admits only supported widths, got {w}"),

@@ -1,0 +1,204 @@
+//! How often the integer network (`firmware::network::int`) takes the float network's action,
+//! on states the float policy visits, and where the two part.
+//!
+//! The states are every observation the float policy's network is asked about in episodes
+//! of the default robustness set (500 steps, the dead time predicted, as in `eval`), row
+//! after row until the requested count; the episodes' seed is not the calibration's
+//! (`twin::calibrate`), so the quantiser has not seen them. A disagreement is binned by the
+//! float network's own margin `|Q_right - Q_left|`: where it is tiny, either action is about
+//! as good, and a flip costs little.
+
+use firmware::network::int::fixed_obs;
+use rayon::prelude::*;
+use serde::Serialize;
+use twin::Scenario;
+use twin::calibrate::visited;
+
+use crate::eval::Net;
+
+/// Upper bounds of the margin bins (the last is open).
+pub const MARGIN_BINS: [f64; 5] = [0.01, 0.03, 0.1, 0.3, f64::INFINITY];
+
+/// One margin bin.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Bin {
+    /// States whose float margin is below this (and at or above the previous bin's).
+    pub margin_below: f64,
+    /// States in the bin.
+    pub states: u64,
+    /// Of them, where the integer network pushed the other way.
+    pub disagree: u64,
+}
+
+/// One scenario's count.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct ScenarioCount {
+    /// Scenario spec.
+    pub scenario: String,
+    /// States visited.
+    pub states: u64,
+    /// Disagreements among them.
+    pub disagree: u64,
+}
+
+/// The agreement report.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Report {
+    /// States compared.
+    pub states: u64,
+    /// Where both networks chose the same action.
+    pub agree: u64,
+    /// Disagreements by the float network's margin.
+    pub by_margin: Vec<Bin>,
+    /// By scenario.
+    pub by_scenario: Vec<ScenarioCount>,
+    /// The largest float margin at which the two disagreed, and its observation.
+    pub worst: Option<(f64, [f32; 4])>,
+}
+
+/// One row's counts, before they are summed.
+struct RowCount {
+    count: ScenarioCount,
+    bins: Vec<Bin>,
+    worst: Option<(f64, [f32; 4])>,
+}
+
+/// Compares the two networks of `net` on at least `states` visited states (see [the
+/// module](self)), from episodes of `seed`.
+pub fn agreement(net: &Net, states: u64, seed: u64) -> Report {
+    let rows = Scenario::default_set();
+    let per_row = states.div_ceil(rows.len() as u64);
+    // Episodes end early when the policy fails, so run them one at a time per row until
+    // the row has its share.
+    let counts: Vec<RowCount> = rows
+        .par_iter()
+        .map(|s| {
+            let mut bins: Vec<Bin> = MARGIN_BINS
+                .iter()
+                .map(|&m| Bin {
+                    margin_below: m,
+                    states: 0,
+                    disagree: 0,
+                })
+                .collect();
+            let mut count = ScenarioCount {
+                scenario: s.name.clone(),
+                states: 0,
+                disagree: 0,
+            };
+            let mut worst: Option<(f64, [f32; 4])> = None;
+            let mut episode = 0;
+            while count.states < per_row {
+                let one = visited(net, std::slice::from_ref(s), 1, 500, seed ^ (episode << 20));
+                episode += 1;
+                for obs in one.iter().take((per_row - count.states) as usize) {
+                    let q = net.forward(obs);
+                    let qi = net.forward_int(&fixed_obs(obs));
+                    let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
+                    let differ = (q[1] > q[0]) != (qi[1] > qi[0]);
+                    count.states += 1;
+                    let bin = bins.iter_mut().find(|b| margin < b.margin_below);
+                    if let Some(b) = bin {
+                        b.states += 1;
+                        b.disagree += u64::from(differ);
+                    }
+                    if differ {
+                        count.disagree += 1;
+                        if worst.is_none_or(|(m, _)| margin > m) {
+                            worst = Some((margin, *obs));
+                        }
+                    }
+                }
+            }
+            RowCount { count, bins, worst }
+        })
+        .collect();
+    let mut report = Report {
+        states: 0,
+        agree: 0,
+        by_margin: MARGIN_BINS
+            .iter()
+            .map(|&m| Bin {
+                margin_below: m,
+                states: 0,
+                disagree: 0,
+            })
+            .collect(),
+        by_scenario: Vec::new(),
+        worst: None,
+    };
+    for RowCount { count, bins, worst } in counts {
+        report.states += count.states;
+        report.agree += count.states - count.disagree;
+        for (total, b) in report.by_margin.iter_mut().zip(bins) {
+            total.states += b.states;
+            total.disagree += b.disagree;
+        }
+        if let Some(w) = worst
+            && report.worst.is_none_or(|(m, _)| w.0 > m)
+        {
+            report.worst = Some(w);
+        }
+        report.by_scenario.push(count);
+    }
+    report
+}
+
+/// The report as a table.
+pub fn format_report(r: &Report) -> String {
+    use std::fmt::Write;
+    let pct = |a: u64, n: u64| {
+        if n == 0 {
+            0.0
+        } else {
+            100.0 * a as f64 / n as f64
+        }
+    };
+    let mut s = String::new();
+    let _ = writeln!(
+        s,
+        "int8 against f32: the same action in {} of {} visited states ({:.3}%)",
+        r.agree,
+        r.states,
+        pct(r.agree, r.states)
+    );
+    let _ = writeln!(s, "\nfloat margin |Q_right - Q_left|     states  disagree");
+    let mut lower = 0.0;
+    for b in &r.by_margin {
+        let range = if b.margin_below.is_finite() {
+            format!("[{lower}, {})", b.margin_below)
+        } else {
+            format!(">= {lower}")
+        };
+        let _ = writeln!(
+            s,
+            "{range:<34} {:>7} {:>9} ({:.2}%)",
+            b.states,
+            b.disagree,
+            pct(b.disagree, b.states)
+        );
+        lower = b.margin_below;
+    }
+    let width = r
+        .by_scenario
+        .iter()
+        .map(|c| c.scenario.len())
+        .max()
+        .unwrap_or(8)
+        .max(8);
+    let _ = writeln!(s, "\n{:<width$}  states  disagree", "scenario");
+    for c in &r.by_scenario {
+        let _ = writeln!(
+            s,
+            "{:<width$} {:>7} {:>9} ({:.2}%)",
+            c.scenario,
+            c.states,
+            c.disagree,
+            pct(c.disagree, c.states)
+        );
+    }
+    if let Some((m, obs)) = r.worst {
+        let _ = writeln!(s, "\nlargest margin of a disagreement: {m:.4} at {obs:?}");
+    }
+    s
+}

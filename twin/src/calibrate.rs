@@ -1,0 +1,89 @@
+//! The observations a policy visits, for calibrating its integer version
+//! (`weights::quant`): the activations it must represent are those of the states it meets,
+//! not those of states it never reaches.
+//!
+//! The set is fixed: [`CALIBRATION_EPISODES`] episodes of 500 steps in every row of the
+//! default robustness set, from seed [`CALIBRATION_SEED`] (not the evaluation's seed, so the
+//! evaluation's episodes are not the calibration's), the policy told its dead time as in the
+//! evaluation. So the trainer's export and the simulator quantise a policy identically.
+
+use firmware::controller::Policy;
+use firmware::network::{Mlp, OBS_DIM};
+use weights::Weights;
+use weights::quant::{Granularity, Quantised, quantise};
+
+use crate::run::run_episode;
+use crate::scenario::Scenario;
+
+/// Seed of the calibration episodes.
+pub const CALIBRATION_SEED: u64 = 0xCA11_B8A7E;
+/// Episodes per row of the default set.
+pub const CALIBRATION_EPISODES: u64 = 4;
+/// Steps per calibration episode at most.
+pub const CALIBRATION_HORIZON: u32 = 500;
+
+/// A policy that remembers what it was asked.
+struct Recording<'a, P> {
+    inner: P,
+    seen: &'a mut Vec<[f32; OBS_DIM]>,
+}
+
+impl<P: Policy> Policy for Recording<'_, P> {
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; 2] {
+        self.seen.push(*obs);
+        self.inner.scores(obs)
+    }
+}
+
+/// Every observation `policy` is asked about in `episodes` episodes of each of `scenarios`
+/// from `seed`, in order (what its network sees: after the dead-time predictor).
+pub fn visited<P: Policy + Copy>(
+    policy: P,
+    scenarios: &[Scenario],
+    episodes: u64,
+    horizon: u32,
+    seed: u64,
+) -> Vec<[f32; OBS_DIM]> {
+    let mut seen = Vec::new();
+    for s in scenarios {
+        for e in 0..episodes {
+            let rec = Recording {
+                inner: policy,
+                seen: &mut seen,
+            };
+            run_episode(rec, s, horizon, seed, e, true, |_| {});
+        }
+    }
+    seen
+}
+
+/// The calibration set of the float policy `w` (see [the module](self)).
+pub fn calibration_states(w: &Weights) -> weights::Result<Vec<[f32; OBS_DIM]>> {
+    fn of<const H: usize>(net: &Mlp<H>) -> Vec<[f32; OBS_DIM]> {
+        visited(
+            net,
+            &Scenario::default_set(),
+            CALIBRATION_EPISODES,
+            CALIBRATION_HORIZON,
+            CALIBRATION_SEED,
+        )
+    }
+    macro_rules! by_width {
+        ($($h:literal => $c:ident / $qc:ident,)*) => {
+            match w.width() {
+                $($h => Ok(of(&*w.to_mlp::<$h>()?)),)*
+                other => Err(weights::Error::Input(format!(
+                    "hidden width {other} is not one of {:?}",
+                    firmware::network::SUPPORTED_WIDTHS
+                ))),
+            }
+        };
+    }
+    firmware::for_each_width!(by_width)
+}
+
+/// `w` quantised on its calibration set: what `policy-export export --quant int8` writes and
+/// `host-sim eval --controller policy-int` runs.
+pub fn quantise_policy(w: &Weights, granularity: Granularity) -> weights::Result<Quantised> {
+    quantise(w, &calibration_states(w)?, granularity)
+}
