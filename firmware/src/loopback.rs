@@ -121,12 +121,15 @@ pub struct Outcome {
     pub success: bool,
     /// Periods that coasted on a rejected reading.
     pub faults: u32,
+    /// Timer ticks that arrived while a step still ran, as `wait` reported them.
+    pub overruns: u32,
 }
 
 /// Runs `policy` through a [`Controller`] against `plant` from its current state until it
 /// terminates or truncates, reading the exact state. `wait` runs before every period: a
-/// real-time loop sleeps there until its timer fires, a simulation passes `|| {}`.
-pub fn run<P: Policy>(policy: P, plant: &mut CartPole, wait: impl FnMut()) -> Outcome {
+/// real-time loop sleeps there until its timer fires and returns how many ticks arrived
+/// while the previous step still ran (its overruns); a simulation passes `|| 0`.
+pub fn run<P: Policy>(policy: P, plant: &mut CartPole, wait: impl FnMut() -> u32) -> Outcome {
     let state = Cell::new(plant.state());
     run_with(policy, plant, PlantSensor(&state), &state, wait)
 }
@@ -137,7 +140,7 @@ pub fn run_with_encoders<P: Policy>(
     plant: &mut CartPole,
     enc: Encoders,
     discount: f32,
-    wait: impl FnMut(),
+    wait: impl FnMut() -> u32,
 ) -> Outcome {
     let state = Cell::new(plant.state());
     let tau = plant.params.tau as f32;
@@ -150,7 +153,7 @@ fn run_with<P: Policy, S: StateSensor>(
     plant: &mut CartPole,
     sensor: S,
     state: &Cell<State>,
-    mut wait: impl FnMut(),
+    mut wait: impl FnMut() -> u32,
 ) -> Outcome {
     let direction = Cell::new(false);
     let duty = Cell::new(0);
@@ -162,7 +165,8 @@ fn run_with<P: Policy, S: StateSensor>(
         Limits::default(),
     );
     loop {
-        wait();
+        let late = wait();
+        c.record_overruns(late);
         c.step();
         let t = plant.step_force(force(direction.get(), duty.get(), plant.params.force_mag));
         state.set(plant.state());
@@ -171,6 +175,7 @@ fn run_with<P: Policy, S: StateSensor>(
                 steps: plant.steps(),
                 success: !t.terminated,
                 faults: c.faults().rejected_readings,
+                overruns: c.faults().overruns,
             };
         }
     }
@@ -187,7 +192,7 @@ mod tests {
         let start = State::from_array([0.03, -0.02, 0.04, 0.01]);
         let mut plant = CartPole::new(Params::default(), 300);
         plant.reset_to(start);
-        let out = run(&POLICY, &mut plant, || {});
+        let out = run(&POLICY, &mut plant, || 0);
         let mut reference = CartPole::new(Params::default(), 300);
         let mut obs = reference.reset_to(start);
         loop {
@@ -203,7 +208,8 @@ mod tests {
             Outcome {
                 steps: 300,
                 success: true,
-                faults: 0
+                faults: 0,
+                overruns: 0
             }
         );
     }
@@ -216,7 +222,7 @@ mod tests {
         };
         let mut plant = CartPole::new(Params::default(), 500);
         plant.reset_to(State::from_array([0.03, -0.02, 0.04, 0.01]));
-        let out = run_with_encoders(&POLICY, &mut plant, enc, 0.5, || {});
+        let out = run_with_encoders(&POLICY, &mut plant, enc, 0.5, || 0);
         assert!(out.success && out.faults == 0, "{out:?}");
     }
 
@@ -226,5 +232,24 @@ mod tests {
         assert_eq!(force(false, MAX_DUTY, 10.0), -10.0);
         assert_eq!(force(true, 0, 10.0), 0.0);
         assert_eq!(force(false, 500, 10.0), -5.0);
+    }
+
+    #[test]
+    fn the_overruns_wait_reports_are_counted() {
+        let mut plant = CartPole::new(Params::default(), 40);
+        plant.reset_to(State::from_array([0.0, 0.0, 0.01, 0.0]));
+        // The first period starts on time; from then on every second step overran by two
+        // ticks, as a loop whose steps take about two periods would report.
+        let mut calls = 0u32;
+        let out = run(&POLICY, &mut plant, || {
+            calls += 1;
+            if calls > 1 && calls.is_multiple_of(2) {
+                2
+            } else {
+                0
+            }
+        });
+        assert_eq!((out.steps, calls), (40, 40));
+        assert_eq!(out.overruns, 2 * 20);
     }
 }

@@ -9,8 +9,10 @@ use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
 use crate::cartpole::{CartPole, Params};
+use crate::controller::Policy;
 use crate::estimator::Encoders;
 use crate::loopback::{Outcome, run, run_with_encoders};
+use crate::network::int::QMlp;
 use crate::network::{Mlp, dot, dot_portable};
 
 /// Observations whose Q-values must agree bit for bit on every target: a balanced state,
@@ -25,6 +27,59 @@ pub const PROBES: [[f32; 4]; 8] = [
     [1.0e-7, -3.3333333, 0.12345679, -0.9876543],
     [-1.1754944e-38, 19.99, -0.41, 19.99],
 ];
+
+/// Fixed-point observations (Q3.12) whose integer Q-values must agree on every target: the
+/// float probes' states rounded, and the extremes of the format.
+pub const INT_PROBES: [[i16; 4]; 8] = [
+    [0, 0, 0, 0],
+    [41, -82, 123, 164],
+    [-164, 123, -82, 41],
+    [9830, 0, 858, 0],
+    [-9830, -6144, -858, -8192],
+    [2048, 4096, 410, 6144],
+    [32767, -32768, 32767, -32768],
+    [-1, 1, -32768, 32767],
+];
+
+/// Random observations in [`int_check`].
+pub const INT_CASES: u32 = 300;
+
+/// How many of [`INT_CASES`] seeded random observations give `net` different Q-values
+/// through [`QMlp::forward`] (the target's kernels: DSP code on a Cortex-M4F, ARMv6-M code
+/// on a Cortex-M0) and through [`QMlp::forward_portable`] (the definition). A third are
+/// anywhere in the `i16` range, the rest within +-0.5 units, where a balancing run lives.
+pub fn int_check<const H: usize>(net: &QMlp<H>) -> u32 {
+    let mut rng = Pcg32::seed_from_u64(0x1A7);
+    let mut bad = 0;
+    for case in 0..INT_CASES {
+        let obs: [i16; 4] = core::array::from_fn(|_| {
+            let v = rng.next_u32() as i16;
+            if case % 3 == 0 { v } else { v >> 4 }
+        });
+        if net.forward(&obs) != net.forward_portable(&obs) {
+            bad += 1;
+        }
+    }
+    bad
+}
+
+/// One integer probe line: index, the observation and the two Q-values, in hex.
+pub fn int_probe_line<W: core::fmt::Write>(
+    out: &mut W,
+    index: usize,
+    obs: &[i16; 4],
+    q: &[i32; 2],
+) -> core::fmt::Result {
+    write!(out, "probe-int {index}")?;
+    for v in obs {
+        write!(out, " {:04x}", *v as u16)?;
+    }
+    write!(out, " ->")?;
+    for v in q {
+        write!(out, " {:08x}", *v as u32)?;
+    }
+    Ok(())
+}
 
 /// Random vector pairs per length in [`dot_check`].
 pub const DOT_CASES: u32 = 200;
@@ -91,11 +146,11 @@ pub fn probe_line<W: core::fmt::Write>(
 }
 
 /// Episode `episode` of the self-test: a Gymnasium-style random start from a seeded PCG32,
-/// then `net` through the controller until the pole falls or [`EPISODE_STEPS`] pass.
-pub fn episode<const H: usize>(net: &Mlp<H>, episode: u32) -> Outcome {
+/// then `policy` through the controller until the pole falls or [`EPISODE_STEPS`] pass.
+pub fn episode<P: Policy>(policy: P, episode: u32) -> Outcome {
     let mut plant = CartPole::new(Params::default(), EPISODE_STEPS);
     plant.reset(&mut Pcg32::seed_from_u64(u64::from(episode)));
-    run(net, &mut plant, || {})
+    run(policy, &mut plant, || 0)
 }
 
 /// The encoders of the self-test's estimator episode: 4,096 counts per revolution on the
@@ -107,23 +162,29 @@ pub const ENCODERS: Encoders = Encoders {
 
 /// Episode `episode` of the self-test read through [`ENCODERS`] and the estimator (discount
 /// 0.5), as a board reads its plant.
-pub fn encoder_episode<const H: usize>(net: &Mlp<H>, episode: u32) -> Outcome {
+pub fn encoder_episode<P: Policy>(policy: P, episode: u32) -> Outcome {
     let mut plant = CartPole::new(Params::default(), EPISODE_STEPS);
     plant.reset(&mut Pcg32::seed_from_u64(u64::from(episode)));
-    run_with_encoders(net, &mut plant, ENCODERS, 0.5, || {})
+    run_with_encoders(policy, &mut plant, ENCODERS, 0.5, || 0)
 }
 
+/// The network formats the self-test runs, for its report.
+pub const FORMATS: [&str; 2] = ["f32", "int8"];
+
 /// Writes the self-test report, one line per `line` call: the probe lines (Q-values from
-/// `forward`, the entry point under test), the [`dot_check`] result, then one line per
-/// episode, an episode through encoders and the estimator, and a verdict. Returns whether
-/// every episode balanced and no dot product differed.
+/// `forward` and `forward_int`, the entry points under test), the [`dot_check`] and
+/// [`int_check`] results, then per format one line per episode, an episode through
+/// encoders and the estimator, and a verdict. Returns whether every episode balanced and no
+/// kernel differed from its definition.
 pub fn report<const H: usize>(
     net: &Mlp<H>,
+    qnet: &QMlp<H>,
     forward: impl Fn(&[f32; 4], &mut [f32; 2]),
+    forward_int: impl Fn(&[i16; 4], &mut [i32; 2]),
     mut line: impl FnMut(core::fmt::Arguments<'_>),
 ) -> bool {
     line(format_args!(
-        "cartpole-ddqn self-test: 4-{H}-{H}-2 policy, {} parameters",
+        "cartpole-ddqn self-test: 4-{H}-{H}-2 policy, {} parameters, as f32 and as int8",
         Mlp::<H>::PARAMS
     ));
     for (i, obs) in PROBES.iter().enumerate() {
@@ -135,49 +196,91 @@ pub fn report<const H: usize>(
         let _ = probe_line(&mut text, i, obs, &q);
         line(format_args!("{text}"));
     }
+    for (i, obs) in INT_PROBES.iter().enumerate() {
+        let mut q = [0; 2];
+        forward_int(obs, &mut q);
+        let mut text = heapless::String::<96>::new();
+        let _ = int_probe_line(&mut text, i, obs, &q);
+        line(format_args!("{text}"));
+    }
     let dot_bad = dot_check();
     line(format_args!(
         "dot: {dot_bad} of {} random vector pairs differ from the portable order",
         5 * DOT_CASES
     ));
-    let mut balanced = 0;
-    for e in 0..EPISODES {
-        let o = episode(net, e);
-        balanced += u32::from(o.success);
+    let int_bad = int_check(qnet);
+    line(format_args!(
+        "int: {int_bad} of {INT_CASES} random observations differ from the portable forward pass"
+    ));
+    let mut ok = dot_bad == 0 && int_bad == 0;
+    for format in FORMATS {
+        let run = |e: u32| match format {
+            "f32" => episode(net, e),
+            _ => episode(qnet, e),
+        };
+        let mut balanced = 0;
+        for e in 0..EPISODES {
+            let o = run(e);
+            balanced += u32::from(o.success);
+            line(format_args!(
+                "{format} episode {e}: {} steps, {}, {} faults",
+                o.steps,
+                if o.success { "balanced" } else { "FELL" },
+                o.faults
+            ));
+        }
+        let enc = match format {
+            "f32" => encoder_episode(net, 0),
+            _ => encoder_episode(qnet, 0),
+        };
         line(format_args!(
-            "episode {e}: {} steps, {}, {} faults",
-            o.steps,
-            if o.success { "balanced" } else { "FELL" },
-            o.faults
+            "{format} estimator episode: {} steps through {}-count encoders, {}",
+            enc.steps,
+            ENCODERS.pole_counts_per_rev,
+            if enc.success { "balanced" } else { "FELL" }
         ));
+        line(format_args!(
+            "{format} self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
+        ));
+        ok &= balanced == EPISODES && enc.success;
     }
-    let enc = encoder_episode(net, 0);
-    line(format_args!(
-        "estimator episode: {} steps through {}-count encoders, {}",
-        enc.steps,
-        ENCODERS.pole_counts_per_rev,
-        if enc.success { "balanced" } else { "FELL" }
-    ));
-    line(format_args!(
-        "self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
-    ));
-    balanced == EPISODES && dot_bad == 0 && enc.success
+    ok
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::policy::POLICY;
+    use crate::policy_int::POLICY_INT;
 
     #[test]
-    fn the_shipped_policy_passes_the_self_test_on_the_host() {
+    fn the_shipped_policy_passes_the_self_test_on_the_host_in_both_formats() {
         for e in 0..EPISODES {
-            let o = episode(&POLICY, e);
-            assert!(
-                o.success && o.steps == EPISODE_STEPS && o.faults == 0,
-                "{e}: {o:?}"
-            );
+            for o in [episode(&POLICY, e), episode(&POLICY_INT, e)] {
+                assert!(
+                    o.success && o.steps == EPISODE_STEPS && o.faults == 0,
+                    "{e}: {o:?}"
+                );
+            }
         }
+        assert!(encoder_episode(&POLICY_INT, 0).success);
+        assert_eq!(int_check(&POLICY_INT), 0);
+    }
+
+    #[test]
+    fn int_probe_lines_show_every_bit() {
+        struct S(heapless::String<128>);
+        impl core::fmt::Write for S {
+            fn write_str(&mut self, s: &str) -> core::fmt::Result {
+                self.0.push_str(s).map_err(|_| core::fmt::Error)
+            }
+        }
+        let mut s = S(heapless::String::new());
+        int_probe_line(&mut s, 1, &[1, -1, 32767, -32768], &[-2, 65536]).unwrap();
+        assert_eq!(
+            s.0.as_str(),
+            "probe-int 1 0001 ffff 7fff 8000 -> fffffffe 00010000"
+        );
     }
 
     #[test]

@@ -22,10 +22,13 @@ mod mcu;
 
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {
-    use firmware::{ffi::cartpole_policy_forward, policy::POLICY, selftest};
+    use firmware::ffi::{cartpole_policy_forward, cartpole_policy_forward_int};
+    use firmware::{policy::POLICY, policy_int::POLICY_INT, selftest};
     let ok = selftest::report(
         &POLICY,
+        &POLICY_INT,
         |o, q| cartpole_policy_forward(Some(o), Some(q)),
+        |o, q| cartpole_policy_forward_int(Some(o), Some(q)),
         |l| println!("{l}"),
     );
     if ok {

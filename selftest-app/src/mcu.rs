@@ -1,21 +1,28 @@
 //! The microcontroller side of the binary: reset entry, SysTick-paced control loop, stack
 //! measurement, reporting and exit over semihosting.
 
-use core::sync::atomic::{AtomicBool, Ordering};
+use core::sync::atomic::{AtomicU32, Ordering};
 
 use cortex_m::peripheral::syst::SystClkSource;
 use cortex_m_rt::{entry, exception};
 use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 use firmware::cartpole::{CartPole, Params, State};
-use firmware::ffi::cartpole_policy_forward;
+use firmware::ffi::{cartpole_policy_forward, cartpole_policy_forward_int};
 use firmware::loopback;
 use firmware::policy::POLICY;
+use firmware::policy_int::POLICY_INT;
 use firmware::selftest;
 // The global defmt logger: frames go out over semihosting, decode them with `defmt-print`.
 #[cfg(feature = "defmt")]
 use defmt_semihosting as _;
 
-/// Core clock of the QEMU machine: mps2-an386 runs at 25 MHz, the micro:bit at 16 MHz.
+/// The clock the runners model: QEMU's `-icount shift=6` (`.cargo/config.toml`) advances
+/// virtual time by 2^6 ns per instruction, a 15.625 MHz core retiring one instruction per
+/// cycle. Optimistic for a real core (loads, multiplies and branches take more cycles, flash
+/// adds wait states), pessimistic against the M4F's 25 MHz; the report says so.
+const MODEL_HZ: u32 = 15_625_000;
+/// The core clock SysTick counts on the QEMU machine: mps2-an386 at 25 MHz, the micro:bit at
+/// 16 MHz. Under `-icount` both tick in virtual time.
 #[cfg(target_abi = "eabihf")]
 const CORE_HZ: u32 = 25_000_000;
 #[cfg(not(target_abi = "eabihf"))]
@@ -23,15 +30,46 @@ const CORE_HZ: u32 = 16_000_000;
 
 /// Control rate: the plant's tau of 20 ms.
 const CONTROL_HZ: u32 = 50;
-/// Periods run under SysTick pacing after the self-test (one second of control).
+/// Periods run under SysTick pacing per network format (one second of control).
 const PACED_PERIODS: u32 = 50;
 
-/// Set by the SysTick interrupt, cleared by the control loop: one control period has begun.
-static TICK: AtomicBool = AtomicBool::new(false);
+/// SysTick interrupts so far. Only the interrupt writes it (a load and a store: the
+/// Cortex-M0 has no atomic read-modify-write), the control loop reads it.
+static TICKS: AtomicU32 = AtomicU32::new(0);
 
 #[exception]
 fn SysTick() {
-    TICK.store(true, Ordering::Release);
+    TICKS.store(
+        TICKS.load(Ordering::Relaxed).wrapping_add(1),
+        Ordering::Release,
+    );
+}
+
+/// One paced run of `policy`: waits for each SysTick, counts the ticks that arrive while a
+/// step still runs (an overrun each), including the last step's.
+fn paced<P: firmware::controller::Policy>(policy: P) -> loopback::Outcome {
+    let mut plant = CartPole::new(Params::default(), PACED_PERIODS);
+    plant.reset_to(State::from_array([0.02, 0.0, -0.03, 0.05]));
+    // The tick whose period is running; ticks beyond it arrived during the step.
+    let mut current = TICKS.load(Ordering::Acquire);
+    let mut first = true;
+    let mut out = loopback::run(policy, &mut plant, || {
+        let late = if first {
+            0
+        } else {
+            TICKS.load(Ordering::Acquire).wrapping_sub(current)
+        };
+        first = false;
+        while TICKS.load(Ordering::Acquire) == current {
+            cortex_m::asm::wfi();
+        }
+        // A step that overran starts at once, on the latest tick: late ticks are not
+        // made up for, they are counted.
+        current = TICKS.load(Ordering::Acquire);
+        late
+    });
+    out.overruns += TICKS.load(Ordering::Acquire).wrapping_sub(current);
+    out
 }
 
 /// One line of output, to defmt or to the semihosting console.
@@ -55,7 +93,15 @@ fn main() -> ! {
     // function in this ELF (the instruction counts are taken from it).
     let forward: extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>) =
         core::hint::black_box(cartpole_policy_forward);
-    let mut ok = selftest::report(&POLICY, |o, q| forward(Some(o), Some(q)), line);
+    let forward_int: extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>) =
+        core::hint::black_box(cartpole_policy_forward_int);
+    let mut ok = selftest::report(
+        &POLICY,
+        &POLICY_INT,
+        |o, q| forward(Some(o), Some(q)),
+        |o, q| forward_int(Some(o), Some(q)),
+        line,
+    );
 
     // The structure a board uses: SysTick interrupts at 50 Hz, the core sleeps in between.
     cp.SYST.set_clock_source(SystClkSource::Core);
@@ -63,38 +109,44 @@ fn main() -> ! {
     cp.SYST.clear_current();
     cp.SYST.enable_interrupt();
     cp.SYST.enable_counter();
-    let mut plant = CartPole::new(Params::default(), PACED_PERIODS);
-    plant.reset_to(State::from_array([0.02, 0.0, -0.03, 0.05]));
-    let paced = loopback::run(&POLICY, &mut plant, || {
-        // Load and store, not swap: the Cortex-M0 has no atomic read-modify-write, and a
-        // tick landing between the two belongs to the period that is starting anyway.
-        while !TICK.load(Ordering::Acquire) {
-            cortex_m::asm::wfi();
-        }
-        TICK.store(false, Ordering::Release);
-    });
+    let runs = [("f32", paced(&POLICY)), ("int8", paced(&POLICY_INT))];
     cp.SYST.disable_interrupt();
     cp.SYST.disable_counter();
-    ok &= paced.success;
-    line(format_args!(
-        "paced: {} periods at {CONTROL_HZ} Hz on SysTick ({} core cycles each), {}",
-        paced.steps,
-        CORE_HZ / CONTROL_HZ,
-        if paced.success { "balanced" } else { "FELL" }
-    ));
+    for (format, run) in runs {
+        ok &= run.success;
+        line(format_args!(
+            "paced {format}: {} periods, {} overruns ({} MHz model: -icount shift=6, 1 \
+             instruction per cycle), {}",
+            run.steps,
+            run.overruns,
+            MODEL_HZ as f32 / 1e6,
+            if run.success { "balanced" } else { "FELL" }
+        ));
+    }
 
     let forward_bytes = stack::used(|| {
         let mut q = [0.0; 2];
         forward(Some(&selftest::PROBES[1]), Some(&mut q));
         core::hint::black_box(q);
     });
+    let forward_int_bytes = stack::used(|| {
+        let mut q = [0; 2];
+        forward_int(Some(&selftest::INT_PROBES[1]), Some(&mut q));
+        core::hint::black_box(q);
+    });
     let step_bytes = stack::used(|| {
         let mut plant = CartPole::new(Params::default(), 1);
         plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
-        core::hint::black_box(loopback::run(&POLICY, &mut plant, || {}));
+        core::hint::black_box(loopback::run(&POLICY, &mut plant, || 0));
+    });
+    let step_int_bytes = stack::used(|| {
+        let mut plant = CartPole::new(Params::default(), 1);
+        plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
+        core::hint::black_box(loopback::run(&POLICY_INT, &mut plant, || 0));
     });
     line(format_args!(
-        "stack: forward pass {forward_bytes} bytes, control period with plant {step_bytes} bytes"
+        "stack: forward pass f32 {forward_bytes} bytes, int8 {forward_int_bytes} bytes; control \
+         period with plant f32 {step_bytes} bytes, int8 {step_int_bytes} bytes"
     ));
     line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
     exit(ok)

@@ -1,5 +1,6 @@
 //! The self-test application on emulated Cortex-M4F (mps2-an386) and Cortex-M0 (micro:bit) cores:
-//! its self-test must pass and its Q-values must equal the host's bit for bit.
+//! its self-test must pass, its Q-values (float and integer) must equal the host's bit for bit,
+//! and its paced loops must report their overruns under QEMU's instruction-counting clock.
 //!
 //! Needs `qemu-system-arm` (Debian: `apt-get install qemu-system-arm`) and the two thumb
 //! targets (`scripts/setup.sh`). `CARTPOLE_SKIP_QEMU=1` skips it, loudly, on machines
@@ -8,24 +9,39 @@
 use std::process::Command;
 
 use firmware::policy::POLICY;
-use firmware::selftest::{PROBES, probe_line};
+use firmware::policy_int::POLICY_INT;
+use firmware::selftest::{INT_PROBES, PROBES, int_probe_line, probe_line};
 
 fn expected_probe_lines() -> Vec<String> {
-    PROBES
-        .iter()
-        .enumerate()
-        .map(|(i, obs)| {
-            let mut s = String::new();
-            probe_line(&mut s, i, obs, &POLICY.forward(obs)).unwrap();
-            s
-        })
-        .collect()
+    let float = PROBES.iter().enumerate().map(|(i, obs)| {
+        let mut s = String::new();
+        probe_line(&mut s, i, obs, &POLICY.forward(obs)).unwrap();
+        s
+    });
+    let int = INT_PROBES.iter().enumerate().map(|(i, obs)| {
+        let mut s = String::new();
+        int_probe_line(&mut s, i, obs, &POLICY_INT.forward(obs)).unwrap();
+        s
+    });
+    float.chain(int).collect()
 }
 
-fn run_on(target: &str) {
+/// The overruns a `paced <format>:` line reports.
+fn overruns(stdout: &str, format: &str) -> u32 {
+    let prefix = format!("paced {format}: 50 periods, ");
+    let line = stdout
+        .lines()
+        .find_map(|l| l.strip_prefix(&prefix))
+        .unwrap_or_else(|| panic!("no `{prefix}` line in\n{stdout}"));
+    assert!(line.ends_with("balanced"), "{line}");
+    line.split(' ').next().unwrap().parse().unwrap()
+}
+
+/// Runs the self-test on `target`; its output, once every common check passed.
+fn run_on(target: &str) -> Option<String> {
     if std::env::var_os("CARTPOLE_SKIP_QEMU").is_some_and(|v| v == "1") {
         eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, firmware not run on {target}");
-        return;
+        return None;
     }
     let qemu = Command::new("qemu-system-arm").arg("--version").output();
     assert!(
@@ -54,7 +70,10 @@ fn run_on(target: &str) {
         out.status,
         String::from_utf8_lossy(&out.stderr)
     );
-    let probes: Vec<&str> = stdout.lines().filter(|l| l.starts_with("probe ")).collect();
+    let probes: Vec<&str> = stdout
+        .lines()
+        .filter(|l| l.starts_with("probe ") || l.starts_with("probe-int "))
+        .collect();
     assert_eq!(
         probes,
         expected_probe_lines(),
@@ -65,22 +84,47 @@ fn run_on(target: &str) {
         "{target}: {stdout}"
     );
     assert!(
-        stdout.contains("self-test: 5 of 5 episodes balanced"),
-        "{stdout}"
-    );
-    assert!(
-        stdout.contains("estimator episode: 500 steps through 4096-count encoders, balanced"),
+        stdout.contains("int: 0 of 300 random observations differ"),
         "{target}: {stdout}"
     );
+    for format in ["f32", "int8"] {
+        assert!(
+            stdout.contains(&format!("{format} self-test: 5 of 5 episodes balanced")),
+            "{stdout}"
+        );
+        assert!(
+            stdout.contains(&format!(
+                "{format} estimator episode: 500 steps through 4096-count encoders, balanced"
+            )),
+            "{target}: {stdout}"
+        );
+    }
     assert!(stdout.lines().any(|l| l == "PASS"), "{stdout}");
+    Some(stdout.into_owned())
 }
 
 #[test]
-fn cortex_m4f_matches_the_host_and_balances() {
-    run_on("thumbv7em-none-eabihf");
+fn cortex_m4f_matches_the_host_and_balances_in_real_time() {
+    if let Some(out) = run_on("thumbv7em-none-eabihf") {
+        // 8,905 and 8,753 instructions per forward pass against 312,500 per period.
+        assert_eq!(
+            (overruns(&out, "f32"), overruns(&out, "int8")),
+            (0, 0),
+            "{out}"
+        );
+    }
 }
 
 #[test]
-fn cortex_m0_matches_the_host_and_balances() {
-    run_on("thumbv6m-none-eabi");
+fn cortex_m0_matches_the_host_and_the_integer_policy_keeps_its_period() {
+    if let Some(out) = run_on("thumbv6m-none-eabi") {
+        // Soft float: about 865,000 instructions per forward pass, nearly three periods, so
+        // most ticks arrive while a step runs. The integer forward pass takes about 22,000.
+        let f32_late = overruns(&out, "f32");
+        assert!(
+            f32_late >= 50,
+            "the f32 policy's overruns went unseen: {out}"
+        );
+        assert_eq!(overruns(&out, "int8"), 0, "{out}");
+    }
 }
