@@ -1,15 +1,20 @@
 //! C against the static library, compiled by the system C compiler: the shipped policy through
 //! `cartpole_policy.h`, and headers written by `policy-export export --format c` through
-//! `cartpole_mlpH_forward`. Their literals are parsed by the C compiler and the Q-values
-//! computed by the library; both must equal Rust's, bit for bit.
+//! `cartpole_mlpH_forward`, and the same for the integer network (`cartpole_policy_forward_int`,
+//! `export --quant int8` headers through `cartpole_qmlpH_forward`). Their literals are parsed
+//! by the C compiler and the outputs computed by the library; both must equal Rust's, bit for
+//! bit.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
 use firmware::policy::POLICY;
-use firmware::selftest::PROBES;
+use firmware::policy_int::POLICY_INT;
+use firmware::selftest::{INT_PROBES, PROBES};
 use weights::Weights;
+use weights::quant::{self, Granularity};
 use weights::source::{c_header, c_struct};
 
 fn manifest() -> PathBuf {
@@ -179,4 +184,115 @@ fn exported_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() {
     exported_header_case::<16>();
     exported_header_case::<64>();
     exported_header_case::<256>();
+}
+
+/// The integer probes as arguments.
+fn int_probe_args() -> Vec<String> {
+    INT_PROBES.iter().flatten().map(i16::to_string).collect()
+}
+
+fn int_line(q: [i32; 2]) -> String {
+    format!("{} {}\n", q[0], q[1])
+}
+
+/// A C program printing `sizeof` of `size_expr`, then `call` (which writes `q` from `obs`)
+/// for every four integers on the command line.
+fn int_program(includes: &str, size_expr: &str, call: &str) -> String {
+    format!(
+        "#include <stdio.h>\n#include <stdlib.h>\n{includes}\
+         int main(int argc, char **argv) {{\n\
+         \x20   int k;\n\
+         \x20   printf(\"%lu\\n\", (unsigned long)sizeof({size_expr}));\n\
+         \x20   for (k = 1; k + 3 < argc; k += 4) {{\n\
+         \x20       int16_t obs[4];\n\
+         \x20       int32_t q[2];\n\
+         \x20       int j;\n\
+         \x20       for (j = 0; j < 4; j++) obs[j] = (int16_t)atoi(argv[k + j]);\n\
+         \x20       {call};\n\
+         \x20       printf(\"%ld %ld\\n\", (long)q[0], (long)q[1]);\n\
+         \x20   }}\n\
+         \x20   return 0;\n}}\n"
+    )
+}
+
+#[test]
+fn a_c_program_gets_the_shipped_integer_policys_outputs_through_the_header() {
+    let dir = std::env::temp_dir().join(format!("cartpole-int-c-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let main = int_program(
+        "#include \"cartpole_policy.h\"\n",
+        "struct cartpole_qmlp64",
+        "cartpole_policy_forward_int(obs, q)",
+    );
+    std::fs::write(dir.join("main.c"), main).unwrap();
+    let out = compile_and_run(
+        "shipped-int",
+        &[&dir.join("main.c")],
+        &[&manifest().join("include")],
+        &int_probe_args(),
+    );
+    let mut want = format!("{}\n", std::mem::size_of::<QMlp<64>>());
+    want.extend(INT_PROBES.iter().map(|o| int_line(POLICY_INT.forward(o))));
+    assert_eq!(out, want);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn exported_int_header_case<const H: usize>(w: &Weights) {
+    let states: Vec<[f32; 4]> = PROBES
+        .iter()
+        .copied()
+        .filter(|p| p.iter().all(|v| v.abs() < 3.0))
+        .collect();
+    let q = quant::quantise(w, &states, Granularity::PerChannel).unwrap();
+    let dir = std::env::temp_dir().join(format!("cartpole-export-int-{H}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::write(
+        dir.join("exported.h"),
+        quant::c_header(&q, "test_policy", &["source: the capi test".into()]).unwrap(),
+    )
+    .unwrap();
+    // With the library's header in the same translation unit: the shared blocks are guarded.
+    let main = int_program(
+        "#include \"cartpole_policy.h\"\n#include \"exported.h\"\n",
+        "test_policy",
+        &format!(
+            "cartpole_qmlp{H}_forward(&test_policy, obs, q); cartpole_qmlp{H}_forward(NULL, obs, q)"
+        ),
+    );
+    std::fs::write(dir.join("main.c"), main).unwrap();
+    let out = compile_and_run(
+        &format!("export-int-{H}"),
+        &[&dir.join("main.c")],
+        &[&manifest().join("include"), &dir],
+        &int_probe_args(),
+    );
+    let net: Box<QMlp<H>> = q.to_qmlp().unwrap();
+    let mut want = format!("{}\n", std::mem::size_of::<QMlp<H>>());
+    want.extend(INT_PROBES.iter().map(|o| int_line(net.forward(o))));
+    assert_eq!(out, want, "width {H}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn exported_integer_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() {
+    exported_int_header_case::<64>(&Weights::from_mlp(&POLICY).unwrap());
+    let smooth = shapes(16).map(|s| {
+        (0..s.len())
+            .map(|i| ((i * 7919) % 1000) as f32 * 0.002 - 1.0)
+            .collect()
+    });
+    exported_int_header_case::<16>(&Weights::new(16, smooth).unwrap());
+}
+
+#[test]
+fn the_library_header_declares_every_integer_width_as_exported_headers_do() {
+    let header = std::fs::read_to_string(manifest().join("include/cartpole_policy.h")).unwrap();
+    for &h in SUPPORTED_WIDTHS {
+        assert!(
+            header.contains(&quant::c_struct(h)),
+            "include/cartpole_policy.h lacks (or differs from) the exporter's integer block for \
+             width {h}; it should read:\n{}",
+            quant::c_struct(h)
+        );
+    }
 }

@@ -180,3 +180,59 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     assert_eq!(std::fs::read_dir(&fine).unwrap().count(), 2);
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_integer_policy_is_evaluated_and_compared_with_the_float_one() {
+    // The shipped policy and the shipped file quantised on the fly: the same integers.
+    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../firmware/policy.safetensors");
+    let a = eval(&["--json", "--controller", "policy-int"]);
+    let b = eval(&[
+        "--json",
+        "--controller",
+        "policy-int",
+        "--policy",
+        shipped.to_str().unwrap(),
+    ]);
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    let (a, b): (serde_json::Value, serde_json::Value) = (
+        serde_json::from_slice(&a.stdout).unwrap(),
+        serde_json::from_slice(&b.stdout).unwrap(),
+    );
+    // `eval` above asks for `policy`; `--controller` adds `policy-int`.
+    assert_eq!(a["rows"][1]["controller"], "policy-int");
+    assert_eq!(a["rows"], b["rows"]);
+
+    let agree = |args: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .arg("agree")
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let o = agree(&["--states", "13000", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let r: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let states = r["states"].as_u64().unwrap();
+    assert_eq!(states, 13_000);
+    let binned: u64 = r["by_margin"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["states"].as_u64().unwrap())
+        .sum();
+    let disagree: u64 = r["by_margin"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|b| b["disagree"].as_u64().unwrap())
+        .sum();
+    assert_eq!(binned, states);
+    assert_eq!(disagree, states - r["agree"].as_u64().unwrap());
+    // Measured on a million states: 91.6%.
+    assert!(r["agree"].as_u64().unwrap() * 100 > states * 85, "{r}");
+    let o = agree(&["--states", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("--states must be in [1, 100000000], got 0")
+    );
+}

@@ -291,3 +291,54 @@ fn exporting_a_broken_policy_names_the_tensor() {
     assert!(!Path::new(&out).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn the_shipped_policy_exports_to_the_committed_integer_module() {
+    let dir = scratch("int");
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let out = dir.join("policy_int.rs");
+    let o = export(&[
+        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        "--quant",
+        "int8",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("5512 bytes"), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read_to_string(&out).unwrap(),
+        std::fs::read_to_string(repo.join("firmware/src/policy_int.rs")).unwrap(),
+        "firmware/src/policy_int.rs is not what `export --quant int8` writes (README, \
+         \"Integer inference\", says how to regenerate it)"
+    );
+    // A C header of the same integers, and a per-tensor variant that differs.
+    let c = dir.join("policy_int.h");
+    let o = export(&[
+        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        "--quant",
+        "int8",
+        "--granularity",
+        "per-tensor",
+        "--format",
+        "c",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let header = std::fs::read_to_string(&c).unwrap();
+    assert!(header.contains("static const struct cartpole_qmlp64 cartpole_policy_int = {"));
+    assert!(header.contains("int8 weights (per-tensor)"));
+    // --granularity means nothing without --quant: refused before any work, nothing written.
+    let never = dir.join("never.rs");
+    let o = export(&[
+        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        "--granularity",
+        "per-tensor",
+        "--out",
+        never.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--quant"), "{}", stderr(&o));
+    assert!(!never.exists());
+}

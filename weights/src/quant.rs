@@ -177,7 +177,7 @@ fn stats(w: &Weights, states: &[[f32; OBS_DIM]]) -> Stats {
 /// rounding to nearest, then flipping single weights to the other side while that lowers the
 /// error (at most 8 sweeps). The idea is AdaRound's (Nagel et al., "Up or Down? Adaptive
 /// Rounding for Post-Training Quantization", ICML 2020), solved greedily instead of learnt.
-/// Measured on the shipped policy (docs/PERFORMANCE.md): nearest rounding doubles the cart's
+/// Measured on the shipped policy (docs/QUANTISATION.md): nearest rounding doubles the cart's
 /// RMS drift; this keeps it within a fifth.
 fn adaptive_round(w: &[f32], s_w: f64, moments: &[f64]) -> Vec<i8> {
     let n = w.len();

@@ -132,14 +132,37 @@ pub struct Limits {
     pub max_abs: [f32; OBS_DIM],
 }
 
-impl Default for Limits {
-    /// Twice what a balancing run can reach: twice the 2.4 m track half-length and twice the
-    /// 12 degree failure angle, and 20 m/s and 20 rad/s, far beyond any rate the plant
-    /// reaches before it fails.
-    fn default() -> Limits {
+impl Limits {
+    /// For the simulated plant: twice what a balancing run can reach, twice the 2.4 m track
+    /// half-length and twice the 12 degree failure angle, and 20 m/s and 20 rad/s, far
+    /// beyond any rate the plant reaches before it fails. A reading outside them is a sensor
+    /// fault, not a state. On hardware, use [`Limits::track`].
+    pub const fn simulation() -> Limits {
         Limits {
             max_abs: [4.8, 20.0, 0.42, 20.0],
         }
+    }
+
+    /// For a real track whose end stops are `half_length_m` from the centre: the cart's
+    /// reading is accepted only while the cart is more than `margin_m` from a stop, so near
+    /// the ends the controller coasts (duty off) instead of driving into them: an
+    /// end-of-track interlock. Past the failure angle (12 degrees, twice it for noise) the
+    /// pole is down and the controller coasts too. Rates as in [`Limits::simulation`].
+    /// A length under the margin, or NaN, leaves no track (every reading coasts); a negative
+    /// or NaN margin counts as none.
+    pub fn track(half_length_m: f32, margin_m: f32) -> Limits {
+        // `max` drops a NaN operand.
+        let x = (half_length_m - margin_m.max(0.0)).max(0.0);
+        Limits {
+            max_abs: [x, 20.0, 0.42, 20.0],
+        }
+    }
+}
+
+impl Default for Limits {
+    /// [`Limits::simulation`]: what the simulator and the self-test run with.
+    fn default() -> Limits {
+        Limits::simulation()
     }
 }
 

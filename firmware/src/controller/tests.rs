@@ -201,3 +201,22 @@ fn telemetry_keeps_the_last_n_oldest_first() {
     let steps: Vec<u32> = records.iter().map(|r| r.step).collect();
     assert_eq!(steps, (3..11).collect::<Vec<_>>());
 }
+
+#[test]
+fn a_real_track_interlocks_its_ends() {
+    let l = Limits::track(0.5, 0.05);
+    assert_eq!(l.max_abs[0], 0.45);
+    let at = |x: f32| sanitise(&[x, 0.0, 0.05, 0.0], &l);
+    assert!(at(0.3).is_empty() && at(-0.45).is_empty());
+    assert_eq!(at(0.46), FaultFlags::out_of_range(0));
+    assert_eq!(at(-0.5), FaultFlags::out_of_range(0));
+    // The simulation's limits let the cart 4.8 m out; a track's are the track.
+    assert!(sanitise(&[2.0, 0.0, 0.0, 0.0], &Limits::simulation()).is_empty());
+    assert!(!sanitise(&[2.0, 0.0, 0.0, 0.0], &Limits::track(2.4, 0.5)).is_empty());
+    // Nonsense lengths leave no track, nonsense margins no margin.
+    assert_eq!(Limits::track(f32::NAN, 0.1).max_abs[0], 0.0);
+    assert_eq!(Limits::track(0.1, 0.2).max_abs[0], 0.0);
+    assert_eq!(Limits::track(1.0, f32::NAN).max_abs[0], 1.0);
+    assert_eq!(Limits::track(1.0, -3.0).max_abs[0], 1.0);
+    assert_eq!(Limits::default(), Limits::simulation());
+}

@@ -36,7 +36,8 @@ fn requantisation_is_its_documented_formula() {
 }
 
 /// The forward pass in i64 from the documented layer formulas, with the wrap of the 32-bit
-/// accumulators written out.
+/// accumulators written out. Indexed loops on purpose: written unlike the code under test.
+#[allow(clippy::needless_range_loop)]
 fn forward_reference<const H: usize>(net: &QMlp<H>, obs: &[i16; 4]) -> [i32; 2] {
     let wrap = |v: i64| v as i32;
     let mut h1 = [0u8; H];
