@@ -1,5 +1,6 @@
 //! The integer network's layers with the DSP extension's dual multiply-accumulate (`smlad`),
-//! for hard-float Cortex-M cores (M4F, M7).
+//! for ARMv7E-M cores (Cortex-M4 and M7, with or without FPU; `build.rs` says why not the
+//! M33).
 //!
 //! `smlad` adds two 16 x 16-bit products in one instruction. The activations are unpacked
 //! once per layer into halfword pairs ([`Pairs`]: `x0 | x2 << 16`, `x1 | x3 << 16` per group

@@ -47,9 +47,9 @@ use crate::cartpole::Action;
 
 use super::{N_ACTIONS, OBS_DIM};
 
-#[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+#[cfg(cartpole_dsp)]
 pub mod dsp;
-#[cfg(all(target_arch = "arm", not(target_abi = "eabihf")))]
+#[cfg(all(target_arch = "arm", not(cartpole_dsp)))]
 pub mod thumb;
 
 /// Fraction bits of the fixed-point observation: `value * 4096`, rounded, as `i16`.
@@ -156,18 +156,18 @@ impl<const H: usize> QMlp<H> {
 
     /// The hidden activations `(h1, h2)` and the output `q` for a fixed-point observation
     /// (see [the module](self)), by the target's fastest kernels: the DSP extension's on
-    /// hard-float Arm cores ([`dsp`]), hand-written ARMv6-M code on other Arm cores
-    /// ([`thumb`]), [`QMlp::layers_portable`] elsewhere. All give the same bits.
+    /// ARMv7E-M cores (Cortex-M4, M7: `dsp`), hand-written ARMv6-M code on other Arm cores
+    /// (`thumb`), [`QMlp::layers_portable`] elsewhere. All give the same bits.
     #[inline]
     pub fn layers(&self, obs: &[i16; OBS_DIM]) -> ([u8; H], [u8; H], [i32; N_ACTIONS]) {
-        #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
+        #[cfg(cartpole_dsp)]
         if H > 0 && H.is_multiple_of(8) {
             let h1 = dsp::input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
             let h2 = dsp::hidden(&self.fc2_weight, &self.fc2_bias, &self.fc2_requant, &h1);
             let q = dsp::output(&self.fc3_weight, &self.fc3_bias, &h2);
             return (h1, h2, q);
         }
-        #[cfg(all(target_arch = "arm", not(target_abi = "eabihf")))]
+        #[cfg(all(target_arch = "arm", not(cartpole_dsp)))]
         if H > 0 && H.is_multiple_of(8) {
             let h1 = input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
             let mut h2 = [0u8; H];
