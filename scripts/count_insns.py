@@ -66,14 +66,20 @@ def load(elf_path, cpu):
     uc.ctl_set_cpu_model(CPUS[cpu])
     uc.mem_map(0, 0x0100_0000)  # flash at 0, and the return page
     uc.mem_map(RAM, RAM_SIZE)
+    mapped = [(0, 0x0100_0000), (RAM, RAM + RAM_SIZE)]
     for seg in elf.iter_segments():
         if seg["p_type"] != "PT_LOAD" or not seg["p_filesz"]:
             continue
         # The image where it is stored, and initialised data where the startup code would
-        # have copied it.
-        uc.mem_write(seg["p_paddr"], seg.data())
-        if seg["p_vaddr"] != seg["p_paddr"]:
-            uc.mem_write(seg["p_vaddr"], seg.data())
+        # have copied it; memory maps other than the micro:bit's (mps2-an505 runs code at
+        # 0x10000000) get their regions mapped in 1 MiB blocks.
+        for addr in {seg["p_paddr"], seg["p_vaddr"]}:
+            lo = addr & ~0xF_FFFF
+            hi = (addr + seg["p_filesz"] + 0xF_FFFF) & ~0xF_FFFF
+            if not any(a <= lo and hi <= b for a, b in mapped):
+                uc.mem_map(lo, hi - lo)
+                mapped.append((lo, hi))
+            uc.mem_write(addr, seg.data())
     symtab = elf.get_section_by_name(".symtab")
     if symtab is None:
         fail(f"{elf_path}: no symbol table")

@@ -7,7 +7,8 @@ cd "$(dirname "$0")/.."
 toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
 rustup toolchain install "$toolchain" --profile minimal >/dev/null
 rustup component add --toolchain "$toolchain" clippy rustfmt llvm-tools >/dev/null
-rustup target add --toolchain "$toolchain" thumbv7em-none-eabihf thumbv6m-none-eabi >/dev/null
+rustup target add --toolchain "$toolchain" thumbv7em-none-eabihf thumbv6m-none-eabi \
+  thumbv8m.main-none-eabihf >/dev/null
 if ! command -v qemu-system-arm >/dev/null && command -v apt-get >/dev/null; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"

@@ -11,7 +11,7 @@
 //! On the host the same self-test runs natively, so the two reports can be compared.
 //!
 //! This crate owns what a board's own application would: the runtime (`cortex-m-rt`), the
-//! critical-section implementation, the memory map (the workspace's `memory.x`, through
+//! critical-section implementation, the memory map (`memory/`, through
 //! `build.rs`) and the panic handler. The `firmware` library it runs has none of them.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]

@@ -21,10 +21,12 @@ use defmt_semihosting as _;
 /// cycle. Optimistic for a real core (loads, multiplies and branches take more cycles, flash
 /// adds wait states), pessimistic against the M4F's 25 MHz; the report says so.
 const MODEL_HZ: u32 = 15_625_000;
-/// The core clock SysTick counts on the QEMU machine: mps2-an386 at 25 MHz, the micro:bit at
-/// 16 MHz. Under `-icount` both tick in virtual time.
-#[cfg(target_abi = "eabihf")]
+/// The core clock SysTick counts on the QEMU machine: mps2-an386 at 25 MHz, mps2-an505 at
+/// 20 MHz, the micro:bit at 16 MHz. Under `-icount` they tick in virtual time.
+#[cfg(all(target_abi = "eabihf", not(selftest_m33)))]
 const CORE_HZ: u32 = 25_000_000;
+#[cfg(selftest_m33)]
+const CORE_HZ: u32 = 20_000_000;
 #[cfg(not(target_abi = "eabihf"))]
 const CORE_HZ: u32 = 16_000_000;
 

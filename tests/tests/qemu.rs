@@ -1,4 +1,5 @@
-//! The self-test application on emulated Cortex-M4F (mps2-an386) and Cortex-M0 (micro:bit) cores:
+//! The self-test application on emulated Cortex-M4F (mps2-an386), Cortex-M33 (mps2-an505) and
+//! Cortex-M0 (micro:bit) cores:
 //! its self-test must pass, its Q-values (float and integer) must equal the host's bit for bit,
 //! and its paced loops must report their overruns under QEMU's instruction-counting clock.
 //!
@@ -107,6 +108,17 @@ fn run_on(target: &str) -> Option<String> {
 fn cortex_m4f_matches_the_host_and_balances_in_real_time() {
     if let Some(out) = run_on("thumbv7em-none-eabihf") {
         // 8,905 and 8,753 instructions per forward pass against 312,500 per period.
+        assert_eq!(
+            (overruns(&out, "f32"), overruns(&out, "int8")),
+            (0, 0),
+            "{out}"
+        );
+    }
+}
+
+#[test]
+fn cortex_m33_matches_the_host_and_balances_in_real_time() {
+    if let Some(out) = run_on("thumbv8m.main-none-eabihf") {
         assert_eq!(
             (overruns(&out, "f32"), overruns(&out, "int8")),
             (0, 0),
