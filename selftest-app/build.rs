@@ -1,6 +1,7 @@
-//! Links the Cortex-M binary: a memory map from `memory/` (`an505.x` for ARMv8-M Mainline,
-//! run on mps2-an505; `microbit.x` otherwise) as the `memory.x` that cortex-m-rt's `link.x`
-//! includes, and with the `defmt` feature `defmt.x`. Host builds need none of it. On ARMv8-M
+//! Links the microcontroller binary: a memory map from `memory/` (`an505.x` for ARMv8-M
+//! Mainline, run on mps2-an505; `virt.x` for RISC-V, QEMU's `virt`; `microbit.x` otherwise)
+//! as the `memory.x` that the runtime's `link.x` (cortex-m-rt's or riscv-rt's) includes, and
+//! with the `defmt` feature `defmt.x`. Host builds need none of it. On ARMv8-M
 //! it also sets `selftest_m33`, for the machine's clock.
 //!
 //! No file named `memory.x` may sit in the workspace root: the linker looks in its working
@@ -16,9 +17,12 @@ fn main() {
         return;
     }
     let out = PathBuf::from(std::env::var_os("OUT_DIR").expect("cargo sets OUT_DIR"));
-    let m33 = std::env::var("TARGET").is_ok_and(|t| t.starts_with("thumbv8m.main"));
+    let target = std::env::var("TARGET").unwrap_or_default();
+    let m33 = target.starts_with("thumbv8m.main");
     let map = if m33 {
         "memory/an505.x"
+    } else if target.starts_with("riscv32") {
+        "memory/virt.x"
     } else {
         "memory/microbit.x"
     };

@@ -18,7 +18,11 @@
 #![deny(unsafe_code)]
 
 #[cfg(target_os = "none")]
-mod mcu;
+mod app;
+#[cfg(all(target_os = "none", target_arch = "arm"))]
+mod on_arm;
+#[cfg(all(target_os = "none", target_arch = "riscv32"))]
+mod on_riscv;
 
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {

@@ -1,9 +1,10 @@
-//! The self-test application on emulated Cortex-M4F (mps2-an386), Cortex-M33 (mps2-an505) and
-//! Cortex-M0 (micro:bit) cores:
+//! The self-test application on emulated Cortex-M4F (mps2-an386), Cortex-M33 (mps2-an505),
+//! Cortex-M0 (micro:bit) and RV32IMAC (QEMU `virt`) cores:
 //! its self-test must pass, its Q-values (float and integer) must equal the host's bit for bit,
 //! and its paced loops must report their overruns under QEMU's instruction-counting clock.
 //!
-//! Needs `qemu-system-arm` (Debian: `apt-get install qemu-system-arm`) and the two thumb
+//! Needs `qemu-system-arm` and `qemu-system-riscv32` (Debian: `apt-get install qemu-system-arm
+//! qemu-system-misc`) and the targets
 //! targets (`scripts/setup.sh`). `CARTPOLE_SKIP_QEMU=1` skips it, loudly, on machines
 //! without QEMU; CI installs QEMU and runs it.
 
@@ -44,10 +45,15 @@ fn run_on(target: &str) -> Option<String> {
         eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, firmware not run on {target}");
         return None;
     }
-    let qemu = Command::new("qemu-system-arm").arg("--version").output();
+    let (qemu, package) = if target.starts_with("riscv32") {
+        ("qemu-system-riscv32", "qemu-system-misc")
+    } else {
+        ("qemu-system-arm", "qemu-system-arm")
+    };
+    let found = Command::new(qemu).arg("--version").output();
     assert!(
-        qemu.is_ok_and(|o| o.status.success()),
-        "qemu-system-arm not found: install it (apt-get install qemu-system-arm) or set \
+        found.is_ok_and(|o| o.status.success()),
+        "{qemu} not found: install it (apt-get install {package}) or set \
          CARTPOLE_SKIP_QEMU=1"
     );
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
@@ -124,6 +130,19 @@ fn cortex_m33_matches_the_host_and_balances_in_real_time() {
             (0, 0),
             "{out}"
         );
+    }
+}
+
+#[test]
+fn risc_v_matches_the_host_and_the_integer_policy_keeps_its_period() {
+    if let Some(out) = run_on("riscv32imac-unknown-none-elf") {
+        // No FPU either: soft float about 417,000 instructions per forward pass, int8 33,000.
+        assert!(
+            overruns(&out, "f32") >= 25,
+            "the f32 policy's overruns went unseen: {out}"
+        );
+        assert_eq!(overruns(&out, "int8"), 0, "{out}");
+        assert!(out.contains("instructions per forward pass: f32 "), "{out}");
     }
 }
 

@@ -1,0 +1,197 @@
+//! What the application does on any microcontroller: the start-up self-test, then the
+//! controller paced by a 50 Hz timer interrupt in each network format, with overruns
+//! counted, the stack measured, and the verdict. The architecture modules (`on_arm`,
+//! `on_riscv`) supply the timer, the sleep, the stack pointer and the output.
+
+use core::sync::atomic::{AtomicU32, Ordering};
+
+use firmware::cartpole::{CartPole, Params, State};
+use firmware::controller::Policy;
+use firmware::ffi::{cartpole_policy_forward, cartpole_policy_forward_int};
+use firmware::loopback;
+use firmware::policy::POLICY;
+use firmware::policy_int::POLICY_INT;
+use firmware::selftest;
+
+/// The clock the runners model: QEMU's `-icount shift=6` (`.cargo/config.toml`) advances
+/// virtual time by 2^6 ns per instruction, a 15.625 MHz core retiring one instruction per
+/// cycle. Optimistic for a real core (loads, multiplies and branches take more cycles, flash
+/// adds wait states); the report says so.
+pub const MODEL_HZ: u32 = 15_625_000;
+/// Control rate: the plant's tau of 20 ms.
+pub const CONTROL_HZ: u32 = 50;
+/// Periods run under timer pacing per network format (one second of control).
+const PACED_PERIODS: u32 = 50;
+
+/// Timer interrupts so far. Only the interrupt writes it (a load and a store: the
+/// Cortex-M0 has no atomic read-modify-write), the control loop reads it.
+static TICKS: AtomicU32 = AtomicU32::new(0);
+
+/// What the timer interrupt does.
+pub fn tick() {
+    TICKS.store(
+        TICKS.load(Ordering::Relaxed).wrapping_add(1),
+        Ordering::Release,
+    );
+}
+
+/// The architecture's part.
+pub trait Board {
+    /// One line of output.
+    fn line(&mut self, args: core::fmt::Arguments<'_>);
+    /// Starts the 50 Hz timer interrupt, which calls [`tick`].
+    fn start_ticker(&mut self);
+    /// Stops it.
+    fn stop_ticker(&mut self);
+    /// Sleeps until an interrupt.
+    fn sleep(&self);
+    /// Bytes of stack `f` uses below the caller's frame.
+    fn stack_used(&self, f: impl FnOnce()) -> usize;
+    /// Virtual nanoseconds so far, where a fine clock is at hand (RISC-V's `mtime`): under
+    /// `-icount shift=6` each instruction takes 64 of them, so the difference over a call
+    /// counts its instructions. Arm's are counted off the device (`scripts/count_insns.py`).
+    fn virtual_ns(&self) -> Option<u64> {
+        None
+    }
+}
+
+/// One paced run of `policy`: waits for each tick, counts the ticks that arrive while a step
+/// still runs (an overrun each), including the last step's.
+fn paced<P: Policy>(board: &impl Board, policy: P) -> loopback::Outcome {
+    let mut plant = CartPole::new(Params::default(), PACED_PERIODS);
+    plant.reset_to(State::from_array([0.02, 0.0, -0.03, 0.05]));
+    // The tick whose period is running; ticks beyond it arrived during the step.
+    let mut current = TICKS.load(Ordering::Acquire);
+    let mut first = true;
+    let mut out = loopback::run(policy, &mut plant, || {
+        let late = if first {
+            0
+        } else {
+            TICKS.load(Ordering::Acquire).wrapping_sub(current)
+        };
+        first = false;
+        while TICKS.load(Ordering::Acquire) == current {
+            board.sleep();
+        }
+        // A step that overran starts at once, on the latest tick: late ticks are not
+        // made up for, they are counted.
+        current = TICKS.load(Ordering::Acquire);
+        late
+    });
+    out.overruns += TICKS.load(Ordering::Acquire).wrapping_sub(current);
+    out
+}
+
+/// The whole run; whether everything passed.
+pub fn run(board: &mut impl Board) -> bool {
+    // Probes go through the C entry points by address, so the linker keeps them as real
+    // functions in this ELF (the instruction counts are taken from them).
+    let forward: extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>) =
+        core::hint::black_box(cartpole_policy_forward);
+    let forward_int: extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>) =
+        core::hint::black_box(cartpole_policy_forward_int);
+    let mut ok = selftest::report(
+        &POLICY,
+        &POLICY_INT,
+        |o, q| forward(Some(o), Some(q)),
+        |o, q| forward_int(Some(o), Some(q)),
+        |l| board.line(l),
+    );
+
+    // The structure a board uses: timer interrupts at 50 Hz, the core sleeps in between.
+    board.start_ticker();
+    let runs = [
+        ("f32", paced(board, &POLICY)),
+        ("int8", paced(board, &POLICY_INT)),
+    ];
+    board.stop_ticker();
+    for (format, run) in runs {
+        ok &= run.success;
+        board.line(format_args!(
+            "paced {format}: {} periods, {} overruns ({} MHz model: -icount shift=6, 1 \
+             instruction per cycle), {}",
+            run.steps,
+            run.overruns,
+            MODEL_HZ as f32 / 1e6,
+            if run.success { "balanced" } else { "FELL" }
+        ));
+    }
+
+    let forward_bytes = board.stack_used(|| {
+        let mut q = [0.0; 2];
+        forward(Some(&selftest::PROBES[1]), Some(&mut q));
+        core::hint::black_box(q);
+    });
+    let forward_int_bytes = board.stack_used(|| {
+        let mut q = [0; 2];
+        forward_int(Some(&selftest::INT_PROBES[1]), Some(&mut q));
+        core::hint::black_box(q);
+    });
+    let step_bytes = board.stack_used(|| {
+        let mut plant = CartPole::new(Params::default(), 1);
+        plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
+        core::hint::black_box(loopback::run(&POLICY, &mut plant, || 0));
+    });
+    let step_int_bytes = board.stack_used(|| {
+        let mut plant = CartPole::new(Params::default(), 1);
+        plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
+        core::hint::black_box(loopback::run(&POLICY_INT, &mut plant, || 0));
+    });
+    board.line(format_args!(
+        "stack: forward pass f32 {forward_bytes} bytes, int8 {forward_int_bytes} bytes; control \
+         period with plant f32 {step_bytes} bytes, int8 {step_int_bytes} bytes"
+    ));
+    if let Some(before) = board.virtual_ns() {
+        // Ten calls each, so the clock's 100 ns grain is under a tenth of an instruction.
+        let mut q = [0.0; 2];
+        for _ in 0..10 {
+            forward(
+                Some(core::hint::black_box(&selftest::PROBES[1])),
+                Some(&mut q),
+            );
+        }
+        let mid = board.virtual_ns().unwrap_or(before);
+        let mut qi = [0; 2];
+        for _ in 0..10 {
+            forward_int(
+                Some(core::hint::black_box(&selftest::INT_PROBES[1])),
+                Some(&mut qi),
+            );
+        }
+        let after = board.virtual_ns().unwrap_or(mid);
+        core::hint::black_box((q, qi));
+        let per_call = |ns: u64| ns / 10 / (1_000_000_000 / u64::from(MODEL_HZ));
+        board.line(format_args!(
+            "instructions per forward pass: f32 {}, int8 {} (virtual time under -icount)",
+            per_call(mid - before),
+            per_call(after - mid)
+        ));
+    }
+    board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
+    ok
+}
+
+/// High-water-mark stack measurement: paint `[bottom, sp - 64)`, run `f`, find the deepest
+/// overwritten word. Inlined into the architecture's `stack_used`, which reads `sp` (its own
+/// stack pointer, after its prologue) and `bottom` (the lowest address the stack may grow
+/// to); the 64 bytes below `sp` are left for that function's own spills.
+#[allow(unsafe_code)]
+#[inline(always)]
+pub fn paint_and_measure(sp: usize, bottom: usize, f: impl FnOnce()) -> usize {
+    const PAINT: u32 = 0xA5A5_A5A5;
+    const MARGIN: usize = 64;
+    let top = sp.saturating_sub(MARGIN);
+    let words = top.saturating_sub(bottom) / 4;
+    let base = bottom as *mut u32;
+    // SAFETY: [bottom, top) is RAM the runtime reserves for the stack and that lies below
+    // every live frame (MARGIN keeps this one's); nothing else owns it.
+    for i in 0..words {
+        unsafe { base.add(i).write_volatile(PAINT) };
+    }
+    f();
+    // SAFETY: the same region, read back after `f` returned.
+    let untouched = (0..words)
+        .take_while(|&i| unsafe { base.add(i).read_volatile() } == PAINT)
+        .count();
+    (words - untouched) * 4
+}
