@@ -47,6 +47,9 @@ pub struct Scenario {
     /// Encoders instead of a state sensor: positions quantised to counts, velocities from
     /// `firmware::estimator`, as a board must do it.
     pub encoders: Option<Encoders>,
+    /// The estimator's filter discount with encoders ([`ESTIMATOR_DISCOUNT`] unless the spec
+    /// says otherwise).
+    pub estimator_discount: f32,
     /// Periods of actuator dead time: the force in a period is the command of `delay`
     /// periods before (none before the first command).
     pub delay: u32,
@@ -62,6 +65,7 @@ impl Scenario {
             params: Params::default(),
             noise_std: [0.0; 4],
             encoders: None,
+            estimator_discount: ESTIMATOR_DISCOUNT,
             delay: 0,
             push: None,
         }
@@ -74,9 +78,10 @@ impl Scenario {
     /// - `force=F`, `length=F`, `polemass=F`, `cartmass=F`: F times the nominal value;
     /// - `friction=C[/P]`: Coulomb friction coefficient C between cart and track, viscous
     ///   friction P (N m s/rad, default 0) at the pivot (Florian's model, `firmware::cartpole`);
-    /// - `encoder=N[/M]`: encoders with N counts per revolution on the pole and M counts per
-    ///   metre on the cart (default 5N: the same encoder on a 20 cm drive pulley), velocities
-    ///   estimated;
+    /// - `encoder=N[/M[/D]]`: encoders with N counts per revolution on the pole and M counts
+    ///   per metre on the cart (default 5N: the same encoder on a 20 cm drive pulley),
+    ///   velocities estimated with filter discount D (default [`ESTIMATOR_DISCOUNT`]; 0 is the
+    ///   plain backward difference);
     /// - `push[=IMPULSE[/EVERY]]`: pushes of IMPULSE N s (default 0.5) every EVERY periods
     ///   (default 100).
     ///
@@ -157,10 +162,24 @@ impl Scenario {
                 }
                 "encoder" => {
                     let v = needed()?;
+                    let (v, d) = match v.splitn(3, '/').nth(2) {
+                        None => (v, None),
+                        Some(d) => (&v[..v.len() - d.len() - 1], Some(d)),
+                    };
                     let (n, m) = match v.split_once('/') {
                         None => (v, None),
                         Some((n, m)) => (n, Some(m)),
                     };
+                    if let Some(d) = d {
+                        let d = number(d)?;
+                        if !(0.0..=0.99).contains(&d) {
+                            return Err(format!(
+                                "scenario {shown}: the estimator's discount must lie in [0, 0.99], \
+                                 found {d}"
+                            ));
+                        }
+                        s.estimator_discount = d as f32;
+                    }
                     let n = whole(n, 16, 1 << 24, "encoder counts per revolution")?;
                     let m = match m {
                         None => n.saturating_mul(5),
@@ -185,7 +204,7 @@ impl Scenario {
                     return Err(format!(
                         "scenario {shown}: unknown part {} (expected nominal, noise[=S], \
                          delay[=N], force=F, length=F, polemass=F, cartmass=F, \
-                         friction=C[/P], encoder=N[/M], push[=I[/K]])",
+                         friction=C[/P], encoder=N[/M[/D]], push[=I[/K]])",
                         weights::quote(part)
                     ));
                 }
@@ -307,6 +326,23 @@ mod tests {
         assert_eq!(Scenario::nominal(), Scenario::parse("nominal").unwrap());
         assert_eq!(Scenario::default_set().len(), 13);
         assert_eq!(Scenario::hard_set().len(), HARD.len());
+    }
+
+    #[test]
+    fn an_encoder_spec_may_set_the_estimators_discount() {
+        assert_eq!(
+            Scenario::parse("encoder=1024").unwrap().estimator_discount,
+            ESTIMATOR_DISCOUNT
+        );
+        let s = Scenario::parse("encoder=2400/16000/0").unwrap();
+        assert_eq!(s.estimator_discount, 0.0);
+        assert_eq!(s.encoders.unwrap().cart_counts_per_m, 16_000);
+        let e = Scenario::parse("encoder=2400/16000/1.5").unwrap_err();
+        assert!(
+            e.contains("discount must lie in [0, 0.99], found 1.5"),
+            "{e}"
+        );
+        assert!(Scenario::parse("encoder=2400/16000/x").is_err());
     }
 
     #[test]

@@ -12,7 +12,7 @@ use firmware::estimator::{Estimator, quantise};
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::scenario::{ESTIMATOR_DISCOUNT, MAX_DELAY, Scenario};
+use crate::scenario::{MAX_DELAY, Scenario};
 
 /// An episode in progress.
 pub struct World<'s, R> {
@@ -44,9 +44,9 @@ impl<'s, R: Rng> World<'s, R> {
             plant,
             noise,
             pushes,
-            estimator: scenario
-                .encoders
-                .map(|e| Estimator::new(e, ESTIMATOR_DISCOUNT, scenario.params.tau as f32)),
+            estimator: scenario.encoders.map(|e| {
+                Estimator::new(e, scenario.estimator_discount, scenario.params.tau as f32)
+            }),
             line: [0.0; MAX_DELAY as usize],
             head: 0,
         }
