@@ -69,9 +69,10 @@ impl Net {
     }
 
     /// A network from checked weights of any supported width, quantised as
-    /// `policy-export export --quant int8` would (per channel, the same calibration).
+    /// `policy-export export --quant int8` does by default (per tensor, the same
+    /// calibration).
     pub fn from_weights(w: &Weights) -> Result<Net> {
-        let q = twin::calibrate::quantise_policy(w, Granularity::PerChannel)?;
+        let q = twin::calibrate::quantise_policy(w, Granularity::PerTensor)?;
         macro_rules! by_width {
             ($($h:literal => $c:ident / $qc:ident,)*) => {
                 match w.width() {

@@ -78,8 +78,9 @@ struct ExportArgs {
     /// int8 weights calibrated on states the policy visits (`docs/QUANTISATION.md`).
     #[arg(long, value_enum)]
     quant: Option<Quant>,
-    /// Weight scales of the hidden layers with --quant: one per unit or one per tensor.
-    #[arg(long, value_enum, default_value = "per-channel", requires = "quant")]
+    /// Weight scales of the hidden layers with --quant: one per tensor (measured to balance
+    /// better, `docs/QUANTISATION.md`) or one per unit.
+    #[arg(long, value_enum, default_value = "per-tensor", requires = "quant")]
     granularity: GranularityArg,
 }
 
@@ -93,10 +94,10 @@ enum Quant {
 /// `weights::quant::Granularity` on the command line.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
 enum GranularityArg {
-    /// One scale per hidden unit.
-    PerChannel,
     /// One scale per weight tensor.
     PerTensor,
+    /// One scale per hidden unit.
+    PerChannel,
 }
 
 /// The target language of an export.

@@ -312,14 +312,14 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
         "firmware/src/policy_int.rs is not what `export --quant int8` writes (README, \
          \"Integer inference\", says how to regenerate it)"
     );
-    // A C header of the same integers, and a per-tensor variant that differs.
+    // A C header, per channel this time.
     let c = dir.join("policy_int.h");
     let o = export(&[
         repo.join("firmware/policy.safetensors").to_str().unwrap(),
         "--quant",
         "int8",
         "--granularity",
-        "per-tensor",
+        "per-channel",
         "--format",
         "c",
         "--out",
@@ -328,13 +328,13 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     assert!(o.status.success(), "{}", stderr(&o));
     let header = std::fs::read_to_string(&c).unwrap();
     assert!(header.contains("static const struct cartpole_qmlp64 cartpole_policy_int = {"));
-    assert!(header.contains("int8 weights (per-tensor)"));
+    assert!(header.contains("int8 weights (per-channel)"));
     // --granularity means nothing without --quant: refused before any work, nothing written.
     let never = dir.join("never.rs");
     let o = export(&[
         repo.join("firmware/policy.safetensors").to_str().unwrap(),
         "--granularity",
-        "per-tensor",
+        "per-channel",
         "--out",
         never.to_str().unwrap(),
     ]);

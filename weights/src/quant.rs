@@ -2,7 +2,8 @@
 //! `firmware::network::int`, calibrated on observations the policy visits.
 //!
 //! - **Weights**: symmetric int8, `w_q = round(w / s_w)` with `s_w = max|w| / 127`, per
-//!   output unit ([`Granularity::PerChannel`]) or per tensor.
+//!   tensor (what the tools use: it balances better in closed loop, docs/QUANTISATION.md) or
+//!   per output unit ([`Granularity::PerChannel`]).
 //! - **Outputs**: the advantages `Q - mean(Q)`, that is `-A` and `+A` with
 //!   `A = (Q_right - Q_left) / 2`, in one scale, so they compare as integers and decide as
 //!   the Q-values do. The common part of the two Q-values decides nothing and is some 200
@@ -177,8 +178,8 @@ fn stats(w: &Weights, states: &[[f32; OBS_DIM]]) -> Stats {
 /// rounding to nearest, then flipping single weights to the other side while that lowers the
 /// error (at most 8 sweeps). The idea is AdaRound's (Nagel et al., "Up or Down? Adaptive
 /// Rounding for Post-Training Quantization", ICML 2020), solved greedily instead of learnt.
-/// Measured on the shipped policy (docs/QUANTISATION.md): nearest rounding doubles the cart's
-/// RMS drift; this keeps it within a fifth.
+/// Measured on the shipped policy with per-unit scales (docs/QUANTISATION.md): nearest
+/// rounding doubles the cart's RMS drift; this keeps it within a fifth.
 fn adaptive_round(w: &[f32], s_w: f64, moments: &[f64]) -> Vec<i8> {
     let n = w.len();
     let mut q: Vec<i8> = quantise_weights(w, s_w).collect();
