@@ -168,9 +168,6 @@ pub fn encoder_episode<P: Policy>(policy: P, episode: u32) -> Outcome {
     run_with_encoders(policy, &mut plant, ENCODERS, 0.5, || 0)
 }
 
-/// The network formats the self-test runs, for its report.
-pub const FORMATS: [&str; 2] = ["f32", "int8"];
-
 /// Writes the self-test report, one line per `line` call: the probe lines (Q-values from
 /// `forward` and `forward_int`, the entry points under test), the [`dot_check`] and
 /// [`int_check`] results, then per format one line per episode, an episode through
@@ -212,39 +209,40 @@ pub fn report<const H: usize>(
     line(format_args!(
         "int: {int_bad} of {INT_CASES} random observations differ from the portable forward pass"
     ));
-    let mut ok = dot_bad == 0 && int_bad == 0;
-    for format in FORMATS {
-        let run = |e: u32| match format {
-            "f32" => episode(net, e),
-            _ => episode(qnet, e),
-        };
-        let mut balanced = 0;
-        for e in 0..EPISODES {
-            let o = run(e);
-            balanced += u32::from(o.success);
-            line(format_args!(
-                "{format} episode {e}: {} steps, {}, {} faults",
-                o.steps,
-                if o.success { "balanced" } else { "FELL" },
-                o.faults
-            ));
-        }
-        let enc = match format {
-            "f32" => encoder_episode(net, 0),
-            _ => encoder_episode(qnet, 0),
-        };
+    let float_ok = episodes("f32", net, &mut line);
+    let int_ok = episodes("int8", qnet, &mut line);
+    dot_bad == 0 && int_bad == 0 && float_ok && int_ok
+}
+
+/// One format's closed-loop part of [`report`]: the seeded episodes, the encoder episode and
+/// their verdict line. Whether they all balanced.
+fn episodes<P: Policy + Copy>(
+    format: &str,
+    policy: P,
+    line: &mut impl FnMut(core::fmt::Arguments<'_>),
+) -> bool {
+    let mut balanced = 0;
+    for e in 0..EPISODES {
+        let o = episode(policy, e);
+        balanced += u32::from(o.success);
         line(format_args!(
-            "{format} estimator episode: {} steps through {}-count encoders, {}",
-            enc.steps,
-            ENCODERS.pole_counts_per_rev,
-            if enc.success { "balanced" } else { "FELL" }
+            "{format} episode {e}: {} steps, {}, {} faults",
+            o.steps,
+            if o.success { "balanced" } else { "FELL" },
+            o.faults
         ));
-        line(format_args!(
-            "{format} self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
-        ));
-        ok &= balanced == EPISODES && enc.success;
     }
-    ok
+    let enc = encoder_episode(policy, 0);
+    line(format_args!(
+        "{format} estimator episode: {} steps through {}-count encoders, {}",
+        enc.steps,
+        ENCODERS.pole_counts_per_rev,
+        if enc.success { "balanced" } else { "FELL" }
+    ));
+    line(format_args!(
+        "{format} self-test: {balanced} of {EPISODES} episodes balanced for {EPISODE_STEPS} steps"
+    ));
+    balanced == EPISODES && enc.success
 }
 
 #[cfg(test)]
