@@ -10,10 +10,8 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use policy_export::config::{
-    Algo, Config, ConfigError, Init, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
-    TargetUpdate, Unit,
+    Config, ConfigError, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
 };
-use policy_export::nn::Loss;
 use policy_export::run::{self, Staging, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
@@ -21,6 +19,10 @@ use weights::checkpoint;
 use weights::files::{MAX_POLICY_BYTES, check_output, read_capped, write_atomic};
 use weights::quant::{self, Granularity};
 use weights::source;
+
+mod overrides;
+
+use overrides::Overrides;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -36,8 +38,9 @@ enum Command {
     /// Write a policy (a run directory, or a safetensors state dict as PyTorch saves it) as a
     /// Rust module of const arrays or a C header.
     Export(ExportArgs),
-    /// Rerun the paper's Tables 1, 4, 5, 6, its initialisation and target-update choices and
-    /// single changes to its preset, with many seeds; write tables, JSON and figures.
+    /// Rerun the paper's Tables 1, 4, 5, 6, its initialisation and target-update choices,
+    /// single changes to its preset, learning rewards and readings of its text, and the
+    /// tables again on paper-fixed, with many seeds; write tables, JSON and figures.
     Reproduce {
         /// Seeds per configuration.
         #[arg(long, default_value_t = 20)]
@@ -45,7 +48,8 @@ enum Command {
         /// Output directory (results.json, tables.md, SVG and PNG figures).
         #[arg(long, default_value = "runs/reproduce")]
         out: PathBuf,
-        /// Studies to run (default all): table1, table4, table5, table6, init, target, fix.
+        /// Studies to run (default all): table1, table4, table5, table6, init, target, fix,
+        /// shaping, table1-fixed, table4-fixed, table5-fixed, table6-fixed.
         #[arg(long, value_delimiter = ',')]
         study: Vec<String>,
         /// Training kernel for every run.
@@ -112,7 +116,8 @@ enum Format {
 #[derive(Args)]
 #[command(allow_negative_numbers = true)]
 struct TrainArgs {
-    /// Starting point: the paper's Table 2, or the deployable preset.
+    /// Starting point: the paper's Table 2, its fixed version, the fast CartPole-v1 learner,
+    /// or the deployable presets.
     #[arg(long, value_enum, default_value = "paper")]
     preset: Preset,
     /// TOML file of config keys overriding the preset (flags override it in turn).
@@ -132,141 +137,6 @@ struct TrainArgs {
     print_config: bool,
     #[command(flatten)]
     set: Overrides,
-}
-
-/// One flag per configuration key; see `Config` for their meaning.
-#[derive(Args)]
-struct Overrides {
-    #[arg(long, value_enum)]
-    algo: Option<Algo>,
-    #[arg(long)]
-    width: Option<usize>,
-    #[arg(long)]
-    lr: Option<f64>,
-    #[arg(long)]
-    adam_beta1: Option<f64>,
-    #[arg(long)]
-    adam_beta2: Option<f64>,
-    #[arg(long)]
-    adam_eps: Option<f64>,
-    #[arg(long)]
-    gamma: Option<f64>,
-    #[arg(long)]
-    buffer_size: Option<usize>,
-    #[arg(long)]
-    batch_size: Option<usize>,
-    #[arg(long)]
-    learning_starts: Option<usize>,
-    #[arg(long)]
-    train_every: Option<usize>,
-    #[arg(long, value_enum)]
-    target_update: Option<TargetUpdate>,
-    #[arg(long)]
-    target_period: Option<usize>,
-    #[arg(long, value_enum)]
-    target_period_unit: Option<Unit>,
-    #[arg(long)]
-    tau: Option<f64>,
-    #[arg(long)]
-    eps_start: Option<f64>,
-    #[arg(long)]
-    eps_end: Option<f64>,
-    #[arg(long)]
-    eps_decay: Option<f64>,
-    #[arg(long, value_enum)]
-    eps_unit: Option<Unit>,
-    #[arg(long)]
-    episodes: Option<usize>,
-    #[arg(long)]
-    max_steps: Option<u32>,
-    #[arg(long)]
-    grad_clip: Option<f64>,
-    #[arg(long, value_enum)]
-    loss: Option<Loss>,
-    #[arg(long, value_enum)]
-    init: Option<Init>,
-    #[arg(long)]
-    eval_every: Option<usize>,
-    #[arg(long)]
-    eval_episodes: Option<usize>,
-    #[arg(long)]
-    eval_max_steps: Option<u32>,
-    #[arg(long)]
-    stop_when_perfect: Option<bool>,
-    #[arg(long)]
-    final_eval_episodes: Option<usize>,
-    #[arg(long)]
-    finalists: Option<usize>,
-    #[arg(long)]
-    finalist_episodes: Option<usize>,
-    #[arg(long)]
-    finalist_max_steps: Option<u32>,
-    #[arg(long, value_enum)]
-    kernel: Option<KernelChoice>,
-    #[arg(long)]
-    compensate: Option<bool>,
-    #[arg(long)]
-    domain: Option<String>,
-    #[arg(long)]
-    eval_domain: Option<String>,
-    #[arg(long)]
-    finalist_domain: Option<String>,
-    #[arg(long)]
-    reward: Option<String>,
-}
-
-impl Overrides {
-    fn apply(&self, c: &mut Config) {
-        macro_rules! set {
-            ($($f:ident),*) => { $( if let Some(v) = self.$f { c.$f = v; } )* };
-        }
-        set!(
-            algo,
-            width,
-            lr,
-            adam_beta1,
-            adam_beta2,
-            adam_eps,
-            gamma,
-            buffer_size,
-            batch_size,
-            learning_starts,
-            train_every,
-            target_update,
-            target_period,
-            target_period_unit,
-            tau,
-            eps_start,
-            eps_end,
-            eps_decay,
-            eps_unit,
-            episodes,
-            max_steps,
-            grad_clip,
-            loss,
-            init,
-            eval_every,
-            eval_episodes,
-            eval_max_steps,
-            stop_when_perfect,
-            final_eval_episodes,
-            finalists,
-            finalist_episodes,
-            finalist_max_steps,
-            kernel,
-            compensate
-        );
-        for (field, v) in [
-            (&mut c.domain, &self.domain),
-            (&mut c.eval_domain, &self.eval_domain),
-            (&mut c.finalist_domain, &self.finalist_domain),
-            (&mut c.reward, &self.reward),
-        ] {
-            if let Some(v) = v {
-                field.clone_from(v);
-            }
-        }
-    }
 }
 
 fn parse_range(s: &str) -> Result<Range<u64>, String> {
@@ -296,7 +166,7 @@ fn parse_range(s: &str) -> Result<Range<u64>, String> {
 
 fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoice) -> Result<()> {
     use policy_export::reproduce;
-    // Every run's per-episode curves are kept for the figures (7 KB a run, 15 configurations).
+    // Every run's per-episode curves are kept for the figures (7 KB a run, 33 configurations).
     const MAX_REPRODUCE_SEEDS: u64 = 1_000;
     if !(2..=MAX_REPRODUCE_SEEDS).contains(&seeds) {
         return Err(ConfigError(format!(
@@ -312,8 +182,10 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
     let all = reproduce::variants(&base);
     for s in studies {
         if !all.iter().any(|v| v.study == s) {
+            let known: Vec<&str> = reproduce::STUDIES.iter().map(|(s, _)| *s).collect();
             return Err(ConfigError(format!(
-                "--study: expected table1, table4, table5, table6, init, target or fix, found {}",
+                "--study: expected one of {}, found {}",
+                known.join(", "),
                 weights::quote(s)
             ))
             .into());
@@ -421,19 +293,27 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
     let bars = MultiProgress::new();
     let log = Mutex::new(());
 
+    // A budgeted run ends on its step count, long before its episode cap.
+    let budget = cfg.max_env_steps > 0;
+    let (len, unit) = if budget {
+        (cfg.max_env_steps, "steps")
+    } else {
+        (cfg.episodes as u64, "ep")
+    };
     let one = |seed: u64| -> Result<Summary> {
         let bar = tty.then(|| {
-            let b = bars.add(ProgressBar::new(cfg.episodes as u64));
+            let b = bars.add(ProgressBar::new(len));
             b.set_style(
-                ProgressStyle::with_template(
-                    "{prefix:>8} {bar:30} {pos:>4}/{len} ep {elapsed:>4} {msg}",
-                )
+                ProgressStyle::with_template(&format!(
+                    "{{prefix:>8}} {{bar:30}} {{pos:>4}}/{{len}} {unit} {{elapsed:>4}} {{msg}}"
+                ))
                 .expect("static template"),
             );
             b.set_prefix(format!("seed {seed}"));
             b
         });
-        let every = (cfg.episodes / 10).max(1);
+        let every = (len / 10).max(1);
+        let mut next_log = every;
         let mut window = Vec::with_capacity(100);
         let mut on_episode = |e: &EpisodeRecord| {
             if window.len() == 100 {
@@ -445,14 +325,23 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
                 "return {:>3} mean100 {mean:>6.1} eps {:.3}",
                 e.ret, e.epsilon
             );
+            let done = if budget {
+                e.env_steps
+            } else {
+                e.episode as u64
+            };
             match &bar {
                 Some(b) => {
-                    b.set_position(e.episode as u64);
+                    b.set_position(done);
                     b.set_message(msg);
                 }
-                None if e.episode.is_multiple_of(every) => {
+                None if done >= next_log => {
+                    next_log = (done / every + 1) * every;
                     let _g = log.lock();
-                    eprintln!("seed {seed} episode {}/{}: {msg}", e.episode, cfg.episodes);
+                    eprintln!(
+                        "seed {seed} {unit} {done}/{len}: episode {}, {msg}",
+                        e.episode
+                    );
                 }
                 None => {}
             }
@@ -483,12 +372,13 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
     };
     for s in &summaries {
         println!(
-            "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, greedy eval {:>6.1} \
-             (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
+            "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, policy at {} env \
+             steps, greedy eval {:>6.1} (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
             s.seed,
             s.episodes_run,
             s.final_mean100,
             s.solved_episode_195.map_or("-".into(), |e| e.to_string()),
+            s.policy_env_steps,
             s.final_eval.mean,
             s.final_eval.min,
             s.final_eval.episodes,
@@ -500,11 +390,18 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
     if multi {
         let agg = run::aggregate(&summaries);
         println!(
-            "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475, median {:.1} s",
+            "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475{}; \
+             {} evaluation episodes ({} env steps) chose the policies; median {:.1} s",
             summaries.len(),
             agg.median_final_mean100,
             agg.seeds_greedy_at_least_475,
             summaries.len(),
+            agg.policy_env_steps_at_475
+                .map_or(String::new(), |(m, max)| format!(
+                    " (env steps to their policy: median {m:.0}, max {max})"
+                )),
+            agg.selection_episodes,
+            agg.selection_steps,
             agg.median_wall_s
         );
         if let Some(st) = &staging {

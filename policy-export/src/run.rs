@@ -41,6 +41,10 @@ pub struct Summary {
     pub solved_episode_475: Option<usize>,
     /// Mean return of the last 100 episodes (all of them, if fewer).
     pub final_mean100: f64,
+    /// The same of the learning returns (equal to `final_mean100` unless the reward is
+    /// shaped).
+    #[serde(default)]
+    pub final_learning_mean100: f64,
     /// Best trailing 100-episode mean (the mean of all episodes, if fewer than 100).
     pub best_mean100: f64,
     /// Environment steps.
@@ -53,6 +57,15 @@ pub struct Summary {
     pub us_per_env_step: f64,
     /// Episode after which the exported policy was taken.
     pub policy_episode: usize,
+    /// Environment steps trained when it was taken.
+    #[serde(default)]
+    pub policy_env_steps: u64,
+    /// Evaluation episodes run to choose it (not counted as environment steps).
+    #[serde(default)]
+    pub selection_episodes: u64,
+    /// Environment steps of those episodes.
+    #[serde(default)]
+    pub selection_steps: u64,
     /// Periodic greedy evaluations that chose the policy.
     pub periodic_evals: Vec<PeriodicEval>,
     /// The finalists' longer trial that chose among the best periodic snapshots (empty
@@ -86,8 +99,13 @@ pub struct PeriodicEval {
 /// Derives the summary of a finished run.
 pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
     let returns: Vec<f64> = r.episodes.iter().map(|e| e.ret).collect();
-    let last = &returns[returns.len().saturating_sub(100)..];
-    let final_mean100 = last.iter().sum::<f64>() / last.len().max(1) as f64;
+    let tail = returns.len().saturating_sub(100);
+    let mean_of = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let final_mean100 = mean_of(&returns[tail..]);
+    let learning: Vec<f64> = r.episodes[tail..]
+        .iter()
+        .map(|e| e.learning_return)
+        .collect();
     let best_mean100 =
         trailing_means(&returns, 100.min(returns.len()).max(1)).fold(f64::NEG_INFINITY, f64::max);
     Summary {
@@ -99,12 +117,16 @@ pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
         solved_episode_195: solved_episode(&returns, 195.0),
         solved_episode_475: solved_episode(&returns, 475.0),
         final_mean100,
+        final_learning_mean100: mean_of(&learning),
         best_mean100,
         env_steps: r.env_steps,
         grad_steps: r.grad_steps,
         wall_s: r.wall_s,
         us_per_env_step: r.wall_s * 1e6 / r.env_steps.max(1) as f64,
         policy_episode: r.policy_episode,
+        policy_env_steps: r.policy_env_steps,
+        selection_episodes: r.selection_episodes,
+        selection_steps: r.selection_steps,
         periodic_evals: r
             .evals
             .iter()
@@ -293,6 +315,15 @@ pub struct Aggregate {
     pub solved_episode_195: Vec<Option<usize>>,
     /// Seeds whose greedy evaluation averaged at least 475.
     pub seeds_greedy_at_least_475: usize,
+    /// Each seed's environment steps trained when its policy was taken.
+    pub policy_env_steps: Vec<u64>,
+    /// Median and largest of `policy_env_steps` over the seeds that reached 475.
+    pub policy_env_steps_at_475: Option<(f64, u64)>,
+    /// Evaluation episodes and their environment steps that chose the policies, summed over
+    /// all seeds.
+    pub selection_episodes: u64,
+    /// See `selection_episodes`.
+    pub selection_steps: u64,
     /// Median of `final_mean100`.
     pub median_final_mean100: f64,
     /// Median wall seconds per run.
@@ -311,6 +342,20 @@ pub fn aggregate(summaries: &[Summary]) -> Aggregate {
             .iter()
             .filter(|s| s.final_eval.mean >= 475.0)
             .count(),
+        policy_env_steps: summaries.iter().map(|s| s.policy_env_steps).collect(),
+        policy_env_steps_at_475: {
+            let at: Vec<u64> = summaries
+                .iter()
+                .filter(|s| s.final_eval.mean >= 475.0)
+                .map(|s| s.policy_env_steps)
+                .collect();
+            at.iter().max().map(|&max| {
+                let m = median(at.iter().map(|&s| s as f64).collect());
+                (m, max)
+            })
+        },
+        selection_episodes: summaries.iter().map(|s| s.selection_episodes).sum(),
+        selection_steps: summaries.iter().map(|s| s.selection_steps).sum(),
         median_final_mean100: median(summaries.iter().map(|s| s.final_mean100).collect()),
         median_wall_s: median(summaries.iter().map(|s| s.wall_s).collect()),
     }

@@ -69,6 +69,58 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
 }
 
 #[test]
+fn the_fast_preset_keeps_its_budget_and_reports_both_returns() {
+    let dir = scratch("fast");
+    let run = dir.join("run");
+    let o = exe()
+        .args([
+            "train",
+            "--preset",
+            "fast",
+            "--max-env-steps",
+            "3000",
+            "--out",
+        ])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["config"]["reward"], "morvan");
+    assert_eq!(s["config"]["max_env_steps"], 3000);
+    // No snapshot balances within 3,000 steps, so the budget ends the run.
+    let steps = s["env_steps"].as_u64().unwrap();
+    assert_eq!(steps, 3000);
+    let evals = s["periodic_evals"].as_array().unwrap();
+    assert_eq!(
+        s["selection_episodes"].as_u64().unwrap(),
+        100 * evals.len() as u64
+    );
+    let taken = s["policy_episode"].as_u64().unwrap();
+    assert!(evals.iter().any(|e| e["episode"] == taken));
+    let csv = std::fs::read_to_string(run.join("metrics.csv")).unwrap();
+    let at = |episode: u64| -> u64 {
+        let row = csv.lines().nth(episode as usize).unwrap();
+        row.split(',').nth(8).unwrap().parse().unwrap()
+    };
+    assert_eq!(s["policy_env_steps"].as_u64().unwrap(), at(taken));
+    // The task's return counts steps; Morvan's reward is at most 0.7 a step, so the
+    // learning return is smaller.
+    let (ret, learning) = (
+        s["final_mean100"].as_f64().unwrap(),
+        s["final_learning_mean100"].as_f64().unwrap(),
+    );
+    assert!(learning < 0.7 * ret + 1e-9, "{learning} vs {ret}");
+    let last = csv.lines().last().unwrap();
+    assert_eq!(
+        last.split(',').nth(8).unwrap().parse::<u64>().unwrap(),
+        steps
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
     let dir = scratch("run");
     let run = dir.join("run");

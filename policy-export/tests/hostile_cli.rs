@@ -64,6 +64,19 @@ fn huge_counts_are_refused_before_any_allocation() {
         "max_steps must be in [1, 1000000]",
     );
     refused(
+        &["train", "--max-env-steps", max],
+        "max_env_steps must be in [0, 1000000000]",
+    );
+    refused(
+        &["train", "--updates-per-train", "100000"],
+        "updates_per_train must be in [1, 1000]",
+    );
+    refused(&["train", "--train-unit", "hours"], "invalid value 'hours'");
+    refused(
+        &["train", "--preset", "paper-fast"],
+        "invalid value 'paper-fast'",
+    );
+    refused(
         &["train", "--batch-size", "100000"],
         "batch_size must be in [1, 4096]",
     );
@@ -89,10 +102,13 @@ fn huge_counts_are_refused_before_any_allocation() {
     );
     refused(
         &["reproduce", "--study", "bogus"],
-        "--study: expected table1",
+        "--study: expected one of table1, table4",
     );
     let long = "x".repeat(100_000);
-    refused(&["reproduce", "--study", &long], "--study: expected table1");
+    refused(
+        &["reproduce", "--study", &long],
+        "--study: expected one of table1, table4",
+    );
     refused(&["train", "--seeds", &long], "expected START..END");
 }
 

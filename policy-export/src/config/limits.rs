@@ -23,8 +23,8 @@ pub struct Count {
     get: fn(&Config) -> u64,
 }
 
-/// Every count's accepted range, in the order the README lists them.
-pub const COUNTS: [Count; 13] = [
+/// Every count's accepted range, in the order `docs/HOSTILE_INPUT.md` lists them.
+pub const COUNTS: [Count; 15] = [
     Count {
         key: "episodes",
         min: 1,
@@ -60,6 +60,18 @@ pub const COUNTS: [Count; 13] = [
         min: 1,
         max: 1_000_000,
         get: |c| c.train_every as u64,
+    },
+    Count {
+        key: "updates_per_train",
+        min: 1,
+        max: 1_000,
+        get: |c| c.updates_per_train as u64,
+    },
+    Count {
+        key: "max_env_steps",
+        min: 0,
+        max: 1_000_000_000,
+        get: |c| c.max_env_steps,
     },
     Count {
         key: "target_period",

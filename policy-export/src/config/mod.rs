@@ -97,6 +97,12 @@ impl KernelChoice {
 pub enum Preset {
     /// The paper's Table 2.
     Paper,
+    /// Table 2 with Morvan Zhou's learning reward and a target copy every 50 environment
+    /// steps: the two changes its headline needs (`docs/REPRODUCTION.md`).
+    PaperFixed,
+    /// CartPole-v1 (500-step episodes) in few environment steps: the robust preset with
+    /// Morvan's learning reward and a 50,000-step budget (`docs/REPRODUCTION.md`).
+    Fast,
     /// Tuned to balance the nominal plant perfectly (see `docs/TRAINING.md`).
     Robust,
     /// The shipped recipe: the robust preset in randomised worlds, with dead-time
@@ -129,8 +135,15 @@ pub struct Config {
     pub batch_size: usize,
     /// Transitions stored before the first gradient step (at least `batch_size`).
     pub learning_starts: usize,
-    /// Environment steps per gradient step.
+    /// Training is due every this many `train_unit`s.
     pub train_every: usize,
+    /// What `train_every` counts: environment steps, or completed episodes (minimalRL
+    /// trains after each episode).
+    #[serde(default = "steps")]
+    pub train_unit: Unit,
+    /// Gradient steps each time training is due.
+    #[serde(default = "one")]
+    pub updates_per_train: usize,
     /// Hard copies or soft averaging.
     pub target_update: TargetUpdate,
     /// Hard update period, in `target_period_unit`.
@@ -149,6 +162,11 @@ pub struct Config {
     pub eps_unit: Unit,
     /// Training episodes.
     pub episodes: usize,
+    /// A hard budget of environment steps: no step is taken once it is spent. The episode in
+    /// progress is cut there and ends as any other (its end-of-episode training and target
+    /// copy, if due, and an evaluation); 0: no budget. Evaluation episodes are not counted.
+    #[serde(default)]
+    pub max_env_steps: u64,
     /// Episode truncation: 200 (the paper) or 500 (`CartPole-v1`).
     pub max_steps: u32,
     /// Global gradient-norm clip; 0 disables it.
@@ -219,6 +237,8 @@ impl Config {
             batch_size: 32,
             learning_starts: 32,
             train_every: 1,
+            train_unit: Unit::Steps,
+            updates_per_train: 1,
             target_update: TargetUpdate::Hard,
             target_period: 50,
             target_period_unit: Unit::Episodes,
@@ -228,6 +248,7 @@ impl Config {
             eps_decay: 200.0,
             eps_unit: Unit::Steps,
             episodes: 300,
+            max_env_steps: 0,
             max_steps: 200,
             grad_clip: 10.0,
             loss: Loss::Mse,
@@ -246,6 +267,37 @@ impl Config {
             finalist_domain: String::new(),
             compensate: false,
             reward: String::new(),
+        }
+    }
+
+    /// The paper preset with the fewest changes that make its headline (a trailing 100-episode
+    /// mean of 195 by episode 160) hold: see [`Config::with_paper_fixes`].
+    pub fn paper_fixed() -> Config {
+        Config::paper().with_paper_fixes()
+    }
+
+    /// The two changes of `paper-fixed`, on any configuration: the learner sees Morvan Zhou's
+    /// reward, and the target net is copied every 50 environment steps rather than every 50
+    /// episodes. Each alone converges by episode 160 in at most 3 of 20 seeds; together in
+    /// 20 of 20 (`docs/REPRODUCTION.md`, the shaping study).
+    pub fn with_paper_fixes(self) -> Config {
+        Config {
+            reward: "morvan".into(),
+            target_period_unit: Unit::Steps,
+            ..self
+        }
+    }
+
+    /// CartPole-v1 in few environment steps: the robust preset learning from Morvan's
+    /// reward, within a budget of 50,000 environment steps, stopping at the first greedy
+    /// snapshot that balances 100 evaluation episodes of 500 steps.
+    pub fn fast() -> Config {
+        Config {
+            reward: "morvan".into(),
+            max_env_steps: 50_000,
+            // Never reached: no CartPole episode is shorter than 8 steps.
+            episodes: 10_000,
+            ..Config::robust()
         }
     }
 
@@ -299,6 +351,8 @@ impl Config {
     pub fn preset(p: Preset) -> Config {
         match p {
             Preset::Paper => Config::paper(),
+            Preset::PaperFixed => Config::paper_fixed(),
+            Preset::Fast => Config::fast(),
             Preset::Robust => Config::robust(),
             Preset::Deploy => Config::deploy(),
         }
@@ -328,6 +382,14 @@ impl Config {
     }
 }
 
+fn steps() -> Unit {
+    Unit::Steps
+}
+
+fn one() -> usize {
+    1
+}
+
 /// The worlds the deploy preset trains in: wider than the default evaluation set's +-20%.
 pub const DEPLOY_DOMAIN: &str = "length=0.6..1.4+polemass=0.6..1.5+cartmass=0.6..1.5\
     +force=0.7..1.3+friction=0..0.05/0..0.001@0.5+noise=0..1.5@0.5+encoder=512..8192@0.3\
@@ -355,120 +417,4 @@ impl fmt::Display for ConfigError {
 impl std::error::Error for ConfigError {}
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn presets_are_valid_and_the_paper_preset_is_table_2() {
-        Config::robust().validate().unwrap();
-        let p = Config::paper();
-        p.validate().unwrap();
-        assert_eq!(
-            (p.lr, p.gamma, p.buffer_size, p.batch_size),
-            (5e-4, 0.98, 2000, 32)
-        );
-        assert_eq!(
-            (p.target_period, p.target_period_unit),
-            (50, Unit::Episodes)
-        );
-        assert_eq!((p.eps_start, p.eps_end, p.eps_decay), (0.9, 0.01, 200.0));
-        assert_eq!((p.episodes, p.max_steps, p.grad_clip), (300, 200, 10.0));
-        assert_eq!(
-            (p.algo, p.init, p.loss, p.width),
-            (Algo::Ddqn, Init::Xavier, Loss::Mse, 64)
-        );
-    }
-
-    #[test]
-    fn bad_values_are_named() {
-        let bad = |f: fn(&mut Config), want: &str| {
-            let mut c = Config::paper();
-            f(&mut c);
-            let e = c.validate().unwrap_err().to_string();
-            assert!(e.contains(want), "{e:?} lacks {want:?}");
-        };
-        bad(|c| c.lr = 0.0, "lr must be > 0");
-        bad(|c| c.lr = -1e-3, "lr must be > 0");
-        bad(|c| c.lr = 1e39, "lr must be > 0 and finite in f32");
-        bad(
-            |c| c.batch_size = 4000,
-            "batch_size (4000) must not exceed buffer_size (2000)",
-        );
-        bad(|c| c.width = 0, "width must be one of");
-        bad(|c| c.gamma = 1.5, "gamma must be in [0, 1]");
-        bad(|c| c.gamma = -0.1, "gamma must be in [0, 1]");
-        bad(
-            |c| c.episodes = 0,
-            "episodes must be in [1, 1000000], got 0",
-        );
-        bad(
-            |c| c.episodes = usize::MAX,
-            "episodes must be in [1, 1000000]",
-        );
-        bad(
-            |c| c.buffer_size = 10_000_000_000,
-            "buffer_size must be in [1, 5000000]",
-        );
-        bad(
-            |c| c.max_steps = u32::MAX,
-            "max_steps must be in [1, 1000000]",
-        );
-        bad(
-            |c| c.final_eval_episodes = 0,
-            "final_eval_episodes must be in [1, 100000]",
-        );
-        bad(
-            |c| c.finalists = 3,
-            "finalists (3) need finalist_episodes and finalist_max_steps >= 1, got 0 and 0",
-        );
-        bad(|c| c.adam_eps = 1e-50, "adam_eps must be a normal f32 > 0");
-        bad(|c| c.tau = 0.0, "tau must be in (0, 1]");
-    }
-
-    #[test]
-    fn the_documented_limits_are_the_checked_ones() {
-        let doc = include_str!("../../../docs/HOSTILE_INPUT.md");
-        for c in &COUNTS {
-            let row = format!("| `{}` | {} to {}", c.key, c.min, c.max);
-            assert!(doc.contains(&row), "docs/HOSTILE_INPUT.md lacks {row:?}");
-            let mut at_max = Config::paper();
-            let mut over = Config::paper();
-            set(&mut at_max, c.key, c.max);
-            set(&mut over, c.key, c.max + 1);
-            assert!(over.validate().unwrap_err().0.contains(c.key), "{}", c.key);
-            // The limit itself is accepted (where other fields allow it).
-            if let Err(e) = at_max.validate() {
-                assert!(!e.0.contains(&format!("{} must be in", c.key)), "{e}");
-            }
-        }
-    }
-
-    /// Sets the count named `key` through the TOML overlay, as a user would.
-    fn set(c: &mut Config, key: &str, v: u64) {
-        *c = c.overlay_toml(&format!("{key} = {v}"), "t.toml").unwrap();
-    }
-
-    #[test]
-    fn toml_overlays_known_keys_and_rejects_unknown_ones() {
-        let c = Config::paper()
-            .overlay_toml(
-                "gamma = 0.99\nalgo = \"dqn\"\ninit = \"normal0.1\"\n",
-                "t.toml",
-            )
-            .unwrap();
-        assert_eq!((c.gamma, c.algo, c.init), (0.99, Algo::Dqn, Init::Normal01));
-        assert_eq!(c.lr, 5e-4);
-        let e = Config::paper()
-            .overlay_toml("gama = 0.99\n", "t.toml")
-            .unwrap_err();
-        assert!(e.0.contains("unknown key \"gama\""), "{e}");
-        let e = Config::paper()
-            .overlay_toml("gamma = \"high\"\n", "t.toml")
-            .unwrap_err();
-        assert!(e.0.contains("t.toml"), "{e}");
-        // A parser message that quotes a huge line is cut.
-        let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
-        let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
-        assert!(e.0.len() < 600, "{}", e.0.len());
-    }
-}
+mod tests;

@@ -1,7 +1,8 @@
 //! The paper's ablations with many seeds: Tables 1, 4, 5 and 6, the two choices its prose
-//! argues for (Xavier vs N(0, 0.1) initialisation, hard vs soft target updates), and the
-//! single changes that might let its preset converge. Each configuration differs from the
-//! paper preset in one field; every (configuration, seed) pair is an independent run.
+//! argues for (Xavier vs N(0, 0.1) initialisation, hard vs soft target updates), the single
+//! changes that might let its preset converge, the learning rewards and readings of its text
+//! that do (`shaping`), and the four tables again on the preset that converges
+//! (`paper-fixed`). Every (configuration, seed) pair is an independent run.
 //!
 //! - `variants`: the studies' configurations.
 //! - `stats`: per-run and per-configuration numbers, in the project's interval convention.
@@ -19,7 +20,7 @@ mod variants;
 
 pub use report::{tables_md, write};
 pub use stats::{Row, RunStats, max_drop, row};
-pub use variants::{Variant, variants};
+pub use variants::{STUDIES, Variant, variants};
 
 /// Runs every distinct configuration of `variants` for `seeds` seeds in parallel; rows that
 /// share a configuration (the paper preset appears in every study) share its runs.
@@ -117,6 +118,32 @@ mod tests {
             assert!(std::fs::metadata(dir.join(f)).unwrap().len() > 1000, "{f}");
         }
         assert!(!dir.join("table1.svg").exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_shaping_study_draws_its_readings_apart_beside_its_baseline() {
+        let base = Config {
+            episodes: 3,
+            kernel: crate::config::KernelChoice::Portable,
+            ..Config::paper()
+        };
+        let vs: Vec<Variant> = variants(&base)
+            .into_iter()
+            .filter(|v| v.study == "shaping")
+            .collect();
+        assert_eq!((vs.len(), distinct_runs(&vs, 2)), (14, 28));
+        let runs = run(&vs, 2, &|| {}).unwrap();
+        let dir = std::env::temp_dir().join(format!("reproduce-shaping-{}", std::process::id()));
+        write(&dir, &vs, &runs, "test").unwrap();
+        let svg = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
+        let (rewards, readings) = (svg("shaping.svg"), svg("shaping-readings.svg"));
+        assert!(rewards.contains("paper preset") && readings.contains("paper preset"));
+        assert!(rewards.contains("-100 on failing") && !readings.contains("-100 on failing"));
+        assert!(readings.contains("paper-fixed") && !rewards.contains("paper-fixed"));
+        assert!(readings.contains("P(greedy)") && !rewards.contains("P(greedy)"));
+        let md = std::fs::read_to_string(dir.join("tables.md")).unwrap();
+        assert_eq!(md.matches("| reading: ").count(), 3);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

@@ -9,7 +9,7 @@ use host_common::stats::{Estimate, mean};
 use weights::files::write_atomic;
 
 use super::stats::{Row, RunStats, row};
-use super::variants::Variant;
+use super::variants::{STUDIES, Variant};
 
 /// Per-episode mean over seeds with a 95% band, of `f` smoothed over `w` trailing episodes.
 fn curve(
@@ -43,6 +43,9 @@ fn curve(
         dashed,
     }
 }
+
+/// A row drawn in a figure: its variant and its runs.
+type Member<'a> = (&'a Variant, &'a Vec<RunStats>);
 
 /// Writes `results.json`, `tables.md` and the figures into `dir`.
 pub fn write(
@@ -80,36 +83,49 @@ pub fn write(
             .filter(|(v, _)| v.study == study)
             .collect()
     };
-    let studies = [
-        ("table1", "Table 1: hidden width"),
-        ("table4", "Table 4 / Figure 3: DQN vs Double DQN"),
-        ("table5", "Table 5: learning rate"),
-        ("table6", "Table 6: target update period"),
-        ("init", "Initialisation"),
-        ("target", "Hard vs soft target updates"),
-        ("fix", "Single changes to the paper preset"),
-    ];
-    for (study, title) in studies {
-        if by(study).is_empty() {
+    for (study, title) in STUDIES {
+        let rows = by(study);
+        let Some(&baseline) = rows.first() else {
             continue;
+        };
+        let mut figures: Vec<((&str, &str), Vec<Member>)> = vec![((study, title), Vec::new())];
+        for &row in &rows {
+            let key = row.0.figure.unwrap_or((study, title));
+            match figures.iter_mut().find(|(k, _)| *k == key) {
+                Some((_, members)) => members.push(row),
+                None => figures.push((key, vec![baseline, row])),
+            }
         }
-        let curves: Vec<Curve> = by(study)
-            .iter()
-            .map(|(v, r)| curve(&v.label, r, &|r| &r.returns, 10, false))
-            .collect();
-        line_chart(
-            &dir.join(study),
-            &format!(
-                "{title} (mean of {} seeds, 95% band, 10-ep. smoothing)",
-                runs[0].len()
-            ),
-            "episode",
-            "return",
-            &curves,
-        )?;
+        for ((name, title), members) in figures {
+            let curves: Vec<Curve> = members
+                .iter()
+                .map(|(v, r)| curve(&v.label, r, &|r| &r.returns, 10, false))
+                .collect();
+            line_chart(
+                &dir.join(name),
+                &format!(
+                    "{title} (mean of {} seeds, 95% band, 10-ep. smoothing)",
+                    runs[0].len()
+                ),
+                "episode",
+                "return",
+                &curves,
+            )?;
+        }
     }
+    for (study, name) in [
+        ("table4", "overestimation"),
+        ("table4-fixed", "overestimation-fixed"),
+    ] {
+        overestimation(dir, name, &by(study))?;
+    }
+    Ok(rows)
+}
+
+/// Predicted max-Q against the discounted learning return obtained, per row of `rows`.
+fn overestimation(dir: &Path, name: &str, rows: &[(&Variant, &Vec<RunStats>)]) -> Result<()> {
     let mut over = Vec::new();
-    for (v, r) in by("table4") {
+    for (v, r) in rows {
         over.push(curve(
             &format!("{}: mean max Q", v.label),
             r,
@@ -126,16 +142,15 @@ pub fn write(
         ));
     }
     if over.is_empty() {
-        return Ok(rows);
+        return Ok(());
     }
     line_chart(
-        &dir.join("overestimation"),
-        "Q-value overestimation: predicted max Q vs discounted return actually obtained",
+        &dir.join(name),
+        "Q-value overestimation: predicted max Q vs discounted learning return obtained",
         "episode",
         "value",
         &over,
-    )?;
-    Ok(rows)
+    )
 }
 
 /// The tables in markdown, one per study.
@@ -146,15 +161,17 @@ pub fn tables_md(rows: &[Row]) -> String {
         if r.study != last {
             last = &r.study;
             s += &format!(
-                "\n#### {}\n\n| configuration | params | converged (seeds) | median ep. to 195 | final mean100 (95% CI) | SD ep. 101-200 | max drop after 150 | overestimation | paper: conv. / final |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
+                "\n#### {}\n\n| configuration | params | converged (seeds) | by ep. 160 | median ep. to 195 | final mean100 (95% CI) | SD ep. 101-200 | max drop after 150 | overestimation | paper: conv. / final |\n| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | --- |\n",
                 r.study
             );
         }
         s += &format!(
-            "| {} | {} | {}/{} | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {}/{} | {}/{} | {} | {} | {} | {} | {} | {} |\n",
             r.label,
             r.params,
             r.solved_seeds,
+            r.seeds,
+            r.solved_by_160,
             r.seeds,
             r.median_solved_episode
                 .map_or("-".into(), |m| format!("{m:.0}")),

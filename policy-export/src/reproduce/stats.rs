@@ -25,7 +25,8 @@ pub struct RunStats {
     pub returns: Vec<f64>,
     /// Per-episode mean of max-Q over visited states.
     pub mean_max_q: Vec<f64>,
-    /// Per-episode mean discounted return actually obtained from those states.
+    /// Per-episode mean discounted learning return actually obtained from those states
+    /// (what the Q-values estimate, so the overestimation is measured against it).
     pub mean_discounted_return: Vec<f64>,
 }
 
@@ -79,6 +80,8 @@ pub struct Row {
     pub solved_seeds: usize,
     /// Median first episode of those that did.
     pub median_solved_episode: Option<f64>,
+    /// Seeds that reached it by episode 160 (the paper's headline for its preset).
+    pub solved_by_160: usize,
     /// Mean of the last 100 episodes, averaged over seeds.
     pub final_mean100: Estimate,
     /// SD of returns over episodes 101-200, averaged over seeds.
@@ -117,6 +120,7 @@ pub fn row(v: &Variant, runs: &[RunStats]) -> Row {
         seeds: runs.len(),
         solved_seeds: solved.len(),
         median_solved_episode: (!solved.is_empty()).then(|| median(&solved)),
+        solved_by_160: solved.iter().filter(|&&e| e <= 160.0).count(),
         final_mean100: Estimate::of(&per(&|r| r.final_mean100)),
         sd_101_200: Estimate::of(&per(&|r| r.sd_101_200)),
         max_drop_after_150: Estimate::of(&per(&|r| r.max_drop_after_150)),
@@ -167,6 +171,7 @@ mod tests {
         let row = row(v, &[r.clone(), r]);
         assert_eq!((row.params, row.solved_seeds), (4_610, 2));
         assert_eq!(row.median_solved_episode, Some(248.0));
+        assert_eq!(row.solved_by_160, 0);
         assert_eq!(row.overestimation.mean, 10.0);
     }
 }

@@ -1,12 +1,34 @@
-//! The studies: each configuration differs from the paper preset in one field (two for the
-//! per-step target period, which has a unit).
+//! The studies. In the paper's tables and `init`, `target` and `fix`, each configuration
+//! differs from the paper preset in one field (two for the per-step target period, which has
+//! a unit). `shaping` changes the learning reward, the target schedule, or reads one of the
+//! paper's ambiguities another way. The `-fixed` tables are the paper's tables again on
+//! `paper-fixed`, each row differing from it in one field.
 
 use crate::config::{Algo, Config, Init, TargetUpdate, Unit};
+
+/// Every study, in the order the report lists them, with its figure's title.
+pub const STUDIES: [(&str, &str); 12] = [
+    ("table1", "Table 1: hidden width"),
+    ("table4", "Table 4 / Figure 3: DQN vs Double DQN"),
+    ("table5", "Table 5: learning rate"),
+    ("table6", "Table 6: target update period"),
+    ("init", "Initialisation"),
+    ("target", "Hard vs soft target updates"),
+    ("fix", "Single changes to the paper preset"),
+    (
+        "shaping",
+        "Learning rewards, target schedules and readings of the paper",
+    ),
+    ("table1-fixed", "Table 1 on paper-fixed: hidden width"),
+    ("table4-fixed", "Table 4 on paper-fixed: DQN vs Double DQN"),
+    ("table5-fixed", "Table 5 on paper-fixed: learning rate"),
+    ("table6-fixed", "Table 6 on paper-fixed: target copy period"),
+];
 
 /// One configuration of one study.
 #[derive(Clone, Debug)]
 pub struct Variant {
-    /// Which study: `table1`, `table4`, `table5`, `table6`, `init`, `target`, `fix`.
+    /// Which study: one of [`STUDIES`].
     pub study: &'static str,
     /// Row label, as the paper writes it.
     pub label: String,
@@ -14,16 +36,224 @@ pub struct Variant {
     pub paper: Option<(&'static str, &'static str)>,
     /// The configuration.
     pub cfg: Config,
+    /// A figure of its own (file name, title) for rows that would crowd their study's; it
+    /// also shows the study's first row, the baseline. `None`: the study's figure.
+    pub figure: Option<(&'static str, &'static str)>,
 }
+
+/// The shaping study's second figure.
+const READINGS: Option<(&str, &str)> = Some(("shaping-readings", "Readings of the paper's text"));
 
 /// Every study's rows, built from `base` (the paper preset).
 pub fn variants(base: &Config) -> Vec<Variant> {
-    let v = |study, label: &str, paper, cfg| Variant {
+    let mut all = paper_studies(base);
+    all.extend(shaping(base));
+    all.extend(fixed_tables(&base.clone().with_paper_fixes()));
+    all
+}
+
+fn v(
+    study: &'static str,
+    label: &str,
+    paper: Option<(&'static str, &'static str)>,
+    cfg: Config,
+) -> Variant {
+    Variant {
         study,
         label: label.to_string(),
         paper,
         cfg,
+        figure: None,
+    }
+}
+
+/// The learning rewards of the era's tutorials, alone and with a per-step target copy, and
+/// the other readings of the paper's text.
+fn shaping(b: &Config) -> Vec<Variant> {
+    let rewards = [
+        ("Morvan's reward", "morvan"),
+        ("-10 on failing", "fail-penalty=-10"),
+        ("-100 on failing", "fail-penalty=-100"),
+        ("reward / 100 (minimalRL)", "scale=0.01"),
+    ];
+    let step_copy = |c: Config| Config {
+        target_period: 100,
+        target_period_unit: Unit::Steps,
+        ..c
     };
+    let mut out = vec![v("shaping", "paper preset", None, b.clone())];
+    for (label, spec) in rewards {
+        out.push(v(
+            "shaping",
+            label,
+            None,
+            Config {
+                reward: spec.into(),
+                ..b.clone()
+            },
+        ));
+    }
+    out.push(v(
+        "shaping",
+        "copy every 100 steps",
+        None,
+        step_copy(b.clone()),
+    ));
+    for (label, spec) in rewards {
+        out.push(v(
+            "shaping",
+            &format!("{label}, copy every 100 steps"),
+            None,
+            step_copy(Config {
+                reward: spec.into(),
+                ..b.clone()
+            }),
+        ));
+    }
+    let readings = [
+        v(
+            "shaping",
+            "reading: epsilon 0.9 is P(greedy), explore 1 -> 0.1",
+            None,
+            Config {
+                eps_start: 1.0,
+                eps_end: 0.1,
+                ..b.clone()
+            },
+        ),
+        v(
+            "shaping",
+            "reading: copy every 50 steps",
+            None,
+            Config {
+                target_period_unit: Unit::Steps,
+                ..b.clone()
+            },
+        ),
+        v(
+            "shaping",
+            "reading: minimalRL's schedule (10 updates per episode, copy every 20 ep.)",
+            None,
+            Config {
+                train_unit: Unit::Episodes,
+                updates_per_train: 10,
+                learning_starts: 2000,
+                target_period: 20,
+                ..b.clone()
+            },
+        ),
+        v(
+            "shaping",
+            "paper-fixed: Morvan's reward, copy every 50 steps",
+            None,
+            b.clone().with_paper_fixes(),
+        ),
+    ];
+    out.extend(readings.into_iter().map(|r| Variant {
+        figure: READINGS,
+        ..r
+    }));
+    out
+}
+
+/// Tables 1, 4, 5 and 6 again, on `fixed` (the `paper-fixed` preset); the paper's numbers
+/// are shown beside them, as on the paper preset.
+fn fixed_tables(fixed: &Config) -> Vec<Variant> {
+    let f = fixed.clone();
+    let one = |study, label: &str, paper, cfg| v(study, label, paper, cfg);
+    vec![
+        one(
+            "table1-fixed",
+            "width 16",
+            Some(("no convergence", "< 100")),
+            Config {
+                width: 16,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table1-fixed",
+            "width 64",
+            Some(("~160", "196.5")),
+            f.clone(),
+        ),
+        one(
+            "table1-fixed",
+            "width 128",
+            Some(("~200", "195.1")),
+            Config {
+                width: 128,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table4-fixed",
+            "DQN",
+            Some(("~200", "192.3")),
+            Config {
+                algo: Algo::Dqn,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table4-fixed",
+            "Double DQN",
+            Some(("~160", "196.5")),
+            f.clone(),
+        ),
+        one(
+            "table5-fixed",
+            "lr 0.0001",
+            Some(("> 250", "193.1")),
+            Config {
+                lr: 1e-4,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table5-fixed",
+            "lr 0.0005",
+            Some(("~160", "196.5")),
+            f.clone(),
+        ),
+        one(
+            "table5-fixed",
+            "lr 0.001",
+            Some(("unstable", "< 180")),
+            Config {
+                lr: 1e-3,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table6-fixed",
+            "every 10 steps",
+            Some(("~200", "193.8")),
+            Config {
+                target_period: 10,
+                ..f.clone()
+            },
+        ),
+        one(
+            "table6-fixed",
+            "every 50 steps",
+            Some(("~160", "196.5")),
+            f.clone(),
+        ),
+        one(
+            "table6-fixed",
+            "every 100 steps",
+            Some(("~220", "194.2")),
+            Config {
+                target_period: 100,
+                ..f.clone()
+            },
+        ),
+    ]
+}
+
+/// The paper's own tables and the single changes to its preset.
+fn paper_studies(base: &Config) -> Vec<Variant> {
     let b = base.clone();
     vec![
         v(
@@ -167,21 +397,44 @@ pub fn variants(base: &Config) -> Vec<Variant> {
 mod tests {
     use super::*;
 
+    /// The fields in which `cfg` differs from `base`.
+    fn changed(base: &Config, cfg: &Config) -> Vec<String> {
+        let (base, cfg) = (
+            serde_json::to_value(base).unwrap(),
+            serde_json::to_value(cfg).unwrap(),
+        );
+        base.as_object()
+            .unwrap()
+            .iter()
+            .filter(|(k, val)| cfg[k.as_str()] != **val)
+            .map(|(k, _)| k.clone())
+            .collect()
+    }
+
     #[test]
-    fn every_variant_differs_from_the_paper_preset_in_at_most_one_field() {
-        let base = serde_json::to_value(Config::paper()).unwrap();
-        for v in variants(&Config::paper()) {
-            let cfg = serde_json::to_value(&v.cfg).unwrap();
-            let changed: Vec<&String> = base
-                .as_object()
-                .unwrap()
-                .iter()
-                .filter(|(k, val)| cfg[k.as_str()] != **val)
-                .map(|(k, _)| k)
-                .collect();
-            // The per-step target row changes the period and its unit.
-            assert!(changed.len() <= 2, "{}: {changed:?}", v.label);
-            v.cfg.validate().unwrap();
+    fn every_variant_changes_only_what_its_study_is_about() {
+        let (paper, fixed) = (Config::paper(), Config::paper_fixed());
+        let all = variants(&paper);
+        for (study, _) in STUDIES {
+            assert!(all.iter().any(|v| v.study == study), "{study} has no rows");
         }
+        for v in &all {
+            v.cfg.validate().unwrap();
+            let (base, most) = match v.study {
+                s if s.ends_with("-fixed") => (&fixed, 1),
+                // A reward with a per-step copy (period and unit): three; the minimalRL
+                // schedule: four.
+                "shaping" if v.label.contains("minimalRL's schedule") => (&paper, 4),
+                "shaping" => (&paper, 3),
+                // A per-step target period changes the period and its unit.
+                _ => (&paper, 2),
+            };
+            let c = changed(base, &v.cfg);
+            assert!(c.len() <= most, "{}: {c:?}", v.label);
+        }
+        // paper-fixed is exactly its two documented changes.
+        let mut c = changed(&paper, &fixed);
+        c.sort();
+        assert_eq!(c, ["reward", "target_period_unit"]);
     }
 }

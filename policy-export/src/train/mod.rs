@@ -2,8 +2,9 @@
 //! `firmware::network` — the forward pass that ships — and learning with [`crate::nn`].
 //!
 //! Read top to bottom it is the whole algorithm: epsilon-greedy acting, a FIFO replay buffer
-//! sampled without replacement, one TD regression step per `train_every` environment steps,
-//! hard or soft target updates, and per-episode metrics. Every random draw comes from
+//! sampled without replacement, `updates_per_train` TD regression steps every `train_every`
+//! environment steps or episodes, hard or soft target updates, an optional budget of
+//! environment steps, and per-episode metrics. Every random draw comes from
 //! streams derived from the run's seed, so the same seed and configuration give the same
 //! weights and metrics, bit for bit, per kernel.
 //!
@@ -150,7 +151,8 @@ pub struct EpisodeRecord {
     /// Mean over visited states of `max_a Q(s, a)` predicted by the online net.
     pub mean_max_q: f64,
     /// Mean over visited states of the discounted learning return actually obtained from
-    /// them.
+    /// them; after a truncation (or the budget's cut) the online net's max-Q of the last
+    /// state stands in for the rest.
     pub mean_discounted_return: f64,
     /// Environment steps so far.
     pub env_steps: u64,
@@ -166,6 +168,13 @@ pub struct RunResult {
     pub policy: Weights,
     /// Episode after which `policy` was taken.
     pub policy_episode: usize,
+    /// Environment steps trained when `policy` was taken.
+    pub policy_env_steps: u64,
+    /// Evaluation episodes run to choose `policy` (periodic and finalists'; not training
+    /// steps, and not counted in `env_steps`).
+    pub selection_episodes: u64,
+    /// Environment steps of those episodes.
+    pub selection_steps: u64,
     /// Periodic evaluations: (episode, result).
     pub evals: Vec<(usize, EvalResult)>,
     /// The finalists' trial, best periodic snapshot first: (episode, result); empty without
@@ -239,6 +248,8 @@ fn train_width<const H: usize>(
     let pool_size = cfg.finalists.max(1);
     let mut env_steps: u64 = 0;
     let mut rewards: Vec<f32> = Vec::with_capacity(cfg.max_steps as usize);
+    // Evaluation episodes and steps that chose the policy (each step scores 1).
+    let (mut selection_episodes, mut selection_steps) = (0u64, 0u64);
 
     for ep in 0..cfg.episodes {
         let scenario = domain.sample(&mut domain_rng);
@@ -258,6 +269,7 @@ fn train_width<const H: usize>(
         rewards.clear();
         let (mut loss_sum, mut losses, mut maxq_sum) = (0.0f64, 0u32, 0.0f64);
         let mut eps;
+        let (mut spent, terminated);
         loop {
             let t = match cfg.eps_unit {
                 Unit::Steps => env_steps as f64,
@@ -283,18 +295,14 @@ fn train_width<const H: usize>(
             ret += f64::from(tr.reward);
             env_steps += 1;
 
-            if buf.len() >= learning_starts && env_steps.is_multiple_of(cfg.train_every as u64) {
-                let loss = learner.update(cfg, &buf, &mut sample_rng);
-                if !loss.is_finite() {
-                    bail!(
-                        "non-finite loss ({loss}) at episode {}, step {} (env step {env_steps}); \
-                         try a smaller lr or grad_clip",
-                        ep + 1,
-                        rewards.len()
-                    );
-                }
-                loss_sum += f64::from(loss);
-                losses += 1;
+            if cfg.train_unit == Unit::Steps
+                && buf.len() >= learning_starts
+                && env_steps.is_multiple_of(cfg.train_every as u64)
+            {
+                let at = (ep, Some(rewards.len()), env_steps);
+                let (sum, n) = learn(&mut learner, cfg, &buf, &mut sample_rng, at)?;
+                loss_sum += sum;
+                losses += n;
             }
             if cfg.target_update == TargetUpdate::Hard
                 && cfg.target_period_unit == Unit::Steps
@@ -303,9 +311,36 @@ fn train_width<const H: usize>(
                 learner.sync_target();
             }
             obs = next;
-            if tr.terminated || tr.truncated {
+            spent = cfg.max_env_steps > 0 && env_steps >= cfg.max_env_steps;
+            if tr.terminated || tr.truncated || spent {
+                terminated = tr.terminated;
                 break;
             }
+        }
+        // A cut episode's return goes on past the cut; without its tail every state near the
+        // end would seem overestimated (by up to gamma^k / (1 - gamma) per step's reward).
+        // The online net's own estimate stands in for it, so the gap measures how far Q
+        // disagrees with what followed, not where the episode was cut.
+        let mut g = if terminated {
+            0.0
+        } else {
+            // The weights that acted, before any end-of-episode training.
+            let q = learner.online.forward(&obs);
+            f64::from(q[0].max(q[1]))
+        };
+        if cfg.train_unit == Unit::Episodes
+            && buf.len() >= learning_starts
+            && (ep + 1).is_multiple_of(cfg.train_every)
+        {
+            let (sum, n) = learn(
+                &mut learner,
+                cfg,
+                &buf,
+                &mut sample_rng,
+                (ep, None, env_steps),
+            )?;
+            loss_sum += sum;
+            losses += n;
         }
         if cfg.target_update == TargetUpdate::Hard
             && cfg.target_period_unit == Unit::Episodes
@@ -315,7 +350,6 @@ fn train_width<const H: usize>(
         }
 
         let len = rewards.len();
-        let mut g = 0.0f64;
         let mut disc_sum = 0.0f64;
         for r in rewards.iter().rev() {
             g = f64::from(*r) + gamma * g;
@@ -336,7 +370,9 @@ fn train_width<const H: usize>(
         on_episode(&rec);
         records.push(rec);
 
-        if cfg.eval_every > 0 && (ep + 1).is_multiple_of(cfg.eval_every) {
+        // The weights the budget stops at are a candidate too.
+        if cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent) {
+            selection_episodes += cfg.eval_episodes as u64;
             let res = evaluate(
                 &learner.online,
                 cfg.eval_episodes,
@@ -345,6 +381,7 @@ fn train_width<const H: usize>(
                 cfg.compensate,
                 &mut eval_streams(seed, Eval::Periodic),
             );
+            selection_steps += steps_of(&res);
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
             let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
             if rank < pool_size {
@@ -356,6 +393,9 @@ fn train_width<const H: usize>(
                 break;
             }
         }
+        if spent {
+            break;
+        }
     }
     let wall_s = start.elapsed().as_secs_f64();
     let last = records.len();
@@ -363,6 +403,7 @@ fn train_width<const H: usize>(
     if cfg.finalists > 0 {
         let mut best: Option<(usize, EvalResult)> = None;
         for (i, (_, ep, net)) in pool.iter().enumerate() {
+            selection_episodes += cfg.finalist_episodes as u64;
             let res = evaluate(
                 net,
                 cfg.finalist_episodes,
@@ -371,6 +412,7 @@ fn train_width<const H: usize>(
                 cfg.compensate,
                 &mut eval_streams(seed, Eval::Trial),
             );
+            selection_steps += steps_of(&res);
             // Survival decides; among equals the better periodic rank, since the periodic
             // cost (nominal-like worlds) measures precision better than the trial's pushes.
             if best.as_ref().is_none_or(|(_, b)| res.mean > b.mean) {
@@ -386,6 +428,7 @@ fn train_width<const H: usize>(
         Some((_, ep, net)) => (ep, net),
         None => (last, learner.online.clone()),
     };
+    let policy_env_steps = records[policy_episode - 1].env_steps;
     let final_eval = evaluate(
         &policy,
         cfg.final_eval_episodes,
@@ -400,6 +443,9 @@ fn train_width<const H: usize>(
             anyhow::anyhow!("the trained weights are unusable ({e}); try a smaller lr or grad_clip")
         })?,
         policy_episode,
+        policy_env_steps,
+        selection_episodes,
+        selection_steps,
         evals,
         trial,
         final_eval,
@@ -408,6 +454,39 @@ fn train_width<const H: usize>(
         wall_s,
         kernel,
     })
+}
+
+/// The environment steps an evaluation ran: its return counts one per step.
+fn steps_of(res: &EvalResult) -> u64 {
+    (res.mean * res.episodes as f64).round() as u64
+}
+
+/// Takes `cfg.updates_per_train` gradient steps; returns the sum of their losses and their
+/// number. `at` (episode index, step within it for per-step training, env steps) places a
+/// non-finite loss in the error.
+fn learn<const H: usize>(
+    learner: &mut Learner<H>,
+    cfg: &Config,
+    buf: &ReplayBuffer,
+    rng: &mut Pcg64Mcg,
+    at: (usize, Option<usize>, u64),
+) -> Result<(f64, u32)> {
+    let mut sum = 0.0f64;
+    for _ in 0..cfg.updates_per_train {
+        let loss = learner.update(cfg, buf, rng);
+        if !loss.is_finite() {
+            let (ep, step, env) = at;
+            let when = match step {
+                Some(s) => format!("at episode {}, step {s}", ep + 1),
+                None => format!("at the end of episode {}", ep + 1),
+            };
+            bail!(
+                "non-finite loss ({loss}) {when} (env step {env}); try a smaller lr or grad_clip"
+            );
+        }
+        sum += f64::from(loss);
+    }
+    Ok((sum, cfg.updates_per_train as u32))
 }
 
 #[cfg(test)]

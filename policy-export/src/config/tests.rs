@@ -1,0 +1,161 @@
+use super::*;
+
+#[test]
+fn presets_are_valid_and_the_paper_preset_is_table_2() {
+    Config::robust().validate().unwrap();
+    let p = Config::paper();
+    p.validate().unwrap();
+    assert_eq!(
+        (p.lr, p.gamma, p.buffer_size, p.batch_size),
+        (5e-4, 0.98, 2000, 32)
+    );
+    assert_eq!(
+        (p.target_period, p.target_period_unit),
+        (50, Unit::Episodes)
+    );
+    assert_eq!((p.eps_start, p.eps_end, p.eps_decay), (0.9, 0.01, 200.0));
+    assert_eq!((p.episodes, p.max_steps, p.grad_clip), (300, 200, 10.0));
+    assert_eq!(
+        (p.algo, p.init, p.loss, p.width),
+        (Algo::Ddqn, Init::Xavier, Loss::Mse, 64)
+    );
+}
+
+#[test]
+fn the_fixed_and_fast_presets_are_their_documented_changes() {
+    let f = Config::paper_fixed();
+    f.validate().unwrap();
+    assert_eq!(
+        f,
+        Config {
+            reward: "morvan".into(),
+            target_period_unit: Unit::Steps,
+            ..Config::paper()
+        }
+    );
+    let fast = Config::fast();
+    fast.validate().unwrap();
+    assert_eq!(
+        fast,
+        Config {
+            reward: "morvan".into(),
+            max_env_steps: 50_000,
+            episodes: 10_000,
+            ..Config::robust()
+        }
+    );
+    assert_eq!((fast.max_steps, fast.eval_max_steps), (500, 500));
+    assert!(fast.stop_when_perfect && fast.eval_episodes == 100);
+    for p in [
+        Preset::Paper,
+        Preset::PaperFixed,
+        Preset::Fast,
+        Preset::Robust,
+        Preset::Deploy,
+    ] {
+        Config::preset(p).validate().unwrap();
+    }
+}
+
+#[test]
+fn configurations_written_before_the_schedule_fields_still_load() {
+    let mut old = toml::Table::try_from(Config::paper()).unwrap();
+    for k in ["train_unit", "updates_per_train", "max_env_steps"] {
+        old.remove(k).unwrap();
+    }
+    let c: Config = old.try_into().unwrap();
+    assert_eq!(c, Config::paper());
+}
+
+#[test]
+fn bad_values_are_named() {
+    let bad = |f: fn(&mut Config), want: &str| {
+        let mut c = Config::paper();
+        f(&mut c);
+        let e = c.validate().unwrap_err().to_string();
+        assert!(e.contains(want), "{e:?} lacks {want:?}");
+    };
+    bad(|c| c.lr = 0.0, "lr must be > 0");
+    bad(|c| c.lr = -1e-3, "lr must be > 0");
+    bad(|c| c.lr = 1e39, "lr must be > 0 and finite in f32");
+    bad(
+        |c| c.batch_size = 4000,
+        "batch_size (4000) must not exceed buffer_size (2000)",
+    );
+    bad(|c| c.width = 0, "width must be one of");
+    bad(|c| c.gamma = 1.5, "gamma must be in [0, 1]");
+    bad(|c| c.gamma = -0.1, "gamma must be in [0, 1]");
+    bad(
+        |c| c.episodes = 0,
+        "episodes must be in [1, 1000000], got 0",
+    );
+    bad(
+        |c| c.episodes = usize::MAX,
+        "episodes must be in [1, 1000000]",
+    );
+    bad(
+        |c| c.buffer_size = 10_000_000_000,
+        "buffer_size must be in [1, 5000000]",
+    );
+    bad(
+        |c| c.max_steps = u32::MAX,
+        "max_steps must be in [1, 1000000]",
+    );
+    bad(
+        |c| c.final_eval_episodes = 0,
+        "final_eval_episodes must be in [1, 100000]",
+    );
+    bad(
+        |c| c.finalists = 3,
+        "finalists (3) need finalist_episodes and finalist_max_steps >= 1, got 0 and 0",
+    );
+    bad(|c| c.adam_eps = 1e-50, "adam_eps must be a normal f32 > 0");
+    bad(|c| c.tau = 0.0, "tau must be in (0, 1]");
+}
+
+#[test]
+fn the_documented_limits_are_the_checked_ones() {
+    let doc = include_str!("../../../docs/HOSTILE_INPUT.md");
+    for c in &COUNTS {
+        let row = format!("| `{}` | {} to {}", c.key, c.min, c.max);
+        assert!(doc.contains(&row), "docs/HOSTILE_INPUT.md lacks {row:?}");
+        let mut at_max = Config::paper();
+        let mut over = Config::paper();
+        set(&mut at_max, c.key, c.max);
+        set(&mut over, c.key, c.max + 1);
+        assert!(over.validate().unwrap_err().0.contains(c.key), "{}", c.key);
+        // The limit itself is accepted (where other fields allow it).
+        if let Err(e) = at_max.validate() {
+            assert!(!e.0.contains(&format!("{} must be in", c.key)), "{e}");
+        }
+    }
+}
+
+/// Sets the count named `key` through the TOML overlay, as a user would.
+fn set(c: &mut Config, key: &str, v: u64) {
+    *c = c.overlay_toml(&format!("{key} = {v}"), "t.toml").unwrap();
+}
+
+#[test]
+fn toml_overlays_known_keys_and_rejects_unknown_ones() {
+    let c = Config::paper()
+        .overlay_toml(
+            "gamma = 0.99\nalgo = \"dqn\"\ninit = \"normal0.1\"\n",
+            "t.toml",
+        )
+        .unwrap();
+    assert_eq!((c.gamma, c.algo, c.init), (0.99, Algo::Dqn, Init::Normal01));
+    assert_eq!(c.lr, 5e-4);
+    let e = Config::paper()
+        .overlay_toml("gama = 0.99\n", "t.toml")
+        .unwrap_err();
+    assert!(e.0.contains("unknown key \"gama\""), "{e}");
+    let e = Config::paper()
+        .overlay_toml("gamma = \"high\"\n", "t.toml")
+        .unwrap_err();
+    assert!(e.0.contains("t.toml"), "{e}");
+    // A parser message that quotes a huge line is cut.
+    let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
+    let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
+    assert!(e.0.len() < 600, "{}", e.0.len());
+}
