@@ -13,6 +13,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
+use host_common::stats::mean;
 use serde::{Deserialize, Serialize};
 use weights::checkpoint::to_safetensors;
 use weights::files::write_atomic;
@@ -100,8 +101,7 @@ pub struct PeriodicEval {
 pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
     let returns: Vec<f64> = r.episodes.iter().map(|e| e.ret).collect();
     let tail = returns.len().saturating_sub(100);
-    let mean_of = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let final_mean100 = mean_of(&returns[tail..]);
+    let final_mean100 = mean(&returns[tail..]);
     let learning: Vec<f64> = r.episodes[tail..]
         .iter()
         .map(|e| e.learning_return)
@@ -117,7 +117,7 @@ pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
         solved_episode_195: solved_episode(&returns, 195.0),
         solved_episode_475: solved_episode(&returns, 475.0),
         final_mean100,
-        final_learning_mean100: mean_of(&learning),
+        final_learning_mean100: mean(&learning),
         best_mean100,
         env_steps: r.env_steps,
         grad_steps: r.grad_steps,

@@ -76,7 +76,7 @@ pub fn write(
     )?;
     write_atomic(&dir.join("tables.md"), tables_md(&rows).as_bytes())?;
 
-    let by = |study: &str| -> Vec<(&Variant, &Vec<RunStats>)> {
+    let by = |study: &str| -> Vec<Member> {
         variants
             .iter()
             .zip(runs)
@@ -123,7 +123,7 @@ pub fn write(
 }
 
 /// Predicted max-Q against the discounted learning return obtained, per row of `rows`.
-fn overestimation(dir: &Path, name: &str, rows: &[(&Variant, &Vec<RunStats>)]) -> Result<()> {
+fn overestimation(dir: &Path, name: &str, rows: &[Member]) -> Result<()> {
     let mut over = Vec::new();
     for (v, r) in rows {
         over.push(curve(
