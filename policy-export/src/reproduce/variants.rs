@@ -48,7 +48,15 @@ const READINGS: Option<(&str, &str)> = Some(("shaping-readings", "Readings of th
 pub fn variants(base: &Config) -> Vec<Variant> {
     let mut all = paper_studies(base);
     all.extend(shaping(base));
-    all.extend(fixed_tables(&base.clone().with_paper_fixes()));
+    all.extend(tables(
+        &base.clone().with_paper_fixes(),
+        [
+            "table1-fixed",
+            "table4-fixed",
+            "table5-fixed",
+            "table6-fixed",
+        ],
+    ));
     all
 }
 
@@ -156,14 +164,18 @@ fn shaping(b: &Config) -> Vec<Variant> {
     out
 }
 
-/// Tables 1, 4, 5 and 6 again, on `fixed` (the `paper-fixed` preset); the paper's numbers
-/// are shown beside them, as on the paper preset.
-fn fixed_tables(fixed: &Config) -> Vec<Variant> {
-    let f = fixed.clone();
-    let one = |study, label: &str, paper, cfg| v(study, label, paper, cfg);
+/// The paper's Tables 1, 4, 5 and 6 on `b`, in the studies `names`, with the paper's numbers
+/// beside each row; Table 6's periods count `b`'s target-period unit.
+fn tables(b: &Config, names: [&'static str; 4]) -> Vec<Variant> {
+    let [t1, t4, t5, t6] = names;
+    let unit = match b.target_period_unit {
+        Unit::Episodes => "ep.",
+        Unit::Steps => "steps",
+    };
+    let f = b.clone();
     vec![
-        one(
-            "table1-fixed",
+        v(
+            t1,
             "width 16",
             Some(("no convergence", "< 100")),
             Config {
@@ -171,14 +183,9 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
-        one(
-            "table1-fixed",
-            "width 64",
-            Some(("~160", "196.5")),
-            f.clone(),
-        ),
-        one(
-            "table1-fixed",
+        v(t1, "width 64", Some(("~160", "196.5")), f.clone()),
+        v(
+            t1,
             "width 128",
             Some(("~200", "195.1")),
             Config {
@@ -186,8 +193,8 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
-        one(
-            "table4-fixed",
+        v(
+            t4,
             "DQN",
             Some(("~200", "192.3")),
             Config {
@@ -195,14 +202,9 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
-        one(
-            "table4-fixed",
-            "Double DQN",
-            Some(("~160", "196.5")),
-            f.clone(),
-        ),
-        one(
-            "table5-fixed",
+        v(t4, "Double DQN", Some(("~160", "196.5")), f.clone()),
+        v(
+            t5,
             "lr 0.0001",
             Some(("> 250", "193.1")),
             Config {
@@ -210,14 +212,9 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
-        one(
-            "table5-fixed",
-            "lr 0.0005",
-            Some(("~160", "196.5")),
-            f.clone(),
-        ),
-        one(
-            "table5-fixed",
+        v(t5, "lr 0.0005", Some(("~160", "196.5")), f.clone()),
+        v(
+            t5,
             "lr 0.001",
             Some(("unstable", "< 180")),
             Config {
@@ -225,28 +222,28 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
-        one(
-            "table6-fixed",
-            "every 10 steps",
+        v(
+            t6,
+            &format!("every 10 {unit}"),
             Some(("~200", "193.8")),
             Config {
                 target_period: 10,
                 ..f.clone()
             },
         ),
-        one(
-            "table6-fixed",
-            "every 50 steps",
+        v(
+            t6,
+            &format!("every 50 {unit}"),
             Some(("~160", "196.5")),
             f.clone(),
         ),
-        one(
-            "table6-fixed",
-            "every 100 steps",
+        v(
+            t6,
+            &format!("every 100 {unit}"),
             Some(("~220", "194.2")),
             Config {
                 target_period: 100,
-                ..f.clone()
+                ..f
             },
         ),
     ]
@@ -255,74 +252,8 @@ fn fixed_tables(fixed: &Config) -> Vec<Variant> {
 /// The paper's own tables and the single changes to its preset.
 fn paper_studies(base: &Config) -> Vec<Variant> {
     let b = base.clone();
-    vec![
-        v(
-            "table1",
-            "width 16",
-            Some(("no convergence", "< 100")),
-            Config {
-                width: 16,
-                ..b.clone()
-            },
-        ),
-        v("table1", "width 64", Some(("~160", "196.5")), b.clone()),
-        v(
-            "table1",
-            "width 128",
-            Some(("~200", "195.1")),
-            Config {
-                width: 128,
-                ..b.clone()
-            },
-        ),
-        v(
-            "table4",
-            "DQN",
-            Some(("~200", "192.3")),
-            Config {
-                algo: Algo::Dqn,
-                ..b.clone()
-            },
-        ),
-        v("table4", "Double DQN", Some(("~160", "196.5")), b.clone()),
-        v(
-            "table5",
-            "lr 0.0001",
-            Some(("> 250", "193.1")),
-            Config {
-                lr: 1e-4,
-                ..b.clone()
-            },
-        ),
-        v("table5", "lr 0.0005", Some(("~160", "196.5")), b.clone()),
-        v(
-            "table5",
-            "lr 0.001",
-            Some(("unstable", "< 180")),
-            Config {
-                lr: 1e-3,
-                ..b.clone()
-            },
-        ),
-        v(
-            "table6",
-            "every 10 ep.",
-            Some(("~200", "193.8")),
-            Config {
-                target_period: 10,
-                ..b.clone()
-            },
-        ),
-        v("table6", "every 50 ep.", Some(("~160", "196.5")), b.clone()),
-        v(
-            "table6",
-            "every 100 ep.",
-            Some(("~220", "194.2")),
-            Config {
-                target_period: 100,
-                ..b.clone()
-            },
-        ),
+    let mut out = tables(&b, ["table1", "table4", "table5", "table6"]);
+    out.extend([
         v("init", "Xavier normal", None, b.clone()),
         v(
             "init",
@@ -390,7 +321,8 @@ fn paper_studies(base: &Config) -> Vec<Variant> {
                 ..b.clone()
             },
         ),
-    ]
+    ]);
+    out
 }
 
 #[cfg(test)]
