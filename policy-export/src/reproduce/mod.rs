@@ -56,10 +56,10 @@ pub fn run(
     let done: Vec<Result<RunStats>> = jobs
         .par_iter()
         .map(|&(d, seed)| {
-            let r = train::train(firsts[d], seed, &mut |_| {})
+            let episodes = train::episodes(firsts[d], seed)
                 .with_context(|| format!("config {d}, seed {seed}"))?;
             tick();
-            Ok(RunStats::of(seed, &r.episodes))
+            Ok(RunStats::of(seed, &episodes))
         })
         .collect();
     let mut by_config: Vec<Vec<RunStats>> = vec![Vec::new(); firsts.len()];

@@ -203,7 +203,7 @@ pub fn train(
     macro_rules! by_width {
         ($($h:literal => $c:ident / $qc:ident,)*) => {
             match cfg.width {
-                $($h => train_width::<$h>(cfg, seed, kernel, on_episode),)*
+                $($h => train_width::<$h>(cfg, seed, kernel, on_episode, true),)*
                 w => unreachable!("validate() admits only supported widths, got {w}"),
             }
         };
@@ -211,11 +211,32 @@ pub fn train(
     firmware::for_each_width!(by_width)
 }
 
+/// Trains one seed for its episode records alone, which is all a study reads: the policy
+/// is neither chosen among snapshots nor evaluated on fresh starts (for the paper preset
+/// that evaluation, 100 greedy 500-step episodes, is a sixteenth of a run). The records are
+/// [`train`]'s, bit for bit.
+pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
+    cfg.validate()?;
+    let kernel = cfg.kernel.resolve()?;
+    macro_rules! by_width {
+        ($($h:literal => $c:ident / $qc:ident,)*) => {
+            match cfg.width {
+                $($h => train_width::<$h>(cfg, seed, kernel, &mut |_| {}, false),)*
+                w => unreachable!("validate() admits only supported widths, got {w}"),
+            }
+        };
+    }
+    Ok(firmware::for_each_width!(by_width)?.episodes)
+}
+
+/// One run; with `evaluate_policy` false, the finalists' trial and the final evaluation are left
+/// out.
 fn train_width<const H: usize>(
     cfg: &Config,
     seed: u64,
     kernel: Kernel,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
+    evaluate_policy: bool,
 ) -> Result<RunResult> {
     let start = Instant::now();
     let mut learner = Learner::<H>::new(cfg, kernel, seed);
@@ -400,7 +421,7 @@ fn train_width<const H: usize>(
     let wall_s = start.elapsed().as_secs_f64();
     let last = records.len();
     let mut trial = Vec::new();
-    if cfg.finalists > 0 {
+    if evaluate_policy && cfg.finalists > 0 {
         let mut best: Option<(usize, EvalResult)> = None;
         for (i, (_, ep, net)) in pool.iter().enumerate() {
             selection_episodes += cfg.finalist_episodes as u64;
@@ -429,14 +450,25 @@ fn train_width<const H: usize>(
         None => (last, learner.online.clone()),
     };
     let policy_env_steps = records[policy_episode - 1].env_steps;
-    let final_eval = evaluate(
-        &policy,
-        cfg.final_eval_episodes,
-        cfg.eval_max_steps,
-        &eval_domain,
-        cfg.compensate,
-        &mut eval_streams(seed, Eval::Final),
-    );
+    let final_eval = if evaluate_policy {
+        evaluate(
+            &policy,
+            cfg.final_eval_episodes,
+            cfg.eval_max_steps,
+            &eval_domain,
+            cfg.compensate,
+            &mut eval_streams(seed, Eval::Final),
+        )
+    } else {
+        // Never leaves this module: `episodes` keeps the records alone.
+        EvalResult {
+            episodes: 0,
+            max_steps: cfg.eval_max_steps,
+            mean: f64::NAN,
+            min: f64::NAN,
+            cost: f64::NAN,
+        }
+    };
     Ok(RunResult {
         episodes: records,
         policy: Weights::from_mlp(&policy).map_err(|e| {

@@ -38,6 +38,31 @@ fn strip(r: &RunResult) -> Vec<EpisodeRecord> {
         .collect()
 }
 
+#[test]
+fn a_studys_records_are_a_whole_runs_without_its_evaluation() {
+    // Periodic evaluations that can stop the run, and a finalists' trial: the records must
+    // not depend on anything `episodes` leaves out.
+    let cfg = Config {
+        eval_every: 5,
+        eval_episodes: 2,
+        stop_when_perfect: true,
+        eval_max_steps: 60,
+        finalists: 2,
+        finalist_episodes: 2,
+        finalist_max_steps: 60,
+        ..small(KernelChoice::Portable)
+    };
+    let whole = train(&cfg, 5, &mut |_| {}).unwrap();
+    assert!(whole.evals.len() >= 2 && whole.trial.len() == 2);
+    let records = |r: Vec<EpisodeRecord>| {
+        r.into_iter()
+            .map(|e| EpisodeRecord { wall_s: 0.0, ..e })
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(records(episodes(&cfg, 5).unwrap()), strip(&whole));
+    assert!(episodes(&Config { width: 3, ..cfg }, 5).is_err());
+}
+
 /// FNV-1a over the weights' bits and every deterministic metric's bits: one number that
 /// changes if any of them does. `learned` leaves out the one column that is a measurement of
 /// the run rather than its result (`mean_discounted_return`), so that a change to how it is
