@@ -198,12 +198,28 @@ pub fn train(
     seed: u64,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
 ) -> Result<RunResult> {
+    by_width(cfg, seed, on_episode, true)
+}
+
+/// Trains one seed for its episode records alone, which is all a study reads: the policy
+/// is neither chosen among snapshots nor evaluated on fresh starts (100 greedy episodes of
+/// up to 500 steps for the paper preset). The records are [`train`]'s, bit for bit.
+pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
+    Ok(by_width(cfg, seed, &mut |_| {}, false)?.episodes)
+}
+
+fn by_width(
+    cfg: &Config,
+    seed: u64,
+    on_episode: &mut dyn FnMut(&EpisodeRecord),
+    evaluate_policy: bool,
+) -> Result<RunResult> {
     cfg.validate()?;
     let kernel = cfg.kernel.resolve()?;
     macro_rules! by_width {
         ($($h:literal => $c:ident / $qc:ident,)*) => {
             match cfg.width {
-                $($h => train_width::<$h>(cfg, seed, kernel, on_episode, true),)*
+                $($h => train_width::<$h>(cfg, seed, kernel, on_episode, evaluate_policy),)*
                 w => unreachable!("validate() admits only supported widths, got {w}"),
             }
         };
@@ -211,26 +227,8 @@ pub fn train(
     firmware::for_each_width!(by_width)
 }
 
-/// Trains one seed for its episode records alone, which is all a study reads: the policy
-/// is neither chosen among snapshots nor evaluated on fresh starts (for the paper preset
-/// that evaluation, 100 greedy 500-step episodes, is a sixteenth of a run). The records are
-/// [`train`]'s, bit for bit.
-pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
-    cfg.validate()?;
-    let kernel = cfg.kernel.resolve()?;
-    macro_rules! by_width {
-        ($($h:literal => $c:ident / $qc:ident,)*) => {
-            match cfg.width {
-                $($h => train_width::<$h>(cfg, seed, kernel, &mut |_| {}, false),)*
-                w => unreachable!("validate() admits only supported widths, got {w}"),
-            }
-        };
-    }
-    Ok(firmware::for_each_width!(by_width)?.episodes)
-}
-
-/// One run; with `evaluate_policy` false, the finalists' trial and the final evaluation are left
-/// out.
+/// One run; with `evaluate_policy` false, the finalists' trial and the final evaluation
+/// are left out.
 fn train_width<const H: usize>(
     cfg: &Config,
     seed: u64,
