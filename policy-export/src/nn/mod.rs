@@ -15,7 +15,9 @@
 //! Speed comes from the layout and from compiling the same generic kernels three times:
 //! with AVX-512F + AVX-512VL + FMA, with AVX2 + FMA, and for the baseline target, picked at
 //! run time ([`Kernel::detect`]). Results are bit-identical for a given kernel; different
-//! kernels round differently (FMA fuses), so a run records which one it used.
+//! kernels round differently (FMA fuses), so a run records which one it used. The portable
+//! kernel, which never fuses, runs in AVX2 registers where the CPU has them: the same
+//! operations element for element, so the same bits as on a machine without.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 pub use host_common::kernel::Kernel;
@@ -162,6 +164,15 @@ macro_rules! kernel_entry {
                 fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
                     $imp::<H, Fused, FUSED_ROWS>($($arg),*)
                 }
+                // The portable kernel's arithmetic in 8-wide registers. Its operations are
+                // element-wise IEEE multiplies and adds in the order the source gives (Rust
+                // never contracts them, and this build has no FMA to contract them into),
+                // so the bits are the baseline build's and only the speed differs.
+                #[target_feature(enable = "avx2")]
+                #[allow(clippy::too_many_arguments)]
+                fn portable_avx2<const H: usize>($($arg: $ty),*) -> $ret {
+                    $imp::<H, Unfused, UNFUSED_ROWS>($($arg),*)
+                }
                 match kernel {
                     // SAFETY: the CPU was just checked for every feature the function enables.
                     Kernel::Avx512 if Kernel::Avx512.supported() => {
@@ -170,6 +181,10 @@ macro_rules! kernel_entry {
                     // SAFETY: as above.
                     Kernel::Avx2 if Kernel::Avx2.supported() => {
                         return unsafe { avx2::<H>($($arg),*) };
+                    }
+                    // SAFETY: as above.
+                    Kernel::Portable if Kernel::Avx2.supported() => {
+                        return unsafe { portable_avx2::<H>($($arg),*) };
                     }
                     _ => {}
                 }

@@ -292,3 +292,71 @@ fn soft_update_interpolates() {
     soft_update(&mut t, &o, 0.25);
     assert_eq!(t.fc2_weight[1][2], 1.5);
 }
+
+/// `Kernel::Portable` runs in AVX2 registers where it can; the generic code called directly
+/// here is the baseline build. Forward, backward and Adam must agree bit for bit, at the
+/// narrowest width and at the firmware's.
+#[test]
+fn the_portable_kernel_gives_the_baseline_builds_bits() {
+    fn check<const H: usize>() {
+        let bits = |m: &Mlp<H>| -> Vec<u32> {
+            let w = weights::Weights::from_mlp(m).unwrap();
+            w.tensors().iter().flatten().map(|v| v.to_bits()).collect()
+        };
+        let mut r = rng(21, Stream::Sample);
+        let net = random_net::<H>(20);
+        let packed = Packed::new(&net);
+        let x = random_obs(&mut r, 13);
+        let actions: Vec<u8> = (0..13).map(|i| (i % 2) as u8).collect();
+        let targets: Vec<f32> = (0..13).map(|i| 0.3 * i as f32 - 1.0).collect();
+        let (mut s1, mut s2) = (Scratch::<H>::new(13), Scratch::<H>::new(13));
+        let (mut g1, mut g2) = (boxed_zero::<H>(), boxed_zero::<H>());
+        forward_batch(Kernel::Portable, &net, &packed, &x, &mut s1);
+        forward_impl::<H, Unfused, UNFUSED_ROWS>(&net, &packed, &x, &mut s2);
+        let q =
+            |s: &Scratch<H>| -> Vec<u32> { s.q.iter().flatten().map(|v| v.to_bits()).collect() };
+        assert_eq!(q(&s1), q(&s2));
+        let l1 = backward(
+            Kernel::Portable,
+            &net,
+            &x,
+            &actions,
+            &targets,
+            Loss::Huber,
+            &mut s1,
+            &mut g1,
+        );
+        let l2 = backward_impl::<H, Unfused, UNFUSED_ROWS>(
+            &net,
+            &x,
+            &actions,
+            &targets,
+            Loss::Huber,
+            &mut s2,
+            &mut g2,
+        );
+        assert_eq!(l1.to_bits(), l2.to_bits());
+        assert_eq!(bits(&g1), bits(&g2));
+        let hp = AdamParams {
+            lr: 1e-3,
+            beta1: 0.9,
+            beta2: 0.999,
+            eps: 1e-8,
+        };
+        let (mut p1, mut p2) = (net.clone(), net.clone());
+        let (mut m1, mut v1, mut m2, mut v2) = (
+            boxed_zero::<H>(),
+            boxed_zero::<H>(),
+            boxed_zero::<H>(),
+            boxed_zero::<H>(),
+        );
+        for t in 1..4 {
+            adam_step(Kernel::Portable, &hp, t, &mut p1, &g1, &mut m1, &mut v1);
+            adam_impl::<H, Unfused, UNFUSED_ROWS>(&hp, t, &mut p2, &g2, &mut m2, &mut v2);
+        }
+        assert_eq!(bits(&p1), bits(&p2));
+        assert_eq!(bits(&v1), bits(&v2));
+    }
+    check::<16>();
+    check::<64>();
+}
