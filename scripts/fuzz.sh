@@ -18,7 +18,7 @@ command -v cargo-fuzz >/dev/null || cargo +nightly install cargo-fuzz --locked
 corpus=fuzz/corpus
 mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse}
 cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
-cargo run -q --release -p policy-export -- train --preset robust --print-config \
+cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
 head -n 3 tests/data/gym_traj_public.jsonl >"$corpus/replay_parse/three.jsonl"
 n=0

@@ -9,7 +9,7 @@ scripts/setup.sh
 out=${1:-runs/shipped}
 pe() { cargo run -q --release -p policy-export -- "$@"; }
 
-echo "== train (deploy preset, seed 2, portable kernel; about 4 minutes) -> $out"
+echo "== train (deploy preset, seed 2, portable kernel; about 2 minutes) -> $out"
 pe train --preset deploy --kernel portable --seed 2 --out "$out"
 echo "== export"
 pe export "$out" --format c --out "$out/cartpole_policy.h"
@@ -24,4 +24,4 @@ echo "== closed loop: the trained policy through firmware::controller against th
 cargo run -q --release -p host-sim -- eval --policy "$out" --scenario nominal \
     --horizon 500,10000 --controller policy,lqr,random --min-success 1.0
 echo "== end-to-end tests (the compiled firmware policy, train -> export -> load -> balance)"
-cargo test -q --release -p e2e
+cargo test -q --profile quick -p e2e

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# The test suite, from a fresh machine: set-up, then every crate's tests in release mode
-# (the end-to-end tests train a policy; release keeps them to seconds).
+# The test suite, from a fresh machine: set-up, then every crate's tests optimised (the
+# end-to-end tests train a policy) but without link-time optimisation, which would be paid
+# once per test binary (profile `quick`, Cargo.toml).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-cargo test --workspace --release
+cargo test --workspace --profile quick
