@@ -5,10 +5,9 @@ use std::path::PathBuf;
 
 use firmware::policy::POLICY;
 use policy_export::config::{Config, KernelChoice};
-use policy_export::run::{provenance, summarize};
+use policy_export::run::write_run;
 use policy_export::train;
 use weights::Weights;
-use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -44,15 +43,19 @@ fn the_shipped_policy_regenerates_bit_identically() {
         "retraining the recipe no longer gives the shipped weights: \
          regenerate firmware/src/policy.rs as the README says, or find what changed"
     );
-    let source = rust_module(
-        &result.policy,
-        DEFAULT_RUST_NAME,
-        &provenance(&summarize(&cfg, SHIPPED_SEED, &result)),
-    )
-    .unwrap();
-    let committed = std::fs::read_to_string(repo().join("firmware/src/policy.rs")).unwrap();
-    assert_eq!(
-        source, committed,
-        "firmware/src/policy.rs is not the exporter's output"
-    );
+    // The files a user's `train` writes, through the same writer: the metadata too, so a
+    // config that gains keys shows here rather than as a "differs" in the main job.
+    let dir = std::env::temp_dir().join(format!("shipped-policy-{}", std::process::id()));
+    write_run(&dir, &cfg, SHIPPED_SEED, &result).unwrap();
+    for (written, committed) in [
+        ("policy.rs", "firmware/src/policy.rs"),
+        ("policy.safetensors", "firmware/policy.safetensors"),
+    ] {
+        assert!(
+            std::fs::read(dir.join(written)).unwrap()
+                == std::fs::read(repo().join(committed)).unwrap(),
+            "{committed} is not what the recipe's run writes: regenerate it as the README says"
+        );
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
 }
