@@ -29,6 +29,14 @@ fn random_net<const H: usize>(seed: u64) -> Box<Mlp<H>> {
     net
 }
 
+/// Every parameter's bits, in tensor order.
+fn bits<const H: usize>(m: &Mlp<H>) -> Vec<u32> {
+    m.tensors()
+        .iter()
+        .flat_map(|t| t.iter().map(|v| v.to_bits()))
+        .collect()
+}
+
 fn random_obs(r: &mut impl Rng, n: usize) -> Vec<[f32; 4]> {
     (0..n)
         .map(|_| [2.4, 2.0, 0.21, 2.0].map(|s| uniform(r, -s, s)))
@@ -273,12 +281,6 @@ fn the_screened_clip_equals_the_sequential_definition_bit_for_bit() {
         let mut want = g.clone();
         clip_reference(&mut want, 10.0);
         clipped[usize::from(clip_grad_norm(&mut g, 10.0))] += 1;
-        let bits = |m: &Mlp<64>| -> Vec<u32> {
-            m.tensors()
-                .iter()
-                .flat_map(|t| t.iter().map(|v| v.to_bits()))
-                .collect()
-        };
         assert_eq!(bits(&g), bits(&want), "case {case}");
     }
     assert!(clipped[0] > 50 && clipped[1] > 50, "{clipped:?}");
@@ -299,10 +301,6 @@ fn soft_update_interpolates() {
 #[test]
 fn the_portable_kernel_gives_the_baseline_builds_bits() {
     fn check<const H: usize>() {
-        let bits = |m: &Mlp<H>| -> Vec<u32> {
-            let w = weights::Weights::from_mlp(m).unwrap();
-            w.tensors().iter().flatten().map(|v| v.to_bits()).collect()
-        };
         let mut r = rng(21, Stream::Sample);
         let net = random_net::<H>(20);
         let packed = Packed::new(&net);

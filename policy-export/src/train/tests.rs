@@ -96,21 +96,18 @@ fn fingerprint(r: &RunResult, learned: bool) -> u64 {
 #[test]
 fn the_same_seed_gives_bit_identical_weights_and_metrics() {
     for kernel in Kernel::available() {
-        let run = |seed| train(&small(choice(kernel)), seed, &mut |_| {}).unwrap();
+        let choice = match kernel {
+            Kernel::Portable => KernelChoice::Portable,
+            Kernel::Avx2 => KernelChoice::Avx2,
+            Kernel::Avx512 => KernelChoice::Avx512,
+        };
+        let run = |seed| train(&small(choice), seed, &mut |_| {}).unwrap();
         let (a, b) = (run(3), run(3));
         assert_eq!(bits(&a), bits(&b), "{kernel:?}");
         assert_eq!(strip(&a), strip(&b), "{kernel:?}");
         assert_eq!(a.final_eval, b.final_eval);
         assert!(a.grad_steps > 0 && a.env_steps > 100);
         assert_ne!(bits(&a), bits(&run(4)), "{kernel:?}");
-    }
-}
-
-fn choice(kernel: Kernel) -> KernelChoice {
-    match kernel {
-        Kernel::Portable => KernelChoice::Portable,
-        Kernel::Avx2 => KernelChoice::Avx2,
-        Kernel::Avx512 => KernelChoice::Avx512,
     }
 }
 
