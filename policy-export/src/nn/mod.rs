@@ -4,6 +4,7 @@
 //! - `kernels`: the batched forward pass and the building block every matrix product uses.
 //! - `backprop`: gradients of the TD loss.
 //! - `optim`: Adam, gradient clipping, soft target updates.
+//! - `act`: the firmware's forward pass, bit for bit, from the packed transposes.
 //!
 //! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
 //! with is the policy that ships. Inference during training goes through
@@ -22,9 +23,12 @@
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 pub use host_common::kernel::Kernel;
 
+mod act;
 mod backprop;
 mod kernels;
 mod optim;
+
+pub use act::act;
 
 use backprop::backward_impl;
 #[cfg(target_arch = "x86_64")]
@@ -57,7 +61,7 @@ pub struct Scratch<const H: usize> {
 }
 
 /// A network's first two weight matrices transposed (`[in][out]`), so that the batched
-/// forward pass reads contiguous rows. Re-pack whenever the weights change.
+/// forward pass and [`act`] read contiguous rows. Re-pack whenever the weights change.
 pub struct Packed<const H: usize> {
     w1t: [[f32; H]; OBS_DIM],
     w2t: [[f32; H]; H],
@@ -74,7 +78,7 @@ impl<const H: usize> Packed<H> {
         p
     }
 
-    /// Refreshes the transposes from `net`. Called before every gradient step, so the
+    /// Refreshes the transposes from `net`. Called after every gradient step, so the
     /// square matrix moves in 4 x 4 tiles: element by element, the stores run down columns
     /// `4 H` bytes apart, which at width 128 land in a few L1 sets and took a seventh of
     /// the step.

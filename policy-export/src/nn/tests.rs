@@ -358,3 +358,42 @@ fn the_portable_kernel_gives_the_baseline_builds_bits() {
     check::<16>();
     check::<64>();
 }
+
+/// Acting must give the firmware's Q-values bit for bit with every kernel: on random
+/// networks, at every width the ReLU and tree see differently, for ordinary observations and
+/// for raw bit patterns (NaN, infinities, subnormals, signed zeros), and for weights that
+/// are raw bit patterns too.
+#[test]
+fn acting_gives_the_firmwares_q_values_bit_for_bit() {
+    fn check<const H: usize>(seed: u64) {
+        let mut r = rng(seed, Stream::Env);
+        let mut nets = vec![random_net::<H>(seed)];
+        let mut raw = random_net::<H>(seed + 1);
+        for t in raw.tensors_mut() {
+            for v in t.iter_mut().step_by(7) {
+                *v = f32::from_bits(r.next_u32());
+            }
+        }
+        nets.push(raw);
+        let mut obs = random_obs(&mut r, 200);
+        obs.extend((0..200).map(|_| [0; 4].map(|_| f32::from_bits(r.next_u32()))));
+        obs.push([-0.0, 0.0, f32::NAN, f32::INFINITY]);
+        for net in &nets {
+            let packed = Packed::new(net);
+            for kernel in kernels() {
+                for o in &obs {
+                    let (got, want) = (act(kernel, net, &packed, o), net.forward(o));
+                    assert_eq!(
+                        got.map(f32::to_bits),
+                        want.map(f32::to_bits),
+                        "{kernel:?}, width {H}, obs {o:?}: {got:?} vs {want:?}"
+                    );
+                }
+            }
+        }
+    }
+    check::<16>(30);
+    check::<32>(31);
+    check::<64>(32);
+    check::<128>(33);
+}

@@ -132,8 +132,6 @@ impl<const H: usize> Learner<H> {
         }
         let k = self.kernel;
         self.score_targets(k, buf);
-        // The online weights changed in the previous step; the target's only when synced.
-        self.online_packed.pack(&self.online);
         if cfg.algo == Algo::Ddqn {
             nn::forward_batch(
                 k,
@@ -183,6 +181,8 @@ impl<const H: usize> Learner<H> {
             &mut self.m,
             &mut self.v,
         );
+        // Acting reads the transposes too, so they follow the weights at once.
+        self.online_packed.pack(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
             nn::soft_update(&mut self.target, &self.online, cfg.tau as f32);
             self.target_packed.pack(&self.target);
@@ -223,6 +223,11 @@ impl<const H: usize> Learner<H> {
                 write_id: buf.write_id(self.idx[b]),
             };
         }
+    }
+
+    /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
+    pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+        nn::act(self.kernel, &self.online, &self.online_packed, obs)
     }
 
     /// Gradient steps taken.

@@ -295,7 +295,7 @@ fn train_width<const H: usize>(
                 Unit::Episodes => ep as f64,
             };
             eps = epsilon(cfg, t);
-            let q = learner.online.forward(&obs);
+            let q = learner.q_values(&obs);
             maxq_sum += f64::from(q[0].max(q[1]));
             let action = if unit_f64(&mut explore_rng) < eps {
                 Action::from_index((explore_rng.next_u32() & 1) as usize)
@@ -344,7 +344,7 @@ fn train_width<const H: usize>(
             0.0
         } else {
             // The weights that acted, before any end-of-episode training.
-            let q = learner.online.forward(&obs);
+            let q = learner.q_values(&obs);
             f64::from(q[0].max(q[1]))
         };
         if cfg.train_unit == Unit::Episodes
