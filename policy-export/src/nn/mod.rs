@@ -32,7 +32,7 @@ pub use act::act;
 
 use backprop::backward_impl;
 #[cfg(target_arch = "x86_64")]
-use kernels::{FUSED_ROWS, Fused};
+use kernels::{FUSED_ROWS, Fused, Fused512};
 use kernels::{UNFUSED_ROWS, Unfused, forward_impl};
 use optim::adam_impl;
 pub use optim::{AdamParams, clip_grad_norm, soft_update};
@@ -161,7 +161,7 @@ macro_rules! kernel_entry {
                 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
+                    $imp::<H, Fused512, FUSED_ROWS>($($arg),*)
                 }
                 #[target_feature(enable = "avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
