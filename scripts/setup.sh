@@ -18,5 +18,16 @@ if [ -n "$missing" ] && command -v apt-get >/dev/null; then
   echo "installing$missing (apt-get)"
   $sudo_ apt-get update -qq
   # shellcheck disable=SC2086 # one word per package
-  DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq $missing >/dev/null
+  if ! DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq $missing >/dev/null; then
+    # A bookworm machine whose qemu-utils came from backports refuses bookworm's older
+    # qemu-system packages (qemu-utils breaks qemu-system-common < 8): take backports' too.
+    . /etc/os-release
+    [ "${VERSION_CODENAME:-}" = bookworm ] || exit 1
+    echo "retrying from bookworm-backports"
+    echo "deb http://deb.debian.org/debian bookworm-backports main" |
+      $sudo_ tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
+    $sudo_ apt-get update -qq
+    # shellcheck disable=SC2086 # one word per package
+    DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq -t bookworm-backports $missing >/dev/null
+  fi
 fi

@@ -3,7 +3,7 @@
 //! against [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in
 //! `host-sim` (the digital twin) with exactly the code that drives real pins.
 //!
-//! This module is the wiring only, with the exact state or with encoders and the estimator
+//! This module is the wiring only, with the exact state or with encoders and the observer
 //! as sensors. Scenarios (noise, dead time, pushes) belong to the `twin` crate.
 
 use core::cell::Cell;
@@ -12,9 +12,9 @@ use core::convert::Infallible;
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
-use crate::cartpole::{CartPole, State};
+use crate::cartpole::{CartPole, Params, State};
 use crate::controller::{Controller, Limits, Policy, StateSensor};
-use crate::estimator::{Encoders, Estimator, quantise};
+use crate::estimator::{Encoders, Observer, Tuning, quantise};
 
 /// Full scale of [`CellDuty`].
 pub const MAX_DUTY: u16 = 1000;
@@ -31,19 +31,30 @@ impl StateSensor for PlantSensor<'_> {
 }
 
 /// Reads the plant the way a board reads its own: two encoders (the true cart position and
-/// pole angle floored to counts) through the [`Estimator`], which supplies the velocities.
+/// pole angle floored to counts) through the [`Observer`], told each period what the pins
+/// commanded in the last one.
 pub struct EncoderSensor<'a> {
     state: &'a Cell<State>,
-    estimator: Estimator,
+    direction: &'a Cell<bool>,
+    duty: &'a Cell<u16>,
+    observer: Observer,
 }
 
 impl<'a> EncoderSensor<'a> {
-    /// Encoders of resolution `enc`, estimated with filter discount `discount`, sampled every
-    /// `period_s`.
-    pub fn new(state: &'a Cell<State>, enc: Encoders, discount: f32, period_s: f32) -> Self {
+    /// Encoders of resolution `enc` on the plant whose state `state` holds, driven through
+    /// the `direction` and `duty` cells; the observer models the plant as `nominal`.
+    pub fn new(
+        state: &'a Cell<State>,
+        direction: &'a Cell<bool>,
+        duty: &'a Cell<u16>,
+        enc: Encoders,
+        nominal: &Params,
+    ) -> Self {
         EncoderSensor {
             state,
-            estimator: Estimator::new(enc, discount, period_s),
+            direction,
+            duty,
+            observer: Observer::new(enc, nominal, Tuning::DEFAULT, 0),
         }
     }
 }
@@ -52,10 +63,13 @@ impl StateSensor for EncoderSensor<'_> {
     type Error = Infallible;
     #[inline]
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
+        // The pins still hold the command that drove the period just ended.
+        let level = force(self.direction.get(), self.duty.get(), 1.0) as f32;
+        self.observer.command(level);
         let s = self.state.get();
-        let e = self.estimator.encoders();
+        let e = self.observer.encoders();
         let per_rad = f64::from(e.pole_counts_per_rev) / core::f64::consts::TAU;
-        Ok(self.estimator.update(
+        Ok(self.observer.update(
             quantise(s.x, f64::from(e.cart_counts_per_m)),
             quantise(s.theta, per_rad),
         ))
@@ -131,21 +145,22 @@ pub struct Outcome {
 /// while the previous step still ran (its overruns); a simulation passes `|| 0`.
 pub fn run<P: Policy>(policy: P, plant: &mut CartPole, wait: impl FnMut() -> u32) -> Outcome {
     let state = Cell::new(plant.state());
-    run_with(policy, plant, PlantSensor(&state), &state, wait)
+    let pins = (Cell::new(false), Cell::new(0));
+    run_with(policy, plant, PlantSensor(&state), &state, &pins, wait)
 }
 
-/// [`run`], reading the plant through encoders of resolution `enc` and the estimator.
+/// [`run`], reading the plant through encoders of resolution `enc` and the observer, which
+/// models the plant by its own parameters.
 pub fn run_with_encoders<P: Policy>(
     policy: P,
     plant: &mut CartPole,
     enc: Encoders,
-    discount: f32,
     wait: impl FnMut() -> u32,
 ) -> Outcome {
     let state = Cell::new(plant.state());
-    let tau = plant.params.tau as f32;
-    let sensor = EncoderSensor::new(&state, enc, discount, tau);
-    run_with(policy, plant, sensor, &state, wait)
+    let pins = (Cell::new(false), Cell::new(0));
+    let sensor = EncoderSensor::new(&state, &pins.0, &pins.1, enc, &plant.params);
+    run_with(policy, plant, sensor, &state, &pins, wait)
 }
 
 fn run_with<P: Policy, S: StateSensor>(
@@ -153,15 +168,14 @@ fn run_with<P: Policy, S: StateSensor>(
     plant: &mut CartPole,
     sensor: S,
     state: &Cell<State>,
+    (direction, duty): &(Cell<bool>, Cell<u16>),
     mut wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let direction = Cell::new(false);
-    let duty = Cell::new(0);
     let mut c: Controller<_, _, _, _, 1> = Controller::new(
         policy,
         sensor,
-        CellPin(&direction),
-        CellDuty(&duty),
+        CellPin(direction),
+        CellDuty(duty),
         Limits::default(),
     );
     loop {
@@ -184,7 +198,6 @@ fn run_with<P: Policy, S: StateSensor>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cartpole::Params;
     use crate::policy::POLICY;
 
     #[test]
@@ -215,14 +228,14 @@ mod tests {
     }
 
     #[test]
-    fn an_encoder_read_plant_balances_through_the_estimator() {
+    fn an_encoder_read_plant_balances_through_the_observer() {
         let enc = Encoders {
             cart_counts_per_m: 20_480,
             pole_counts_per_rev: 4_096,
         };
         let mut plant = CartPole::new(Params::default(), 500);
         plant.reset_to(State::from_array([0.03, -0.02, 0.04, 0.01]));
-        let out = run_with_encoders(&POLICY, &mut plant, enc, 0.5, || 0);
+        let out = run_with_encoders(&POLICY, &mut plant, enc, || 0);
         assert!(out.success && out.faults == 0, "{out:?}");
     }
 

@@ -160,12 +160,12 @@ pub const ENCODERS: Encoders = Encoders {
     pole_counts_per_rev: 4_096,
 };
 
-/// Episode `episode` of the self-test read through [`ENCODERS`] and the estimator (discount
-/// 0.5), as a board reads its plant.
+/// Episode `episode` of the self-test read through [`ENCODERS`] and the observer, as a board
+/// reads its plant.
 pub fn encoder_episode<P: Policy>(policy: P, episode: u32) -> Outcome {
     let mut plant = CartPole::new(Params::default(), EPISODE_STEPS);
     plant.reset(&mut Pcg32::seed_from_u64(u64::from(episode)));
-    run_with_encoders(policy, &mut plant, ENCODERS, 0.5, || 0)
+    run_with_encoders(policy, &mut plant, ENCODERS, || 0)
 }
 
 /// Writes the self-test report, one line per `line` call: the probe lines (Q-values from

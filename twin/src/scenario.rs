@@ -19,9 +19,14 @@ pub const MAX_SPEC_BYTES: usize = 1000;
 /// Most periods of actuator dead time a scenario can have.
 pub const MAX_DELAY: u32 = 16;
 
-/// Discount of the alpha-beta filter that estimates velocities in an `encoder` scenario
-/// (`firmware::estimator`): 0.5, a compromise between quantisation noise and lag at 50 Hz.
-pub const ESTIMATOR_DISCOUNT: f32 = 0.5;
+/// How an `encoder` scenario's board turns counts into the state (`firmware::estimator`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Estimation {
+    /// The model-based observer, told the commands sent and the dead time (the default).
+    Observer,
+    /// The model-free alpha-beta filter with this discount (`encoder=N/M/D`).
+    AlphaBeta(f32),
+}
 
 /// A disturbance: an extra force of `impulse / tau` for one period, every `every` periods,
 /// towards a random side.
@@ -47,9 +52,8 @@ pub struct Scenario {
     /// Encoders instead of a state sensor: positions quantised to counts, velocities from
     /// `firmware::estimator`, as a board must do it.
     pub encoders: Option<Encoders>,
-    /// The estimator's filter discount with encoders ([`ESTIMATOR_DISCOUNT`] unless the spec
-    /// says otherwise).
-    pub estimator_discount: f32,
+    /// Which estimator reads the encoders.
+    pub estimation: Estimation,
     /// Periods of actuator dead time: the force in a period is the command of `delay`
     /// periods before (none before the first command).
     pub delay: u32,
@@ -65,7 +69,7 @@ impl Scenario {
             params: Params::default(),
             noise_std: [0.0; 4],
             encoders: None,
-            estimator_discount: ESTIMATOR_DISCOUNT,
+            estimation: Estimation::Observer,
             delay: 0,
             push: None,
         }
@@ -79,8 +83,8 @@ impl Scenario {
     /// - `friction=C[/P]`: Coulomb friction coefficient C between cart and track, viscous
     ///   friction P (N m s/rad, default 0) at the pivot (Florian's model, `firmware::cartpole`);
     /// - `encoder=N[/M[/D]]`: encoders with N counts per revolution on the pole and M counts
-    ///   per metre on the cart (default 5N: the same encoder on a 20 cm drive pulley),
-    ///   velocities estimated with filter discount D (default [`ESTIMATOR_DISCOUNT`]; 0 is the
+    ///   per metre on the cart (default 5N: the same encoder on a 20 cm drive pulley), read
+    ///   through the observer, or with D through the alpha-beta filter of discount D (0 is the
     ///   plain backward difference);
     /// - `push[=IMPULSE[/EVERY]]`: pushes of IMPULSE N s (default 0.5) every EVERY periods
     ///   (default 100).
@@ -178,7 +182,7 @@ impl Scenario {
                                  found {d}"
                             ));
                         }
-                        s.estimator_discount = d as f32;
+                        s.estimation = Estimation::AlphaBeta(d as f32);
                     }
                     let n = whole(n, 16, 1 << 24, "encoder counts per revolution")?;
                     let m = match m {
@@ -329,13 +333,13 @@ mod tests {
     }
 
     #[test]
-    fn an_encoder_spec_may_set_the_estimators_discount() {
+    fn an_encoder_spec_reads_through_the_observer_or_a_filter_of_its_discount() {
         assert_eq!(
-            Scenario::parse("encoder=1024").unwrap().estimator_discount,
-            ESTIMATOR_DISCOUNT
+            Scenario::parse("encoder=1024").unwrap().estimation,
+            Estimation::Observer
         );
         let s = Scenario::parse("encoder=2400/16000/0").unwrap();
-        assert_eq!(s.estimator_discount, 0.0);
+        assert_eq!(s.estimation, Estimation::AlphaBeta(0.0));
         assert_eq!(s.encoders.unwrap().cart_counts_per_m, 16_000);
         let e = Scenario::parse("encoder=2400/16000/1.5").unwrap_err();
         assert!(

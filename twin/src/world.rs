@@ -7,12 +7,51 @@
 //! command enters the dead-time line; the force that leaves it, plus any push, steps the
 //! plant).
 
+use firmware::cartpole::Params;
 use firmware::cartpole::{CartPole, State, Transition, unit_f64};
-use firmware::estimator::{Estimator, quantise};
+use firmware::estimator::{AlphaBeta, Encoders, Observer, Tuning, quantise};
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::scenario::{MAX_DELAY, Scenario};
+use crate::scenario::{Estimation, MAX_DELAY, Scenario};
+
+/// The board's estimator in an `encoder` scenario.
+enum Estimator {
+    Observer(Observer),
+    AlphaBeta(AlphaBeta),
+}
+
+impl Estimator {
+    fn new(scenario: &Scenario, enc: Encoders) -> Estimator {
+        match scenario.estimation {
+            // The board models its plant as the nominal one and knows its own dead time (as
+            // the predictor does), nothing of a scenario's physics.
+            Estimation::Observer => Estimator::Observer(Observer::new(
+                enc,
+                &Params::default(),
+                Tuning::DEFAULT,
+                scenario.delay as usize,
+            )),
+            Estimation::AlphaBeta(d) => {
+                Estimator::AlphaBeta(AlphaBeta::new(enc, d, scenario.params.tau as f32))
+            }
+        }
+    }
+
+    fn encoders(&self) -> Encoders {
+        match self {
+            Estimator::Observer(o) => o.encoders(),
+            Estimator::AlphaBeta(a) => a.encoders(),
+        }
+    }
+
+    fn update(&mut self, cart: i32, pole: i32) -> [f32; 4] {
+        match self {
+            Estimator::Observer(o) => o.update(cart, pole),
+            Estimator::AlphaBeta(a) => a.update(cart, pole),
+        }
+    }
+}
 
 /// An episode in progress.
 pub struct World<'s, R> {
@@ -44,9 +83,7 @@ impl<'s, R: Rng> World<'s, R> {
             plant,
             noise,
             pushes,
-            estimator: scenario.encoders.map(|e| {
-                Estimator::new(e, scenario.estimator_discount, scenario.params.tau as f32)
-            }),
+            estimator: scenario.encoders.map(|e| Estimator::new(scenario, e)),
             line: [0.0; MAX_DELAY as usize],
             head: 0,
         }
@@ -88,8 +125,12 @@ impl<'s, R: Rng> World<'s, R> {
     }
 
     /// Ends the period: the actuator applies the command of `delay` periods ago (`commanded`
-    /// itself without dead time), a push may add its force, the plant steps.
+    /// itself without dead time), a push may add its force, the plant steps. The board's
+    /// observer is told the command, as a fraction of the motor's full force.
     pub fn apply(&mut self, commanded: f64) -> Transition {
+        if let Some(Estimator::Observer(o)) = self.estimator.as_mut() {
+            o.command((commanded / self.scenario.params.force_mag) as f32);
+        }
         let mut force = match self.scenario.delay as usize {
             0 => commanded,
             d => {

@@ -1,10 +1,12 @@
 //! The cart-pole balance controller on a Raspberry Pi Pico: the shipped policy in integers
 //! (`firmware::policy_int`, no floating point in the forward pass: the RP2040's Cortex-M0+ has
-//! no FPU), two quadrature encoders read by PIO state machines into `firmware::estimator`, an
+//! no FPU), two quadrature encoders read by PIO state machines into the encoder observer
+//! (`firmware::estimator::Observer`), an
 //! H-bridge driven through embedded-hal 1.0 (`OutputPin` for the direction, `SetDutyCycle`
 //! for the enable), a 50 Hz ticker and defmt logs. Wiring and flashing: `README.md`.
 //!
-//! Each period: the encoder counts become `[x, x_dot, theta, theta_dot]` (the estimator), the
+//! Each period: the encoder counts and the last command become `[x, x_dot, theta,
+//! theta_dot]` (the observer), the
 //! controller sanitises them against the track's limits (the cart coasts near the end stops),
 //! asks the integer policy, and drives the bridge. A step that outlasts its period is counted
 //! as an overrun in the controller's fault counters and logged, never hidden.
@@ -12,6 +14,7 @@
 #![no_std]
 #![no_main]
 
+use core::cell::Cell;
 use core::convert::Infallible;
 use core::sync::atomic::{AtomicI32, Ordering};
 
@@ -24,8 +27,9 @@ use embassy_rp::pio::{InterruptHandler, Pio};
 use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
 use embassy_rp::pwm::{self, Pwm};
 use embassy_time::{Duration, Instant, Ticker};
+use firmware::cartpole::Params;
 use firmware::controller::{CONTROL_PERIOD_S, Controller, Limits, StateSensor};
-use firmware::estimator::{Encoders, Estimator};
+use firmware::estimator::{Encoders, Observer, Tuning};
 use firmware::policy_int::POLICY_INT;
 use {defmt_rtt as _, panic_probe as _};
 
@@ -38,11 +42,6 @@ const ENCODERS: Encoders = Encoders {
     // 200 s episodes through 2,400 counts (README).
     pole_counts_per_rev: 2_400,
 };
-/// Filter discount of the estimator: 0, the plain backward difference. Measured in the twin
-/// (`host-sim eval --scenario encoder=2400/16000/0,encoder=2400/16000 --controller
-/// policy-int --horizon 10000`): a smoother filter lags, and at the twin's default of 0.5 the
-/// integer policy's RMS angle is 2.9 degrees instead of 0.79 and 112 of 200 episodes fall.
-const DISCOUNT: f32 = 0.0;
 /// Half the usable track, centre to end stop, and the margin in which the cart coasts.
 const TRACK_HALF_LENGTH_M: f32 = 0.40;
 const END_STOP_MARGIN_M: f32 = 0.05;
@@ -84,13 +83,18 @@ async fn pole_encoder(mut encoder: PioEncoder<'static, PIO0, 1>) -> ! {
     count(&mut encoder, &POLE_COUNTS).await
 }
 
-/// The estimator over the two counters: what the controller reads each period.
-struct EncoderSensor(Estimator);
+/// The observer over the two counters, told the command of the period just ended: what the
+/// controller reads each period.
+struct EncoderSensor<'a> {
+    observer: Observer,
+    last: &'a Cell<f32>,
+}
 
-impl StateSensor for EncoderSensor {
+impl StateSensor for EncoderSensor<'_> {
     type Error = Infallible;
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        Ok(self.0.update(
+        self.observer.command(self.last.get());
+        Ok(self.observer.update(
             CART_COUNTS.load(Ordering::Relaxed),
             POLE_COUNTS.load(Ordering::Relaxed),
         ))
@@ -125,7 +129,14 @@ async fn main(spawner: Spawner) {
     let enable = Pwm::new_output_b(p.PWM_SLICE7, p.PIN_15, config);
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
-    let sensor = EncoderSensor(Estimator::new(ENCODERS, DISCOUNT, CONTROL_PERIOD_S as f32));
+    // The observer models the rig as the plant the policy was trained on (Gymnasium's
+    // cart-pole); put the rig's own masses, pole length and motor force here. Its gain is
+    // solved once, now.
+    let last = Cell::new(0.0);
+    let sensor = EncoderSensor {
+        observer: Observer::new(ENCODERS, &Params::default(), Tuning::DEFAULT, 0),
+        last: &last,
+    };
     let limits = Limits::track(TRACK_HALF_LENGTH_M, END_STOP_MARGIN_M);
     let mut controller: Controller<_, _, _, _, 8> =
         Controller::new(&POLICY_INT, sensor, direction, enable, limits);
@@ -140,6 +151,7 @@ async fn main(spawner: Spawner) {
         ticker.next().await;
         let start = Instant::now();
         let command = controller.step();
+        last.set(command.level());
         let took = start.elapsed();
         if took >= period {
             // Whole periods lost while this step ran.

@@ -107,7 +107,7 @@ impl<const H: usize> Policy for &Mlp<H> {
 /// ([`fixed_obs`]), the forward pass is integer-only, and the scores are the integer outputs
 /// as f32, exact below 2^24 (which every exported network's outputs are, by construction), so
 /// the controller decides as `q[1] > q[0]` does. A board with encoders can skip the float
-/// reading altogether: `QMlp::forward` on `Estimator::fixed_state`.
+/// reading altogether: `QMlp::forward` on `AlphaBeta::fixed_state`.
 impl<const H: usize> Policy for &QMlp<H> {
     #[inline]
     fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
@@ -123,6 +123,18 @@ pub enum Command {
     Push(Action),
     /// Duty off: the fallback for a rejected reading.
     Coast,
+}
+
+impl Command {
+    /// The command as a fraction of full force, as the encoder
+    /// [`Observer`](crate::estimator::Observer) takes it: `1` right, `-1` left, `0` coasting.
+    pub fn level(self) -> f32 {
+        match self {
+            Command::Push(Action::Right) => 1.0,
+            Command::Push(Action::Left) => -1.0,
+            Command::Coast => 0.0,
+        }
+    }
 }
 
 /// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`.

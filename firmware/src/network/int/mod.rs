@@ -20,8 +20,9 @@
 //!
 //! The input is `[x, x_dot, theta, theta_dot]` in SI units (m, m/s, rad, rad/s) as `i16`
 //! with [`OBS_FRACTION_BITS`] = 12 fraction bits (Q3.12: 1/4096 of a unit, range +-8 units).
-//! [`crate::estimator::Estimator::fixed_state`] produces it from encoder counts in integers;
-//! [`fixed_obs`] converts a float reading.
+//! [`fixed_obs`] converts a float reading, the encoder observer's included
+//! ([`crate::estimator::Observer::fixed_state`]); [`crate::estimator::AlphaBeta::fixed_state`]
+//! produces it from encoder counts in integers alone.
 //!
 //! # The output
 //!
@@ -63,8 +64,8 @@ pub const fn flash_bytes(h: usize) -> usize {
 
 /// `obs` in the network's input format: each value times 4096, rounded to nearest (ties away
 /// from zero), saturated to the `i16` range; NaN reads as 0. This is the one float step of an
-/// integer controller that is handed float readings; an encoder board skips it
-/// ([`crate::estimator::Estimator::fixed_state`]).
+/// integer controller that is handed float readings; a board whose estimator is the integer
+/// alpha-beta filter skips it ([`crate::estimator::AlphaBeta::fixed_state`]).
 pub fn fixed_obs(obs: &[f32; OBS_DIM]) -> [i16; OBS_DIM] {
     // `as` saturates and maps NaN to 0.
     obs.map(|v| libm::roundf(v * (1u32 << OBS_FRACTION_BITS) as f32) as i16)

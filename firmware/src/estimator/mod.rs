@@ -4,22 +4,24 @@
 //! A real cart-pole measures two angles, not four state variables: an incremental encoder on
 //! the cart's drive (counts per metre of travel) and one on the pole's pivot (counts per
 //! revolution, zero when upright). Positions are quantised to one count; velocities must be
-//! estimated. Each channel runs an **alpha-beta filter** (a steady-state Kalman filter for a
-//! constant-velocity model): predict `p + v`, compare with the new count, and correct the
-//! position by `alpha` and the velocity by `beta` times the residual. Its single parameter,
-//! the discount `d` in `(0, 1)`, sets `alpha = 1 - d^2` and `beta = (1 - d)^2` (the
-//! critically damped g-h filter): `d = 0` trusts each count fully (velocity = plain backward
-//! difference), larger `d` smooths more and lags more.
+//! estimated. Two estimators do it:
 //!
-//! The filter runs in integers: positions in 1/4096 count, velocities in 1/4096 count per
-//! period, gains as Q15 fractions. So it costs the same on a core without an FPU, gives the
-//! same bits on every target, and hands out both the physical state in f32
-//! ([`Estimator::state`]) and its raw fixed-point values ([`Estimator::raw`]).
+//! - [`Observer`] (the one to use): a model-based observer. It predicts each period with the
+//!   nominal plant and the command the board sent, then corrects by the steady-state Kalman
+//!   gain ([`crate::linear::kalman_gain`]). Most of a bang-bang controlled pole's motion is
+//!   the motor's known push, so it recovers velocities that no count difference can: with a
+//!   128-count pole encoder the shipped policy and LQR balance through it where they fail
+//!   through the alpha-beta filter (`docs/CONTROL.md`). f32 arithmetic, gains computed once
+//!   in f64.
+//! - [`AlphaBeta`]: one model-free alpha-beta filter per channel, in integers. It knows
+//!   nothing of the plant or the commands, so it lags behind every push; kept for boards that
+//!   cannot tell the observer what they command, and as the reference the observer is
+//!   measured against.
 //!
 //! ```
-//! use firmware::estimator::{Encoders, Estimator};
+//! use firmware::estimator::{AlphaBeta, Encoders};
 //! let enc = Encoders { cart_counts_per_m: 10_000, pole_counts_per_rev: 4_096 };
-//! let mut est = Estimator::new(enc, 0.5, 0.02);
+//! let mut est = AlphaBeta::new(enc, 0.5, 0.02);
 //! // The cart moves 1 cm (100 counts) per 20 ms period: 0.5 m/s.
 //! let mut s = [0.0; 4];
 //! for k in 0..40 {
@@ -28,8 +30,21 @@
 //! assert!((s[0] - 0.39).abs() < 1e-3 && (s[1] - 0.5).abs() < 1e-3, "{s:?}");
 //! ```
 //!
-//! It is not a model-based observer: it knows nothing of the plant's dynamics or of the
-//! commands sent, so it lags a little behind accelerations (the price of needing no model).
+//! # The alpha-beta filter
+//!
+//! Each channel predicts `p + v`, compares with the new count, and corrects the position by
+//! `alpha` and the velocity by `beta` times the residual (a steady-state Kalman filter for a
+//! constant-velocity model). Its single parameter, the discount `d` in `(0, 1)`, sets
+//! `alpha = 1 - d^2` and `beta = (1 - d)^2` (the critically damped g-h filter): `d = 0`
+//! trusts each count fully (velocity = plain backward difference), larger `d` smooths more
+//! and lags more. It runs in integers: positions in 1/4096 count, velocities in 1/4096 count
+//! per period, gains as Q15 fractions, so it costs the same on a core without an FPU, gives
+//! the same bits on every target, and hands out both the physical state in f32
+//! ([`AlphaBeta::state`]) and its raw fixed-point values ([`AlphaBeta::raw`]).
+
+mod observer;
+
+pub use observer::{Observer, Tuning};
 
 /// Sub-count resolution of the filter's state: positions and velocities in 1/4096 count.
 /// Corrections smaller than a unit round away, so this sets the velocity's resolution: with
@@ -99,10 +114,10 @@ impl ToFixed {
     }
 }
 
-/// The state estimator of [the module](self): two encoders in, `[x, x_dot, theta, theta_dot]`
+/// The alpha-beta filter of [the module](self): two encoders in, `[x, x_dot, theta, theta_dot]`
 /// out, once per period. Fixed-size, allocation-free, panic-free for any counts.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Estimator {
+pub struct AlphaBeta {
     enc: Encoders,
     period_s: f32,
     alpha_q15: i64,
@@ -113,10 +128,10 @@ pub struct Estimator {
     fixed: [ToFixed; 4],
 }
 
-impl Estimator {
+impl AlphaBeta {
     /// An estimator for `enc` sampled every `period_s` seconds, with filter discount
     /// `discount` (clamped to `[0, 0.99]`, NaN taken as 0.5; 0.5 is a good start at 50 Hz).
-    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> Estimator {
+    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> AlphaBeta {
         let d = if discount.is_nan() {
             0.5
         } else {
@@ -133,7 +148,7 @@ impl Estimator {
         let cart = 1.0 / f64::from(enc.cart_counts_per_m);
         let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
         let per_s = 1.0 / f64::from(period_s);
-        Estimator {
+        AlphaBeta {
             enc,
             period_s,
             alpha_q15: q15(1.0 - d * d),
@@ -237,11 +252,11 @@ mod tests {
 
     #[test]
     fn the_filter_has_its_documented_gains() {
-        let e = Estimator::new(ENC, 0.5, 0.02);
+        let e = AlphaBeta::new(ENC, 0.5, 0.02);
         // alpha = 1 - 0.25 = 0.75, beta = 0.25, in Q15.
         assert_eq!((e.alpha_q15, e.beta_q15), (24_576, 8_192));
         // Discount 0: the velocity is the plain backward difference.
-        let mut raw = Estimator::new(ENC, 0.0, 0.02);
+        let mut raw = AlphaBeta::new(ENC, 0.0, 0.02);
         raw.update(0, 0);
         let s = raw.update(37, -5);
         let u = 1 << FRACTION_BITS;
@@ -252,7 +267,7 @@ mod tests {
     #[test]
     fn a_constant_velocity_is_tracked_without_error() {
         // 3 counts per period on the pole: 3 * 2 pi / 4096 / 0.02 rad/s.
-        let mut e = Estimator::new(ENC, 0.6, 0.02);
+        let mut e = AlphaBeta::new(ENC, 0.6, 0.02);
         let mut s = [0.0; 4];
         for k in 0..200 {
             s = e.update(0, 3 * k);
@@ -266,7 +281,7 @@ mod tests {
     fn a_step_settles_and_smoothing_trades_noise_for_lag() {
         // After a jump of 1000 counts the estimate converges; the filter is stable.
         for d in [0.0, 0.3, 0.6, 0.9] {
-            let mut e = Estimator::new(ENC, d, 0.02);
+            let mut e = AlphaBeta::new(ENC, d, 0.02);
             e.update(0, 0);
             let mut last = [0.0; 4];
             for _ in 0..400 {
@@ -279,7 +294,7 @@ mod tests {
         }
         // A position that alternates by one count: the smoother filter reports less speed.
         let jitter = |d: f32| {
-            let mut e = Estimator::new(ENC, d, 0.02);
+            let mut e = AlphaBeta::new(ENC, d, 0.02);
             (0..200)
                 .map(|k| e.update(k % 2, 0)[1].abs())
                 .fold(0.0f32, f32::max)
@@ -294,7 +309,7 @@ mod tests {
 
     #[test]
     fn any_counts_are_safe() {
-        let mut e = Estimator::new(ENC, 0.5, 0.02);
+        let mut e = AlphaBeta::new(ENC, 0.5, 0.02);
         for (c, p) in [
             (i32::MAX, i32::MIN),
             (i32::MIN, i32::MAX),
@@ -304,7 +319,7 @@ mod tests {
             let s = e.update(c, p);
             assert!(s.iter().all(|v| v.is_finite()), "{s:?}");
         }
-        let degenerate = Estimator::new(
+        let degenerate = AlphaBeta::new(
             Encoders {
                 cart_counts_per_m: 0,
                 pole_counts_per_rev: 0,
@@ -342,7 +357,7 @@ mod tests {
                 0.9,
             ),
         ] {
-            let mut e = Estimator::new(enc, d, 0.02);
+            let mut e = AlphaBeta::new(enc, d, 0.02);
             let cart = 1.0 / f64::from(enc.cart_counts_per_m);
             let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
             let k = [cart, cart / 0.02f32 as f64, pole, pole / 0.02f32 as f64];

@@ -1,0 +1,190 @@
+//! The model-based observer: predict with the nominal plant and the command sent, correct by
+//! the steady-state Kalman gain.
+//!
+//! Each period it advances its estimate one Euler step of the nominal plant
+//! ([`Model::step`], the predictor's f32 model) under the force that acted during the period
+//! just ended, then corrects by `L (y - C s)`, where `y` are the two encoders' readings
+//! (each count's midpoint, so that floor quantisation adds no bias) and `L` is the
+//! steady-state Kalman gain of the linearised plant ([`kalman_gain`]) for the encoders'
+//! quantisation noise and a process noise set by [`Tuning`].
+//!
+//! The command must be the board's own: what it sent to the motor, as a fraction of full
+//! force, one period after another ([`Observer::command`]). With actuator dead time the
+//! observer holds the commands in flight itself, as [`Predictor`](crate::controller::predict)
+//! does, and applies each when it reaches the motor.
+
+use crate::cartpole::Params;
+use crate::controller::predict::{MAX_PREDICT, Model};
+use crate::linear::{kalman_gain, linearise};
+use crate::network::int::fixed_obs;
+
+use super::Encoders;
+
+/// The observer's process noise: how far it expects the plant to stray from its nominal
+/// model in one period. Larger values trust the encoders more and the model less: faster to
+/// follow a push or a plant unlike the nominal one, noisier under coarse quantisation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub struct Tuning {
+    /// Standard deviation of an unmodelled force on the cart, N (pushes, friction, a motor
+    /// stronger or weaker than nominal): it enters as the motor's force does.
+    pub force_sd: f64,
+    /// Standard deviations of unmodelled accelerations of the cart (m/s^2) and the pole
+    /// (rad/s^2): a pole or cart unlike the nominal one.
+    pub accel_sd: [f64; 2],
+}
+
+impl Tuning {
+    /// The tuning the twin and the shipped recipe use (`docs/CONTROL.md`).
+    pub const DEFAULT: Tuning = Tuning {
+        force_sd: 5.0,
+        accel_sd: [2.0, 4.0],
+    };
+}
+
+impl Default for Tuning {
+    fn default() -> Tuning {
+        Tuning::DEFAULT
+    }
+}
+
+/// The observer of [the module](self). Fixed-size, allocation-free, panic-free for any counts
+/// and commands: a non-finite estimate (only wild counts can cause one) restarts it from the
+/// next counts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Observer {
+    enc: Encoders,
+    model: Model,
+    gain: [[f32; 2]; 4],
+    /// Metres per cart count, radians per pole count.
+    per_count: [f32; 2],
+    estimate: [f32; 4],
+    /// Commands (fractions of full force) on their way to the motor, oldest at `head`.
+    line: [f32; MAX_PREDICT],
+    head: usize,
+    delay: usize,
+    /// The command that acted during the period now ending.
+    acting: f32,
+    started: bool,
+}
+
+impl Observer {
+    /// An observer for `enc`, modelling the plant as `nominal` (its tau is the period), with
+    /// process noise `tuning` and `dead_time` periods between a command and the motor
+    /// (clamped to [`MAX_PREDICT`]). Solves the Kalman gain's Riccati equation in f64: a
+    /// board does this once, at start-up.
+    pub fn new(enc: Encoders, nominal: &Params, tuning: Tuning, dead_time: usize) -> Observer {
+        let enc = Encoders {
+            cart_counts_per_m: enc.cart_counts_per_m.max(1),
+            pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
+        };
+        let per_count = [
+            1.0 / f64::from(enc.cart_counts_per_m),
+            core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev),
+        ];
+        let (a, b) = linearise(nominal);
+        let t = nominal.tau;
+        let f = tuning.force_sd;
+        let [ax, at] = tuning.accel_sd.map(|s| s * t * s * t);
+        let mut q = [[0.0; 4]; 4];
+        for (i, row) in q.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = f * f * b[i] * b[j];
+            }
+        }
+        q[1][1] += ax;
+        q[3][3] += at;
+        // A count's error is uniform over one count: variance 1/12 count^2.
+        let r = per_count.map(|c| c * c / 12.0);
+        let gain = kalman_gain(&a, &q, r).map(|row| row.map(|g| g as f32));
+        Observer {
+            enc,
+            model: Model::of(nominal),
+            gain,
+            per_count: per_count.map(|c| c as f32),
+            estimate: [0.0; 4],
+            line: [0.0; MAX_PREDICT],
+            head: 0,
+            delay: dead_time.min(MAX_PREDICT),
+            acting: 0.0,
+            started: false,
+        }
+    }
+
+    /// Records the command sent this period, as a fraction of full force (`1` full right,
+    /// `-1` full left, `0` coasting; clamped, NaN taken as 0). It acts once the dead time has
+    /// passed; until then the commands before it do (none before the first).
+    pub fn command(&mut self, level: f32) {
+        let level = if level.is_nan() {
+            0.0
+        } else {
+            level.clamp(-1.0, 1.0)
+        };
+        self.acting = match self.delay {
+            0 => level,
+            d => {
+                let out = self.line[self.head];
+                self.line[self.head] = level;
+                self.head = (self.head + 1) % d;
+                out
+            }
+        };
+    }
+
+    /// Takes one period's counts (cart, pole) and returns the estimated state in SI units.
+    /// The first call (and the first after [`Observer::reset`]) starts from the counts at
+    /// rest.
+    pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
+        let yx = (cart_counts as f32 + 0.5) * self.per_count[0];
+        let yt = (pole_counts as f32 + 0.5) * self.per_count[1];
+        if !self.started {
+            self.estimate = [yx, 0.0, yt, 0.0];
+            self.started = true;
+            return self.estimate;
+        }
+        let pred = self
+            .model
+            .step(&self.estimate, self.acting * self.model.force_mag());
+        let e = [yx - pred[0], yt - pred[2]];
+        for ((s, p), g) in self.estimate.iter_mut().zip(pred).zip(self.gain) {
+            *s = p + g[0] * e[0] + g[1] * e[1];
+        }
+        if !self.estimate.iter().all(|v| v.is_finite()) {
+            self.started = false;
+        }
+        self.estimate
+    }
+
+    /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
+    pub fn state(&self) -> [f32; 4] {
+        self.estimate
+    }
+
+    /// The current estimate in the integer network's input format
+    /// ([`crate::network::int`]), converted by [`fixed_obs`].
+    pub fn fixed_state(&self) -> [i16; 4] {
+        fixed_obs(&self.estimate)
+    }
+
+    /// The steady-state Kalman gain `L`, rows `[x, x_dot, theta, theta_dot]`, columns the
+    /// cart and pole residuals.
+    pub fn gain(&self) -> [[f32; 2]; 4] {
+        self.gain
+    }
+
+    /// Forgets the estimate and the commands in flight: the next update starts afresh.
+    pub fn reset(&mut self) {
+        self.started = false;
+        self.line = [0.0; MAX_PREDICT];
+        self.head = 0;
+        self.acting = 0.0;
+    }
+
+    /// The encoders' resolutions.
+    pub fn encoders(&self) -> Encoders {
+        self.enc
+    }
+}
+
+#[cfg(test)]
+mod tests;
