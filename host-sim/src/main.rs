@@ -52,8 +52,9 @@ enum Command {
         horizon: Vec<u32>,
         /// Scenarios, one row each: `nominal`, or parts joined by `+` from noise[=SCALE],
         /// delay[=N], force=F, length=F, polemass=F, cartmass=F, friction=C[/P],
-        /// encoder=N[/M], push[=IMPULSE[/EVERY]]; `all` is the robustness set of
-        /// docs/CONTROL.md, `hard` the set beyond it.
+        /// encoder=N[/M[/D]], push[=IMPULSE[/EVERY]]; `all` is the robustness set of
+        /// docs/CONTROL.md, `hard` the set beyond it, `hard-candidates` what that set is chosen
+        /// from.
         #[arg(long, value_delimiter = ',', default_value = "all")]
         scenario: Vec<String>,
         /// Controllers to compare.
@@ -216,6 +217,8 @@ fn parse_scenarios(specs: &[String]) -> Result<Vec<Scenario>> {
             out.extend(Scenario::default_set());
         } else if spec == "hard" {
             out.extend(Scenario::hard_set());
+        } else if spec == "hard-candidates" {
+            out.extend(Scenario::hard_candidates());
         } else {
             out.push(Scenario::parse(spec).map_err(anyhow::Error::msg)?);
         }

@@ -243,23 +243,77 @@ impl Scenario {
     pub fn hard_set() -> Vec<Scenario> {
         parse_all(HARD)
     }
+
+    /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]).
+    pub fn hard_candidates() -> Vec<Scenario> {
+        parse_all(HARD_CANDIDATES)
+    }
 }
 
-/// The specs of [`Scenario::hard_set`]: perturbations beyond the default set under which
-/// bang-bang LQR with its nominal gain fails in part or whole over 10,000 steps (searched
-/// among 32 candidates, `docs/CONTROL.md`): long dead time, short poles with dead time,
-/// coarse encoders, strong pushes, friction with dead time. Heavier poles (up to 3x), much
-/// shorter poles alone (0.3x) and friction alone were tried and left out: LQR holds them.
+/// The specs of [`Scenario::hard_set`]: the [`HARD_CANDIDATES`] under which bang-bang LQR
+/// with its nominal gain fails in part or whole over 10,000 steps, encoders read through the
+/// observer: long dead time, short poles with dead time, friction with dead time, coarse
+/// encoders with noise, strong pushes (`docs/CONTROL.md` has every candidate's figure).
 pub const HARD: &[&str] = &[
     "delay=6",
     "delay=8",
     "length=0.4+delay=2",
     "length=0.7+delay=4+noise",
+    "friction=0.1/0.002+delay=5",
+    "encoder=128+noise",
+    "push=1.1/50",
+    "push=1.3/50",
+    "push=1.5/100",
+    "push=1.1/50+noise",
+    "length=0.7+push=1/50",
+    "noise+delay=2+push=0.8/50",
+];
+
+/// Perturbations beyond the default set's, one or two kinds at a time and stronger than its
+/// +-20%, one period and 0.5 N s: every kind the twin models, each at levels from mild to
+/// severe. [`HARD`] is those under which bang-bang LQR fails in part or whole
+/// (`host-sim eval --scenario hard-candidates --controller lqr --horizon 10000`).
+pub const HARD_CANDIDATES: &[&str] = &[
+    "delay=2",
+    "delay=3",
+    "delay=4",
+    "delay=6",
+    "delay=8",
+    "length=0.3",
+    "length=0.4",
+    "length=0.5",
+    "length=3",
+    "length=0.4+delay=2",
+    "length=0.5+delay=2",
+    "length=0.7+delay=4+noise",
+    "polemass=3",
+    "polemass=5",
+    "cartmass=0.3",
+    "cartmass=3",
+    "force=0.5",
+    "force=0.4",
+    "force=2",
+    "noise=2",
+    "noise=3",
+    "noise=2+delay=2",
+    "friction=0.1/0.002",
+    "friction=0.2/0.005",
+    "friction=0.1/0.002+delay=5",
+    "friction=0.2+delay=2",
+    "encoder=64",
     "encoder=128",
+    "encoder=128+noise",
+    "encoder=128+delay=2",
     "encoder=512+delay=2",
     "length=0.5+encoder=256",
+    "push=1/50",
     "push=1.1/50",
-    "friction=0.1/0.002+delay=5",
+    "push=1.3/50",
+    "push=1.5/100",
+    "push=0.8/25",
+    "push=1.1/50+noise",
+    "length=0.7+push=1/50",
+    "noise+delay=2+push=0.8/50",
 ];
 
 fn parse_all(specs: &[&str]) -> Vec<Scenario> {
@@ -330,6 +384,11 @@ mod tests {
         assert_eq!(Scenario::nominal(), Scenario::parse("nominal").unwrap());
         assert_eq!(Scenario::default_set().len(), 13);
         assert_eq!(Scenario::hard_set().len(), HARD.len());
+        // The hard set is chosen from the candidates, whose every spec parses.
+        assert_eq!(Scenario::hard_candidates().len(), HARD_CANDIDATES.len());
+        for h in HARD {
+            assert!(HARD_CANDIDATES.contains(h), "{h}");
+        }
     }
 
     #[test]
