@@ -69,10 +69,10 @@ impl Net {
     }
 
     /// A network from checked weights of any supported width, quantised as
-    /// `policy-export export --quant int8` does by default (per tensor, the same
+    /// `policy-export export --quant int8` does by default (the same granularity and
     /// calibration).
     pub fn from_weights(w: &Weights) -> Result<Net> {
-        let q = twin::calibrate::quantise_policy(w, Granularity::PerTensor)?;
+        let q = twin::calibrate::quantise_policy(w, Granularity::default())?;
         macro_rules! by_width {
             ($($h:literal => $c:ident / $qc:ident,)*) => {
                 match w.width() {

@@ -82,10 +82,10 @@ struct ExportArgs {
     /// int8 weights calibrated on states the policy visits (`docs/QUANTISATION.md`).
     #[arg(long, value_enum)]
     quant: Option<Quant>,
-    /// Weight scales of the hidden layers with --quant: one per tensor (measured to balance
-    /// better, `docs/QUANTISATION.md`) or one per unit.
-    #[arg(long, value_enum, default_value = "per-tensor", requires = "quant")]
-    granularity: GranularityArg,
+    /// Weight scales of the hidden layers with --quant: one per tensor or one per unit
+    /// (the default, the shipped policy's: `docs/QUANTISATION.md` measures both).
+    #[arg(long, value_enum, requires = "quant")]
+    granularity: Option<GranularityArg>,
 }
 
 /// The integer formats an export can take.
@@ -460,8 +460,9 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(
             &import.weights,
             match a.granularity {
-                GranularityArg::PerChannel => Granularity::PerChannel,
-                GranularityArg::PerTensor => Granularity::PerTensor,
+                None => Granularity::default(),
+                Some(GranularityArg::PerChannel) => Granularity::PerChannel,
+                Some(GranularityArg::PerTensor) => Granularity::PerTensor,
             },
         )?),
     };
