@@ -38,8 +38,8 @@ use {defmt_rtt as _, panic_probe as _};
 const ENCODERS: Encoders = Encoders {
     // A 600-line encoder on a 12 mm GT2 pulley (20 teeth x 2 mm = 40 mm per turn).
     cart_counts_per_m: 15_000,
-    // A 2,400-line encoder on the pivot: in the twin the integer policy balances 200 of 200
-    // 200 s episodes through 2,400 counts (README).
+    // A 2,400-line encoder on the pivot: in the twin the integer policy balances 1,000 of
+    // 1,000 200 s episodes through these encoders and the observer (README).
     pole_counts_per_rev: 2_400,
 };
 /// Half the usable track, centre to end stop, and the margin in which the cart coasts.
