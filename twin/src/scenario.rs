@@ -2,6 +2,7 @@
 //! `length=0.8+encoder=1024`), and the named sets of them the tables use.
 
 use firmware::cartpole::Params;
+use firmware::controller::predict::MAX_PREDICT;
 use firmware::estimator::Encoders;
 
 /// Sensor noise standard deviations of the `noise` part, per channel: 1 cm, 5 cm/s,
@@ -16,8 +17,9 @@ pub const FACTOR_RANGE: (f64, f64) = (1e-3, 1e3);
 /// Longest scenario spec accepted.
 pub const MAX_SPEC_BYTES: usize = 1000;
 
-/// Most periods of actuator dead time a scenario can have.
-pub const MAX_DELAY: u32 = 16;
+/// Most periods of actuator dead time a scenario can have: the longest line the firmware's
+/// predictor and observer keep.
+pub const MAX_DELAY: u32 = MAX_PREDICT as u32;
 
 /// How an `encoder` scenario's board turns counts into the state (`firmware::estimator`).
 #[derive(Clone, Copy, Debug, PartialEq)]

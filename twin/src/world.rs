@@ -9,11 +9,12 @@
 
 use firmware::cartpole::Params;
 use firmware::cartpole::{CartPole, State, Transition, unit_f64};
+use firmware::controller::predict::DeadTime;
 use firmware::estimator::{AlphaBeta, Encoders, Observer, Tuning, quantise};
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::scenario::{Estimation, MAX_DELAY, Scenario};
+use crate::scenario::{Estimation, Scenario};
 
 /// The board's estimator in an `encoder` scenario.
 enum Estimator {
@@ -60,9 +61,8 @@ pub struct World<'s, R> {
     noise: R,
     pushes: R,
     estimator: Option<Estimator>,
-    /// Commands on their way to the actuator, oldest at `head`.
-    line: [f64; MAX_DELAY as usize],
-    head: usize,
+    /// Commands on their way to the actuator.
+    line: DeadTime<f64>,
 }
 
 impl<'s, R: Rng> World<'s, R> {
@@ -84,8 +84,7 @@ impl<'s, R: Rng> World<'s, R> {
             noise,
             pushes,
             estimator: scenario.encoders.map(|e| Estimator::new(scenario, e)),
-            line: [0.0; MAX_DELAY as usize],
-            head: 0,
+            line: DeadTime::new(scenario.delay as usize),
         }
     }
 
@@ -131,15 +130,7 @@ impl<'s, R: Rng> World<'s, R> {
         if let Some(Estimator::Observer(o)) = self.estimator.as_mut() {
             o.command((commanded / self.scenario.params.force_mag) as f32);
         }
-        let mut force = match self.scenario.delay as usize {
-            0 => commanded,
-            d => {
-                let out = self.line[self.head];
-                self.line[self.head] = commanded;
-                self.head = (self.head + 1) % d;
-                out
-            }
-        };
+        let mut force = self.line.send(commanded);
         if let Some(push) = self.scenario.push
             && (self.plant.steps() + 1).is_multiple_of(push.every)
         {

@@ -68,14 +68,56 @@ impl Model {
     }
 }
 
+/// Commands on their way to the motor: a line `delay` periods long. The twin's actuator, the
+/// predictor and the encoder observer each keep one, so all three agree on which command
+/// acts in which period.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeadTime<T> {
+    /// The commands sent in the last `delay` periods, oldest at `head`.
+    line: [T; MAX_PREDICT],
+    head: usize,
+    delay: usize,
+}
+
+impl<T: Copy + Default> DeadTime<T> {
+    /// A line of `delay` periods (clamped to [`MAX_PREDICT`]), empty: until it fills, the
+    /// motor gets `T::default()` (no force).
+    pub fn new(delay: usize) -> DeadTime<T> {
+        DeadTime {
+            line: [T::default(); MAX_PREDICT],
+            head: 0,
+            delay: delay.min(MAX_PREDICT),
+        }
+    }
+
+    /// Periods of dead time.
+    pub fn delay(&self) -> usize {
+        self.delay
+    }
+
+    /// Sends this period's command; returns the one that reaches the motor now: the command
+    /// of `delay` periods ago, or `command` itself without dead time.
+    pub fn send(&mut self, command: T) -> T {
+        if self.delay == 0 {
+            return command;
+        }
+        let out = core::mem::replace(&mut self.line[self.head], command);
+        self.head = (self.head + 1) % self.delay;
+        out
+    }
+
+    /// The commands still in flight, oldest first.
+    pub fn in_flight(&self) -> impl Iterator<Item = T> + '_ {
+        (0..self.delay).map(|k| self.line[(self.head + k) % self.delay])
+    }
+}
+
 /// The commands in flight and the model that advances a reading past them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Predictor {
     model: Model,
-    delay: usize,
-    /// Forces sent in the last `delay` periods, oldest at `head`.
-    sent: [f32; MAX_PREDICT],
-    head: usize,
+    /// Forces sent and not yet at the motor.
+    sent: DeadTime<f32>,
 }
 
 impl Predictor {
@@ -83,15 +125,13 @@ impl Predictor {
     pub fn new(model: Model, delay: usize) -> Predictor {
         Predictor {
             model,
-            delay: delay.min(MAX_PREDICT),
-            sent: [0.0; MAX_PREDICT],
-            head: 0,
+            sent: DeadTime::new(delay),
         }
     }
 
     /// Periods of dead time bridged.
     pub fn delay(&self) -> usize {
-        self.delay
+        self.sent.delay()
     }
 
     /// The model.
@@ -102,11 +142,9 @@ impl Predictor {
     /// The reading advanced by the commands in flight, oldest first: the state the next
     /// command will meet. With no dead time, the reading itself.
     pub fn predict(&self, reading: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
-        let mut s = *reading;
-        for k in 0..self.delay {
-            s = self.model.step(&s, self.sent[(self.head + k) % self.delay]);
-        }
-        s
+        self.sent
+            .in_flight()
+            .fold(*reading, |s, force| self.model.step(&s, force))
     }
 
     /// Records a full push towards `action`'s side, the command of every period but a
@@ -121,10 +159,7 @@ impl Predictor {
 
     /// Records the force commanded this period (`0` for coasting).
     pub fn record(&mut self, force: f32) {
-        if self.delay > 0 {
-            self.sent[self.head] = force;
-            self.head = (self.head + 1) % self.delay;
-        }
+        self.sent.send(force);
     }
 }
 
@@ -132,6 +167,22 @@ impl Predictor {
 mod tests {
     use super::*;
     use crate::cartpole::{State, step_with_force};
+
+    #[test]
+    fn a_dead_time_line_delivers_each_command_its_periods_late() {
+        let mut line = DeadTime::<i32>::new(3);
+        let out: [i32; 7] = core::array::from_fn(|k| line.send(k as i32 + 1));
+        assert_eq!(out, [0, 0, 0, 1, 2, 3, 4]);
+        // After sending 1 to 7, the last three are still on their way, oldest first.
+        let mut flying = [0; 3];
+        for (f, c) in flying.iter_mut().zip(line.in_flight()) {
+            *f = c;
+        }
+        assert_eq!(flying, [5, 6, 7]);
+        let mut none = DeadTime::<i32>::new(0);
+        assert_eq!((none.send(9), none.in_flight().count()), (9, 0));
+        assert_eq!(DeadTime::<f32>::new(1_000).delay(), MAX_PREDICT);
+    }
 
     #[test]
     fn micromaths_sine_and_cosine_are_within_the_documented_error() {

@@ -10,11 +10,11 @@
 //!
 //! The command must be the board's own: what it sent to the motor, as a fraction of full
 //! force, one period after another ([`Observer::command`]). With actuator dead time the
-//! observer holds the commands in flight itself, as [`Predictor`](crate::controller::predict)
-//! does, and applies each when it reaches the motor.
+//! observer holds the commands in flight itself, in the same [`DeadTime`] line as the
+//! predictor and the twin's actuator, and applies each when it reaches the motor.
 
 use crate::cartpole::Params;
-use crate::controller::predict::{MAX_PREDICT, Model};
+use crate::controller::predict::{DeadTime, Model};
 use crate::linear::{kalman_gain, linearise};
 use crate::network::int::fixed_obs;
 
@@ -59,10 +59,8 @@ pub struct Observer {
     /// Metres per cart count, radians per pole count.
     per_count: [f32; 2],
     estimate: [f32; 4],
-    /// Commands (fractions of full force) on their way to the motor, oldest at `head`.
-    line: [f32; MAX_PREDICT],
-    head: usize,
-    delay: usize,
+    /// Commands (fractions of full force) on their way to the motor.
+    line: DeadTime<f32>,
     /// The command that acted during the period now ending.
     acting: f32,
     started: bool,
@@ -71,7 +69,7 @@ pub struct Observer {
 impl Observer {
     /// An observer for `enc`, modelling the plant as `nominal` (its tau is the period), with
     /// process noise `tuning` and `dead_time` periods between a command and the motor
-    /// (clamped to [`MAX_PREDICT`]). Solves the Kalman gain's Riccati equation in f64: a
+    /// (clamped to [`MAX_PREDICT`](crate::controller::predict::MAX_PREDICT)). Solves the Kalman gain's Riccati equation in f64: a
     /// board does this once, at start-up.
     pub fn new(enc: Encoders, nominal: &Params, tuning: Tuning, dead_time: usize) -> Observer {
         let enc = Encoders {
@@ -103,9 +101,7 @@ impl Observer {
             gain,
             per_count: per_count.map(|c| c as f32),
             estimate: [0.0; 4],
-            line: [0.0; MAX_PREDICT],
-            head: 0,
-            delay: dead_time.min(MAX_PREDICT),
+            line: DeadTime::new(dead_time),
             acting: 0.0,
             started: false,
         }
@@ -120,15 +116,7 @@ impl Observer {
         } else {
             level.clamp(-1.0, 1.0)
         };
-        self.acting = match self.delay {
-            0 => level,
-            d => {
-                let out = self.line[self.head];
-                self.line[self.head] = level;
-                self.head = (self.head + 1) % d;
-                out
-            }
-        };
+        self.acting = self.line.send(level);
     }
 
     /// Takes one period's counts (cart, pole) and returns the estimated state in SI units.
@@ -175,8 +163,7 @@ impl Observer {
     /// Forgets the estimate and the commands in flight: the next update starts afresh.
     pub fn reset(&mut self) {
         self.started = false;
-        self.line = [0.0; MAX_PREDICT];
-        self.head = 0;
+        self.line = DeadTime::new(self.line.delay());
         self.acting = 0.0;
     }
 

@@ -1,5 +1,6 @@
 use super::*;
 use crate::cartpole::{State, step_with_force};
+use crate::controller::predict::MAX_PREDICT;
 use crate::estimator::{AlphaBeta, quantise};
 
 const FINE: Encoders = Encoders {
@@ -161,7 +162,7 @@ fn the_first_counts_start_it_at_rest_and_reset_forgets() {
     o.update(2_060, -12);
     o.reset();
     assert_eq!(o.update(2_048, -10), want);
-    assert_eq!((o.acting, o.line, o.head), (0.0, [0.0; MAX_PREDICT], 0));
+    assert_eq!((o.acting, &o.line), (0.0, &DeadTime::new(2)));
 }
 
 #[test]
@@ -198,7 +199,7 @@ fn any_counts_and_commands_are_safe() {
         usize::MAX,
     );
     assert!(degenerate.gain().iter().flatten().all(|g| g.is_finite()));
-    assert_eq!(degenerate.delay, MAX_PREDICT);
+    assert_eq!(degenerate.line.delay(), MAX_PREDICT);
 }
 
 #[test]
