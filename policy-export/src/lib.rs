@@ -9,8 +9,10 @@
 //! Policy files (safetensors in and out, Rust and C source) are the `weights` crate's;
 //! statistics, seeds, CPU kernels and figures are `host_common`'s.
 //!
-//! `unsafe` is confined to [`nn`]'s entry points, which call a kernel compiled with
-//! `#[target_feature]` after checking that the CPU has every feature it enables.
+//! `unsafe` is confined to [`nn`]: its entry points call a kernel compiled with
+//! `#[target_feature]` after checking that the CPU has every feature it enables, and the
+//! AVX-512 build's 4-row blocks (`kernels::avx512`) use intrinsics behind the `unsafe`
+//! `MulAdd` trait.
 #![deny(unsafe_code)]
 
 pub mod config;

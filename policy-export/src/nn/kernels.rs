@@ -9,7 +9,12 @@ use super::{Packed, Scratch};
 /// how many batch rows a kernel computes together: each weight chunk is then loaded once for
 /// all of them, and their accumulators form independent chains that hide the multiply-add
 /// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
-pub(super) trait MulAdd {
+///
+/// # Safety
+///
+/// `AVX512` may be `true` only for a type that is used solely in code compiled for, and run
+/// after a check of, AVX-512F and FMA: [`rows_times`] then calls [`avx512::rows4`].
+pub(super) unsafe trait MulAdd {
     /// Whether the build has AVX-512, so that [`rows_times`] may run its 4-row blocks in
     /// [`avx512::rows4`].
     const AVX512: bool = false;
@@ -24,22 +29,26 @@ pub(super) struct Fused;
 #[cfg(target_arch = "x86_64")]
 pub(super) struct Fused512;
 pub(super) struct Unfused;
+// SAFETY: `AVX512` is false.
 #[cfg(target_arch = "x86_64")]
-impl MulAdd for Fused {
+unsafe impl MulAdd for Fused {
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
 }
+// SAFETY: `nn` names `Fused512` only in its AVX-512 entry point, which runs after
+// `is_x86_feature_detected!` found AVX-512F and FMA.
 #[cfg(target_arch = "x86_64")]
-impl MulAdd for Fused512 {
+unsafe impl MulAdd for Fused512 {
     const AVX512: bool = true;
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
 }
-impl MulAdd for Unfused {
+// SAFETY: `AVX512` is false.
+unsafe impl MulAdd for Unfused {
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a * b + c
@@ -74,8 +83,8 @@ pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
     if F::AVX512 && R2 == 4 && H.is_multiple_of(avx512::BLOCK) {
         let mut rows = y.into_iter();
         let y = core::array::from_fn(|_| rows.next().expect("R2 is 4"));
-        // SAFETY: only the AVX-512 build has `F::AVX512`, and it runs only after the CPU
-        // was checked for AVX-512F and FMA.
+        // SAFETY: `MulAdd`'s contract: a type with `AVX512` runs only where the CPU has
+        // AVX-512F and FMA.
         unsafe {
             avx512::rows4(
                 |i| {

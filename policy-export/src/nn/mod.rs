@@ -7,8 +7,8 @@
 //! - `act`: the firmware's forward pass, bit for bit, from the packed transposes.
 //!
 //! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
-//! with is the policy that ships. Inference during training goes through
-//! `firmware::network`; this module is only the learning side. Its forward pass is laid out
+//! with is the policy that ships. Acting during training goes through `act`, which gives
+//! `firmware::network`'s outputs bit for bit. The learning side's forward pass is laid out
 //! for batches (`y += x_i * W^T[i]`, vectorised across outputs) instead of the firmware's
 //! per-output dot products, so its outputs agree with `Mlp::forward` to rounding (tested to
 //! 1e-6 relative), not bit for bit.

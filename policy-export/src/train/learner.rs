@@ -44,10 +44,11 @@ struct CachedQ {
 
 /// One gradient step's state: the two networks, Adam's moments and the batch buffers.
 pub struct Learner<const H: usize> {
-    /// The network being trained; acting uses it.
-    pub online: Box<Mlp<H>>,
+    /// The network being trained; acting uses it. Private, as `target` is: each is
+    /// repacked whenever it changes, and a caller's write would leave the packing stale.
+    online: Box<Mlp<H>>,
     /// The slowly-following network that scores TD targets.
-    pub target: Box<Mlp<H>>,
+    target: Box<Mlp<H>>,
     online_packed: Box<Packed<H>>,
     target_packed: Box<Packed<H>>,
     grad: Box<Mlp<H>>,
@@ -228,6 +229,11 @@ impl<const H: usize> Learner<H> {
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
     pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
         nn::act(self.kernel, &self.online, &self.online_packed, obs)
+    }
+
+    /// The network being trained.
+    pub fn online(&self) -> &Mlp<H> {
+        &self.online
     }
 
     /// Gradient steps taken.

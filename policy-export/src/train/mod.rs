@@ -393,7 +393,7 @@ fn train_width<const H: usize>(
         if cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent) {
             selection_episodes += cfg.eval_episodes as u64;
             let res = evaluate(
-                &learner.online,
+                learner.online(),
                 cfg.eval_episodes,
                 cfg.eval_max_steps,
                 &eval_domain,
@@ -404,7 +404,7 @@ fn train_width<const H: usize>(
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
             let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
             if rank < pool_size {
-                pool.insert(rank, (res.clone(), ep + 1, learner.online.clone()));
+                pool.insert(rank, (res.clone(), ep + 1, Box::new(learner.online().clone())));
                 pool.truncate(pool_size);
             }
             evals.push((ep + 1, res));
@@ -445,7 +445,7 @@ fn train_width<const H: usize>(
     }
     let (policy_episode, policy) = match pool.into_iter().next() {
         Some((_, ep, net)) => (ep, net),
-        None => (last, learner.online.clone()),
+        None => (last, Box::new(learner.online().clone())),
     };
     let policy_env_steps = records[policy_episode - 1].env_steps;
     let final_eval = if evaluate_policy {
