@@ -271,7 +271,7 @@ pub const HARD: &[&str] = &[
     "noise+delay=2+push=0.8/50",
 ];
 
-/// Perturbations beyond the default set's, one or two kinds at a time and stronger than its
+/// Perturbations beyond the default set's, one to three kinds at a time and stronger than its
 /// +-20%, one period and 0.5 N s: every kind the twin models, each at levels from mild to
 /// severe. [`HARD`] is those under which bang-bang LQR fails in part or whole
 /// (`host-sim eval --scenario hard-candidates --controller lqr --horizon 10000`).
