@@ -210,4 +210,4 @@ fn gain(a: &Mat, b: &Vec4, p: &Mat, r: f64) -> Vec4 {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

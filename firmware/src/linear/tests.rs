@@ -14,7 +14,7 @@ const SCIPY_K: Vec4 = [
 /// equation), then `L = P C' (C P C' + R)^-1`, for `Q = 25 B B' + diag(0, (2 tau)^2, 0,
 /// (4 tau)^2)` and `R` the quantisation variances of 20,480 counts per metre and 4,096 per
 /// revolution.
-const SCIPY_L: [[f64; 2]; 4] = [
+pub(crate) const SCIPY_L: [[f64; 2]; 4] = [
     [0.999_887_734_712_334_8, -5.265_692_462_437_351e-5],
     [49.982_312_594_476_94, -0.008_559_685_986_956_654],
     [-0.051_970_301_502_234_29, 0.959_519_034_329_048_1],

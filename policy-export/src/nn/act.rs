@@ -88,7 +88,12 @@ fn layer<const H: usize, const N: usize, const W: usize>(
     x: &[f32; N],
     y: &mut [f32; H],
 ) {
-    const { assert!(H.is_multiple_of(W), "hidden width must be a multiple of the block") };
+    const {
+        assert!(
+            H.is_multiple_of(W),
+            "hidden width must be a multiple of the block"
+        )
+    };
     let bias = bias.as_chunks::<W>().0;
     for (c, (y, b)) in y.as_chunks_mut::<W>().0.iter_mut().zip(bias).enumerate() {
         // Term `i` into partial sum `k = i % LANES`. Written out lane by lane, with whole

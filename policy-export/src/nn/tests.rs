@@ -367,7 +367,11 @@ fn the_portable_kernel_gives_the_baseline_builds_bits() {
 #[test]
 fn acting_gives_the_firmwares_q_values_bit_for_bit() {
     fn nan_as_one(v: f32) -> u32 {
-        if v.is_nan() { f32::NAN.to_bits() } else { v.to_bits() }
+        if v.is_nan() {
+            f32::NAN.to_bits()
+        } else {
+            v.to_bits()
+        }
     }
     fn check<const H: usize>(seed: u64) {
         let mut r = rng(seed, Stream::Env);

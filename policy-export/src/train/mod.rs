@@ -404,7 +404,10 @@ fn train_width<const H: usize>(
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
             let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
             if rank < pool_size {
-                pool.insert(rank, (res.clone(), ep + 1, Box::new(learner.online().clone())));
+                pool.insert(
+                    rank,
+                    (res.clone(), ep + 1, Box::new(learner.online().clone())),
+                );
                 pool.truncate(pool_size);
             }
             evals.push((ep + 1, res));

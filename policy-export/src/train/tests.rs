@@ -298,7 +298,9 @@ fn a_cut_episodes_discounted_return_is_completed_by_the_online_nets_estimate() {
     };
     let seed = 9;
     let r = train(&cfg, seed, &mut |_| {}).unwrap();
-    let net = Learner::<64>::new(&cfg, Kernel::Portable, seed).online().clone();
+    let net = Learner::<64>::new(&cfg, Kernel::Portable, seed)
+        .online()
+        .clone();
     let mut starts = rng(seed, Stream::Env);
     for e in &r.episodes {
         let (q, next) = one_step(&net, seed, &mut starts);
@@ -331,7 +333,9 @@ fn the_tail_is_the_online_nets_and_a_failed_episode_has_none() {
     let r = train(&cfg, seed, &mut |_| {}).unwrap();
     assert!(r.grad_steps > 0);
     let policy = r.policy.to_mlp::<64>().unwrap();
-    let target = Learner::<64>::new(&cfg, Kernel::Portable, seed).online().clone();
+    let target = Learner::<64>::new(&cfg, Kernel::Portable, seed)
+        .online()
+        .clone();
     let mut starts = rng(seed, Stream::Env);
     // Starts do not depend on the actions taken: skip the first 80.
     for _ in 1..cfg.episodes {

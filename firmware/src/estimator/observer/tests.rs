@@ -2,6 +2,7 @@ use super::*;
 use crate::cartpole::{State, step_with_force};
 use crate::controller::predict::MAX_PREDICT;
 use crate::estimator::{AlphaBeta, quantise};
+use crate::linear::tests::SCIPY_L;
 
 const FINE: Encoders = Encoders {
     cart_counts_per_m: 20_480,
@@ -25,18 +26,15 @@ fn counts(s: &State, enc: Encoders) -> (i32, i32) {
     )
 }
 
-/// The gain for the default tuning and 20,480 / 4,096 counts is the one scipy gives for the
-/// same process and quantisation noise (`linear::tests::SCIPY_L`, recomputed here from
-/// scipy 1.17's `solve_discrete_are`).
+/// The gain for force_sd 5 N, accel_sd [2, 4] and 20,480 / 4,096 counts is the one scipy
+/// gives for the same process and quantisation noise (`linear::tests::SCIPY_L`).
 #[test]
-fn the_default_gain_is_scipys_kalman_gain() {
-    const SCIPY_L: [[f64; 2]; 4] = [
-        [0.999_887_734_712_334_8, -5.265_692_462_437_351e-5],
-        [49.982_312_594_476_94, -0.008_559_685_986_956_654],
-        [-0.051_970_301_502_234_29, 0.959_519_034_329_048_1],
-        [-7.360_876_922_851_586, 44.266_047_266_843_92],
-    ];
-    let o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 0);
+fn the_gain_is_scipys_kalman_gain() {
+    let tuning = Tuning {
+        force_sd: 5.0,
+        accel_sd: [2.0, 4.0],
+    };
+    let o = Observer::new(FINE, &Params::default(), tuning, 0);
     for (row, want) in o.gain().iter().zip(SCIPY_L) {
         for (g, w) in row.iter().zip(want) {
             assert!(
@@ -48,14 +46,16 @@ fn the_default_gain_is_scipys_kalman_gain() {
     }
 }
 
-/// The plant under a bang-bang rule that sees the true state, read through `enc` by both
-/// estimators: the RMS errors of their velocity estimates `[x_dot, theta_dot]` over 20 s.
-fn velocity_errors(enc: Encoders, delay: usize) -> ([f64; 2], [f64; 2]) {
+/// The plant, with `delay` periods of dead time, under a bang-bang rule that sees the true
+/// state, read through `enc` by an observer told `told` periods of dead time and by the
+/// alpha-beta filter: the RMS errors of their velocity estimates `[x_dot, theta_dot]` over
+/// 20 s.
+fn velocity_errors(enc: Encoders, told: usize, delay: usize) -> ([f64; 2], [f64; 2]) {
     let p = Params::default();
-    let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, delay);
+    let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, told);
     let mut ab = AlphaBeta::new(enc, 0.5, p.tau as f32);
     let mut s = State::from_array([0.03, -0.02, 0.02, -0.01]);
-    let mut line = [0.0f64; MAX_PREDICT];
+    let mut line = DeadTime::new(delay);
     let (mut eo, mut ea) = ([0.0f64; 2], [0.0f64; 2]);
     let n = 1000usize;
     for k in 0..n {
@@ -74,14 +74,7 @@ fn velocity_errors(enc: Encoders, delay: usize) -> ([f64; 2], [f64; 2]) {
             -1.0
         };
         obs.command(u as f32);
-        let acting = if delay == 0 {
-            u
-        } else {
-            let out = line[k % delay];
-            line[k % delay] = u;
-            out
-        };
-        s = step_with_force(&p, &s, acting * p.force_mag);
+        s = step_with_force(&p, &s, line.send(u) * p.force_mag);
         assert!(s.theta.abs() < 0.2, "the rule keeps the pole up (step {k})");
     }
     let rms = |e: [f64; 2]| e.map(|v| libm::sqrt(v / (n - 50) as f64));
@@ -94,7 +87,7 @@ fn the_observer_recovers_velocities_the_alpha_beta_filter_cannot() {
     // filter's 0.24, 0.27, 0.52 and 0.62; x_dot within 0.001 to 0.026 m/s against 0.16 to
     // 0.43 (a 128-count pole encoder's count is 2.8 degrees).
     for (pole, delay) in [(4_096, 0), (512, 0), (128, 0), (512, 3)] {
-        let (o, a) = velocity_errors(coarse(pole), delay);
+        let (o, a) = velocity_errors(coarse(pole), delay, delay);
         let ok = o[1] < 0.15 && o[1] * 3.5 < a[1] && o[0] * 5.0 < a[0];
         assert!(ok, "{pole} counts, delay {delay}: {o:?} vs {a:?}");
     }
@@ -103,31 +96,9 @@ fn the_observer_recovers_velocities_the_alpha_beta_filter_cannot() {
 #[test]
 fn an_unknown_dead_time_costs_accuracy() {
     // Told the dead time, the observer applies each command when it reaches the motor.
-    let enc = coarse(512);
-    let (told, _) = velocity_errors(enc, 3);
-    let p = Params::default();
-    let mut blind = Observer::new(enc, &p, Tuning::DEFAULT, 0);
-    let mut s = State::from_array([0.03, -0.02, 0.02, -0.01]);
-    let mut line = [0.0f64; 3];
-    let mut err = 0.0;
-    for k in 0..1000 {
-        let (cx, ct) = counts(&s, enc);
-        let o = blind.update(cx, ct);
-        if k >= 50 {
-            err += (f64::from(o[3]) - s.theta_dot).powi(2);
-        }
-        let u = if s.theta + 0.3 * s.theta_dot + 0.02 * s.x + 0.05 * s.x_dot > 0.0 {
-            1.0
-        } else {
-            -1.0
-        };
-        blind.command(u as f32);
-        let acting = line[k % 3];
-        line[k % 3] = u;
-        s = step_with_force(&p, &s, acting * p.force_mag);
-    }
-    let blind_rms = libm::sqrt(err / 950.0);
-    assert!(told[1] * 2.0 < blind_rms, "{told:?} vs {blind_rms}");
+    let (told, _) = velocity_errors(coarse(512), 3, 3);
+    let (blind, _) = velocity_errors(coarse(512), 0, 3);
+    assert!(told[1] * 2.0 < blind[1], "{told:?} vs {blind:?}");
 }
 
 #[test]
