@@ -255,7 +255,8 @@ impl Scenario {
 /// The specs of [`Scenario::hard_set`]: the [`HARD_CANDIDATES`] under which bang-bang LQR
 /// with its nominal gain fails in part or whole over 10,000 steps, encoders read through the
 /// observer: long dead time, short poles with dead time, friction with dead time, coarse
-/// encoders with noise, strong pushes (`docs/CONTROL.md` has every candidate's figure).
+/// encoders with noise, strong pushes, with exact sensing or read through encoders
+/// (`docs/CONTROL.md` has every candidate's figure).
 pub const HARD: &[&str] = &[
     "delay=6",
     "delay=8",
@@ -269,6 +270,7 @@ pub const HARD: &[&str] = &[
     "push=1.1/50+noise",
     "length=0.7+push=1/50",
     "noise+delay=2+push=0.8/50",
+    "encoder=512+push=1.1/50",
 ];
 
 /// Perturbations beyond the default set's, one to three kinds at a time and stronger than its
@@ -316,6 +318,8 @@ pub const HARD_CANDIDATES: &[&str] = &[
     "push=1.1/50+noise",
     "length=0.7+push=1/50",
     "noise+delay=2+push=0.8/50",
+    "encoder=512+push=0.8/50",
+    "encoder=512+push=1.1/50",
 ];
 
 fn parse_all(specs: &[&str]) -> Vec<Scenario> {

@@ -35,7 +35,9 @@ pub struct Tuning {
 }
 
 impl Tuning {
-    /// The tuning the twin and the shipped recipe use (`docs/CONTROL.md`).
+    /// The tuning the twin and the shipped recipe use: the middle of the settings tried, and
+    /// one that holds every encoder row the policy can hold (`docs/CONTROL.md`, "The
+    /// observer's tuning").
     pub const DEFAULT: Tuning = Tuning {
         force_sd: 5.0,
         accel_sd: [2.0, 4.0],
