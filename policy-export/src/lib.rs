@@ -10,9 +10,8 @@
 //! statistics, seeds, CPU kernels and figures are `host_common`'s.
 //!
 //! `unsafe` is confined to [`nn`]: its entry points call a kernel compiled with
-//! `#[target_feature]` after checking that the CPU has every feature it enables, and the
-//! AVX-512 build's 4-row blocks (`kernels::avx512`) use intrinsics behind the `unsafe`
-//! `MulAdd` trait.
+//! `#[target_feature]`, and the AVX-512 build's 4-row blocks (`kernels::avx512`) use
+//! intrinsics, each after checking that the CPU has every feature it enables.
 #![deny(unsafe_code)]
 
 pub mod config;

@@ -11,7 +11,9 @@
 //! every rendering gives the firmware's bits (tested against `Mlp::forward` on random
 //! networks and raw bit patterns).
 
-use firmware::network::{LANES, Mlp, N_ACTIONS, OBS_DIM};
+#[cfg(target_arch = "x86_64")]
+use firmware::network::LANES;
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
 use super::{Kernel, Packed};
 
@@ -60,6 +62,7 @@ pub fn act<const H: usize>(
     net.forward(obs)
 }
 
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn act_impl<const H: usize, const W: usize>(
     net: &Mlp<H>,
@@ -71,16 +74,13 @@ fn act_impl<const H: usize, const W: usize>(
     let mut h2 = [0.0; H];
     layer::<H, H, W>(&packed.w2t, &net.fc2_bias, &h1, &mut h2);
     core::array::from_fn(|a| {
-        #[cfg(target_arch = "x86_64")]
-        let d = firmware::network::x86::dot_sse(&net.fc3_weight[a], &h2);
-        #[cfg(not(target_arch = "x86_64"))]
-        let d = firmware::network::dot(&net.fc3_weight[a], &h2);
-        d + net.fc3_bias[a]
+        firmware::network::x86::dot_sse(&net.fc3_weight[a], &h2) + net.fc3_bias[a]
     })
 }
 
 /// `y = ReLU(W x + b)` with `wt` = `W` transposed, block by block of `W` outputs, each output
 /// summed in `dot`'s lanes and tree.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn layer<const H: usize, const N: usize, const W: usize>(
     wt: &[[f32; H]; N],
@@ -127,6 +127,7 @@ fn layer<const H: usize, const N: usize, const W: usize>(
     }
 }
 
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn add<const W: usize>(a: [f32; W], b: [f32; W]) -> [f32; W] {
     core::array::from_fn(|j| a[j] + b[j])

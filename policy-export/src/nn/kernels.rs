@@ -9,14 +9,10 @@ use super::{Packed, Scratch};
 /// how many batch rows a kernel computes together: each weight chunk is then loaded once for
 /// all of them, and their accumulators form independent chains that hide the multiply-add
 /// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
-///
-/// # Safety
-///
-/// `AVX512` may be `true` only for a type that is used solely in code compiled for, and run
-/// after a check of, AVX-512F and FMA: [`rows_times`] then calls [`avx512::rows4`].
-pub(super) unsafe trait MulAdd {
-    /// Whether the build has AVX-512, so that [`rows_times`] may run its 4-row blocks in
-    /// [`avx512::rows4`].
+pub(super) trait MulAdd {
+    /// Whether [`rows_times`] should run its 4-row blocks in [`avx512::rows4`] (it checks
+    /// the CPU itself).
+    #[cfg(target_arch = "x86_64")]
     const AVX512: bool = false;
     fn mul_add(a: f32, b: f32, c: f32) -> f32;
 }
@@ -25,30 +21,26 @@ pub(super) const FUSED_ROWS: usize = 4;
 pub(super) const UNFUSED_ROWS: usize = 2;
 #[cfg(target_arch = "x86_64")]
 pub(super) struct Fused;
-/// [`Fused`] in the AVX-512 build, which alone may call [`avx512::rows4`].
+/// [`Fused`] in the AVX-512 build, which runs its 4-row blocks in [`avx512::rows4`].
 #[cfg(target_arch = "x86_64")]
 pub(super) struct Fused512;
 pub(super) struct Unfused;
-// SAFETY: `AVX512` is false.
 #[cfg(target_arch = "x86_64")]
-unsafe impl MulAdd for Fused {
+impl MulAdd for Fused {
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
 }
-// SAFETY: `nn` names `Fused512` only in its AVX-512 entry point, which runs after
-// `is_x86_feature_detected!` found AVX-512F and FMA.
 #[cfg(target_arch = "x86_64")]
-unsafe impl MulAdd for Fused512 {
+impl MulAdd for Fused512 {
     const AVX512: bool = true;
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a.mul_add(b, c)
     }
 }
-// SAFETY: `AVX512` is false.
-unsafe impl MulAdd for Unfused {
+impl MulAdd for Unfused {
     #[inline(always)]
     fn mul_add(a: f32, b: f32, c: f32) -> f32 {
         a * b + c
@@ -80,11 +72,17 @@ pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
         )
     };
     #[cfg(target_arch = "x86_64")]
-    if F::AVX512 && R2 == 4 && H.is_multiple_of(avx512::BLOCK) {
+    // The check costs a cached load per block of 4 rows, and makes soundness local: only
+    // the AVX-512 entry point uses `Fused512`, but nothing else would stop another caller.
+    if F::AVX512
+        && R2 == 4
+        && H.is_multiple_of(avx512::BLOCK)
+        && std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("fma")
+    {
         let mut rows = y.into_iter();
         let y = core::array::from_fn(|_| rows.next().expect("R2 is 4"));
-        // SAFETY: `MulAdd`'s contract: a type with `AVX512` runs only where the CPU has
-        // AVX-512F and FMA.
+        // SAFETY: the CPU was just checked for the features `rows4` enables.
         unsafe {
             avx512::rows4(
                 |i| {

@@ -236,6 +236,12 @@ impl<const H: usize> Learner<H> {
         &self.online
     }
 
+    /// A copy of the network being trained, boxed like the learner's own: at width 256 a
+    /// network is 270 KB, a large share of a worker thread's stack.
+    pub fn snapshot(&self) -> Box<Mlp<H>> {
+        self.online.clone()
+    }
+
     /// Gradient steps taken.
     pub fn steps(&self) -> u64 {
         self.steps

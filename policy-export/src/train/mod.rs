@@ -404,10 +404,7 @@ fn train_width<const H: usize>(
             let perfect = res.min >= f64::from(cfg.eval_max_steps);
             let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
             if rank < pool_size {
-                pool.insert(
-                    rank,
-                    (res.clone(), ep + 1, Box::new(learner.online().clone())),
-                );
+                pool.insert(rank, (res.clone(), ep + 1, learner.snapshot()));
                 pool.truncate(pool_size);
             }
             evals.push((ep + 1, res));
@@ -448,7 +445,7 @@ fn train_width<const H: usize>(
     }
     let (policy_episode, policy) = match pool.into_iter().next() {
         Some((_, ep, net)) => (ep, net),
-        None => (last, Box::new(learner.online().clone())),
+        None => (last, learner.snapshot()),
     };
     let policy_env_steps = records[policy_episode - 1].env_steps;
     let final_eval = if evaluate_policy {
