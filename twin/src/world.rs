@@ -249,13 +249,15 @@ mod tests {
         assert!(worst_w < 0.1, "{worst_w}");
     }
 
-    /// The world's observer is the board's: told the dead time and each command as a
-    /// fraction of full force, fed the true state's counts. An observer built by hand that
+    /// The world's observer is the board's: built for the nominal plant whatever the
+    /// scenario's physics, told the dead time and each command as a fraction of the
+    /// scenario's full force, fed the true state's counts. An observer built by hand that
     /// way gives its estimates bit for bit; one that ignores the dead time is worse.
     #[test]
     fn the_observer_is_told_the_dead_time_and_the_commands() {
-        let s = Scenario::parse("encoder=512+delay=3").unwrap();
+        let s = Scenario::parse("encoder=512+delay=3+force=0.8+length=0.7").unwrap();
         let enc = s.encoders.unwrap();
+        let full = s.params.force_mag;
         let mut w = world(&s);
         let make = |delay| Observer::new(enc, &Params::default(), Tuning::DEFAULT, delay);
         let (mut board, mut blind) = (make(3), make(0));
@@ -274,12 +276,22 @@ mod tests {
                 err_board += (f64::from(obs[3]) - truth.theta_dot).powi(2);
                 err_blind += (f64::from(b[3]) - truth.theta_dot).powi(2);
             }
-            let f = rule(&truth);
-            board.command((f / 10.0) as f32);
-            blind.command((f / 10.0) as f32);
+            // Full force as the rule says, with every fifth period half force and every
+            // seventh none: commands a board's PWM could send.
+            let f = rule(&truth) * full / 10.0;
+            let f = if k % 7 == 0 {
+                0.0
+            } else if k % 5 == 0 {
+                f / 2.0
+            } else {
+                f
+            };
+            board.command((f / full) as f32);
+            blind.command((f / full) as f32);
             w.apply(f);
         }
-        // Measured: 40 times less squared rate error.
-        assert!(err_board * 10.0 < err_blind, "{err_board} vs {err_blind}");
+        // Measured: 13 times less squared rate error (the plant is not the nominal one, so
+        // neither observer is exact).
+        assert!(err_board * 5.0 < err_blind, "{err_board} vs {err_blind}");
     }
 }
