@@ -56,7 +56,7 @@ pub fn lqr_gain(p: &Params, q: Vec4, r: f64) -> Vec4 {
 }
 
 /// One application of the control Riccati map to `p`.
-pub fn riccati_step(a: &Mat, b: &Vec4, p: &Mat, q: Vec4, r: f64) -> Mat {
+fn riccati_step(a: &Mat, b: &Vec4, p: &Mat, q: Vec4, r: f64) -> Mat {
     let k = gain(a, b, p, r);
     let bpa = vec_mat(&vec_mat(b, p), a);
     let pa = mat_mul(p, a);
@@ -81,7 +81,7 @@ pub fn kalman_gain(a: &Mat, q: &Mat, r: [f64; 2]) -> [[f64; 2]; 4] {
 }
 
 /// One application of the filter Riccati map to the predicted covariance `p`.
-pub fn filter_step(a: &Mat, p: &Mat, q: &Mat, r: [f64; 2]) -> Mat {
+fn filter_step(a: &Mat, p: &Mat, q: &Mat, r: [f64; 2]) -> Mat {
     let l = kalman_of(*p, r);
     // The updated covariance `P - L C P`, where `C P` is rows 0 and 2 of `P`.
     let mut upd = *p;
@@ -153,17 +153,12 @@ fn symmetrise(mut m: Mat) -> Mat {
 }
 
 /// A diagonal matrix.
-pub fn diag(q: Vec4) -> Mat {
+fn diag(q: Vec4) -> Mat {
     let mut m = [[0.0; 4]; 4];
     for i in 0..4 {
         m[i][i] = q[i];
     }
     m
-}
-
-/// `m v`.
-pub fn mat_vec(m: &Mat, v: &Vec4) -> Vec4 {
-    m.map(|row| row.iter().zip(v).map(|(a, b)| a * b).sum())
 }
 
 fn mat_mul(a: &Mat, b: &Mat) -> Mat {

@@ -14,7 +14,7 @@ use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::cartpole::{CartPole, Params, State};
 use crate::controller::{Controller, Limits, Policy, StateSensor};
-use crate::estimator::{Encoders, Observer, Tuning, quantise};
+use crate::estimator::{Encoders, Observer, Tuning};
 
 /// Full scale of [`CellDuty`].
 pub const MAX_DUTY: u16 = 1000;
@@ -67,12 +67,8 @@ impl StateSensor for EncoderSensor<'_> {
         let level = force(self.direction.get(), self.duty.get(), 1.0) as f32;
         self.observer.command(level);
         let s = self.state.get();
-        let e = self.observer.encoders();
-        let per_rad = f64::from(e.pole_counts_per_rev) / core::f64::consts::TAU;
-        Ok(self.observer.update(
-            quantise(s.x, f64::from(e.cart_counts_per_m)),
-            quantise(s.theta, per_rad),
-        ))
+        let (cart, pole) = self.observer.encoders().counts(s.x, s.theta);
+        Ok(self.observer.update(cart, pole))
     }
 }
 

@@ -10,7 +10,7 @@
 use firmware::cartpole::Params;
 use firmware::cartpole::{CartPole, State, Transition, unit_f64};
 use firmware::controller::predict::DeadTime;
-use firmware::estimator::{AlphaBeta, Encoders, Observer, Tuning, quantise};
+use firmware::estimator::{AlphaBeta, Encoders, Observer, Tuning};
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -102,12 +102,8 @@ impl<'s, R: Rng> World<'s, R> {
                 theta += sd[2] * self.gauss();
             }
             let est = self.estimator.as_mut().expect("checked above");
-            let e = est.encoders();
-            let per_rad = f64::from(e.pole_counts_per_rev) / core::f64::consts::TAU;
-            return est.update(
-                quantise(x, f64::from(e.cart_counts_per_m)),
-                quantise(theta, per_rad),
-            );
+            let (cart, pole) = est.encoders().counts(x, theta);
+            return est.update(cart, pole);
         }
         if !noisy {
             return s.observation();
@@ -261,14 +257,10 @@ mod tests {
         let mut w = world(&s);
         let make = |delay| Observer::new(enc, &Params::default(), Tuning::DEFAULT, delay);
         let (mut board, mut blind) = (make(3), make(0));
-        let per_rad = f64::from(enc.pole_counts_per_rev) / core::f64::consts::TAU;
         let (mut err_board, mut err_blind) = (0.0f64, 0.0f64);
         for k in 0..300 {
             let truth = w.state();
-            let counts = (
-                quantise(truth.x, f64::from(enc.cart_counts_per_m)),
-                quantise(truth.theta, per_rad),
-            );
+            let counts = enc.counts(truth.x, truth.theta);
             let obs = w.observe();
             assert_eq!(obs, board.update(counts.0, counts.1), "period {k}");
             let b = blind.update(counts.0, counts.1);

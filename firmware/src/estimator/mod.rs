@@ -62,6 +62,37 @@ pub struct Encoders {
     pub pole_counts_per_rev: u32,
 }
 
+impl Encoders {
+    /// The same resolutions with zero taken as one count per unit, so that a count's size
+    /// is finite.
+    pub fn sanitised(self) -> Encoders {
+        Encoders {
+            cart_counts_per_m: self.cart_counts_per_m.max(1),
+            pole_counts_per_rev: self.pole_counts_per_rev.max(1),
+        }
+    }
+
+    /// A count's size: metres per cart count, radians per pole count.
+    pub fn per_count(self) -> [f64; 2] {
+        [
+            1.0 / f64::from(self.cart_counts_per_m),
+            core::f64::consts::TAU / f64::from(self.pole_counts_per_rev),
+        ]
+    }
+
+    /// The counts these encoders read at cart position `x` (m) and pole angle `theta`
+    /// (rad), each [`quantise`]d.
+    pub fn counts(self, x: f64, theta: f64) -> (i32, i32) {
+        (
+            quantise(x, f64::from(self.cart_counts_per_m)),
+            quantise(
+                theta,
+                f64::from(self.pole_counts_per_rev) / core::f64::consts::TAU,
+            ),
+        )
+    }
+}
+
 /// One channel's alpha-beta filter in fixed point.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 struct Channel {
@@ -138,15 +169,11 @@ impl AlphaBeta {
             discount.clamp(0.0, 0.99)
         };
         let q15 = |v: f32| (v * 32_768.0 + 0.5) as i64;
-        let enc = Encoders {
-            cart_counts_per_m: enc.cart_counts_per_m.max(1),
-            pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
-        };
+        let enc = enc.sanitised();
         let period_s = if period_s > 0.0 { period_s } else { 0.02 };
         // Raw units are 1/4096 count (per period), the output's 1/4096 SI unit: the 4096s
         // cancel, leaving SI units per count (per period).
-        let cart = 1.0 / f64::from(enc.cart_counts_per_m);
-        let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
+        let [cart, pole] = enc.per_count();
         let per_s = 1.0 / f64::from(period_s);
         AlphaBeta {
             enc,

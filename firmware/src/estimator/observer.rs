@@ -74,14 +74,8 @@ impl Observer {
     /// (clamped to [`MAX_PREDICT`](crate::controller::predict::MAX_PREDICT)). Solves the Kalman gain's Riccati equation in f64: a
     /// board does this once, at start-up.
     pub fn new(enc: Encoders, nominal: &Params, tuning: Tuning, dead_time: usize) -> Observer {
-        let enc = Encoders {
-            cart_counts_per_m: enc.cart_counts_per_m.max(1),
-            pole_counts_per_rev: enc.pole_counts_per_rev.max(1),
-        };
-        let per_count = [
-            1.0 / f64::from(enc.cart_counts_per_m),
-            core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev),
-        ];
+        let enc = enc.sanitised();
+        let per_count = enc.per_count();
         let (a, b) = linearise(nominal);
         let t = nominal.tau;
         let f = tuning.force_sd;

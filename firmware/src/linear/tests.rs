@@ -21,6 +21,11 @@ pub(crate) const SCIPY_L: [[f64; 2]; 4] = [
     [-7.360_876_922_851_586, 44.266_047_266_843_92],
 ];
 
+/// `m v`.
+fn mat_vec(m: &Mat, v: &Vec4) -> Vec4 {
+    m.map(|row| row.iter().zip(v).map(|(a, b)| a * b).sum())
+}
+
 fn closed_loop(p: &Params, k: &Vec4) -> Mat {
     let (a, b) = linearise(p);
     let mut m = a;

@@ -1,7 +1,7 @@
 use super::*;
 use crate::cartpole::{State, step_with_force};
 use crate::controller::predict::MAX_PREDICT;
-use crate::estimator::{AlphaBeta, quantise};
+use crate::estimator::AlphaBeta;
 use crate::linear::tests::SCIPY_L;
 
 const FINE: Encoders = Encoders {
@@ -14,16 +14,6 @@ fn coarse(pole: u32) -> Encoders {
         cart_counts_per_m: 5 * pole,
         pole_counts_per_rev: pole,
     }
-}
-
-fn counts(s: &State, enc: Encoders) -> (i32, i32) {
-    (
-        quantise(s.x, f64::from(enc.cart_counts_per_m)),
-        quantise(
-            s.theta,
-            f64::from(enc.pole_counts_per_rev) / core::f64::consts::TAU,
-        ),
-    )
 }
 
 /// The gain for force_sd 5 N, accel_sd [2, 4] and 20,480 / 4,096 counts is the one scipy
@@ -61,7 +51,7 @@ fn velocity_errors(enc: Encoders, told: usize, delay: usize) -> ([f64; 2], [f64;
     let (mut eo, mut ea) = ([0.0f64; 2], [0.0f64; 2]);
     let n = 1000usize;
     for k in 0..n {
-        let (cx, ct) = counts(&s, enc);
+        let (cx, ct) = enc.counts(s.x, s.theta);
         let (o, a) = (obs.update(cx, ct), ab.update(cx, ct));
         if k >= 50 {
             for (e, est) in [(&mut eo, o), (&mut ea, a)] {
@@ -186,7 +176,7 @@ fn the_fixed_state_is_the_state_rounded_in_q12() {
     let mut s = State::from_array([0.4, 0.0, 0.05, 0.0]);
     let p = Params::default();
     for k in 0..300 {
-        let (cx, ct) = counts(&s, coarse(128));
+        let (cx, ct) = coarse(128).counts(s.x, s.theta);
         let est = o.update(cx, ct);
         for (f, v) in o.fixed_state().iter().zip(est) {
             let want = (f64::from(v) * 4096.0).round().clamp(-32_768.0, 32_767.0);
