@@ -13,7 +13,7 @@ use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::cartpole::{CartPole, Params, State};
-use crate::controller::{Controller, Limits, Policy, StateSensor};
+use crate::controller::{Command, Controller, Limits, Policy, StateSensor};
 use crate::estimator::{Encoders, Observer, Tuning};
 
 /// Full scale of [`CellDuty`].
@@ -31,29 +31,19 @@ impl StateSensor for PlantSensor<'_> {
 }
 
 /// Reads the plant the way a board reads its own: two encoders (the true cart position and
-/// pole angle floored to counts) through the [`Observer`], told each period what the pins
-/// commanded in the last one.
+/// pole angle floored to counts) through the [`Observer`], told each command the controller
+/// sends.
 pub struct EncoderSensor<'a> {
     state: &'a Cell<State>,
-    direction: &'a Cell<bool>,
-    duty: &'a Cell<u16>,
     observer: Observer,
 }
 
 impl<'a> EncoderSensor<'a> {
-    /// Encoders of resolution `enc` on the plant whose state `state` holds, driven through
-    /// the `direction` and `duty` cells; the observer models the plant as `nominal`.
-    pub fn new(
-        state: &'a Cell<State>,
-        direction: &'a Cell<bool>,
-        duty: &'a Cell<u16>,
-        enc: Encoders,
-        nominal: &Params,
-    ) -> Self {
+    /// Encoders of resolution `enc` on the plant whose state `state` holds; the observer
+    /// models the plant as `nominal`.
+    pub fn new(state: &'a Cell<State>, enc: Encoders, nominal: &Params) -> Self {
         EncoderSensor {
             state,
-            direction,
-            duty,
             observer: Observer::new(enc, nominal, Tuning::DEFAULT, 0),
         }
     }
@@ -63,12 +53,14 @@ impl StateSensor for EncoderSensor<'_> {
     type Error = Infallible;
     #[inline]
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        // The pins still hold the command that drove the period just ended.
-        let level = force(self.direction.get(), self.duty.get(), 1.0) as f32;
-        self.observer.command(level);
         let s = self.state.get();
         let (cart, pole) = self.observer.encoders().counts(s.x, s.theta);
         Ok(self.observer.update(cart, pole))
+    }
+
+    #[inline]
+    fn commanded(&mut self, command: Command) {
+        self.observer.command(command.level());
     }
 }
 
@@ -155,7 +147,7 @@ pub fn run_with_encoders<P: Policy>(
 ) -> Outcome {
     let state = Cell::new(plant.state());
     let pins = (Cell::new(false), Cell::new(0));
-    let sensor = EncoderSensor::new(&state, &pins.0, &pins.1, enc, &plant.params);
+    let sensor = EncoderSensor::new(&state, enc, &plant.params);
     run_with(policy, plant, sensor, &state, &pins, wait)
 }
 

@@ -14,7 +14,6 @@
 #![no_std]
 #![no_main]
 
-use core::cell::Cell;
 use core::convert::Infallible;
 use core::sync::atomic::{AtomicI32, Ordering};
 
@@ -28,7 +27,7 @@ use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoder
 use embassy_rp::pwm::{self, Pwm};
 use embassy_time::{Duration, Instant, Ticker};
 use firmware::cartpole::Params;
-use firmware::controller::{CONTROL_PERIOD_S, Controller, Limits, StateSensor};
+use firmware::controller::{CONTROL_PERIOD_S, Command, Controller, Limits, StateSensor};
 use firmware::estimator::{Encoders, Observer, Tuning};
 use firmware::policy_int::POLICY_INT;
 use {defmt_rtt as _, panic_probe as _};
@@ -83,21 +82,23 @@ async fn pole_encoder(mut encoder: PioEncoder<'static, PIO0, 1>) -> ! {
     count(&mut encoder, &POLE_COUNTS).await
 }
 
-/// The observer over the two counters, told the command of the period just ended: what the
+/// The observer over the two counters, told each command the controller sends: what the
 /// controller reads each period.
-struct EncoderSensor<'a> {
+struct EncoderSensor {
     observer: Observer,
-    last: &'a Cell<f32>,
 }
 
-impl StateSensor for EncoderSensor<'_> {
+impl StateSensor for EncoderSensor {
     type Error = Infallible;
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        self.observer.command(self.last.get());
         Ok(self.observer.update(
             CART_COUNTS.load(Ordering::Relaxed),
             POLE_COUNTS.load(Ordering::Relaxed),
         ))
+    }
+
+    fn commanded(&mut self, command: Command) {
+        self.observer.command(command.level());
     }
 }
 
@@ -132,10 +133,8 @@ async fn main(spawner: Spawner) {
     // The observer models the rig as the plant the policy was trained on (Gymnasium's
     // cart-pole); put the rig's own masses, pole length and motor force here. Its gain is
     // solved once, now.
-    let last = Cell::new(0.0);
     let sensor = EncoderSensor {
         observer: Observer::new(ENCODERS, &Params::default(), Tuning::DEFAULT, 0),
-        last: &last,
     };
     let limits = Limits::track(TRACK_HALF_LENGTH_M, END_STOP_MARGIN_M);
     let mut controller: Controller<_, _, _, _, 8> =
@@ -151,7 +150,6 @@ async fn main(spawner: Spawner) {
         ticker.next().await;
         let start = Instant::now();
         let command = controller.step();
-        last.set(command.level());
         let took = start.elapsed();
         if took >= period {
             // Whole periods lost while this step ran.

@@ -85,6 +85,15 @@ pub trait StateSensor {
     type Error;
     /// One reading of `[x, x_dot, theta, theta_dot]`.
     fn read(&mut self) -> Result<[f32; OBS_DIM], Self::Error>;
+
+    /// Told once a period, after the reading, what the controller sent the bridge (on an
+    /// actuator error, what it tried to send). A sensor that estimates the velocities with
+    /// a model of the plant, as [`Observer`](crate::estimator::Observer) does, needs the
+    /// force that will act; a sensor that measures them ignores it.
+    #[inline]
+    fn commanded(&mut self, command: Command) {
+        let _ = command;
+    }
 }
 
 /// Maps a sanitised observation to two scores, `[left, right]`; the controller pushes right
@@ -333,6 +342,7 @@ where
                 Command::Coast => p.record(0.0),
             }
         }
+        self.sensor.commanded(command);
         if self.actuate(command).is_err() {
             self.drive = Drive::Unknown;
             self.faults.actuator_errors = self.faults.actuator_errors.saturating_add(1);

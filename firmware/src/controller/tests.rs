@@ -220,3 +220,52 @@ fn a_real_track_interlocks_its_ends() {
     assert_eq!(Limits::track(1.0, -3.0).max_abs[0], 1.0);
     assert_eq!(Limits::default(), Limits::simulation());
 }
+
+/// A sensor that records each command it is told, with how many readings it had given.
+struct Told {
+    readings: [[f32; 4]; 3],
+    next: usize,
+    told: Vec<(usize, Command)>,
+}
+
+impl StateSensor for Told {
+    type Error = ();
+    fn read(&mut self) -> Result<[f32; 4], ()> {
+        let r = self.readings[self.next % 3];
+        self.next += 1;
+        Ok(r)
+    }
+    fn commanded(&mut self, command: Command) {
+        self.told.push((self.next, command));
+    }
+}
+
+#[test]
+fn the_sensor_is_told_each_command_after_its_reading() {
+    use crate::loopback::{CellDuty, CellPin};
+    use core::cell::Cell;
+    let (direction, duty) = (Cell::new(false), Cell::new(0));
+    let sensor = Told {
+        readings: [LEAN_RIGHT, [0.0, f32::NAN, 0.0, 0.0], LEAN_LEFT],
+        next: 0,
+        told: Vec::new(),
+    };
+    let mut c: Controller<_, _, _, _, 1> = Controller::new(
+        SignOfTheta,
+        sensor,
+        CellPin(&direction),
+        CellDuty(&duty),
+        Limits::default(),
+    );
+    let sent: Vec<Command> = (0..3).map(|_| c.step()).collect();
+    assert_eq!(
+        sent,
+        [
+            Command::Push(Action::Right),
+            Command::Coast,
+            Command::Push(Action::Left)
+        ]
+    );
+    let (_, sensor, _, _) = c.release();
+    assert_eq!(sensor.told, [(1, sent[0]), (2, sent[1]), (3, sent[2])]);
+}

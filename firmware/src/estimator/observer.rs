@@ -1,17 +1,4 @@
-//! The model-based observer: predict with the nominal plant and the command sent, correct by
-//! the steady-state Kalman gain.
-//!
-//! Each period it advances its estimate one Euler step of the nominal plant
-//! ([`Model::step`], the predictor's f32 model) under the force that acted during the period
-//! just ended, then corrects by `L (y - C s)`, where `y` are the two encoders' readings
-//! (each count's midpoint, so that floor quantisation adds no bias) and `L` is the
-//! steady-state Kalman gain of the linearised plant ([`kalman_gain`]) for the encoders'
-//! quantisation noise and a process noise set by [`Tuning`].
-//!
-//! The command must be the board's own: what it sent to the motor, as a fraction of full
-//! force, one period after another ([`Observer::command`]). With actuator dead time the
-//! observer holds the commands in flight itself, in the same [`DeadTime`] line as the
-//! predictor and the twin's actuator, and applies each when it reaches the motor.
+//! The model-based observer ([`Observer`]).
 
 use crate::cartpole::Params;
 use crate::controller::predict::{DeadTime, Model};
@@ -50,9 +37,26 @@ impl Default for Tuning {
     }
 }
 
-/// The observer of [the module](self). Fixed-size, allocation-free, panic-free for any counts
-/// and commands: a non-finite estimate (only wild counts can cause one) restarts it from the
-/// next counts.
+/// The model-based observer: predict with the nominal plant and the command sent, correct by
+/// the steady-state Kalman gain.
+///
+/// Each period it advances its estimate one Euler step of the nominal plant
+/// ([`Model::step`], the predictor's f32 model) under the force that acted during the period
+/// just ended, then corrects by `L (y - C s)`, where `y` are the two encoders' readings
+/// (each count's midpoint, so that floor quantisation adds no bias) and `L` is the
+/// steady-state Kalman gain of the linearised plant ([`kalman_gain`]) for the encoders'
+/// quantisation noise and a process noise set by [`Tuning`].
+///
+/// The command must be the board's own: what it sent to the motor, as a fraction of full
+/// force, one period after another ([`Observer::command`]; behind a
+/// [`Controller`](crate::controller::Controller), from
+/// [`StateSensor::commanded`](crate::controller::StateSensor::commanded)). With actuator
+/// dead time the observer holds the commands in flight itself, in the same [`DeadTime`]
+/// line as the predictor and the twin's actuator, and applies each when it reaches the
+/// motor.
+///
+/// Fixed-size, allocation-free, panic-free for any counts and commands: a non-finite
+/// estimate (only wild counts can cause one) restarts it from the next counts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Observer {
     enc: Encoders,
