@@ -342,12 +342,12 @@ where
                 Command::Coast => p.record(0.0),
             }
         }
-        self.sensor.commanded(command);
         if self.actuate(command).is_err() {
             self.drive = Drive::Unknown;
             self.faults.actuator_errors = self.faults.actuator_errors.saturating_add(1);
             flags = flags.with(FaultFlags::ACTUATOR_ERROR);
         }
+        self.sensor.commanded(command);
         self.telemetry.write(Record {
             step: self.steps,
             obs,
