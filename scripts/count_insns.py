@@ -5,7 +5,7 @@ emulator, not a clock), so machines agree on it.
 
     python3 -m venv .venv && .venv/bin/pip install -r scripts/requirements-dev.txt
     .venv/bin/python scripts/count_insns.py \
-        target/thumbv7em-none-eabihf/release/selftest-app cartpole_policy_forward --mix
+        target/thumbv7em-none-eabihf/release/selftest-app selftest_forward --mix
 
 The function runs in Unicorn (QEMU's CPU core) from its symbol until it returns, with
 `r0` pointing at the input array, `r1` at the output array and the stack at the top of RAM.
@@ -46,7 +46,7 @@ def fail(msg):
 def parse_args():
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("elf")
-    p.add_argument("symbol", nargs="?", default="cartpole_policy_forward")
+    p.add_argument("symbol", nargs="?", default="selftest_forward")
     p.add_argument("--in", dest="values", default="0.01,-0.02,0.03,0.04",
                    help="input array, comma-separated")
     p.add_argument("--in-type", default="f32", choices=TYPES)

@@ -7,14 +7,17 @@
 //! # -> target/thumbv7em-none-eabihf/release/libcartpole_policy.a
 //! ```
 //!
-//! The symbols are `firmware::ffi`'s, the very functions the Rust firmware runs:
-//! `cartpole_policy_forward` (the shipped policy) and `cartpole_mlpH_forward` for every
-//! supported width (any weights, such as a header `policy-export export --format c` wrote).
-//! This crate only packages them and, on a microcontroller, supplies the panic handler a
-//! static library must have (the forward passes cannot panic).
+//! The symbols wrap the very functions the Rust firmware runs: `cartpole_policy_forward`
+//! (the shipped policy) and `cartpole_mlpH_forward` for every supported width (any weights,
+//! such as a header `policy-export export --format c` wrote), and their integer
+//! counterparts. On a microcontroller the crate supplies the panic handler a static library
+//! must have (the forward passes cannot panic).
 #![cfg_attr(target_os = "none", no_std)]
+#![deny(unsafe_code)]
 
-pub use firmware::ffi::*;
+mod ffi;
+
+pub use ffi::*;
 
 #[cfg(target_os = "none")]
 #[panic_handler]

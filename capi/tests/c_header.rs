@@ -12,10 +12,29 @@ use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
-use firmware::selftest::{INT_PROBES, PROBES};
 use weights::Weights;
 use weights::quant::{self, Granularity};
 use weights::source::{c_header, c_struct};
+
+/// Observations the C programs are run on: a balanced state, leaning states, the edges of
+/// the failure box, large rates, and values with long mantissas.
+const PROBES: [[f32; 4]; 6] = [
+    [0.0, 0.0, 0.0, 0.0],
+    [0.01, -0.02, 0.03, 0.04],
+    [2.4, 0.0, 0.2094395, 0.0],
+    [-2.4, -1.5, -0.2094395, -2.0],
+    [1.0e-7, -3.3333333, 0.12345679, -0.9876543],
+    [-1.1754944e-38, 19.99, -0.41, 19.99],
+];
+
+/// The integer network's: the float probes in Q3.12 and the format's extremes.
+const INT_PROBES: [[i16; 4]; 5] = [
+    [0, 0, 0, 0],
+    [41, -82, 123, 164],
+    [9830, 0, 858, 0],
+    [32767, -32768, 32767, -32768],
+    [-1, 1, -32768, 32767],
+];
 
 fn manifest() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

@@ -19,12 +19,16 @@ pub type Mat = [[f64; 4]; 4];
 pub type Vec4 = [f64; 4];
 
 /// The Euler-discretised linearisation of the plant about the upright equilibrium:
-/// `s' = A s + B F` with `s = [x, x_dot, theta, theta_dot]` and `F` the force in newtons.
+/// `s' = A s + B F` with `s = [x, x_dot, theta, theta_dot]` and `F` a force on the cart in
+/// newtons (the motor's, or any other).
 ///
-/// Gymnasium's dynamics at `theta = theta_dot = 0` give, with `M = masscart + masspole`,
-/// `m l = masspole * length` and `d = length * (4/3 - masspole / M)`:
-/// `theta_acc = (g theta - F / M) / d` and `x_acc = F / M - (m l / M) theta_acc`;
-/// the Euler step then adds `tau` times the derivative to each state.
+/// The plant's equations ([`crate::cartpole::Plant::derivative`]) at `theta = theta_dot = 0`
+/// give, with `M = masscart + masspole`, `m l = masspole * length` and
+/// `d = length * (4/3 - masspole / M)`: `theta_acc = (g theta - F / M - mu_p theta_dot /
+/// (m l)) / d` and `x_acc = F / M - (m l / M) theta_acc`, where the motor's force loses
+/// `motor_damping * x_dot` and `mu_p` is the pivot's viscous friction; the cart's Coulomb
+/// friction has no derivative at rest and is left out. The Euler step then adds `tau` times
+/// the derivative to each state.
 pub fn linearise(p: &Params) -> (Mat, Vec4) {
     let m = p.total_mass();
     let d = p.length * (4.0 / 3.0 - p.masspole / m);
@@ -38,6 +42,13 @@ pub fn linearise(p: &Params) -> (Mat, Vec4) {
     bc[3] = -1.0 / (m * d);
     ac[1][2] = -ml_m * p.gravity / d;
     bc[1] = 1.0 / m + ml_m / (m * d);
+    // The motor's damping is a force against x_dot; the pivot's friction a torque against
+    // theta_dot, which the cart feels through the pole.
+    for i in [1, 3] {
+        ac[i][1] -= p.motor_damping * bc[i];
+    }
+    ac[3][3] -= p.pole_friction / (p.polemass_length() * d);
+    ac[1][3] -= ml_m * ac[3][3];
     let mut a = [[0.0; 4]; 4];
     for i in 0..4 {
         for j in 0..4 {

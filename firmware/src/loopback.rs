@@ -1,116 +1,107 @@
-//! A plant in place of the hardware: a sensor and two actuator outputs that read and write
-//! shared cells, so the [`Controller`] can close the loop
-//! against [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in
-//! `host-sim` (the digital twin) with exactly the code that drives real pins.
+//! A plant in place of the hardware: a sensor and an H-bridge's two pins that the caller
+//! reads and sets between periods, so the [`Controller`] can close the loop against
+//! [`cartpole`](crate::cartpole) on the microcontroller (the self-test) and in the host's
+//! twin with exactly the code that drives real pins.
 //!
 //! This module is the wiring only, with the exact state or with encoders and the observer
 //! as sensors. Scenarios (noise, dead time, pushes) belong to the `twin` crate.
 
-use core::cell::Cell;
 use core::convert::Infallible;
 
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
-use crate::cartpole::{CartPole, Params, State};
-use crate::controller::{Command, Controller, Limits, Policy, StateSensor};
-use crate::estimator::{Encoders, Observer, Tuning};
+use crate::cartpole::{CartPole, State};
+use crate::controller::{Bridge, Controller, Limits, Policy, StateSensor};
+use crate::estimator::{Counter, Estimate, ObserverSensor};
+use crate::rig::Rig;
 
-/// Full scale of [`CellDuty`].
+/// Full scale of [`Duty`].
 pub const MAX_DUTY: u16 = 1000;
 
-/// Reads the plant's true state, rounded to f32 like its observation.
-pub struct PlantSensor<'a>(pub &'a Cell<State>);
+/// Reads the plant's true state, rounded to f32 like its observation: the state the caller
+/// last put here.
+pub struct PlantSensor(pub State);
 
-impl StateSensor for PlantSensor<'_> {
+impl StateSensor for PlantSensor {
+    type Reading = [f32; 4];
     type Error = Infallible;
     #[inline]
     fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        Ok(self.0.get().observation())
+        Ok(self.0.observation())
     }
 }
 
-/// Reads the plant the way a board reads its own: two encoders (the true cart position and
-/// pole angle floored to counts) through the [`Observer`], told each command the controller
-/// sends.
-pub struct EncoderSensor<'a> {
-    state: &'a Cell<State>,
-    observer: Observer,
-}
+/// The counts the caller last put here, `(cart, pole)`: the [`Counter`] of a simulated
+/// board's encoders.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Latest(pub (i32, i32));
 
-impl<'a> EncoderSensor<'a> {
-    /// Encoders of resolution `enc` on the plant whose state `state` holds; the observer
-    /// models the plant as `nominal`.
-    pub fn new(state: &'a Cell<State>, enc: Encoders, nominal: &Params) -> Self {
-        EncoderSensor {
-            state,
-            observer: Observer::new(enc, nominal, Tuning::DEFAULT, 0),
-        }
-    }
-}
-
-impl StateSensor for EncoderSensor<'_> {
-    type Error = Infallible;
+impl Counter for Latest {
     #[inline]
-    fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        let s = self.state.get();
-        let (cart, pole) = self.observer.encoders().counts(s.x, s.theta);
-        Ok(self.observer.update(cart, pole))
-    }
-
-    #[inline]
-    fn commanded(&mut self, command: Command) {
-        self.observer.command(command.level());
+    fn counts(&mut self) -> (i32, i32) {
+        self.0
     }
 }
 
-/// A direction pin whose level is a cell: high pushes towards +x.
-pub struct CellPin<'a>(pub &'a Cell<bool>);
+/// A direction pin: high pushes towards +x.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Level(pub bool);
 
-impl PinErrorType for CellPin<'_> {
+impl PinErrorType for Level {
     type Error = Infallible;
 }
 
-impl OutputPin for CellPin<'_> {
+impl OutputPin for Level {
     #[inline]
     fn set_low(&mut self) -> Result<(), Infallible> {
-        self.0.set(false);
+        self.0 = false;
         Ok(())
     }
     #[inline]
     fn set_high(&mut self) -> Result<(), Infallible> {
-        self.0.set(true);
+        self.0 = true;
         Ok(())
     }
 }
 
-/// An enable whose duty cycle is a cell, out of [`MAX_DUTY`].
-pub struct CellDuty<'a>(pub &'a Cell<u16>);
+/// An enable's duty cycle, out of [`MAX_DUTY`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Duty(pub u16);
 
-impl PwmErrorType for CellDuty<'_> {
+impl PwmErrorType for Duty {
     type Error = Infallible;
 }
 
-impl SetDutyCycle for CellDuty<'_> {
+impl SetDutyCycle for Duty {
     #[inline]
     fn max_duty_cycle(&self) -> u16 {
         MAX_DUTY
     }
     #[inline]
     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> {
-        self.0.set(duty.min(MAX_DUTY));
+        self.0 = duty.min(MAX_DUTY);
         Ok(())
     }
 }
 
-/// The force the bridge applies for a direction level and duty cycle, in newtons.
+/// An H-bridge over a [`Level`] and a [`Duty`]: what a simulated board drives.
+pub type Pins = Bridge<Level, Duty>;
+
+/// A bridge not yet driven.
+pub fn pins() -> Pins {
+    Bridge::new(Level::default(), Duty::default())
+}
+
+/// The motor duty the bridge's pins set: `-1` to `1`.
 #[inline]
-pub fn force(direction: bool, duty: u16, force_mag: f64) -> f64 {
-    let sign = if direction { 1.0 } else { -1.0 };
-    match duty {
+pub fn duty(bridge: &Pins) -> f64 {
+    let (Level(direction), Duty(duty)) = bridge.pins();
+    let sign = if *direction { 1.0 } else { -1.0 };
+    match *duty {
         0 => 0.0,
-        MAX_DUTY => sign * force_mag,
-        d => sign * force_mag * f64::from(d) / f64::from(MAX_DUTY),
+        MAX_DUTY => sign,
+        d => sign * f64::from(d) / f64::from(MAX_DUTY),
     }
 }
 
@@ -128,50 +119,49 @@ pub struct Outcome {
 }
 
 /// Runs `policy` through a [`Controller`] against `plant` from its current state until it
-/// terminates or truncates, reading the exact state. `wait` runs before every period: a
-/// real-time loop sleeps there until its timer fires and returns how many ticks arrived
-/// while the previous step still ran (its overruns); a simulation passes `|| 0`.
-pub fn run<P: Policy>(policy: P, plant: &mut CartPole, wait: impl FnMut() -> u32) -> Outcome {
-    let state = Cell::new(plant.state());
-    let pins = (Cell::new(false), Cell::new(0));
-    run_with(policy, plant, PlantSensor(&state), &state, &pins, wait)
-}
-
-/// [`run`], reading the plant through encoders of resolution `enc` and the observer, which
-/// models the plant by its own parameters.
-pub fn run_with_encoders<P: Policy>(
+/// terminates or truncates, reading the exact state, with `limits`. `wait` runs before every
+/// period: a real-time loop sleeps there until its timer fires and returns how many ticks
+/// arrived while the previous step still ran (its overruns); a simulation passes `|| 0`.
+pub fn run<P: Policy>(
     policy: P,
     plant: &mut CartPole,
-    enc: Encoders,
+    limits: Limits,
     wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let state = Cell::new(plant.state());
-    let pins = (Cell::new(false), Cell::new(0));
-    let sensor = EncoderSensor::new(&state, enc, &plant.params);
-    run_with(policy, plant, sensor, &state, &pins, wait)
+    let sensor = PlantSensor(plant.state());
+    run_with(policy, plant, sensor, limits, |s, state| s.0 = state, wait)
 }
 
-fn run_with<P: Policy, S: StateSensor>(
+/// [`run`], reading the plant through `rig`'s encoders and observer (a board's pipeline, in
+/// the reading format `O` its policy takes), with `rig`'s limits.
+pub fn run_with_encoders<O: Estimate, P: Policy<O>>(
+    policy: P,
+    plant: &mut CartPole,
+    rig: &Rig,
+    wait: impl FnMut() -> u32,
+) -> Outcome {
+    let enc = rig.encoders;
+    let counts = |s: State| enc.counts(s.x, s.theta);
+    let sensor = ObserverSensor::<_, O>::new(rig.observer(), Latest(counts(plant.state())));
+    let set = |s: &mut ObserverSensor<Latest, O>, state| s.counter_mut().0 = counts(state);
+    run_with(policy, plant, sensor, rig.limits(), set, wait)
+}
+
+fn run_with<P: Policy<S::Reading>, S: StateSensor>(
     policy: P,
     plant: &mut CartPole,
     sensor: S,
-    state: &Cell<State>,
-    (direction, duty): &(Cell<bool>, Cell<u16>),
+    limits: Limits,
+    set: impl Fn(&mut S, State),
     mut wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let mut c: Controller<_, _, _, _, 1> = Controller::new(
-        policy,
-        sensor,
-        CellPin(direction),
-        CellDuty(duty),
-        Limits::default(),
-    );
+    let mut c: Controller<_, _, _, 1> = Controller::with_history(policy, sensor, pins(), limits);
     loop {
         let late = wait();
         c.record_overruns(late);
         c.step();
-        let t = plant.step_force(force(direction.get(), duty.get(), plant.params.force_mag));
-        state.set(plant.state());
+        let t = plant.advance(duty(c.actuator()), 0.0);
+        set(c.sensor_mut(), plant.state());
         if t.terminated || t.truncated {
             return Outcome {
                 steps: plant.steps(),
@@ -186,14 +176,19 @@ fn run_with<P: Policy, S: StateSensor>(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cartpole::Params;
     use crate::policy::POLICY;
+
+    fn limits() -> Limits {
+        Rig::GYMNASIUM.limits()
+    }
 
     #[test]
     fn loopback_episode_equals_the_plant_under_greedy_actions() {
         let start = State::from_array([0.03, -0.02, 0.04, 0.01]);
         let mut plant = CartPole::new(Params::default(), 300);
         plant.reset_to(start);
-        let out = run(&POLICY, &mut plant, || 0);
+        let out = run(&POLICY, &mut plant, limits(), || 0);
         let mut reference = CartPole::new(Params::default(), 300);
         let mut obs = reference.reset_to(start);
         loop {
@@ -217,22 +212,19 @@ mod tests {
 
     #[test]
     fn an_encoder_read_plant_balances_through_the_observer() {
-        let enc = Encoders {
-            cart_counts_per_m: 20_480,
-            pole_counts_per_rev: 4_096,
-        };
         let mut plant = CartPole::new(Params::default(), 500);
         plant.reset_to(State::from_array([0.03, -0.02, 0.04, 0.01]));
-        let out = run_with_encoders(&POLICY, &mut plant, enc, || 0);
+        let out = run_with_encoders::<[f32; 4], _>(&POLICY, &mut plant, &Rig::GYMNASIUM, || 0);
         assert!(out.success && out.faults == 0, "{out:?}");
     }
 
     #[test]
-    fn force_follows_the_pins() {
-        assert_eq!(force(true, MAX_DUTY, 10.0), 10.0);
-        assert_eq!(force(false, MAX_DUTY, 10.0), -10.0);
-        assert_eq!(force(true, 0, 10.0), 0.0);
-        assert_eq!(force(false, 500, 10.0), -5.0);
+    fn the_duty_follows_the_pins() {
+        let at = |level, d| duty(&Bridge::new(Level(level), Duty(d)));
+        assert_eq!(at(true, MAX_DUTY), 1.0);
+        assert_eq!(at(false, MAX_DUTY), -1.0);
+        assert_eq!(at(true, 0), 0.0);
+        assert_eq!(at(false, 500), -0.5);
     }
 
     #[test]
@@ -242,7 +234,7 @@ mod tests {
         // The first period starts on time; from then on every second step overran by two
         // ticks, as a loop whose steps take about two periods would report.
         let mut calls = 0u32;
-        let out = run(&POLICY, &mut plant, || {
+        let out = run(&POLICY, &mut plant, limits(), || {
             calls += 1;
             if calls > 1 && calls.is_multiple_of(2) {
                 2

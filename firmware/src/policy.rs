@@ -151,3 +151,6 @@ pub static POLICY: ::firmware::network::Mlp<64> = ::firmware::network::Mlp {
     ],
     fc3_bias: [0.0024203768, 0.36824337],
 };
+
+/// The machine the policy was trained for.
+pub const RIG: ::firmware::rig::Rig = ::firmware::rig::Rig::GYMNASIUM;

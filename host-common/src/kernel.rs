@@ -1,11 +1,11 @@
 //! Which build of the host's vectorised code runs: the trainer's batched kernels and the
-//! simulator's wide forward pass are each compiled for these three instruction sets and
-//! chosen at run time.
+//! wide forward pass are each compiled for these instruction sets and chosen at run time.
 //!
 //! A kernel is [`supported`](Kernel::supported) only if the CPU has every feature any of
 //! its builds enables, so that each `#[target_feature]` function called after this check is
 //! called on a CPU that runs it: AVX2 and FMA for [`Kernel::Avx2`]; AVX-512F, AVX-512VL,
 //! AVX2 and FMA for [`Kernel::Avx512`] (the trainer's AVX-512 build enables all four).
+//! Every kernel computes the same bits; they differ only in speed.
 
 use serde::{Deserialize, Serialize};
 
@@ -13,7 +13,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, clap::ValueEnum)]
 #[serde(rename_all = "lowercase")]
 pub enum Kernel {
-    /// Baseline x86-64 (SSE2), or any other architecture: no fused multiply-add.
+    /// The target's baseline: NEON on aarch64 (whose `fmla` is a fused multiply-add), SSE2
+    /// on x86-64 (with fused multiply-adds in software).
     Portable,
     /// AVX2 with fused multiply-add.
     Avx2,
@@ -63,16 +64,30 @@ impl Kernel {
 mod tests {
     use super::*;
 
+    /// What the kernel says against what the operating system says the CPU has: Linux's
+    /// flags in `/proc/cpuinfo`, read independently of the instruction the kernel uses.
+    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
     #[test]
-    fn detection_is_consistent() {
-        let k = Kernel::detect();
-        assert!(k.supported());
-        assert!(Kernel::Portable.supported());
-        // A CPU with AVX-512 has AVX2 too, so the faster kernel implies the slower.
-        if Kernel::Avx512.supported() {
-            assert!(Kernel::Avx2.supported() && k == Kernel::Avx512);
-        }
-        assert_eq!(Kernel::available()[0], Kernel::Portable);
-        assert!(Kernel::available().contains(&k));
+    fn support_follows_the_cpus_own_flags() {
+        let info = std::fs::read_to_string("/proc/cpuinfo").expect("Linux has /proc/cpuinfo");
+        let flags: Vec<&str> = info
+            .lines()
+            .find(|l| l.starts_with("flags"))
+            .expect("a flags line")
+            .split_whitespace()
+            .collect();
+        let has = |f: &str| flags.contains(&f);
+        let avx2 = has("avx2") && has("fma");
+        let avx512 = avx2 && has("avx512f") && has("avx512vl");
+        assert_eq!(Kernel::Avx2.supported(), avx2, "{flags:?}");
+        assert_eq!(Kernel::Avx512.supported(), avx512, "{flags:?}");
+        let best = if avx512 {
+            Kernel::Avx512
+        } else if avx2 {
+            Kernel::Avx2
+        } else {
+            Kernel::Portable
+        };
+        assert_eq!(Kernel::detect(), best);
     }
 }

@@ -8,7 +8,8 @@
 //! float network's own margin `|Q_right - Q_left|`: where it is tiny, either action is about
 //! as good, and a flip costs little.
 
-use firmware::network::int::fixed_obs;
+use anyhow::{Result, bail};
+use firmware::fixed::from_state as fixed_obs;
 use rayon::prelude::*;
 use serde::Serialize;
 use twin::Scenario;
@@ -64,8 +65,12 @@ struct RowCount {
 }
 
 /// Compares the two networks of `net` on at least `states` visited states (see [the
-/// module](self)), from episodes of `seed`.
-pub fn agreement(net: &Net, states: u64, seed: u64) -> Report {
+/// module](self)), from episodes of `seed`; `net` must have been built with its integer
+/// version.
+pub fn agreement(net: &Net, states: u64, seed: u64) -> Result<Report> {
+    if net.forward_int(&[0; 4]).is_none() {
+        bail!("the policy was loaded without its integer version");
+    }
     let rows = Scenario::default_set();
     let per_row = states.div_ceil(rows.len() as u64);
     // Episodes end early when the policy fails, so run them one at a time per row until
@@ -89,11 +94,17 @@ pub fn agreement(net: &Net, states: u64, seed: u64) -> Report {
             let mut worst: Option<(f64, [f32; 4])> = None;
             let mut episode = 0;
             while count.states < per_row {
-                let one = visited(net, std::slice::from_ref(s), 1, 500, seed ^ (episode << 20));
+                let one = visited(
+                    net,
+                    std::slice::from_ref(s),
+                    episode..episode + 1,
+                    500,
+                    seed,
+                );
                 episode += 1;
                 for obs in one.iter().take((per_row - count.states) as usize) {
                     let q = net.forward(obs);
-                    let qi = net.forward_int(&fixed_obs(obs));
+                    let qi = net.forward_int(&fixed_obs(obs)).unwrap_or_default();
                     let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
                     let differ = (q[1] > q[0]) != (qi[1] > qi[0]);
                     count.states += 1;
@@ -141,7 +152,7 @@ pub fn agreement(net: &Net, states: u64, seed: u64) -> Report {
         }
         report.by_scenario.push(count);
     }
-    report
+    Ok(report)
 }
 
 /// The report as a table.

@@ -8,27 +8,40 @@
 //!
 //! [`Controller`]: firmware::controller::Controller
 
+use std::cell::RefCell;
+
 use firmware::cartpole::{Params, unit_f64};
 use firmware::controller::Policy;
 use firmware::linear::{Vec4, dot, lqr_gain};
+use firmware::rig::Rig;
 use rand_pcg::Pcg64Mcg;
-use std::sync::OnceLock;
 
-/// Bang-bang LQR: push right when `-K s > 0`. `K` comes from [`lqr_gain`] with the plant's
-/// nominal parameters (the controller does not know a scenario's perturbed physics).
+/// Bang-bang LQR: push right when `-K s > 0`. `K` comes from [`lqr_gain`] with the rig's
+/// parameters, the model its board knows (not a scenario's perturbed physics).
 #[derive(Clone, Copy, Debug)]
 pub struct Lqr {
     /// The gain, `u = -K s`.
     pub k: Vec4,
 }
 
+thread_local! {
+    /// The last rig's gain: a table's episodes ask for one rig's thousands of times.
+    static LAST: RefCell<Option<(Params, Vec4)>> = const { RefCell::new(None) };
+}
+
 impl Lqr {
-    /// `Q = I`, `R = 1` on the nominal plant (solved once per process).
-    pub fn nominal() -> Lqr {
-        static K: OnceLock<Vec4> = OnceLock::new();
-        Lqr {
-            k: *K.get_or_init(|| lqr_gain(&Params::default(), [1.0; 4], 1.0)),
-        }
+    /// `Q = I`, `R = 1` on `rig`'s plant.
+    pub fn of(rig: &Rig) -> Lqr {
+        let p = rig.params;
+        let k = LAST.with_borrow_mut(|last| match last {
+            Some((q, k)) if *q == p => *k,
+            _ => {
+                let k = lqr_gain(&p, [1.0; 4], 1.0);
+                *last = Some((p, k));
+                k
+            }
+        });
+        Lqr { k }
     }
 }
 
@@ -67,7 +80,7 @@ mod tests {
     fn rules_push_towards_the_fall() {
         let lean_right = [0.0, 0.0, 0.05, 0.1];
         let lean_left = lean_right.map(|v: f32| -v);
-        let mut lqr = Lqr::nominal();
+        let mut lqr = Lqr::of(&Rig::GYMNASIUM);
         assert!(lqr.scores(&lean_right)[1] > 0.0);
         assert!(lqr.scores(&lean_left)[1] < 0.0);
         assert!(AngleRule.scores(&lean_right)[1] > 0.0);

@@ -7,16 +7,14 @@
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
-//! - [`wide`]: the firmware's forward pass laid out for host SIMD, bit-identical.
 //!
-//! `unsafe` is confined to [`wide`]: its intrinsics' unaligned loads and stores, and the
-//! calls into its `#[target_feature]` kernels after checking the CPU.
+//! Policies run through `host_common::wide`, the firmware's forward pass laid out for host
+//! SIMD, bit-identical.
 
-#![deny(unsafe_code)]
+#![forbid(unsafe_code)]
 
 pub mod agree;
 pub mod baselines;
 pub mod eval;
 pub mod render;
 pub mod replay;
-pub mod wide;

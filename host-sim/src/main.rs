@@ -149,7 +149,11 @@ fn main() -> ExitCode {
             &horizon,
             &scenario,
             &controller,
-            load_net(policy, prefix.as_deref()),
+            load_net(
+                policy,
+                prefix.as_deref(),
+                controller.contains(&ControllerKind::PolicyInt),
+            ),
             seed,
             json,
             min_success,
@@ -160,7 +164,13 @@ fn main() -> ExitCode {
             states,
             seed,
             json,
-        } => run_agree(load_net(policy, prefix.as_deref()), states, seed, json).map(|()| true),
+        } => run_agree(
+            load_net(policy, prefix.as_deref(), true),
+            states,
+            seed,
+            json,
+        )
+        .map(|()| true),
         Command::Render {
             out,
             controller,
@@ -174,7 +184,11 @@ fn main() -> ExitCode {
         } => run_render(
             &out,
             controller,
-            load_net(policy, prefix.as_deref()),
+            load_net(
+                policy,
+                prefix.as_deref(),
+                controller == ControllerKind::PolicyInt,
+            ),
             &scenario,
             horizon,
             seed,
@@ -198,14 +212,19 @@ fn main() -> ExitCode {
     }
 }
 
-/// The network to run: the compiled-in policy, or `--policy`'s. Loaded lazily by the
-/// commands, after their cheaper checks.
-fn load_net(policy: Option<PathBuf>, prefix: Option<&str>) -> impl FnOnce() -> Result<Net> {
+/// The network to run: the compiled-in policy, or `--policy`'s, with its integer version
+/// if `int`. Loaded lazily by the commands, after their cheaper checks.
+fn load_net(
+    policy: Option<PathBuf>,
+    prefix: Option<&str>,
+    int: bool,
+) -> impl FnOnce() -> Result<Net> {
     move || match policy {
         None => Ok(Net::shipped()),
         Some(path) => {
             let import = weights::checkpoint::load(&path, prefix)?;
-            Net::from_weights(&import.weights).with_context(|| format!("policy {}", path.display()))
+            Net::from_weights(&import.weights, int)
+                .with_context(|| format!("policy {}", path.display()))
         }
     }
 }
@@ -235,7 +254,7 @@ fn run_agree(net: impl FnOnce() -> Result<Net>, states: u64, seed: u64, json: bo
         "--states must be in [1, {MAX_AGREE_STATES}], got {states}"
     );
     let net = net()?;
-    let report = host_sim::agree::agreement(&net, states, seed);
+    let report = host_sim::agree::agreement(&net, states, seed)?;
     if json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -5,7 +5,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result, anyhow};
 use firmware::cartpole::{Action, Params};
-use firmware::controller::{CONTROL_PERIOD_S, Command};
+use firmware::controller::Command;
 use host_common::plot::{FONT, ensure_font};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -34,7 +34,7 @@ pub fn gif(
         (2.0 * half_track * PX_PER_M) as u32,
         ((pole + 0.6) * PX_PER_M) as u32,
     );
-    let delay_ms = (stride as f64 * CONTROL_PERIOD_S * 1000.0).round() as u32;
+    let delay_ms = (stride as f64 * params.tau * 1000.0).round() as u32;
     let root = BitMapBackend::gif(path, (w, h), delay_ms)
         .map_err(err)
         .with_context(|| format!("creating {}", path.display()))?
@@ -81,7 +81,7 @@ pub fn gif(
         .map_err(err)?;
         root.draw(&Circle::new(to_px(x, 0.12), 4, BLACK.filled()))
             .map_err(err)?;
-        let t = (i + 1) as f64 * CONTROL_PERIOD_S;
+        let t = (i + 1) as f64 * params.tau;
         root.draw(&Text::new(
             format!(
                 "{title}   t = {t:5.2} s   x = {x:+.2} m   theta = {:+.1} deg",
@@ -103,12 +103,12 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
     root.fill(&WHITE).map_err(err)?;
     let root = root.titled(title, (FONT, 22).into_font()).map_err(err)?;
     let panels = root.split_evenly((3, 1));
-    let t_end = frames.len() as f64 * CONTROL_PERIOD_S;
+    let t_end = frames.len() as f64 * params.tau;
     let series = |f: &dyn Fn(&Frame) -> f64| -> Vec<(f64, f64)> {
         frames
             .iter()
             .enumerate()
-            .map(|(i, fr)| ((i + 1) as f64 * CONTROL_PERIOD_S, f(fr)))
+            .map(|(i, fr)| ((i + 1) as f64 * params.tau, f(fr)))
             .collect()
     };
     let x_lim = params.x_threshold;
@@ -151,7 +151,7 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
     // A step plot: the command holds for the whole period.
     let steps: Vec<(f64, f64)> = command
         .iter()
-        .flat_map(|&(t, v)| [(t - CONTROL_PERIOD_S, v), (t, v)])
+        .flat_map(|&(t, v)| [(t - params.tau, v), (t, v)])
         .collect();
     chart
         .draw_series(LineSeries::new(steps, BLUE.stroke_width(1)))

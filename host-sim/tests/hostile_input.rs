@@ -5,7 +5,7 @@ use host_sim::replay;
 use proptest::prelude::*;
 use proptest::test_runner::Config;
 use twin::Scenario;
-use twin::scenario::FACTOR_RANGE;
+use twin::grammar::{FACTOR_RANGE, PARTS};
 
 fn cases() -> Config {
     Config {
@@ -58,10 +58,11 @@ fn check_scenario(spec: &str) {
             }
             assert!(s.noise_std.iter().all(|v| v.is_finite() && *v >= 0.0));
             // The plant stays finite for a step under the full force.
-            let next = firmware::cartpole::step_with_force(
+            let next = firmware::cartpole::advance(
                 &p,
                 &firmware::cartpole::State::from_array([0.0, 0.0, 0.1, 0.0]),
-                p.force_mag,
+                1.0,
+                0.0,
             );
             assert!(
                 next.to_array().iter().all(|v| v.is_finite()),
@@ -70,34 +71,53 @@ fn check_scenario(spec: &str) {
         }
         Err(e) => assert!(e.len() < 1_000, "{} bytes", e.len()),
     }
+    // The same text as a domain: each world drawn from it must be physical too.
+    if let Ok(d) = twin::Domain::parse(spec) {
+        let mut rng = rand_pcg::Pcg64Mcg::new(7);
+        for _ in 0..4 {
+            let p = d.sample(&mut rng).params;
+            let next = firmware::cartpole::advance(
+                &p,
+                &firmware::cartpole::State::from_array([0.0, 0.0, 0.1, 0.0]),
+                1.0,
+                0.0,
+            );
+            assert!(next.to_array().iter().all(|v| v.is_finite()), "{spec}");
+        }
+    }
 }
 
+/// A part of the grammar: every key of [`PARTS`] (and one that is not), with up to three
+/// values, each a number, a range, or text that is neither, and sometimes a share.
 fn part() -> impl Strategy<Value = String> {
     let number = prop_oneof![
         any::<f64>().prop_map(|v| format!("{v}")),
         (0.0..2000.0f64).prop_map(|v| format!("{v}")),
+        (0u32..100_000).prop_map(|v| format!("{v}")),
         Just("1e300".to_string()),
         Just("nan".to_string()),
         "[0-9./e-]{0,8}",
     ];
+    let value = prop_oneof![
+        number.clone(),
+        (number.clone(), number).prop_map(|(a, b)| format!("{a}..{b}")),
+    ];
+    let mut keys: Vec<&'static str> = PARTS.iter().map(|p| p.key).collect();
+    keys.push("wind");
     (
-        prop_oneof![
-            Just("noise"),
-            Just("delay"),
-            Just("force"),
-            Just("length"),
-            Just("polemass"),
-            Just("cartmass"),
-            Just("push"),
-            Just("wind"),
-        ],
-        proptest::option::of(number),
-        proptest::option::of("[0-9]{0,4}"),
+        proptest::sample::select(keys),
+        proptest::collection::vec(value, 0..4),
+        proptest::option::of("[0-9.]{0,4}"),
     )
-        .prop_map(|(k, v, every)| match (v, every) {
-            (None, _) => k.to_string(),
-            (Some(v), None) => format!("{k}={v}"),
-            (Some(v), Some(e)) => format!("{k}={v}/{e}"),
+        .prop_map(|(k, values, share)| {
+            let mut s = k.to_string();
+            if !values.is_empty() {
+                s = format!("{s}={}", values.join("/"));
+            }
+            if let Some(p) = share {
+                s = format!("{s}@{p}");
+            }
+            s
         })
 }
 

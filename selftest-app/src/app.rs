@@ -7,19 +7,22 @@ use core::sync::atomic::{AtomicU32, Ordering};
 
 use firmware::cartpole::{CartPole, Params, State};
 use firmware::controller::Policy;
-use firmware::ffi::{cartpole_policy_forward, cartpole_policy_forward_int};
+use firmware::estimator::Estimate;
 use firmware::loopback;
-use firmware::policy::POLICY;
+use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
-use firmware::selftest;
+
+use crate::selftest;
 
 /// The clock the runners model: QEMU's `-icount shift=6` (`.cargo/config.toml`) advances
 /// virtual time by 2^6 ns per instruction, a 15.625 MHz core retiring one instruction per
 /// cycle. Optimistic for a real core (loads, multiplies and branches take more cycles, flash
 /// adds wait states); the report says so.
 pub const MODEL_HZ: u32 = 15_625_000;
-/// Control rate: the plant's tau of 20 ms.
-pub const CONTROL_HZ: u32 = 50;
+/// Timer ticks of a `clock_hz` clock in one control period, the shipped rig's `tau`.
+pub fn period_ticks(clock_hz: u64) -> u64 {
+    libm::round(clock_hz as f64 * RIG.params.tau) as u64
+}
 /// Periods run under timer pacing per network format (one second of control).
 const PACED_PERIODS: u32 = 50;
 
@@ -39,7 +42,7 @@ pub fn tick() {
 pub trait Board {
     /// One line of output.
     fn line(&mut self, args: core::fmt::Arguments<'_>);
-    /// Starts the 50 Hz timer interrupt, which calls [`tick`].
+    /// Starts the control period's timer interrupt ([`period_ticks`]), which calls [`tick`].
     fn start_ticker(&mut self);
     /// Stops it.
     fn stop_ticker(&mut self);
@@ -55,15 +58,16 @@ pub trait Board {
     }
 }
 
-/// One paced run of `policy`: waits for each tick, counts the ticks that arrive while a step
-/// still runs (an overrun each), including the last step's.
-fn paced<P: Policy>(board: &impl Board, policy: P) -> loopback::Outcome {
+/// One paced run of `policy` on a board's pipeline (encoders, observer, controller, in the
+/// reading format `O` of the policy): waits for each tick, counts the ticks that arrive
+/// while a step still runs (an overrun each), including the last step's.
+fn paced<O: Estimate, P: Policy<O>>(board: &impl Board, policy: P) -> loopback::Outcome {
     let mut plant = CartPole::new(Params::default(), PACED_PERIODS);
     plant.reset_to(State::from_array([0.02, 0.0, -0.03, 0.05]));
     // The tick whose period is running; ticks beyond it arrived during the step.
     let mut current = TICKS.load(Ordering::Acquire);
     let mut first = true;
-    let mut out = loopback::run(policy, &mut plant, || {
+    let mut out = loopback::run_with_encoders::<O, P>(policy, &mut plant, &RIG, || {
         let late = if first {
             0
         } else {
@@ -84,12 +88,12 @@ fn paced<P: Policy>(board: &impl Board, policy: P) -> loopback::Outcome {
 
 /// The whole run; whether everything passed.
 pub fn run(board: &mut impl Board) -> bool {
-    // Probes go through the C entry points by address, so the linker keeps them as real
+    // Probes go through C entry points by address, so the linker keeps them as real
     // functions in this ELF (the instruction counts are taken from them).
     let forward: extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>) =
-        core::hint::black_box(cartpole_policy_forward);
+        core::hint::black_box(selftest::selftest_forward);
     let forward_int: extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>) =
-        core::hint::black_box(cartpole_policy_forward_int);
+        core::hint::black_box(selftest::selftest_forward_int);
     let mut ok = selftest::report(
         &POLICY,
         &POLICY_INT,
@@ -101,8 +105,8 @@ pub fn run(board: &mut impl Board) -> bool {
     // The structure a board uses: timer interrupts at 50 Hz, the core sleeps in between.
     board.start_ticker();
     let runs = [
-        ("f32", paced(board, &POLICY)),
-        ("int8", paced(board, &POLICY_INT)),
+        ("f32", paced::<[f32; 4], _>(board, &POLICY)),
+        ("int8", paced::<[i16; 4], _>(board, &POLICY_INT)),
     ];
     board.stop_ticker();
     for (format, run) in runs {
@@ -130,12 +134,12 @@ pub fn run(board: &mut impl Board) -> bool {
     let step_bytes = board.stack_used(|| {
         let mut plant = CartPole::new(Params::default(), 1);
         plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
-        core::hint::black_box(loopback::run(&POLICY, &mut plant, || 0));
+        core::hint::black_box(loopback::run(&POLICY, &mut plant, RIG.limits(), || 0));
     });
     let step_int_bytes = board.stack_used(|| {
         let mut plant = CartPole::new(Params::default(), 1);
         plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
-        core::hint::black_box(loopback::run(&POLICY_INT, &mut plant, || 0));
+        core::hint::black_box(loopback::run(&POLICY_INT, &mut plant, RIG.limits(), || 0));
     });
     board.line(format_args!(
         "stack: forward pass f32 {forward_bytes} bytes, int8 {forward_int_bytes} bytes; control \

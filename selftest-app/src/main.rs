@@ -23,16 +23,17 @@ mod app;
 mod on_arm;
 #[cfg(all(target_os = "none", target_arch = "riscv32"))]
 mod on_riscv;
+mod selftest;
 
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {
-    use firmware::ffi::{cartpole_policy_forward, cartpole_policy_forward_int};
-    use firmware::{policy::POLICY, policy_int::POLICY_INT, selftest};
+    use firmware::{policy::POLICY, policy_int::POLICY_INT};
+    use selftest::{selftest_forward, selftest_forward_int};
     let ok = selftest::report(
         &POLICY,
         &POLICY_INT,
-        |o, q| cartpole_policy_forward(Some(o), Some(q)),
-        |o, q| cartpole_policy_forward_int(Some(o), Some(q)),
+        |o, q| selftest_forward(Some(o), Some(q)),
+        |o, q| selftest_forward_int(Some(o), Some(q)),
         |l| println!("{l}"),
     );
     if ok {

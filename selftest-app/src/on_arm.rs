@@ -9,7 +9,7 @@ use cortex_m_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 #[cfg(feature = "defmt")]
 use defmt_semihosting as _;
 
-use crate::app::{self, Board, CONTROL_HZ};
+use crate::app::{self, Board};
 
 /// The core clock SysTick counts on the QEMU machine: mps2-an386 at 25 MHz, mps2-an505 at
 /// 20 MHz, the micro:bit at 16 MHz. Under `-icount` they tick in virtual time.
@@ -41,7 +41,8 @@ impl Board for CortexM {
 
     fn start_ticker(&mut self) {
         self.0.set_clock_source(SystClkSource::Core);
-        self.0.set_reload(CORE_HZ / CONTROL_HZ - 1);
+        self.0
+            .set_reload(app::period_ticks(CORE_HZ.into()) as u32 - 1);
         self.0.clear_current();
         self.0.enable_interrupt();
         self.0.enable_counter();

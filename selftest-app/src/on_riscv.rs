@@ -1,18 +1,17 @@
 //! The RISC-V side of the binary, for QEMU's `virt` machine (`riscv32imac`, no FPU, like
 //! most RISC-V microcontrollers): riscv-rt entry, the machine timer of the CLINT as the
-//! 50 Hz ticker, output and exit over semihosting.
+//! control period's ticker, output and exit over semihosting.
 
 use riscv::interrupt::Interrupt;
 use riscv_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 
-use crate::app::{self, Board, CONTROL_HZ};
+use crate::app::{self, Board};
 
 /// The CLINT of QEMU's `virt` machine: `mtime` counts at 10 MHz (in virtual time under
 /// `-icount`), `mtimecmp` of hart 0 raises the machine timer interrupt when reached.
 const MTIME: usize = 0x0200_BFF8;
 const MTIMECMP: usize = 0x0200_4000;
 const TIMEBASE_HZ: u64 = 10_000_000;
-const PERIOD_TICKS: u64 = TIMEBASE_HZ / CONTROL_HZ as u64;
 
 #[allow(unsafe_code)]
 fn mtime() -> u64 {
@@ -51,20 +50,22 @@ fn machine_timer() {
         .load(core::sync::atomic::Ordering::Relaxed)
         .wrapping_add(1);
     NEXT.store(periods, core::sync::atomic::Ordering::Relaxed);
-    set_mtimecmp(START.load() + u64::from(periods) * PERIOD_TICKS);
+    set_mtimecmp(START.load() + u64::from(periods) * PERIOD.load());
     app::tick();
 }
 
-/// `mtime` when the ticker started (written once, before the interrupt is enabled).
-static START: Start = Start(core::cell::Cell::new(0));
+/// `mtime` when the ticker started, and the period in `mtime` ticks (each written once,
+/// before the interrupt is enabled).
+static START: Once = Once(core::cell::Cell::new(0));
+static PERIOD: Once = Once(core::cell::Cell::new(0));
 
-struct Start(core::cell::Cell<u64>);
+struct Once(core::cell::Cell<u64>);
 
 // SAFETY: a single hart; written before the timer interrupt is enabled and only read after.
 #[allow(unsafe_code)]
-unsafe impl Sync for Start {}
+unsafe impl Sync for Once {}
 
-impl Start {
+impl Once {
     fn load(&self) -> u64 {
         self.0.get()
     }
@@ -79,9 +80,10 @@ impl Board for Virt {
 
     #[allow(unsafe_code)]
     fn start_ticker(&mut self) {
+        PERIOD.0.set(app::period_ticks(TIMEBASE_HZ));
         START.0.set(mtime());
         NEXT.store(1, core::sync::atomic::Ordering::Relaxed);
-        set_mtimecmp(START.load() + PERIOD_TICKS);
+        set_mtimecmp(START.load() + PERIOD.load());
         // SAFETY: the handler above is the only one enabled; it touches only atomics and the
         // CLINT.
         unsafe {

@@ -7,9 +7,17 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use firmware::network::{Mlp, shapes};
-use firmware::selftest::PROBES;
 use weights::Weights;
 use weights::source::rust_module;
+
+/// Observations whose Q-values the scratch crate prints: a balanced state, leaning states,
+/// the edges of the failure box and values with long mantissas.
+const PROBES: [[f32; 4]; 4] = [
+    [0.0, 0.0, 0.0, 0.0],
+    [0.01, -0.02, 0.03, 0.04],
+    [-2.4, -1.5, -0.2094395, -2.0],
+    [1.0e-7, -3.3333333, 0.12345679, -0.9876543],
+];
 
 fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")

@@ -7,10 +7,13 @@
 //! evaluation's episodes are not the calibration's), the policy told its dead time as in the
 //! evaluation. So the trainer's export and the simulator quantise a policy identically.
 
+use std::ops::Range;
+
 use firmware::controller::Policy;
 use firmware::network::{Mlp, OBS_DIM};
 use weights::Weights;
 use weights::quant::{Granularity, Quantised, quantise};
+use weights::width::{ForWidth, by_width};
 
 use crate::run::run_episode;
 use crate::scenario::Scenario;
@@ -35,18 +38,18 @@ impl<P: Policy> Policy for Recording<'_, P> {
     }
 }
 
-/// Every observation `policy` is asked about in `episodes` episodes of each of `scenarios`
-/// from `seed`, in order (what its network sees: after the dead-time predictor).
+/// Every observation `policy` is asked about in episodes `episodes` of each of `scenarios`
+/// under `seed`, in order (what its network sees: after the dead-time predictor).
 pub fn visited<P: Policy + Copy>(
     policy: P,
     scenarios: &[Scenario],
-    episodes: u64,
+    episodes: Range<u64>,
     horizon: u32,
     seed: u64,
 ) -> Vec<[f32; OBS_DIM]> {
     let mut seen = Vec::new();
     for s in scenarios {
-        for e in 0..episodes {
+        for e in episodes.clone() {
             let rec = Recording {
                 inner: policy,
                 seen: &mut seen,
@@ -59,27 +62,21 @@ pub fn visited<P: Policy + Copy>(
 
 /// The calibration set of the float policy `w` (see [the module](self)).
 pub fn calibration_states(w: &Weights) -> weights::Result<Vec<[f32; OBS_DIM]>> {
-    fn of<const H: usize>(net: &Mlp<H>) -> Vec<[f32; OBS_DIM]> {
-        visited(
-            net,
-            &Scenario::default_set(),
-            CALIBRATION_EPISODES,
-            CALIBRATION_HORIZON,
-            CALIBRATION_SEED,
-        )
+    struct States<'a>(&'a Weights);
+    impl ForWidth for States<'_> {
+        type Output = weights::Result<Vec<[f32; OBS_DIM]>>;
+        fn run<const H: usize>(self) -> Self::Output {
+            let net: Box<Mlp<H>> = self.0.to_mlp()?;
+            Ok(visited(
+                &*net,
+                &Scenario::default_set(),
+                0..CALIBRATION_EPISODES,
+                CALIBRATION_HORIZON,
+                CALIBRATION_SEED,
+            ))
+        }
     }
-    macro_rules! by_width {
-        ($($h:literal => $c:ident / $qc:ident,)*) => {
-            match w.width() {
-                $($h => Ok(of(&*w.to_mlp::<$h>()?)),)*
-                other => Err(weights::Error::Input(format!(
-                    "hidden width {other} is not one of {:?}",
-                    firmware::network::SUPPORTED_WIDTHS
-                ))),
-            }
-        };
-    }
-    firmware::for_each_width!(by_width)
+    by_width(w.width(), States(w))?
 }
 
 /// `w` quantised on its calibration set: what `policy-export export --quant int8` writes and

@@ -1,12 +1,14 @@
 //! The digital twin: the world around the controller, shared by the simulator that judges a
 //! policy and the trainer that learns it, so both see the same world.
 //!
-//! - [`scenario`]: one world as a spec (`noise+delay=2`, `length=0.8+encoder=1024`): physics
-//!   and friction, sensor noise, encoders with the firmware's estimator, actuator dead time,
-//!   pushes; the named sets the tables use.
-//! - [`world`]: one episode of a scenario, period by period: the reading, then the actuator.
-//! - [`run`]: the unchanged firmware controller against a world, through pins and a sensor,
-//!   with per-episode statistics and seeded streams.
+//! - [`grammar`]: the one grammar and table of parts of scenarios and domains.
+//! - [`scenario`]: one world as a spec (`noise+delay=2`, `length=0.8+encoder=1024`): the
+//!   rig the board knows, the true physics and friction, sensor noise, encoders with the
+//!   firmware's estimator, actuator dead time, pushes; the named sets the tables use.
+//! - [`world`]: one episode of a scenario's plant, period by period: the measurement, then
+//!   the actuator.
+//! - [`run`]: the unchanged firmware controller against a world, through pins and the
+//!   firmware's sensors, with per-episode statistics and seeded streams.
 //! - [`calibrate`]: the observations a policy visits, to quantise it on.
 //! - [`domain`]: distributions over scenarios for domain-randomised training.
 //!
@@ -17,11 +19,12 @@
 
 pub mod calibrate;
 pub mod domain;
+pub mod grammar;
 pub mod run;
 pub mod scenario;
 pub mod world;
 
 pub use domain::Domain;
-pub use run::{EpisodeStats, Frame, run_episode};
+pub use run::{Episode, EpisodeStats, Frame, run_episode};
 pub use scenario::{Push, Scenario};
 pub use world::World;

@@ -10,6 +10,7 @@
 //! - [`source`]: Rust modules and C headers that compile the weights into flash, bit for bit.
 //! - [`files`]: reading only regular files, with a size cap, and writing outputs atomically
 //!   without replacing anything that is not a regular file.
+//! - [`width`]: code for a network whose width is known only at run time.
 //!
 //! Both host tools use this crate: the trainer (`policy-export`) writes and exports policies,
 //! the simulator (`host-sim`) loads them. It depends on `firmware` for the network's shape
@@ -21,6 +22,7 @@ pub mod checkpoint;
 pub mod files;
 pub mod quant;
 pub mod source;
+pub mod width;
 
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, TENSOR_NAMES, shapes};
 

@@ -26,8 +26,9 @@
 
 use std::fmt::Write;
 
+use firmware::fixed::{FRACTION_BITS as OBS_FRACTION_BITS, from_state as fixed_obs};
 use firmware::network::OBS_DIM;
-use firmware::network::int::{OBS_FRACTION_BITS, QMlp, Requant, fixed_obs};
+use firmware::network::int::{QMlp, Requant};
 
 use crate::{Error, Result, Weights};
 
@@ -583,7 +584,7 @@ pub fn c_header(q: &Quantised, name: &str, provenance: &[String]) -> Result<Stri
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::network::int::fixed_obs;
+    use firmware::fixed::from_state as fixed_obs;
     use firmware::policy::POLICY;
 
     #[test]

@@ -1,11 +1,15 @@
-//! The control step: read the state, sanitise it, run the policy, drive the motor.
+//! The control period: read the state, sanitise it, run the policy, drive the motor.
 //!
-//! [`Controller::step`] is everything a board does once per control period
-//! ([`CONTROL_PERIOD_S`], the plant's tau): it reads `[x, x_dot, theta, theta_dot]` through a
-//! [`StateSensor`], checks every channel, asks a [`Policy`] for its two scores and drives an
-//! H-bridge through embedded-hal 1.0: a direction [`OutputPin`] (high pushes towards +x) and
-//! an enable [`SetDutyCycle`] whose full duty is the plant's full 10 N push. The same code
-//! runs on the microcontroller against real pins and in `host-sim` against a digital twin.
+//! [`Controller::step`] is everything a board does once per control period (the rig's
+//! [`Params::tau`](crate::cartpole::Params::tau)), and the one period every caller runs: the
+//! trainer's episodes, the simulator's evaluation, the QEMU self-test and the boards. It reads
+//! `[x, x_dot, theta, theta_dot]` through a [`StateSensor`], checks every channel against its
+//! [`Limits`], asks a [`Policy`] for its two scores and drives the motor through an
+//! [`Actuator`], normally a [`Bridge`]: an H-bridge behind embedded-hal 1.0's direction
+//! `OutputPin` (high pushes towards +x) and enable `SetDutyCycle` (full duty is the full
+//! push). Readings come in one of two formats ([`Reading`]): `[f32; 4]` in SI units for the
+//! float network, or `[i16; 4]` in Q3.12 ([`crate::fixed`]) for the integer one, so an
+//! integer pipeline never converts to float between its estimator and its network.
 //!
 //! This module is not a scheduler: the caller decides when a period starts (a timer
 //! interrupt, `DelayNs`, or a simulation loop). It is not a filter either: it acts on the
@@ -23,18 +27,12 @@
 //! fraction of a push. An actuator error is counted too, and the next command re-sends the
 //! whole pin sequence because the bridge's state is then unknown.
 //!
-//! # Pin sequence
-//!
-//! Changing direction is break-before-make: duty off, then the direction pin, then full duty,
-//! so the bridge never drives the old way with the new direction's half-bridge. Repeating the
-//! current command writes nothing.
-//!
 //! ```
 //! use core::convert::Infallible;
 //! use embedded_hal::{digital::{ErrorType as PinErrorType, OutputPin},
 //!                    pwm::{ErrorType as PwmErrorType, SetDutyCycle}};
-//! use firmware::controller::{Command, Controller, Limits, StateSensor};
-//! use firmware::{policy::POLICY, Action};
+//! use firmware::controller::{Bridge, Command, Controller, StateSensor};
+//! use firmware::{policy::{POLICY, RIG}, Action};
 //!
 //! struct Level(bool);
 //! impl PinErrorType for Level { type Error = Infallible; }
@@ -50,43 +48,51 @@
 //! }
 //! struct Tilted;
 //! impl StateSensor for Tilted {
+//!     type Reading = [f32; 4];
 //!     type Error = ();
 //!     fn read(&mut self) -> Result<[f32; 4], ()> { Ok([0.0, 0.0, 0.05, 0.2]) }
 //! }
 //!
-//! let mut c: Controller<_, _, _, _, 16> =
-//!     Controller::new(&POLICY, Tilted, Level(false), Duty(0), Limits::default());
+//! let mut c = Controller::new(&POLICY, Tilted, Bridge::new(Level(false), Duty(0)), RIG.limits());
 //! // The pole leans towards +x, so the cart must move under it: a push to the right.
 //! assert_eq!(c.step(), Command::Push(Action::Right));
-//! let (_, _, dir, duty) = c.release();
+//! let (_, _, bridge) = c.release();
+//! let (dir, duty) = bridge.release();
 //! assert!(dir.0);
 //! assert_eq!(duty.0, 1000);
 //! ```
 
-use embedded_hal::digital::OutputPin;
-use embedded_hal::pwm::SetDutyCycle;
 use heapless::HistoryBuf;
 
 use crate::cartpole::Action;
-use crate::network::int::{QMlp, fixed_obs};
-use crate::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
+use crate::network::int::QMlp;
+use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
 
+mod bridge;
+mod faults;
 pub mod predict;
+mod reading;
 
-pub use predict::{Model, Predictor};
+pub use bridge::{Actuator, ActuatorError, Bridge};
+pub use faults::{FaultCounters, FaultFlags, Limits};
+pub use predict::Predictor;
+pub use reading::Reading;
 
-/// The control period in seconds: the plant's Euler step, 50 Hz.
-pub const CONTROL_PERIOD_S: f64 = 0.02;
+/// Telemetry records a [`Controller::new`] keeps.
+pub const DEFAULT_HISTORY: usize = 8;
 
-/// Where the controller gets the plant's state, once per period: encoders on a board, the
-/// simulated plant in `host-sim`. Units as in Gymnasium: m, m/s, rad, rad/s.
+/// Where the controller gets the plant's state, once per period: encoders through an
+/// estimator on a board, the simulated plant in the twin. Units as in Gymnasium: m, m/s, rad,
+/// rad/s, in the format of [`StateSensor::Reading`].
 pub trait StateSensor {
+    /// The reading's format: `[f32; 4]`, or `[i16; 4]` in Q3.12.
+    type Reading: Reading;
     /// Why a reading failed (a bus error, a timeout); it only gets counted.
     type Error;
     /// One reading of `[x, x_dot, theta, theta_dot]`.
-    fn read(&mut self) -> Result<[f32; OBS_DIM], Self::Error>;
+    fn read(&mut self) -> Result<Self::Reading, Self::Error>;
 
-    /// Told once a period, after the reading, what the controller sent the bridge (on an
+    /// Told once a period, after the reading, what the controller sent the motor (on an
     /// actuator error, what it tried to send). A sensor that estimates the velocities with
     /// a model of the plant, as [`Observer`](crate::estimator::Observer) does, needs the
     /// force that will act; a sensor that measures them ignores it.
@@ -96,13 +102,13 @@ pub trait StateSensor {
     }
 }
 
-/// Maps a sanitised observation to two scores, `[left, right]`; the controller pushes right
-/// only if the right score is strictly larger (ties and NaN push left, see
-/// [`argmax`]). The Q-network's scores are its Q-values; a baseline's
-/// may be anything with that meaning.
-pub trait Policy {
+/// Maps a sanitised reading to two scores, `[left, right]`; the controller pushes right only
+/// if the right score is strictly larger (ties and NaN push left, see
+/// [`Reading::decide`]). The Q-network's scores are its Q-values; a baseline's may be
+/// anything with that meaning.
+pub trait Policy<O: Reading = [f32; OBS_DIM]> {
     /// Scores for `[Left, Right]`.
-    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS];
+    fn scores(&mut self, obs: &O) -> O::Scores;
 }
 
 impl<const H: usize> Policy for &Mlp<H> {
@@ -112,15 +118,24 @@ impl<const H: usize> Policy for &Mlp<H> {
     }
 }
 
+/// The integer network on a fixed-point reading: integer arithmetic from the sensor to the
+/// decision.
+impl<const H: usize> Policy<[i16; OBS_DIM]> for &QMlp<H> {
+    #[inline]
+    fn scores(&mut self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
+        self.forward(obs)
+    }
+}
+
 /// The integer network behind a float sensor: the reading is rounded to Q3.12
-/// ([`fixed_obs`]), the forward pass is integer-only, and the scores are the integer outputs
-/// as f32, exact below 2^24 (which every exported network's outputs are, by construction), so
-/// the controller decides as `q[1] > q[0]` does. A board with encoders can skip the float
-/// reading altogether: `QMlp::forward` on `AlphaBeta::fixed_state`.
+/// ([`crate::fixed::from_state`]), the forward pass is integer-only, and the scores are the
+/// integer outputs as f32, exact below 2^24 (which every exported network's outputs are, by
+/// construction), so the controller decides as `q[1] > q[0]` does.
 impl<const H: usize> Policy for &QMlp<H> {
     #[inline]
     fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        self.forward(&fixed_obs(obs)).map(|q| q as f32)
+        self.forward(&crate::fixed::from_state(obs))
+            .map(|q| q as f32)
     }
 }
 
@@ -128,183 +143,97 @@ impl<const H: usize> Policy for &QMlp<H> {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Command {
-    /// Full duty in this direction: the plant's +-10 N.
+    /// Full duty in this direction: the motor's full push.
     Push(Action),
     /// Duty off: the fallback for a rejected reading.
     Coast,
 }
 
 impl Command {
-    /// The command as a fraction of full force, as the encoder
-    /// [`Observer`](crate::estimator::Observer) takes it: `1` right, `-1` left, `0` coasting.
+    /// The motor duty of the command, the fraction of full force the model-based observer
+    /// and predictor apply ([`crate::cartpole::Plant::motor_force`]): `1` right, `-1` left,
+    /// `0` coasting.
     pub fn level(self) -> f32 {
         match self {
-            Command::Push(Action::Right) => 1.0,
-            Command::Push(Action::Left) => -1.0,
+            Command::Push(a) => a.level() as f32,
             Command::Coast => 0.0,
         }
     }
 }
 
-/// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Limits {
-    /// Per-channel bound on `|reading|`, inclusive.
-    pub max_abs: [f32; OBS_DIM],
-}
-
-impl Limits {
-    /// For the simulated plant: twice what a balancing run can reach, twice the 2.4 m track
-    /// half-length and twice the 12 degree failure angle, and 20 m/s and 20 rad/s, far
-    /// beyond any rate the plant reaches before it fails. A reading outside them is a sensor
-    /// fault, not a state. On hardware, use [`Limits::track`].
-    pub const fn simulation() -> Limits {
-        Limits {
-            max_abs: [4.8, 20.0, 0.42, 20.0],
-        }
-    }
-
-    /// For a real track whose end stops are `half_length_m` from the centre: the cart's
-    /// reading is accepted only while the cart is more than `margin_m` from a stop, so near
-    /// the ends the controller coasts (duty off) instead of driving into them: an
-    /// end-of-track interlock. Past the failure angle (12 degrees, twice it for noise) the
-    /// pole is down and the controller coasts too. Rates as in [`Limits::simulation`].
-    /// A length under the margin, or NaN, leaves no track (every reading coasts); a negative
-    /// or NaN margin counts as none.
-    pub fn track(half_length_m: f32, margin_m: f32) -> Limits {
-        // `max` drops a NaN operand.
-        let x = (half_length_m - margin_m.max(0.0)).max(0.0);
-        Limits {
-            max_abs: [x, 20.0, 0.42, 20.0],
-        }
-    }
-}
-
-impl Default for Limits {
-    /// [`Limits::simulation`]: what the simulator and the self-test run with.
-    fn default() -> Limits {
-        Limits::simulation()
-    }
-}
-
-/// Why one period's reading was rejected, as bits: per channel `i`, bit `i` is "not finite"
-/// and bit `4 + i` "out of range"; then a sensor error and an actuator error.
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub struct FaultFlags(pub u16);
-
-impl FaultFlags {
-    /// The sensor returned an error.
-    pub const SENSOR_ERROR: FaultFlags = FaultFlags(1 << 8);
-    /// The direction pin or the duty cycle returned an error.
-    pub const ACTUATOR_ERROR: FaultFlags = FaultFlags(1 << 9);
-
-    /// Channel `channel` (0..4) was NaN or infinite.
-    pub const fn non_finite(channel: usize) -> FaultFlags {
-        FaultFlags(1 << (channel % OBS_DIM))
-    }
-
-    /// Channel `channel` (0..4) was finite but beyond its limit.
-    pub const fn out_of_range(channel: usize) -> FaultFlags {
-        FaultFlags(1 << (OBS_DIM + channel % OBS_DIM))
-    }
-
-    /// No flag set.
-    pub const fn is_empty(self) -> bool {
-        self.0 == 0
-    }
-
-    /// Every flag of `other` is set in `self`.
-    pub const fn contains(self, other: FaultFlags) -> bool {
-        self.0 & other.0 == other.0
-    }
-
-    /// Any reading fault: an error, a non-finite or an out-of-range channel.
-    pub const fn reading_rejected(self) -> bool {
-        self.0 & !Self::ACTUATOR_ERROR.0 != 0
-    }
-
-    const fn with(self, other: FaultFlags) -> FaultFlags {
-        FaultFlags(self.0 | other.0)
-    }
-}
-
-/// Totals since the controller started; they saturate rather than wrap.
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct FaultCounters {
-    /// Periods whose reading was rejected (and so coasted).
-    pub rejected_readings: u32,
-    /// Sensor errors.
-    pub sensor_errors: u32,
-    /// Channels read as NaN or infinite.
-    pub non_finite: u32,
-    /// Channels read beyond their limit.
-    pub out_of_range: u32,
-    /// Periods in which a pin or duty-cycle write failed.
-    pub actuator_errors: u32,
-    /// Timer ticks that arrived while a period's step still ran (reported by the loop that
-    /// paces the controller, [`Controller::record_overruns`]): each is a period the
-    /// controller started late.
-    pub overruns: u32,
-}
-
 /// One period, as the telemetry ring keeps it.
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Record {
+pub struct Record<O: Reading = [f32; OBS_DIM]> {
     /// Period number, from 0.
     pub step: u32,
     /// The reading as received (zeros if the sensor returned an error).
-    pub obs: [f32; OBS_DIM],
-    /// The policy's scores; NaN when the reading was rejected and the policy did not run.
-    pub q: [f32; N_ACTIONS],
+    pub obs: O,
+    /// The policy's scores; [`Reading::UNSCORED`] when the reading was rejected and the
+    /// policy did not run.
+    pub q: O::Scores,
     /// What the motor was asked to do.
     pub command: Command,
     /// What went wrong, if anything.
     pub faults: FaultFlags,
 }
 
-/// What the bridge is known to be doing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Drive {
-    Unknown,
-    Off,
-    Pushing(Action),
+#[cfg(feature = "defmt")]
+impl<O: Reading + defmt::Format> defmt::Format for Record<O>
+where
+    O::Scores: defmt::Format,
+{
+    fn format(&self, f: defmt::Formatter<'_>) {
+        defmt::write!(
+            f,
+            "Record {{ step: {}, obs: {}, q: {}, command: {}, faults: {} }}",
+            self.step,
+            self.obs,
+            self.q,
+            self.command,
+            self.faults
+        )
+    }
 }
 
-/// The balance controller: owns its sensor, its two actuator outputs and a ring of the last
+/// The balance controller: owns its policy, its sensor, its actuator and a ring of the last
 /// `N` [`Record`]s. Everything is fixed-size; [`Controller::step`] cannot panic.
-pub struct Controller<P, S, D, E, const N: usize> {
+pub struct Controller<P, S: StateSensor, A, const N: usize = DEFAULT_HISTORY> {
     policy: P,
     sensor: S,
-    direction: D,
-    enable: E,
+    actuator: A,
     limits: Limits,
-    drive: Drive,
     steps: u32,
     faults: FaultCounters,
-    telemetry: HistoryBuf<Record, N>,
+    telemetry: HistoryBuf<Record<S::Reading>, N>,
     predictor: Option<Predictor>,
 }
 
-impl<P, S, D, E, const N: usize> Controller<P, S, D, E, N>
+impl<P, S, A> Controller<P, S, A>
 where
-    P: Policy,
+    P: Policy<S::Reading>,
     S: StateSensor,
-    D: OutputPin,
-    E: SetDutyCycle,
+    A: Actuator,
 {
-    /// A controller that has not yet driven the bridge: its first command sends the whole
-    /// pin sequence.
-    pub fn new(policy: P, sensor: S, direction: D, enable: E, limits: Limits) -> Self {
+    /// A controller keeping the last [`DEFAULT_HISTORY`] periods, that has not yet driven the
+    /// motor: its first command sends the whole pin sequence.
+    pub fn new(policy: P, sensor: S, actuator: A, limits: Limits) -> Self {
+        Controller::with_history(policy, sensor, actuator, limits)
+    }
+}
+
+impl<P, S, A, const N: usize> Controller<P, S, A, N>
+where
+    P: Policy<S::Reading>,
+    S: StateSensor,
+    A: Actuator,
+{
+    /// [`Controller::new`], keeping the last `N` periods (`N` from the type).
+    pub fn with_history(policy: P, sensor: S, actuator: A, limits: Limits) -> Self {
         Controller {
             policy,
             sensor,
-            direction,
-            enable,
+            actuator,
             limits,
-            drive: Drive::Unknown,
             steps: 0,
             faults: FaultCounters::default(),
             telemetry: HistoryBuf::new(),
@@ -319,31 +248,28 @@ where
         self
     }
 
-    /// One control period: read, sanitise, decide, actuate, record.
+    /// One control period: read, sanitise, decide, actuate, record, tell the sensor.
     #[inline]
     pub fn step(&mut self) -> Command {
         let (obs, mut flags) = match self.sensor.read() {
-            Ok(obs) => (obs, sanitise(&obs, &self.limits)),
-            Err(_) => ([0.0; OBS_DIM], FaultFlags::SENSOR_ERROR),
+            Ok(obs) => (obs, obs.flags(&self.limits)),
+            Err(_) => (S::Reading::ZERO, FaultFlags::SENSOR_ERROR),
         };
         let (q, command) = if flags.is_empty() {
-            let q = match &self.predictor {
-                Some(p) => self.policy.scores(&p.predict(&obs)),
-                None => self.policy.scores(&obs),
+            let seen = match &self.predictor {
+                Some(p) => obs.predicted(p),
+                None => obs,
             };
-            (q, Command::Push(argmax(&q)))
+            let q = self.policy.scores(&seen);
+            (q, Command::Push(S::Reading::decide(&q)))
         } else {
-            self.count_rejected(flags);
-            ([f32::NAN; N_ACTIONS], Command::Coast)
+            self.faults.count_rejected(flags);
+            (S::Reading::UNSCORED, Command::Coast)
         };
         if let Some(p) = &mut self.predictor {
-            match command {
-                Command::Push(a) => p.record_push(a),
-                Command::Coast => p.record(0.0),
-            }
+            p.record(command.level());
         }
-        if self.actuate(command).is_err() {
-            self.drive = Drive::Unknown;
+        if self.actuator.drive(command).is_err() {
             self.faults.actuator_errors = self.faults.actuator_errors.saturating_add(1);
             flags = flags.with(FaultFlags::ACTUATOR_ERROR);
         }
@@ -377,77 +303,45 @@ where
     }
 
     /// The last `N` periods, oldest first.
-    pub fn telemetry(&self) -> impl Iterator<Item = &Record> {
+    pub fn telemetry(&self) -> impl Iterator<Item = &Record<S::Reading>> {
         self.telemetry.oldest_ordered()
     }
 
     /// The most recent period, if any.
-    pub fn last(&self) -> Option<&Record> {
+    pub fn last(&self) -> Option<&Record<S::Reading>> {
         self.telemetry.recent()
     }
 
-    /// The policy, for inspection.
+    /// The policy.
     pub fn policy(&self) -> &P {
         &self.policy
     }
 
-    /// Gives the peripherals back: `(policy, sensor, direction, enable)`.
-    pub fn release(self) -> (P, S, D, E) {
-        (self.policy, self.sensor, self.direction, self.enable)
+    /// The policy, to change its state between periods (a learner's exploration).
+    pub fn policy_mut(&mut self) -> &mut P {
+        &mut self.policy
     }
 
-    fn count_rejected(&mut self, flags: FaultFlags) {
-        let c = &mut self.faults;
-        c.rejected_readings = c.rejected_readings.saturating_add(1);
-        if flags.contains(FaultFlags::SENSOR_ERROR) {
-            c.sensor_errors = c.sensor_errors.saturating_add(1);
-        }
-        let non_finite = (flags.0 & 0x0f).count_ones();
-        let out_of_range = ((flags.0 >> OBS_DIM) & 0x0f).count_ones();
-        c.non_finite = c.non_finite.saturating_add(non_finite);
-        c.out_of_range = c.out_of_range.saturating_add(out_of_range);
+    /// The sensor.
+    pub fn sensor(&self) -> &S {
+        &self.sensor
     }
 
-    /// Brings the bridge to `command`; an error leaves it in an unknown state.
-    fn actuate(&mut self, command: Command) -> Result<(), ()> {
-        match command {
-            Command::Coast => {
-                if self.drive != Drive::Off {
-                    self.enable.set_duty_cycle_fully_off().map_err(drop)?;
-                    self.drive = Drive::Off;
-                }
-            }
-            Command::Push(action) => {
-                if self.drive != Drive::Pushing(action) {
-                    if self.drive != Drive::Off {
-                        self.enable.set_duty_cycle_fully_off().map_err(drop)?;
-                        self.drive = Drive::Off;
-                    }
-                    match action {
-                        Action::Right => self.direction.set_high(),
-                        Action::Left => self.direction.set_low(),
-                    }
-                    .map_err(drop)?;
-                    self.enable.set_duty_cycle_fully_on().map_err(drop)?;
-                    self.drive = Drive::Pushing(action);
-                }
-            }
-        }
-        Ok(())
+    /// The sensor, to hand it the next period's measurement where the caller owns it (a
+    /// simulated plant).
+    pub fn sensor_mut(&mut self) -> &mut S {
+        &mut self.sensor
     }
-}
 
-/// The flags of one reading: non-finite channels, then finite ones beyond their limit.
-pub fn sanitise(obs: &[f32; OBS_DIM], limits: &Limits) -> FaultFlags {
-    let mut flags = FaultFlags::default();
-    for (i, (&v, &max)) in obs.iter().zip(&limits.max_abs).enumerate() {
-        if !v.is_finite() {
-            flags = flags.with(FaultFlags::non_finite(i));
-        } else if v.abs() > max {
-            flags = flags.with(FaultFlags::out_of_range(i));
-        }
+    /// The actuator, to read back what it drives (a simulated plant's pins).
+    pub fn actuator(&self) -> &A {
+        &self.actuator
     }
-    flags
+
+    /// Gives the parts back: `(policy, sensor, actuator)`.
+    pub fn release(self) -> (P, S, A) {
+        (self.policy, self.sensor, self.actuator)
+    }
 }
 
 #[cfg(test)]

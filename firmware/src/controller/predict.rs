@@ -1,72 +1,19 @@
 //! Dead-time compensation: a command takes `delay` periods to reach the motor, so the state
 //! it acts on is not the one just read but the one `delay` periods later. The predictor
 //! advances the reading by the commands already sent and still on their way, through the
-//! nominal plant (Gymnasium's equations, Euler steps, in f32), so that the policy decides on
-//! the state its command will meet: a Smith predictor in its simplest form.
+//! rig's plant in f32 ([`Plant`], the plant's one set of equations), so that the policy
+//! decides on the state its command will meet: a Smith predictor in its simplest form.
 //!
-//! It uses `micromath`'s `sin` and `cos`: at most 1.1e-3 from the true values on the angles a
-//! balancing pole takes (measured in the tests). A 16-period prediction in f32 with them ends
-//! within 4e-4 rad of the f64 plant with `libm` (a quarter of a 4,096-count encoder's step;
-//! a 5-period one within 1e-4), at a fraction of `libm`'s cost on a core without an FPU. The
+//! The f32 plant uses `micromath`'s `sin` and `cos` (measured in the tests below: a
+//! 16-period prediction ends within 4e-4 rad of the f64 plant with `libm`, a quarter of a
+//! 4,096-count encoder's step), at a fraction of `libm`'s cost on a core without an FPU. The
 //! plant itself keeps `libm`, for bit-exactness with Gymnasium.
 
-use micromath::F32Ext;
-
-use crate::cartpole::{Action, Params};
+use crate::cartpole::{Params, Plant};
 use crate::network::OBS_DIM;
 
 /// Most periods of dead time the predictor can bridge.
 pub const MAX_PREDICT: usize = 16;
-
-/// The nominal plant in f32, as the predictor integrates it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-pub struct Model {
-    gravity: f32,
-    masspole: f32,
-    total_mass: f32,
-    length: f32,
-    polemass_length: f32,
-    tau: f32,
-    force_mag: f32,
-}
-
-impl Model {
-    /// The model of a plant with parameters `p` (friction is not modelled).
-    pub fn of(p: &Params) -> Model {
-        Model {
-            gravity: p.gravity as f32,
-            masspole: p.masspole as f32,
-            total_mass: p.total_mass() as f32,
-            length: p.length as f32,
-            polemass_length: p.polemass_length() as f32,
-            tau: p.tau as f32,
-            force_mag: p.force_mag as f32,
-        }
-    }
-
-    /// The full push, N.
-    pub fn force_mag(&self) -> f32 {
-        self.force_mag
-    }
-
-    /// One Euler step of the model under `force`.
-    #[inline]
-    pub fn step(&self, s: &[f32; OBS_DIM], force: f32) -> [f32; OBS_DIM] {
-        let [x, x_dot, theta, theta_dot] = *s;
-        let (sin, cos) = (F32Ext::sin(theta), F32Ext::cos(theta));
-        let temp = (force + self.polemass_length * theta_dot * theta_dot * sin) / self.total_mass;
-        let theta_acc = (self.gravity * sin - cos * temp)
-            / (self.length * (4.0 / 3.0 - self.masspole * cos * cos / self.total_mass));
-        let x_acc = temp - self.polemass_length * theta_acc * cos / self.total_mass;
-        [
-            x + self.tau * x_dot,
-            x_dot + self.tau * x_acc,
-            theta + self.tau * theta_dot,
-            theta_dot + self.tau * theta_acc,
-        ]
-    }
-}
 
 /// Commands on their way to the motor: a line `delay` periods long. The twin's actuator, the
 /// predictor and the encoder observer each keep one, so all three agree on which command
@@ -112,19 +59,20 @@ impl<T: Copy + Default> DeadTime<T> {
     }
 }
 
-/// The commands in flight and the model that advances a reading past them.
+/// The commands in flight and the plant that advances a reading past them.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Predictor {
-    model: Model,
-    /// Forces sent and not yet at the motor.
+    plant: Plant<f32>,
+    /// Motor duties sent and not yet at the motor.
     sent: DeadTime<f32>,
 }
 
 impl Predictor {
-    /// A predictor for `delay` periods (clamped to [`MAX_PREDICT`]) of dead time.
-    pub fn new(model: Model, delay: usize) -> Predictor {
+    /// A predictor for the plant `p` with `delay` periods (clamped to [`MAX_PREDICT`]) of
+    /// dead time.
+    pub fn new(p: &Params, delay: usize) -> Predictor {
         Predictor {
-            model,
+            plant: Plant::new(p),
             sent: DeadTime::new(delay),
         }
     }
@@ -134,39 +82,25 @@ impl Predictor {
         self.sent.delay()
     }
 
-    /// The model.
-    pub fn model(&self) -> &Model {
-        &self.model
-    }
-
     /// The reading advanced by the commands in flight, oldest first: the state the next
     /// command will meet. With no dead time, the reading itself.
     pub fn predict(&self, reading: &[f32; OBS_DIM]) -> [f32; OBS_DIM] {
         self.sent
             .in_flight()
-            .fold(*reading, |s, force| self.model.step(&s, force))
+            .fold(*reading, |s, duty| self.plant.euler(&s, duty, 0.0))
     }
 
-    /// Records a full push towards `action`'s side, the command of every period but a
-    /// coasting one.
-    pub fn record_push(&mut self, action: Action) {
-        let f = self.model.force_mag;
-        self.record(match action {
-            Action::Right => f,
-            Action::Left => -f,
-        });
-    }
-
-    /// Records the force commanded this period (`0` for coasting).
-    pub fn record(&mut self, force: f32) {
-        self.sent.send(force);
+    /// Records the motor duty commanded this period (`0` for coasting, see
+    /// [`Command::level`](super::Command::level)).
+    pub fn record(&mut self, duty: f32) {
+        self.sent.send(duty);
     }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cartpole::{State, step_with_force};
+    use crate::cartpole::{Real, State, advance};
 
     #[test]
     fn a_dead_time_line_delivers_each_command_its_periods_late() {
@@ -189,8 +123,8 @@ mod tests {
         let (mut ws, mut wc) = (0.0f64, 0.0f64);
         for k in -6000..=6000 {
             let x = k as f32 * 1e-4;
-            ws = ws.max((f64::from(F32Ext::sin(x)) - libm::sin(f64::from(x))).abs());
-            wc = wc.max((f64::from(F32Ext::cos(x)) - libm::cos(f64::from(x))).abs());
+            ws = ws.max((f64::from(Real::sin(x)) - libm::sin(f64::from(x))).abs());
+            wc = wc.max((f64::from(Real::cos(x)) - libm::cos(f64::from(x))).abs());
         }
         assert!(ws < 1.1e-3 && wc < 1.1e-3, "{ws} {wc}");
     }
@@ -198,13 +132,13 @@ mod tests {
     /// The prediction over `n` periods of mixed pushes, and the f64 plant's state after them.
     fn ahead(n: usize) -> ([f32; 4], [f32; 4]) {
         let p = Params::default();
-        let mut pred = Predictor::new(Model::of(&p), n);
+        let mut pred = Predictor::new(&p, n);
         let start = State::from_array([0.3, -0.5, 0.08, -0.6]);
         let mut truth = start;
         for k in 0..n {
-            let f = if k % 3 == 0 { 10.0 } else { -10.0 };
-            pred.record(f as f32);
-            truth = step_with_force(&p, &truth, f);
+            let duty = if k % 3 == 0 { 1.0 } else { -1.0 };
+            pred.record(duty as f32);
+            truth = advance(&p, &truth, duty, 0.0);
         }
         (pred.predict(&start.observation()), truth.observation())
     }
@@ -222,15 +156,16 @@ mod tests {
 
     #[test]
     fn the_oldest_command_is_applied_first_and_no_delay_is_the_reading() {
-        let m = Model::of(&Params::default());
-        let mut pred = Predictor::new(m, 2);
-        pred.record(10.0);
-        pred.record(-10.0);
+        let p = Params::default();
+        let m = Plant::<f32>::new(&p);
+        let mut pred = Predictor::new(&p, 2);
+        pred.record(1.0);
+        pred.record(-1.0);
         let r = [0.0, 0.0, 0.05, 0.0];
-        assert_eq!(pred.predict(&r), m.step(&m.step(&r, 10.0), -10.0));
-        pred.record(3.0);
-        assert_eq!(pred.predict(&r), m.step(&m.step(&r, -10.0), 3.0));
-        let none = Predictor::new(m, 0);
+        assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 1.0, 0.0), -1.0, 0.0));
+        pred.record(0.3);
+        assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, -1.0, 0.0), 0.3, 0.0));
+        let none = Predictor::new(&p, 0);
         assert_eq!(none.predict(&r), r);
     }
 }

@@ -10,6 +10,7 @@ struct Script<'a> {
 }
 
 impl StateSensor for Script<'_> {
+    type Reading = [f32; 4];
     type Error = ();
     fn read(&mut self) -> Result<[f32; 4], ()> {
         let r = self.readings.get(self.next).copied().unwrap_or(Err(()));
@@ -31,6 +32,11 @@ const MAX: u16 = 255;
 const LEAN_RIGHT: [f32; 4] = [0.0, 0.0, 0.1, 0.0];
 const LEAN_LEFT: [f32; 4] = [0.0, 0.0, -0.1, 0.0];
 
+/// The limits the tests read against: a track of +-2.4 m without margin.
+fn limits() -> Limits {
+    Limits::track(2.4, 0.0)
+}
+
 fn run(
     readings: &[Result<[f32; 4], ()>],
     pin: &[PinTx],
@@ -39,13 +45,8 @@ fn run(
     let mut dir = PinMock::new(pin);
     let mut en = PwmMock::new(pwm);
     let sensor = Script { readings, next: 0 };
-    let mut c: Controller<_, _, _, _, 8> = Controller::new(
-        SignOfTheta,
-        sensor,
-        dir.clone(),
-        en.clone(),
-        Limits::default(),
-    );
+    let bridge = Bridge::new(dir.clone(), en.clone());
+    let mut c = Controller::new(SignOfTheta, sensor, bridge, limits());
     let commands = (0..readings.len()).map(|_| c.step()).collect();
     let records = c.telemetry().copied().collect();
     let faults = c.faults();
@@ -156,13 +157,34 @@ fn every_bad_value_on_every_channel_coasts_and_counts() {
 
 #[test]
 fn limits_are_inclusive_and_all_bad_channels_are_flagged() {
-    let l = Limits::default();
-    assert!(sanitise(&l.max_abs, &l).is_empty());
+    let l = limits();
+    assert!(l.max_abs.flags(&l).is_empty());
     let neg = l.max_abs.map(|v| -v);
-    assert!(sanitise(&neg, &l).is_empty());
-    let flags = sanitise(&[f32::NAN, 21.0, -0.5, f32::INFINITY], &l);
+    assert!(neg.flags(&l).is_empty());
+    let flags = [f32::NAN, 21.0, -0.5, f32::INFINITY].flags(&l);
     assert_eq!(flags.0, 0b0110_1001);
     assert!(flags.reading_rejected());
+    // A NaN bound accepts nothing, where a comparison written the other way round would
+    // accept everything.
+    let nan = Limits {
+        max_abs: [f32::NAN, 20.0, 0.42, 20.0],
+    };
+    assert_eq!([0.0f32; 4].flags(&nan), FaultFlags::out_of_range(0));
+    assert_eq!([0i16; 4].flags(&nan), FaultFlags::out_of_range(0));
+}
+
+#[test]
+fn fixed_point_readings_are_checked_in_q3_12_and_saturation_is_a_fault() {
+    let l = Limits::track(0.5, 0.05);
+    // 0.45 m is 1843.2 in Q3.12: 1843 passes, 1844 does not.
+    assert!([1843i16, 0, 0, 0].flags(&l).is_empty());
+    assert_eq!([-1844i16, 0, 0, 0].flags(&l), FaultFlags::out_of_range(0));
+    // A rate bound of 20 is beyond the format's 8: only a saturated value is rejected.
+    assert!([0i16, 32_766, 0, -32_766].flags(&l).is_empty());
+    assert_eq!(
+        [0i16, i16::MAX, 0, i16::MIN].flags(&l),
+        FaultFlags::out_of_range(1).with(FaultFlags::out_of_range(3))
+    );
 }
 
 #[test]
@@ -206,19 +228,20 @@ fn telemetry_keeps_the_last_n_oldest_first() {
 fn a_real_track_interlocks_its_ends() {
     let l = Limits::track(0.5, 0.05);
     assert_eq!(l.max_abs[0], 0.45);
-    let at = |x: f32| sanitise(&[x, 0.0, 0.05, 0.0], &l);
+    let at = |x: f32| [x, 0.0, 0.05, 0.0].flags(&l);
     assert!(at(0.3).is_empty() && at(-0.45).is_empty());
     assert_eq!(at(0.46), FaultFlags::out_of_range(0));
     assert_eq!(at(-0.5), FaultFlags::out_of_range(0));
-    // The simulation's limits let the cart 4.8 m out; a track's are the track.
-    assert!(sanitise(&[2.0, 0.0, 0.0, 0.0], &Limits::simulation()).is_empty());
-    assert!(!sanitise(&[2.0, 0.0, 0.0, 0.0], &Limits::track(2.4, 0.5)).is_empty());
+    assert!(
+        ![2.0f32, 0.0, 0.0, 0.0]
+            .flags(&Limits::track(2.4, 0.5))
+            .is_empty()
+    );
     // Nonsense lengths leave no track, nonsense margins no margin.
     assert_eq!(Limits::track(f32::NAN, 0.1).max_abs[0], 0.0);
     assert_eq!(Limits::track(0.1, 0.2).max_abs[0], 0.0);
     assert_eq!(Limits::track(1.0, f32::NAN).max_abs[0], 1.0);
     assert_eq!(Limits::track(1.0, -3.0).max_abs[0], 1.0);
-    assert_eq!(Limits::default(), Limits::simulation());
 }
 
 /// A sensor that records each command it is told, with how many readings it had given.
@@ -229,6 +252,7 @@ struct Told {
 }
 
 impl StateSensor for Told {
+    type Reading = [f32; 4];
     type Error = ();
     fn read(&mut self) -> Result<[f32; 4], ()> {
         let r = self.readings[self.next % 3];
@@ -242,21 +266,12 @@ impl StateSensor for Told {
 
 #[test]
 fn the_sensor_is_told_each_command_after_its_reading() {
-    use crate::loopback::{CellDuty, CellPin};
-    use core::cell::Cell;
-    let (direction, duty) = (Cell::new(false), Cell::new(0));
     let sensor = Told {
         readings: [LEAN_RIGHT, [0.0, f32::NAN, 0.0, 0.0], LEAN_LEFT],
         next: 0,
         told: Vec::new(),
     };
-    let mut c: Controller<_, _, _, _, 1> = Controller::new(
-        SignOfTheta,
-        sensor,
-        CellPin(&direction),
-        CellDuty(&duty),
-        Limits::default(),
-    );
+    let mut c = Controller::new(SignOfTheta, sensor, crate::loopback::pins(), limits());
     let sent: Vec<Command> = (0..3).map(|_| c.step()).collect();
     assert_eq!(
         sent,
@@ -266,6 +281,6 @@ fn the_sensor_is_told_each_command_after_its_reading() {
             Command::Push(Action::Left)
         ]
     );
-    let (_, sensor, _, _) = c.release();
+    let (_, sensor, _) = c.release();
     assert_eq!(sensor.told, [(1, sent[0]), (2, sent[1]), (3, sent[2])]);
 }

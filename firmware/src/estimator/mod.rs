@@ -18,38 +18,36 @@
 //!   cannot tell the observer what they command, and as the reference the observer is
 //!   measured against.
 //!
+//! Behind a controller, an [`ObserverSensor`] (or an [`AlphaBetaSensor`]) is the
+//! [`StateSensor`](crate::controller::StateSensor): counts in, a reading out, and the
+//! commands the controller sends passed on to the observer. The twin, the loopback and every
+//! board read their encoders through it.
+//!
 //! ```
-//! use firmware::estimator::{AlphaBeta, Encoders};
-//! let enc = Encoders { cart_counts_per_m: 10_000, pole_counts_per_rev: 4_096 };
-//! let mut est = AlphaBeta::new(enc, 0.5, 0.02);
-//! // The cart moves 1 cm (100 counts) per 20 ms period: 0.5 m/s.
-//! let mut s = [0.0; 4];
-//! for k in 0..40 {
-//!     s = est.update(100 * k, 0);
+//! use firmware::estimator::{Encoders, Observer, Tuning};
+//! use firmware::cartpole::{Params, State, advance};
+//! let enc = Encoders { cart_counts_per_m: 20_480, pole_counts_per_rev: 4_096 };
+//! let p = Params::default();
+//! let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, 0);
+//! // The cart coasts at 0.5 m/s under an upright pole; the observer is told the duty (0).
+//! let mut s = State { x_dot: 0.5, ..State::default() };
+//! let mut est = [0.0; 4];
+//! for _ in 0..100 {
+//!     let (cart, pole) = enc.counts(s.x, s.theta);
+//!     est = obs.update(cart, pole);
+//!     obs.command(0.0);
+//!     s = advance(&p, &s, 0.0, 0.0);
 //! }
-//! assert!((s[0] - 0.39).abs() < 1e-3 && (s[1] - 0.5).abs() < 1e-3, "{s:?}");
+//! assert!((est[1] - 0.5).abs() < 1e-3, "{est:?}");
 //! ```
-//!
-//! # The alpha-beta filter
-//!
-//! Each channel predicts `p + v`, compares with the new count, and corrects the position by
-//! `alpha` and the velocity by `beta` times the residual (a steady-state Kalman filter for a
-//! constant-velocity model). Its single parameter, the discount `d` in `(0, 1)`, sets
-//! `alpha = 1 - d^2` and `beta = (1 - d)^2` (the critically damped g-h filter): `d = 0`
-//! trusts each count fully (velocity = plain backward difference), larger `d` smooths more
-//! and lags more. It runs in integers: positions in 1/4096 count, velocities in 1/4096 count
-//! per period, gains as Q15 fractions, so it costs the same on a core without an FPU, gives
-//! the same bits on every target, and hands out both the physical state in f32
-//! ([`AlphaBeta::state`]) and its raw fixed-point values ([`AlphaBeta::raw`]).
 
+mod alpha_beta;
 mod observer;
+mod sensor;
 
+pub use alpha_beta::AlphaBeta;
 pub use observer::{Observer, Tuning};
-
-/// Sub-count resolution of the filter's state: positions and velocities in 1/4096 count.
-/// Corrections smaller than a unit round away, so this sets the velocity's resolution: with
-/// 12 bits, under 0.02 count per period even at discount 0.9.
-pub const FRACTION_BITS: u32 = 12;
+pub use sensor::{AlphaBetaSensor, Counter, Estimate, ObserverSensor};
 
 /// The two encoders' resolutions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -93,169 +91,6 @@ impl Encoders {
     }
 }
 
-/// One channel's alpha-beta filter in fixed point.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-struct Channel {
-    /// Position estimate, 1/4096 count.
-    p: i64,
-    /// Velocity estimate, 1/4096 count per period.
-    v: i64,
-}
-
-impl Channel {
-    #[inline]
-    fn update(&mut self, count: i32, alpha_q15: i64, beta_q15: i64) {
-        let predicted = self.p + self.v;
-        let residual = (i64::from(count) << FRACTION_BITS) - predicted;
-        // Round to nearest: an arithmetic shift alone would bias every correction downwards.
-        let half = 1 << 14;
-        self.p = predicted + ((alpha_q15 * residual + half) >> 15);
-        self.v += (beta_q15 * residual + half) >> 15;
-    }
-}
-
-/// One channel's conversion from the filter's raw units to the network's Q3.12 input, in
-/// integers: `round(raw * multiplier / 2^40)`, saturated to `i16`. `raw` is first clamped to
-/// `+-limit`, beyond which the result saturates anyway, so the product stays far inside
-/// `i64` (under 2^56).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct ToFixed {
-    multiplier: i64,
-    limit: i64,
-}
-
-impl ToFixed {
-    const SHIFT: u32 = 40;
-
-    /// For `q12_per_raw` output units per raw unit, capped at 2^20 (a period under a
-    /// microsecond); computed once, at construction.
-    fn new(q12_per_raw: f64) -> ToFixed {
-        let k = q12_per_raw.clamp(1e-12, f64::from(1u32 << 20));
-        ToFixed {
-            multiplier: libm::round(k * (1u64 << Self::SHIFT) as f64) as i64,
-            limit: libm::ceil(32_768.0 / k) as i64 + 1,
-        }
-    }
-
-    #[inline]
-    fn apply(self, raw: i64) -> i16 {
-        let r = raw.clamp(-self.limit, self.limit);
-        let half = 1i64 << (Self::SHIFT - 1);
-        ((r * self.multiplier + half) >> Self::SHIFT).clamp(-32_768, 32_767) as i16
-    }
-}
-
-/// The alpha-beta filter of [the module](self): two encoders in, `[x, x_dot, theta, theta_dot]`
-/// out, once per period. Fixed-size, allocation-free, panic-free for any counts.
-#[derive(Clone, Debug, PartialEq)]
-pub struct AlphaBeta {
-    enc: Encoders,
-    period_s: f32,
-    alpha_q15: i64,
-    beta_q15: i64,
-    cart: Channel,
-    pole: Channel,
-    started: bool,
-    fixed: [ToFixed; 4],
-}
-
-impl AlphaBeta {
-    /// An estimator for `enc` sampled every `period_s` seconds, with filter discount
-    /// `discount` (clamped to `[0, 0.99]`, NaN taken as 0.5; 0.5 is a good start at 50 Hz).
-    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> AlphaBeta {
-        let d = if discount.is_nan() {
-            0.5
-        } else {
-            discount.clamp(0.0, 0.99)
-        };
-        let q15 = |v: f32| (v * 32_768.0 + 0.5) as i64;
-        let enc = enc.sanitised();
-        let period_s = if period_s > 0.0 { period_s } else { 0.02 };
-        // Raw units are 1/4096 count (per period), the output's 1/4096 SI unit: the 4096s
-        // cancel, leaving SI units per count (per period).
-        let [cart, pole] = enc.per_count();
-        let per_s = 1.0 / f64::from(period_s);
-        AlphaBeta {
-            enc,
-            period_s,
-            alpha_q15: q15(1.0 - d * d),
-            beta_q15: q15((1.0 - d) * (1.0 - d)),
-            cart: Channel::default(),
-            pole: Channel::default(),
-            started: false,
-            fixed: [
-                ToFixed::new(cart),
-                ToFixed::new(cart * per_s),
-                ToFixed::new(pole),
-                ToFixed::new(pole * per_s),
-            ],
-        }
-    }
-
-    /// Takes one period's counts (cart, pole) and returns the estimated state in SI units.
-    /// The first call only initialises the positions (velocities start at zero).
-    pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
-        if self.started {
-            self.cart.update(cart_counts, self.alpha_q15, self.beta_q15);
-            self.pole.update(pole_counts, self.alpha_q15, self.beta_q15);
-        } else {
-            self.cart = Channel {
-                p: i64::from(cart_counts) << FRACTION_BITS,
-                v: 0,
-            };
-            self.pole = Channel {
-                p: i64::from(pole_counts) << FRACTION_BITS,
-                v: 0,
-            };
-            self.started = true;
-        }
-        self.state()
-    }
-
-    /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
-    pub fn state(&self) -> [f32; 4] {
-        let unit = (1u32 << FRACTION_BITS) as f32;
-        let m_per_unit = 1.0 / (unit * self.enc.cart_counts_per_m as f32);
-        let rad_per_unit = core::f32::consts::TAU / (unit * self.enc.pole_counts_per_rev as f32);
-        [
-            self.cart.p as f32 * m_per_unit,
-            self.cart.v as f32 * m_per_unit / self.period_s,
-            self.pole.p as f32 * rad_per_unit,
-            self.pole.v as f32 * rad_per_unit / self.period_s,
-        ]
-    }
-
-    /// The current estimate in the integer network's input format
-    /// ([`crate::network::int`]): `[x, x_dot, theta, theta_dot]` in SI units with 12
-    /// fraction bits, rounded to nearest and saturated to `i16` (+-8 units). Integer
-    /// arithmetic only, so an FPU-less core runs it without a float library call.
-    pub fn fixed_state(&self) -> [i16; 4] {
-        let [x, x_dot, theta, theta_dot] = self.fixed;
-        [
-            x.apply(self.cart.p),
-            x_dot.apply(self.cart.v),
-            theta.apply(self.pole.p),
-            theta_dot.apply(self.pole.v),
-        ]
-    }
-
-    /// The filter's fixed-point state `[cart p, cart v, pole p, pole v]`: positions in 1/4096
-    /// count, velocities in 1/4096 count per period.
-    pub fn raw(&self) -> [i64; 4] {
-        [self.cart.p, self.cart.v, self.pole.p, self.pole.v]
-    }
-
-    /// Forgets the history: the next update starts afresh.
-    pub fn reset(&mut self) {
-        self.started = false;
-    }
-
-    /// The encoders' resolutions.
-    pub fn encoders(&self) -> Encoders {
-        self.enc
-    }
-}
-
 /// What an encoder reads for a true position: the count below it, `floor(value * per_unit)`,
 /// saturated to the `i32` range. Counts per metre for the cart, per radian
 /// (`counts_per_rev / 2 pi`) for the pole.
@@ -272,141 +107,11 @@ pub fn quantise(value: f64, counts_per_unit: f64) -> i32 {
 mod tests {
     use super::*;
 
-    const ENC: Encoders = Encoders {
-        cart_counts_per_m: 10_000,
-        pole_counts_per_rev: 4_096,
-    };
-
-    #[test]
-    fn the_filter_has_its_documented_gains() {
-        let e = AlphaBeta::new(ENC, 0.5, 0.02);
-        // alpha = 1 - 0.25 = 0.75, beta = 0.25, in Q15.
-        assert_eq!((e.alpha_q15, e.beta_q15), (24_576, 8_192));
-        // Discount 0: the velocity is the plain backward difference.
-        let mut raw = AlphaBeta::new(ENC, 0.0, 0.02);
-        raw.update(0, 0);
-        let s = raw.update(37, -5);
-        let u = 1 << FRACTION_BITS;
-        assert_eq!(raw.raw(), [37 * u, 37 * u, -5 * u, -5 * u]);
-        assert!((s[1] - 37.0 / 10_000.0 / 0.02).abs() < 1e-6);
-    }
-
-    #[test]
-    fn a_constant_velocity_is_tracked_without_error() {
-        // 3 counts per period on the pole: 3 * 2 pi / 4096 / 0.02 rad/s.
-        let mut e = AlphaBeta::new(ENC, 0.6, 0.02);
-        let mut s = [0.0; 4];
-        for k in 0..200 {
-            s = e.update(0, 3 * k);
-        }
-        let w = 3.0 * core::f32::consts::TAU / 4096.0 / 0.02;
-        assert!((s[3] - w).abs() < 1e-4 * w, "{s:?} vs {w}");
-        assert!((s[2] - 199.0 * 3.0 * core::f32::consts::TAU / 4096.0).abs() < 1e-5);
-    }
-
-    #[test]
-    fn a_step_settles_and_smoothing_trades_noise_for_lag() {
-        // After a jump of 1000 counts the estimate converges; the filter is stable.
-        for d in [0.0, 0.3, 0.6, 0.9] {
-            let mut e = AlphaBeta::new(ENC, d, 0.02);
-            e.update(0, 0);
-            let mut last = [0.0; 4];
-            for _ in 0..400 {
-                last = e.update(1000, 0);
-            }
-            assert!(
-                (last[0] - 0.1).abs() < 1e-6 && last[1].abs() < 1e-4,
-                "{d}: {last:?}"
-            );
-        }
-        // A position that alternates by one count: the smoother filter reports less speed.
-        let jitter = |d: f32| {
-            let mut e = AlphaBeta::new(ENC, d, 0.02);
-            (0..200)
-                .map(|k| e.update(k % 2, 0)[1].abs())
-                .fold(0.0f32, f32::max)
-        };
-        assert!(
-            jitter(0.8) < 0.3 * jitter(0.0),
-            "{} {}",
-            jitter(0.8),
-            jitter(0.0)
-        );
-    }
-
-    #[test]
-    fn any_counts_are_safe() {
-        let mut e = AlphaBeta::new(ENC, 0.5, 0.02);
-        for (c, p) in [
-            (i32::MAX, i32::MIN),
-            (i32::MIN, i32::MAX),
-            (0, 0),
-            (i32::MAX, i32::MAX),
-        ] {
-            let s = e.update(c, p);
-            assert!(s.iter().all(|v| v.is_finite()), "{s:?}");
-        }
-        let degenerate = AlphaBeta::new(
-            Encoders {
-                cart_counts_per_m: 0,
-                pole_counts_per_rev: 0,
-            },
-            f32::NAN,
-            -1.0,
-        );
-        assert!(degenerate.state().iter().all(|v| v.is_finite()));
-    }
-
     #[test]
     fn quantisation_floors_and_saturates() {
         assert_eq!(quantise(0.01234, 10_000.0), 123);
         assert_eq!(quantise(-0.00001, 10_000.0), -1);
         assert_eq!(quantise(1e300, 10_000.0), i32::MAX);
         assert_eq!(quantise(f64::NAN, 10_000.0), 0);
-    }
-
-    #[test]
-    fn the_fixed_state_is_the_float_state_correctly_rounded_in_q12() {
-        for (enc, d) in [
-            (ENC, 0.5),
-            (
-                Encoders {
-                    cart_counts_per_m: 37,
-                    pole_counts_per_rev: 16,
-                },
-                0.0,
-            ),
-            (
-                Encoders {
-                    cart_counts_per_m: 1 << 26,
-                    pole_counts_per_rev: 1 << 24,
-                },
-                0.9,
-            ),
-        ] {
-            let mut e = AlphaBeta::new(enc, d, 0.02);
-            let cart = 1.0 / f64::from(enc.cart_counts_per_m);
-            let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
-            let k = [cart, cart / 0.02f32 as f64, pole, pole / 0.02f32 as f64];
-            let mut c = (0i32, 0i32);
-            for step in 0..300i32 {
-                // A wandering, sometimes jumping pair of counts, out to the i32 range.
-                c.0 = c.0.wrapping_add(step.wrapping_mul(7919) % 5003 - 2400);
-                c.1 = c.1.wrapping_add(step.wrapping_mul(104_729) % 977 - 480);
-                if step % 97 == 0 {
-                    c.0 = c.0.wrapping_mul(-3);
-                }
-                e.update(c.0, c.1);
-                let fixed = e.fixed_state();
-                for ((raw, k), got) in e.raw().iter().zip(k).zip(fixed) {
-                    let exact = *raw as f64 * k;
-                    let want = exact.clamp(-32_768.0, 32_767.0);
-                    assert!(
-                        (f64::from(got) - want).abs() <= 0.5 + 1e-6 * want.abs().max(1.0),
-                        "{enc:?} step {step}: raw {raw} -> {got}, exact {exact}"
-                    );
-                }
-            }
-        }
     }
 }

@@ -1,9 +1,8 @@
 //! The model-based observer ([`Observer`]).
 
-use crate::cartpole::Params;
-use crate::controller::predict::{DeadTime, Model};
+use crate::cartpole::{Params, Plant};
+use crate::controller::predict::DeadTime;
 use crate::linear::{kalman_gain, linearise};
-use crate::network::int::fixed_obs;
 
 use super::Encoders;
 
@@ -41,8 +40,8 @@ impl Default for Tuning {
 /// the steady-state Kalman gain.
 ///
 /// Each period it advances its estimate one Euler step of the nominal plant
-/// ([`Model::step`], the predictor's f32 model) under the force that acted during the period
-/// just ended, then corrects by `L (y - C s)`, where `y` are the two encoders' readings
+/// ([`Plant::euler`] in f32, as the predictor does) under the motor duty that acted during
+/// the period just ended, then corrects by `L (y - C s)`, where `y` are the two encoders' readings
 /// (each count's midpoint, so that floor quantisation adds no bias) and `L` is the
 /// steady-state Kalman gain of the linearised plant ([`kalman_gain`]) for the encoders'
 /// quantisation noise and a process noise set by [`Tuning`].
@@ -60,7 +59,7 @@ impl Default for Tuning {
 #[derive(Clone, Debug, PartialEq)]
 pub struct Observer {
     enc: Encoders,
-    model: Model,
+    plant: Plant<f32>,
     gain: [[f32; 2]; 4],
     /// Metres per cart count, radians per pole count.
     per_count: [f32; 2],
@@ -97,7 +96,7 @@ impl Observer {
         let gain = kalman_gain(&a, &q, r).map(|row| row.map(|g| g as f32));
         Observer {
             enc,
-            model: Model::of(nominal),
+            plant: Plant::new(nominal),
             gain,
             per_count: per_count.map(|c| c as f32),
             estimate: [0.0; 4],
@@ -130,9 +129,7 @@ impl Observer {
             self.started = true;
             return self.estimate;
         }
-        let pred = self
-            .model
-            .step(&self.estimate, self.acting * self.model.force_mag());
+        let pred = self.plant.euler(&self.estimate, self.acting, 0.0);
         let e = [yx - pred[0], yt - pred[2]];
         for ((s, p), g) in self.estimate.iter_mut().zip(pred).zip(self.gain) {
             *s = p + g[0] * e[0] + g[1] * e[1];
@@ -148,10 +145,10 @@ impl Observer {
         self.estimate
     }
 
-    /// The current estimate in the integer network's input format
-    /// ([`crate::network::int`]), converted by [`fixed_obs`].
+    /// The current estimate in the integer network's input format, Q3.12
+    /// ([`crate::fixed::from_state`]).
     pub fn fixed_state(&self) -> [i16; 4] {
-        fixed_obs(&self.estimate)
+        crate::fixed::from_state(&self.estimate)
     }
 
     /// The steady-state Kalman gain `L`, rows `[x, x_dot, theta, theta_dot]`, columns the

@@ -1,5 +1,5 @@
 use super::*;
-use crate::cartpole::{State, step_with_force};
+use crate::cartpole::{State, advance};
 
 /// scipy.linalg.solve_discrete_are (a Schur-method solver, independent of the iteration
 /// here) on the same A, B with Q = I, R = 1: `K = solve(R + B'PB, B'PA)`.
@@ -79,33 +79,48 @@ fn riccati_solution_is_a_fixed_point_and_stabilises() {
     assert!(growth(&a, 200) > 10.0);
 }
 
-#[test]
-fn linearisation_matches_finite_differences_of_the_plant() {
-    let p = Params::default();
-    let (a, b) = linearise(&p);
+/// The linearisation of `p` against central differences of the plant's own step, at
+/// upright and at rest, duty off.
+fn check_against_finite_differences(p: &Params) {
+    let (a, b) = linearise(p);
+    let step =
+        |s: [f64; 4], external: f64| advance(p, &State::from_array(s), 0.0, external).to_array();
     let h = 1e-6;
     for j in 0..4 {
-        let mut plus = [0.0; 4];
-        let mut minus = [0.0; 4];
+        let (mut plus, mut minus) = ([0.0; 4], [0.0; 4]);
         plus[j] = h;
         minus[j] = -h;
-        let sp = step_with_force(&p, &State::from_array(plus), 0.0);
-        let sm = step_with_force(&p, &State::from_array(minus), 0.0);
+        let (sp, sm) = (step(plus, 0.0), step(minus, 0.0));
         for i in 0..4 {
-            let fd = (sp.to_array()[i] - sm.to_array()[i]) / (2.0 * h);
+            let fd = (sp[i] - sm[i]) / (2.0 * h);
             assert!(
                 (fd - a[i][j]).abs() < 1e-6,
-                "A[{i}][{j}] {fd} vs {}",
+                "{p:?}: A[{i}][{j}] {fd} vs {}",
                 a[i][j]
             );
         }
     }
-    let sp = step_with_force(&p, &State::default(), 1.0);
-    let sm = step_with_force(&p, &State::default(), -1.0);
+    let (sp, sm) = (step([0.0; 4], 1.0), step([0.0; 4], -1.0));
     for i in 0..4 {
-        let fd = (sp.to_array()[i] - sm.to_array()[i]) / 2.0;
-        assert!((fd - b[i]).abs() < 1e-12, "B[{i}] {fd} vs {}", b[i]);
+        let fd = (sp[i] - sm[i]) / 2.0;
+        assert!((fd - b[i]).abs() < 1e-12, "{p:?}: B[{i}] {fd} vs {}", b[i]);
     }
+}
+
+#[test]
+fn linearisation_matches_finite_differences_of_the_plant() {
+    check_against_finite_differences(&Params::default());
+    // A desk rig's motor and pivot, at 100 Hz.
+    check_against_finite_differences(&Params {
+        masscart: 0.6,
+        masspole: 0.08,
+        length: 0.22,
+        force_mag: 5.0,
+        motor_damping: 3.0,
+        pole_friction: 0.002,
+        tau: 0.01,
+        ..Params::default()
+    });
 }
 
 #[test]

@@ -23,8 +23,8 @@
 //! the same IEEE-754 operations (multiplies and adds are never fused), hence the same bits.
 //!
 //! [`dot_portable`] is the order's definition. Faster renderings compute the same operations
-//! and are tested against it bit for bit: `vfp` (hand-written VFP code, hard-float Arm),
-//! [`x86`] (SSE and AVX registers, for host code).
+//! and are tested against it bit for bit: `vfp` (hand-written VFP code, hard-float Arm, in
+//! this crate) and the host tools' vector renderings (in their own crate, `host-common`).
 //!
 //! ```
 //! use firmware::network::{Mlp, dot};
@@ -39,8 +39,6 @@ use crate::cartpole::Action;
 pub mod int;
 #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
 pub mod vfp;
-#[cfg(target_arch = "x86_64")]
-pub mod x86;
 
 /// Inputs: the plant's observation `[x, x_dot, theta, theta_dot]`.
 pub const OBS_DIM: usize = 4;

@@ -2,7 +2,7 @@
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
-use super::kernels::{MulAdd, all_rows, rows_times};
+use super::kernels::{Render, all_rows, rows_times};
 use super::{Loss, Scratch};
 
 /// Zeroes the gradient of every unit whose ReLU output was 0 (its derivative there).
@@ -19,7 +19,7 @@ fn relu_backward<const H: usize>(grad: &mut [[f32; H]], activation: &[[f32; H]])
 
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
-pub(super) fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
+pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
     net: &Mlp<H>,
     x: &[[f32; OBS_DIM]],
     actions: &[u8],
@@ -58,7 +58,7 @@ pub(super) fn backward_impl<const H: usize, F: MulAdd, const R: usize>(
         for o in 0..N_ACTIONS {
             let g = s.dq[b][o];
             for (gw, a) in grad.fc3_weight[o].iter_mut().zip(&s.a2[b]) {
-                *gw = F::mul_add(g, *a, *gw);
+                *gw = g.mul_add(*a, *gw);
             }
             grad.fc3_bias[o] += g;
         }

@@ -1,51 +1,34 @@
 //! The batched forward pass, and the one building block every matrix product of the
-//! trainer is made of.
+//! trainer is made of: `y = init + sum_i x_i * w_i`, each term a fused multiply-add
+//! (`f32::mul_add`, one rounding), in increasing `i`. That is the training arithmetic's
+//! definition; every build renders exactly it (software `fmaf` where the CPU has no FMA).
 
 use firmware::network::{Mlp, OBS_DIM};
 
 use super::{Packed, Scratch};
 
-/// Multiply-add as a type, so one generic kernel compiles with and without fusion, and
-/// how many batch rows a kernel computes together: each weight chunk is then loaded once for
-/// all of them, and their accumulators form independent chains that hide the multiply-add
-/// latency, as many as the register file holds (16 SSE registers hold 2 rows of 4).
-pub(super) trait MulAdd {
+/// Which rendering of the one arithmetic a build runs: [`rows_times`]'s generic code, or
+/// its 4-row blocks in AVX-512 intrinsics ([`avx512::rows4`]). Both compute the same fused
+/// multiply-adds in the same order, so the same bits.
+pub(super) trait Render {
     /// Whether [`rows_times`] should run its 4-row blocks in [`avx512::rows4`] (it checks
     /// the CPU itself).
     #[cfg(target_arch = "x86_64")]
     const AVX512: bool = false;
-    fn mul_add(a: f32, b: f32, c: f32) -> f32;
 }
+/// The generic code, compiled for the build's target features.
+pub(super) struct Generic;
+impl Render for Generic {}
+/// The AVX-512 build's 4-row blocks.
 #[cfg(target_arch = "x86_64")]
-pub(super) const FUSED_ROWS: usize = 4;
-pub(super) const UNFUSED_ROWS: usize = 2;
+pub(super) struct Avx512;
 #[cfg(target_arch = "x86_64")]
-pub(super) struct Fused;
-/// [`Fused`] in the AVX-512 build, which runs its 4-row blocks in [`avx512::rows4`].
-#[cfg(target_arch = "x86_64")]
-pub(super) struct Fused512;
-pub(super) struct Unfused;
-#[cfg(target_arch = "x86_64")]
-impl MulAdd for Fused {
-    #[inline(always)]
-    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
-        a.mul_add(b, c)
-    }
-}
-#[cfg(target_arch = "x86_64")]
-impl MulAdd for Fused512 {
+impl Render for Avx512 {
     const AVX512: bool = true;
-    #[inline(always)]
-    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
-        a.mul_add(b, c)
-    }
 }
-impl MulAdd for Unfused {
-    #[inline(always)]
-    fn mul_add(a: f32, b: f32, c: f32) -> f32 {
-        a * b + c
-    }
-}
+/// Batch rows a kernel computes together: each weight chunk is then loaded once for all of
+/// them, and their accumulators form independent chains that hide the multiply-add latency.
+pub(super) const ROWS: usize = 4;
 
 /// Output lanes per accumulator: one AVX-512 register, two AVX2 ones, four SSE ones.
 /// Every supported width is a multiple of it.
@@ -58,7 +41,7 @@ const L: usize = 16;
 /// `x(i)` gathers term `i`'s coefficient for each row, so a matrix can be read along either
 /// axis without first being transposed.
 #[inline(always)]
-pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
+pub(super) fn rows_times<const H: usize, const R2: usize, F: Render>(
     x: impl Fn(usize) -> [f32; R2],
     w: &[[f32; H]],
     init: Option<&[f32; H]>,
@@ -73,7 +56,7 @@ pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
     };
     #[cfg(target_arch = "x86_64")]
     // The check costs a cached load per block of 4 rows, and makes soundness local: only
-    // the AVX-512 entry point uses `Fused512`, but nothing else would stop another caller.
+    // the AVX-512 entry point uses `Avx512`, but nothing else would stop another caller.
     if F::AVX512
         && R2 == 4
         && H.is_multiple_of(avx512::BLOCK)
@@ -105,7 +88,7 @@ pub(super) fn rows_times<const H: usize, const R2: usize, F: MulAdd>(
             let wc = &wi.as_chunks::<L>().0[c];
             for (acc, xi) in acc.iter_mut().zip(x(i)) {
                 for (a, w) in acc.iter_mut().zip(wc) {
-                    *a = F::mul_add(xi, *w, *a);
+                    *a = xi.mul_add(*w, *a);
                 }
             }
         }
@@ -185,7 +168,7 @@ pub(super) mod avx512 {
 
 /// [`rows_times`] over every row of `xs`/`ys`, `R` at a time, the remainder one by one.
 #[inline(always)]
-pub(super) fn all_rows<const H: usize, const N: usize, F: MulAdd, const R: usize>(
+pub(super) fn all_rows<const H: usize, const N: usize, F: Render, const R: usize>(
     xs: &[[f32; N]],
     w: &[[f32; H]],
     init: Option<&[f32; H]>,
@@ -206,7 +189,7 @@ pub(super) fn all_rows<const H: usize, const N: usize, F: MulAdd, const R: usize
 }
 
 #[inline(always)]
-pub(super) fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
+pub(super) fn forward_impl<const H: usize, F: Render, const R: usize>(
     net: &Mlp<H>,
     packed: &Packed<H>,
     x: &[[f32; OBS_DIM]],
@@ -226,7 +209,7 @@ pub(super) fn forward_impl<const H: usize, F: MulAdd, const R: usize>(
             // `dot`'s order in SSE registers: inlined here, LLVM compiles `dot` itself to
             // scalar code, which cost 8% of a training step.
             #[cfg(target_arch = "x86_64")]
-            let d = firmware::network::x86::dot_sse(w, a2);
+            let d = host_common::dot_x86::dot_sse(w, a2);
             #[cfg(not(target_arch = "x86_64"))]
             let d = firmware::network::dot(w, a2);
             *q = d + bias;

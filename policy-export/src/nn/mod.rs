@@ -4,36 +4,36 @@
 //! - `kernels`: the batched forward pass and the building block every matrix product uses.
 //! - `backprop`: gradients of the TD loss.
 //! - `optim`: Adam, gradient clipping, soft target updates.
-//! - `act`: the firmware's forward pass, bit for bit, from the packed transposes.
 //!
 //! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
-//! with is the policy that ships. Acting during training goes through `act`, which gives
-//! `firmware::network`'s outputs bit for bit. The learning side's forward pass is laid out
-//! for batches (`y += x_i * W^T[i]`, vectorised across outputs) instead of the firmware's
-//! per-output dot products, so its outputs agree with `Mlp::forward` to rounding (tested to
-//! 1e-6 relative), not bit for bit.
+//! with is the policy that ships; acting goes through `host_common::wide`, the firmware's
+//! forward pass bit for bit. The learning side's forward pass is laid out for batches
+//! (`y += x_i * W^T[i]`, vectorised across outputs) instead of the firmware's per-output dot
+//! products, so its outputs agree with `Mlp::forward` to rounding (tested to 1e-6 relative),
+//! not bit for bit.
 //!
-//! Speed comes from the layout and from compiling the same generic kernels three times:
-//! with AVX-512F + AVX-512VL + FMA, with AVX2 + FMA, and for the baseline target, picked at
-//! run time ([`Kernel::detect`]). Results are bit-identical for a given kernel; different
-//! kernels round differently (FMA fuses), so a run records which one it used. The portable
-//! kernel, which never fuses, runs in AVX2 registers where the CPU has them: the same
-//! operations element for element, so the same bits as on a machine without.
+//! # One arithmetic, several renderings
+//!
+//! Every multiply-add of the learning side is fused (`f32::mul_add`, rounded once), in the
+//! order the kernels' sources give. That is the definition every run is trained with, and
+//! fused multiply-adds are what fast hardware does: the same generic kernels are compiled
+//! for AVX-512F + AVX-512VL + FMA (whose 4-row blocks run in intrinsics), for AVX2 + FMA,
+//! and for the target's baseline, which on aarch64 is NEON's `fmla` and elsewhere a software
+//! `fmaf`, picked at run time ([`Kernel::detect`]). All of them give the same bits (tested
+//! against a plain-loop rendering of the definition), so a run's weights do not depend on
+//! the machine it ran on.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 pub use host_common::kernel::Kernel;
 
-mod act;
 mod backprop;
 mod kernels;
 mod optim;
 
-pub use act::act;
-
 use backprop::backward_impl;
 #[cfg(target_arch = "x86_64")]
-use kernels::{FUSED_ROWS, Fused, Fused512};
-use kernels::{UNFUSED_ROWS, Unfused, forward_impl};
+use kernels::Avx512;
+use kernels::{Generic, ROWS, forward_impl};
 use optim::adam_impl;
 pub use optim::{AdamParams, clip_grad_norm, soft_update};
 
@@ -61,7 +61,7 @@ pub struct Scratch<const H: usize> {
 }
 
 /// A network's first two weight matrices transposed (`[in][out]`), so that the batched
-/// forward pass and [`act`] read contiguous rows. Re-pack whenever the weights change.
+/// forward pass reads contiguous rows. Re-pack whenever the weights change.
 pub struct Packed<const H: usize> {
     w1t: [[f32; H]; OBS_DIM],
     w2t: [[f32; H]; H],
@@ -148,11 +148,13 @@ pub fn boxed_zero<const H: usize>() -> Box<Mlp<H>> {
     Box::new(Mlp::zeroed())
 }
 
-/// Generates a public entry point per kernel implementation: it runs `$imp` compiled for the
-/// chosen kernel, with fused multiply-add where that kernel has it. A kernel this CPU lacks
-/// falls back to the portable build (the command line refuses such a choice up front).
+/// Generates a public entry point per kernel: it runs `$imp` compiled for the chosen
+/// kernel's instruction set (with the AVX-512 blocks where that kernel has them). A kernel
+/// this CPU lacks falls back to the baseline build (the command line refuses such a choice
+/// up front); every build computes the same bits.
 macro_rules! kernel_entry {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty => $imp:ident) => {
+    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty
+        => $imp:ident $([$($render:tt)*])?) => {
         $(#[$doc])*
         #[allow(clippy::too_many_arguments)]
         pub fn $name<const H: usize>(kernel: Kernel, $($arg: $ty),*) -> $ret {
@@ -161,21 +163,12 @@ macro_rules! kernel_entry {
                 #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Fused512, FUSED_ROWS>($($arg),*)
+                    $imp::<H $($(, $render)* , Avx512, ROWS)?>($($arg),*)
                 }
                 #[target_feature(enable = "avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Fused, FUSED_ROWS>($($arg),*)
-                }
-                // The portable kernel's arithmetic in 8-wide registers. Its operations are
-                // element-wise IEEE multiplies and adds in the order the source gives (Rust
-                // never contracts them, and this build has no FMA to contract them into),
-                // so the bits are the baseline build's and only the speed differs.
-                #[target_feature(enable = "avx2")]
-                #[allow(clippy::too_many_arguments)]
-                fn portable_avx2<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H, Unfused, UNFUSED_ROWS>($($arg),*)
+                    $imp::<H $($(, $render)* , Generic, ROWS)?>($($arg),*)
                 }
                 match kernel {
                     // SAFETY: the CPU was just checked for every feature the function enables.
@@ -186,16 +179,11 @@ macro_rules! kernel_entry {
                     Kernel::Avx2 if Kernel::Avx2.supported() => {
                         return unsafe { avx2::<H>($($arg),*) };
                     }
-                    // SAFETY: as above.
-                    Kernel::Portable if Kernel::Avx2.supported() => {
-                        return unsafe { portable_avx2::<H>($($arg),*) };
-                    }
                     _ => {}
                 }
             }
-            #[cfg(not(target_arch = "x86_64"))]
             let _ = kernel;
-            $imp::<H, Unfused, UNFUSED_ROWS>($($arg),*)
+            $imp::<H $($(, $render)* , Generic, ROWS)?>($($arg),*)
         }
     };
 }
@@ -210,7 +198,7 @@ kernel_entry! {
         x: &[[f32; OBS_DIM]],
         s: &mut Scratch<H>
     ) -> ()
-        => forward_impl
+        => forward_impl []
 }
 
 kernel_entry! {
@@ -225,7 +213,7 @@ kernel_entry! {
         loss: Loss,
         s: &mut Scratch<H>,
         grad: &mut Mlp<H>
-    ) -> f32 => backward_impl
+    ) -> f32 => backward_impl []
 }
 
 kernel_entry! {

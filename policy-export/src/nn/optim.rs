@@ -3,8 +3,6 @@
 
 use firmware::network::Mlp;
 
-use super::kernels::MulAdd;
-
 /// Adam's constants (PyTorch's form: `eps` added to `sqrt(v_hat)`). Kept in f64 because
 /// PyTorch derives `1 - beta` and the bias corrections in double precision and rounds each
 /// to f32 once; `1.0f32 - 0.999f32` would be 5e-5 off.
@@ -86,7 +84,7 @@ pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f3
     }
 }
 #[inline(always)]
-pub(super) fn adam_impl<const H: usize, F: MulAdd, const R: usize>(
+pub(super) fn adam_impl<const H: usize>(
     hp: &AdamParams,
     t: u64,
     params: &mut Mlp<H>,
@@ -109,8 +107,8 @@ pub(super) fn adam_impl<const H: usize, F: MulAdd, const R: usize>(
         .zip(moments)
     {
         for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
-            let m1 = F::mul_add(b1, *m, c1 * g);
-            let v1 = F::mul_add(b2, *v, c2 * g * g);
+            let m1 = b1.mul_add(*m, c1 * g);
+            let v1 = b2.mul_add(*v, c2 * g * g);
             *m = if m1.abs() < FLUSH { 0.0 } else { m1 };
             *v = if v1 < FLUSH { 0.0 } else { v1 };
             *p -= step * *m / (v.sqrt() / sqrt_bc2 + eps);

@@ -1,12 +1,14 @@
 //! How good a policy is: greedy episodes on fresh starts, and the paper's "solved" measure
 //! on a run's returns.
 
-use firmware::cartpole::Action;
 use firmware::network::Mlp;
+use host_common::wide::WideMlp;
 use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use twin::run::nominal_predictor;
-use twin::{Domain, World};
+use twin::{Domain, Episode};
+
+use super::Stream;
 
 /// A greedy evaluation's outcome.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -34,59 +36,67 @@ impl EvalResult {
     }
 }
 
-/// The random streams of one evaluation: starts, the worlds drawn from its domain, and
-/// those worlds' sensor noise and pushes (drawn from only where the world has them, so a
-/// nominal evaluation draws only starts).
+/// Where one evaluation's random draws come from: episode `e` draws its world, start, sensor
+/// noise and push sides from four streams of its own, indexed by `e` under the run's seed.
+/// So an episode's draws do not depend on the episodes before it, the episodes can run in
+/// any order (in parallel), and every snapshot evaluated with the same streams meets the same
+/// worlds.
+#[derive(Clone, Copy, Debug)]
 pub struct EvalStreams {
-    /// Start states.
-    pub start: Pcg64Mcg,
-    /// Worlds from the domain.
-    pub world: Pcg64Mcg,
-    /// Sensor noise.
-    pub noise: Pcg64Mcg,
-    /// Push sides.
-    pub pushes: Pcg64Mcg,
+    /// The run's seed.
+    pub seed: u64,
+    /// The streams of the world, the start, the noise and the pushes.
+    pub streams: [Stream; 4],
 }
 
-/// Runs `episodes` greedy episodes of at most `max_steps`, each in a world of `domain`;
-/// with `compensate`, deciding on readings advanced over the world's dead time.
+impl EvalStreams {
+    fn rng(&self, episode: u64, which: usize) -> Pcg64Mcg {
+        host_common::seed::rng(self.seed, episode, self.streams[which] as u64)
+    }
+}
+
+/// Runs `episodes` greedy episodes of at most `max_steps` through the firmware's controller,
+/// each in a world of `domain`; with `compensate`, deciding on readings advanced over the
+/// world's dead time. Episodes run in parallel and are summed in order, so the result does
+/// not depend on the number of threads.
 pub fn evaluate<const H: usize>(
     net: &Mlp<H>,
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
     compensate: bool,
-    rng: &mut EvalStreams,
+    streams: EvalStreams,
 ) -> EvalResult {
-    let (mut sum, mut min) = (0.0, f64::INFINITY);
-    let (mut cost, mut steps) = (0.0f64, 0u64);
-    for _ in 0..episodes {
-        let scenario = domain.sample(&mut rng.world);
-        let mut world = World::start(
-            &scenario,
-            max_steps,
-            &mut rng.start,
-            &mut rng.noise,
-            &mut rng.pushes,
-        );
-        let force = scenario.params.force_mag;
-        let mut pred = nominal_predictor(if compensate { scenario.delay } else { 0 });
-        let mut ret = 0.0;
-        loop {
-            let action = net.greedy_action(&pred.predict(&world.observe()));
-            let sign = if action == Action::Right { 1.0 } else { -1.0 };
-            pred.record_push(action);
-            let t = world.apply(sign * force);
-            ret += f64::from(t.reward);
-            let (s, p) = (world.state(), &scenario.params);
-            cost += (s.theta / p.theta_threshold_radians).powi(2) + (s.x / p.x_threshold).powi(2);
-            steps += 1;
-            if t.terminated || t.truncated {
-                break;
+    let wide = WideMlp::new(net);
+    let per_episode: Vec<(f64, f64, u64)> = (0..episodes as u64)
+        .into_par_iter()
+        .map(|e| {
+            let scenario = domain.sample(&mut streams.rng(e, 0));
+            let pair = (streams.rng(e, 2), streams.rng(e, 3));
+            let mut start = streams.rng(e, 1);
+            let mut ep = Episode::start(&*wide, &scenario, max_steps, &mut start, pair, compensate);
+            let p = &scenario.params;
+            let (mut ret, mut cost, mut steps) = (0.0, 0.0, 0u64);
+            loop {
+                ep.decide();
+                let t = ep.apply();
+                ret += f64::from(t.reward);
+                let s = ep.world().state();
+                cost +=
+                    (s.theta / p.theta_threshold_radians).powi(2) + (s.x / p.x_threshold).powi(2);
+                steps += 1;
+                if t.terminated || t.truncated {
+                    return (ret, cost, steps);
+                }
             }
-        }
-        sum += ret;
-        min = f64::min(min, ret);
+        })
+        .collect();
+    let (mut sum, mut min, mut cost, mut steps) = (0.0, f64::INFINITY, 0.0, 0u64);
+    for (r, c, n) in per_episode {
+        sum += r;
+        min = f64::min(min, r);
+        cost += c;
+        steps += n;
     }
     EvalResult {
         episodes,

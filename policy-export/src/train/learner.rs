@@ -2,6 +2,7 @@
 //! TD targets of a sampled batch, and the target network's cached Q-values.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
+use host_common::wide::WideMlp;
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -51,6 +52,8 @@ pub struct Learner<const H: usize> {
     target: Box<Mlp<H>>,
     online_packed: Box<Packed<H>>,
     target_packed: Box<Packed<H>>,
+    /// The online net laid out for acting: the firmware's forward pass, bit for bit.
+    acting: Box<WideMlp<H>>,
     grad: Box<Mlp<H>>,
     m: Box<Mlp<H>>,
     v: Box<Mlp<H>>,
@@ -89,6 +92,7 @@ impl<const H: usize> Learner<H> {
             target: online.clone(),
             online_packed: Packed::new(&online),
             target_packed: Packed::new(&online),
+            acting: WideMlp::with_kernel(&online, kernel).unwrap_or_else(|| WideMlp::new(&online)),
             online,
             grad: nn::boxed_zero(),
             m: nn::boxed_zero(),
@@ -182,8 +186,8 @@ impl<const H: usize> Learner<H> {
             &mut self.m,
             &mut self.v,
         );
-        // Acting reads the transposes too, so they follow the weights at once.
         self.online_packed.pack(&self.online);
+        self.acting.refresh(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
             nn::soft_update(&mut self.target, &self.online, cfg.tau as f32);
             self.target_packed.pack(&self.target);
@@ -228,7 +232,7 @@ impl<const H: usize> Learner<H> {
 
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
     pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        nn::act(self.kernel, &self.online, &self.online_packed, obs)
+        self.acting.forward(obs)
     }
 
     /// The network being trained.

@@ -1,13 +1,16 @@
-//! The training loop: Double DQN (or DQN) on `firmware::cartpole`, acting through
-//! `firmware::network` — the forward pass that ships — and learning with [`crate::nn`].
+//! The training loop: Double DQN (or DQN) on the twin's worlds, acting through the
+//! firmware's controller period and its forward pass (what ships), learning with
+//! [`crate::nn`].
 //!
 //! Read top to bottom it is the whole algorithm: epsilon-greedy acting, a FIFO replay buffer
 //! sampled without replacement, `updates_per_train` TD regression steps every `train_every`
 //! environment steps or episodes, hard or soft target updates, an optional budget of
-//! environment steps, and per-episode metrics. Every random draw comes from
-//! streams derived from the run's seed, so the same seed and configuration give the same
-//! weights and metrics, bit for bit, per kernel.
+//! environment steps, and per-episode metrics. Every random draw comes from streams derived
+//! from the run's seed, so the same seed and configuration give the same weights and
+//! metrics, bit for bit, on every machine.
 //!
+//! - `explore`: one training episode, the epsilon-greedy policy behind the controller.
+//! - `select`: the snapshots evaluated, the finalists' trial, the final evaluation.
 //! - `replay`: the FIFO replay buffer.
 //! - `learner`: the two networks, TD targets and one gradient step.
 //! - `evaluate`: greedy evaluation and the solved-episode measures.
@@ -15,22 +18,21 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use firmware::cartpole::{Action, unit_f64};
-use firmware::network::{Mlp, argmax};
-use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
-use twin::run::nominal_predictor;
-use twin::{Domain, World};
+use twin::Domain;
 use weights::Weights;
+use weights::width::{ForWidth, by_width};
 
-use crate::config::{Config, TargetUpdate, Unit};
+use crate::config::Config;
 use crate::nn::Kernel;
 
 mod evaluate;
+mod explore;
 mod learner;
 mod replay;
 mod reward;
+mod select;
 
 pub use evaluate::{EvalResult, EvalStreams, evaluate, solved_episode, trailing_means};
 pub use learner::{Learner, init_weights, td_targets};
@@ -39,7 +41,7 @@ pub use reward::Reward;
 
 /// Independent random streams of a run, so that changing how often one is drawn from (say,
 /// the batch size) leaves the others' sequences alone.
-#[derive(Clone, Copy)]
+#[derive(Clone, Copy, Debug)]
 #[repr(u64)]
 pub enum Stream {
     /// Initial weights.
@@ -85,46 +87,6 @@ pub enum Stream {
 /// The generator of one stream of one seed (the project's one mixer, index 0).
 pub fn rng(seed: u64, stream: Stream) -> Pcg64Mcg {
     host_common::seed::rng(seed, 0, stream as u64)
-}
-
-/// Which evaluation a set of streams serves.
-#[derive(Clone, Copy)]
-enum Eval {
-    /// The periodic ones: the same streams every time within a run.
-    Periodic,
-    /// The finalists' trial: the same streams for every finalist.
-    Trial,
-    /// The final one, disjoint from everything the run trained or selected on.
-    Final,
-}
-
-fn eval_streams(seed: u64, which: Eval) -> EvalStreams {
-    let [a, b, c, d] = match which {
-        Eval::Periodic => [
-            Stream::Eval,
-            Stream::EvalWorld,
-            Stream::EvalNoise,
-            Stream::EvalPushes,
-        ],
-        Eval::Trial => [
-            Stream::Trial,
-            Stream::TrialWorld,
-            Stream::TrialNoise,
-            Stream::TrialPushes,
-        ],
-        Eval::Final => [
-            Stream::Final,
-            Stream::FinalWorld,
-            Stream::FinalNoise,
-            Stream::FinalPushes,
-        ],
-    };
-    EvalStreams {
-        start: rng(seed, a),
-        world: rng(seed, b),
-        noise: rng(seed, c),
-        pushes: rng(seed, d),
-    }
 }
 
 /// Exploration rate at `t` (steps or episodes, per the configuration).
@@ -198,17 +160,27 @@ pub fn train(
     seed: u64,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
 ) -> Result<RunResult> {
-    by_width(cfg, seed, on_episode, true)
+    run(cfg, seed, on_episode, true)
 }
 
 /// Trains one seed for its episode records alone, which is all a study reads: the policy
 /// is neither chosen among snapshots nor evaluated on fresh starts (100 greedy episodes of
 /// up to 500 steps for the paper preset). The records are [`train`]'s, bit for bit.
 pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
-    Ok(by_width(cfg, seed, &mut |_| {}, false)?.episodes)
+    Ok(run(cfg, seed, &mut |_| {}, false)?.episodes)
 }
 
-fn by_width(
+/// One run at the configured width; with `evaluate_policy` false, the finalists' trial and
+/// the final evaluation are left out.
+struct Training<'a> {
+    cfg: &'a Config,
+    seed: u64,
+    kernel: Kernel,
+    on_episode: &'a mut dyn FnMut(&EpisodeRecord),
+    evaluate_policy: bool,
+}
+
+fn run(
     cfg: &Config,
     seed: u64,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
@@ -216,285 +188,110 @@ fn by_width(
 ) -> Result<RunResult> {
     cfg.validate()?;
     let kernel = cfg.kernel.resolve()?;
-    macro_rules! by_width {
-        ($($h:literal => $c:ident / $qc:ident,)*) => {
-            match cfg.width {
-                $($h => train_width::<$h>(cfg, seed, kernel, on_episode, evaluate_policy),)*
-                w => unreachable!("validate() admits only supported widths, got {w}"),
-            }
-        };
-    }
-    firmware::for_each_width!(by_width)
+    let training = Training {
+        cfg,
+        seed,
+        kernel,
+        on_episode,
+        evaluate_policy,
+    };
+    by_width(cfg.width, training)?
 }
 
-/// One run; with `evaluate_policy` false, the finalists' trial and the final evaluation
-/// are left out.
-fn train_width<const H: usize>(
-    cfg: &Config,
-    seed: u64,
-    kernel: Kernel,
-    on_episode: &mut dyn FnMut(&EpisodeRecord),
-    evaluate_policy: bool,
-) -> Result<RunResult> {
+impl ForWidth for Training<'_> {
+    type Output = Result<RunResult>;
+    fn run<const H: usize>(self) -> Result<RunResult> {
+        train_width::<H>(self)
+    }
+}
+
+/// The domains of a run, parsed (`validate` has checked them).
+struct Domains {
+    train: Domain,
+    eval: Domain,
+    trial: Domain,
+}
+
+fn domains(cfg: &Config) -> Result<Domains> {
+    let parse = |spec: &str| Domain::parse(spec).map_err(anyhow::Error::msg);
+    let eval = parse(&cfg.eval_domain)?;
+    Ok(Domains {
+        train: parse(&cfg.domain)?,
+        trial: match cfg.finalist_domain.as_str() {
+            "" => eval.clone(),
+            spec => parse(spec)?,
+        },
+        eval,
+    })
+}
+
+fn train_width<const H: usize>(t: Training<'_>) -> Result<RunResult> {
+    let (cfg, seed) = (t.cfg, t.seed);
     let start = Instant::now();
-    let mut learner = Learner::<H>::new(cfg, kernel, seed);
+    let mut learner = Learner::<H>::new(cfg, t.kernel, seed);
     let mut buf = ReplayBuffer::new(cfg.buffer_size);
-    let (mut env_rng, mut explore_rng, mut sample_rng) = (
-        rng(seed, Stream::Env),
-        rng(seed, Stream::Explore),
-        rng(seed, Stream::Sample),
-    );
-    let (mut domain_rng, mut noise_rng, mut push_rng) = (
-        rng(seed, Stream::Domain),
-        rng(seed, Stream::Noise),
-        rng(seed, Stream::Pushes),
-    );
-    // validate() has parsed all three.
-    let domain = Domain::parse(&cfg.domain).map_err(anyhow::Error::msg)?;
-    let eval_domain = Domain::parse(&cfg.eval_domain).map_err(anyhow::Error::msg)?;
-    let trial_domain = match cfg.finalist_domain.as_str() {
-        "" => eval_domain.clone(),
-        spec => Domain::parse(spec).map_err(anyhow::Error::msg)?,
+    let mut streams = explore::Streams {
+        env: rng(seed, Stream::Env),
+        explore: rng(seed, Stream::Explore),
+        sample: rng(seed, Stream::Sample),
+        noise: rng(seed, Stream::Noise),
+        pushes: rng(seed, Stream::Pushes),
     };
+    let mut domain_rng = rng(seed, Stream::Domain);
+    let d = domains(cfg)?;
     let reward = Reward::parse(&cfg.reward).map_err(anyhow::Error::msg)?;
-    let learning_starts = cfg.learning_starts.max(cfg.batch_size);
-    let gamma = cfg.gamma;
-
     let mut records = Vec::with_capacity(cfg.episodes);
-    let mut evals = Vec::new();
-    // The best periodic snapshots, best first; among equals the earlier stays ahead.
-    let mut pool: Vec<(EvalResult, usize, Box<Mlp<H>>)> = Vec::new();
-    let pool_size = cfg.finalists.max(1);
-    let mut env_steps: u64 = 0;
-    let mut rewards: Vec<f32> = Vec::with_capacity(cfg.max_steps as usize);
-    // Evaluation episodes and steps that chose the policy (each step scores 1).
-    let (mut selection_episodes, mut selection_steps) = (0u64, 0u64);
-
+    let mut selection = select::Selection::new(cfg, seed, &d);
+    let (mut env_steps, mut rewards) = (0u64, Vec::with_capacity(cfg.max_steps as usize));
     for ep in 0..cfg.episodes {
-        let scenario = domain.sample(&mut domain_rng);
-        let force = scenario.params.force_mag;
-        let mut world = World::start(
-            &scenario,
-            cfg.max_steps,
-            &mut env_rng,
-            &mut noise_rng,
-            &mut push_rng,
-        );
-        // The policy decides on the reading advanced over the known dead time, as it will
-        // on the board; with none (or without `compensate`) that is the reading itself.
-        let mut pred = nominal_predictor(if cfg.compensate { scenario.delay } else { 0 });
-        let mut obs = pred.predict(&world.observe());
-        let mut ret = 0.0f64;
-        rewards.clear();
-        let (mut loss_sum, mut losses, mut maxq_sum) = (0.0f64, 0u32, 0.0f64);
-        let mut eps;
-        let (mut spent, terminated);
-        loop {
-            let t = match cfg.eps_unit {
-                Unit::Steps => env_steps as f64,
-                Unit::Episodes => ep as f64,
-            };
-            eps = epsilon(cfg, t);
-            let q = learner.q_values(&obs);
-            maxq_sum += f64::from(q[0].max(q[1]));
-            let action = if unit_f64(&mut explore_rng) < eps {
-                Action::from_index((explore_rng.next_u32() & 1) as usize)
-            } else {
-                argmax(&q)
-            };
-            pred.record_push(action);
-            let tr = world.apply(match action {
-                Action::Right => force,
-                Action::Left => -force,
-            });
-            let next = pred.predict(&world.observe());
-            let r = reward.of(&scenario.params, &world.state(), tr.terminated);
-            buf.push(obs, action, r, next, tr.terminated);
-            rewards.push(r);
-            ret += f64::from(tr.reward);
-            env_steps += 1;
-
-            if cfg.train_unit == Unit::Steps
-                && buf.len() >= learning_starts
-                && env_steps.is_multiple_of(cfg.train_every as u64)
-            {
-                let at = (ep, Some(rewards.len()), env_steps);
-                let (sum, n) = learn(&mut learner, cfg, &buf, &mut sample_rng, at)?;
-                loss_sum += sum;
-                losses += n;
-            }
-            if cfg.target_update == TargetUpdate::Hard
-                && cfg.target_period_unit == Unit::Steps
-                && env_steps.is_multiple_of(cfg.target_period as u64)
-            {
-                learner.sync_target();
-            }
-            obs = next;
-            spent = cfg.max_env_steps > 0 && env_steps >= cfg.max_env_steps;
-            if tr.terminated || tr.truncated || spent {
-                terminated = tr.terminated;
-                break;
-            }
-        }
-        // A cut episode's return goes on past the cut; without its tail every state near the
-        // end would seem overestimated (by up to gamma^k / (1 - gamma) per step's reward).
-        // The online net's own estimate stands in for it, so the gap measures how far Q
-        // disagrees with what followed, not where the episode was cut.
-        let mut g = if terminated {
-            0.0
-        } else {
-            // The weights that acted, before any end-of-episode training.
-            let q = learner.q_values(&obs);
-            f64::from(q[0].max(q[1]))
+        let scenario = d.train.sample(&mut domain_rng);
+        let mut run = explore::Run {
+            cfg,
+            learner: &mut learner,
+            buf: &mut buf,
+            reward: &reward,
+            streams: &mut streams,
+            env_steps: &mut env_steps,
+            rewards: &mut rewards,
         };
-        if cfg.train_unit == Unit::Episodes
-            && buf.len() >= learning_starts
-            && (ep + 1).is_multiple_of(cfg.train_every)
-        {
-            let (sum, n) = learn(
-                &mut learner,
-                cfg,
-                &buf,
-                &mut sample_rng,
-                (ep, None, env_steps),
-            )?;
-            loss_sum += sum;
-            losses += n;
-        }
-        if cfg.target_update == TargetUpdate::Hard
-            && cfg.target_period_unit == Unit::Episodes
-            && (ep + 1).is_multiple_of(cfg.target_period)
-        {
-            learner.sync_target();
-        }
-
-        let len = rewards.len();
-        let mut disc_sum = 0.0f64;
-        for r in rewards.iter().rev() {
-            g = f64::from(*r) + gamma * g;
-            disc_sum += g;
-        }
-        let rec = EpisodeRecord {
-            episode: ep + 1,
-            ret,
-            learning_return: rewards.iter().map(|&r| f64::from(r)).sum(),
-            length: len as u32,
-            epsilon: eps,
-            mean_loss: (losses > 0).then(|| loss_sum / f64::from(losses)),
-            mean_max_q: maxq_sum / len as f64,
-            mean_discounted_return: disc_sum / len as f64,
-            env_steps,
-            wall_s: start.elapsed().as_secs_f64(),
-        };
-        on_episode(&rec);
+        let (mut rec, spent) = run.episode(ep, &scenario)?;
+        rec.wall_s = start.elapsed().as_secs_f64();
+        (t.on_episode)(&rec);
         records.push(rec);
-
         // The weights the budget stops at are a candidate too.
-        if cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent) {
-            selection_episodes += cfg.eval_episodes as u64;
-            let res = evaluate(
-                learner.online(),
-                cfg.eval_episodes,
-                cfg.eval_max_steps,
-                &eval_domain,
-                cfg.compensate,
-                &mut eval_streams(seed, Eval::Periodic),
-            );
-            selection_steps += steps_of(&res);
-            let perfect = res.min >= f64::from(cfg.eval_max_steps);
-            let rank = pool.partition_point(|(b, _, _)| !res.beats(b));
-            if rank < pool_size {
-                pool.insert(rank, (res.clone(), ep + 1, learner.snapshot()));
-                pool.truncate(pool_size);
-            }
-            evals.push((ep + 1, res));
-            if perfect && cfg.stop_when_perfect {
-                break;
-            }
+        let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
+        if due && selection.periodic(&learner, ep + 1) && cfg.stop_when_perfect {
+            break;
         }
         if spent {
             break;
         }
     }
     let wall_s = start.elapsed().as_secs_f64();
-    let last = records.len();
-    let mut trial = Vec::new();
-    if evaluate_policy && cfg.finalists > 0 {
-        let mut best: Option<(usize, EvalResult)> = None;
-        for (i, (_, ep, net)) in pool.iter().enumerate() {
-            selection_episodes += cfg.finalist_episodes as u64;
-            let res = evaluate(
-                net,
-                cfg.finalist_episodes,
-                cfg.finalist_max_steps,
-                &trial_domain,
-                cfg.compensate,
-                &mut eval_streams(seed, Eval::Trial),
-            );
-            selection_steps += steps_of(&res);
-            // Survival decides; among equals the better periodic rank, since the periodic
-            // cost (nominal-like worlds) measures precision better than the trial's pushes.
-            if best.as_ref().is_none_or(|(_, b)| res.mean > b.mean) {
-                best = Some((i, res.clone()));
-            }
-            trial.push((*ep, res));
-        }
-        if let Some((i, _)) = best {
-            pool.swap(0, i);
-        }
-    }
-    let (policy_episode, policy) = match pool.into_iter().next() {
-        Some((_, ep, net)) => (ep, net),
-        None => (last, learner.snapshot()),
-    };
-    let policy_env_steps = records[policy_episode - 1].env_steps;
-    let final_eval = if evaluate_policy {
-        evaluate(
-            &policy,
-            cfg.final_eval_episodes,
-            cfg.eval_max_steps,
-            &eval_domain,
-            cfg.compensate,
-            &mut eval_streams(seed, Eval::Final),
-        )
-    } else {
-        // Never leaves this module: `episodes` keeps the records alone.
-        EvalResult {
-            episodes: 0,
-            max_steps: cfg.eval_max_steps,
-            mean: f64::NAN,
-            min: f64::NAN,
-            cost: f64::NAN,
-        }
-    };
+    let chosen = selection.choose(&learner, &records, t.evaluate_policy);
     Ok(RunResult {
         episodes: records,
-        policy: Weights::from_mlp(&policy).map_err(|e| {
+        policy: Weights::from_mlp(&chosen.policy).map_err(|e| {
             anyhow::anyhow!("the trained weights are unusable ({e}); try a smaller lr or grad_clip")
         })?,
-        policy_episode,
-        policy_env_steps,
-        selection_episodes,
-        selection_steps,
-        evals,
-        trial,
-        final_eval,
+        policy_episode: chosen.episode,
+        policy_env_steps: chosen.env_steps,
+        selection_episodes: chosen.selection_episodes,
+        selection_steps: chosen.selection_steps,
+        evals: chosen.evals,
+        trial: chosen.trial,
+        final_eval: chosen.final_eval,
         env_steps,
         grad_steps: learner.steps(),
         wall_s,
-        kernel,
+        kernel: t.kernel,
     })
-}
-
-/// The environment steps an evaluation ran: its return counts one per step.
-fn steps_of(res: &EvalResult) -> u64 {
-    (res.mean * res.episodes as f64).round() as u64
 }
 
 /// Takes `cfg.updates_per_train` gradient steps; returns the sum of their losses and their
 /// number. `at` (episode index, step within it for per-step training, env steps) places a
 /// non-finite loss in the error.
-fn learn<const H: usize>(
+pub(super) fn learn<const H: usize>(
     learner: &mut Learner<H>,
     cfg: &Config,
     buf: &ReplayBuffer,

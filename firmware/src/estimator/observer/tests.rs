@@ -1,5 +1,5 @@
 use super::*;
-use crate::cartpole::{State, step_with_force};
+use crate::cartpole::{State, advance};
 use crate::controller::predict::MAX_PREDICT;
 use crate::estimator::AlphaBeta;
 use crate::linear::tests::SCIPY_L;
@@ -71,7 +71,7 @@ fn velocity_errors(enc: Encoders, told: usize, delay: usize) -> ([f64; 2], [f64;
         } else {
             core::mem::replace(&mut line[k % delay], u)
         };
-        s = step_with_force(&p, &s, acting * p.force_mag);
+        s = advance(&p, &s, acting, 0.0);
         assert!(s.theta.abs() < 0.2, "the rule keeps the pole up (step {k})");
     }
     let rms = |e: [f64; 2]| e.map(|v| libm::sqrt(v / (n - 50) as f64));
@@ -183,7 +183,7 @@ fn the_fixed_state_is_the_state_rounded_in_q12() {
             assert_eq!(f64::from(*f), want, "step {k}: {est:?}");
         }
         o.command(if k % 7 < 3 { 1.0 } else { -1.0 });
-        s = step_with_force(&p, &s, if k % 7 < 3 { 10.0 } else { -10.0 });
+        s = advance(&p, &s, if k % 7 < 3 { 1.0 } else { -1.0 }, 0.0);
     }
     o.estimate = [1e9, -1e9, f32::NAN, 3.0];
     assert_eq!(o.fixed_state(), [32_767, -32_768, 0, 12_288]);

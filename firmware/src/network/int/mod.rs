@@ -18,9 +18,9 @@
 //!
 //! # The observation's format
 //!
-//! The input is `[x, x_dot, theta, theta_dot]` in SI units (m, m/s, rad, rad/s) as `i16`
-//! with [`OBS_FRACTION_BITS`] = 12 fraction bits (Q3.12: 1/4096 of a unit, range +-8 units).
-//! [`fixed_obs`] converts a float reading, the encoder observer's included
+//! The input is `[x, x_dot, theta, theta_dot]` in the fixed-point format of
+//! [`crate::fixed`] (Q3.12: 1/4096 of a unit, range +-8 units).
+//! [`crate::fixed::from_state`] converts a float reading, the encoder observer's included
 //! ([`crate::estimator::Observer::fixed_state`]); [`crate::estimator::AlphaBeta::fixed_state`]
 //! produces it from encoder counts in integers alone.
 //!
@@ -38,9 +38,8 @@
 //! are checked when they are made).
 //!
 //! ```
-//! use firmware::network::int::{QMlp, fixed_obs};
+//! use firmware::network::int::QMlp;
 //! let net = QMlp::<64>::zeroed();
-//! assert_eq!(fixed_obs(&[0.5, -1.0, 0.05, 8.5]), [2048, -4096, 205, 32767]);
 //! assert_eq!(net.forward(&[0; 4]), [0, 0]);
 //! ```
 
@@ -53,22 +52,10 @@ pub mod dsp;
 #[cfg(all(target_arch = "arm", not(cartpole_dsp)))]
 pub mod thumb;
 
-/// Fraction bits of the fixed-point observation: `value * 4096`, rounded, as `i16`.
-pub const OBS_FRACTION_BITS: u32 = 12;
-
 /// The bytes of flash a 4-H-H-2 [`QMlp`] occupies, as `size_of` gives it:
 /// int8 weights, int32 biases and one [`Requant`] per hidden unit.
 pub const fn flash_bytes(h: usize) -> usize {
     (OBS_DIM * h + h * h + N_ACTIONS * h) + 4 * (2 * h + N_ACTIONS) + 4 * 2 * h
-}
-
-/// `obs` in the network's input format: each value times 4096, rounded to nearest (ties away
-/// from zero), saturated to the `i16` range; NaN reads as 0. This is the one float step of an
-/// integer controller that is handed float readings; a board whose estimator is the integer
-/// alpha-beta filter skips it ([`crate::estimator::AlphaBeta::fixed_state`]).
-pub fn fixed_obs(obs: &[f32; OBS_DIM]) -> [i16; OBS_DIM] {
-    // `as` saturates and maps NaN to 0.
-    obs.map(|v| libm::roundf(v * (1u32 << OBS_FRACTION_BITS) as f32) as i16)
 }
 
 /// How one hidden unit's int32 accumulator becomes its `u8` activation (ReLU included):

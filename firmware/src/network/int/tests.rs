@@ -127,7 +127,13 @@ fn the_forward_pass_is_the_layer_formulas_for_any_weights_and_input() {
             assert_eq!(n16.forward(&obs), n16.forward_portable(&obs));
         }
     }
-    for obs in crate::selftest::INT_PROBES {
+    // The shipped network on a balanced state, a leaning one and the format's extremes.
+    for obs in [
+        [0, 0, 0, 0],
+        [41, -82, 123, 164],
+        [9830, 0, 858, 0],
+        [32767, -32768, 32767, -32768],
+    ] {
         assert_eq!(
             POLICY_INT.forward(&obs),
             forward_reference(&POLICY_INT, &obs)
@@ -148,11 +154,11 @@ fn the_exported_output_is_two_opposite_advantages() {
 #[test]
 fn float_readings_round_to_q3_12_and_saturate() {
     assert_eq!(
-        fixed_obs(&[1.0 / 8192.0, -1.0 / 8192.0, 7.9999, -9.0]),
+        crate::fixed::from_state(&[1.0 / 8192.0, -1.0 / 8192.0, 7.9999, -9.0]),
         [1, -1, 32_767, -32_768]
     );
     assert_eq!(
-        fixed_obs(&[f32::NAN, f32::INFINITY, -0.0, 0.1]),
+        crate::fixed::from_state(&[f32::NAN, f32::INFINITY, -0.0, 0.1]),
         [0, 32_767, 0, 410]
     );
     assert_eq!(flash_bytes(64), core::mem::size_of::<QMlp<64>>());

@@ -1,184 +1,9 @@
-//! Closed-loop evaluation: many seeded episodes per controller, scenario and horizon, and
-//! the statistics of the robustness table with 95% confidence intervals.
-//!
-//! Episode `i` of seed `s` starts from the same state, meets the same noise and the same
-//! pushes whichever controller runs it, so rows compare controllers on identical worlds.
-//! Episodes run in parallel (rayon) and are gathered in order, so results do not depend on
-//! the number of threads.
+//! The table's rows: the statistics of a controller's episodes in a scenario at a horizon,
+//! with 95% confidence intervals, and how the table and its failures are printed.
 
-use std::fmt;
-
-use anyhow::{Result, bail};
-use firmware::controller::Policy;
-use firmware::network::int::{QMlp, fixed_obs};
-use firmware::policy::POLICY;
-use firmware::policy_int::POLICY_INT;
 use host_common::stats::{Estimate, wilson};
-use rayon::prelude::*;
 use serde::Serialize;
-use weights::Weights;
-use weights::quant::Granularity;
-
-use crate::baselines::{AngleRule, Lqr, Random};
-use crate::wide::WideMlp;
-use twin::run::{policy_rng, run_episode};
-use twin::{EpisodeStats, Frame, Scenario};
-
-/// A Q-network of any supported width, loaded at run time, laid out for the host's vector
-/// units ([`WideMlp`]: the firmware's forward pass, bit for bit), with its integer version
-/// (`firmware::network::int`, as `policy-export export --quant int8` writes it).
-#[derive(Debug)]
-pub struct Net {
-    float: Box<dyn Forward>,
-    int: Box<dyn IntForward>,
-}
-
-/// A [`QMlp`] of some width, behind one type.
-trait IntForward: fmt::Debug + Send + Sync {
-    fn forward(&self, obs: &[i16; 4]) -> [i32; 2];
-}
-
-impl<const H: usize> IntForward for QMlp<H> {
-    #[inline]
-    fn forward(&self, obs: &[i16; 4]) -> [i32; 2] {
-        QMlp::forward(self, obs)
-    }
-}
-
-/// A [`WideMlp`] of some width, behind one type.
-trait Forward: fmt::Debug + Send + Sync {
-    fn forward(&self, obs: &[f32; 4]) -> [f32; 2];
-}
-
-impl<const H: usize> Forward for WideMlp<H> {
-    #[inline]
-    fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
-        WideMlp::forward(self, obs)
-    }
-}
-
-impl Net {
-    /// A laid-out network of width `H` and its integer version.
-    pub fn new<const H: usize>(wide: Box<WideMlp<H>>, int: Box<QMlp<H>>) -> Net {
-        Net { float: wide, int }
-    }
-
-    /// The policy compiled into `firmware`, and its integer version compiled beside it.
-    pub fn shipped() -> Net {
-        Net::new(WideMlp::new(&POLICY), Box::new(POLICY_INT.clone()))
-    }
-
-    /// A network from checked weights of any supported width, quantised as
-    /// `policy-export export --quant int8` does by default (the same granularity and
-    /// calibration).
-    pub fn from_weights(w: &Weights) -> Result<Net> {
-        let q = twin::calibrate::quantise_policy(w, Granularity::default())?;
-        macro_rules! by_width {
-            ($($h:literal => $c:ident / $qc:ident,)*) => {
-                match w.width() {
-                    $($h => Net::new(WideMlp::<$h>::new(&*w.to_mlp()?), q.to_qmlp::<$h>()?),)*
-                    other => bail!(
-                        "hidden width {other} is not one of {:?}",
-                        firmware::network::SUPPORTED_WIDTHS
-                    ),
-                }
-            };
-        }
-        Ok(firmware::for_each_width!(by_width))
-    }
-
-    /// The float network's Q-values.
-    pub fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
-        self.float.forward(obs)
-    }
-
-    /// The integer network's outputs for a fixed-point observation.
-    pub fn forward_int(&self, obs: &[i16; 4]) -> [i32; 2] {
-        self.int.forward(obs)
-    }
-}
-
-impl Policy for &Net {
-    #[inline]
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        self.float.forward(obs)
-    }
-}
-
-/// The integer network of a [`Net`] as a controller's policy: the reading rounded to Q3.12,
-/// the scores the integer outputs (exact in f32, see `firmware::controller`).
-#[derive(Clone, Copy, Debug)]
-pub struct IntNet<'a>(pub &'a Net);
-
-impl Policy for IntNet<'_> {
-    #[inline]
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        self.0.int.forward(&fixed_obs(obs)).map(|q| q as f32)
-    }
-}
-
-/// Which controller drives the cart.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "lowercase")]
-pub enum ControllerKind {
-    /// The Q-network (shipped, or `--policy FILE`).
-    Policy,
-    /// Its integer version (int8 weights, no floating point in the forward pass).
-    PolicyInt,
-    /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
-    Lqr,
-    /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
-    LqrPredict,
-    /// Push towards `theta + 0.5 theta_dot`.
-    Rule,
-    /// A fair coin every period.
-    Random,
-}
-
-impl fmt::Display for ControllerKind {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            ControllerKind::Policy => "policy",
-            ControllerKind::PolicyInt => "policy-int",
-            ControllerKind::Lqr => "lqr",
-            ControllerKind::LqrPredict => "lqr-predict",
-            ControllerKind::Rule => "rule",
-            ControllerKind::Random => "random",
-        })
-    }
-}
-
-/// Runs episode `episode` with controller `kind`; `on_frame` sees every period.
-pub fn episode(
-    kind: ControllerKind,
-    net: &Net,
-    scenario: &Scenario,
-    horizon: u32,
-    seed: u64,
-    episode: u64,
-    on_frame: impl FnMut(Frame),
-) -> EpisodeStats {
-    let (s, h) = (scenario, horizon);
-    match kind {
-        // The policy is told the dead time, as a board knows its own.
-        ControllerKind::Policy => run_episode(net, s, h, seed, episode, true, on_frame),
-        ControllerKind::PolicyInt => run_episode(IntNet(net), s, h, seed, episode, true, on_frame),
-        ControllerKind::Lqr => run_episode(Lqr::nominal(), s, h, seed, episode, false, on_frame),
-        ControllerKind::LqrPredict => {
-            run_episode(Lqr::nominal(), s, h, seed, episode, true, on_frame)
-        }
-        ControllerKind::Rule => run_episode(AngleRule, s, h, seed, episode, false, on_frame),
-        ControllerKind::Random => run_episode(
-            Random(policy_rng(seed, episode)),
-            s,
-            h,
-            seed,
-            episode,
-            false,
-            on_frame,
-        ),
-    }
-}
+use twin::EpisodeStats;
 
 /// One line of the table: a controller on a scenario at a horizon.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -189,6 +14,8 @@ pub struct Row {
     pub scenario: String,
     /// Periods an episode may last.
     pub horizon: u32,
+    /// The control period, s.
+    pub period_s: f64,
     /// Episodes run.
     pub episodes: usize,
     /// Share that reached the horizon.
@@ -234,11 +61,12 @@ pub struct Worst {
 }
 
 impl Row {
-    /// The statistics of a set of episodes, episode `i` of `seed` at `eps[i]`.
+    /// The statistics of a set of episodes of `period_s` periods, episode `i` of `seed` at
+    /// `eps[i]`.
     pub fn from_episodes(
         controller: &str,
         scenario: &str,
-        horizon: u32,
+        (horizon, period_s): (u32, f64),
         seed: u64,
         eps: &[EpisodeStats],
     ) -> Row {
@@ -253,6 +81,7 @@ impl Row {
             controller: controller.to_string(),
             scenario: scenario.to_string(),
             horizon,
+            period_s,
             episodes: eps.len(),
             success_rate: successes as f64 / eps.len().max(1) as f64,
             success_ci95: wilson(successes, eps.len()),
@@ -263,9 +92,7 @@ impl Row {
             rms_theta_deg: Estimate::of(&per(&|e| (e.sum_theta2 / steps(e)).sqrt().to_degrees())),
             rms_x_m: Estimate::of(&per(&|e| (e.sum_x2 / steps(e)).sqrt())),
             mean_abs_x_m: Estimate::of(&per(&|e| e.sum_abs_x / steps(e))),
-            switches_per_s: Estimate::of(&per(&|e| {
-                f64::from(e.switches) / (steps(e) * firmware::controller::CONTROL_PERIOD_S)
-            })),
+            switches_per_s: Estimate::of(&per(&|e| f64::from(e.switches) / (steps(e) * period_s))),
             faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
             failures: eps.len() - successes,
             worst: worst(seed, eps),
@@ -292,22 +119,6 @@ fn worst(seed: u64, eps: &[EpisodeStats]) -> Vec<Worst> {
         .collect()
 }
 
-/// `episodes` seeded episodes of one controller in one scenario, in parallel, in order.
-pub fn evaluate(
-    kind: ControllerKind,
-    net: &Net,
-    scenario: &Scenario,
-    horizon: u32,
-    seed: u64,
-    episodes: u64,
-) -> Row {
-    let eps: Vec<EpisodeStats> = (0..episodes)
-        .into_par_iter()
-        .map(|i| episode(kind, net, scenario, horizon, seed, i, |_| {}))
-        .collect();
-    Row::from_episodes(&kind.to_string(), &scenario.name, horizon, seed, &eps)
-}
-
 /// The table, grouped by horizon and scenario, one line per controller.
 pub fn format_table(rows: &[Row]) -> String {
     let mut out = String::new();
@@ -322,7 +133,7 @@ pub fn format_table(rows: &[Row]) -> String {
             out += &format!(
                 "horizon {} ({} s), {} episodes per row, 95% CI\n",
                 r.horizon,
-                f64::from(r.horizon) * firmware::controller::CONTROL_PERIOD_S,
+                f64::from(r.horizon) * r.period_s,
                 r.episodes
             );
             out += &format!(
@@ -424,7 +235,7 @@ mod tests {
                 faults: 1,
             })
             .collect();
-        let r = Row::from_episodes("c", "s", 400, 9, &eps);
+        let r = Row::from_episodes("c", "s", (400, 0.02), 9, &eps);
         assert_eq!((r.min_steps, r.p5_steps, r.faults), (10, 20, 40));
         assert_eq!(r.failures, 39);
         assert_eq!(
@@ -451,18 +262,5 @@ mod tests {
         assert!((r.rms_x_m.mean - 2.0).abs() < 1e-12 && r.rms_x_m.ci95 < 1e-12);
         assert!((r.mean_abs_x_m.mean - 2.0).abs() < 1e-12);
         assert!((r.switches_per_s.mean - 25.0).abs() < 1e-9);
-    }
-
-    #[test]
-    fn results_do_not_depend_on_threads() {
-        let net = Net::shipped();
-        let s = Scenario::parse("noise").unwrap();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let a = one.install(|| evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64));
-        let b = evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64);
-        assert_eq!(a, b);
     }
 }

@@ -1,5 +1,6 @@
-//! [`dot`](super::dot) in x86-64 vector registers, operation for operation, for host code that
-//! runs the forward pass often: the trainer's output layer and the simulator's wide kernels.
+//! The firmware's [`dot`](firmware::network::dot) in x86-64 vector registers, operation for
+//! operation, for host code that runs the forward pass often: the trainer's output layer and
+//! the wide forward pass ([`crate::wide`]).
 //!
 //! Lane `k` of the vector is the dot product's partial sum `k`: eight products at a time are
 //! multiplied, then added (never fused), and the lanes meet in `dot`'s tree, so both
@@ -14,9 +15,9 @@
 
 use core::arch::x86_64::*;
 
-use super::LANES;
+use firmware::network::LANES;
 
-/// [`dot`](super::dot) in a pair of SSE registers. SSE2 is part of x86-64 itself, so every
+/// [`dot`](firmware::network::dot) in a pair of SSE registers. SSE2 is part of x86-64 itself, so every
 /// x86-64 CPU runs it and the function is safe. `N` must be a multiple of [`LANES`].
 #[inline]
 pub fn dot_sse<const N: usize>(w: &[f32; N], x: &[f32; N]) -> f32 {
@@ -93,10 +94,8 @@ fn tree(quad: __m128) -> f32 {
 
 #[cfg(test)]
 mod tests {
-    extern crate std;
-
     use super::*;
-    use crate::network::dot_portable;
+    use firmware::network::dot_portable;
     use rand_core::{Rng, SeedableRng};
     use rand_pcg::Pcg64Mcg;
 
@@ -143,12 +142,13 @@ mod tests {
     #[test]
     fn they_keep_the_tree_where_other_associations_round_differently() {
         // Lane sums chosen so that each of the usual alternative trees gives another f32
-        // (see `network::tests::the_tree_is_the_documented_one`).
-        use crate::network::tests::{TREE_LANES, documented_tree};
+        // (the firmware's `the_tree_is_the_documented_one` shows it).
+        let lanes = [-3.0, 3e7, -6e7, 3e7, -1e8, 3.0, 1e8, 3.0];
         let x = [1.0f32; 16];
         let mut w = [0.0f32; 16];
-        w[..8].copy_from_slice(&TREE_LANES);
-        let want = documented_tree(&TREE_LANES);
+        w[..8].copy_from_slice(&lanes);
+        let want = dot_portable(&w, &x);
+        assert_eq!(want, 8.0);
         assert_eq!(dot_sse(&w, &x).to_bits(), want.to_bits());
         if std::is_x86_feature_detected!("avx") {
             // SAFETY: the CPU was just checked for AVX.

@@ -1,4 +1,5 @@
-//! The firmware's forward pass, rearranged for host SIMD: same operations, same bits.
+//! The firmware's forward pass, rearranged for host SIMD: same operations, same bits. The
+//! one host rendering of it: the simulator balances with it and the trainer acts with it.
 //!
 //! [`firmware::network::Mlp::forward`] computes one output at a time; compiled for a host, LLVM
 //! vectorises it with 2-wide SSE code (see `docs/PERFORMANCE.md`). [`WideMlp`] computes a
@@ -19,7 +20,8 @@ use firmware::controller::Policy;
 #[cfg(target_arch = "x86_64")]
 use firmware::network::LANES;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
-pub use host_common::kernel::Kernel;
+
+use crate::kernel::Kernel;
 
 /// A 4-H-H-2 network laid out for one [`Kernel`]; `H` must be a multiple of 16.
 #[derive(Clone, Debug)]
@@ -57,6 +59,11 @@ impl Aligned {
     fn get(&self) -> &[f32] {
         &self.buf[self.start..self.start + self.buf.len() + 1 - Self::LINE]
     }
+
+    fn get_mut(&mut self) -> &mut [f32] {
+        let len = self.buf.len() + 1 - Self::LINE;
+        &mut self.buf[self.start..self.start + len]
+    }
 }
 
 impl Clone for Aligned {
@@ -90,6 +97,15 @@ impl<const H: usize> WideMlp<H> {
         }))
     }
 
+    /// Lays out `net` in place of the network held, without allocating: what a trainer does
+    /// after each gradient step.
+    pub fn refresh(&mut self, net: &Mlp<H>) {
+        let width = block(self.kernel);
+        self.net.clone_from(net);
+        pack_into(&net.fc1_weight, width, self.fc1.get_mut());
+        pack_into(&net.fc2_weight, width, self.fc2.get_mut());
+    }
+
     /// The kernel [`WideMlp::forward`] runs.
     pub fn kernel(&self) -> Kernel {
         self.kernel
@@ -110,16 +126,25 @@ impl<const H: usize> WideMlp<H> {
 
 /// `w[o][i]` in blocks of `width` outputs, block after block (empty for width 0).
 fn pack<const I: usize, const O: usize>(w: &[[f32; I]; O], width: usize) -> Vec<f32> {
+    let mut out = vec![0.0; if width == 0 { 0 } else { I * O }];
+    pack_into(w, width, &mut out);
+    out
+}
+
+/// [`pack`] into `out`, which holds `I * O` floats (none for width 0).
+fn pack_into<const I: usize, const O: usize>(w: &[[f32; I]; O], width: usize, out: &mut [f32]) {
     if width == 0 {
-        return Vec::new();
+        return;
     }
-    let mut out = Vec::with_capacity(I * O);
+    let mut k = 0;
     for block in w.chunks_exact(width) {
         for i in 0..I {
-            out.extend(block.iter().map(|row| row[i]));
+            for row in block {
+                out[k] = row[i];
+                k += 1;
+            }
         }
     }
-    out
 }
 
 impl<const H: usize> Policy for &WideMlp<H> {
@@ -278,7 +303,7 @@ mod x86 {
     #[target_feature(enable = "avx2")]
     fn output<const H: usize>(net: &WideMlp<H>, h: &[f32; H]) -> [f32; N_ACTIONS] {
         let (w, b) = (&net.net.fc3_weight, &net.net.fc3_bias);
-        core::array::from_fn(|a| firmware::network::x86::dot_avx(&w[a], h) + b[a])
+        core::array::from_fn(|a| crate::dot_x86::dot_avx(&w[a], h) + b[a])
     }
 }
 

@@ -1,5 +1,4 @@
-//! The C ABI, declared in `capi/include/cartpole_policy.h` (the `capi` crate builds the static
-//! library; the self-test ELF carries the same symbols):
+//! The C ABI, declared in `capi/include/cartpole_policy.h`:
 //!
 //! ```c
 //! void cartpole_policy_forward(const float obs[4], float q[2]);   /* the shipped policy */
@@ -17,7 +16,7 @@
 //! ```
 //!
 //! and `cartpole_mlpH_forward`, `cartpole_qmlpH_forward` for every width of
-//! [`SUPPORTED_WIDTHS`](crate::network::SUPPORTED_WIDTHS). `struct cartpole_mlpH` is
+//! [`SUPPORTED_WIDTHS`](firmware::network::SUPPORTED_WIDTHS). `struct cartpole_mlpH` is
 //! [`Mlp<H>`] (`repr(C)`), as `policy-export export --format c` writes it, and
 //! `struct cartpole_qmlpH` is [`QMlp<H>`] (`--quant int8`). All of them run the one forward
 //! pass of their network ([`Mlp::forward`], [`QMlp::forward`]), so C gets the Rust values bit
@@ -27,10 +26,10 @@
 //! NULL argument makes the call write nothing instead of being undefined behaviour. Non-NULL
 //! pointers must be valid and aligned, as for any C function taking arrays.
 
-use crate::network::int::QMlp;
-use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
-use crate::policy::POLICY;
-use crate::policy_int::POLICY_INT;
+use firmware::network::int::QMlp;
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::policy::POLICY;
+use firmware::policy_int::POLICY_INT;
 
 fn forward<const H: usize>(
     w: Option<&Mlp<H>>,
@@ -112,21 +111,22 @@ macro_rules! c_forwards {
         }
     )* };
 }
-crate::for_each_width!(c_forwards);
+firmware::for_each_width!(c_forwards);
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::selftest::PROBES;
+
+    const OBS: [f32; 4] = [0.01, -0.02, 0.03, 0.04];
 
     #[test]
     fn a_null_argument_writes_nothing() {
         let mut q = [7.0f32; 2];
         cartpole_policy_forward(None, Some(&mut q));
-        cartpole_mlp64_forward(None, Some(&PROBES[1]), Some(&mut q));
+        cartpole_mlp64_forward(None, Some(&OBS), Some(&mut q));
         cartpole_mlp64_forward(Some(&POLICY), None, Some(&mut q));
         assert_eq!(q, [7.0; 2]);
-        cartpole_mlp64_forward(Some(&POLICY), Some(&PROBES[1]), None);
+        cartpole_mlp64_forward(Some(&POLICY), Some(&OBS), None);
         let mut qi = [7i32; 2];
         cartpole_policy_forward_int(None, Some(&mut qi));
         cartpole_qmlp64_forward(None, Some(&[100; 4]), Some(&mut qi));

@@ -1,0 +1,110 @@
+//! What a reading may be, what went wrong in a period, and the totals.
+
+use crate::network::OBS_DIM;
+
+/// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Limits {
+    /// Per-channel bound on `|reading|`, inclusive.
+    pub max_abs: [f32; OBS_DIM],
+}
+
+/// The bound on both rates: far beyond any a balancing run reaches before it fails, so a
+/// reading beyond it is a sensor fault, not a state.
+const MAX_RATE: f32 = 20.0;
+/// The bound on the pole's angle: twice the 12 degree failure angle, room for noise. Past it
+/// the pole is down.
+const MAX_ANGLE: f32 = 0.42;
+
+impl Limits {
+    /// For a track whose end stops are `half_length_m` from the centre: the cart's reading
+    /// is accepted only while the cart is more than `margin_m` from a stop, so near the ends
+    /// the controller coasts (duty off) instead of driving into them: an end-of-track
+    /// interlock. Past the pole's bound the controller coasts too.
+    /// A length under the margin, or NaN, leaves no track (every reading coasts); a negative
+    /// or NaN margin counts as none.
+    pub fn track(half_length_m: f32, margin_m: f32) -> Limits {
+        // `max` drops a NaN operand.
+        let x = (half_length_m - margin_m.max(0.0)).max(0.0);
+        Limits {
+            max_abs: [x, MAX_RATE, MAX_ANGLE, MAX_RATE],
+        }
+    }
+}
+
+/// Why one period's reading was rejected, as bits: per channel `i`, bit `i` is "not finite"
+/// and bit `4 + i` "out of range"; then a sensor error and an actuator error.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct FaultFlags(pub u16);
+
+impl FaultFlags {
+    /// The sensor returned an error.
+    pub const SENSOR_ERROR: FaultFlags = FaultFlags(1 << 8);
+    /// The direction pin or the duty cycle returned an error.
+    pub const ACTUATOR_ERROR: FaultFlags = FaultFlags(1 << 9);
+
+    /// Channel `channel` (0..4) was NaN or infinite.
+    pub const fn non_finite(channel: usize) -> FaultFlags {
+        FaultFlags(1 << (channel % OBS_DIM))
+    }
+
+    /// Channel `channel` (0..4) was finite but beyond its limit.
+    pub const fn out_of_range(channel: usize) -> FaultFlags {
+        FaultFlags(1 << (OBS_DIM + channel % OBS_DIM))
+    }
+
+    /// No flag set.
+    pub const fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    /// Every flag of `other` is set in `self`.
+    pub const fn contains(self, other: FaultFlags) -> bool {
+        self.0 & other.0 == other.0
+    }
+
+    /// Any reading fault: an error, a non-finite or an out-of-range channel.
+    pub const fn reading_rejected(self) -> bool {
+        self.0 & !Self::ACTUATOR_ERROR.0 != 0
+    }
+
+    /// Both sets of flags.
+    pub const fn with(self, other: FaultFlags) -> FaultFlags {
+        FaultFlags(self.0 | other.0)
+    }
+}
+
+/// Totals since the controller started; they saturate rather than wrap.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct FaultCounters {
+    /// Periods whose reading was rejected (and so coasted).
+    pub rejected_readings: u32,
+    /// Sensor errors.
+    pub sensor_errors: u32,
+    /// Channels read as NaN or infinite.
+    pub non_finite: u32,
+    /// Channels read beyond their limit.
+    pub out_of_range: u32,
+    /// Periods in which a pin or duty-cycle write failed.
+    pub actuator_errors: u32,
+    /// Timer ticks that arrived while a period's step still ran (reported by the loop that
+    /// paces the controller, `Controller::record_overruns`): each is a period the
+    /// controller started late.
+    pub overruns: u32,
+}
+
+impl FaultCounters {
+    /// Counts one rejected reading with its flags.
+    pub(super) fn count_rejected(&mut self, flags: FaultFlags) {
+        self.rejected_readings = self.rejected_readings.saturating_add(1);
+        if flags.contains(FaultFlags::SENSOR_ERROR) {
+            self.sensor_errors = self.sensor_errors.saturating_add(1);
+        }
+        let non_finite = (flags.0 & 0x0f).count_ones();
+        let out_of_range = ((flags.0 >> OBS_DIM) & 0x0f).count_ones();
+        self.non_finite = self.non_finite.saturating_add(non_finite);
+        self.out_of_range = self.out_of_range.saturating_add(out_of_range);
+    }
+}

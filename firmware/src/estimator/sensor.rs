@@ -1,0 +1,139 @@
+//! Encoders behind a controller: a [`Counter`] gives the two counts, an estimator turns them
+//! into the reading, and the commands the controller sends reach the estimator.
+
+use core::marker::PhantomData;
+
+use super::{AlphaBeta, Observer};
+use crate::controller::{Command, Reading, StateSensor};
+use crate::network::OBS_DIM;
+
+/// Where a board's encoder counts come from, once a period: `(cart, pole)`. A closure
+/// returning the pair is one (a board reads its timers or PIO counters there).
+pub trait Counter {
+    /// This period's counts.
+    fn counts(&mut self) -> (i32, i32);
+}
+
+impl<F: FnMut() -> (i32, i32)> Counter for F {
+    #[inline]
+    fn counts(&mut self) -> (i32, i32) {
+        self()
+    }
+}
+
+/// The encoders read through the model-based [`Observer`], which is told every command:
+/// the sensor every encoder-read controller runs (the twin's, the loopback's, a board's).
+/// `O` is the reading's format: `[f32; 4]`, or `[i16; 4]` (Q3.12) for the integer network.
+pub struct ObserverSensor<C, O = [f32; OBS_DIM]> {
+    counter: C,
+    observer: Observer,
+    format: PhantomData<O>,
+}
+
+impl<C: Counter, O> ObserverSensor<C, O> {
+    /// `observer` reading `counter` (for a rig, `rig.observer()`).
+    pub fn new(observer: Observer, counter: C) -> Self {
+        ObserverSensor {
+            counter,
+            observer,
+            format: PhantomData,
+        }
+    }
+
+    /// The observer.
+    pub fn observer(&self) -> &Observer {
+        &self.observer
+    }
+
+    /// The counter, to hand it the next period's counts where the caller owns them.
+    pub fn counter_mut(&mut self) -> &mut C {
+        &mut self.counter
+    }
+
+    /// Restarts the observer: the next reading starts from the counts at rest.
+    pub fn reset(&mut self) {
+        self.observer.reset();
+    }
+}
+
+impl<C: Counter, O: Estimate> StateSensor for ObserverSensor<C, O> {
+    type Reading = O;
+    type Error = core::convert::Infallible;
+    #[inline]
+    fn read(&mut self) -> Result<O, Self::Error> {
+        let (cart, pole) = self.counter.counts();
+        self.observer.update(cart, pole);
+        Ok(O::observed(&self.observer))
+    }
+    #[inline]
+    fn commanded(&mut self, command: Command) {
+        self.observer.command(command.level());
+    }
+}
+
+/// The encoders read through the model-free [`AlphaBeta`] filter, which needs no commands.
+/// With `O = [i16; 4]` the whole path from counts to the integer network's decision is
+/// integer arithmetic.
+pub struct AlphaBetaSensor<C, O = [f32; OBS_DIM]> {
+    counter: C,
+    filter: AlphaBeta,
+    format: PhantomData<O>,
+}
+
+impl<C: Counter, O> AlphaBetaSensor<C, O> {
+    /// `filter` reading `counter`.
+    pub fn new(filter: AlphaBeta, counter: C) -> Self {
+        AlphaBetaSensor {
+            counter,
+            filter,
+            format: PhantomData,
+        }
+    }
+
+    /// Restarts the filter.
+    pub fn reset(&mut self) {
+        self.filter.reset();
+    }
+
+    /// The counter, to hand it the next period's counts where the caller owns them.
+    pub fn counter_mut(&mut self) -> &mut C {
+        &mut self.counter
+    }
+}
+
+/// The formats the estimators hand their estimate out in.
+pub trait Estimate: Reading {
+    /// The observer's estimate in this format.
+    fn observed(observer: &Observer) -> Self;
+    /// The alpha-beta filter's estimate in this format.
+    fn filtered(filter: &AlphaBeta) -> Self;
+}
+
+impl Estimate for [f32; OBS_DIM] {
+    fn observed(observer: &Observer) -> Self {
+        observer.state()
+    }
+    fn filtered(filter: &AlphaBeta) -> Self {
+        filter.state()
+    }
+}
+
+impl Estimate for [i16; OBS_DIM] {
+    fn observed(observer: &Observer) -> Self {
+        observer.fixed_state()
+    }
+    fn filtered(filter: &AlphaBeta) -> Self {
+        filter.fixed_state()
+    }
+}
+
+impl<C: Counter, O: Estimate> StateSensor for AlphaBetaSensor<C, O> {
+    type Reading = O;
+    type Error = core::convert::Infallible;
+    #[inline]
+    fn read(&mut self) -> Result<O, Self::Error> {
+        let (cart, pole) = self.counter.counts();
+        self.filter.update(cart, pole);
+        Ok(O::filtered(&self.filter))
+    }
+}

@@ -1,0 +1,126 @@
+//! Closed-loop evaluation: many seeded episodes per controller, scenario and horizon, and
+//! the statistics of the robustness table with 95% confidence intervals.
+//!
+//! Episode `i` of seed `s` starts from the same state, meets the same noise and the same
+//! pushes whichever controller runs it, so rows compare controllers on identical worlds.
+//! Episodes run in parallel (rayon) and are gathered in order, so results do not depend on
+//! the number of threads.
+//!
+//! - `net`: a policy of any width, as the simulator runs it.
+//! - `table`: the rows and how they are printed.
+
+use std::fmt;
+
+use rayon::prelude::*;
+use serde::Serialize;
+use twin::run::{Stream, episode_rng, run_episode};
+use twin::{EpisodeStats, Frame, Scenario};
+
+use crate::baselines::{AngleRule, Lqr, Random};
+
+mod net;
+mod table;
+
+pub use net::{IntNet, Net};
+pub use table::{Row, WORST, Worst, format_failures, format_table};
+
+/// Which controller drives the cart.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum ControllerKind {
+    /// The Q-network (shipped, or `--policy FILE`).
+    Policy,
+    /// Its integer version (int8 weights, no floating point in the forward pass).
+    PolicyInt,
+    /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
+    Lqr,
+    /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
+    LqrPredict,
+    /// Push towards `theta + 0.5 theta_dot`.
+    Rule,
+    /// A fair coin every period.
+    Random,
+}
+
+impl fmt::Display for ControllerKind {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            ControllerKind::Policy => "policy",
+            ControllerKind::PolicyInt => "policy-int",
+            ControllerKind::Lqr => "lqr",
+            ControllerKind::LqrPredict => "lqr-predict",
+            ControllerKind::Rule => "rule",
+            ControllerKind::Random => "random",
+        })
+    }
+}
+
+/// Runs episode `episode` with controller `kind`; `on_frame` sees every period.
+pub fn episode(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episode: u64,
+    on_frame: impl FnMut(Frame),
+) -> EpisodeStats {
+    let (s, h) = (scenario, horizon);
+    match kind {
+        // The policy is told the dead time, as a board knows its own.
+        ControllerKind::Policy => run_episode(net, s, h, seed, episode, true, on_frame),
+        ControllerKind::PolicyInt => {
+            let int = IntNet::of(net).expect("the caller built the net with its integer version");
+            run_episode(int, s, h, seed, episode, true, on_frame)
+        }
+        ControllerKind::Lqr => run_episode(Lqr::of(&s.rig), s, h, seed, episode, false, on_frame),
+        ControllerKind::LqrPredict => {
+            run_episode(Lqr::of(&s.rig), s, h, seed, episode, true, on_frame)
+        }
+        ControllerKind::Rule => run_episode(AngleRule, s, h, seed, episode, false, on_frame),
+        ControllerKind::Random => run_episode(
+            Random(episode_rng(seed, episode, Stream::Policy)),
+            s,
+            h,
+            seed,
+            episode,
+            false,
+            on_frame,
+        ),
+    }
+}
+
+/// `episodes` seeded episodes of one controller in one scenario, in parallel, in order.
+pub fn evaluate(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: u64,
+) -> Row {
+    let eps: Vec<EpisodeStats> = (0..episodes)
+        .into_par_iter()
+        .map(|i| episode(kind, net, scenario, horizon, seed, i, |_| {}))
+        .collect();
+    let period = (horizon, scenario.params.tau);
+    Row::from_episodes(&kind.to_string(), &scenario.name, period, seed, &eps)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn results_do_not_depend_on_threads() {
+        let net = Net::shipped();
+        let s = Scenario::parse("noise").unwrap();
+        let one = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        let a = one.install(|| evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64));
+        let b = evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64);
+        assert_eq!(a, b);
+    }
+}

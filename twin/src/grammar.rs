@@ -1,0 +1,351 @@
+//! The one grammar of worlds: a scenario (`noise+delay=2`) and a domain of them
+//! (`length=0.75..1.25+delay=0..4@0.5`) are written alike, and a scenario is a domain whose
+//! every value is a single point. [`PARTS`] is the one table of parts: their fields, bounds
+//! and defaults and what each means; the parser, the errors, the command-line help and the
+//! README's table are all made from it.
+//!
+//! A spec is `nominal`, or parts joined by `+`; a part is `KEY`, or `KEY=V[/V...]`, each value
+//! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
+//! share P of samples only.
+
+use crate::scenario::MAX_SPEC_BYTES;
+
+/// How a field's values are read and, in a domain, drawn.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Kind {
+    /// A real number, drawn uniformly.
+    Real,
+    /// A whole number, drawn uniformly among the whole numbers of the range.
+    Whole,
+    /// A whole number drawn log-uniformly: each octave as likely (encoder resolutions).
+    LogWhole,
+}
+
+/// What a field is when a spec leaves it out.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Fallback {
+    /// It may not be left out.
+    Required,
+    /// This value.
+    Value(f64),
+    /// Five times the part's first field (a cart encoder on a 20 cm pulley: 5 counts per
+    /// metre for each count per revolution).
+    FiveTimesFirst,
+    /// Absent: the part means something else without it.
+    Absent,
+}
+
+/// One number of a part.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Field {
+    /// What it is, as errors name it.
+    pub name: &'static str,
+    /// How it is read and drawn.
+    pub kind: Kind,
+    /// Smallest accepted value.
+    pub lo: f64,
+    /// Largest accepted value.
+    pub hi: f64,
+    /// Its value when left out.
+    pub fallback: Fallback,
+}
+
+/// One kind of part: its key, its fields, its meaning.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct PartSpec {
+    /// The key, before `=`.
+    pub key: &'static str,
+    /// The values after `=`, separated by `/`, in order; the first is required unless its
+    /// fallback says otherwise (then the part may be written as its key alone).
+    pub fields: &'static [Field],
+    /// The part's syntax as the help shows it.
+    pub syntax: &'static str,
+    /// What it does.
+    pub doc: &'static str,
+}
+
+const fn field(name: &'static str, kind: Kind, lo: f64, hi: f64, fallback: Fallback) -> Field {
+    Field {
+        name,
+        kind,
+        lo,
+        hi,
+        fallback,
+    }
+}
+
+/// The range a physical quantity's factor may take: wide enough for any robustness study,
+/// narrow enough that the plant's arithmetic stays finite.
+pub const FACTOR_RANGE: (f64, f64) = (1e-3, 1e3);
+
+const FACTOR: Field = field(
+    "factor",
+    Kind::Real,
+    FACTOR_RANGE.0,
+    FACTOR_RANGE.1,
+    Fallback::Required,
+);
+
+/// Every part, in the order the help lists them.
+pub const PARTS: &[PartSpec] = &[
+    PartSpec {
+        key: "noise",
+        fields: &[field(
+            "scale",
+            Kind::Real,
+            0.0,
+            1000.0,
+            Fallback::Value(1.0),
+        )],
+        syntax: "noise[=SCALE]",
+        doc: "Gaussian sensor noise, SCALE times 1 cm, 5 cm/s, 0.3 degrees, 0.05 rad/s \
+              (on the positions before quantisation when read through encoders)",
+    },
+    PartSpec {
+        key: "delay",
+        fields: &[field(
+            "delay",
+            Kind::Whole,
+            0.0,
+            crate::scenario::MAX_DELAY as f64,
+            Fallback::Value(1.0),
+        )],
+        syntax: "delay[=N]",
+        doc: "N periods of actuator dead time (1 if omitted), known to the controller",
+    },
+    PartSpec {
+        key: "force",
+        fields: &[FACTOR],
+        syntax: "force=F",
+        doc: "F times the motor's stall force",
+    },
+    PartSpec {
+        key: "length",
+        fields: &[FACTOR],
+        syntax: "length=F",
+        doc: "F times the pole's length to its centre of mass",
+    },
+    PartSpec {
+        key: "polemass",
+        fields: &[FACTOR],
+        syntax: "polemass=F",
+        doc: "F times the pole's mass",
+    },
+    PartSpec {
+        key: "cartmass",
+        fields: &[FACTOR],
+        syntax: "cartmass=F",
+        doc: "F times the cart's mass",
+    },
+    PartSpec {
+        key: "friction",
+        fields: &[
+            field("cart coefficient", Kind::Real, 0.0, 1.0, Fallback::Required),
+            field(
+                "pivot coefficient",
+                Kind::Real,
+                0.0,
+                0.1,
+                Fallback::Value(0.0),
+            ),
+        ],
+        syntax: "friction=C[/P]",
+        doc: "Coulomb friction C of the cart on the track and viscous friction P (N m s/rad) \
+              at the pivot (Florian 2007's corrected equations)",
+    },
+    PartSpec {
+        key: "encoder",
+        fields: &[
+            field(
+                "encoder counts per revolution",
+                Kind::LogWhole,
+                16.0,
+                (1u32 << 24) as f64,
+                Fallback::Required,
+            ),
+            field(
+                "encoder counts per metre",
+                Kind::Whole,
+                16.0,
+                (1u32 << 26) as f64,
+                Fallback::FiveTimesFirst,
+            ),
+            field("discount", Kind::Real, 0.0, 0.99, Fallback::Absent),
+        ],
+        syntax: "encoder=N[/M[/D]]",
+        doc: "positions read by encoders of N counts per revolution and M per metre (5N if \
+              omitted) through the board's observer, or with D through the model-free \
+              alpha-beta filter of discount D",
+    },
+    PartSpec {
+        key: "push",
+        fields: &[
+            field("impulse", Kind::Real, 0.0, 1000.0, Fallback::Value(0.5)),
+            field(
+                "push interval",
+                Kind::Whole,
+                1.0,
+                u32::MAX as f64,
+                Fallback::Value(100.0),
+            ),
+        ],
+        syntax: "push[=IMPULSE[/EVERY]]",
+        doc: "a push of IMPULSE N s (0.5 if omitted) every EVERY periods (100), to a random side",
+    },
+];
+
+/// A closed range `[lo, hi]`; a point when `lo == hi`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Span {
+    /// Its low end.
+    pub lo: f64,
+    /// Its high end.
+    pub hi: f64,
+}
+
+impl Span {
+    /// Whether it holds one value.
+    pub fn is_point(&self) -> bool {
+        self.lo == self.hi
+    }
+}
+
+/// One parsed part: which, its values (`None` where a field was left out) and its share.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Part {
+    /// Its kind.
+    pub spec: &'static PartSpec,
+    /// One per field of `spec`.
+    pub values: Vec<Option<Span>>,
+    /// The share of samples it applies in (1 in a scenario).
+    pub share: f64,
+}
+
+/// Splits `spec` into parts (`nominal` and `""` are none), checking every value against its
+/// field. `what` names the spec in errors (`scenario` or `domain`).
+pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
+    let shown = weights::quote(spec);
+    if spec.len() > MAX_SPEC_BYTES {
+        return Err(format!(
+            "{what}: expected at most {MAX_SPEC_BYTES} bytes, found {} ({shown})",
+            spec.len()
+        ));
+    }
+    if spec.is_empty() || spec == "nominal" {
+        return Ok(Vec::new());
+    }
+    spec.split('+')
+        .map(|raw| parse_part(raw).map_err(|e| format!("{what} {shown}: {e}")))
+        .collect()
+}
+
+fn parse_part(raw: &str) -> Result<Part, String> {
+    let (body, share) = match raw.split_once('@') {
+        None => (raw, 1.0),
+        Some((b, s)) => match s.parse::<f64>() {
+            Ok(v) if (0.0..=1.0).contains(&v) => (b, v),
+            _ => {
+                return Err(format!(
+                    "{} needs a share in [0, 1] after @, found {}",
+                    weights::quote(raw),
+                    weights::quote(s)
+                ));
+            }
+        },
+    };
+    let (key, text) = match body.split_once('=') {
+        Some((k, v)) => (k, Some(v)),
+        None => (body, None),
+    };
+    let spec = PARTS.iter().find(|p| p.key == key).ok_or_else(|| {
+        format!(
+            "unknown part {} (expected nominal, or parts joined by + from {})",
+            weights::quote(body),
+            syntax_list()
+        )
+    })?;
+    let texts: Vec<&str> = match text {
+        None => Vec::new(),
+        Some(t) => t.split('/').collect(),
+    };
+    if texts.len() > spec.fields.len() {
+        return Err(format!(
+            "{key} takes at most {} values ({}), found {}",
+            spec.fields.len(),
+            spec.syntax,
+            weights::quote(text.unwrap_or(""))
+        ));
+    }
+    let mut values = Vec::with_capacity(spec.fields.len());
+    for (i, f) in spec.fields.iter().enumerate() {
+        values.push(match texts.get(i) {
+            Some(t) => Some(parse_span(f, t)?),
+            None if f.fallback == Fallback::Required => {
+                return Err(format!("{key} needs a value, e.g. {}", spec.syntax));
+            }
+            None => None,
+        });
+    }
+    Ok(Part {
+        spec,
+        values,
+        share,
+    })
+}
+
+fn parse_span(f: &Field, text: &str) -> Result<Span, String> {
+    let (a, b) = text.split_once("..").unwrap_or((text, text));
+    let read = |t: &str| -> Result<f64, String> {
+        let v = match f.kind {
+            Kind::Real => t.parse::<f64>().ok().filter(|v| v.is_finite()),
+            Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
+        };
+        v.filter(|v| (f.lo..=f.hi).contains(v)).ok_or_else(|| {
+            let kind = match f.kind {
+                Kind::Real => "a number",
+                Kind::Whole | Kind::LogWhole => "a whole number",
+            };
+            format!(
+                "{} must be {kind} in [{}, {}], found {}",
+                f.name,
+                f.lo,
+                f.hi,
+                weights::quote(t)
+            )
+        })
+    };
+    let (lo, hi) = (read(a)?, read(b)?);
+    if lo > hi {
+        return Err(format!(
+            "{} needs LO..HI with LO <= HI, found {}",
+            f.name,
+            weights::quote(text)
+        ));
+    }
+    Ok(Span { lo, hi })
+}
+
+/// Every part's syntax, comma-separated: what an error lists and the help shows.
+pub fn syntax_list() -> String {
+    let all: Vec<&str> = PARTS.iter().map(|p| p.syntax).collect();
+    all.join(", ")
+}
+
+/// The help of a `--scenario` flag.
+pub fn scenario_help() -> String {
+    format!(
+        "Scenarios, one row each: `nominal`, or parts joined by `+` from {}; `all` is the \
+         robustness set, `hard` the set beyond it, `hard-candidates` what that set is chosen \
+         from",
+        syntax_list()
+    )
+}
+
+/// The table of parts in Markdown, as the README shows it.
+pub fn markdown_table() -> String {
+    let mut out = String::from("| part | what it does |\n| --- | --- |\n");
+    for p in PARTS {
+        out.push_str(&format!("| `{}` | {} |\n", p.syntax, p.doc));
+    }
+    out
+}

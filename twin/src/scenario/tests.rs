@@ -1,0 +1,149 @@
+use super::*;
+
+#[test]
+fn parts_set_what_they_say() {
+    let s = Scenario::parse("force=1.2+length=0.8+polemass=1.2+cartmass=0.8").unwrap();
+    let d = Params::default();
+    assert_eq!(s.params.force_mag, d.force_mag * 1.2);
+    assert_eq!(s.params.length, d.length * 0.8);
+    assert_eq!(s.params.masspole, d.masspole * 1.2);
+    assert_eq!(s.params.masscart, d.masscart * 0.8);
+    // The board is not told the physics: its rig stays Gymnasium's.
+    assert_eq!(s.rig, Rig::GYMNASIUM);
+    assert_eq!(
+        Scenario::parse("push=0.3/40").unwrap().push,
+        Some(Push {
+            impulse: 0.3,
+            every: 40
+        })
+    );
+    assert_eq!(
+        Scenario::parse("push").unwrap().push,
+        Some(Push {
+            impulse: 0.5,
+            every: 100
+        })
+    );
+    assert_eq!(Scenario::parse("delay").unwrap().delay(), 1);
+    assert_eq!(Scenario::parse("delay=3").unwrap().delay(), 3);
+    assert_eq!(
+        Scenario::parse("noise=2").unwrap().noise_std,
+        NOISE_STD.map(|v| v * 2.0)
+    );
+    let f = Scenario::parse("friction=0.05/0.001").unwrap().params;
+    assert_eq!((f.cart_friction, f.pole_friction), (0.05, 0.001));
+    let f = Scenario::parse("friction=0.05").unwrap().params;
+    assert_eq!(f.pole_friction, 0.0);
+    let e = Scenario::parse("encoder=1024").unwrap().rig.encoders;
+    assert_eq!((e.pole_counts_per_rev, e.cart_counts_per_m), (1024, 5120));
+    let e = Scenario::parse("encoder=4096/20000").unwrap().rig.encoders;
+    assert_eq!((e.pole_counts_per_rev, e.cart_counts_per_m), (4096, 20000));
+    assert_eq!(Scenario::nominal(), Scenario::parse("nominal").unwrap());
+    assert_eq!(Scenario::default_set().len(), 13);
+    assert_eq!(Scenario::hard_set().len(), HARD.len());
+    // The hard set is chosen from the candidates, whose every spec parses.
+    assert_eq!(Scenario::hard_candidates().len(), HARD_CANDIDATES.len());
+    for h in HARD {
+        assert!(HARD_CANDIDATES.contains(h), "{h}");
+    }
+}
+
+#[test]
+fn a_scenario_is_built_on_its_rig() {
+    let rig = Rig {
+        params: Params {
+            masscart: 0.6,
+            tau: 0.01,
+            ..Params::default()
+        },
+        dead_time: 2,
+        ..Rig::GYMNASIUM
+    };
+    let s = Scenario::parse_on("cartmass=2", &rig).unwrap();
+    assert_eq!(s.params.masscart, 1.2);
+    assert_eq!((s.rig, s.delay()), (rig, 2));
+    assert_eq!(Scenario::parse_on("delay=0", &rig).unwrap().delay(), 0);
+    // Factors are bounded relative to the rig's own values.
+    let e = Scenario::parse_on("cartmass=1000+cartmass=2", &rig).unwrap_err();
+    assert!(e.contains("cartmass comes to 2e3 times nominal"), "{e}");
+}
+
+#[test]
+fn an_encoder_spec_reads_through_the_observer_or_a_filter_of_its_discount() {
+    assert_eq!(Scenario::nominal().sensing, Sensing::Exact);
+    assert_eq!(
+        Scenario::parse("encoder=1024").unwrap().sensing,
+        Sensing::Observer
+    );
+    let s = Scenario::parse("encoder=2400/16000/0").unwrap();
+    assert_eq!(s.sensing, Sensing::AlphaBeta(0.0));
+    assert_eq!(s.rig.encoders.cart_counts_per_m, 16_000);
+    let e = Scenario::parse("encoder=2400/16000/1.5").unwrap_err();
+    assert!(
+        e.contains("discount must be a number in [0, 0.99], found \"1.5\""),
+        "{e}"
+    );
+    assert!(Scenario::parse("encoder=2400/16000/x").is_err());
+}
+
+#[test]
+fn bad_specs_are_rejected_with_the_reason() {
+    for (spec, needle) in [
+        (
+            "wind",
+            "unknown part \"wind\" (expected nominal, or parts joined by + from noise",
+        ),
+        ("force", "force needs a value, e.g. force=F"),
+        (
+            "force=-1",
+            "factor must be a number in [0.001, 1000], found \"-1\"",
+        ),
+        (
+            "push=0.5/0",
+            "push interval must be a whole number in [1, 4294967295], found \"0\"",
+        ),
+        (
+            "noise=x",
+            "scale must be a number in [0, 1000], found \"x\"",
+        ),
+        (
+            "force=0",
+            "factor must be a number in [0.001, 1000], found \"0\"",
+        ),
+        // One quantity's factors multiply: each is fine, their product is not.
+        ("length=999+length=999", "length comes to 9.98"),
+        ("length=1e300", "found \"1e300\""),
+        ("push=1e9", "impulse must be a number in [0, 1000]"),
+        (
+            "delay=17",
+            "delay must be a whole number in [0, 16], found \"17\"",
+        ),
+        ("delay=-1", "delay must be a whole number"),
+        ("delay=1.5", "delay must be a whole number"),
+        (
+            "encoder=8",
+            "encoder counts per revolution must be a whole number in [16, 16777216]",
+        ),
+        ("encoder", "encoder needs a value"),
+        ("friction=2", "cart coefficient must be a number in [0, 1]"),
+        (
+            "friction=0.1/0.5",
+            "pivot coefficient must be a number in [0, 0.1]",
+        ),
+        ("friction=0.1/0.01/3", "friction takes at most 2 values"),
+        (
+            "length=0.5..0.9",
+            "takes single values, not ranges or shares",
+        ),
+        ("noise@0.5", "takes single values, not ranges or shares"),
+    ] {
+        let e = Scenario::parse(spec).unwrap_err();
+        assert!(e.contains(needle), "{spec}: {e}");
+    }
+    let long = "noise+".repeat(10_000);
+    let e = Scenario::parse(&long).unwrap_err();
+    assert!(
+        e.contains("expected at most 1000 bytes") && e.len() < 400,
+        "{e}"
+    );
+}
