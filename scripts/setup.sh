@@ -4,11 +4,13 @@
 # qemu-system-misc (RISC-V) for the firmware tests. Every entry point runs this first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/targets.sh
 toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+targets=$(mcu_targets)
 rustup toolchain install "$toolchain" --profile minimal >/dev/null
 rustup component add --toolchain "$toolchain" clippy rustfmt llvm-tools >/dev/null
-rustup target add --toolchain "$toolchain" thumbv7em-none-eabihf thumbv6m-none-eabi \
-  thumbv8m.main-none-eabihf riscv32imac-unknown-none-elf >/dev/null
+# shellcheck disable=SC2086 # one word per target
+rustup target add --toolchain "$toolchain" $targets >/dev/null
 missing=""
 command -v qemu-system-arm >/dev/null || missing="$missing qemu-system-arm"
 command -v qemu-system-riscv32 >/dev/null || missing="$missing qemu-system-misc"
