@@ -4,11 +4,43 @@
 # qemu-system-misc (RISC-V) for the firmware tests. Every entry point runs this first.
 set -euo pipefail
 cd "$(dirname "$0")/.."
+. scripts/targets.sh
+
+# The addresses this machine's apt already fetches bookworm itself from, first choice first:
+# deb822 `URIs:` of a stanza whose `Suites:` name `bookworm`, then one-line `deb` entries.
+bookworm_uris() {
+  local f
+  for f in /etc/apt/sources.list.d/*.sources; do
+    [ -r "$f" ] || continue
+    awk 'BEGIN { RS = ""; FS = "\n" }
+      {
+        uris = ""; deb = 0; suite = 0; off = 0
+        for (i = 1; i <= NF; i++) {
+          if ($i ~ /^URIs:/) { uris = $i; sub(/^URIs:[ \t]*/, "", uris) }
+          if ($i ~ /^Types:/ && ($i " ") ~ /[ \t]deb[ \t]/) deb = 1
+          if ($i ~ /^Suites:/ && ($i " ") ~ /[ \t]bookworm[ \t]/) suite = 1
+          if ($i ~ /^Enabled:[ \t]*no/) off = 1
+        }
+        if (uris != "" && deb && suite && !off) { split(uris, u, /[ \t]+/); print u[1] }
+      }' "$f"
+  done
+  for f in /etc/apt/sources.list /etc/apt/sources.list.d/*.list; do
+    [ -r "$f" ] || continue
+    # deb [OPTIONS] URI SUITE COMPONENT...
+    awk '$1 == "deb" {
+        i = 2
+        if ($2 ~ /^\[/) { while (i < NF && $i !~ /\]$/) i++; i++ }
+        if ($(i + 1) == "bookworm") print $i
+      }' "$f"
+  done
+}
+
 toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+targets=$(mcu_targets)
 rustup toolchain install "$toolchain" --profile minimal >/dev/null
 rustup component add --toolchain "$toolchain" clippy rustfmt llvm-tools >/dev/null
-rustup target add --toolchain "$toolchain" thumbv7em-none-eabihf thumbv6m-none-eabi \
-  thumbv8m.main-none-eabihf riscv32imac-unknown-none-elf >/dev/null
+# shellcheck disable=SC2086 # one word per target
+rustup target add --toolchain "$toolchain" $targets >/dev/null
 missing=""
 command -v qemu-system-arm >/dev/null || missing="$missing qemu-system-arm"
 command -v qemu-system-riscv32 >/dev/null || missing="$missing qemu-system-misc"
@@ -23,8 +55,16 @@ if [ -n "$missing" ] && command -v apt-get >/dev/null; then
     # qemu-system packages (qemu-utils breaks qemu-system-common < 8): take backports' too.
     . /etc/os-release
     [ "${VERSION_CODENAME:-}" = bookworm ] || exit 1
-    echo "retrying from bookworm-backports"
-    echo "deb http://deb.debian.org/debian bookworm-backports main" |
+    # Backports from the mirror the machine already uses for bookworm.
+    uri=$(bookworm_uris | sed -n 1p)
+    if [ -z "$uri" ]; then
+      echo "setup: no apt source for bookworm in /etc/apt/sources.list or" \
+        "/etc/apt/sources.list.d/ to take the bookworm-backports address from;" \
+        "add bookworm-backports to apt's sources and rerun" >&2
+      exit 1
+    fi
+    echo "retrying from bookworm-backports at $uri"
+    printf 'deb %s bookworm-backports main\n' "$uri" |
       $sudo_ tee /etc/apt/sources.list.d/bookworm-backports.list >/dev/null
     $sudo_ apt-get update -qq
     # shellcheck disable=SC2086 # one word per package

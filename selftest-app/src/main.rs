@@ -11,8 +11,9 @@
 //! On the host the same self-test runs natively, so the two reports can be compared.
 //!
 //! This crate owns what a board's own application would: the runtime (`cortex-m-rt`), the
-//! critical-section implementation, the memory map (`memory/`, through
-//! `build.rs`) and the panic handler. The `firmware` library it runs has none of them.
+//! critical-section implementation, the memory maps (the default target's `memory.x` at the
+//! repository root, the other machines' in `memory/`; `build.rs` says how each is linked) and
+//! the panic handler. The `firmware` library it runs has none of them.
 #![cfg_attr(target_os = "none", no_std)]
 #![cfg_attr(target_os = "none", no_main)]
 #![deny(unsafe_code)]

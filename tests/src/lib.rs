@@ -1,1 +1,62 @@
-//! End-to-end tests live in `tests/`; this crate has no code of its own.
+//! End-to-end tests live in `tests/`. This library holds what several of them read from the
+//! repository: the microcontroller targets, listed once in rust-toolchain.toml (rustup reads
+//! them there), and the QEMU runners `.cargo/config.toml` gives them.
+
+use std::path::{Path, PathBuf};
+
+/// The repository's root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn toml_file(name: &str) -> toml::Table {
+    let path = repo().join(name);
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    text.parse()
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+/// rust-toolchain.toml's `targets`, in the file's order.
+pub fn mcu_targets() -> Vec<String> {
+    let file = toml_file("rust-toolchain.toml");
+    let list = file
+        .get("toolchain")
+        .and_then(|t| t.get("targets"))
+        .and_then(toml::Value::as_array)
+        .expect("rust-toolchain.toml has no toolchain.targets list");
+    let targets: Vec<String> = list
+        .iter()
+        .map(|t| t.as_str().expect("a target is a string").to_owned())
+        .collect();
+    assert!(!targets.is_empty(), "rust-toolchain.toml lists no targets");
+    targets
+}
+
+/// The default target: the first listed, the one the root `memory.x` maps.
+pub fn default_target() -> String {
+    mcu_targets().swap_remove(0)
+}
+
+/// Each target `.cargo/config.toml` gives a `runner`, with that runner. An unquoted triple
+/// with a dot in it (`[target.thumbv8m.main-none-eabihf]`) is a nested table in TOML, and
+/// cargo reads it as the dotted name, so the walk joins the keys the same way.
+pub fn runners() -> Vec<(String, String)> {
+    fn walk(prefix: &str, table: &toml::Table, found: &mut Vec<(String, String)>) {
+        for (key, value) in table {
+            let Some(inner) = value.as_table() else {
+                continue;
+            };
+            let name = format!("{prefix}{key}");
+            match inner.get("runner").and_then(toml::Value::as_str) {
+                Some(runner) => found.push((name, runner.to_owned())),
+                None => walk(&format!("{name}."), inner, found),
+            }
+        }
+    }
+    let file = toml_file(".cargo/config.toml");
+    let mut found = Vec::new();
+    if let Some(targets) = file.get("target").and_then(toml::Value::as_table) {
+        walk("", targets, &mut found);
+    }
+    found
+}

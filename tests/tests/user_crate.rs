@@ -1,11 +1,13 @@
 //! A policy exported into a crate of a board's own: the generated module compiles outside
 //! this workspace, on the host (where rustc's own literal parsing is checked against the
-//! weights, bit for bit) and for `thumbv7em-none-eabihf`, and depending on `firmware` brings
-//! none of the self-test application's runtime.
+//! weights, bit for bit) and for the default microcontroller target (the first in
+//! rust-toolchain.toml), and on none of the listed targets does depending on `firmware` bring
+//! any of the self-test application's runtime.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use e2e::{default_target, mcu_targets, repo};
 use firmware::network::{Mlp, shapes};
 use weights::Weights;
 use weights::source::rust_module;
@@ -18,10 +20,6 @@ const PROBES: [[f32; 4]; 4] = [
     [-2.4, -1.5, -0.2094395, -2.0],
     [1.0e-7, -3.3333333, 0.12345679, -0.9876543],
 ];
-
-fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
-}
 
 /// Weights whose decimal forms are awkward: subnormals, extremes, signed zeros, values that
 /// need nine significant digits.
@@ -153,23 +151,17 @@ fn an_exported_policy_builds_in_a_board_crate_bit_for_bit() {
         );
     }
 
-    // For a Cortex-M4F, as a static library: all of firmware's code path is compiled.
+    // For the default target, as a static library: all of firmware's code path is compiled.
+    let target = default_target();
     if std::env::var_os("CARTPOLE_SKIP_THUMB").is_some_and(|v| v == "1") {
-        eprintln!("SKIPPED: CARTPOLE_SKIP_THUMB=1, no thumbv7em-none-eabihf build");
+        eprintln!("SKIPPED: CARTPOLE_SKIP_THUMB=1, no {target} build");
         return;
     }
     cargo(
         &dir,
-        &[
-            "build",
-            "-q",
-            "--release",
-            "--lib",
-            "--target",
-            "thumbv7em-none-eabihf",
-        ],
+        &["build", "-q", "--release", "--lib", "--target", &target],
     );
-    let lib = dir.join("target/thumbv7em-none-eabihf/release/libuser_board.a");
+    let lib = dir.join(format!("target/{target}/release/libuser_board.a"));
     assert!(lib.metadata().unwrap().len() > 18_000, "{}", lib.display());
 }
 
@@ -179,13 +171,13 @@ fn depending_on_firmware_brings_no_runtime_linker_script_or_critical_section() {
         "user-board-tree",
         &rust_module(&awkward(), "BOARD_POLICY", &[]).unwrap(),
     );
-    for target in ["thumbv7em-none-eabihf", "thumbv6m-none-eabi"] {
+    for target in mcu_targets() {
         let out = cargo(
             &dir,
             &[
                 "tree",
                 "--target",
-                target,
+                &target,
                 "-e",
                 "normal,build",
                 "--prefix",
@@ -199,6 +191,9 @@ fn depending_on_firmware_brings_no_runtime_linker_script_or_critical_section() {
             "cortex-m ",
             "critical-section",
             "cortex-m-semihosting",
+            "riscv-rt",
+            "riscv ",
+            "riscv-semihosting",
             "defmt",
         ] {
             assert!(
