@@ -1,7 +1,6 @@
 //! `policy-export`: trains the cart-pole controller and exports it for firmware.
 
 use std::io::IsTerminal;
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Mutex;
@@ -9,9 +8,7 @@ use std::sync::Mutex;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use policy_export::config::{
-    Config, ConfigError, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
-};
+use policy_export::config::{Config, ConfigError, KernelChoice};
 use policy_export::run::{self, Staging, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
@@ -22,7 +19,7 @@ use weights::source;
 
 mod overrides;
 
-use overrides::Overrides;
+use overrides::{TrainArgs, build_config};
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -111,57 +108,6 @@ enum Format {
     Rust,
     /// A C header defining `static const struct cartpole_mlpH NAME`.
     C,
-}
-
-#[derive(Args)]
-#[command(allow_negative_numbers = true)]
-struct TrainArgs {
-    /// Starting point: the paper's Table 2, its fixed version, the fast CartPole-v1 learner,
-    /// or the deployable presets.
-    #[arg(long, value_enum, default_value = "paper")]
-    preset: Preset,
-    /// TOML file of config keys overriding the preset (flags override it in turn).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// One seed.
-    #[arg(long, default_value_t = 0, conflicts_with = "seeds")]
-    seed: u64,
-    /// A range of seeds run in parallel, e.g. 0..10; each gets DIR/seed-N.
-    #[arg(long, value_parser = parse_range)]
-    seeds: Option<Range<u64>>,
-    /// Run directory (omit to train without writing anything).
-    #[arg(long)]
-    out: Option<PathBuf>,
-    /// Print the final configuration as TOML and exit.
-    #[arg(long)]
-    print_config: bool,
-    #[command(flatten)]
-    set: Overrides,
-}
-
-fn parse_range(s: &str) -> Result<Range<u64>, String> {
-    let shown = weights::quote(s);
-    let (a, b) = s
-        .split_once("..")
-        .ok_or_else(|| format!("found {shown}; expected START..END, e.g. 0..10"))?;
-    let (a, b): (u64, u64) = match (a.parse(), b.parse()) {
-        (Ok(a), Ok(b)) => (a, b),
-        _ => {
-            return Err(format!(
-                "expected two whole numbers START..END, found {shown}"
-            ));
-        }
-    };
-    if a >= b {
-        return Err(format!("expected a non-empty range, found {a}..{b}"));
-    }
-    if b - a > MAX_SEEDS {
-        return Err(format!(
-            "expected at most {MAX_SEEDS} seeds, found {} in {a}..{b}",
-            b - a
-        ));
-    }
-    Ok(a..b)
 }
 
 fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoice) -> Result<()> {
@@ -253,23 +199,6 @@ fn main() -> ExitCode {
             ExitCode::from(if input { 2 } else { 1 })
         }
     }
-}
-
-fn build_config(args: &TrainArgs) -> Result<Config> {
-    let mut cfg = Config::preset(args.preset);
-    if let Some(path) = &args.config {
-        let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            ConfigError(format!(
-                "--config {}: expected UTF-8 text, {e}",
-                path.display()
-            ))
-        })?;
-        cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
-    }
-    args.set.apply(&mut cfg);
-    cfg.validate()?;
-    Ok(cfg)
 }
 
 fn cmd_train(args: TrainArgs) -> Result<()> {

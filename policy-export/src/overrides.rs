@@ -1,9 +1,86 @@
-//! The training flags: one per configuration key, laid over the preset and the TOML file.
+//! The `train` command's arguments, and the configuration they build in layers: a preset,
+//! then a TOML file over it, then one flag per key ([`Overrides`]) over that.
 //! (A module of the `policy-export` binary, not of the library.)
 
+use std::ops::Range;
+use std::path::PathBuf;
+
+use anyhow::Result;
 use clap::Args;
-use policy_export::config::{Algo, Config, Init, KernelChoice, TargetUpdate, Unit};
+use policy_export::config::{
+    Algo, Config, ConfigError, Init, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
+    TargetUpdate, Unit,
+};
 use policy_export::nn::Loss;
+use weights::files::read_capped;
+
+#[derive(Args)]
+#[command(allow_negative_numbers = true)]
+pub struct TrainArgs {
+    /// Starting point: the paper's Table 2, its fixed version, the fast CartPole-v1 learner,
+    /// or the deployable presets.
+    #[arg(long, value_enum, default_value = "paper")]
+    pub preset: Preset,
+    /// TOML file of config keys overriding the preset (flags override it in turn).
+    #[arg(long)]
+    pub config: Option<PathBuf>,
+    /// One seed.
+    #[arg(long, default_value_t = 0, conflicts_with = "seeds")]
+    pub seed: u64,
+    /// A range of seeds run in parallel, e.g. 0..10; each gets DIR/seed-N.
+    #[arg(long, value_parser = parse_range)]
+    pub seeds: Option<Range<u64>>,
+    /// Run directory (omit to train without writing anything).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Print the final configuration as TOML and exit.
+    #[arg(long)]
+    pub print_config: bool,
+    #[command(flatten)]
+    pub set: Overrides,
+}
+
+fn parse_range(s: &str) -> Result<Range<u64>, String> {
+    let shown = weights::quote(s);
+    let (a, b) = s
+        .split_once("..")
+        .ok_or_else(|| format!("found {shown}; expected START..END, e.g. 0..10"))?;
+    let (a, b): (u64, u64) = match (a.parse(), b.parse()) {
+        (Ok(a), Ok(b)) => (a, b),
+        _ => {
+            return Err(format!(
+                "expected two whole numbers START..END, found {shown}"
+            ));
+        }
+    };
+    if a >= b {
+        return Err(format!("expected a non-empty range, found {a}..{b}"));
+    }
+    if b - a > MAX_SEEDS {
+        return Err(format!(
+            "expected at most {MAX_SEEDS} seeds, found {} in {a}..{b}",
+            b - a
+        ));
+    }
+    Ok(a..b)
+}
+
+pub fn build_config(args: &TrainArgs) -> Result<Config> {
+    let mut cfg = Config::preset(args.preset);
+    if let Some(path) = &args.config {
+        let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
+        let text = String::from_utf8(bytes).map_err(|e| {
+            ConfigError(format!(
+                "--config {}: expected UTF-8 text, {e}",
+                path.display()
+            ))
+        })?;
+        cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
+    }
+    args.set.apply(&mut cfg);
+    cfg.validate()?;
+    Ok(cfg)
+}
 
 /// One flag per configuration key; see `Config` for their meaning.
 #[derive(Args)]
