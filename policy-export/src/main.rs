@@ -1,7 +1,6 @@
 //! `policy-export`: trains the cart-pole controller and exports it for firmware.
 
 use std::io::IsTerminal;
-use std::ops::Range;
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Mutex;
@@ -9,9 +8,7 @@ use std::sync::Mutex;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
-use policy_export::config::{
-    Config, ConfigError, KernelChoice, MAX_CONFIG_BYTES, MAX_SEEDS, Preset,
-};
+use policy_export::config::{Config, ConfigError, KernelChoice};
 use policy_export::run::{self, Staging, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
@@ -22,7 +19,7 @@ use weights::source;
 
 mod overrides;
 
-use overrides::Overrides;
+use overrides::{TrainArgs, build_config};
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -111,57 +108,6 @@ enum Format {
     Rust,
     /// A C header defining `static const struct cartpole_mlpH NAME`.
     C,
-}
-
-#[derive(Args)]
-#[command(allow_negative_numbers = true)]
-struct TrainArgs {
-    /// Starting point: the paper's Table 2, its fixed version, the fast CartPole-v1 learner,
-    /// or the deployable presets.
-    #[arg(long, value_enum, default_value = "paper")]
-    preset: Preset,
-    /// TOML file of config keys overriding the preset (flags override it in turn).
-    #[arg(long)]
-    config: Option<PathBuf>,
-    /// One seed.
-    #[arg(long, default_value_t = 0, conflicts_with = "seeds")]
-    seed: u64,
-    /// A range of seeds run in parallel, e.g. 0..10; each gets DIR/seed-N.
-    #[arg(long, value_parser = parse_range)]
-    seeds: Option<Range<u64>>,
-    /// Run directory (omit to train without writing anything).
-    #[arg(long)]
-    out: Option<PathBuf>,
-    /// Print the final configuration as TOML and exit.
-    #[arg(long)]
-    print_config: bool,
-    #[command(flatten)]
-    set: Overrides,
-}
-
-fn parse_range(s: &str) -> Result<Range<u64>, String> {
-    let shown = weights::quote(s);
-    let (a, b) = s
-        .split_once("..")
-        .ok_or_else(|| format!("found {shown}; expected START..END, e.g. 0..10"))?;
-    let (a, b): (u64, u64) = match (a.parse(), b.parse()) {
-        (Ok(a), Ok(b)) => (a, b),
-        _ => {
-            return Err(format!(
-                "expected two whole numbers START..END, found {shown}"
-            ));
-        }
-    };
-    if a >= b {
-        return Err(format!("expected a non-empty range, found {a}..{b}"));
-    }
-    if b - a > MAX_SEEDS {
-        return Err(format!(
-            "expected at most {MAX_SEEDS} seeds, found {} in {a}..{b}",
-            b - a
-        ));
-    }
-    Ok(a..b)
 }
 
 fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoice) -> Result<()> {
@@ -255,23 +201,6 @@ fn main() -> ExitCode {
     }
 }
 
-fn build_config(args: &TrainArgs) -> Result<Config> {
-    let mut cfg = Config::preset(args.preset);
-    if let Some(path) = &args.config {
-        let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
-        let text = String::from_utf8(bytes).map_err(|e| {
-            ConfigError(format!(
-                "--config {}: expected UTF-8 text, {e}",
-                path.display()
-            ))
-        })?;
-        cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
-    }
-    args.set.apply(&mut cfg);
-    cfg.validate()?;
-    Ok(cfg)
-}
-
 fn cmd_train(args: TrainArgs) -> Result<()> {
     let cfg = build_config(&args)?;
     if args.print_config {
@@ -289,130 +218,186 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
         .as_deref()
         .map(|d| Staging::new(d, run::RUN_MARKERS))
         .transpose()?;
-    let tty = std::io::stderr().is_terminal();
-    let bars = MultiProgress::new();
-    let log = Mutex::new(());
-
-    // A budgeted run ends on its step count, long before its episode cap.
-    let budget = cfg.max_env_steps > 0;
-    let (len, unit) = if budget {
-        (cfg.max_env_steps, "steps")
-    } else {
-        (cfg.episodes as u64, "ep")
+    let progress = Progress::new(&cfg);
+    let one = |seed: u64| {
+        let dir = staging.as_ref().map(|st| {
+            if multi {
+                st.path().join(format!("seed-{seed}"))
+            } else {
+                st.path().to_path_buf()
+            }
+        });
+        train_seed(&cfg, seed, &progress, dir.as_deref())
     };
-    let one = |seed: u64| -> Result<Summary> {
-        let bar = tty.then(|| {
-            let b = bars.add(ProgressBar::new(len));
+    let summaries: Vec<Summary> = if multi {
+        seeds.par_iter().map(|&s| one(s)).collect::<Result<_>>()?
+    } else {
+        vec![one(seeds[0])?]
+    };
+    summaries.iter().for_each(print_summary);
+    if multi {
+        print_aggregate(&summaries, staging.as_ref())?;
+    }
+    if let Some(st) = staging {
+        st.commit()?;
+    }
+    Ok(())
+}
+
+/// Trains one seed and writes its run into `dir`, if there is one.
+fn train_seed(cfg: &Config, seed: u64, progress: &Progress, dir: Option<&Path>) -> Result<Summary> {
+    let mut shown = progress.seed(seed);
+    let result = train::train(cfg, seed, &mut |e| shown.episode(e))
+        .with_context(|| format!("seed {seed}"))?;
+    if let Some(b) = &shown.bar {
+        b.finish();
+    }
+    match dir {
+        Some(dir) => run::write_run(dir, cfg, seed, &result),
+        None => Ok(run::summarize(cfg, seed, &result)),
+    }
+}
+
+/// How the seeds of one `train` show their progress: a bar each on a terminal, else a line
+/// each tenth of the way.
+struct Progress {
+    bars: Option<MultiProgress>,
+    log: Mutex<()>,
+    budget: bool,
+    len: u64,
+    unit: &'static str,
+}
+
+/// One seed's share of a [`Progress`].
+struct SeedProgress<'a> {
+    all: &'a Progress,
+    seed: u64,
+    bar: Option<ProgressBar>,
+    every: u64,
+    next_log: u64,
+    window: Vec<f64>,
+}
+
+impl Progress {
+    fn new(cfg: &Config) -> Progress {
+        // A budgeted run ends on its step count, long before its episode cap.
+        let budget = cfg.max_env_steps > 0;
+        let (len, unit) = if budget {
+            (cfg.max_env_steps, "steps")
+        } else {
+            (cfg.episodes as u64, "ep")
+        };
+        Progress {
+            bars: std::io::stderr().is_terminal().then(MultiProgress::new),
+            log: Mutex::new(()),
+            budget,
+            len,
+            unit,
+        }
+    }
+
+    fn seed(&self, seed: u64) -> SeedProgress<'_> {
+        let bar = self.bars.as_ref().map(|bars| {
+            let b = bars.add(ProgressBar::new(self.len));
             b.set_style(
                 ProgressStyle::with_template(&format!(
-                    "{{prefix:>8}} {{bar:30}} {{pos:>4}}/{{len}} {unit} {{elapsed:>4}} {{msg}}"
+                    "{{prefix:>8}} {{bar:30}} {{pos:>4}}/{{len}} {} {{elapsed:>4}} {{msg}}",
+                    self.unit
                 ))
                 .expect("static template"),
             );
             b.set_prefix(format!("seed {seed}"));
             b
         });
-        let every = (len / 10).max(1);
-        let mut next_log = every;
-        let mut window = Vec::with_capacity(100);
-        let mut on_episode = |e: &EpisodeRecord| {
-            if window.len() == 100 {
-                window.remove(0);
-            }
-            window.push(e.ret);
-            let mean = window.iter().sum::<f64>() / window.len() as f64;
-            let msg = format!(
-                "return {:>3} mean100 {mean:>6.1} eps {:.3}",
-                e.ret, e.epsilon
-            );
-            let done = if budget {
-                e.env_steps
-            } else {
-                e.episode as u64
-            };
-            match &bar {
-                Some(b) => {
-                    b.set_position(done);
-                    b.set_message(msg);
-                }
-                None if done >= next_log => {
-                    next_log = (done / every + 1) * every;
-                    let _g = log.lock();
-                    eprintln!(
-                        "seed {seed} {unit} {done}/{len}: episode {}, {msg}",
-                        e.episode
-                    );
-                }
-                None => {}
-            }
-        };
-        let result =
-            train::train(&cfg, seed, &mut on_episode).with_context(|| format!("seed {seed}"))?;
-        if let Some(b) = &bar {
-            b.finish();
+        let every = (self.len / 10).max(1);
+        SeedProgress {
+            all: self,
+            seed,
+            bar,
+            every,
+            next_log: every,
+            window: Vec::with_capacity(100),
         }
-        let summary = match &staging {
-            Some(st) => {
-                let dir = if multi {
-                    st.path().join(format!("seed-{seed}"))
-                } else {
-                    st.path().to_path_buf()
-                };
-                run::write_run(&dir, &cfg, seed, &result)?
-            }
-            None => run::summarize(&cfg, seed, &result),
-        };
-        Ok(summary)
-    };
+    }
+}
 
-    let summaries: Vec<Summary> = if multi {
-        seeds.par_iter().map(|&s| one(s)).collect::<Result<_>>()?
-    } else {
-        vec![one(seeds[0])?]
-    };
-    for s in &summaries {
-        println!(
-            "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, policy at {} env \
-             steps, greedy eval {:>6.1} (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
-            s.seed,
-            s.episodes_run,
-            s.final_mean100,
-            s.solved_episode_195.map_or("-".into(), |e| e.to_string()),
-            s.policy_env_steps,
-            s.final_eval.mean,
-            s.final_eval.min,
-            s.final_eval.episodes,
-            s.final_eval.max_steps,
-            s.wall_s,
-            s.us_per_env_step
+impl SeedProgress<'_> {
+    fn episode(&mut self, e: &EpisodeRecord) {
+        if self.window.len() == 100 {
+            self.window.remove(0);
+        }
+        self.window.push(e.ret);
+        let mean = self.window.iter().sum::<f64>() / self.window.len() as f64;
+        let msg = format!(
+            "return {:>3} mean100 {mean:>6.1} eps {:.3}",
+            e.ret, e.epsilon
         );
-    }
-    if multi {
-        let agg = run::aggregate(&summaries);
-        println!(
-            "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475{}; \
-             {} evaluation episodes ({} env steps) chose the policies; median {:.1} s",
-            summaries.len(),
-            agg.median_final_mean100,
-            agg.seeds_greedy_at_least_475,
-            summaries.len(),
-            agg.policy_env_steps_at_475
-                .map_or(String::new(), |(m, max)| format!(
-                    " (env steps to their policy: median {m:.0}, max {max})"
-                )),
-            agg.selection_episodes,
-            agg.selection_steps,
-            agg.median_wall_s
-        );
-        if let Some(st) = &staging {
-            write_atomic(
-                &st.path().join("aggregate.json"),
-                &serde_json::to_vec_pretty(&agg)?,
-            )?;
+        let (all, seed) = (self.all, self.seed);
+        let done = if all.budget {
+            e.env_steps
+        } else {
+            e.episode as u64
+        };
+        match &self.bar {
+            Some(b) => {
+                b.set_position(done);
+                b.set_message(msg);
+            }
+            None if done >= self.next_log => {
+                self.next_log = (done / self.every + 1) * self.every;
+                let _g = all.log.lock();
+                eprintln!(
+                    "seed {seed} {} {done}/{}: episode {}, {msg}",
+                    all.unit, all.len, e.episode
+                );
+            }
+            None => {}
         }
     }
+}
+
+/// One line per seed.
+fn print_summary(s: &Summary) {
+    println!(
+        "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, policy at {} env \
+         steps, greedy eval {:>6.1} (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
+        s.seed,
+        s.episodes_run,
+        s.final_mean100,
+        s.solved_episode_195.map_or("-".into(), |e| e.to_string()),
+        s.policy_env_steps,
+        s.final_eval.mean,
+        s.final_eval.min,
+        s.final_eval.episodes,
+        s.final_eval.max_steps,
+        s.wall_s,
+        s.us_per_env_step
+    );
+}
+
+/// The seeds together, printed and written into the run directory as `aggregate.json`.
+fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<()> {
+    let agg = run::aggregate(summaries);
+    println!(
+        "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475{}; \
+         {} evaluation episodes ({} env steps) chose the policies; median {:.1} s",
+        summaries.len(),
+        agg.median_final_mean100,
+        agg.seeds_greedy_at_least_475,
+        summaries.len(),
+        agg.policy_env_steps_at_475
+            .map_or(String::new(), |(m, max)| format!(
+                " (env steps to their policy: median {m:.0}, max {max})"
+            )),
+        agg.selection_episodes,
+        agg.selection_steps,
+        agg.median_wall_s
+    );
     if let Some(st) = staging {
-        st.commit()?;
+        write_atomic(
+            &st.path().join("aggregate.json"),
+            &serde_json::to_vec_pretty(&agg)?,
+        )?;
     }
     Ok(())
 }

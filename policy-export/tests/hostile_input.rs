@@ -2,24 +2,20 @@
 //! the real keys never panic; a document is either refused with a short message or gives a
 //! configuration that `validate` then accepts or refuses, again without panicking.
 
+use std::sync::LazyLock;
+
 use policy_export::config::Config;
 use proptest::prelude::*;
 use proptest::test_runner::Config as Cases;
 
-const KEYS: [&str; 12] = [
-    "episodes",
-    "buffer_size",
-    "batch_size",
-    "max_steps",
-    "lr",
-    "adam_eps",
-    "gamma",
-    "tau",
-    "width",
-    "kernel",
-    "algo",
-    "final_eval_episodes",
-];
+/// Every key a file may set.
+static KEYS: LazyLock<Vec<String>> = LazyLock::new(|| {
+    toml::Table::try_from(Config::paper())
+        .unwrap()
+        .keys()
+        .cloned()
+        .collect()
+});
 
 fn check(text: &str) {
     match Config::paper().overlay_toml(text, "fuzz.toml") {

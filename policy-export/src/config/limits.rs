@@ -2,8 +2,13 @@
 //! limit, so a run's memory is bounded (the replay buffer is the largest allocation: about 70
 //! bytes a transition, 350 MB at its limit) and a typo cannot ask for a year of training.
 //! Real-valued settings must survive the conversion to f32 the kernels do.
+//!
+//! A key's own limit is declared with the key (`config_keys!` in the parent module) and lands
+//! in [`LIMITS`]; what involves several keys, and whether this CPU has the kernel, is checked
+//! here in [`Config::validate`].
 
-use firmware::network::SUPPORTED_WIDTHS;
+use std::fmt;
+use std::ops::RangeInclusive;
 
 use super::{Config, ConfigError};
 
@@ -12,219 +17,179 @@ pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
 /// Most seeds one `train --seeds` runs.
 pub const MAX_SEEDS: u64 = 10_000;
 
-/// One count of a configuration and the range it accepts.
-pub struct Count {
-    /// Its key (the TOML key; the flag is `--` and the key with `-` for `_`).
-    pub key: &'static str,
-    /// Smallest accepted value.
-    pub min: u64,
-    /// Largest accepted value.
-    pub max: u64,
-    get: fn(&Config) -> u64,
+/// What one key accepts.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Limit {
+    /// A count in this range.
+    Count(RangeInclusive<u64>),
+    /// One of these whole numbers.
+    OneOf(&'static [usize]),
+    /// A real number > 0 that stays finite and normal in f32.
+    PositiveInF32,
+    /// The same, described by the smallest value it accepts: for a key whose useful values
+    /// are tiny, where underflow to 0 is the likely mistake.
+    NormalInF32,
+    /// A real number in [0, 1).
+    BelowOne,
+    /// A real number in [0, 1].
+    ZeroToOne,
+    /// A real number in (0, 1] that stays normal in f32.
+    AboveZeroToOne,
+    /// A real number > 0, finite.
+    Positive,
+    /// A clipping threshold: >= 0 and finite in f32; 0 turns the clipping off.
+    Clip,
+    /// A domain spec `twin::Domain::parse` accepts.
+    Domain,
+    /// A learning-reward spec `train::Reward::parse` accepts.
+    Reward,
 }
 
-/// Every count's accepted range, in the order `docs/HOSTILE_INPUT.md` lists them.
-pub const COUNTS: [Count; 15] = [
-    Count {
-        key: "episodes",
-        min: 1,
-        max: 1_000_000,
-        get: |c| c.episodes as u64,
-    },
-    Count {
-        key: "max_steps",
-        min: 1,
-        max: 1_000_000,
-        get: |c| c.max_steps.into(),
-    },
-    Count {
-        key: "eval_max_steps",
-        min: 1,
-        max: 1_000_000,
-        get: |c| c.eval_max_steps.into(),
-    },
-    Count {
-        key: "buffer_size",
-        min: 1,
-        max: 5_000_000,
-        get: |c| c.buffer_size as u64,
-    },
-    Count {
-        key: "batch_size",
-        min: 1,
-        max: 4_096,
-        get: |c| c.batch_size as u64,
-    },
-    Count {
-        key: "train_every",
-        min: 1,
-        max: 1_000_000,
-        get: |c| c.train_every as u64,
-    },
-    Count {
-        key: "updates_per_train",
-        min: 1,
-        max: 1_000,
-        get: |c| c.updates_per_train as u64,
-    },
-    Count {
-        key: "max_env_steps",
-        min: 0,
-        max: 1_000_000_000,
-        get: |c| c.max_env_steps,
-    },
-    Count {
-        key: "target_period",
-        min: 1,
-        max: 1_000_000_000,
-        get: |c| c.target_period as u64,
-    },
-    Count {
-        key: "eval_every",
-        min: 0,
-        max: 1_000_000,
-        get: |c| c.eval_every as u64,
-    },
-    Count {
-        key: "eval_episodes",
-        min: 1,
-        max: 100_000,
-        get: |c| c.eval_episodes as u64,
-    },
-    Count {
-        key: "final_eval_episodes",
-        min: 1,
-        max: 100_000,
-        get: |c| c.final_eval_episodes as u64,
-    },
-    Count {
-        key: "finalists",
-        min: 0,
-        max: 100,
-        get: |c| c.finalists as u64,
-    },
-    Count {
-        key: "finalist_episodes",
-        min: 0,
-        max: 100_000,
-        get: |c| c.finalist_episodes as u64,
-    },
-    Count {
-        key: "finalist_max_steps",
-        min: 0,
-        max: 1_000_000,
-        get: |c| c.finalist_max_steps.into(),
-    },
-];
+/// A key's value as its [`Limit`] sees it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Value<'a> {
+    /// A count.
+    Whole(u64),
+    /// A real number.
+    Real(f64),
+    /// A spec.
+    Text(&'a str),
+}
+
+impl From<&usize> for Value<'_> {
+    fn from(v: &usize) -> Self {
+        // usize is at most 64 bits wide on every target this crate builds for.
+        Value::Whole(*v as u64)
+    }
+}
+
+impl From<&u32> for Value<'_> {
+    fn from(v: &u32) -> Self {
+        Value::Whole((*v).into())
+    }
+}
+
+impl From<&u64> for Value<'_> {
+    fn from(v: &u64) -> Self {
+        Value::Whole(*v)
+    }
+}
+
+impl From<&f64> for Value<'_> {
+    fn from(v: &f64) -> Self {
+        Value::Real(*v)
+    }
+}
+
+impl<'a> From<&'a String> for Value<'a> {
+    fn from(v: &'a String) -> Self {
+        Value::Text(v)
+    }
+}
+
+/// One key's limit, and how to read the key.
+pub struct KeyLimit {
+    /// Its key (the TOML key; the flag is `--` and the key with `-` for `_`).
+    pub key: &'static str,
+    /// What it accepts.
+    pub limit: Limit,
+    pub(super) get: fn(&Config) -> Value<'_>,
+}
+
+impl KeyLimit {
+    /// Checks the key of `c`; the error is a sentence that names it.
+    pub fn check(&self, c: &Config) -> Result<(), String> {
+        self.limit.check(self.key, (self.get)(c))
+    }
+}
+
+impl Limit {
+    /// Checks one value of `key`; the error is a sentence that names the key.
+    pub fn check(&self, key: &str, v: Value<'_>) -> Result<(), String> {
+        // The kernels compute in f32: a value must stay positive and finite there.
+        let f32_positive = |v: f64| v.is_finite() && v > 0.0 && (v as f32).is_normal();
+        let must = |ok: bool, be: &dyn fmt::Display, got: &dyn fmt::Display| {
+            if ok {
+                Ok(())
+            } else {
+                Err(format!("{key} must be {be}, got {got}"))
+            }
+        };
+        let parsed = |r: Result<(), String>| r.map_err(|e| format!("{key}: {e}"));
+        match (self, v) {
+            (Limit::Count(r), Value::Whole(n)) => must(
+                r.contains(&n),
+                &format_args!("in [{}, {}]", r.start(), r.end()),
+                &n,
+            ),
+            (Limit::OneOf(set), Value::Whole(n)) => must(
+                set.iter().any(|&w| w as u64 == n),
+                &format_args!("one of {set:?}"),
+                &n,
+            ),
+            (Limit::PositiveInF32, Value::Real(x)) => {
+                must(f32_positive(x), &"> 0 and finite in f32", &x)
+            }
+            (Limit::NormalInF32, Value::Real(x)) => must(
+                f32_positive(x),
+                &format_args!("a normal f32 > 0 (at least {:e})", f32::MIN_POSITIVE),
+                &x,
+            ),
+            (Limit::BelowOne, Value::Real(x)) => must((0.0..1.0).contains(&x), &"in [0, 1)", &x),
+            (Limit::ZeroToOne, Value::Real(x)) => must((0.0..=1.0).contains(&x), &"in [0, 1]", &x),
+            (Limit::AboveZeroToOne, Value::Real(x)) => {
+                must(x <= 1.0 && f32_positive(x), &"in (0, 1]", &x)
+            }
+            (Limit::Positive, Value::Real(x)) => {
+                must(x.is_finite() && x > 0.0, &"> 0 and finite", &x)
+            }
+            (Limit::Clip, Value::Real(x)) => must(
+                x >= 0.0 && (x as f32).is_finite(),
+                &">= 0 and finite in f32 (0 disables it)",
+                &x,
+            ),
+            (Limit::Domain, Value::Text(s)) => parsed(twin::Domain::parse(s).map(drop)),
+            (Limit::Reward, Value::Text(s)) => parsed(crate::train::Reward::parse(s).map(drop)),
+            (limit, v) => Err(format!("{key}: a {limit:?} limit cannot judge {v:?}")),
+        }
+    }
+}
 
 impl Config {
     /// Checks every value before any work starts; the error lists every problem.
     pub fn validate(&self) -> Result<(), ConfigError> {
-        let mut errs = Vec::new();
-        let mut check = |ok: bool, msg: String| {
-            if !ok {
-                errs.push(msg);
-            }
-        };
-        check(
-            SUPPORTED_WIDTHS.contains(&self.width),
-            format!(
-                "width must be one of {SUPPORTED_WIDTHS:?}, got {}",
-                self.width
-            ),
-        );
-        for c in &COUNTS {
-            let v = (c.get)(self);
-            check(
-                (c.min..=c.max).contains(&v),
-                format!("{} must be in [{}, {}], got {v}", c.key, c.min, c.max),
-            );
-        }
-        check(
-            self.finalists == 0 || (self.finalist_episodes > 0 && self.finalist_max_steps > 0),
-            format!(
-                "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
-                self.finalists, self.finalist_episodes, self.finalist_max_steps
-            ),
-        );
-        // The kernels compute in f32: a value must stay positive and finite there.
-        let f32_positive = |v: f64| v.is_finite() && v > 0.0 && (v as f32).is_normal();
-        check(
-            f32_positive(self.lr),
-            format!("lr must be > 0 and finite in f32, got {}", self.lr),
-        );
-        for (name, b) in [
-            ("adam_beta1", self.adam_beta1),
-            ("adam_beta2", self.adam_beta2),
-        ] {
-            check(
-                (0.0..1.0).contains(&b),
-                format!("{name} must be in [0, 1), got {b}"),
-            );
-        }
-        check(
-            f32_positive(self.adam_eps),
-            format!(
-                "adam_eps must be a normal f32 > 0 (at least {:e}), got {}",
-                f32::MIN_POSITIVE,
-                self.adam_eps
-            ),
-        );
-        check(
-            (0.0..=1.0).contains(&self.gamma),
-            format!("gamma must be in [0, 1], got {}", self.gamma),
-        );
-        check(
-            self.batch_size <= self.buffer_size,
-            format!(
-                "batch_size ({}) must not exceed buffer_size ({})",
-                self.batch_size, self.buffer_size
-            ),
-        );
-        check(
-            self.learning_starts <= self.buffer_size,
-            format!(
-                "learning_starts ({}) must not exceed buffer_size ({})",
-                self.learning_starts, self.buffer_size
-            ),
-        );
-        check(
-            self.tau <= 1.0 && f32_positive(self.tau),
-            format!("tau must be in (0, 1], got {}", self.tau),
-        );
-        for (name, e) in [("eps_start", self.eps_start), ("eps_end", self.eps_end)] {
-            check(
-                (0.0..=1.0).contains(&e),
-                format!("{name} must be in [0, 1], got {e}"),
-            );
-        }
-        check(
-            self.eps_decay.is_finite() && self.eps_decay > 0.0,
-            format!("eps_decay must be > 0 and finite, got {}", self.eps_decay),
-        );
-        check(
-            self.grad_clip >= 0.0 && (self.grad_clip as f32).is_finite(),
-            format!(
-                "grad_clip must be >= 0 and finite in f32 (0 disables it), got {}",
-                self.grad_clip
-            ),
-        );
-        for (key, spec) in [
-            ("domain", &self.domain),
-            ("eval_domain", &self.eval_domain),
-            ("finalist_domain", &self.finalist_domain),
-        ] {
-            if let Err(e) = twin::Domain::parse(spec) {
-                errs.push(format!("{key}: {e}"));
-            }
-        }
-        if let Err(e) = crate::train::Reward::parse(&self.reward) {
-            errs.push(format!("reward: {e}"));
-        }
+        let mut errs: Vec<String> = super::LIMITS
+            .iter()
+            .filter_map(|l| l.check(self).err())
+            .collect();
+        errs.extend(self.relations());
         if errs.is_empty() {
             self.kernel.resolve().map(|_| ())
         } else {
             Err(ConfigError(errs.join("; ")))
         }
+    }
+
+    /// What keys must satisfy together: each problem as a sentence that names the keys.
+    fn relations(&self) -> Vec<String> {
+        let mut errs = Vec::new();
+        for (key, v) in [
+            ("batch_size", self.batch_size),
+            ("learning_starts", self.learning_starts),
+        ] {
+            if v > self.buffer_size {
+                errs.push(format!(
+                    "{key} ({v}) must not exceed buffer_size ({})",
+                    self.buffer_size
+                ));
+            }
+        }
+        if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
+            errs.push(format!(
+                "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
+                self.finalists, self.finalist_episodes, self.finalist_max_steps
+            ));
+        }
+        errs
     }
 }

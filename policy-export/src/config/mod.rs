@@ -2,19 +2,58 @@
 //!
 //! A run's configuration is built in layers: a preset ([`Config::paper`], the paper's Table
 //! 2, or [`Config::robust`], tuned here for a deployable controller), then a TOML file whose
-//! keys are the field names below, then single command-line flags. The result is written
-//! whole into the run's `summary.json`, so a run can always be repeated.
+//! keys are the field names below, then single command-line flags ([`Overrides`]). The result
+//! is written whole into the run's `summary.json`, so a run can always be repeated.
+//!
+//! # One declaration per key
+//!
+//! Each key is declared once, in the `config_keys!` list below: its doc, name, type, paper
+//! default and, if it has one, its own limit. The macro (in `keys.rs`) generates from that
+//! list everything that names every key, so that none of them can miss one:
+//!
+//! - the [`Config`] struct: its fields are the TOML keys, in the order `summary.json` and
+//!   `--print-config` write them, and a file with any other key is refused;
+//! - [`Config::paper`], every key at its default (the other presets are changes to it);
+//! - [`Overrides`], one flag `--key-with-dashes` per key (the values of an enum's flag are
+//!   its `clap::ValueEnum` names), and [`Overrides::apply`], which lays them over a
+//!   configuration;
+//! - the reading of files that lack keys: `#[serde(default)]` marks a key added after files
+//!   were first written, and a file without it gets its paper default, the value runs had
+//!   before it existed; a file without any other key is refused;
+//! - [`LIMITS`], every key's own limit in declaration order, which [`Config::validate`]
+//!   checks before the rules that relate keys to each other (`limits.rs`), and from which
+//!   the limits table of `docs/HOSTILE_INPUT.md` can be generated.
+//!
+//! A macro, rather than serde and a validation trait, because serde derives only the TOML
+//! side: the flags (a second struct of `Option`s), the paper defaults and the limits would
+//! each stay a list kept in step with the struct by hand.
+//!
+//! Adding a key is one entry in the list. A file path that older files lack, say:
+//!
+//! ```text
+//! /// The rig the run is calibrated for (a file); empty: the nominal plant.
+//! #[serde(default)]
+//! rig: PathBuf = PathBuf::new();
+//! ```
+//!
+//! gives `Config::rig`, `rig = "..."` in TOML and `--rig <RIG>`. A key with a limit names it
+//! after the default (`steps: u32 = 100, limit Limit::Count(1..=1_000);`); a new kind of
+//! limit is a new [`Limit`] variant. A key's enum (the kernel's, say) changes in the enum
+//! alone: its serde names are its TOML values and its `clap::ValueEnum` names its flag's.
 
 use std::fmt;
 
+use firmware::network::SUPPORTED_WIDTHS;
 use serde::{Deserialize, Serialize};
 use weights::{excerpt, quote};
 
 use crate::nn::{Kernel, Loss};
 
+mod keys;
 mod limits;
 
-pub use limits::{COUNTS, Count, MAX_CONFIG_BYTES, MAX_SEEDS};
+use keys::config_keys;
+pub use limits::{KeyLimit, Limit, MAX_CONFIG_BYTES, MAX_SEEDS, Value};
 
 /// Which TD target the learner regresses on.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, clap::ValueEnum)]
@@ -110,166 +149,122 @@ pub enum Preset {
     Deploy,
 }
 
-/// Every hyperparameter of a run. Field names are the TOML keys and, with `-` for `_`, the
-/// command-line flags.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct Config {
-    /// TD target.
-    pub algo: Algo,
-    /// Hidden width: 16, 32, 64, 128 or 256 (64 ships).
-    pub width: usize,
-    /// Adam learning rate.
-    pub lr: f64,
-    /// Adam beta1.
-    pub adam_beta1: f64,
-    /// Adam beta2.
-    pub adam_beta2: f64,
-    /// Adam epsilon.
-    pub adam_eps: f64,
-    /// Discount factor.
-    pub gamma: f64,
-    /// FIFO replay capacity, transitions.
-    pub buffer_size: usize,
-    /// Minibatch size.
-    pub batch_size: usize,
-    /// Transitions stored before the first gradient step (at least `batch_size`).
-    pub learning_starts: usize,
-    /// Training is due every this many `train_unit`s.
-    pub train_every: usize,
-    /// What `train_every` counts: environment steps, or completed episodes (minimalRL
-    /// trains after each episode).
-    #[serde(default = "steps")]
-    pub train_unit: Unit,
-    /// Gradient steps each time training is due.
-    #[serde(default = "one")]
-    pub updates_per_train: usize,
-    /// Hard copies or soft averaging.
-    pub target_update: TargetUpdate,
-    /// Hard update period, in `target_period_unit`.
-    pub target_period: usize,
-    /// What `target_period` counts.
-    pub target_period_unit: Unit,
-    /// Soft update weight.
-    pub tau: f64,
-    /// Exploration at t = 0.
-    pub eps_start: f64,
-    /// Exploration floor.
-    pub eps_end: f64,
-    /// Decay scale: `eps = end + (start - end) * exp(-t / eps_decay)`.
-    pub eps_decay: f64,
-    /// What t counts in the epsilon schedule.
-    pub eps_unit: Unit,
-    /// Training episodes.
-    pub episodes: usize,
-    /// A hard budget of environment steps: no step is taken once it is spent. The episode in
-    /// progress is cut there and ends as any other (its end-of-episode training and target
-    /// copy, if due, and an evaluation); 0: no budget. Evaluation episodes are not counted.
-    #[serde(default)]
-    pub max_env_steps: u64,
-    /// Episode truncation: 200 (the paper) or 500 (`CartPole-v1`).
-    pub max_steps: u32,
-    /// Global gradient-norm clip; 0 disables it.
-    pub grad_clip: f64,
-    /// Regression loss.
-    pub loss: Loss,
-    /// Weight initialisation.
-    pub init: Init,
-    /// Every this many episodes, score the greedy policy and keep the best one as the run's
-    /// policy; 0 keeps the last weights.
-    pub eval_every: usize,
-    /// Episodes per such evaluation (their starts are fixed for the run).
-    pub eval_episodes: usize,
-    /// Episode length of those evaluations and of the final one.
-    pub eval_max_steps: u32,
-    /// Stop early once a periodic evaluation is perfect (every episode reaches the limit).
-    pub stop_when_perfect: bool,
-    /// Fresh greedy episodes that score the exported policy at the end of a run.
-    pub final_eval_episodes: usize,
-    /// How many of the best periodic snapshots a longer trial chooses the policy among, so
-    /// that one which drifts only over long episodes is not shipped; 0: the best periodic
-    /// snapshot is the policy.
-    #[serde(default)]
-    pub finalists: usize,
-    /// Episodes of that trial (starts fixed for the run).
-    #[serde(default)]
-    pub finalist_episodes: usize,
-    /// Their length.
-    #[serde(default)]
-    pub finalist_max_steps: u32,
-    /// Which compiled kernel to train with.
-    pub kernel: KernelChoice,
-    /// Domain randomisation: the distribution of worlds a training episode is drawn from
-    /// (a `twin::Domain` spec, e.g. `length=0.5..1.6+delay=0..3`); empty: the nominal plant.
-    #[serde(default)]
-    pub domain: String,
-    /// The worlds of the periodic and final greedy evaluations (a domain spec); empty: the
-    /// nominal plant.
-    #[serde(default)]
-    pub eval_domain: String,
-    /// The worlds of the finalists' trial (a domain spec); empty: `eval_domain`'s.
-    #[serde(default)]
-    pub finalist_domain: String,
-    /// Decide on readings advanced over each world's dead time with the nominal model, as the
-    /// deployed controller does (`firmware::controller::predict`).
-    #[serde(default)]
-    pub compensate: bool,
-    /// The learning reward (`train::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
-    /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
-    #[serde(default)]
-    pub reward: String,
+config_keys! {
+    /// Every hyperparameter of a run. Field names are the TOML keys and, with `-` for `_`, the
+    /// command-line flags. Each key's default is the paper's (Table 2 and section 3): Double
+    /// DQN, 4-64-64-2, Adam 5e-4, gamma 0.98, replay 2,000, batch 32, hard target copy every
+    /// 50 episodes, epsilon 0.9 -> 0.01 with scale 200 steps, 300 episodes of 200 steps, clip
+    /// 10, MSE, Xavier-normal.
+    pub struct Config {
+        /// TD target.
+        algo: Algo = Algo::Ddqn;
+        /// Hidden width: 16, 32, 64, 128 or 256 (64 ships).
+        width: usize = 64, limit Limit::OneOf(SUPPORTED_WIDTHS);
+        /// Adam learning rate.
+        lr: f64 = 5e-4, limit Limit::PositiveInF32;
+        /// Adam beta1.
+        adam_beta1: f64 = 0.9, limit Limit::BelowOne;
+        /// Adam beta2.
+        adam_beta2: f64 = 0.999, limit Limit::BelowOne;
+        /// Adam epsilon.
+        adam_eps: f64 = 1e-8, limit Limit::NormalInF32;
+        /// Discount factor.
+        gamma: f64 = 0.98, limit Limit::ZeroToOne;
+        /// FIFO replay capacity, transitions.
+        buffer_size: usize = 2000, limit Limit::Count(1..=5_000_000);
+        /// Minibatch size.
+        batch_size: usize = 32, limit Limit::Count(1..=4_096);
+        /// Transitions stored before the first gradient step (at least `batch_size`).
+        learning_starts: usize = 32;
+        /// Training is due every this many `train_unit`s.
+        train_every: usize = 1, limit Limit::Count(1..=1_000_000);
+        /// What `train_every` counts: environment steps, or completed episodes (minimalRL
+        /// trains after each episode).
+        #[serde(default)]
+        train_unit: Unit = Unit::Steps;
+        /// Gradient steps each time training is due.
+        #[serde(default)]
+        updates_per_train: usize = 1, limit Limit::Count(1..=1_000);
+        /// Hard copies or soft averaging.
+        target_update: TargetUpdate = TargetUpdate::Hard;
+        /// Hard update period, in `target_period_unit`.
+        target_period: usize = 50, limit Limit::Count(1..=1_000_000_000);
+        /// What `target_period` counts.
+        target_period_unit: Unit = Unit::Episodes;
+        /// Soft update weight.
+        tau: f64 = 0.005, limit Limit::AboveZeroToOne;
+        /// Exploration at t = 0.
+        eps_start: f64 = 0.9, limit Limit::ZeroToOne;
+        /// Exploration floor.
+        eps_end: f64 = 0.01, limit Limit::ZeroToOne;
+        /// Decay scale: `eps = end + (start - end) * exp(-t / eps_decay)`.
+        eps_decay: f64 = 200.0, limit Limit::Positive;
+        /// What t counts in the epsilon schedule.
+        eps_unit: Unit = Unit::Steps;
+        /// Training episodes.
+        episodes: usize = 300, limit Limit::Count(1..=1_000_000);
+        /// A hard budget of environment steps: no step is taken once it is spent. The episode
+        /// in progress is cut there and ends as any other (its end-of-episode training and
+        /// target copy, if due, and an evaluation); 0: no budget. Evaluation episodes are not
+        /// counted.
+        #[serde(default)]
+        max_env_steps: u64 = 0, limit Limit::Count(0..=1_000_000_000);
+        /// Episode truncation: 200 (the paper) or 500 (`CartPole-v1`).
+        max_steps: u32 = 200, limit Limit::Count(1..=1_000_000);
+        /// Global gradient-norm clip; 0 disables it.
+        grad_clip: f64 = 10.0, limit Limit::Clip;
+        /// Regression loss.
+        loss: Loss = Loss::Mse;
+        /// Weight initialisation.
+        init: Init = Init::Xavier;
+        /// Every this many episodes, score the greedy policy and keep the best one as the
+        /// run's policy; 0 keeps the last weights.
+        eval_every: usize = 0, limit Limit::Count(0..=1_000_000);
+        /// Episodes per such evaluation (their starts are fixed for the run).
+        eval_episodes: usize = 10, limit Limit::Count(1..=100_000);
+        /// Episode length of those evaluations and of the final one.
+        eval_max_steps: u32 = 500, limit Limit::Count(1..=1_000_000);
+        /// Stop early once a periodic evaluation is perfect (every episode reaches the limit).
+        stop_when_perfect: bool = false;
+        /// Fresh greedy episodes that score the exported policy at the end of a run.
+        final_eval_episodes: usize = 100, limit Limit::Count(1..=100_000);
+        /// How many of the best periodic snapshots a longer trial chooses the policy among, so
+        /// that one which drifts only over long episodes is not shipped; 0: the best periodic
+        /// snapshot is the policy.
+        #[serde(default)]
+        finalists: usize = 0, limit Limit::Count(0..=100);
+        /// Episodes of that trial (starts fixed for the run).
+        #[serde(default)]
+        finalist_episodes: usize = 0, limit Limit::Count(0..=100_000);
+        /// Their length.
+        #[serde(default)]
+        finalist_max_steps: u32 = 0, limit Limit::Count(0..=1_000_000);
+        /// Which compiled kernel to train with.
+        kernel: KernelChoice = KernelChoice::Auto;
+        /// Domain randomisation: the distribution of worlds a training episode is drawn from
+        /// (a `twin::Domain` spec, e.g. `length=0.5..1.6+delay=0..3`); empty: the nominal
+        /// plant.
+        #[serde(default)]
+        domain: String = String::new(), limit Limit::Domain;
+        /// The worlds of the periodic and final greedy evaluations (a domain spec); empty: the
+        /// nominal plant.
+        #[serde(default)]
+        eval_domain: String = String::new(), limit Limit::Domain;
+        /// The worlds of the finalists' trial (a domain spec); empty: `eval_domain`'s.
+        #[serde(default)]
+        finalist_domain: String = String::new(), limit Limit::Domain;
+        /// Decide on readings advanced over each world's dead time with the nominal model, as
+        /// the deployed controller does (`firmware::controller::predict`).
+        #[serde(default)]
+        compensate: bool = false;
+        /// The learning reward (`train::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
+        /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
+        #[serde(default)]
+        reward: String = String::new(), limit Limit::Reward;
+    }
 }
 
 impl Config {
-    /// The paper's Table 2 and section 3: Double DQN, 4-64-64-2, Adam 5e-4, gamma 0.98,
-    /// replay 2,000, batch 32, hard target copy every 50 episodes, epsilon 0.9 -> 0.01 with
-    /// scale 200 steps, 300 episodes of 200 steps, clip 10, MSE, Xavier-normal.
-    pub fn paper() -> Config {
-        Config {
-            algo: Algo::Ddqn,
-            width: 64,
-            lr: 5e-4,
-            adam_beta1: 0.9,
-            adam_beta2: 0.999,
-            adam_eps: 1e-8,
-            gamma: 0.98,
-            buffer_size: 2000,
-            batch_size: 32,
-            learning_starts: 32,
-            train_every: 1,
-            train_unit: Unit::Steps,
-            updates_per_train: 1,
-            target_update: TargetUpdate::Hard,
-            target_period: 50,
-            target_period_unit: Unit::Episodes,
-            tau: 0.005,
-            eps_start: 0.9,
-            eps_end: 0.01,
-            eps_decay: 200.0,
-            eps_unit: Unit::Steps,
-            episodes: 300,
-            max_env_steps: 0,
-            max_steps: 200,
-            grad_clip: 10.0,
-            loss: Loss::Mse,
-            init: Init::Xavier,
-            eval_every: 0,
-            eval_episodes: 10,
-            eval_max_steps: 500,
-            stop_when_perfect: false,
-            final_eval_episodes: 100,
-            finalists: 0,
-            finalist_episodes: 0,
-            finalist_max_steps: 0,
-            kernel: KernelChoice::Auto,
-            domain: String::new(),
-            eval_domain: String::new(),
-            finalist_domain: String::new(),
-            compensate: false,
-            reward: String::new(),
-        }
-    }
-
     /// The paper preset with the fewest changes that make its headline (a trailing 100-episode
     /// mean of 195 by episode 160) hold: see [`Config::with_paper_fixes`].
     pub fn paper_fixed() -> Config {
@@ -380,14 +375,6 @@ impl Config {
             .try_into()
             .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))
     }
-}
-
-fn steps() -> Unit {
-    Unit::Steps
-}
-
-fn one() -> usize {
-    1
 }
 
 /// The worlds the deploy preset trains in: physics, noise and dead time wider than the

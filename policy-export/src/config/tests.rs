@@ -116,17 +116,21 @@ fn bad_values_are_named() {
 #[test]
 fn the_documented_limits_are_the_checked_ones() {
     let doc = include_str!("../../../docs/HOSTILE_INPUT.md");
-    for c in &COUNTS {
-        let row = format!("| `{}` | {} to {}", c.key, c.min, c.max);
+    for l in LIMITS {
+        let Limit::Count(range) = &l.limit else {
+            continue;
+        };
+        let (key, min, max) = (l.key, *range.start(), *range.end());
+        let row = format!("| `{key}` | {min} to {max}");
         assert!(doc.contains(&row), "docs/HOSTILE_INPUT.md lacks {row:?}");
         let mut at_max = Config::paper();
         let mut over = Config::paper();
-        set(&mut at_max, c.key, c.max);
-        set(&mut over, c.key, c.max + 1);
-        assert!(over.validate().unwrap_err().0.contains(c.key), "{}", c.key);
+        set(&mut at_max, key, max);
+        set(&mut over, key, max + 1);
+        assert!(over.validate().unwrap_err().0.contains(key), "{key}");
         // The limit itself is accepted (where other fields allow it).
         if let Err(e) = at_max.validate() {
-            assert!(!e.0.contains(&format!("{} must be in", c.key)), "{e}");
+            assert!(!e.0.contains(&format!("{key} must be in")), "{e}");
         }
     }
 }
@@ -158,4 +162,148 @@ fn toml_overlays_known_keys_and_rejects_unknown_ones() {
     let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
     let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
     assert!(e.0.len() < 600, "{}", e.0.len());
+}
+
+fn paper_table() -> toml::Table {
+    toml::Table::try_from(Config::paper()).unwrap()
+}
+
+/// The flags of every key, as `train` takes them.
+fn flag_parser() -> clap::Command {
+    <Overrides as clap::Args>::augment_args(
+        clap::Command::new("train").allow_negative_numbers(true),
+    )
+}
+
+/// Values of the flag `arg` other than `v`, its key's paper value.
+fn other_values(v: &toml::Value, arg: &clap::Arg) -> Vec<toml::Value> {
+    match v {
+        toml::Value::Integer(n) => vec![toml::Value::Integer(n + 1)],
+        toml::Value::Float(x) => vec![toml::Value::Float(x + 0.5)],
+        toml::Value::Boolean(b) => vec![toml::Value::Boolean(!b)],
+        toml::Value::String(s) => {
+            let named: Vec<toml::Value> = arg
+                .get_possible_values()
+                .iter()
+                .map(|p| p.get_name())
+                .filter(|name| name != s)
+                .map(|name| toml::Value::String(name.into()))
+                .collect();
+            if named.is_empty() {
+                vec![toml::Value::String(format!("{s}x"))]
+            } else {
+                named
+            }
+        }
+        other => panic!("a key of unexpected TOML type: {other}"),
+    }
+}
+
+#[test]
+fn every_key_has_one_flag_which_sets_that_key_as_the_toml_key_does() {
+    let paper = paper_table();
+    let parser = flag_parser();
+    let mut flags: Vec<String> = parser
+        .get_arguments()
+        .map(|a| a.get_long().unwrap().replace('-', "_"))
+        .collect();
+    flags.sort();
+    let keys: Vec<&String> = paper.keys().collect();
+    assert_eq!(flags.iter().collect::<Vec<_>>(), keys);
+    for arg in parser.get_arguments() {
+        let flag = format!("--{}", arg.get_long().unwrap());
+        let key = arg.get_long().unwrap().replace('-', "_");
+        for v in other_values(&paper[&key], arg) {
+            let text = match &v {
+                toml::Value::String(s) => s.clone(),
+                v => v.to_string(),
+            };
+            let m = flag_parser()
+                .try_get_matches_from(["train", &flag, &text])
+                .unwrap();
+            let mut by_flag = Config::paper();
+            <Overrides as clap::FromArgMatches>::from_arg_matches(&m)
+                .unwrap()
+                .apply(&mut by_flag);
+            let by_file = Config::paper()
+                .overlay_toml(&format!("{key} = {v}"), "t.toml")
+                .unwrap();
+            assert_eq!(by_flag, by_file, "{flag} {text}");
+            let mut want = paper.clone();
+            want.insert(key.clone(), v);
+            assert_eq!(toml::Table::try_from(&by_flag).unwrap(), want, "{flag}");
+        }
+    }
+}
+
+#[test]
+fn a_file_setting_every_key_round_trips() {
+    let presets = [
+        Preset::Paper,
+        Preset::PaperFixed,
+        Preset::Fast,
+        Preset::Robust,
+        Preset::Deploy,
+    ];
+    for p in presets {
+        let c = Config::preset(p);
+        let file = toml::to_string(&c).unwrap();
+        for base in presets {
+            let read = Config::preset(base).overlay_toml(&file, "t.toml").unwrap();
+            assert_eq!(read, c, "{p:?} over {base:?}");
+        }
+        let json = serde_json::to_string(&c).unwrap();
+        assert_eq!(serde_json::from_str::<Config>(&json).unwrap(), c, "{p:?}");
+    }
+}
+
+#[test]
+fn a_file_lacking_a_key_gets_its_paper_value_or_is_refused_naming_it() {
+    let paper = paper_table();
+    let deploy = toml::Table::try_from(Config::deploy()).unwrap();
+    for key in paper.keys() {
+        let mut lacking = deploy.clone();
+        lacking.remove(key);
+        match lacking.try_into::<Config>() {
+            Ok(read) => {
+                let mut want = deploy.clone();
+                want.insert(key.clone(), paper[key].clone());
+                assert_eq!(toml::Table::try_from(&read).unwrap(), want, "{key}");
+            }
+            Err(e) => assert!(
+                e.to_string().contains(&format!("missing field `{key}`")),
+                "{key}: {e}"
+            ),
+        }
+    }
+}
+
+#[test]
+fn every_count_has_an_upper_limit_and_no_real_key_takes_infinity_or_nan() {
+    for (key, v) in paper_table() {
+        let huge = match v {
+            toml::Value::Integer(_) => vec![u32::MAX.to_string()],
+            toml::Value::Float(_) => vec!["inf".into(), "-inf".into(), "nan".into()],
+            _ => continue,
+        };
+        for h in huge {
+            let c = Config::paper()
+                .overlay_toml(&format!("{key} = {h}"), "t.toml")
+                .unwrap();
+            let e = c.validate().unwrap_err().0;
+            assert!(e.contains(&key), "{key} = {h}: {e}");
+        }
+    }
+}
+
+#[test]
+fn a_limit_refuses_a_value_of_another_kind() {
+    for (limit, v) in [
+        (Limit::Count(0..=10), Value::Real(1.0)),
+        (Limit::ZeroToOne, Value::Whole(1)),
+        (Limit::Domain, Value::Whole(0)),
+    ] {
+        let e = limit.check("k", v).unwrap_err();
+        assert!(e.starts_with("k: "), "{e}");
+    }
 }
