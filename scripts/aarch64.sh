@@ -26,7 +26,7 @@ run() { cargo test -q --profile quick --target aarch64-unknown-linux-gnu "$@"; }
 # outside the emulator.
 run -p firmware -p weights -p host-common --lib --tests
 # The trainer: the bits recorded on x86-64.
-run -p policy-export --lib train::tests::the_portable_kernel_gives_the_recorded_bits
+run -p policy-export --lib train::tests::every_kernel_gives_the_recorded_bits
 run -p host-sim --test gymnasium_reference -- --skip replay_cli
 if [ "${1:-}" = "--full" ]; then
   run -p e2e --test shipped_policy

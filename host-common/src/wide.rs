@@ -133,16 +133,21 @@ fn pack<const I: usize, const O: usize>(w: &[[f32; I]; O], width: usize) -> Vec<
 
 /// [`pack`] into `out`, which holds `I * O` floats (none for width 0).
 fn pack_into<const I: usize, const O: usize>(w: &[[f32; I]; O], width: usize, out: &mut [f32]) {
-    if width == 0 {
-        return;
+    match width {
+        8 => pack_blocks::<I, O, 8>(w, out),
+        16 => pack_blocks::<I, O, 16>(w, out),
+        _ => {}
     }
-    let mut k = 0;
-    for block in w.chunks_exact(width) {
-        for i in 0..I {
-            for row in block {
-                out[k] = row[i];
-                k += 1;
-            }
+}
+
+/// Block `b` of `W` rows of `w` becomes `I` rows of `W` floats, `out[b * I + i][j] =
+/// w[b * W + j][i]`: reading each row of `w` once, writing into a block that stays in cache.
+fn pack_blocks<const I: usize, const O: usize, const W: usize>(w: &[[f32; I]; O], out: &mut [f32]) {
+    let out = out.as_chunks_mut::<W>().0;
+    for (block, dst) in w.chunks_exact(W).zip(out.chunks_exact_mut(I)) {
+        let block: &[[f32; I]; W] = block.try_into().expect("chunks of W rows");
+        for (i, d) in dst.iter_mut().enumerate() {
+            *d = core::array::from_fn(|j| block[j][i]);
         }
     }
 }

@@ -153,8 +153,8 @@ pub fn provenance(s: &Summary) -> Vec<String> {
     let c = &s.config;
     vec![
         format!(
-            "trained: {:?}, seed {}, {} episodes ({} env steps) of at most {} steps, kernel {:?}",
-            c.algo, s.seed, s.episodes_run, s.env_steps, c.max_steps, s.kernel
+            "trained: {:?}, seed {}, {} episodes ({} env steps) of at most {} steps",
+            c.algo, s.seed, s.episodes_run, s.env_steps, c.max_steps
         ),
         format!(
             "greedy evaluation: mean {:.1}, min {} over {} fresh {}-step episodes",
@@ -270,6 +270,17 @@ impl Drop for Staging {
     }
 }
 
+/// The configuration a policy file records: everything its weights depend on. The kernel
+/// is left out: every kernel trains the same bits, so a file must not differ by the machine
+/// that made it (`summary.json` says which ran).
+fn weights_config(cfg: &Config) -> Result<String> {
+    let mut v = serde_json::to_value(cfg)?;
+    if let Some(map) = v.as_object_mut() {
+        map.remove("kernel");
+    }
+    Ok(serde_json::to_string(&v)?)
+}
+
 /// Writes one run's files into `dir` (a [`Staging`] path or one of its `seed-N`).
 pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<Summary> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
@@ -288,7 +299,7 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
         ("format".to_string(), "pt".to_string()),
         ("seed".to_string(), seed.to_string()),
         ("width".to_string(), r.policy.width().to_string()),
-        ("config".to_string(), serde_json::to_string(cfg)?),
+        ("config".to_string(), weights_config(cfg)?),
     ]);
     write_atomic(
         &dir.join("policy.safetensors"),

@@ -157,14 +157,14 @@ pub const PARTS: &[PartSpec] = &[
         key: "encoder",
         fields: &[
             field(
-                "encoder counts per revolution",
+                "counts per revolution",
                 Kind::LogWhole,
                 16.0,
                 (1u32 << 24) as f64,
                 Fallback::Required,
             ),
             field(
-                "encoder counts per metre",
+                "counts per metre",
                 Kind::Whole,
                 16.0,
                 (1u32 << 26) as f64,
@@ -182,7 +182,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[
             field("impulse", Kind::Real, 0.0, 1000.0, Fallback::Value(0.5)),
             field(
-                "push interval",
+                "interval",
                 Kind::Whole,
                 1.0,
                 u32::MAX as f64,
@@ -279,7 +279,7 @@ fn parse_part(raw: &str) -> Result<Part, String> {
     let mut values = Vec::with_capacity(spec.fields.len());
     for (i, f) in spec.fields.iter().enumerate() {
         values.push(match texts.get(i) {
-            Some(t) => Some(parse_span(f, t)?),
+            Some(t) => Some(parse_span(key, f, t)?),
             None if f.fallback == Fallback::Required => {
                 return Err(format!("{key} needs a value, e.g. {}", spec.syntax));
             }
@@ -293,7 +293,13 @@ fn parse_part(raw: &str) -> Result<Part, String> {
     })
 }
 
-fn parse_span(f: &Field, text: &str) -> Result<Span, String> {
+/// One value or range of field `f` of part `key`.
+fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
+    let name = if f.name == key {
+        key.to_string()
+    } else {
+        format!("{key} {}", f.name)
+    };
     let (a, b) = text.split_once("..").unwrap_or((text, text));
     let read = |t: &str| -> Result<f64, String> {
         let v = match f.kind {
@@ -306,8 +312,7 @@ fn parse_span(f: &Field, text: &str) -> Result<Span, String> {
                 Kind::Whole | Kind::LogWhole => "a whole number",
             };
             format!(
-                "{} must be {kind} in [{}, {}], found {}",
-                f.name,
+                "{name} must be {kind} in [{}, {}], found {}",
                 f.lo,
                 f.hi,
                 weights::quote(t)
@@ -317,8 +322,7 @@ fn parse_span(f: &Field, text: &str) -> Result<Span, String> {
     let (lo, hi) = (read(a)?, read(b)?);
     if lo > hi {
         return Err(format!(
-            "{} needs LO..HI with LO <= HI, found {}",
-            f.name,
+            "{name} needs LO..HI with LO <= HI, found {}",
             weights::quote(text)
         ));
     }

@@ -34,8 +34,8 @@ impl Reading for [f32; OBS_DIM] {
         for (i, (&v, &max)) in self.iter().zip(&limits.max_abs).enumerate() {
             if !v.is_finite() {
                 flags = flags.with(FaultFlags::non_finite(i));
-            } else if !(v.abs() <= max) {
-                // Written so that a NaN bound rejects every reading rather than none.
+            } else if v.abs().partial_cmp(&max).is_none_or(|o| o.is_gt()) {
+                // A NaN bound compares as nothing: it rejects every reading rather than none.
                 flags = flags.with(FaultFlags::out_of_range(i));
             }
         }

@@ -24,10 +24,10 @@ pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
     x: &[[f32; OBS_DIM]],
     actions: &[u8],
     targets: &[f32],
-    loss: Loss,
+    (loss, scale): (Loss, f32),
     s: &mut Scratch<H>,
     grad: &mut Mlp<H>,
-) -> f32 {
+) -> f64 {
     const {
         assert!(
             H.is_multiple_of(R),
@@ -35,7 +35,6 @@ pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
         )
     };
     let n = x.len();
-    let inv_n = 1.0 / n as f32;
     let mut total = 0.0f64;
     // dL/dQ is non-zero only at the taken action.
     for b in 0..n {
@@ -48,7 +47,7 @@ pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
         };
         total += f64::from(l);
         s.dq[b] = [0.0; N_ACTIONS];
-        s.dq[b][a] = g * inv_n;
+        s.dq[b][a] = g * scale;
     }
 
     // Output layer (2 x H, small): direct sums.
@@ -110,5 +109,5 @@ pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
             *g += d;
         }
     }
-    (total / n as f64) as f32
+    total
 }

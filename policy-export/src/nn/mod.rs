@@ -34,8 +34,8 @@ use backprop::backward_impl;
 #[cfg(target_arch = "x86_64")]
 use kernels::Avx512;
 use kernels::{Generic, ROWS, forward_impl};
-use optim::adam_impl;
-pub use optim::{AdamParams, clip_grad_norm, soft_update};
+pub use optim::{AdamParams, AdamStep, clip_grad_norm, soft_update};
+use optim::{adam_elements, adam_impl};
 
 /// The regression loss on the TD error `d = Q(s, a) - y`, averaged over the batch.
 #[derive(
@@ -76,6 +76,27 @@ impl<const H: usize> Packed<H> {
         });
         p.pack(net);
         p
+    }
+
+    /// `self <- tau * online + (1 - tau) * self`, elementwise: the packing of
+    /// [`soft_update`]'s result, bit for bit, without transposing.
+    pub fn soft_update(&mut self, online: &Packed<H>, tau: f32) {
+        for (t, o) in [
+            (self.w1t.as_flattened_mut(), online.w1t.as_flattened()),
+            (self.w2t.as_flattened_mut(), online.w2t.as_flattened()),
+        ] {
+            for (t, o) in t.iter_mut().zip(o) {
+                *t = optim::interpolate(tau, *o, *t);
+            }
+        }
+    }
+
+    /// Both transposes, flattened, for tests.
+    #[cfg(test)]
+    pub(crate) fn transposes(&self) -> Vec<f32> {
+        let mut v = self.w1t.as_flattened().to_vec();
+        v.extend_from_slice(self.w2t.as_flattened());
+        v
     }
 
     /// Refreshes the transposes from `net`. Called after every gradient step, so the
@@ -202,18 +223,19 @@ kernel_entry! {
 }
 
 kernel_entry! {
-    /// Gradients of the mean loss over the batch of the last [`forward_batch`] of `net` on
-    /// `x`, where sample `b` regresses `Q(x_b, actions[b])` towards `targets[b]`. Overwrites
-    /// `grad`; returns the loss.
+    /// Gradients of `scale` times the summed loss over the rows of the last
+    /// [`forward_batch`] of `net` on `x`, where row `b` regresses `Q(x_b, actions[b])`
+    /// towards `targets[b]` (`scale` is one over the whole batch's size, of which `x` may be a
+    /// part). Overwrites `grad`; returns the summed loss.
     fn backward(
         net: &Mlp<H>,
         x: &[[f32; OBS_DIM]],
         actions: &[u8],
         targets: &[f32],
-        loss: Loss,
+        loss: (Loss, f32),
         s: &mut Scratch<H>,
         grad: &mut Mlp<H>
-    ) -> f32 => backward_impl []
+    ) -> f64 => backward_impl []
 }
 
 kernel_entry! {
@@ -228,5 +250,41 @@ kernel_entry! {
     ) -> () => adam_impl
 }
 
+/// One run of parameters with its gradients and moments: `(p, g, m, v)`.
+pub type Part<'a> = (&'a mut [f32], &'a [f32], &'a mut [f32], &'a mut [f32]);
+
+/// [`adam_step`] on runs of parameters, gradients and moments: a share of a network's
+/// parameters, elementwise the same arithmetic.
+pub fn adam_parts(kernel: Kernel, a: &AdamStep, parts: &mut [Part<'_>]) {
+    #[inline(always)]
+    fn each(a: &AdamStep, parts: &mut [Part<'_>]) {
+        for (p, g, m, v) in parts.iter_mut() {
+            adam_elements(a, p, g, m, v);
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    {
+        #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
+        fn avx512(a: &AdamStep, parts: &mut [Part<'_>]) {
+            each(a, parts)
+        }
+        #[target_feature(enable = "avx2,fma")]
+        fn avx2(a: &AdamStep, parts: &mut [Part<'_>]) {
+            each(a, parts)
+        }
+        match kernel {
+            // SAFETY: the CPU was just checked for every feature the function enables.
+            Kernel::Avx512 if Kernel::Avx512.supported() => return unsafe { avx512(a, parts) },
+            // SAFETY: as above.
+            Kernel::Avx2 if Kernel::Avx2.supported() => return unsafe { avx2(a, parts) },
+            _ => {}
+        }
+    }
+    let _ = kernel;
+    each(a, parts)
+}
+
+#[cfg(test)]
+pub(crate) mod reference;
 #[cfg(test)]
 mod tests;

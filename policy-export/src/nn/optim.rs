@@ -24,29 +24,15 @@ pub struct AdamParams {
 const FLUSH: f32 = 1e-30;
 
 /// Scales `grad` so that its global L2 norm is at most `max_norm` (PyTorch's
-/// `clip_grad_norm_`, which scales by `max_norm / (norm + 1e-6)`, with the norm summed in
-/// f64, parameter by parameter); returns whether it scaled.
+/// `clip_grad_norm_`, which scales by `max_norm / (norm + 1e-6)`); returns whether it
+/// scaled.
 ///
-/// That sequential f64 sum is one chain of 4,610 dependent additions, about 4 us per update
-/// at width 64, and every run's bits depend on its roundings. So a vectorised sum screens
-/// first: summed in any order, n non-negative terms (each square of an f32 is exact in f64)
-/// come within `(n - 1) * 2^-53` relative of their exact sum, under 1e-11 for any width the
-/// trainer supports. A screen below `max_norm^2 * (1 - 1e-9)` therefore proves that the
-/// sequential sum is below `max_norm^2` too, its square root at most `max_norm`, and that
-/// nothing is scaled. Only otherwise is the sequential norm computed, and the result is the
-/// same, bit for bit, as computing it always.
+/// The norm is summed in f64 (each square of an f32 is exact in f64) in eight interleaved
+/// partial sums, tensor after tensor, then the partial sums in order ([`sum_of_squares`]):
+/// PyTorch's one sequential sum is a chain of 4,610 dependent additions, which this order
+/// breaks into eight that a vector unit runs side by side.
 pub fn clip_grad_norm<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) -> bool {
-    let limit = f64::from(max_norm) * f64::from(max_norm);
-    if sum_of_squares_any_order(grad) < limit * (1.0 - 1e-9) {
-        return false;
-    }
-    let norm = grad
-        .tensors()
-        .iter()
-        .flat_map(|t| t.iter())
-        .map(|&g| f64::from(g) * f64::from(g))
-        .sum::<f64>()
-        .sqrt() as f32;
+    let norm = sum_of_squares(grad).sqrt() as f32;
     if norm > max_norm {
         let scale = max_norm / (norm + 1e-6);
         for t in grad.tensors_mut() {
@@ -57,9 +43,9 @@ pub fn clip_grad_norm<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) -> bool 
     false
 }
 
-/// The sum of squares of every parameter, in f64, in eight interleaved partial sums per
-/// tensor (so it vectorises); NaN if any parameter is NaN.
-fn sum_of_squares_any_order<const H: usize>(grad: &Mlp<H>) -> f64 {
+/// The sum of squares of every parameter, in f64, in eight interleaved partial sums over
+/// each tensor in turn, the partial sums then added in order; NaN if any parameter is NaN.
+pub fn sum_of_squares<const H: usize>(grad: &Mlp<H>) -> f64 {
     let mut acc = [0.0f64; 8];
     for t in grad.tensors() {
         let (chunks, rest) = t.as_chunks::<8>();
@@ -79,10 +65,61 @@ fn sum_of_squares_any_order<const H: usize>(grad: &Mlp<H>) -> f64 {
 pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f32) {
     for (t, o) in target.tensors_mut().into_iter().zip(online.tensors()) {
         for (t, o) in t.iter_mut().zip(o) {
-            *t = tau * o + (1.0 - tau) * *t;
+            *t = interpolate(tau, *o, *t);
         }
     }
 }
+
+/// One soft update's element: `tau * online + (1 - tau) * target`.
+#[inline(always)]
+pub(super) fn interpolate(tau: f32, online: f32, target: f32) -> f32 {
+    tau * online + (1.0 - tau) * target
+}
+/// One Adam step's constants, derived from [`AdamParams`] at step `t` (from 1).
+#[derive(Clone, Copy, Debug)]
+pub struct AdamStep {
+    step: f32,
+    inv_sqrt_bc2: f32,
+    b1: f32,
+    b2: f32,
+    eps: f32,
+    c1: f32,
+    c2: f32,
+}
+
+impl AdamParams {
+    /// The constants of step `t` (counted from 1).
+    pub fn at(&self, t: u64) -> AdamStep {
+        let t = t.min(i32::MAX as u64) as i32;
+        let bc1 = 1.0 - self.beta1.powi(t);
+        let bc2 = 1.0 - self.beta2.powi(t);
+        AdamStep {
+            step: (self.lr / bc1) as f32,
+            // PyTorch divides by `sqrt(bc2)`; multiplying by its reciprocal saves a division
+            // per parameter, and the bits are this arithmetic's own either way.
+            inv_sqrt_bc2: (1.0 / bc2.sqrt()) as f32,
+            b1: self.beta1 as f32,
+            b2: self.beta2 as f32,
+            eps: self.eps as f32,
+            c1: (1.0 - self.beta1) as f32,
+            c2: (1.0 - self.beta2) as f32,
+        }
+    }
+}
+
+/// Adam on a run of parameters `p` with gradients `g` and moments `m`, `v`, elementwise, so
+/// that any split of the parameters gives the same bits.
+#[inline(always)]
+pub(super) fn adam_elements(a: &AdamStep, p: &mut [f32], g: &[f32], m: &mut [f32], v: &mut [f32]) {
+    for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
+        let m1 = a.b1.mul_add(*m, a.c1 * g);
+        let v1 = a.b2.mul_add(*v, a.c2 * g * g);
+        *m = if m1.abs() < FLUSH { 0.0 } else { m1 };
+        *v = if v1 < FLUSH { 0.0 } else { v1 };
+        *p -= a.step * *m / (v.sqrt() * a.inv_sqrt_bc2 + a.eps);
+    }
+}
+
 #[inline(always)]
 pub(super) fn adam_impl<const H: usize>(
     hp: &AdamParams,
@@ -92,13 +129,7 @@ pub(super) fn adam_impl<const H: usize>(
     m: &mut Mlp<H>,
     v: &mut Mlp<H>,
 ) {
-    let t = t.min(i32::MAX as u64) as i32;
-    let bc1 = 1.0 - hp.beta1.powi(t);
-    let bc2 = 1.0 - hp.beta2.powi(t);
-    let step = (hp.lr / bc1) as f32;
-    let sqrt_bc2 = bc2.sqrt() as f32;
-    let (b1, b2, eps) = (hp.beta1 as f32, hp.beta2 as f32, hp.eps as f32);
-    let (c1, c2) = ((1.0 - hp.beta1) as f32, (1.0 - hp.beta2) as f32);
+    let a = hp.at(t);
     let moments = m.tensors_mut().into_iter().zip(v.tensors_mut());
     for ((p, g), (m, v)) in params
         .tensors_mut()
@@ -106,12 +137,6 @@ pub(super) fn adam_impl<const H: usize>(
         .zip(grad.tensors())
         .zip(moments)
     {
-        for (((p, g), m), v) in p.iter_mut().zip(g).zip(m.iter_mut()).zip(v.iter_mut()) {
-            let m1 = b1.mul_add(*m, c1 * g);
-            let v1 = b2.mul_add(*v, c2 * g * g);
-            *m = if m1.abs() < FLUSH { 0.0 } else { m1 };
-            *v = if v1 < FLUSH { 0.0 } else { v1 };
-            *p -= step * *m / (v.sqrt() / sqrt_bc2 + eps);
-        }
+        adam_elements(&a, p, g, m, v);
     }
 }

@@ -4,10 +4,7 @@ use crate::train::{Stream, init_weights, rng};
 use rand_core::Rng;
 
 fn kernels() -> Vec<Kernel> {
-    [Kernel::Portable, Kernel::Avx2, Kernel::Avx512]
-        .into_iter()
-        .filter(|k| k.supported())
-        .collect()
+    Kernel::available()
 }
 
 fn uniform(r: &mut impl Rng, lo: f32, hi: f32) -> f32 {
@@ -92,12 +89,14 @@ fn check_gradients<const H: usize>(loss: Loss) {
         let mut s = Scratch::<H>::new(6);
         let mut grad = boxed_zero::<H>();
         forward_batch(kernel, &net, &Packed::new(&net), &x, &mut s);
+        let scaled = (loss, 1.0 / x.len() as f32);
         let l = backward(
-            kernel, &net, &x, &actions, &targets, loss, &mut s, &mut grad,
+            kernel, &net, &x, &actions, &targets, scaled, &mut s, &mut grad,
         );
+        let l = l / x.len() as f64;
         let want = reference_loss(&p64, H, &x, &actions, &targets, loss);
         assert!(
-            (f64::from(l) - want).abs() <= 1e-5 * want.max(1.0),
+            (l - want).abs() <= 1e-5 * want.max(1.0),
             "{kernel:?}: {l} vs {want}"
         );
         for (ti, g) in grad.tensors().iter().enumerate() {
@@ -241,45 +240,28 @@ fn clipping_rescales_to_the_threshold() {
     assert_eq!(small.fc2_bias[2], 3.0);
 }
 
-/// PyTorch's definition, written out: the norm always, summed in f64 in parameter order.
-fn clip_reference<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) {
-    let mut sum = 0.0f64;
-    for t in grad.tensors() {
-        for &g in t {
-            sum += f64::from(g) * f64::from(g);
-        }
-    }
-    let norm = sum.sqrt() as f32;
-    if norm > max_norm {
-        let scale = max_norm / (norm + 1e-6);
-        grad.tensors_mut()
-            .into_iter()
-            .for_each(|t| t.iter_mut().for_each(|g| *g *= scale));
-    }
-}
-
 #[test]
-fn the_screened_clip_equals_the_sequential_definition_bit_for_bit() {
-    // Gradients scaled to norms straddling the threshold by a few f32 ulps, where a
-    // wrong screen would skip a clip the definition makes (or make one it skips).
+fn the_clip_follows_the_definition_on_both_sides_of_the_threshold() {
+    // Gradients scaled to norms straddling the threshold by a few f32 ulps, where a wrong
+    // sum would clip where the definition does not (or the other way round).
     let mut r = rng(11, Stream::Sample);
     let mut clipped = [0; 2];
     for case in 0..400 {
         let mut g = random_net::<64>(case);
-        let norm = g
-            .tensors()
-            .iter()
-            .flat_map(|t| t.iter())
-            .map(|&v| f64::from(v) * f64::from(v))
-            .sum::<f64>()
-            .sqrt();
+        let norm = reference::sum_of_squares(&g).sqrt();
         let target = 10.0 * (1.0 + f64::from(uniform(&mut r, -4e-7, 4e-7)));
         let scale = (target / norm) as f32;
         g.tensors_mut()
             .into_iter()
             .for_each(|t| t.iter_mut().for_each(|v| *v *= scale));
         let mut want = g.clone();
-        clip_reference(&mut want, 10.0);
+        let n = reference::sum_of_squares(&want).sqrt() as f32;
+        if n > 10.0 {
+            let k = 10.0 / (n + 1e-6);
+            want.tensors_mut()
+                .into_iter()
+                .for_each(|t| t.iter_mut().for_each(|v| *v *= k));
+        }
         clipped[usize::from(clip_grad_norm(&mut g, 10.0))] += 1;
         assert_eq!(bits(&g), bits(&want), "case {case}");
     }
@@ -295,123 +277,11 @@ fn soft_update_interpolates() {
     assert_eq!(t.fc2_weight[1][2], 1.5);
 }
 
-/// `Kernel::Portable` runs in AVX2 registers where it can; the generic code called directly
-/// here is the baseline build. Forward, backward and Adam must agree bit for bit, at the
-/// narrowest width and at the firmware's.
+/// Every kernel this CPU runs renders the definition (`reference`) bit for bit: forward,
+/// backward and Adam, at widths the AVX-512 blocks divide and one they leave a remainder of,
+/// with batches that leave rows over, on weights and inputs that cross every ReLU.
 #[test]
-fn the_portable_kernel_gives_the_baseline_builds_bits() {
-    fn check<const H: usize>() {
-        let mut r = rng(21, Stream::Sample);
-        let net = random_net::<H>(20);
-        let packed = Packed::new(&net);
-        let x = random_obs(&mut r, 13);
-        let actions: Vec<u8> = (0..13).map(|i| (i % 2) as u8).collect();
-        let targets: Vec<f32> = (0..13).map(|i| 0.3 * i as f32 - 1.0).collect();
-        let (mut s1, mut s2) = (Scratch::<H>::new(13), Scratch::<H>::new(13));
-        let (mut g1, mut g2) = (boxed_zero::<H>(), boxed_zero::<H>());
-        forward_batch(Kernel::Portable, &net, &packed, &x, &mut s1);
-        forward_impl::<H, Unfused, UNFUSED_ROWS>(&net, &packed, &x, &mut s2);
-        let q =
-            |s: &Scratch<H>| -> Vec<u32> { s.q.iter().flatten().map(|v| v.to_bits()).collect() };
-        assert_eq!(q(&s1), q(&s2));
-        let l1 = backward(
-            Kernel::Portable,
-            &net,
-            &x,
-            &actions,
-            &targets,
-            Loss::Huber,
-            &mut s1,
-            &mut g1,
-        );
-        let l2 = backward_impl::<H, Unfused, UNFUSED_ROWS>(
-            &net,
-            &x,
-            &actions,
-            &targets,
-            Loss::Huber,
-            &mut s2,
-            &mut g2,
-        );
-        assert_eq!(l1.to_bits(), l2.to_bits());
-        assert_eq!(bits(&g1), bits(&g2));
-        let hp = AdamParams {
-            lr: 1e-3,
-            beta1: 0.9,
-            beta2: 0.999,
-            eps: 1e-8,
-        };
-        let (mut p1, mut p2) = (net.clone(), net.clone());
-        let (mut m1, mut v1, mut m2, mut v2) = (
-            boxed_zero::<H>(),
-            boxed_zero::<H>(),
-            boxed_zero::<H>(),
-            boxed_zero::<H>(),
-        );
-        for t in 1..4 {
-            adam_step(Kernel::Portable, &hp, t, &mut p1, &g1, &mut m1, &mut v1);
-            adam_impl::<H, Unfused, UNFUSED_ROWS>(&hp, t, &mut p2, &g2, &mut m2, &mut v2);
-        }
-        assert_eq!(bits(&p1), bits(&p2));
-        assert_eq!(bits(&v1), bits(&v2));
-    }
-    check::<16>();
-    check::<64>();
-}
-
-/// Acting must give the firmware's Q-values bit for bit with every kernel: on random
-/// networks, at every width the ReLU and tree see differently, for ordinary observations and
-/// for raw bit patterns (NaN, infinities, subnormals, signed zeros), and for weights that
-/// are raw bit patterns too. A NaN's payload is not compared: which operand's payload an
-/// add passes on depends on operand order, which the compiler may swap.
-#[test]
-fn acting_gives_the_firmwares_q_values_bit_for_bit() {
-    fn nan_as_one(v: f32) -> u32 {
-        if v.is_nan() {
-            f32::NAN.to_bits()
-        } else {
-            v.to_bits()
-        }
-    }
-    fn check<const H: usize>(seed: u64) {
-        let mut r = rng(seed, Stream::Env);
-        let mut nets = vec![random_net::<H>(seed)];
-        let mut raw = random_net::<H>(seed + 1);
-        for t in raw.tensors_mut() {
-            for v in t.iter_mut().step_by(7) {
-                *v = f32::from_bits(r.next_u32());
-            }
-        }
-        nets.push(raw);
-        let mut obs = random_obs(&mut r, 200);
-        obs.extend((0..200).map(|_| [0; 4].map(|_| f32::from_bits(r.next_u32()))));
-        obs.push([-0.0, 0.0, f32::NAN, f32::INFINITY]);
-        for net in &nets {
-            let packed = Packed::new(net);
-            for kernel in kernels() {
-                for o in &obs {
-                    let (got, want) = (act(kernel, net, &packed, o), net.forward(o));
-                    assert_eq!(
-                        got.map(nan_as_one),
-                        want.map(nan_as_one),
-                        "{kernel:?}, width {H}, obs {o:?}: {got:?} vs {want:?}"
-                    );
-                }
-            }
-        }
-    }
-    check::<16>(30);
-    check::<32>(31);
-    check::<64>(32);
-    check::<128>(33);
-}
-
-/// The AVX-512 build runs its 4-row blocks in `avx512::rows4`, eight accumulators wide; the
-/// AVX2 build runs the generic kernel with the same fused multiply-adds. Both must give the
-/// same bits, forward and backward, at every width the block divides and with a batch that
-/// leaves rows over. (Skipped on CPUs without AVX-512.)
-#[test]
-fn the_avx512_blocks_give_the_generic_kernels_bits() {
+fn every_kernel_renders_the_definition_bit_for_bit() {
     fn check<const H: usize>(seed: u64) {
         let mut r = rng(seed, Stream::Sample);
         let net = random_net::<H>(seed);
@@ -420,34 +290,83 @@ fn the_avx512_blocks_give_the_generic_kernels_bits() {
             let x = random_obs(&mut r, n);
             let actions: Vec<u8> = (0..n).map(|i| (i % 3 % 2) as u8).collect();
             let targets: Vec<f32> = (0..n).map(|i| 0.7 * i as f32 - 3.0).collect();
-            let run = |kernel| {
+            let loss = (Loss::Huber, 1.0 / n as f32);
+            let (want_g, want_l) = reference::backward(&net, &x, &actions, &targets, loss);
+            let want_q: Vec<u32> = x
+                .iter()
+                .flat_map(|o| reference::forward(&net, o).2)
+                .map(f32::to_bits)
+                .collect();
+            for kernel in kernels() {
                 let mut s = Scratch::<H>::new(n);
                 let mut g = boxed_zero::<H>();
                 forward_batch(kernel, &net, &packed, &x, &mut s);
                 let q: Vec<u32> = s.q.iter().flatten().map(|v| v.to_bits()).collect();
-                let l = backward(
-                    kernel,
-                    &net,
-                    &x,
-                    &actions,
-                    &targets,
-                    Loss::Mse,
-                    &mut s,
-                    &mut g,
+                assert_eq!(q, want_q, "{kernel:?}: forward, width {H}, batch {n}");
+                let l = backward(kernel, &net, &x, &actions, &targets, loss, &mut s, &mut g);
+                assert_eq!(l.to_bits(), want_l.to_bits(), "{kernel:?}: loss");
+                assert_eq!(
+                    bits(&g),
+                    bits(&want_g),
+                    "{kernel:?}: gradient, width {H}, batch {n}"
                 );
-                (q, l.to_bits(), bits(&g))
-            };
-            assert!(
-                run(Kernel::Avx2) == run(Kernel::Avx512),
-                "width {H}, batch {n}"
-            );
+                let hp = AdamParams {
+                    lr: 1e-3,
+                    beta1: 0.9,
+                    beta2: 0.999,
+                    eps: 1e-8,
+                };
+                let (mut p1, mut p2) = (net.clone(), net.clone());
+                let [mut m1, mut v1, mut m2, mut v2] = [0; 4].map(|_| boxed_zero::<H>());
+                for t in 1..4 {
+                    adam_step(kernel, &hp, t, &mut p1, &g, &mut m1, &mut v1);
+                    reference::adam(&hp, t, &mut p2, &want_g, &mut m2, &mut v2);
+                }
+                assert_eq!(bits(&p1), bits(&p2), "{kernel:?}: Adam");
+                assert_eq!(bits(&v1), bits(&v2), "{kernel:?}: Adam's moments");
+            }
         }
     }
-    if !Kernel::Avx512.supported() {
-        eprintln!("no AVX-512 on this CPU: nothing to compare");
-        return;
+    check::<16>(40);
+    check::<32>(41);
+    check::<64>(42);
+    check::<128>(43);
+}
+
+/// The learner acts with the firmware's Q-values, bit for bit, before and after it learns.
+#[test]
+fn the_learner_acts_with_the_firmwares_forward_pass() {
+    use crate::config::Config;
+    use crate::train::{Learner, ReplayBuffer};
+    use firmware::cartpole::Action;
+    let cfg = Config {
+        batch_size: 8,
+        ..Config::paper()
+    };
+    for kernel in kernels() {
+        let mut learner = Learner::<64>::new(&cfg, kernel, 3);
+        let mut buf = ReplayBuffer::new(64);
+        let mut r = rng(4, Stream::Sample);
+        let obs = random_obs(&mut r, 40);
+        for (k, o) in obs.iter().enumerate() {
+            buf.push(
+                *o,
+                Action::from_index(k % 2),
+                1.0,
+                obs[(k + 1) % 40],
+                k % 9 == 0,
+            );
+        }
+        for round in 0..3 {
+            for o in &obs {
+                let (got, want) = (learner.q_values(o), learner.online().forward(o));
+                assert_eq!(
+                    got.map(f32::to_bits),
+                    want.map(f32::to_bits),
+                    "{kernel:?} {round}"
+                );
+            }
+            learner.update(&cfg, &buf, &mut r);
+        }
     }
-    check::<32>(40);
-    check::<64>(41);
-    check::<128>(42);
 }

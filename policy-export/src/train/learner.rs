@@ -1,5 +1,11 @@
 //! One gradient step's state and work: the online and target networks, Adam's moments, the
 //! TD targets of a sampled batch, and the target network's cached Q-values.
+//!
+//! A batch is learnt from in two halves (the first `ceil(n / 2)` sampled rows and the rest,
+//! [`half`]): each half's TD targets, forward and backward pass are computed on their own,
+//! the two halves run on two cores where there are two, and the gradient is the first half's
+//! plus the second's. That split is part of the arithmetic's definition, so one thread or two
+//! give the same bits.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
 use host_common::wide::WideMlp;
@@ -9,7 +15,13 @@ use rand_distr::{Distribution, StandardNormal};
 use super::replay::ReplayBuffer;
 use super::{Stream, rng};
 use crate::config::{Algo, Config, Init, TargetUpdate};
-use crate::nn::{self, AdamParams, Kernel, Packed, Scratch};
+use crate::nn::{self, AdamParams, Kernel, Packed, Part};
+
+mod half;
+mod pair;
+
+use half::{CachedQ, Half, Nets};
+use pair::Pair;
 
 /// TD targets for a batch: `r + gamma * (1 - terminated) * Q_target(s', a')`, where `a'` is
 /// chosen by the online net (Double DQN) or by the target net itself (DQN). Truncated
@@ -34,16 +46,7 @@ pub fn td_targets(
     }
 }
 
-/// `Q_target(s')` of one replay slot, valid while the target net and the slot are the ones
-/// it was computed for.
-#[derive(Clone, Copy, Default)]
-struct CachedQ {
-    q: [f32; N_ACTIONS],
-    target_version: u64,
-    write_id: u64,
-}
-
-/// One gradient step's state: the two networks, Adam's moments and the batch buffers.
+/// One gradient step's state: the two networks, Adam's moments and the two halves' buffers.
 pub struct Learner<const H: usize> {
     /// The network being trained; acting uses it. Private, as `target` is: each is
     /// repacked whenever it changes, and a caller's write would leave the packing stale.
@@ -54,32 +57,24 @@ pub struct Learner<const H: usize> {
     target_packed: Box<Packed<H>>,
     /// The online net laid out for acting: the firmware's forward pass, bit for bit.
     acting: Box<WideMlp<H>>,
-    grad: Box<Mlp<H>>,
     m: Box<Mlp<H>>,
     v: Box<Mlp<H>>,
     steps: u64,
     kernel: Kernel,
     adam: AdamParams,
-    scratch: Scratch<H>,
     idx: Vec<usize>,
-    x: Vec<[f32; OBS_DIM]>,
-    x_next: Vec<[f32; OBS_DIM]>,
-    actions: Vec<u8>,
-    rewards: Vec<f32>,
-    terminated: Vec<bool>,
-    q_target: Vec<[f32; N_ACTIONS]>,
-    q_online: Vec<[f32; N_ACTIONS]>,
-    targets: Vec<f32>,
-    /// Per replay slot, its target Q-values. A hard-updated target net stays fixed for
-    /// thousands of updates while each slot is drawn many times, so scoring a slot once
-    /// per target version saves most of the target forward passes. A row's Q-values do
-    /// not depend on the rows batched with it, so the result is the same bit for bit.
+    halves: [Half<H>; 2],
+    /// Per replay slot, its target Q-values, where the target net is copied now and then
+    /// (`TargetUpdate::Hard`): it then stays fixed for thousands of updates while each slot
+    /// is drawn many times, so scoring a slot once per target version saves most of the
+    /// target forward passes. A row's Q-values do not depend on the rows batched with it, so
+    /// the result is the same bit for bit. Empty with soft updates, which change the target
+    /// every step.
     target_q: Vec<CachedQ>,
     /// Bumped whenever the target net changes; 0 marks a never-filled cache entry.
     target_version: u64,
-    /// Batch rows whose target Q-values were not cached, and their next states.
-    miss_rows: Vec<usize>,
-    x_miss: Vec<[f32; OBS_DIM]>,
+    /// The core that takes the second half, where the run has one to itself.
+    pair: Option<Pair>,
 }
 
 impl<const H: usize> Learner<H> {
@@ -88,13 +83,13 @@ impl<const H: usize> Learner<H> {
         let mut online = nn::boxed_zero::<H>();
         init_weights(&mut online, cfg.init, &mut rng(seed, Stream::Init));
         let b = cfg.batch_size;
+        let cached = cfg.target_update == TargetUpdate::Hard;
         Learner {
             target: online.clone(),
             online_packed: Packed::new(&online),
             target_packed: Packed::new(&online),
             acting: WideMlp::with_kernel(&online, kernel).unwrap_or_else(|| WideMlp::new(&online)),
             online,
-            grad: nn::boxed_zero(),
             m: nn::boxed_zero(),
             v: nn::boxed_zero(),
             steps: 0,
@@ -105,129 +100,61 @@ impl<const H: usize> Learner<H> {
                 beta2: cfg.adam_beta2,
                 eps: cfg.adam_eps,
             },
-            scratch: Scratch::new(b),
             idx: Vec::with_capacity(b),
-            x: vec![[0.0; OBS_DIM]; b],
-            x_next: vec![[0.0; OBS_DIM]; b],
-            actions: vec![0; b],
-            rewards: vec![0.0; b],
-            terminated: vec![false; b],
-            q_target: vec![[0.0; N_ACTIONS]; b],
-            q_online: vec![[0.0; N_ACTIONS]; b],
-            targets: vec![0.0; b],
-            target_q: vec![CachedQ::default(); cfg.buffer_size],
+            halves: [Half::new(b.div_ceil(2)), Half::new(b / 2)],
+            target_q: vec![CachedQ::default(); if cached { cfg.buffer_size } else { 0 }],
             target_version: 1,
-            miss_rows: Vec::with_capacity(b),
-            x_miss: Vec::with_capacity(b),
+            pair: spare_core().then(Pair::new),
         }
     }
 
     /// Samples a minibatch and takes one clipped Adam step on the TD loss; returns the loss.
     pub fn update<R: Rng>(&mut self, cfg: &Config, buf: &ReplayBuffer, rng: &mut R) -> f32 {
         buf.sample_indices(rng, cfg.batch_size, &mut self.idx);
-        for (b, &i) in self.idx.iter().enumerate() {
-            let (s, a, r, s2, t) = buf.get(i);
-            (
-                self.x[b],
-                self.actions[b],
-                self.rewards[b],
-                self.x_next[b],
-                self.terminated[b],
-            ) = (s, a, r, s2, t);
+        let first = self.idx.len().div_ceil(2);
+        let (a, b) = self.idx.split_at(first);
+        let [h0, h1] = &mut self.halves;
+        let nets = Nets {
+            kernel: self.kernel,
+            online: &self.online,
+            online_packed: &self.online_packed,
+            target: &self.target,
+            target_packed: &self.target_packed,
+            scale: 1.0 / self.idx.len() as f32,
+        };
+        let (cache, version) = (&self.target_q, self.target_version);
+        let (l0, l1) = both(
+            self.pair.as_ref(),
+            || h0.learn(cfg, &nets, buf, a, (cache, version)),
+            || h1.learn(cfg, &nets, buf, b, (cache, version)),
+        );
+        for h in [&*h0, &*h1] {
+            h.cache(&mut self.target_q, self.target_version, buf);
         }
-        let k = self.kernel;
-        self.score_targets(k, buf);
-        if cfg.algo == Algo::Ddqn {
-            nn::forward_batch(
-                k,
-                &self.online,
-                &self.online_packed,
-                &self.x_next,
-                &mut self.scratch,
-            );
-            self.q_online.copy_from_slice(&self.scratch.q);
-        }
-        td_targets(
-            cfg.algo,
-            cfg.gamma as f32,
-            &self.rewards,
-            &self.terminated,
-            &self.q_target,
-            &self.q_online,
-            &mut self.targets,
-        );
-        nn::forward_batch(
-            k,
-            &self.online,
-            &self.online_packed,
-            &self.x,
-            &mut self.scratch,
-        );
-        let loss = nn::backward(
-            k,
-            &self.online,
-            &self.x,
-            &self.actions,
-            &self.targets,
-            cfg.loss,
-            &mut self.scratch,
-            &mut self.grad,
-        );
+        let grad = h0.add_gradient(h1);
         if cfg.grad_clip > 0.0 {
-            nn::clip_grad_norm(&mut self.grad, cfg.grad_clip as f32);
+            nn::clip_grad_norm(grad, cfg.grad_clip as f32);
         }
         self.steps += 1;
-        nn::adam_step(
-            k,
-            &self.adam,
-            self.steps,
-            &mut self.online,
-            &self.grad,
-            &mut self.m,
-            &mut self.v,
+        let step = self.adam.at(self.steps);
+        let [mut first, mut second] =
+            split_parameters(&mut self.online, grad, &mut self.m, &mut self.v);
+        let k = self.kernel;
+        both(
+            self.pair.as_ref(),
+            || nn::adam_parts(k, &step, &mut first),
+            || nn::adam_parts(k, &step, &mut second),
         );
         self.online_packed.pack(&self.online);
         self.acting.refresh(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
-            nn::soft_update(&mut self.target, &self.online, cfg.tau as f32);
-            self.target_packed.pack(&self.target);
+            let tau = cfg.tau as f32;
+            nn::soft_update(&mut self.target, &self.online, tau);
+            // Elementwise, so the packing follows by the same formula: no transposing.
+            self.target_packed.soft_update(&self.online_packed, tau);
             self.target_version += 1;
         }
-        loss
-    }
-
-    /// Fills `q_target` with the target net's Q-values of the batch's next states, from the
-    /// cache where it is current, with one batched forward pass for the rest.
-    fn score_targets(&mut self, k: Kernel, buf: &ReplayBuffer) {
-        self.miss_rows.clear();
-        self.x_miss.clear();
-        for (b, &i) in self.idx.iter().enumerate() {
-            let c = &self.target_q[i];
-            if c.target_version == self.target_version && c.write_id == buf.write_id(i) {
-                self.q_target[b] = c.q;
-            } else {
-                self.miss_rows.push(b);
-                self.x_miss.push(self.x_next[b]);
-            }
-        }
-        if self.miss_rows.is_empty() {
-            return;
-        }
-        nn::forward_batch(
-            k,
-            &self.target,
-            &self.target_packed,
-            &self.x_miss,
-            &mut self.scratch,
-        );
-        for (&b, q) in self.miss_rows.iter().zip(&self.scratch.q) {
-            self.q_target[b] = *q;
-            self.target_q[self.idx[b]] = CachedQ {
-                q: *q,
-                target_version: self.target_version,
-                write_id: buf.write_id(self.idx[b]),
-            };
-        }
+        ((l0 + l1) / self.idx.len() as f64) as f32
     }
 
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
@@ -259,6 +186,61 @@ impl<const H: usize> Learner<H> {
     }
 }
 
+/// `a` and `b`, on two cores where `pair` gives a second.
+fn both<A, B: Send>(
+    pair: Option<&Pair>,
+    a: impl FnOnce() -> A,
+    b: impl FnOnce() -> B + Send,
+) -> (A, B) {
+    match pair {
+        Some(pair) => pair.join(a, b),
+        None => (a(), b()),
+    }
+}
+
+/// A network's parameters, gradients and moments in two shares of about equal size: the
+/// first layer and the first half of the second layer's weights, and the rest.
+fn split_parameters<'a, const H: usize>(
+    p: &'a mut Mlp<H>,
+    g: &'a Mlp<H>,
+    m: &'a mut Mlp<H>,
+    v: &'a mut Mlp<H>,
+) -> [Vec<Part<'a>>; 2] {
+    let mut parts: Vec<Part<'a>> = p
+        .tensors_mut()
+        .into_iter()
+        .zip(g.tensors())
+        .zip(m.tensors_mut().into_iter().zip(v.tensors_mut()))
+        .map(|((p, g), (m, v))| (p, g, m, v))
+        .collect();
+    // Tensors in order fc1.weight, fc1.bias, fc2.weight, ...: fc2.weight is the large one.
+    let rest = parts.split_off(2);
+    let mut second = Vec::with_capacity(5);
+    let mut first = parts;
+    for (i, (p, g, m, v)) in rest.into_iter().enumerate() {
+        if i == 0 {
+            let half = p.len() / 2;
+            let (p0, p1) = p.split_at_mut(half);
+            let (g0, g1) = g.split_at(half);
+            let (m0, m1) = m.split_at_mut(half);
+            let (v0, v1) = v.split_at_mut(half);
+            first.push((p0, g0, m0, v0));
+            second.push((p1, g1, m1, v1));
+        } else {
+            second.push((p, g, m, v));
+        }
+    }
+    [first, second]
+}
+
+/// Whether a run may have a second core for its updates: the machine has one, and the run is
+/// not one of several the thread pool runs side by side (seeds, a study), each of which
+/// keeps a core busy.
+fn spare_core() -> bool {
+    rayon::current_thread_index().is_none()
+        && std::thread::available_parallelism().is_ok_and(|n| n.get() >= 2)
+}
+
 /// Xavier-normal or N(0, 0.1^2) weights, biases 0.01, drawn tensor by tensor in PyTorch's
 /// parameter order.
 pub fn init_weights<const H: usize, R: Rng>(net: &mut Mlp<H>, init: Init, rng: &mut R) {
@@ -279,77 +261,4 @@ pub fn init_weights<const H: usize, R: Rng>(net: &mut Mlp<H>, init: Init, rng: &
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::train::unit_f64;
-    use firmware::cartpole::Action;
-
-    #[test]
-    fn ddqn_and_dqn_targets_differ_where_they_should() {
-        // Online net prefers action 0, target net rates action 1 higher.
-        let qt = [[1.0, 3.0], [1.0, 3.0]];
-        let qo = [[5.0, 2.0], [5.0, 2.0]];
-        let r = [1.0, 1.0];
-        let term = [false, true];
-        let mut y = [0.0; 2];
-        td_targets(Algo::Ddqn, 0.5, &r, &term, &qt, &qo, &mut y);
-        assert_eq!(y, [1.0 + 0.5 * 1.0, 1.0]);
-        td_targets(Algo::Dqn, 0.5, &r, &term, &qt, &qo, &mut y);
-        assert_eq!(y, [1.0 + 0.5 * 3.0, 1.0]);
-    }
-
-    #[test]
-    fn cached_target_q_values_equal_a_fresh_forward_pass() {
-        let kernel = Kernel::detect();
-        for target_update in [TargetUpdate::Hard, TargetUpdate::Soft] {
-            // A small buffer, so slots are overwritten many times over.
-            let cfg = Config {
-                buffer_size: 48,
-                target_update,
-                ..Config::paper()
-            };
-            let mut learner = Learner::<64>::new(&cfg, kernel, 7);
-            let mut buf = ReplayBuffer::new(cfg.buffer_size);
-            let (mut r, mut sample) = (rng(7, Stream::Env), rng(7, Stream::Sample));
-            let mut state = || [0; OBS_DIM].map(|_| (unit_f64(&mut r) as f32 - 0.5) * 4.0);
-            let mut fresh = Scratch::<64>::new(cfg.batch_size);
-            let (mut rows, mut misses) = (0, 0);
-            for step in 0..400 {
-                let (s, s2) = (state(), state());
-                buf.push(s, Action::from_index(step % 2), 1.0, s2, step % 7 == 0);
-                if buf.len() < cfg.batch_size {
-                    continue;
-                }
-                let target = learner.target.clone();
-                learner.update(&cfg, &buf, &mut sample);
-                nn::forward_batch(
-                    kernel,
-                    &target,
-                    &Packed::new(&target),
-                    &learner.x_next,
-                    &mut fresh,
-                );
-                let bits =
-                    |q: &[[f32; 2]]| q.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
-                assert_eq!(
-                    bits(&learner.q_target),
-                    bits(&fresh.q),
-                    "{target_update:?} step {step}"
-                );
-                rows += cfg.batch_size;
-                misses += learner.miss_rows.len();
-                if step % 100 == 99 {
-                    learner.sync_target();
-                }
-            }
-            match target_update {
-                // Most rows come from the cache, but new and overwritten slots do not.
-                TargetUpdate::Hard => {
-                    assert!(misses > 0 && misses * 4 < rows, "{misses} of {rows}")
-                }
-                // The target changes every step: nothing can be reused.
-                TargetUpdate::Soft => assert_eq!(misses, rows),
-            }
-        }
-    }
-}
+mod tests;

@@ -5,16 +5,24 @@ use firmware::cartpole::Action;
 use firmware::network::OBS_DIM;
 use rand_core::Rng;
 
+/// One stored transition, laid out to fill one cache line: a sampled row is one memory
+/// access, where a column per field took six.
+#[derive(Clone, Copy, Debug, Default)]
+#[repr(C, align(64))]
+struct Slot {
+    obs: [f32; OBS_DIM],
+    next: [f32; OBS_DIM],
+    reward: f32,
+    action: u8,
+    terminated: bool,
+    /// Which push filled the slot (1 = the first): tells a cache keyed by slot whether the
+    /// slot still holds the transition it saw.
+    write_id: u64,
+}
+
 /// A FIFO experience buffer of fixed capacity; the oldest transition goes first.
 pub struct ReplayBuffer {
-    obs: Vec<[f32; OBS_DIM]>,
-    next: Vec<[f32; OBS_DIM]>,
-    action: Vec<u8>,
-    reward: Vec<f32>,
-    terminated: Vec<bool>,
-    /// Per slot, which push filled it (1 = the first): tells a cache keyed by slot whether
-    /// the slot still holds the transition it saw.
-    write_ids: Vec<u64>,
+    slots: Vec<Slot>,
     pushes: u64,
     capacity: usize,
     pos: usize,
@@ -24,12 +32,7 @@ impl ReplayBuffer {
     /// An empty buffer holding at most `capacity` transitions.
     pub fn new(capacity: usize) -> Self {
         ReplayBuffer {
-            obs: Vec::with_capacity(capacity),
-            next: Vec::with_capacity(capacity),
-            action: Vec::with_capacity(capacity),
-            reward: Vec::with_capacity(capacity),
-            terminated: Vec::with_capacity(capacity),
-            write_ids: Vec::with_capacity(capacity),
+            slots: Vec::with_capacity(capacity),
             pushes: 0,
             capacity,
             pos: 0,
@@ -38,32 +41,29 @@ impl ReplayBuffer {
 
     /// Transitions held.
     pub fn len(&self) -> usize {
-        self.obs.len()
+        self.slots.len()
     }
 
     /// Whether nothing is stored yet.
     pub fn is_empty(&self) -> bool {
-        self.obs.is_empty()
+        self.slots.is_empty()
     }
 
     /// Stores a transition, overwriting the oldest once full.
     pub fn push(&mut self, obs: [f32; 4], action: Action, reward: f32, next: [f32; 4], term: bool) {
-        let a = action.index() as u8;
         self.pushes += 1;
+        let slot = Slot {
+            obs,
+            next,
+            reward,
+            action: action.index() as u8,
+            terminated: term,
+            write_id: self.pushes,
+        };
         if self.len() < self.capacity {
-            self.obs.push(obs);
-            self.next.push(next);
-            self.action.push(a);
-            self.reward.push(reward);
-            self.terminated.push(term);
-            self.write_ids.push(self.pushes);
+            self.slots.push(slot);
         } else {
-            self.obs[self.pos] = obs;
-            self.next[self.pos] = next;
-            self.action[self.pos] = a;
-            self.reward[self.pos] = reward;
-            self.terminated[self.pos] = term;
-            self.write_ids[self.pos] = self.pushes;
+            self.slots[self.pos] = slot;
         }
         self.pos = (self.pos + 1) % self.capacity;
     }
@@ -83,18 +83,13 @@ impl ReplayBuffer {
 
     /// The transition at index `i` (0 = oldest slot written first).
     pub fn get(&self, i: usize) -> ([f32; 4], u8, f32, [f32; 4], bool) {
-        (
-            self.obs[i],
-            self.action[i],
-            self.reward[i],
-            self.next[i],
-            self.terminated[i],
-        )
+        let s = &self.slots[i];
+        (s.obs, s.action, s.reward, s.next, s.terminated)
     }
 
     /// Which push wrote slot `i`: unique over the buffer's life.
     pub fn write_id(&self, i: usize) -> u64 {
-        self.write_ids[i]
+        self.slots[i].write_id
     }
 }
 

@@ -1,0 +1,158 @@
+//! A second core for the halves of each update: a helper thread that takes one half while
+//! the learner computes the other.
+//!
+//! An update's halves take tens of microseconds each and come one update after another, a
+//! few microseconds apart: waking a sleeping thread for each (a thread pool's `join`) costs
+//! more than the half saves. The helper spins for its next half instead, and parks once none
+//! has come for a while (an evaluation, the end of an episode), so an idle helper costs
+//! nothing.
+#![allow(unsafe_code)]
+
+use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::{self, JoinHandle};
+use std::time::{Duration, Instant};
+
+/// How long the helper spins for its next half before it parks.
+const SPIN: Duration = Duration::from_micros(200);
+
+const IDLE: u8 = 0;
+const POSTED: u8 = 1;
+const DONE: u8 = 2;
+const EXIT: u8 = 3;
+
+type Job = Box<dyn FnOnce() + Send + 'static>;
+
+struct Shared {
+    state: AtomicU8,
+    job: Mutex<Option<Job>>,
+    /// The job's panic, handed back to the caller.
+    panic: Mutex<Option<Box<dyn std::any::Any + Send>>>,
+}
+
+/// The helper thread; it exits when this is dropped.
+pub(super) struct Pair {
+    shared: Arc<Shared>,
+    thread: Option<JoinHandle<()>>,
+}
+
+impl Pair {
+    /// A helper thread, waiting.
+    pub fn new() -> Pair {
+        let shared = Arc::new(Shared {
+            state: AtomicU8::new(IDLE),
+            job: Mutex::new(None),
+            panic: Mutex::new(None),
+        });
+        let s = Arc::clone(&shared);
+        let thread = thread::Builder::new()
+            .name("learner-half".into())
+            .spawn(move || serve(&s))
+            .expect("spawning the learner's helper thread");
+        Pair {
+            shared,
+            thread: Some(thread),
+        }
+    }
+
+    /// Runs `b` on the helper while this thread runs `a`; both results, once both ran.
+    pub fn join<A, B: Send>(&self, a: impl FnOnce() -> A, b: impl FnOnce() -> B + Send) -> (A, B) {
+        let mut out: Option<B> = None;
+        let slot = &mut out;
+        let job: Box<dyn FnOnce() + Send + '_> = Box::new(move || *slot = Some(b()));
+        // SAFETY: the job borrows from this call's frame (`b`'s captures and `out`). The
+        // helper runs it and sets DONE before anything else; this function does not return,
+        // even by unwinding from `a`, until it has seen DONE, so every borrow outlives the
+        // job's use of it.
+        let job: Job = unsafe { std::mem::transmute::<Box<dyn FnOnce() + Send + '_>, Job>(job) };
+        *self
+            .shared
+            .job
+            .lock()
+            .expect("the helper never panics holding the lock") = Some(job);
+        self.shared.state.store(POSTED, Ordering::Release);
+        if let Some(t) = &self.thread {
+            t.thread().unpark();
+        }
+        let ra = catch_unwind(AssertUnwindSafe(a));
+        while self.shared.state.load(Ordering::Acquire) != DONE {
+            std::hint::spin_loop();
+        }
+        self.shared.state.store(IDLE, Ordering::Relaxed);
+        let panicked = self.shared.panic.lock().expect("not poisoned").take();
+        if let Some(p) = panicked {
+            resume_unwind(p);
+        }
+        match ra {
+            Ok(ra) => (ra, out.expect("the helper ran the job")),
+            Err(p) => resume_unwind(p),
+        }
+    }
+}
+
+impl Drop for Pair {
+    fn drop(&mut self) {
+        self.shared.state.store(EXIT, Ordering::Release);
+        if let Some(t) = self.thread.take() {
+            t.thread().unpark();
+            let _ = t.join();
+        }
+    }
+}
+
+/// The helper's loop: spin for a posted job, run it, report; park when none comes.
+fn serve(s: &Shared) {
+    loop {
+        let since = Instant::now();
+        let mut spins = 0u32;
+        loop {
+            match s.state.load(Ordering::Acquire) {
+                POSTED => break,
+                EXIT => return,
+                _ => {
+                    spins = spins.wrapping_add(1);
+                    // The clock is read now and then: reading it is slower than a spin.
+                    if spins.is_multiple_of(1024) && since.elapsed() > SPIN {
+                        thread::park_timeout(Duration::from_millis(50));
+                    } else {
+                        std::hint::spin_loop();
+                    }
+                }
+            }
+        }
+        let job = s.job.lock().expect("not poisoned").take();
+        if let Some(job) = job
+            && let Err(p) = catch_unwind(AssertUnwindSafe(job))
+        {
+            *s.panic.lock().expect("not poisoned") = Some(p);
+        }
+        s.state.store(DONE, Ordering::Release);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn both_sides_run_and_borrow_from_the_caller() {
+        let pair = Pair::new();
+        let data: Vec<u64> = (0..1000).collect();
+        for k in 0..200u64 {
+            let (a, b) = pair.join(
+                || data[..500].iter().sum::<u64>() + k,
+                || data[500..].iter().sum::<u64>() * k,
+            );
+            assert_eq!((a, b), (124_750 + k, 374_750 * k));
+        }
+    }
+
+    #[test]
+    fn a_panic_on_the_helper_reaches_the_caller_and_the_helper_goes_on() {
+        let pair = Pair::new();
+        let r = catch_unwind(AssertUnwindSafe(|| pair.join(|| 1, || panic!("half"))));
+        assert!(r.is_err());
+        assert_eq!(pair.join(|| 2, || 3), (2, 3));
+    }
+}
