@@ -69,6 +69,75 @@ pub fn line_chart(
     Ok(())
 }
 
+/// The lowest and highest finite value of `curves` (means and band edges), `(0, 1)` where
+/// there are none or they are all the same.
+fn y_range(curves: &[Curve]) -> (f64, f64) {
+    let values = curves
+        .iter()
+        .flat_map(|c| {
+            c.mean
+                .iter()
+                .copied()
+                .chain(c.band.iter().flat_map(|&(a, b)| [a, b]))
+        })
+        .filter(|v| v.is_finite());
+    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
+        (l.min(v), h.max(v))
+    });
+    if lo < hi { (lo, hi) } else { (0.0, 1.0) }
+}
+
+type Chart<'a, DB> = plotters::prelude::ChartContext<
+    'a,
+    DB,
+    plotters::prelude::Cartesian2d<
+        plotters::coord::types::RangedCoordf64,
+        plotters::coord::types::RangedCoordf64,
+    >,
+>;
+
+/// Draws curve `c`, the `i`th, with its band and its legend entry.
+fn draw_curve<DB: plotters::prelude::DrawingBackend>(
+    chart: &mut Chart<'_, DB>,
+    i: usize,
+    c: &Curve,
+) -> std::result::Result<(), Box<dyn std::error::Error>>
+where
+    DB::ErrorType: 'static,
+{
+    use plotters::prelude::*;
+    let colour = Palette99::pick(i).to_rgba();
+    let xy = |v: &[f64]| -> Vec<(f64, f64)> {
+        v.iter()
+            .enumerate()
+            .map(|(k, &y)| ((k + 1) as f64, y))
+            .collect()
+    };
+    if !c.band.is_empty() {
+        let mut poly: Vec<(f64, f64)> = xy(&c.band.iter().map(|b| b.1).collect::<Vec<_>>());
+        let lower = xy(&c.band.iter().map(|b| b.0).collect::<Vec<_>>());
+        poly.extend(lower.into_iter().rev());
+        chart.draw_series(std::iter::once(Polygon::new(
+            poly,
+            colour.mix(0.18).filled(),
+        )))?;
+    }
+    let style = colour.stroke_width(2);
+    let points = xy(&c.mean);
+    if c.dashed {
+        chart
+            .draw_series(DashedLineSeries::new(points, 6, 4, style))?
+            .label(c.label.clone())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
+    } else {
+        chart
+            .draw_series(LineSeries::new(points, style))?
+            .label(c.label.clone())
+            .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
+    }
+    Ok(())
+}
+
 fn draw<DB: plotters::prelude::DrawingBackend>(
     root: plotters::prelude::DrawingArea<DB, plotters::coord::Shift>,
     title: &str,
@@ -87,19 +156,7 @@ where
         .max()
         .unwrap_or(1)
         .max(2);
-    let values = curves
-        .iter()
-        .flat_map(|c| {
-            c.mean
-                .iter()
-                .copied()
-                .chain(c.band.iter().flat_map(|&(a, b)| [a, b]))
-        })
-        .filter(|v| v.is_finite());
-    let (lo, hi) = values.fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), v| {
-        (l.min(v), h.max(v))
-    });
-    let (lo, hi) = if lo < hi { (lo, hi) } else { (0.0, 1.0) };
+    let (lo, hi) = y_range(curves);
     let pad = 0.05 * (hi - lo);
     let mut chart = ChartBuilder::on(&root)
         .caption(title, (FONT, 22))
@@ -114,35 +171,7 @@ where
         .label_style((FONT, 14))
         .draw()?;
     for (i, c) in curves.iter().enumerate() {
-        let colour = Palette99::pick(i).to_rgba();
-        let xy = |v: &[f64]| -> Vec<(f64, f64)> {
-            v.iter()
-                .enumerate()
-                .map(|(k, &y)| ((k + 1) as f64, y))
-                .collect()
-        };
-        if !c.band.is_empty() {
-            let mut poly: Vec<(f64, f64)> = xy(&c.band.iter().map(|b| b.1).collect::<Vec<_>>());
-            let lower = xy(&c.band.iter().map(|b| b.0).collect::<Vec<_>>());
-            poly.extend(lower.into_iter().rev());
-            chart.draw_series(std::iter::once(Polygon::new(
-                poly,
-                colour.mix(0.18).filled(),
-            )))?;
-        }
-        let style = colour.stroke_width(2);
-        let points = xy(&c.mean);
-        if c.dashed {
-            chart
-                .draw_series(DashedLineSeries::new(points, 6, 4, style))?
-                .label(c.label.clone())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
-        } else {
-            chart
-                .draw_series(LineSeries::new(points, style))?
-                .label(c.label.clone())
-                .legend(move |(x, y)| PathElement::new([(x, y), (x + 20, y)], style));
-        }
+        draw_curve(&mut chart, i, c)?;
     }
     chart
         .configure_series_labels()
