@@ -78,6 +78,16 @@ fn v(
 /// The learning rewards of the era's tutorials, alone and with a per-step target copy, and
 /// the other readings of the paper's text.
 fn shaping(b: &Config) -> Vec<Variant> {
+    let mut out = rewards(b);
+    out.extend(readings(b).into_iter().map(|r| Variant {
+        figure: READINGS,
+        ..r
+    }));
+    out
+}
+
+/// The paper preset, each tutorial reward, a per-step target copy, and each reward with it.
+fn rewards(b: &Config) -> Vec<Variant> {
     let rewards = [
         ("Morvan's reward", "morvan"),
         ("-10 on failing", "fail-penalty=-10"),
@@ -118,7 +128,12 @@ fn shaping(b: &Config) -> Vec<Variant> {
             }),
         ));
     }
-    let readings = [
+    out
+}
+
+/// Other readings of the paper's text, and the preset with the fixes it reads into it.
+fn readings(b: &Config) -> [Variant; 4] {
+    [
         v(
             "shaping",
             "reading: epsilon 0.9 is P(greedy), explore 1 -> 0.1",
@@ -156,24 +171,22 @@ fn shaping(b: &Config) -> Vec<Variant> {
             None,
             b.clone().with_paper_fixes(),
         ),
-    ];
-    out.extend(readings.into_iter().map(|r| Variant {
-        figure: READINGS,
-        ..r
-    }));
-    out
+    ]
 }
 
 /// The paper's Tables 1, 4, 5 and 6 on `b`, in the studies `names`, with the paper's numbers
 /// beside each row; Table 6's periods count `b`'s target-period unit.
 fn tables(b: &Config, names: [&'static str; 4]) -> Vec<Variant> {
     let [t1, t4, t5, t6] = names;
-    let unit = match b.target_period_unit {
-        Unit::Episodes => "ep.",
-        Unit::Steps => "steps",
-    };
-    let f = b.clone();
-    vec![
+    let mut out = Vec::from(widths_and_algorithms(b, t1, t4));
+    out.extend(learning_rates(b, t5));
+    out.extend(target_periods(b, t6));
+    out
+}
+
+/// Table 1 (hidden width) in study `t1` and Table 4 (DQN against Double DQN) in `t4`.
+fn widths_and_algorithms(f: &Config, t1: &'static str, t4: &'static str) -> [Variant; 5] {
+    [
         v(
             t1,
             "width 16",
@@ -203,6 +216,12 @@ fn tables(b: &Config, names: [&'static str; 4]) -> Vec<Variant> {
             },
         ),
         v(t4, "Double DQN", Some(("~160", "196.5")), f.clone()),
+    ]
+}
+
+/// Table 5 (learning rate) in study `t5`.
+fn learning_rates(f: &Config, t5: &'static str) -> [Variant; 3] {
+    [
         v(
             t5,
             "lr 0.0001",
@@ -222,6 +241,16 @@ fn tables(b: &Config, names: [&'static str; 4]) -> Vec<Variant> {
                 ..f.clone()
             },
         ),
+    ]
+}
+
+/// Table 6 (target update period, in `f`'s unit) in study `t6`.
+fn target_periods(f: &Config, t6: &'static str) -> [Variant; 3] {
+    let unit = match f.target_period_unit {
+        Unit::Episodes => "ep.",
+        Unit::Steps => "steps",
+    };
+    [
         v(
             t6,
             &format!("every 10 {unit}"),
@@ -243,7 +272,7 @@ fn tables(b: &Config, names: [&'static str; 4]) -> Vec<Variant> {
             Some(("~220", "194.2")),
             Config {
                 target_period: 100,
-                ..f
+                ..f.clone()
             },
         ),
     ]
