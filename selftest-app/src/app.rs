@@ -86,14 +86,17 @@ fn paced<O: Estimate, P: Policy<O>>(board: &impl Board, policy: P) -> loopback::
     out
 }
 
+/// The self-test's C entry point for the float network.
+type Forward = extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>);
+/// And for the integer one.
+type ForwardInt = extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>);
+
 /// The whole run; whether everything passed.
 pub fn run(board: &mut impl Board) -> bool {
     // Probes go through C entry points by address, so the linker keeps them as real
     // functions in this ELF (the instruction counts are taken from them).
-    let forward: extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>) =
-        core::hint::black_box(selftest::selftest_forward);
-    let forward_int: extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>) =
-        core::hint::black_box(selftest::selftest_forward_int);
+    let forward: Forward = core::hint::black_box(selftest::selftest_forward);
+    let forward_int: ForwardInt = core::hint::black_box(selftest::selftest_forward_int);
     let mut ok = selftest::report(
         &POLICY,
         &POLICY_INT,
@@ -101,14 +104,23 @@ pub fn run(board: &mut impl Board) -> bool {
         |o, q| forward_int(Some(o), Some(q)),
         |l| board.line(l),
     );
+    ok &= paced_runs(board);
+    stack_report(board, forward, forward_int);
+    instruction_report(board, forward, forward_int);
+    board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
+    ok
+}
 
-    // The structure a board uses: timer interrupts at 50 Hz, the core sleeps in between.
+/// Both network formats paced by the timer, as a board runs them: timer interrupts at 50 Hz,
+/// the core asleep in between. Whether both balanced.
+fn paced_runs(board: &mut impl Board) -> bool {
     board.start_ticker();
     let runs = [
         ("f32", paced::<[f32; 4], _>(board, &POLICY)),
         ("int8", paced::<[i16; 4], _>(board, &POLICY_INT)),
     ];
     board.stop_ticker();
+    let mut ok = true;
     for (format, run) in runs {
         ok &= run.success;
         board.line(format_args!(
@@ -120,7 +132,11 @@ pub fn run(board: &mut impl Board) -> bool {
             if run.success { "balanced" } else { "FELL" }
         ));
     }
+    ok
+}
 
+/// The stack a forward pass and a control period with the plant take, in each format.
+fn stack_report(board: &mut impl Board, forward: Forward, forward_int: ForwardInt) {
     let forward_bytes = board.stack_used(|| {
         let mut q = [0.0; 2];
         forward(Some(&selftest::PROBES[1]), Some(&mut q));
@@ -145,34 +161,37 @@ pub fn run(board: &mut impl Board) -> bool {
         "stack: forward pass f32 {forward_bytes} bytes, int8 {forward_int_bytes} bytes; control \
          period with plant f32 {step_bytes} bytes, int8 {step_int_bytes} bytes"
     ));
-    if let Some(before) = board.virtual_ns() {
-        // Ten calls each, so the clock's 100 ns grain is under a tenth of an instruction.
-        let mut q = [0.0; 2];
-        for _ in 0..10 {
-            forward(
-                Some(core::hint::black_box(&selftest::PROBES[1])),
-                Some(&mut q),
-            );
-        }
-        let mid = board.virtual_ns().unwrap_or(before);
-        let mut qi = [0; 2];
-        for _ in 0..10 {
-            forward_int(
-                Some(core::hint::black_box(&selftest::INT_PROBES[1])),
-                Some(&mut qi),
-            );
-        }
-        let after = board.virtual_ns().unwrap_or(mid);
-        core::hint::black_box((q, qi));
-        let per_call = |ns: u64| ns / 10 / (1_000_000_000 / u64::from(MODEL_HZ));
-        board.line(format_args!(
-            "instructions per forward pass: f32 {}, int8 {} (virtual time under -icount)",
-            per_call(mid - before),
-            per_call(after - mid)
-        ));
+}
+
+/// Instructions per forward pass in each format, where the board has a fine clock.
+fn instruction_report(board: &mut impl Board, forward: Forward, forward_int: ForwardInt) {
+    let Some(before) = board.virtual_ns() else {
+        return;
+    };
+    // Ten calls each, so the clock's 100 ns grain is under a tenth of an instruction.
+    let mut q = [0.0; 2];
+    for _ in 0..10 {
+        forward(
+            Some(core::hint::black_box(&selftest::PROBES[1])),
+            Some(&mut q),
+        );
     }
-    board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
-    ok
+    let mid = board.virtual_ns().unwrap_or(before);
+    let mut qi = [0; 2];
+    for _ in 0..10 {
+        forward_int(
+            Some(core::hint::black_box(&selftest::INT_PROBES[1])),
+            Some(&mut qi),
+        );
+    }
+    let after = board.virtual_ns().unwrap_or(mid);
+    core::hint::black_box((q, qi));
+    let per_call = |ns: u64| ns / 10 / (1_000_000_000 / u64::from(MODEL_HZ));
+    board.line(format_args!(
+        "instructions per forward pass: f32 {}, int8 {} (virtual time under -icount)",
+        per_call(mid - before),
+        per_call(after - mid)
+    ));
 }
 
 /// High-water-mark stack measurement: paint `[bottom, sp - 64)`, run `f`, find the deepest
