@@ -26,18 +26,17 @@
 //! NULL argument makes the call write nothing instead of being undefined behaviour. Non-NULL
 //! pointers must be valid and aligned, as for any C function taking arrays.
 
+use firmware::controller::{Policy, Reading};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
 
-fn forward<const H: usize>(
-    w: Option<&Mlp<H>>,
-    obs: Option<&[f32; OBS_DIM]>,
-    q: Option<&mut [f32; N_ACTIONS]>,
-) {
-    if let (Some(w), Some(obs), Some(q)) = (w, obs, q) {
-        *q = w.forward(obs);
+/// `q` = the network's outputs for `obs` in either format (the float network's or the
+/// integer one's, as [`Policy`] scores them); a NULL argument (`None`) makes it write nothing.
+fn forward<O: Reading, P: Policy<O>>(w: Option<P>, obs: Option<&O>, q: Option<&mut O::Scores>) {
+    if let (Some(mut w), Some(obs), Some(q)) = (w, obs, q) {
+        *q = w.scores(obs);
     }
 }
 
@@ -54,16 +53,6 @@ pub extern "C" fn cartpole_policy_forward(
     forward(Some(&POLICY), obs, q);
 }
 
-fn forward_int<const H: usize>(
-    w: Option<&QMlp<H>>,
-    obs: Option<&[i16; OBS_DIM]>,
-    q: Option<&mut [i32; N_ACTIONS]>,
-) {
-    if let (Some(w), Some(obs), Some(q)) = (w, obs, q) {
-        *q = w.forward(obs);
-    }
-}
-
 /// `q` = the advantages `Q - mean(Q)` of left and right by the shipped policy's integer
 /// version, `obs` in Q3.12; push right iff `q[1] > q[0]`. No floating-point operation; allocation-free and
 /// panic-free.
@@ -74,7 +63,7 @@ pub extern "C" fn cartpole_policy_forward_int(
     obs: Option<&[i16; OBS_DIM]>,
     q: Option<&mut [i32; N_ACTIONS]>,
 ) {
-    forward_int(Some(&POLICY_INT), obs, q);
+    forward(Some(&POLICY_INT), obs, q);
 }
 
 macro_rules! c_forwards {
@@ -107,7 +96,7 @@ macro_rules! c_forwards {
             obs: Option<&[i16; OBS_DIM]>,
             q: Option<&mut [i32; N_ACTIONS]>,
         ) {
-            forward_int(w, obs, q);
+            forward(w, obs, q);
         }
     )* };
 }
