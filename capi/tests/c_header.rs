@@ -4,9 +4,12 @@
 //! `export --quant int8` headers through `cartpole_qmlpH_forward`). Their literals are parsed
 //! by the C compiler and the outputs computed by the library; both must equal Rust's, bit for
 //! bit.
+//! The library's header must declare what the exported headers declare, and compile and link
+//! as C++ too.
 
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
@@ -59,24 +62,67 @@ fn static_lib() -> PathBuf {
         .unwrap_or_else(|| panic!("no libcartpole_policy-*.a in {}", deps.display()))
 }
 
-/// Compiles `sources` with the system C compiler against the library, strictly, and runs the
-/// program with `args`; its standard output.
-fn compile_and_run(name: &str, sources: &[&Path], include: &[&Path], args: &[String]) -> String {
+/// A compiler of the system and its strict flags.
+struct Compiler {
+    /// The variable that names it, and the command without one.
+    env: (&'static str, &'static str),
+    /// The language, as `-x` names it.
+    lang: &'static str,
+    /// The standard it holds the source to.
+    std: &'static str,
+}
+
+/// C99, the oldest C the headers promise.
+const C99: Compiler = Compiler {
+    env: ("CC", "cc"),
+    lang: "c",
+    std: "-std=c99",
+};
+
+/// C++11: Arduino sketches are C++ and include the headers too.
+const CXX11: Compiler = Compiler {
+    env: ("CXX", "c++"),
+    lang: "c++",
+    std: "-std=c++11",
+};
+
+impl Compiler {
+    /// The compiler, strict: every warning an error.
+    fn command(&self) -> (String, Command) {
+        let (var, default) = self.env;
+        let cc = std::env::var(var).unwrap_or_else(|_| default.into());
+        let mut cmd = Command::new(&cc);
+        cmd.args([self.std, "-pedantic", "-Wall", "-Wextra", "-Werror"]);
+        (cc, cmd)
+    }
+}
+
+/// Compiles `sources` with `compiler` against the library, and runs the program with
+/// `args`; its standard output.
+fn compile_and_run(
+    compiler: &Compiler,
+    name: &str,
+    sources: &[&Path],
+    include: &[&Path],
+    args: &[String],
+) -> String {
     let exe = std::env::temp_dir().join(format!("cartpole-c-{name}-{}", std::process::id()));
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    let mut cmd = Command::new(&cc);
-    cmd.args(["-std=c99", "-pedantic", "-Wall", "-Wextra", "-Werror"]);
+    let (cc, mut cmd) = compiler.command();
     for dir in include {
         cmd.arg("-I").arg(dir);
     }
+    // `-x` so that a C++ compiler reads `.c` files as C++ too, and `-x none` so that the
+    // library is linked, not compiled.
     let status = cmd
+        .args(["-x", compiler.lang])
         .args(sources)
+        .args(["-x", "none"])
         .arg(static_lib())
         .args(["-lpthread", "-ldl", "-lm", "-o"])
         .arg(&exe)
         .status()
-        .unwrap_or_else(|e| panic!("running the C compiler `{cc}`: {e}"));
-    assert!(status.success(), "C compile of {name} failed");
+        .unwrap_or_else(|e| panic!("running the compiler `{cc}`: {e}"));
+    assert!(status.success(), "compile of {name} failed");
     let run = Command::new(&exe).args(args).output().unwrap();
     assert!(
         run.status.success(),
@@ -99,6 +145,7 @@ fn q_line(q: [f32; 2]) -> String {
 #[test]
 fn a_c_program_gets_the_shipped_policys_q_values_through_the_header() {
     let out = compile_and_run(
+        &C99,
         "shipped",
         &[&manifest().join("tests/main.c")],
         &[&manifest().join("include")],
@@ -108,17 +155,136 @@ fn a_c_program_gets_the_shipped_policys_q_values_through_the_header() {
     assert_eq!(out, expected);
 }
 
+/// The tokens `compiler`'s preprocessor makes of `source`, after `stdint.h` (which the
+/// headers include) and with the library's header on the include path.
+fn preprocessed(compiler: &Compiler, source: &str) -> Vec<String> {
+    let (cc, mut cmd) = compiler.command();
+    let mut child = cmd
+        .args(["-x", compiler.lang, "-E", "-P", "-I"])
+        .arg(manifest().join("include"))
+        .arg("-")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap_or_else(|e| panic!("running the preprocessor `{cc}`: {e}"));
+    let mut stdin = child.stdin.take().unwrap();
+    write!(stdin, "#include <stdint.h>\n{source}\n").unwrap();
+    drop(stdin);
+    let out = child.wait_with_output().unwrap();
+    assert!(out.status.success(), "preprocessing failed:\n{source}");
+    tokens(&String::from_utf8(out.stdout).unwrap())
+}
+
+/// C's tokens as far as the headers use them: string literals, identifiers and numbers, and
+/// punctuation one character at a time.
+fn tokens(text: &str) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut rest = text.trim_start();
+    while let Some(c) = rest.chars().next() {
+        let len = if c == '"' {
+            rest[1..].find('"').map_or(rest.len(), |i| i + 2)
+        } else if c.is_ascii_alphanumeric() || c == '_' {
+            rest.find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(rest.len())
+        } else {
+            c.len_utf8()
+        };
+        out.push(rest[..len].to_string());
+        rest = rest[len..].trim_start();
+    }
+    out
+}
+
+/// Every width's blocks of the exported headers, float then integer, each as it preprocesses
+/// after the ones before it (so the integer blocks after the first lose the shared struct to
+/// its guard, as they would in one translation unit), must stand in the library's header one
+/// after another, token for token, in C and in C++.
 #[test]
 fn the_library_header_declares_every_width_as_exported_headers_do() {
-    let header = std::fs::read_to_string(manifest().join("include/cartpole_policy.h")).unwrap();
-    for &h in SUPPORTED_WIDTHS {
-        assert!(
-            header.contains(&c_struct(h)),
-            "include/cartpole_policy.h lacks (or differs from) the exporter's block for width \
-             {h}; it should read:\n{}",
-            c_struct(h)
+    let blocks = SUPPORTED_WIDTHS
+        .iter()
+        .map(|&h| (format!("block for width {h}"), c_struct(h)))
+        .chain(
+            SUPPORTED_WIDTHS
+                .iter()
+                .map(|&h| (format!("integer block for width {h}"), quant::c_struct(h))),
         );
+    for compiler in [&C99, &CXX11] {
+        let header = preprocessed(compiler, "#include \"cartpole_policy.h\"");
+        let mut source = String::new();
+        let mut before = preprocessed(compiler, &source);
+        let mut at: Option<usize> = None;
+        for (what, block) in blocks.clone() {
+            source.push_str(&block);
+            source.push('\n');
+            let after = preprocessed(compiler, &source);
+            let want = &after[before.len()..];
+            let found = match at {
+                None => header.windows(want.len()).position(|w| w == want),
+                Some(i) => header[i..].starts_with(want).then_some(i),
+            };
+            let Some(i) = found else {
+                panic!(
+                    "include/cartpole_policy.h, preprocessed as {}, lacks (or differs from) the \
+                     exporter's {what}; it should declare, token for token:\n{}",
+                    compiler.lang,
+                    want.join(" ")
+                );
+            };
+            at = Some(i + want.len());
+            before = after;
+        }
     }
+}
+
+#[test]
+fn a_cpp_program_links_every_function_of_the_header() {
+    let dir = std::env::temp_dir().join(format!("cartpole-cpp-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // Without C linkage a call would name a mangled symbol the library lacks; with NULL
+    // weights each call writes nothing, so the shipped policy's outputs stand.
+    let calls: String = SUPPORTED_WIDTHS
+        .iter()
+        .map(|h| {
+            format!(
+                "        cartpole_mlp{h}_forward(nullptr, obs, q);\n\
+                 \x20       cartpole_qmlp{h}_forward(nullptr, iobs, qi);\n"
+            )
+        })
+        .collect();
+    let main = format!(
+        "#include <cstdio>\n#include <cstdlib>\n#include <cstring>\n\
+         #include \"cartpole_policy.h\"\n\
+         int main(int argc, char **argv) {{\n\
+         \x20   for (int k = 1; k + 3 < argc; k += 4) {{\n\
+         \x20       float obs[4], q[2];\n\
+         \x20       const int16_t iobs[4] = {{0, 0, 0, 0}};\n\
+         \x20       int32_t qi[2];\n\
+         \x20       unsigned int bits[2];\n\
+         \x20       for (int j = 0; j < 4; j++) obs[j] = std::strtof(argv[k + j], nullptr);\n\
+         \x20       cartpole_policy_forward(obs, q);\n\
+         \x20       cartpole_policy_forward_int(iobs, qi);\n\
+         {calls}\
+         \x20       std::memcpy(bits, q, sizeof bits);\n\
+         \x20       std::printf(\"%08x %08x\\n%ld %ld\\n\", bits[0], bits[1], (long)qi[0], (long)qi[1]);\n\
+         \x20   }}\n\
+         \x20   return 0;\n}}\n"
+    );
+    std::fs::write(dir.join("main.cpp"), main).unwrap();
+    let out = compile_and_run(
+        &CXX11,
+        "cpp",
+        &[&dir.join("main.cpp")],
+        &[&manifest().join("include")],
+        &probe_args(),
+    );
+    let int = int_line(POLICY_INT.forward(&[0; 4]));
+    let expected: String = PROBES
+        .iter()
+        .map(|o| q_line(POLICY.forward(o)) + &int)
+        .collect();
+    assert_eq!(out, expected);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Weights whose decimal forms are awkward for a parser: subnormals, extremes, signed zeros
@@ -181,6 +347,7 @@ fn exported_header_case<const H: usize>() {
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
     let out = compile_and_run(
+        &C99,
         &format!("export-{H}"),
         &[&dir.join("main.c")],
         &[&manifest().join("include"), &dir],
@@ -245,6 +412,7 @@ fn a_c_program_gets_the_shipped_integer_policys_outputs_through_the_header() {
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
     let out = compile_and_run(
+        &C99,
         "shipped-int",
         &[&dir.join("main.c")],
         &[&manifest().join("include")],
@@ -280,6 +448,7 @@ fn exported_int_header_case<const H: usize>(w: &Weights) {
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
     let out = compile_and_run(
+        &C99,
         &format!("export-int-{H}"),
         &[&dir.join("main.c")],
         &[&manifest().join("include"), &dir],
@@ -301,17 +470,4 @@ fn exported_integer_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() 
             .collect()
     });
     exported_int_header_case::<16>(&Weights::new(16, smooth).unwrap());
-}
-
-#[test]
-fn the_library_header_declares_every_integer_width_as_exported_headers_do() {
-    let header = std::fs::read_to_string(manifest().join("include/cartpole_policy.h")).unwrap();
-    for &h in SUPPORTED_WIDTHS {
-        assert!(
-            header.contains(&quant::c_struct(h)),
-            "include/cartpole_policy.h lacks (or differs from) the exporter's integer block for \
-             width {h}; it should read:\n{}",
-            quant::c_struct(h)
-        );
-    }
 }
