@@ -64,6 +64,61 @@ struct RowCount {
     worst: Option<(f64, [f32; 4])>,
 }
 
+/// The margin bins, empty.
+fn empty_bins() -> Vec<Bin> {
+    MARGIN_BINS
+        .iter()
+        .map(|&m| Bin {
+            margin_below: m,
+            states: 0,
+            disagree: 0,
+        })
+        .collect()
+}
+
+/// Compares the two networks on `per_row` states of scenario `s`, from episodes of `seed`.
+/// Episodes end early when the policy fails, so they run one at a time until the row has
+/// its share.
+fn count_row(net: &Net, s: &Scenario, per_row: u64, seed: u64) -> RowCount {
+    let mut bins = empty_bins();
+    let mut count = ScenarioCount {
+        scenario: s.name.clone(),
+        states: 0,
+        disagree: 0,
+    };
+    let mut worst: Option<(f64, [f32; 4])> = None;
+    let mut episode = 0;
+    while count.states < per_row {
+        let one = visited(
+            net,
+            std::slice::from_ref(s),
+            episode..episode + 1,
+            500,
+            seed,
+        );
+        episode += 1;
+        for obs in one.iter().take((per_row - count.states) as usize) {
+            let q = net.forward(obs);
+            let qi = net.forward_int(&fixed_obs(obs)).unwrap_or_default();
+            let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
+            let differ = (q[1] > q[0]) != (qi[1] > qi[0]);
+            count.states += 1;
+            let bin = bins.iter_mut().find(|b| margin < b.margin_below);
+            if let Some(b) = bin {
+                b.states += 1;
+                b.disagree += u64::from(differ);
+            }
+            if differ {
+                count.disagree += 1;
+                if worst.is_none_or(|(m, _)| margin > m) {
+                    worst = Some((margin, *obs));
+                }
+            }
+        }
+    }
+    RowCount { count, bins, worst }
+}
+
 /// Compares the two networks of `net` on at least `states` visited states (see [the
 /// module](self)), from episodes of `seed`; `net` must have been built with its integer
 /// version.
@@ -73,68 +128,14 @@ pub fn agreement(net: &Net, states: u64, seed: u64) -> Result<Report> {
     }
     let rows = Scenario::default_set();
     let per_row = states.div_ceil(rows.len() as u64);
-    // Episodes end early when the policy fails, so run them one at a time per row until
-    // the row has its share.
     let counts: Vec<RowCount> = rows
         .par_iter()
-        .map(|s| {
-            let mut bins: Vec<Bin> = MARGIN_BINS
-                .iter()
-                .map(|&m| Bin {
-                    margin_below: m,
-                    states: 0,
-                    disagree: 0,
-                })
-                .collect();
-            let mut count = ScenarioCount {
-                scenario: s.name.clone(),
-                states: 0,
-                disagree: 0,
-            };
-            let mut worst: Option<(f64, [f32; 4])> = None;
-            let mut episode = 0;
-            while count.states < per_row {
-                let one = visited(
-                    net,
-                    std::slice::from_ref(s),
-                    episode..episode + 1,
-                    500,
-                    seed,
-                );
-                episode += 1;
-                for obs in one.iter().take((per_row - count.states) as usize) {
-                    let q = net.forward(obs);
-                    let qi = net.forward_int(&fixed_obs(obs)).unwrap_or_default();
-                    let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
-                    let differ = (q[1] > q[0]) != (qi[1] > qi[0]);
-                    count.states += 1;
-                    let bin = bins.iter_mut().find(|b| margin < b.margin_below);
-                    if let Some(b) = bin {
-                        b.states += 1;
-                        b.disagree += u64::from(differ);
-                    }
-                    if differ {
-                        count.disagree += 1;
-                        if worst.is_none_or(|(m, _)| margin > m) {
-                            worst = Some((margin, *obs));
-                        }
-                    }
-                }
-            }
-            RowCount { count, bins, worst }
-        })
+        .map(|s| count_row(net, s, per_row, seed))
         .collect();
     let mut report = Report {
         states: 0,
         agree: 0,
-        by_margin: MARGIN_BINS
-            .iter()
-            .map(|&m| Bin {
-                margin_below: m,
-                states: 0,
-                disagree: 0,
-            })
-            .collect(),
+        by_margin: empty_bins(),
         by_scenario: Vec::new(),
         worst: None,
     };
