@@ -1,8 +1,9 @@
 //! `host-sim eval --policy` with checkpoints as PyTorch users save them (the fixtures of the
 //! `weights` crate, written by real PyTorch and Stable-Baselines3 code).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
+use std::time::{Duration, Instant};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -69,71 +70,79 @@ fn run(args: &[&str]) -> Output {
 
 /// Exit 2, quickly, with `want` in a short message and nothing on stdout.
 fn refused(args: &[&str], want: &str) {
-    let started = std::time::Instant::now();
+    let started = Instant::now();
     let o = run(args);
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-    assert!(err.contains(want), "{args:?}: {err}");
-    assert!(
-        err.len() < 1_000,
-        "{args:?}: {} bytes of message",
-        err.len()
+    let (took, err) = (started.elapsed(), String::from_utf8_lossy(&o.stderr));
+    let seen = format!(
+        "{args:?}: exit {:?} after {took:?}, {} bytes on stdout: {err}",
+        o.status.code(),
+        o.stdout.len()
     );
-    assert!(o.stdout.is_empty(), "{args:?}");
+    assert_eq!(o.status.code(), Some(2), "{seen}");
+    assert!(err.contains(want) && err.len() < 1_000, "{seen}");
     assert!(
-        started.elapsed() < std::time::Duration::from_secs(10),
-        "{args:?}"
+        o.stdout.is_empty() && took < Duration::from_secs(10),
+        "{seen}"
     );
+}
+
+fn mkfifo(path: &Path) {
+    assert!(Command::new("mkfifo").arg(path).status().unwrap().success());
 }
 
 #[test]
 fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     let max = "18446744073709551615";
-    refused(
-        &["eval", "--episodes", max],
-        "--episodes must be in [1, 10000000]",
-    );
-    refused(
-        &["eval", "--horizon", "4294967295"],
-        "--horizon must be in [1, 1000000]",
-    );
-    refused(
-        &["render", "--horizon", "4294967295"],
-        "--horizon must be in [1, 100000]",
-    );
-    // Each factor is finite; their product would not be, and 1e300 is refused on its own.
-    refused(
-        &["eval", "--scenario", "length=1e300+length=1e300"],
-        "length factor must be a number in [0.001, 1000], found \"1e300\"",
-    );
-    refused(
-        &["eval", "--scenario", "length=999+length=999"],
-        "length comes to 9.98",
-    );
-    refused(
-        &["eval", "--scenario", &"noise+".repeat(10_000)],
-        "expected at most 1000 bytes",
-    );
-    refused(
-        &["eval", "--policy", "/dev/zero"],
-        "expected a regular file, found a device",
-    );
+    let noise = "noise+".repeat(10_000);
+    let cases: [(&[&str], &str); 7] = [
+        (
+            &["eval", "--episodes", max],
+            "--episodes must be in [1, 10000000]",
+        ),
+        (
+            &["eval", "--horizon", "4294967295"],
+            "--horizon must be in [1, 1000000]",
+        ),
+        (
+            &["render", "--horizon", "4294967295"],
+            "--horizon must be in [1, 100000]",
+        ),
+        // Each factor is finite; their product would not be, and 1e300 is refused on its own.
+        (
+            &["eval", "--scenario", "length=1e300+length=1e300"],
+            "length factor must be a number in [0.001, 1000], found \"1e300\"",
+        ),
+        (
+            &["eval", "--scenario", "length=999+length=999"],
+            "length comes to 9.98",
+        ),
+        (
+            &["eval", "--scenario", &noise],
+            "expected at most 1000 bytes",
+        ),
+        (
+            &["eval", "--policy", "/dev/zero"],
+            "expected a regular file, found a device",
+        ),
+    ];
+    for (args, want) in cases {
+        refused(args, want);
+    }
     let dir = std::env::temp_dir().join(format!("hs-hostile-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
+    fifos_and_bad_states_are_refused(&dir);
+    render_writes_only_into_a_directory_of_its_own(&dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A FIFO as a policy or a trajectory, and a trajectory with a bad hexadecimal state (named
+/// by its file and line).
+fn fifos_and_bad_states_are_refused(dir: &Path) {
     let fifo = dir.join("fifo");
-    assert!(
-        Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap()
-            .success()
-    );
-    refused(
-        &["eval", "--policy", fifo.to_str().unwrap()],
-        "found a FIFO",
-    );
-    refused(&["replay", fifo.to_str().unwrap()], "found a FIFO");
-    // A bad hexadecimal state names the file and the line.
+    mkfifo(&fifo);
+    let fifo = fifo.to_str().unwrap();
+    refused(&["eval", "--policy", fifo], "found a FIFO");
+    refused(&["replay", fifo], "found a FIFO");
     let good = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
         "/../tests/data/gym_traj_public.jsonl"
@@ -145,7 +154,11 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     std::fs::write(&bad, lines.join("\n")).unwrap();
     refused(&["replay", bad.to_str().unwrap()], "bad.jsonl:3: ");
     refused(&["replay", bad.to_str().unwrap()], "0xZ.");
-    // render's outputs: never onto a file that is not a directory, never over a FIFO.
+}
+
+/// render's outputs: never onto a file that is not a directory, never over a FIFO; where all
+/// is well, a real GIF and PNG, and nothing else, land in the directory.
+fn render_writes_only_into_a_directory_of_its_own(dir: &Path) {
     let file = dir.join("notes.txt");
     std::fs::write(&file, b"mine").unwrap();
     refused(
@@ -154,16 +167,9 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     );
     let pics = dir.join("pics");
     std::fs::create_dir(&pics).unwrap();
-    assert!(
-        Command::new("mkfifo")
-            .arg(pics.join("episode.gif"))
-            .status()
-            .unwrap()
-            .success()
-    );
+    mkfifo(&pics.join("episode.gif"));
     refused(&["render", "--out", pics.to_str().unwrap()], "found a FIFO");
     assert_eq!(std::fs::read(&file).unwrap(), b"mine");
-    // And where all is well, a real GIF and PNG, and nothing else, land in the directory.
     let fine = dir.join("fine");
     let o = run(&["render", "--out", fine.to_str().unwrap(), "--horizon", "20"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -178,7 +184,6 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
             .starts_with(b"\x89PNG")
     );
     assert_eq!(std::fs::read_dir(&fine).unwrap().count(), 2);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
