@@ -47,69 +47,75 @@ fn refused(args: &[&str], want: &str) {
 #[test]
 fn huge_counts_are_refused_before_any_allocation() {
     let max = "18446744073709551615";
-    refused(
-        &["train", "--episodes", max],
-        "episodes must be in [1, 1000000]",
-    );
-    refused(
-        &["train", "--seeds", &format!("0..{max}")],
-        "expected at most 10000 seeds",
-    );
-    refused(
-        &["train", "--buffer-size", "10000000000"],
-        "buffer_size must be in [1, 5000000]",
-    );
-    refused(
-        &["train", "--max-steps", "4294967295"],
-        "max_steps must be in [1, 1000000]",
-    );
-    refused(
-        &["train", "--max-env-steps", max],
-        "max_env_steps must be in [0, 1000000000]",
-    );
-    refused(
-        &["train", "--updates-per-train", "100000"],
-        "updates_per_train must be in [1, 1000]",
-    );
-    refused(&["train", "--train-unit", "hours"], "invalid value 'hours'");
-    refused(
-        &["train", "--preset", "paper-fast"],
-        "invalid value 'paper-fast'",
-    );
-    refused(
-        &["train", "--batch-size", "100000"],
-        "batch_size must be in [1, 4096]",
-    );
-    refused(
-        &["train", "--final-eval-episodes", "0"],
-        "final_eval_episodes must be in [1, 100000]",
-    );
-    refused(
-        &["train", "--adam-eps", "1e-50"],
-        "adam_eps must be a normal f32 > 0",
-    );
-    refused(
-        &["train", "--lr", "1e39"],
-        "lr must be > 0 and finite in f32",
-    );
-    refused(
-        &["reproduce", "--seeds", max],
-        "--seeds must be in [2, 1000]",
-    );
-    refused(
-        &["reproduce", "--seeds", "1"],
-        "--seeds must be in [2, 1000]",
-    );
-    refused(
-        &["reproduce", "--study", "bogus"],
-        "--study: expected one of table1, table4",
-    );
+    let seeds = format!("0..{max}");
     let long = "x".repeat(100_000);
-    refused(
-        &["reproduce", "--study", &long],
-        "--study: expected one of table1, table4",
-    );
-    refused(&["train", "--seeds", &long], "expected START..END");
+    let cases: [(&[&str], &str); 17] = [
+        (
+            &["train", "--episodes", max],
+            "episodes must be in [1, 1000000]",
+        ),
+        (
+            &["train", "--seeds", &seeds],
+            "expected at most 10000 seeds",
+        ),
+        (
+            &["train", "--buffer-size", "10000000000"],
+            "buffer_size must be in [1, 5000000]",
+        ),
+        (
+            &["train", "--max-steps", "4294967295"],
+            "max_steps must be in [1, 1000000]",
+        ),
+        (
+            &["train", "--max-env-steps", max],
+            "max_env_steps must be in [0, 1000000000]",
+        ),
+        (
+            &["train", "--updates-per-train", "100000"],
+            "updates_per_train must be in [1, 1000]",
+        ),
+        (&["train", "--train-unit", "hours"], "invalid value 'hours'"),
+        (
+            &["train", "--preset", "paper-fast"],
+            "invalid value 'paper-fast'",
+        ),
+        (
+            &["train", "--batch-size", "100000"],
+            "batch_size must be in [1, 4096]",
+        ),
+        (
+            &["train", "--final-eval-episodes", "0"],
+            "final_eval_episodes must be in [1, 100000]",
+        ),
+        (
+            &["train", "--adam-eps", "1e-50"],
+            "adam_eps must be a normal f32 > 0",
+        ),
+        (
+            &["train", "--lr", "1e39"],
+            "lr must be > 0 and finite in f32",
+        ),
+        (
+            &["reproduce", "--seeds", max],
+            "--seeds must be in [2, 1000]",
+        ),
+        (
+            &["reproduce", "--seeds", "1"],
+            "--seeds must be in [2, 1000]",
+        ),
+        (
+            &["reproduce", "--study", "bogus"],
+            "--study: expected one of table1, table4",
+        ),
+        (
+            &["reproduce", "--study", &long],
+            "--study: expected one of table1, table4",
+        ),
+        (&["train", "--seeds", &long], "expected START..END"),
+    ];
+    for (args, want) in cases {
+        refused(args, want);
+    }
 }
 
 #[test]
