@@ -186,10 +186,9 @@ fn hidden(
 
 /// The output layer of width-`h` inputs `w3`, `b3` as the advantages `Q - mean(Q)`, `-A` and
 /// `+A` with `A = (Q_right - Q_left) / 2`: its int8 weights, int32 biases and the advantage
-/// per unit of the output, its input scale being `s_x`. The two Q-values share a large common
-/// part (about 76 against differences of a few tenths for the shipped policy) that int8
-/// weights of each row would resolve only to about 1%, drowning the difference that decides
-/// the action.
+/// per unit of the output, its input scale being `s_x`. The two Q-values share a common part
+/// far larger than their difference (see [the module](super)), which int8 weights of each row
+/// would resolve so coarsely that it drowns the difference that decides the action.
 fn advantage(
     (w3, b3): (&[f32], &[f32]),
     h: usize,
