@@ -72,7 +72,7 @@ struct Compiler {
     std: &'static str,
 }
 
-/// C99, the oldest C the headers promise.
+/// C99, the C the headers are written to.
 const C99: Compiler = Compiler {
     env: ("CC", "cc"),
     lang: "c",
