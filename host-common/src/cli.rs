@@ -9,7 +9,16 @@ const LINE_MAX: usize = 300;
 
 /// `T::parse()`, except that a refusal's lines are cut at [`LINE_MAX`] characters.
 pub fn parse<T: clap::Parser>() -> T {
-    match T::try_parse() {
+    parse_with(|c| c)
+}
+
+/// [`parse`], with the command changed by `edit` first: help made at run time (from a table
+/// of the parts a flag takes, say).
+pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Command) -> T {
+    let parsed = edit(T::command())
+        .try_get_matches()
+        .and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
+    match parsed {
         Ok(t) => t,
         Err(e) => {
             if matches!(

@@ -16,5 +16,6 @@
 pub mod agree;
 pub mod baselines;
 pub mod eval;
+pub mod identify;
 pub mod render;
 pub mod replay;

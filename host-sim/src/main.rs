@@ -4,13 +4,14 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
-use clap::{Parser, Subcommand};
+use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
 use host_sim::eval::{self, ControllerKind, Net, Row};
-use host_sim::{render, replay};
+use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
-use twin::Scenario;
-use weights::files::{check_output, remove_stale, temp_path_keeping_extension};
+use twin::{Machine, Scenario};
+
+mod render_cmd;
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
 /// 480 MB at the limit.
@@ -19,9 +20,8 @@ const MAX_EPISODES: u64 = 10_000_000;
 const MAX_HORIZON: u32 = 1_000_000;
 /// Most rows of one `eval`.
 const MAX_ROWS: usize = 10_000;
-/// Longest episode `render` draws: it keeps every period (40 bytes) and draws each
-/// `--stride`-th into the GIF.
-const MAX_RENDER_HORIZON: u32 = 100_000;
+/// Most states `agree` compares: a hundred million take minutes.
+const MAX_AGREE_STATES: u64 = 100_000_000;
 
 #[derive(Parser)]
 #[command(version, about)]
@@ -43,159 +43,108 @@ enum Command {
     /// Run the unchanged firmware controller in closed loop against the plant: N seeded
     /// episodes per controller, scenario and horizon, and a table with 95% confidence
     /// intervals. Exits 2 on bad input.
-    Eval {
-        /// Episodes per row.
-        #[arg(long, default_value_t = 1000)]
-        episodes: u64,
-        /// Periods per episode (50 per second); several give several tables.
-        #[arg(long, value_delimiter = ',', default_value = "500")]
-        horizon: Vec<u32>,
-        /// Scenarios, one row each: `nominal`, or parts joined by `+` from noise[=SCALE],
-        /// delay[=N], force=F, length=F, polemass=F, cartmass=F, friction=C[/P],
-        /// encoder=N[/M[/D]], push[=IMPULSE[/EVERY]]; `all` is the robustness set of
-        /// docs/CONTROL.md, `hard` the set beyond it, `hard-candidates` what that set is chosen
-        /// from.
-        #[arg(long, value_delimiter = ',', default_value = "all")]
-        scenario: Vec<String>,
-        /// Controllers to compare.
-        #[arg(long, value_delimiter = ',', default_value = "policy,lqr,rule,random")]
-        controller: Vec<ControllerKind>,
-        /// A policy instead of the one compiled into firmware: a run directory, or a
-        /// safetensors state dict as PyTorch saves it (fc1/fc2/fc3, nn.Sequential indices,
-        /// prefixed layouts), of any supported width.
-        #[arg(long)]
-        policy: Option<PathBuf>,
-        /// Tensor-name prefix of the network in --policy, when it holds several.
-        #[arg(long, requires = "policy")]
-        prefix: Option<String>,
-        /// Seed of the starts, noise and pushes.
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        /// Print one JSON object with a `rows` array instead of the table.
-        #[arg(long)]
-        json: bool,
-        /// Exit 1 if the network's success rate falls below this in any row (0 to 1).
-        #[arg(long)]
-        min_success: Option<f64>,
-    },
+    Eval(EvalArgs),
     /// Compare the integer network (what `policy-export export --quant int8` writes) with the
     /// float one on states the float policy visits: how often they choose the same action,
     /// and, where they do not, how close the float network was to choosing the other.
-    Agree {
-        /// A policy instead of the one compiled into firmware (see `eval`).
-        #[arg(long)]
-        policy: Option<PathBuf>,
-        /// Tensor-name prefix of the network in --policy, when it holds several.
-        #[arg(long, requires = "policy")]
-        prefix: Option<String>,
-        /// Visited states to compare (spread over the default set's rows).
-        #[arg(long, default_value_t = 1_000_000)]
-        states: u64,
-        /// Seed of the episodes.
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
-        /// Print one JSON object instead of the tables.
-        #[arg(long)]
-        json: bool,
-    },
+    Agree(AgreeArgs),
     /// Draw one episode: an animated GIF of the cart and pole, and a PNG of x, theta and the
     /// commands over time.
-    Render {
-        /// Output directory; gets episode.gif and episode.png.
-        #[arg(long, default_value = "render")]
-        out: PathBuf,
-        /// Which controller drives.
-        #[arg(long, default_value = "policy")]
-        controller: ControllerKind,
-        /// A policy file instead of the compiled-in one (see `eval`).
-        #[arg(long)]
-        policy: Option<PathBuf>,
-        /// Tensor-name prefix of the network in --policy, when it holds several.
-        #[arg(long, requires = "policy")]
-        prefix: Option<String>,
-        /// One scenario spec (see `eval`).
-        #[arg(long, default_value = "nominal")]
-        scenario: String,
-        /// Periods to run at most.
-        #[arg(long, default_value_t = 500)]
-        horizon: u32,
-        /// Seed and episode number of the start (as in `eval`).
-        #[arg(long, default_value_t = 0)]
-        seed: u64,
-        #[arg(long, default_value_t = 0)]
-        episode: u64,
-        /// Draw every k-th period in the GIF (it plays in real time).
-        #[arg(long, default_value_t = 2)]
-        stride: usize,
-    },
+    Render(render_cmd::RenderArgs),
+}
+
+/// Which policy runs, on which machine.
+#[derive(Args)]
+struct Subject {
+    /// A policy instead of the one compiled into firmware: a run directory, or a
+    /// safetensors state dict as PyTorch saves it (fc1/fc2/fc3, nn.Sequential indices,
+    /// prefixed layouts), of any supported width.
+    #[arg(long)]
+    policy: Option<PathBuf>,
+    /// Tensor-name prefix of the network in --policy, when it holds several.
+    #[arg(long, requires = "policy")]
+    prefix: Option<String>,
+    /// The machine the scenarios are built on (a rig file, `rigs/`): its physics, encoders,
+    /// dead time, track and continuous-time world. Without it, the rig the policy file
+    /// records, or Gymnasium's machine; a different one than the recorded is warned about.
+    #[arg(long)]
+    rig: Option<PathBuf>,
+}
+
+impl Subject {
+    /// The machine, and the network (with its integer version if `int`), loaded lazily by
+    /// the commands after their cheaper checks.
+    fn load(&self, int: bool) -> Result<(Machine, Net)> {
+        let given = self.rig.as_deref().map(twin::rigfile::load).transpose()?;
+        let Some(path) = &self.policy else {
+            return Ok((
+                twin::rigfile::choose(given, Some(Machine::GYMNASIUM)),
+                Net::shipped(),
+            ));
+        };
+        let import = weights::checkpoint::load(path, self.prefix.as_deref())?;
+        let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
+        let net = Net::from_weights(&import.weights, int.then_some(&machine))
+            .with_context(|| format!("policy {}", path.display()))?;
+        Ok((machine, net))
+    }
+}
+
+#[derive(Args)]
+struct EvalArgs {
+    /// Episodes per row.
+    #[arg(long, default_value_t = 1000)]
+    episodes: u64,
+    /// Periods per episode; several give several tables.
+    #[arg(long, value_delimiter = ',', default_value = "500")]
+    horizon: Vec<u32>,
+    /// Scenarios, one row each (see `--help` for the parts).
+    #[arg(long, value_delimiter = ',', default_value = "all")]
+    scenario: Vec<String>,
+    /// Controllers to compare.
+    #[arg(long, value_delimiter = ',', default_value = "policy,lqr,rule,random")]
+    controller: Vec<ControllerKind>,
+    #[command(flatten)]
+    subject: Subject,
+    /// Seed of the starts, noise and pushes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Print one JSON object with a `rows` array instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Exit 1 if the network's success rate falls below this in any row (0 to 1).
+    #[arg(long)]
+    min_success: Option<f64>,
+}
+
+#[derive(Args)]
+struct AgreeArgs {
+    #[command(flatten)]
+    subject: Subject,
+    /// Visited states to compare (spread over the default set's rows).
+    #[arg(long, default_value_t = 1_000_000)]
+    states: u64,
+    /// Seed of the episodes.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Print one JSON object instead of the tables.
+    #[arg(long)]
+    json: bool,
 }
 
 fn main() -> ExitCode {
-    let cli: Cli = host_common::cli::parse();
+    let help = twin::grammar::scenario_help();
+    let cli: Cli = host_common::cli::parse_with(|c| {
+        c.mut_subcommand("eval", |e| e.mut_arg("scenario", |a| a.help(help.clone())))
+            .mut_subcommand("render", |r| {
+                r.mut_arg("scenario", |a| a.help(help.clone()))
+            })
+    });
     let result = match cli.command {
         Command::Replay { files } => run_replay(&files),
-        Command::Eval {
-            episodes,
-            horizon,
-            scenario,
-            controller,
-            policy,
-            prefix,
-            seed,
-            json,
-            min_success,
-        } => run_eval(
-            episodes,
-            &horizon,
-            &scenario,
-            &controller,
-            load_net(
-                policy,
-                prefix.as_deref(),
-                controller.contains(&ControllerKind::PolicyInt),
-            ),
-            seed,
-            json,
-            min_success,
-        ),
-        Command::Agree {
-            policy,
-            prefix,
-            states,
-            seed,
-            json,
-        } => run_agree(
-            load_net(policy, prefix.as_deref(), true),
-            states,
-            seed,
-            json,
-        )
-        .map(|()| true),
-        Command::Render {
-            out,
-            controller,
-            policy,
-            prefix,
-            scenario,
-            horizon,
-            seed,
-            episode,
-            stride,
-        } => run_render(
-            &out,
-            controller,
-            load_net(
-                policy,
-                prefix.as_deref(),
-                controller == ControllerKind::PolicyInt,
-            ),
-            &scenario,
-            horizon,
-            seed,
-            episode,
-            stride,
-        )
-        .map(|()| true),
+        Command::Eval(a) => run_eval(&a),
+        Command::Agree(a) => run_agree(&a).map(|()| true),
+        Command::Render(a) => render_cmd::run(&a).map(|()| true),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,
@@ -212,50 +161,28 @@ fn main() -> ExitCode {
     }
 }
 
-/// The network to run: the compiled-in policy, or `--policy`'s, with its integer version
-/// if `int`. Loaded lazily by the commands, after their cheaper checks.
-fn load_net(
-    policy: Option<PathBuf>,
-    prefix: Option<&str>,
-    int: bool,
-) -> impl FnOnce() -> Result<Net> {
-    move || match policy {
-        None => Ok(Net::shipped()),
-        Some(path) => {
-            let import = weights::checkpoint::load(&path, prefix)?;
-            Net::from_weights(&import.weights, int)
-                .with_context(|| format!("policy {}", path.display()))
-        }
-    }
-}
-
-fn parse_scenarios(specs: &[String]) -> Result<Vec<Scenario>> {
+fn parse_scenarios(specs: &[String], machine: &Machine) -> Result<Vec<Scenario>> {
     let mut out = Vec::new();
     for spec in specs {
-        if spec == "all" {
-            out.extend(Scenario::default_set());
-        } else if spec == "hard" {
-            out.extend(Scenario::hard_set());
-        } else if spec == "hard-candidates" {
-            out.extend(Scenario::hard_candidates());
-        } else {
-            out.push(Scenario::parse(spec).map_err(anyhow::Error::msg)?);
+        match spec.as_str() {
+            "all" => out.extend(Scenario::default_set_on(machine)),
+            "hard" => out.extend(Scenario::hard_set_on(machine)),
+            "hard-candidates" => out.extend(Scenario::hard_candidates()),
+            _ => out.push(Scenario::parse_on(spec, machine).map_err(anyhow::Error::msg)?),
         }
     }
     Ok(out)
 }
 
-/// Most states `agree` compares: a hundred million take minutes.
-const MAX_AGREE_STATES: u64 = 100_000_000;
-
-fn run_agree(net: impl FnOnce() -> Result<Net>, states: u64, seed: u64, json: bool) -> Result<()> {
+fn run_agree(a: &AgreeArgs) -> Result<()> {
     anyhow::ensure!(
-        (1..=MAX_AGREE_STATES).contains(&states),
-        "--states must be in [1, {MAX_AGREE_STATES}], got {states}"
+        (1..=MAX_AGREE_STATES).contains(&a.states),
+        "--states must be in [1, {MAX_AGREE_STATES}], got {}",
+        a.states
     );
-    let net = net()?;
-    let report = host_sim::agree::agreement(&net, states, seed)?;
-    if json {
+    let (_, net) = a.subject.load(true)?;
+    let report = host_sim::agree::agreement(&net, a.states, a.seed)?;
+    if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
         print!("{}", host_sim::agree::format_report(&report));
@@ -263,43 +190,51 @@ fn run_agree(net: impl FnOnce() -> Result<Net>, states: u64, seed: u64, json: bo
     Ok(())
 }
 
-#[allow(clippy::too_many_arguments)]
-fn run_eval(
-    episodes: u64,
-    horizons: &[u32],
-    scenarios: &[String],
-    controllers: &[ControllerKind],
-    net: impl FnOnce() -> Result<Net>,
-    seed: u64,
-    json: bool,
-    min_success: Option<f64>,
-) -> Result<bool> {
-    if let Some(m) = min_success {
+/// Checks `eval`'s counts before any work.
+fn check_eval(a: &EvalArgs) -> Result<()> {
+    if let Some(m) = a.min_success {
         anyhow::ensure!(
             (0.0..=1.0).contains(&m),
             "--min-success must lie in [0, 1], got {m}"
         );
     }
     anyhow::ensure!(
-        (1..=MAX_EPISODES).contains(&episodes),
-        "--episodes must be in [1, {MAX_EPISODES}], got {episodes}"
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be in [1, {MAX_EPISODES}], got {}",
+        a.episodes
     );
-    if let Some(h) = horizons.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
+    if let Some(h) = a.horizon.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
         anyhow::bail!("--horizon must be in [1, {MAX_HORIZON}], got {h}");
     }
-    let scenarios = parse_scenarios(scenarios)?;
-    let rows = horizons.len() * scenarios.len() * controllers.len();
+    Ok(())
+}
+
+fn run_eval(a: &EvalArgs) -> Result<bool> {
+    check_eval(a)?;
+    let given = a
+        .subject
+        .rig
+        .as_deref()
+        .map(twin::rigfile::load)
+        .transpose()?;
+    // The scenarios are checked before the policy loads; built on the machine it is run on.
+    let probe = given.unwrap_or(Machine::GYMNASIUM);
+    let rows = a.horizon.len() * parse_scenarios(&a.scenario, &probe)?.len() * a.controller.len();
     anyhow::ensure!(
         rows <= MAX_ROWS,
         "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
     );
-    let net = net()?;
-    let jobs: Vec<(u32, &Scenario, ControllerKind)> = horizons
+    let (machine, net) = a
+        .subject
+        .load(a.controller.contains(&ControllerKind::PolicyInt))?;
+    let scenarios = parse_scenarios(&a.scenario, &machine)?;
+    let jobs: Vec<(u32, &Scenario, ControllerKind)> = a
+        .horizon
         .iter()
         .flat_map(|&h| {
-            scenarios
-                .iter()
-                .flat_map(move |s| controllers.iter().map(move |&c| (h, s, c)))
+            let s = &scenarios;
+            s.iter()
+                .flat_map(move |s| a.controller.iter().map(move |&c| (h, s, c)))
         })
         .collect();
     let bar = ProgressBar::new(jobs.len() as u64).with_style(
@@ -309,24 +244,27 @@ fn run_eval(
     let mut rows: Vec<Row> = Vec::with_capacity(jobs.len());
     for (h, s, c) in jobs {
         bar.set_message(format!("{c} on {} at {h}", s.name));
-        rows.push(eval::evaluate(c, &net, s, h, seed, episodes));
+        rows.push(eval::evaluate(c, &net, s, h, a.seed, a.episodes));
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&serde_json::json!({ "seed": seed, "rows": rows }))?
-        );
+    report(a, &rows)
+}
+
+/// Prints the rows; whether the policy met `--min-success` everywhere.
+fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
+    if a.json {
+        let doc = serde_json::json!({ "seed": a.seed, "rows": rows });
+        println!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
-        print!("{}", eval::format_table(&rows));
-        print!("{}", eval::format_failures(&rows, seed));
+        print!("{}", eval::format_table(rows));
+        print!("{}", eval::format_failures(rows, a.seed));
     }
     let failing: Vec<&Row> = rows
         .iter()
         .filter(|r| {
             r.controller == ControllerKind::Policy.to_string()
-                && min_success.is_some_and(|m| r.success_rate < m)
+                && a.min_success.is_some_and(|m| r.success_rate < m)
         })
         .collect();
     for r in &failing {
@@ -338,81 +276,6 @@ fn run_eval(
         );
     }
     Ok(failing.is_empty())
-}
-
-#[allow(clippy::too_many_arguments)]
-fn run_render(
-    out: &std::path::Path,
-    controller: ControllerKind,
-    net: impl FnOnce() -> Result<Net>,
-    scenario: &str,
-    horizon: u32,
-    seed: u64,
-    episode: u64,
-    stride: usize,
-) -> Result<()> {
-    anyhow::ensure!(
-        (1..=MAX_RENDER_HORIZON).contains(&horizon),
-        "--horizon must be in [1, {MAX_RENDER_HORIZON}] for render, got {horizon}"
-    );
-    anyhow::ensure!(
-        (1..=1000).contains(&stride),
-        "--stride must be in [1, 1000], got {stride}"
-    );
-    let scenario = Scenario::parse(scenario).map_err(anyhow::Error::msg)?;
-    // The outputs are checked before the work: a directory (or a new path) holding, if
-    // anything, regular files by those names, which are replaced whole.
-    let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
-    if let Ok(m) = std::fs::symlink_metadata(out)
-        && !m.is_dir()
-    {
-        anyhow::bail!(
-            "--out {}: expected a directory (or a new path), found {}",
-            out.display(),
-            weights::files::kind(&m.file_type())
-        );
-    }
-    check_output(&gif, &[])?;
-    check_output(&png, &[])?;
-    let net = net()?;
-    let mut frames = Vec::new();
-    let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
-        frames.push(f)
-    });
-    std::fs::create_dir_all(out)
-        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", out.display())))?;
-    let title = format!("{controller}, {}", scenario.name);
-    // Drawn under temporary names and renamed, so a failure leaves no half-written picture;
-    // the names end in the real extension because the encoders choose the format by it.
-    remove_stale(&gif, &["tmp.gif"]);
-    remove_stale(&png, &["tmp.png"]);
-    let (gif_tmp, png_tmp) = (
-        temp_path_keeping_extension(&gif),
-        temp_path_keeping_extension(&png),
-    );
-    let drawn = render::gif(&gif_tmp, &frames, &scenario.params, stride, &title).and_then(|()| {
-        render::timeseries(
-            &png_tmp,
-            &frames,
-            &scenario.params,
-            &format!(
-                "{title}: {} of {horizon} periods, {}",
-                stats.steps,
-                if stats.success { "balanced" } else { "fell" }
-            ),
-        )
-    });
-    if let Err(e) = drawn {
-        let _ = std::fs::remove_file(&gif_tmp);
-        let _ = std::fs::remove_file(&png_tmp);
-        return Err(e);
-    }
-    for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
-        std::fs::rename(tmp, path)
-            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;
-    }
-    println!("{}\n{}", gif.display(), png.display());
-    Ok(())
 }
 
 fn run_replay(files: &[PathBuf]) -> anyhow::Result<bool> {

@@ -83,6 +83,11 @@ struct ExportArgs {
     /// (the default, the shipped policy's: `docs/QUANTISATION.md` measures both).
     #[arg(long, value_enum, requires = "quant")]
     granularity: Option<GranularityArg>,
+    /// The rig the board runs (a rig file, `rigs/`): its `RIG` constants go beside the
+    /// weights. Without it, the rig the policy file records, or Gymnasium's machine; a
+    /// different one than the recorded is warned about.
+    #[arg(long)]
+    rig: Option<PathBuf>,
 }
 
 /// The integer formats an export can take.
@@ -301,7 +306,7 @@ impl Progress {
             let b = bars.add(ProgressBar::new(self.len));
             b.set_style(
                 ProgressStyle::with_template(&format!(
-                    "{{prefix:>8}} {{bar:30}} {{pos:>4}}/{{len}} {} {{elapsed:>4}} {{msg}}",
+                    "{{prefix:>8}} {{bar:30}} {{pos:>4}}/{{len}} {} {{elapsed:>4}} (eta {{eta}}) {{msg}}",
                     self.unit
                 ))
                 .expect("static template"),
@@ -329,8 +334,8 @@ impl SeedProgress<'_> {
         self.window.push(e.ret);
         let mean = self.window.iter().sum::<f64>() / self.window.len() as f64;
         let msg = format!(
-            "return {:>3} mean100 {mean:>6.1} eps {:.3}",
-            e.ret, e.epsilon
+            "{} env steps, return {:>3} mean100 {mean:>6.1} eps {:.3}",
+            e.env_steps, e.ret, e.epsilon
         );
         let (all, seed) = (self.all, self.seed);
         let done = if all.budget {
@@ -346,9 +351,11 @@ impl SeedProgress<'_> {
             None if done >= self.next_log => {
                 self.next_log = (done / self.every + 1) * self.every;
                 let _g = all.log.lock();
+                // The time left, were the rest as fast as what came before.
+                let eta = e.wall_s * (all.len.saturating_sub(done)) as f64 / done.max(1) as f64;
                 eprintln!(
-                    "seed {seed} {} {done}/{}: episode {}, {msg}",
-                    all.unit, all.len, e.episode
+                    "seed {seed} {} {done}/{} ({:.0} s, eta {eta:.0} s): episode {}, {msg}",
+                    all.unit, all.len, e.wall_s, e.episode
                 );
             }
             None => {}
@@ -402,6 +409,26 @@ fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<(
     Ok(())
 }
 
+/// Where an exported policy came from: its run's summary, or the file and its layout.
+fn provenance(a: &ExportArgs, import: &checkpoint::Import) -> Result<Vec<String>> {
+    let summary_path = a.src.join("summary.json");
+    if !(a.src.is_dir() && summary_path.is_file()) {
+        return Ok(vec![format!(
+            "source: {} ({})",
+            a.src.file_name().unwrap_or_default().to_string_lossy(),
+            import.describe()
+        )]);
+    }
+    let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
+    let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
+        weights::Error::Input(format!(
+            "{}: not a run summary: {e}",
+            summary_path.display()
+        ))
+    })?;
+    Ok(run::provenance(&s))
+}
+
 fn cmd_export(a: &ExportArgs) -> Result<()> {
     let name = a.name.clone().unwrap_or_else(|| {
         match (a.format, a.quant.is_some()) {
@@ -423,23 +450,10 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
     };
     check_output(&a.out, &[&a.src, &src_file])?;
     let import = checkpoint::load(&a.src, a.prefix.as_deref())?;
-    let summary_path = a.src.join("summary.json");
-    let prov = if a.src.is_dir() && summary_path.is_file() {
-        let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
-        let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
-            weights::Error::Input(format!(
-                "{}: not a run summary: {e}",
-                summary_path.display()
-            ))
-        })?;
-        run::provenance(&s)
-    } else {
-        vec![format!(
-            "source: {} ({})",
-            a.src.file_name().unwrap_or_default().to_string_lossy(),
-            import.describe()
-        )]
-    };
+    let given = a.rig.as_deref().map(twin::rigfile::load).transpose()?;
+    let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
+    let rig = machine.rig;
+    let prov = provenance(a, &import)?;
     let quantised = match a.quant {
         None => None,
         Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(
@@ -449,12 +463,13 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
                 Some(GranularityArg::PerChannel) => Granularity::PerChannel,
                 Some(GranularityArg::PerTensor) => Granularity::PerTensor,
             },
+            &machine,
         )?),
     };
     let text = match (a.format, &quantised) {
-        (Format::Rust, None) => source::rust_module(&import.weights, &name, &prov)?,
+        (Format::Rust, None) => source::rust_module(&import.weights, &name, &prov, &rig)?,
         (Format::C, None) => source::c_header(&import.weights, &name, &prov)?,
-        (Format::Rust, Some(q)) => quant::rust_module(q, &name, &prov)?,
+        (Format::Rust, Some(q)) => quant::rust_module(q, &name, &prov, &rig)?,
         (Format::C, Some(q)) => quant::c_header(q, &name, &prov)?,
     };
     write_atomic(&a.out, text.as_bytes())?;

@@ -62,7 +62,21 @@ fn parse_range(s: &str) -> Result<Range<u64>, String> {
 }
 
 pub fn build_config(args: &TrainArgs) -> Result<Config> {
-    let mut cfg = Config::preset(args.preset);
+    // On the command line the rig is a file; the preset is made for its machine, and the
+    // configuration keeps the file's text, so that a run records the machine it was trained
+    // for whole.
+    let rig = match &args.set.rig {
+        None => None,
+        Some(path) => {
+            let bytes = read_capped(std::path::Path::new(path), twin::rigfile::MAX_RIG_BYTES)?;
+            let text = String::from_utf8(bytes)
+                .map_err(|_| ConfigError(format!("--rig {path}: expected UTF-8 text")))?;
+            let machine = twin::rigfile::parse(&text, &format!("--rig {path}"))?;
+            Some((text, machine))
+        }
+    };
+    let machine = rig.as_ref().map_or(twin::Machine::GYMNASIUM, |r| r.1);
+    let mut cfg = Config::preset_on(args.preset, &machine);
     if let Some(path) = &args.config {
         let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
         let text = String::from_utf8(bytes).map_err(|e| {
@@ -74,6 +88,9 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
         cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
     }
     args.set.apply(&mut cfg);
+    if let Some((text, _)) = rig {
+        cfg.rig = text;
+    }
     cfg.validate()?;
     Ok(cfg)
 }

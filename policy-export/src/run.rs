@@ -300,6 +300,10 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
         ("seed".to_string(), seed.to_string()),
         ("width".to_string(), r.policy.width().to_string()),
         ("config".to_string(), weights_config(cfg)?),
+        (
+            twin::rigfile::METADATA_KEY.to_string(),
+            twin::rigfile::to_toml(&cfg.machine()?),
+        ),
     ]);
     write_atomic(
         &dir.join("policy.safetensors"),
@@ -308,7 +312,7 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
     let prov = provenance(&summary);
     write_atomic(
         &dir.join("policy.rs"),
-        rust_module(&r.policy, DEFAULT_RUST_NAME, &prov)?.as_bytes(),
+        rust_module(&r.policy, DEFAULT_RUST_NAME, &prov, &cfg.machine()?.rig)?.as_bytes(),
     )?;
     Ok(summary)
 }

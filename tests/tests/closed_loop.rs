@@ -28,7 +28,7 @@ fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
 
     let loaded = load(&file, None).unwrap().weights;
     assert_eq!(loaded, run.policy);
-    let net = Net::from_weights(&loaded, false).unwrap();
+    let net = Net::from_weights(&loaded, None).unwrap();
     let nominal = Scenario::nominal();
     let policy = evaluate(ControllerKind::Policy, &net, &nominal, 500, 9, 100);
     let random = evaluate(ControllerKind::Random, &net, &nominal, 500, 9, 100);

@@ -9,8 +9,55 @@ use std::process::Command;
 
 use e2e::{default_target, mcu_targets, repo};
 use firmware::network::{Mlp, shapes};
+use firmware::rig::Rig;
 use weights::Weights;
 use weights::source::rust_module;
+
+/// A rig whose every number is awkward to write: the constants must come back bit for bit.
+fn awkward_rig() -> Rig {
+    let mut rig = Rig::GYMNASIUM;
+    let p = &mut rig.params;
+    (p.masscart, p.masspole, p.length) = (0.6000000000000001, 0.08, 0.22);
+    (p.force_mag, p.motor_damping, p.tau) = (5.0, 3.000_000_000_000_000_4, 0.01);
+    (p.x_threshold, p.cart_friction, p.pole_friction) = (0.4, 1e-300, 5e-324);
+    rig.encoders.cart_counts_per_m = 15_000;
+    rig.encoders.pole_counts_per_rev = 2_400;
+    (rig.dead_time, rig.end_stop_margin) = (2, 0.05);
+    rig.tuning.accel_sd = [0.1, 1.0 / 3.0];
+    rig
+}
+
+/// The rig's numbers as the dump program prints them: each f64's bits, then the integers.
+fn rig_lines(rig: &Rig) -> Vec<String> {
+    let p = &rig.params;
+    let t = &rig.tuning;
+    let mut f: Vec<String> = [
+        p.gravity,
+        p.masscart,
+        p.masspole,
+        p.length,
+        p.force_mag,
+        p.motor_damping,
+        p.tau,
+        p.theta_threshold_radians,
+        p.x_threshold,
+        p.cart_friction,
+        p.pole_friction,
+        rig.end_stop_margin,
+        t.force_sd,
+        t.accel_sd[0],
+        t.accel_sd[1],
+    ]
+    .iter()
+    .map(|v| format!("{:016x}", v.to_bits()))
+    .collect();
+    let e = &rig.encoders;
+    f.push(format!(
+        "{} {} {}",
+        e.cart_counts_per_m, e.pole_counts_per_rev, rig.dead_time
+    ));
+    f
+}
 
 /// Observations whose Q-values the scratch crate prints: a balanced state, leaning states,
 /// the edges of the failure box and values with long mantissas.
@@ -84,9 +131,16 @@ fn scratch_crate(name: &str, module: &str) -> PathBuf {
     );
     write(
         &dir.join("src/bin/dump.rs"),
-        "use user_board::policy::BOARD_POLICY as P;\n\
+        "use user_board::policy::{BOARD_POLICY as P, RIG};\n\
          fn main() {\n    \
              for t in P.tensors() { for v in t { println!(\"{:08x}\", v.to_bits()); } }\n    \
+             let (p, t) = (&RIG.params, &RIG.tuning);\n    \
+             for v in [p.gravity, p.masscart, p.masspole, p.length, p.force_mag, p.motor_damping, \
+                 p.tau, p.theta_threshold_radians, p.x_threshold, p.cart_friction, p.pole_friction, \
+                 RIG.end_stop_margin, t.force_sd, t.accel_sd[0], t.accel_sd[1]] {\n        \
+                 println!(\"{:016x}\", v.to_bits());\n    }\n    \
+             let e = &RIG.encoders;\n    \
+             println!(\"{} {} {}\", e.cart_counts_per_m, e.pole_counts_per_rev, RIG.dead_time);\n    \
              let obs: Vec<f32> = std::env::args().skip(1).map(|a| a.parse().unwrap()).collect();\n    \
              for o in obs.chunks(4) {\n        \
                  let q = P.forward(&[o[0], o[1], o[2], o[3]]);\n        \
@@ -120,10 +174,12 @@ fn cargo(dir: &Path, args: &[&str]) -> std::process::Output {
 #[test]
 fn an_exported_policy_builds_in_a_board_crate_bit_for_bit() {
     let w = awkward();
+    let rig = awkward_rig();
     let module = rust_module(
         &w,
         "BOARD_POLICY",
         &["source: the project's e2e test".into()],
+        &rig,
     )
     .unwrap();
     let dir = scratch_crate("user-board-build", &module);
@@ -142,6 +198,12 @@ fn an_exported_policy_builds_in_a_board_crate_bit_for_bit() {
         .collect();
     let got: Vec<&str> = lines.by_ref().take(want.len()).collect();
     assert_eq!(got, want, "the compiled constants differ from the weights");
+    let rig_want = rig_lines(&rig);
+    let rig_got: Vec<&str> = lines.by_ref().take(rig_want.len()).collect();
+    assert_eq!(
+        rig_got, rig_want,
+        "the compiled rig differs from the rig exported"
+    );
     let net: Box<Mlp<16>> = w.to_mlp().unwrap();
     for (obs, line) in PROBES.iter().zip(lines) {
         let q = net.forward(obs);
@@ -169,7 +231,7 @@ fn an_exported_policy_builds_in_a_board_crate_bit_for_bit() {
 fn depending_on_firmware_brings_no_runtime_linker_script_or_critical_section() {
     let dir = scratch_crate(
         "user-board-tree",
-        &rust_module(&awkward(), "BOARD_POLICY", &[]).unwrap(),
+        &rust_module(&awkward(), "BOARD_POLICY", &[], &Rig::GYMNASIUM).unwrap(),
     );
     for target in mcu_targets() {
         let out = cargo(

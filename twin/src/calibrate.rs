@@ -3,7 +3,7 @@
 //! not those of states it never reaches.
 //!
 //! The set is fixed: [`CALIBRATION_EPISODES`] episodes of 500 steps in every row of the
-//! default robustness set, from seed [`CALIBRATION_SEED`] (not the evaluation's seed, so the
+//! default robustness set on the policy's machine, from seed [`CALIBRATION_SEED`] (not the evaluation's seed, so the
 //! evaluation's episodes are not the calibration's), the policy told its dead time as in the
 //! evaluation. So the trainer's export and the simulator quantise a policy identically.
 
@@ -15,6 +15,7 @@ use weights::Weights;
 use weights::quant::{Granularity, Quantised, quantise};
 use weights::width::{ForWidth, by_width};
 
+use crate::machine::Machine;
 use crate::run::run_episode;
 use crate::scenario::Scenario;
 
@@ -60,27 +61,31 @@ pub fn visited<P: Policy + Copy>(
     seen
 }
 
-/// The calibration set of the float policy `w` (see [the module](self)).
-pub fn calibration_states(w: &Weights) -> weights::Result<Vec<[f32; OBS_DIM]>> {
-    struct States<'a>(&'a Weights);
+/// The calibration set of the float policy `w` on `machine` (see [the module](self)).
+pub fn calibration_states(w: &Weights, machine: &Machine) -> weights::Result<Vec<[f32; OBS_DIM]>> {
+    struct States<'a>(&'a Weights, &'a Machine);
     impl ForWidth for States<'_> {
         type Output = weights::Result<Vec<[f32; OBS_DIM]>>;
         fn run<const H: usize>(self) -> Self::Output {
             let net: Box<Mlp<H>> = self.0.to_mlp()?;
             Ok(visited(
                 &*net,
-                &Scenario::default_set(),
+                &Scenario::default_set_on(self.1),
                 0..CALIBRATION_EPISODES,
                 CALIBRATION_HORIZON,
                 CALIBRATION_SEED,
             ))
         }
     }
-    by_width(w.width(), States(w))?
+    by_width(w.width(), States(w, machine))?
 }
 
-/// `w` quantised on its calibration set: what `policy-export export --quant int8` writes and
-/// `host-sim eval --controller policy-int` runs.
-pub fn quantise_policy(w: &Weights, granularity: Granularity) -> weights::Result<Quantised> {
-    quantise(w, &calibration_states(w)?, granularity)
+/// `w` quantised on its calibration set on `machine`: what `policy-export export --quant
+/// int8` writes and `host-sim eval --controller policy-int` runs.
+pub fn quantise_policy(
+    w: &Weights,
+    granularity: Granularity,
+    machine: &Machine,
+) -> weights::Result<Quantised> {
+    quantise(w, &calibration_states(w, machine)?, granularity)
 }

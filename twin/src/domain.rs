@@ -17,17 +17,17 @@
 //! of worlds.
 
 use firmware::cartpole::unit_f64;
-use firmware::rig::Rig;
 use rand_core::Rng;
 
 use crate::grammar::{self, Kind, Part, Span};
+use crate::machine::Machine;
 use crate::scenario::{Scenario, check_factors};
 
 /// A distribution over scenarios; see [the module](self).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Domain {
     spec: String,
-    rig: Rig,
+    machine: Machine,
     parts: Vec<Part>,
 }
 
@@ -36,7 +36,7 @@ impl Domain {
     pub fn nominal() -> Domain {
         Domain {
             spec: String::new(),
-            rig: Rig::GYMNASIUM,
+            machine: Machine::GYMNASIUM,
             parts: Vec::new(),
         }
     }
@@ -53,20 +53,21 @@ impl Domain {
 
     /// Parses a spec on Gymnasium's machine (see [`Domain::parse_on`]).
     pub fn parse(spec: &str) -> Result<Domain, String> {
-        Domain::parse_on(spec, &Rig::GYMNASIUM)
+        Domain::parse_on(spec, &Machine::GYMNASIUM)
     }
 
-    /// Parses a spec (see [the module](self)) of worlds around `rig`; `""` and `nominal` are
-    /// the rig itself. The extremes must make valid worlds, whichever corner a sample lands
-    /// in.
-    pub fn parse_on(spec: &str, rig: &Rig) -> Result<Domain, String> {
+    /// Parses a spec (see [the module](self)) of worlds around `machine`; `""` and
+    /// `nominal` are the machine itself. The extremes must make valid worlds, whichever
+    /// corner a sample lands in.
+    pub fn parse_on(spec: &str, machine: &Machine) -> Result<Domain, String> {
+        let rig = &machine.rig;
         let d = Domain {
             spec: spec.to_string(),
-            rig: *rig,
+            machine: *machine,
             parts: grammar::parse(spec, "domain")?,
         };
         for corner in [false, true] {
-            let mut s = Scenario::nominal_on(rig);
+            let mut s = Scenario::nominal_on(machine);
             for part in &d.parts {
                 let values: Vec<Option<f64>> = part
                     .values
@@ -83,7 +84,7 @@ impl Domain {
 
     /// One world of the distribution.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Scenario {
-        let mut s = Scenario::nominal_on(&self.rig);
+        let mut s = Scenario::nominal_on(&self.machine);
         s.name = "sampled".into();
         for part in &self.parts {
             // The share's coin is drawn even when it is 1, so parts keep their streams.

@@ -1,6 +1,9 @@
 //! The digital twin: the world around the controller, shared by the simulator that judges a
 //! policy and the trainer that learns it, so both see the same world.
 //!
+//! - [`machine`]: the machine a world simulates (a rig and how its world advances: Euler, or
+//!   continuous time by Runge-Kutta).
+//! - [`rigfile`]: rig files (`rig.toml`), read and written.
 //! - [`grammar`]: the one grammar and table of parts of scenarios and domains.
 //! - [`scenario`]: one world as a spec (`noise+delay=2`, `length=0.8+encoder=1024`): the
 //!   rig the board knows, the true physics and friction, sensor noise, encoders with the
@@ -20,11 +23,14 @@
 pub mod calibrate;
 pub mod domain;
 pub mod grammar;
+pub mod machine;
+pub mod rigfile;
 pub mod run;
 pub mod scenario;
 pub mod world;
 
 pub use domain::Domain;
+pub use machine::{Integration, Machine};
 pub use run::{Episode, EpisodeStats, Frame, run_episode};
 pub use scenario::{Push, Scenario};
 pub use world::World;

@@ -8,6 +8,7 @@ use firmware::estimator::Encoders;
 use firmware::rig::Rig;
 
 use crate::grammar::{self, FACTOR_RANGE, Fallback, Part};
+use crate::machine::{Integration, Machine};
 
 /// Sensor noise standard deviations of the `noise` part, per channel: 1 cm, 5 cm/s,
 /// 0.3 degrees, 0.05 rad/s; a cheap encoder and a finite-difference velocity.
@@ -62,16 +63,19 @@ pub struct Scenario {
     pub sensing: Sensing,
     /// Push disturbances.
     pub push: Option<Push>,
+    /// How the world advances the plant over a period.
+    pub integration: Integration,
 }
 
 impl Scenario {
     /// Gymnasium's machine: exact sensors, no dead time, no pushes.
     pub fn nominal() -> Scenario {
-        Scenario::nominal_on(&Rig::GYMNASIUM)
+        Scenario::nominal_on(&Machine::GYMNASIUM)
     }
 
-    /// `rig` as it is: its own physics, exact sensors, its dead time, no pushes.
-    pub fn nominal_on(rig: &Rig) -> Scenario {
+    /// `machine` as it is: its rig's own physics, exact sensors, its dead time, no pushes.
+    pub fn nominal_on(machine: &Machine) -> Scenario {
+        let rig = &machine.rig;
         Scenario {
             name: "nominal".into(),
             rig: *rig,
@@ -79,6 +83,7 @@ impl Scenario {
             noise_std: [0.0; 4],
             sensing: Sensing::Exact,
             push: None,
+            integration: machine.integration,
         }
     }
 
@@ -90,15 +95,16 @@ impl Scenario {
 
     /// Parses a spec on Gymnasium's machine (see [`Scenario::parse_on`]).
     pub fn parse(spec: &str) -> Result<Scenario, String> {
-        Scenario::parse_on(spec, &Rig::GYMNASIUM)
+        Scenario::parse_on(spec, &Machine::GYMNASIUM)
     }
 
     /// Parses a spec ([`crate::grammar`], every value a single number) into a world around
-    /// `rig`. Factors of one quantity multiply; every quantity must end within
+    /// `machine`. Factors of one quantity multiply; every quantity must end within
     /// [`FACTOR_RANGE`] of the rig's.
-    pub fn parse_on(spec: &str, rig: &Rig) -> Result<Scenario, String> {
+    pub fn parse_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
         let shown = weights::quote(spec);
-        let mut s = Scenario::nominal_on(rig);
+        let rig = &machine.rig;
+        let mut s = Scenario::nominal_on(machine);
         s.name = spec.to_string();
         for part in grammar::parse(spec, "scenario")? {
             if part.share != 1.0 || part.values.iter().flatten().any(|v| !v.is_point()) {
@@ -161,32 +167,45 @@ impl Scenario {
     /// The robustness table's rows: nominal, each perturbation alone, and all three kinds of
     /// trouble at once.
     pub fn default_set() -> Vec<Scenario> {
-        parse_all(&[
-            "nominal",
-            "noise",
-            "delay",
-            "force=0.8",
-            "force=1.2",
-            "length=0.8",
-            "length=1.2",
-            "polemass=0.8",
-            "polemass=1.2",
-            "cartmass=0.8",
-            "cartmass=1.2",
-            "push",
-            "noise+delay+push",
-        ])
+        Scenario::default_set_on(&Machine::GYMNASIUM)
+    }
+
+    /// [`Scenario::default_set`] around `machine`.
+    pub fn default_set_on(machine: &Machine) -> Vec<Scenario> {
+        parse_all(
+            machine,
+            &[
+                "nominal",
+                "noise",
+                "delay",
+                "force=0.8",
+                "force=1.2",
+                "length=0.8",
+                "length=1.2",
+                "polemass=0.8",
+                "polemass=1.2",
+                "cartmass=0.8",
+                "cartmass=1.2",
+                "push",
+                "noise+delay+push",
+            ],
+        )
     }
 
     /// The `hard` set: perturbations beyond the default set's under which bang-bang LQR with
     /// its nominal gain fails (see [`HARD`] and `docs/CONTROL.md`).
     pub fn hard_set() -> Vec<Scenario> {
-        parse_all(HARD)
+        Scenario::hard_set_on(&Machine::GYMNASIUM)
+    }
+
+    /// [`Scenario::hard_set`] around `machine`.
+    pub fn hard_set_on(machine: &Machine) -> Vec<Scenario> {
+        parse_all(machine, HARD)
     }
 
     /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]).
     pub fn hard_candidates() -> Vec<Scenario> {
-        parse_all(HARD_CANDIDATES)
+        parse_all(&Machine::GYMNASIUM, HARD_CANDIDATES)
     }
 }
 
@@ -260,10 +279,10 @@ pub const HARD_CANDIDATES: &[&str] = &[
     "encoder=512+push=1.1/50",
 ];
 
-fn parse_all(specs: &[&str]) -> Vec<Scenario> {
+fn parse_all(machine: &Machine, specs: &[&str]) -> Vec<Scenario> {
     specs
         .iter()
-        .map(|s| Scenario::parse(s).expect("built-in scenario specs parse"))
+        .map(|s| Scenario::parse_on(s, machine).expect("built-in scenario specs parse"))
         .collect()
 }
 

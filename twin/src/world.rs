@@ -4,13 +4,15 @@
 //!
 //! A period is [`World::measure`] (the exact state rounded to f32, with noise, or the two
 //! encoders' counts), then [`World::apply`] (the duty enters the dead-time line; the duty
-//! that leaves it, plus any push, drives the plant one period).
+//! that leaves it, held over the period, plus any push, drives the plant one period, by the
+//! scenario's integration).
 
-use firmware::cartpole::{CartPole, State, Transition, unit_f64};
+use firmware::cartpole::{CartPole, Plant, State, Transition, unit_f64};
 use firmware::controller::predict::DeadTime;
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
+use crate::machine::{self, Integration};
 use crate::scenario::{Scenario, Sensing};
 
 /// What the sensors report in one period.
@@ -26,6 +28,8 @@ pub enum Measurement {
 pub struct World<'s, R> {
     scenario: &'s Scenario,
     plant: CartPole,
+    /// The true plant's equations, for a world that integrates them itself.
+    dynamics: Plant<f64>,
     noise: R,
     pushes: R,
     /// Motor duties on their way to the motor.
@@ -48,6 +52,7 @@ impl<'s, R: Rng> World<'s, R> {
         World {
             scenario,
             plant,
+            dynamics: Plant::new(&scenario.params),
             noise,
             pushes,
             line: DeadTime::new(scenario.delay() as usize),
@@ -97,7 +102,14 @@ impl<'s, R: Rng> World<'s, R> {
             };
             external = side * push.impulse / self.scenario.params.tau;
         }
-        self.plant.advance(acting, external)
+        match self.scenario.integration {
+            Integration::Euler => self.plant.advance(acting, external),
+            rk4 => {
+                let s =
+                    machine::advance(&self.dynamics, rk4, &self.plant.state(), acting, external);
+                self.plant.set_next(s)
+            }
+        }
     }
 
     /// The plant's true state.

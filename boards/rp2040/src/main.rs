@@ -1,20 +1,25 @@
 //! The cart-pole balance controller on a Raspberry Pi Pico: the shipped policy in integers
 //! (`firmware::policy_int`, no floating point in the forward pass: the RP2040's Cortex-M0+ has
 //! no FPU), two quadrature encoders read by PIO state machines into the encoder observer
-//! (`firmware::estimator::Observer`), an
-//! H-bridge driven through embedded-hal 1.0 (`OutputPin` for the direction, `SetDutyCycle`
-//! for the enable), a 50 Hz ticker and defmt logs. Wiring and flashing: `README.md`.
+//! (`firmware::estimator::ObserverSensor`, handing the controller Q3.12 readings), an
+//! H-bridge driven through embedded-hal 1.0 (`firmware::controller::Bridge` over an
+//! `OutputPin` for the direction and a `SetDutyCycle` for the enable), a ticker at the rig's
+//! control period and defmt logs. Wiring and flashing: `README.md`.
 //!
-//! Each period: the encoder counts and the last command become `[x, x_dot, theta,
-//! theta_dot]` (the observer), the
-//! controller sanitises them against the track's limits (the cart coasts near the end stops),
-//! asks the integer policy, and drives the bridge. A step that outlasts its period is counted
-//! as an overrun in the controller's fault counters and logged, never hidden.
+//! Everything that must agree with the machine comes from `RIG`, the rig the policy was
+//! exported with: the observer's plant, encoders, dead time and tuning, the dead-time
+//! predictor, the track's limits and the control period. A policy trained for your own rig
+//! (`policy-export train --rig rig.toml`) and exported carries your machine there.
+//!
+//! Each period: the encoder counts become `[x, x_dot, theta, theta_dot]` in Q3.12 (the
+//! observer, told every command), the controller sanitises them against the track's limits
+//! (the cart coasts near the end stops), advances them over the dead time, asks the integer
+//! policy, and drives the bridge. A step that outlasts its period is counted as an overrun
+//! in the controller's fault counters and logged, never hidden.
 
 #![no_std]
 #![no_main]
 
-use core::convert::Infallible;
 use core::sync::atomic::{AtomicI32, Ordering};
 
 use defmt::{info, warn};
@@ -26,24 +31,11 @@ use embassy_rp::pio::{InterruptHandler, Pio};
 use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
 use embassy_rp::pwm::{self, Pwm};
 use embassy_time::{Duration, Instant, Ticker};
-use firmware::cartpole::Params;
-use firmware::controller::{CONTROL_PERIOD_S, Command, Controller, Limits, StateSensor};
-use firmware::estimator::{Encoders, Observer, Tuning};
-use firmware::policy_int::POLICY_INT;
+use firmware::controller::{Bridge, Controller};
+use firmware::estimator::ObserverSensor;
+use firmware::policy_int::{POLICY_INT, RIG};
 use {defmt_rtt as _, panic_probe as _};
 
-/// The rig. The PIO program below counts one step per quadrature cycle (four edges), so a
-/// counts-per-revolution figure is the encoder's line count.
-const ENCODERS: Encoders = Encoders {
-    // A 600-line encoder on a 12 mm GT2 pulley (20 teeth x 2 mm = 40 mm per turn).
-    cart_counts_per_m: 15_000,
-    // A 2,400-line encoder on the pivot: in the twin the integer policy balances 1,000 of
-    // 1,000 200 s episodes through these encoders and the observer (README).
-    pole_counts_per_rev: 2_400,
-};
-/// Half the usable track, centre to end stop, and the margin in which the cart coasts.
-const TRACK_HALF_LENGTH_M: f32 = 0.40;
-const END_STOP_MARGIN_M: f32 = 0.05;
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
 const PWM_TOP: u16 = 6_249;
 
@@ -82,26 +74,6 @@ async fn pole_encoder(mut encoder: PioEncoder<'static, PIO0, 1>) -> ! {
     count(&mut encoder, &POLE_COUNTS).await
 }
 
-/// The observer over the two counters, told each command the controller sends: what the
-/// controller reads each period.
-struct EncoderSensor {
-    observer: Observer,
-}
-
-impl StateSensor for EncoderSensor {
-    type Error = Infallible;
-    fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        Ok(self.observer.update(
-            CART_COUNTS.load(Ordering::Relaxed),
-            POLE_COUNTS.load(Ordering::Relaxed),
-        ))
-    }
-
-    fn commanded(&mut self, command: Command) {
-        self.observer.command(command.level());
-    }
-}
-
 #[embassy_executor::main(
     executor = "embassy_rp::executor::Executor",
     entry = "cortex_m_rt::entry"
@@ -130,21 +102,22 @@ async fn main(spawner: Spawner) {
     let enable = Pwm::new_output_b(p.PWM_SLICE7, p.PIN_15, config);
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
-    // The observer models the rig as the plant the policy was trained on (Gymnasium's
-    // cart-pole); put the rig's own masses, pole length and motor force here. Its gain is
-    // solved once, now.
-    let sensor = EncoderSensor {
-        observer: Observer::new(ENCODERS, &Params::default(), Tuning::DEFAULT, 0),
+    // The observer's gain is solved once, now. The PIO program counts one step per quadrature
+    // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
+    let counts = || {
+        (
+            CART_COUNTS.load(Ordering::Relaxed),
+            POLE_COUNTS.load(Ordering::Relaxed),
+        )
     };
-    let limits = Limits::track(TRACK_HALF_LENGTH_M, END_STOP_MARGIN_M);
-    let mut controller: Controller<_, _, _, _, 8> =
-        Controller::new(&POLICY_INT, sensor, direction, enable, limits);
-    info!(
-        "cartpole-rp2040: integer policy, {} Hz",
-        1.0 / CONTROL_PERIOD_S
-    );
+    let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer(), counts);
+    let bridge = Bridge::new(direction, enable);
+    let mut controller =
+        Controller::new(&POLICY_INT, sensor, bridge, RIG.limits()).with_predictor(RIG.predictor());
+    let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
+    let per_second = (1.0 / RIG.params.tau) as u32;
+    info!("cartpole-rp2040: integer policy, {} Hz", per_second);
 
-    let period = Duration::from_micros((CONTROL_PERIOD_S * 1e6) as u64);
     let mut ticker = Ticker::every(period);
     loop {
         ticker.next().await;
@@ -157,7 +130,7 @@ async fn main(spawner: Spawner) {
             controller.record_overruns(late);
             warn!("step took {} us: {} overrun(s)", took.as_micros(), late);
         }
-        if controller.steps() % 50 == 0 {
+        if controller.steps().is_multiple_of(per_second) {
             let faults = controller.faults();
             if let Some(r) = controller.last() {
                 info!(

@@ -33,6 +33,11 @@ pub trait Real:
     fn sin(self) -> Self;
     /// The cosine.
     fn cos(self) -> Self;
+    /// The sine and the cosine, as [`Real::sin`] and [`Real::cos`] give them.
+    #[inline(always)]
+    fn sin_cos(self) -> (Self, Self) {
+        (self.sin(), self.cos())
+    }
 }
 
 impl Real for f64 {
@@ -49,6 +54,12 @@ impl Real for f64 {
     #[inline(always)]
     fn cos(self) -> f64 {
         libm::cos(self)
+    }
+    /// One argument reduction for both: the same bits as `libm::sin` and `libm::cos`
+    /// (the same kernels; checked against them in the tests).
+    #[inline(always)]
+    fn sin_cos(self) -> (f64, f64) {
+        libm::sincos(self)
     }
 }
 
@@ -121,11 +132,12 @@ impl<T: Real> Plant<T> {
     /// `external` (N, pushes) on the cart.
     #[inline(always)]
     pub fn derivative(&self, s: &[T; 4], duty: T, external: T) -> [T; 4] {
+        let trig = s[2].sin_cos();
         let force = self.motor_force(duty, s[1]) + external;
         let (xacc, thetaacc) = if self.cart_friction != T::ZERO || self.pole_friction != T::ZERO {
-            self.florian(s, force)
+            self.florian(s, trig, force)
         } else {
-            self.gymnasium(s, force)
+            self.gymnasium(s, trig, force)
         };
         [s[1], xacc, s[3], thetaacc]
     }
@@ -141,10 +153,8 @@ impl<T: Real> Plant<T> {
     /// first, then products left to right. Any other association changes the last bit of
     /// some states.
     #[inline(always)]
-    fn gymnasium(&self, s: &[T; 4], force: T) -> (T, T) {
-        let [_, _, theta, theta_dot] = *s;
-        let costheta = theta.cos();
-        let sintheta = theta.sin();
+    fn gymnasium(&self, s: &[T; 4], (sintheta, costheta): (T, T), force: T) -> (T, T) {
+        let theta_dot = s[3];
         let temp =
             (force + self.polemass_length * (theta_dot * theta_dot) * sintheta) / self.total_mass;
         let thetaacc = (self.gravity * sintheta - costheta * temp)
@@ -173,11 +183,10 @@ impl<T: Real> Plant<T> {
     /// sign of `N_c` is taken as positive first (the pole is far lighter than what holds the
     /// cart down) and `theta_acc` is recomputed in the rare step where it comes out negative.
     /// At zero friction the equations reduce to Gymnasium's.
-    fn florian(&self, s: &[T; 4], force: T) -> (T, T) {
-        let [_, x_dot, theta, theta_dot] = *s;
+    fn florian(&self, s: &[T; 4], (sin, cos): (T, T), force: T) -> (T, T) {
+        let [_, x_dot, _, theta_dot] = *s;
         let (mc, mp) = (self.cart_friction, self.pole_friction);
         let (m, ml) = (self.total_mass, self.polemass_length);
-        let (sin, cos) = (theta.sin(), theta.cos());
         let w2 = theta_dot * theta_dot;
         let theta_acc = |nc_sign: T| {
             let f = mc * sgn(nc_sign * x_dot);

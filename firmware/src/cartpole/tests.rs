@@ -147,3 +147,26 @@ fn action_indices_round_trip() {
     }
     assert_eq!(Action::from_index(7), Action::Left);
 }
+
+#[test]
+fn sin_cos_is_sin_and_cos_bit_for_bit() {
+    // Gymnasium's bits rest on libm's sine and cosine; the plant takes both from one call.
+    let mut x = -40.0f64;
+    while x < 40.0 {
+        let (s, c) = Real::sin_cos(x);
+        assert_eq!(
+            (s.to_bits(), c.to_bits()),
+            (libm::sin(x).to_bits(), libm::cos(x).to_bits()),
+            "{x}"
+        );
+        x += 0.012_345_678_9;
+    }
+    for x in [0.0, -0.0, 1e-300, core::f64::consts::FRAC_PI_4, 1e6, 1e300] {
+        let (s, c) = Real::sin_cos(x);
+        assert_eq!(
+            (s.to_bits(), c.to_bits()),
+            (libm::sin(x).to_bits(), libm::cos(x).to_bits()),
+            "{x}"
+        );
+    }
+}

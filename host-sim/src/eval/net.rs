@@ -77,12 +77,16 @@ impl Net {
     }
 
     /// A network from checked weights of any supported width; with `int`, also its integer
-    /// version, quantised as `policy-export export --quant int8` does by default (the same
-    /// granularity and calibration). Without `int`, a float policy the quantiser would
-    /// refuse still loads.
-    pub fn from_weights(w: &Weights, int: bool) -> Result<Net> {
-        let q = if int {
-            Some(twin::calibrate::quantise_policy(w, Granularity::default())?)
+    /// version, quantised as `policy-export export --quant int8` does by default on that
+    /// machine (the same granularity and calibration). Without `int`, a float policy the
+    /// quantiser would refuse still loads.
+    pub fn from_weights(w: &Weights, int: Option<&twin::Machine>) -> Result<Net> {
+        let q = if let Some(machine) = int {
+            Some(twin::calibrate::quantise_policy(
+                w,
+                Granularity::default(),
+                machine,
+            )?)
         } else {
             None
         };

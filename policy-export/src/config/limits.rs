@@ -43,6 +43,8 @@ pub enum Limit {
     Domain,
     /// A learning-reward spec `train::Reward::parse` accepts.
     Reward,
+    /// A rig file's text `twin::rigfile::parse` accepts, or nothing.
+    Rig,
 }
 
 /// A key's value as its [`Limit`] sees it.
@@ -150,6 +152,12 @@ impl Limit {
             ),
             (Limit::Domain, Value::Text(s)) => parsed(twin::Domain::parse(s).map(drop)),
             (Limit::Reward, Value::Text(s)) => parsed(crate::train::Reward::parse(s).map(drop)),
+            (Limit::Rig, Value::Text("")) => Ok(()),
+            (Limit::Rig, Value::Text(s)) => parsed(
+                twin::rigfile::parse(s, "rig")
+                    .map(drop)
+                    .map_err(|e| e.to_string()),
+            ),
             (limit, v) => Err(format!("{key}: a {limit:?} limit cannot judge {v:?}")),
         }
     }

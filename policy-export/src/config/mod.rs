@@ -261,6 +261,21 @@ config_keys! {
         /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
         #[serde(default)]
         reward: String = String::new(), limit Limit::Reward;
+        /// The rig trained for, as a rig file's text (`twin::rigfile`; on the command line,
+        /// `--rig FILE` reads the file): the nominal world, the centre the domains' factors
+        /// are relative to, its control period and dead time; empty: Gymnasium's machine.
+        #[serde(default)]
+        rig: String = String::new(), limit Limit::Rig;
+    }
+}
+
+impl Config {
+    /// The machine `rig` describes (`validate` has checked it).
+    pub fn machine(&self) -> Result<twin::Machine, ConfigError> {
+        if self.rig.is_empty() {
+            return Ok(twin::Machine::GYMNASIUM);
+        }
+        twin::rigfile::parse(&self.rig, "rig").map_err(|e| ConfigError(e.to_string()))
     }
 }
 
@@ -325,31 +340,73 @@ impl Config {
     /// snapshot chosen on worlds like the default set's. Every choice and its evidence:
     /// `docs/TRAINING.md`.
     pub fn deploy() -> Config {
+        Config::deploy_on(&twin::Machine::GYMNASIUM)
+    }
+
+    /// The shipped recipe for `machine`: the same worlds around its rig, with the pushes
+    /// scaled to its motor (a push that takes Gymnasium's 10 N motor five periods to
+    /// answer takes this motor as long in seconds) and every count of periods to its control
+    /// rate (the same seconds of pushes and episodes); dead times stay in periods, a board's
+    /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
+    pub fn deploy_on(machine: &twin::Machine) -> Config {
+        let p = &machine.rig.params;
+        let (force, rate) = (p.force_mag / 10.0, 0.02 / p.tau);
+        let periods = |n: f64| (n * rate).round().max(1.0);
+        let steps = |n: f64| periods(n) as u32;
+        let push = |lo: f64, hi: f64, every: f64| {
+            let (lo, hi) = (lo * force, hi * force);
+            if lo == hi {
+                format!("push={lo}/{}", periods(every))
+            } else {
+                format!("push={lo}..{hi}/{}", periods(every))
+            }
+        };
         Config {
-            domain: DEPLOY_DOMAIN.into(),
-            eval_domain: DEPLOY_EVAL_DOMAIN.into(),
-            finalist_domain: DEPLOY_FINALIST_DOMAIN.into(),
+            domain: format!("{DEPLOY_DOMAIN}+{}", push(0.8, 1.2, 50.0)),
+            eval_domain: format!("{DEPLOY_EVAL_DOMAIN}+{}@0.5", push(0.5, 0.5, 100.0)),
+            finalist_domain: format!("{DEPLOY_FINALIST_DOMAIN}+{}", push(1.1, 1.1, 50.0)),
             compensate: true,
             reward: "upright=20+centre=5".into(),
             episodes: 5000,
+            max_steps: steps(500.0),
             eval_every: 10,
             eval_episodes: 50,
+            eval_max_steps: steps(500.0),
             stop_when_perfect: false,
             finalists: 20,
             finalist_episodes: 50,
-            finalist_max_steps: 10_000,
+            finalist_max_steps: steps(10_000.0),
+            rig: if *machine == twin::Machine::GYMNASIUM {
+                String::new()
+            } else {
+                twin::rigfile::to_toml(machine)
+            },
             ..Config::robust()
         }
     }
 
     /// The preset's configuration.
     pub fn preset(p: Preset) -> Config {
-        match p {
+        Config::preset_on(p, &twin::Machine::GYMNASIUM)
+    }
+
+    /// The preset's configuration for `machine`: the deploy recipe made for it
+    /// ([`Config::deploy_on`]); the others as they are, on its rig.
+    pub fn preset_on(p: Preset, machine: &twin::Machine) -> Config {
+        let c = match p {
             Preset::Paper => Config::paper(),
             Preset::PaperFixed => Config::paper_fixed(),
             Preset::Fast => Config::fast(),
             Preset::Robust => Config::robust(),
-            Preset::Deploy => Config::deploy(),
+            Preset::Deploy => return Config::deploy_on(machine),
+        };
+        Config {
+            rig: if *machine == twin::Machine::GYMNASIUM {
+                String::new()
+            } else {
+                twin::rigfile::to_toml(machine)
+            },
+            ..c
         }
     }
 
@@ -377,22 +434,24 @@ impl Config {
     }
 }
 
-/// The worlds the deploy preset trains in: physics, noise and dead time wider than the
-/// default evaluation set's +-20%, noise 1 and one period; friction, and encoders read
-/// through the observer; and in every episode a push of 0.8 to 1.2 N s every second, where
-/// the default set has 0.5 N s every two.
+/// The worlds the deploy preset trains in, but for the pushes ([`Config::deploy_on`] adds
+/// them: on Gymnasium's machine 0.8 to 1.2 N s every second, where the default set has
+/// 0.5 N s every two): physics, noise and dead time wider than the default evaluation set's
+/// +-20%, noise 1 and one period; friction, and encoders read through the observer.
 pub const DEPLOY_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25\
     +force=0.75..1.25+friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3\
-    +delay=0..4@0.5+push=0.8..1.2/50";
+    +delay=0..4@0.5";
 
-/// The worlds its snapshots are chosen on: like the default evaluation set's.
+/// The worlds its snapshots are chosen on, like the default evaluation set's (with its push,
+/// in half of them).
 pub const DEPLOY_EVAL_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25\
-    +force=0.75..1.25+noise=0..1@0.5+delay=0..1+push=0.5/100@0.5";
+    +force=0.75..1.25+noise=0..1@0.5+delay=0..1";
 
 /// The worlds its finalists are tried in for 10,000 steps: plants drawn like the default
-/// set's, half of them with its noise, all under pushes of 1.1 N s every second.
+/// set's, half of them with its noise, all under pushes of (Gymnasium's) 1.1 N s every
+/// second.
 pub const DEPLOY_FINALIST_DOMAIN: &str = "length=0.8..1.2+polemass=0.8..1.2\
-    +cartmass=0.8..1.2+force=0.8..1.2+noise=0..1@0.5+push=1.1/50";
+    +cartmass=0.8..1.2+force=0.8..1.2+noise=0..1@0.5";
 
 /// A configuration that cannot be run; the command line exits with status 2 on it.
 #[derive(Clone, Debug, PartialEq, Eq)]

@@ -307,3 +307,44 @@ fn a_limit_refuses_a_value_of_another_kind() {
         assert!(e.starts_with("k: "), "{e}");
     }
 }
+
+#[test]
+fn the_deploy_recipe_is_made_for_its_machine() {
+    // On Gymnasium's machine, the recipe's worlds as they were written.
+    let g = Config::deploy();
+    assert!(
+        g.domain.ends_with("+delay=0..4@0.5+push=0.8..1.2/50"),
+        "{}",
+        g.domain
+    );
+    assert!(
+        g.eval_domain.ends_with("+delay=0..1+push=0.5/100@0.5"),
+        "{}",
+        g.eval_domain
+    );
+    assert!(g.finalist_domain.ends_with("+noise=0..1@0.5+push=1.1/50"));
+    assert_eq!(
+        (g.max_steps, g.finalist_max_steps, g.rig.as_str()),
+        (500, 10_000, "")
+    );
+    // A weaker motor at twice the rate: pushes half as strong, counts of periods doubled.
+    let text = "cart_mass_kg = 0.6\npole_mass_kg = 0.08\npole_com_m = 0.22\n\
+                track_half_length_m = 0.4\nend_stop_margin_m = 0.05\nperiod_s = 0.01\n\
+                dead_time_periods = 2\n[encoders]\ncart_counts_per_m = 15000\n\
+                pole_counts_per_rev = 2400\n[actuator]\nstall_force_n = 5.0\n\
+                damping_n_s_per_m = 3.0\n";
+    let m = twin::rigfile::parse(text, "t").unwrap();
+    let d = Config::deploy_on(&m);
+    assert!(d.domain.ends_with("+push=0.4..0.6/100"), "{}", d.domain);
+    assert!(
+        d.finalist_domain.ends_with("+push=0.55/100"),
+        "{}",
+        d.finalist_domain
+    );
+    assert_eq!(
+        (d.max_steps, d.eval_max_steps, d.finalist_max_steps),
+        (1000, 1000, 20_000)
+    );
+    assert_eq!(d.machine().unwrap(), m);
+    d.validate().unwrap();
+}

@@ -213,7 +213,8 @@ struct Domains {
 }
 
 fn domains(cfg: &Config) -> Result<Domains> {
-    let parse = |spec: &str| Domain::parse(spec).map_err(anyhow::Error::msg);
+    let machine = cfg.machine()?;
+    let parse = |spec: &str| Domain::parse_on(spec, &machine).map_err(anyhow::Error::msg);
     let eval = parse(&cfg.eval_domain)?;
     Ok(Domains {
         train: parse(&cfg.domain)?,

@@ -59,12 +59,17 @@ fn a_scenario_is_built_on_its_rig() {
         dead_time: 2,
         ..Rig::GYMNASIUM
     };
-    let s = Scenario::parse_on("cartmass=2", &rig).unwrap();
+    let machine = Machine {
+        rig,
+        integration: Integration::Rk4 { substeps: 10 },
+    };
+    let s = Scenario::parse_on("cartmass=2", &machine).unwrap();
+    assert_eq!(s.integration, machine.integration);
     assert_eq!(s.params.masscart, 1.2);
     assert_eq!((s.rig, s.delay()), (rig, 2));
-    assert_eq!(Scenario::parse_on("delay=0", &rig).unwrap().delay(), 0);
+    assert_eq!(Scenario::parse_on("delay=0", &machine).unwrap().delay(), 0);
     // Factors are bounded relative to the rig's own values.
-    let e = Scenario::parse_on("cartmass=1000+cartmass=2", &rig).unwrap_err();
+    let e = Scenario::parse_on("cartmass=1000+cartmass=2", &machine).unwrap_err();
     assert!(e.contains("cartmass comes to 2e3 times nominal"), "{e}");
 }
 

@@ -5,6 +5,7 @@ use std::fmt::Write;
 
 use firmware::network::OBS_DIM;
 use firmware::network::int::Requant;
+use firmware::rig::Rig;
 
 use super::Quantised;
 use crate::Result;
@@ -89,8 +90,9 @@ fn push_fields(s: &mut String, q: &Quantised, syntax: &Syntax) {
     }
 }
 /// The Rust module: `pub static NAME: ::firmware::network::int::QMlp<H>`, with a doc header
-/// that says what it is, its formats and where it came from (`provenance`, one line each).
-pub fn rust_module(q: &Quantised, name: &str, provenance: &[String]) -> Result<String> {
+/// that says what it is, its formats and where it came from (`provenance`, one line each),
+/// and `pub const RIG`, the machine it was trained for ([`crate::source::rig_item`]).
+pub fn rust_module(q: &Quantised, name: &str, provenance: &[String], rig: &Rig) -> Result<String> {
     crate::source::check_rust_name(name)?;
     let h = q.width;
     let mut s = String::new();
@@ -123,6 +125,7 @@ pub fn rust_module(q: &Quantised, name: &str, provenance: &[String]) -> Result<S
     );
     push_fields(&mut s, q, &RUST);
     s.push_str("};\n");
+    s.push_str(&crate::source::rig_item(rig));
     Ok(s)
 }
 

@@ -1,5 +1,6 @@
 use firmware::fixed::from_state as fixed_obs;
 use firmware::policy::POLICY;
+use firmware::rig::Rig;
 
 use super::quantiser::{adaptive_round, quantise_weights, requant, symmetric};
 use super::*;
@@ -141,11 +142,15 @@ fn what_cannot_be_represented_is_refused() {
 fn sources_name_their_scale_and_size() {
     let w = Weights::from_mlp(&POLICY).unwrap();
     let q = quantise(&w, &[[0.01, 0.0, 0.02, 0.0]], Granularity::PerTensor).unwrap();
-    let rust = rust_module(&q, "P_INT", &["source: a test".into()]).unwrap();
+    let rust = rust_module(&q, "P_INT", &["source: a test".into()], &Rig::GYMNASIUM).unwrap();
     assert!(rust.contains("pub static P_INT: ::firmware::network::int::QMlp<64>"));
     assert!(rust.contains("5512 bytes of flash") && rust.contains("per-tensor"));
     let c = c_header(&q, "p_int", &[]).unwrap();
     assert!(c.contains("static const struct cartpole_qmlp64 p_int = {"));
-    assert!(rust_module(&q, "lower", &[]).unwrap_err().is_input());
+    assert!(
+        rust_module(&q, "lower", &[], &Rig::GYMNASIUM)
+            .unwrap_err()
+            .is_input()
+    );
     assert!(c_header(&q, "int", &[]).unwrap_err().is_input());
 }

@@ -1,0 +1,177 @@
+//! What identification hands back: the estimates as a table, the identified rig as a rig
+//! file (the intervals in its comments), and each log's measured and simulated counts
+//! drawn against each other.
+
+use std::fmt::Write;
+use std::path::{Path, PathBuf};
+
+use host_common::plot::{Curve, line_chart};
+use twin::Machine;
+use weights::files::{check_output, remove_stale};
+
+use super::fit::{Fit, MAX_DEAD_TIME};
+use super::log::Log;
+
+/// Each shared unknown's rig-file field and unit, in the fit's order.
+pub const FIELDS: [(&str, &str); 5] = [
+    ("actuator.stall_force_n", "N"),
+    ("actuator.damping_n_s_per_m", "N s/m"),
+    ("friction.cart_coulomb", ""),
+    ("friction.pivot_viscous_n_m_s", "N m s/rad"),
+    ("pole_com_m", "m"),
+];
+
+/// The assumption the intervals rest on, as the report states it.
+pub const ASSUMPTION: &str = "95% intervals from the Jacobian at the optimum: the residuals \
+    taken as independent with one variance per log and the model's equations as right, the \
+    dead time held at its value; residuals that are correlated in time make them too narrow";
+
+/// The estimates, one line each, with their intervals and the dead time's search.
+pub fn lines(fit: &Fit) -> Vec<String> {
+    let mut out: Vec<String> = FIELDS
+        .iter()
+        .zip(&fit.estimates)
+        .map(|(&(field, unit), e)| {
+            let interval = match e.half_width {
+                Some(h) => format!("+- {h:.3e}"),
+                None => "(at its bound, or not identifiable: no interval)".into(),
+            };
+            format!("{field:<30} = {:<12.6} {interval} {unit}", e.value)
+        })
+        .collect();
+    let best = fit.dead_time_sse[fit.dead_time as usize];
+    let ratios: Vec<String> = fit
+        .dead_time_sse
+        .iter()
+        .enumerate()
+        .map(|(d, s)| format!("{d}: {:.3}", s / best))
+        .collect();
+    out.push(format!(
+        "{:<30} = {:<12} (sum of squares against the best, by dead time 0 to {MAX_DEAD_TIME}: {})",
+        "dead_time_periods",
+        fit.dead_time,
+        ratios.join(", ")
+    ));
+    out
+}
+
+/// The report printed on standard output.
+pub fn format(fit: &Fit, logs: &[Log]) -> String {
+    let mut s = String::new();
+    for l in lines(fit) {
+        let _ = writeln!(s, "{l}");
+    }
+    for trace in &fit.traces {
+        let log = &logs[trace.log];
+        let rms: Vec<String> = trace
+            .channels
+            .iter()
+            .map(|c| format!("{} {:.3}", c.name, c.rms))
+            .collect();
+        let _ = writeln!(
+            s,
+            "{} (line {}, {}): RMS residual, counts: {} over {} periods",
+            log.origin,
+            log.line,
+            log.experiment.name(),
+            rms.join(", "),
+            trace.channels[0].measured.len()
+        );
+    }
+    let _ = writeln!(s, "{ASSUMPTION}");
+    s
+}
+
+/// The identified rig as a rig file: the estimates and their intervals as comments, then
+/// the file [`twin::rigfile::to_toml`] writes.
+pub fn rig_file(machine: &Machine, fit: &Fit, logs: &[Log]) -> String {
+    let mut names: Vec<&str> = logs.iter().map(|l| l.origin.as_str()).collect();
+    names.dedup();
+    let mut s = format!(
+        "# Identified from {} by host-sim identify.\n",
+        names.join(", ")
+    );
+    for l in lines(fit) {
+        let _ = writeln!(s, "# {l}");
+    }
+    let _ = writeln!(s, "# {ASSUMPTION}.");
+    s + &twin::rigfile::to_toml(machine)
+}
+
+/// The plots' paths: `DIR/identify-N-EXPERIMENT.png` (and `.svg`) for the N-th log given.
+pub fn plot_paths(dir: &Path, logs: &[Log]) -> Vec<PathBuf> {
+    logs.iter()
+        .enumerate()
+        .map(|(i, l)| dir.join(format!("identify-{}-{}.png", i + 1, l.experiment.name())))
+        .collect()
+}
+
+/// Checks that the plots can be written: `dir` a directory or a new path, each plot a
+/// regular file or none, none of them an input.
+pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Result<()> {
+    if let Ok(m) = std::fs::symlink_metadata(dir)
+        && !m.is_dir()
+    {
+        return Err(weights::Error::Input(format!(
+            "--plot {}: expected a directory (or a new path), found {}",
+            dir.display(),
+            weights::files::kind(&m.file_type())
+        )));
+    }
+    for png in plot_paths(dir, logs) {
+        check_output(&png, inputs)?;
+        check_output(&png.with_extension("svg"), inputs)?;
+    }
+    Ok(())
+}
+
+/// Draws each log's measured and simulated counts into `dir`, each drawn under temporary
+/// names and renamed, so that a failure leaves no half-drawn picture.
+pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>> {
+    std::fs::create_dir_all(dir)
+        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", dir.display())))?;
+    let paths = plot_paths(dir, logs);
+    for trace in &fit.traces {
+        let (log, png) = (&logs[trace.log], &paths[trace.log]);
+        remove_stale(png, &["png", "svg"]);
+        let tmp = weights::files::temp_path(png);
+        let curve = |label: &str, v: &[f64], dashed| Curve {
+            label: label.into(),
+            mean: v.to_vec(),
+            band: Vec::new(),
+            dashed,
+        };
+        let title = format!(
+            "{} ({}), from period {}",
+            log.origin,
+            log.experiment.name(),
+            trace.start
+        );
+        let curves: Vec<Curve> = trace
+            .channels
+            .iter()
+            .flat_map(|c| {
+                [
+                    curve(&format!("{} measured", c.name), &c.measured, false),
+                    curve(&format!("{} simulated", c.name), &c.simulated, true),
+                ]
+            })
+            .collect();
+        let drawn = line_chart(&tmp, &title, "period", "counts", &curves);
+        let renamed = drawn.and_then(|()| {
+            for ext in ["png", "svg"] {
+                let to = png.with_extension(ext);
+                std::fs::rename(tmp.with_extension(ext), &to)
+                    .map_err(|e| weights::Error::Io(format!("writing {}: {e}", to.display())))?;
+            }
+            Ok(())
+        });
+        if let Err(e) = renamed {
+            for ext in ["png", "svg"] {
+                let _ = std::fs::remove_file(tmp.with_extension(ext));
+            }
+            return Err(e);
+        }
+    }
+    Ok(paths)
+}

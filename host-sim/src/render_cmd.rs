@@ -1,0 +1,119 @@
+//! `host-sim render`: one episode drawn as an animated GIF and a time-series PNG, written
+//! under temporary names and renamed, so a failure leaves no half-written picture.
+
+use std::path::PathBuf;
+
+use anyhow::Result;
+use clap::Args;
+use host_sim::eval::{self, ControllerKind};
+use host_sim::render;
+use twin::Scenario;
+use weights::files::{check_output, remove_stale, temp_path_keeping_extension};
+
+use crate::Subject;
+
+/// Longest episode `render` draws: it keeps every period (40 bytes) and draws each
+/// `--stride`-th into the GIF.
+const MAX_RENDER_HORIZON: u32 = 100_000;
+
+#[derive(Args)]
+pub struct RenderArgs {
+    /// Output directory; gets episode.gif and episode.png.
+    #[arg(long, default_value = "render")]
+    out: PathBuf,
+    /// Which controller drives.
+    #[arg(long, default_value = "policy")]
+    controller: ControllerKind,
+    #[command(flatten)]
+    subject: Subject,
+    /// One scenario spec (see `eval`).
+    #[arg(long, default_value = "nominal")]
+    scenario: String,
+    /// Periods to run at most.
+    #[arg(long, default_value_t = 500)]
+    horizon: u32,
+    /// Seed and episode number of the start (as in `eval`).
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    #[arg(long, default_value_t = 0)]
+    episode: u64,
+    /// Draw every k-th period in the GIF (it plays in real time).
+    #[arg(long, default_value_t = 2)]
+    stride: usize,
+}
+
+/// Draws the episode `a` asks for.
+pub fn run(a: &RenderArgs) -> Result<()> {
+    let (horizon, stride, out) = (a.horizon, a.stride, a.out.as_path());
+    anyhow::ensure!(
+        (1..=MAX_RENDER_HORIZON).contains(&horizon),
+        "--horizon must be in [1, {MAX_RENDER_HORIZON}] for render, got {horizon}"
+    );
+    anyhow::ensure!(
+        (1..=1000).contains(&stride),
+        "--stride must be in [1, 1000], got {stride}"
+    );
+    let given = a
+        .subject
+        .rig
+        .as_deref()
+        .map(twin::rigfile::load)
+        .transpose()?;
+    Scenario::parse_on(&a.scenario, &given.unwrap_or(twin::Machine::GYMNASIUM))
+        .map_err(anyhow::Error::msg)?;
+    // The outputs are checked before the work: a directory (or a new path) holding, if
+    // anything, regular files by those names, which are replaced whole.
+    let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
+    if let Ok(m) = std::fs::symlink_metadata(out)
+        && !m.is_dir()
+    {
+        anyhow::bail!(
+            "--out {}: expected a directory (or a new path), found {}",
+            out.display(),
+            weights::files::kind(&m.file_type())
+        );
+    }
+    check_output(&gif, &[])?;
+    check_output(&png, &[])?;
+    let (machine, net) = a.subject.load(a.controller == ControllerKind::PolicyInt)?;
+    let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
+    let (controller, seed, episode) = (a.controller, a.seed, a.episode);
+    let mut frames = Vec::new();
+    let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
+        frames.push(f)
+    });
+    std::fs::create_dir_all(out)
+        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", out.display())))?;
+    let title = format!("{controller}, {}", scenario.name);
+    // Drawn under temporary names and renamed, so a failure leaves no half-written picture;
+    // the names end in the real extension because the encoders choose the format by it.
+    remove_stale(&gif, &["tmp.gif"]);
+    remove_stale(&png, &["tmp.png"]);
+    let (gif_tmp, png_tmp) = (
+        temp_path_keeping_extension(&gif),
+        temp_path_keeping_extension(&png),
+    );
+    let drawn = render::gif(&gif_tmp, &frames, &scenario.params, stride, &title).and_then(|()| {
+        render::timeseries(
+            &png_tmp,
+            &frames,
+            &scenario.params,
+            &format!(
+                "{title}: {} of {horizon} periods, {}",
+                stats.steps,
+                if stats.success { "balanced" } else { "fell" }
+            ),
+        )
+    });
+    if let Err(e) = drawn {
+        let _ = std::fs::remove_file(&gif_tmp);
+        let _ = std::fs::remove_file(&png_tmp);
+        return Err(e);
+    }
+    for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
+        std::fs::rename(tmp, path)
+            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;
+    }
+    println!("{}\n{}", gif.display(), png.display());
+    Ok(())
+}

@@ -1,0 +1,393 @@
+//! Rig files (`rig.toml`): a real cart-pole described as its builder measures it, read into
+//! the [`Machine`] every tool takes with `--rig FILE`, and written back by identification.
+//!
+//! ```toml
+//! cart_mass_kg = 0.6          # a scale
+//! pole_mass_kg = 0.08
+//! pole_com_m = 0.22           # pivot to the pole's centre of mass (or pole_length_m, uniform)
+//! track_half_length_m = 0.4   # centre to end stop
+//! end_stop_margin_m = 0.05    # the controller coasts this near a stop
+//! period_s = 0.02             # 2 ms to 50 ms
+//! dead_time_periods = 1
+//!
+//! [encoders]
+//! cart_counts_per_m = 15000
+//! pole_counts_per_rev = 2400
+//!
+//! [actuator]                  # F = stall_force_n * duty - damping_n_s_per_m * x_dot
+//! stall_force_n = 5.0
+//! damping_n_s_per_m = 3.0
+//!
+//! [friction]
+//! cart_coulomb = 0.0          # Florian's mu_c
+//! pivot_viscous_n_m_s = 0.0   # Florian's mu_p
+//! ```
+//!
+//! Optional: `gravity_m_s2` (9.8, Gymnasium's), `failure_angle_deg` (12), a `[world]` table
+//! with `integration = "continuous"` (the default: Runge-Kutta steps of at most `substep_s`,
+//! 0.001) or `"euler"` (Gymnasium's one step per period), and an `[observer]` table with the
+//! observer's `force_sd` and `accel_sd` (`firmware::estimator::Tuning`). Every value is
+//! checked: a rig that is not physical is refused, naming the field.
+
+use std::fmt::Write;
+use std::path::Path;
+
+use firmware::cartpole::Params;
+use firmware::estimator::{Encoders, Tuning};
+use firmware::rig::Rig;
+use serde::Deserialize;
+use weights::{Error, Result, quote};
+
+use crate::machine::{Integration, Machine};
+
+/// The key under which a policy file's metadata records the rig it was trained for, as a
+/// rig file's text.
+pub const METADATA_KEY: &str = "rig";
+
+/// The machine a policy file's metadata records (`None` for a file without one: a PyTorch
+/// checkpoint).
+pub fn recorded(metadata: &std::collections::BTreeMap<String, String>) -> Result<Option<Machine>> {
+    metadata
+        .get(METADATA_KEY)
+        .map(|text| parse(text, "the policy file's recorded rig"))
+        .transpose()
+}
+
+/// The machine to run a policy with: `given` (the command line's `--rig`) or, without one,
+/// the rig the policy file records or Gymnasium's; with a warning on standard error when the
+/// two differ, since the policy was trained for another machine.
+pub fn choose(given: Option<Machine>, recorded: Option<Machine>) -> Machine {
+    match (given, recorded) {
+        (Some(g), Some(r)) if g != r => {
+            eprintln!(
+                "warning: the policy was trained for another rig than --rig gives; its \
+                 predictor, observer and limits will model the machine --rig describes"
+            );
+            g
+        }
+        (Some(g), _) => g,
+        (None, Some(r)) => r,
+        (None, None) => Machine::GYMNASIUM,
+    }
+}
+
+/// Largest rig file read.
+pub const MAX_RIG_BYTES: u64 = 64 << 10;
+/// The longest Runge-Kutta step a continuous world takes when a rig file names none, s.
+pub const DEFAULT_SUBSTEP_S: f64 = 0.001;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct File {
+    cart_mass_kg: f64,
+    pole_mass_kg: f64,
+    pole_com_m: Option<f64>,
+    pole_length_m: Option<f64>,
+    track_half_length_m: f64,
+    end_stop_margin_m: f64,
+    period_s: f64,
+    dead_time_periods: u32,
+    encoders: FileEncoders,
+    actuator: Actuator,
+    #[serde(default)]
+    friction: Friction,
+    gravity_m_s2: Option<f64>,
+    failure_angle_deg: Option<f64>,
+    #[serde(default)]
+    world: World,
+    observer: Option<Observer>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct FileEncoders {
+    cart_counts_per_m: u32,
+    pole_counts_per_rev: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Actuator {
+    stall_force_n: f64,
+    damping_n_s_per_m: f64,
+}
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct Friction {
+    #[serde(default)]
+    cart_coulomb: f64,
+    #[serde(default)]
+    pivot_viscous_n_m_s: f64,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct World {
+    #[serde(default = "continuous")]
+    integration: String,
+    #[serde(default = "substep")]
+    substep_s: f64,
+}
+
+impl Default for World {
+    fn default() -> World {
+        World {
+            integration: continuous(),
+            substep_s: substep(),
+        }
+    }
+}
+
+fn continuous() -> String {
+    "continuous".into()
+}
+
+fn substep() -> f64 {
+    DEFAULT_SUBSTEP_S
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct Observer {
+    force_sd: f64,
+    accel_sd: [f64; 2],
+}
+
+/// One field's check: `value` must be finite and within `[lo, hi]` (open at `lo` where
+/// `open_lo`).
+fn check(
+    origin: &str,
+    field: &str,
+    value: f64,
+    (lo, hi): (f64, f64),
+    open_lo: bool,
+) -> Result<f64> {
+    let ok = value.is_finite() && (if open_lo { value > lo } else { value >= lo }) && value <= hi;
+    if ok {
+        return Ok(value);
+    }
+    let bracket = if open_lo { '(' } else { '[' };
+    Err(Error::Input(format!(
+        "{origin}: {field}: expected a number in {bracket}{lo}, {hi}], found {value}"
+    )))
+}
+
+/// Degrees to radians as Gymnasium converts its 12 degrees, so that Gymnasium's rig file
+/// gives Gymnasium's threshold bit for bit.
+fn radians(deg: f64) -> f64 {
+    deg * 2.0 * core::f64::consts::PI / 360.0
+}
+
+/// The degrees [`radians`] turns into `rad` exactly (the nearest f64 that does, where the
+/// plain conversion's rounding would miss by an ulp).
+fn degrees(rad: f64) -> f64 {
+    let d = rad * 360.0 / (2.0 * core::f64::consts::PI);
+    let ulp = |k: i64| f64::from_bits((d.to_bits() as i64 + k) as u64);
+    [0, 1, -1, 2, -2, 3, -3]
+        .into_iter()
+        .map(ulp)
+        .find(|&c| radians(c) == rad)
+        .unwrap_or(d)
+}
+
+/// Reads the rig file at `path` (see [the module](self)).
+pub fn load(path: &Path) -> Result<Machine> {
+    let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
+    let origin = format!("rig {}", path.display());
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
+    parse(text, &origin)
+}
+
+/// Parses a rig file's text; `origin` names it in errors.
+pub fn parse(text: &str, origin: &str) -> Result<Machine> {
+    let f: File = toml::from_str(text)
+        .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
+    let c =
+        |field: &str, v: f64, range: (f64, f64), open: bool| check(origin, field, v, range, open);
+    let half = c(
+        "track_half_length_m",
+        f.track_half_length_m,
+        (0.0, 100.0),
+        true,
+    )?;
+    let margin = c(
+        "end_stop_margin_m",
+        f.end_stop_margin_m,
+        (0.0, 100.0),
+        false,
+    )?;
+    if margin >= half {
+        return Err(Error::Input(format!(
+            "{origin}: end_stop_margin_m: expected less than track_half_length_m ({half}), found \
+             {margin}"
+        )));
+    }
+    let com = match (f.pole_com_m, f.pole_length_m) {
+        (Some(com), None) => c("pole_com_m", com, (0.0, 100.0), true)?,
+        (None, Some(len)) => c("pole_length_m", len, (0.0, 200.0), true)? / 2.0,
+        _ => {
+            return Err(Error::Input(format!(
+                "{origin}: expected one of pole_com_m and pole_length_m, found {}",
+                if f.pole_com_m.is_some() {
+                    "both"
+                } else {
+                    "neither"
+                }
+            )));
+        }
+    };
+    let params = Params {
+        gravity: c(
+            "gravity_m_s2",
+            f.gravity_m_s2.unwrap_or(9.8),
+            (0.0, 100.0),
+            true,
+        )?,
+        masscart: c("cart_mass_kg", f.cart_mass_kg, (0.0, 1000.0), true)?,
+        masspole: c("pole_mass_kg", f.pole_mass_kg, (0.0, 1000.0), true)?,
+        length: com,
+        force_mag: c(
+            "actuator.stall_force_n",
+            f.actuator.stall_force_n,
+            (0.0, 1e4),
+            true,
+        )?,
+        motor_damping: c(
+            "actuator.damping_n_s_per_m",
+            f.actuator.damping_n_s_per_m,
+            (0.0, 1e4),
+            false,
+        )?,
+        tau: c("period_s", f.period_s, (0.002, 0.05), false)?,
+        theta_threshold_radians: radians(c(
+            "failure_angle_deg",
+            f.failure_angle_deg.unwrap_or(12.0),
+            (0.0, 90.0),
+            true,
+        )?),
+        x_threshold: half,
+        cart_friction: c(
+            "friction.cart_coulomb",
+            f.friction.cart_coulomb,
+            (0.0, 1.0),
+            false,
+        )?,
+        pole_friction: c(
+            "friction.pivot_viscous_n_m_s",
+            f.friction.pivot_viscous_n_m_s,
+            (0.0, 0.1),
+            false,
+        )?,
+    };
+    let counts = |field: &str, v: u32, hi: u32| {
+        c(field, f64::from(v), (16.0, f64::from(hi)), false).map(|v| v as u32)
+    };
+    let encoders = Encoders {
+        cart_counts_per_m: counts(
+            "encoders.cart_counts_per_m",
+            f.encoders.cart_counts_per_m,
+            1 << 26,
+        )?,
+        pole_counts_per_rev: counts(
+            "encoders.pole_counts_per_rev",
+            f.encoders.pole_counts_per_rev,
+            1 << 24,
+        )?,
+    };
+    let dead_time = c(
+        "dead_time_periods",
+        f64::from(f.dead_time_periods),
+        (0.0, f64::from(crate::scenario::MAX_DELAY)),
+        false,
+    )? as u32;
+    let tuning = match f.observer {
+        None => Tuning::DEFAULT,
+        Some(o) => Tuning {
+            force_sd: c("observer.force_sd", o.force_sd, (0.0, 1e4), true)?,
+            accel_sd: [
+                c("observer.accel_sd[0]", o.accel_sd[0], (0.0, 1e4), true)?,
+                c("observer.accel_sd[1]", o.accel_sd[1], (0.0, 1e4), true)?,
+            ],
+        },
+    };
+    let integration = match f.world.integration.as_str() {
+        "euler" => Integration::Euler,
+        "continuous" => Integration::rk4(
+            params.tau,
+            c("world.substep_s", f.world.substep_s, (1e-5, 0.05), false)?,
+        ),
+        other => {
+            return Err(Error::Input(format!(
+                "{origin}: world.integration: expected \"continuous\" or \"euler\", found {}",
+                quote(other)
+            )));
+        }
+    };
+    Ok(Machine {
+        rig: Rig {
+            params,
+            encoders,
+            dead_time,
+            end_stop_margin: margin,
+            tuning,
+        },
+        integration,
+    })
+}
+
+/// `machine` as a rig file that [`parse`] reads back to it, bit for bit (every f64 in its
+/// shortest round-tripping form; the pole by its centre of mass).
+pub fn to_toml(machine: &Machine) -> String {
+    let (r, p) = (&machine.rig, &machine.rig.params);
+    let mut s = String::new();
+    let _ = writeln!(s, "cart_mass_kg = {:?}", p.masscart);
+    let _ = writeln!(s, "pole_mass_kg = {:?}", p.masspole);
+    let _ = writeln!(s, "pole_com_m = {:?}", p.length);
+    let _ = writeln!(s, "track_half_length_m = {:?}", p.x_threshold);
+    let _ = writeln!(s, "end_stop_margin_m = {:?}", r.end_stop_margin);
+    let _ = writeln!(s, "period_s = {:?}", p.tau);
+    let _ = writeln!(s, "dead_time_periods = {}", r.dead_time);
+    let _ = writeln!(s, "gravity_m_s2 = {:?}", p.gravity);
+    let _ = writeln!(
+        s,
+        "failure_angle_deg = {:?}",
+        degrees(p.theta_threshold_radians)
+    );
+    let _ = writeln!(
+        s,
+        "\n[encoders]\ncart_counts_per_m = {}\npole_counts_per_rev = {}",
+        r.encoders.cart_counts_per_m, r.encoders.pole_counts_per_rev
+    );
+    let _ = writeln!(
+        s,
+        "\n[actuator]\nstall_force_n = {:?}\ndamping_n_s_per_m = {:?}",
+        p.force_mag, p.motor_damping
+    );
+    let _ = writeln!(
+        s,
+        "\n[friction]\ncart_coulomb = {:?}\npivot_viscous_n_m_s = {:?}",
+        p.cart_friction, p.pole_friction
+    );
+    match machine.integration {
+        Integration::Euler => s.push_str("\n[world]\nintegration = \"euler\"\n"),
+        Integration::Rk4 { substeps } => {
+            let _ = writeln!(
+                s,
+                "\n[world]\nintegration = \"continuous\"\nsubstep_s = {:?}",
+                p.tau / f64::from(substeps)
+            );
+        }
+    }
+    let t = &r.tuning;
+    let _ = writeln!(
+        s,
+        "\n[observer]\nforce_sd = {:?}\naccel_sd = [{:?}, {:?}]",
+        t.force_sd, t.accel_sd[0], t.accel_sd[1]
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests;

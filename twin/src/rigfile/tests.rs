@@ -1,0 +1,152 @@
+use super::*;
+
+fn repo(path: &str) -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(path)
+}
+
+#[test]
+fn gymnasiums_rig_file_is_gymnasiums_machine_bit_for_bit() {
+    let m = load(&repo("rigs/gymnasium.toml")).unwrap();
+    assert_eq!(m, Machine::GYMNASIUM);
+}
+
+#[test]
+fn the_desk_rig_reads_as_written() {
+    let m = load(&repo("rigs/desk.toml")).unwrap();
+    let p = m.rig.params;
+    assert_eq!((p.masscart, p.masspole, p.length), (0.6, 0.08, 0.22));
+    assert_eq!((p.force_mag, p.motor_damping, p.tau), (5.0, 3.0, 0.02));
+    assert_eq!(
+        (p.x_threshold, m.rig.end_stop_margin, m.rig.dead_time),
+        (0.4, 0.05, 1)
+    );
+    assert_eq!(m.integration, Integration::Rk4 { substeps: 20 });
+    assert_eq!(m.rig.encoders.pole_counts_per_rev, 2400);
+    // A pole given by its length is uniform: its centre of mass is halfway.
+    let text = std::fs::read_to_string(repo("rigs/desk.toml"))
+        .unwrap()
+        .replace("pole_com_m = 0.22", "pole_length_m = 0.44");
+    assert_eq!(parse(&text, "t").unwrap().rig.params.length, 0.22);
+}
+
+#[test]
+fn a_rig_written_reads_back_bit_for_bit() {
+    for m in [
+        Machine::GYMNASIUM,
+        load(&repo("rigs/desk.toml")).unwrap(),
+        Machine {
+            rig: Rig {
+                params: Params {
+                    masscart: 0.613_333_333_333_333_4,
+                    length: 1.0 / 3.0,
+                    theta_threshold_radians: 0.25,
+                    cart_friction: 1e-3,
+                    pole_friction: 7e-4,
+                    tau: 0.0105,
+                    ..Params::default()
+                },
+                dead_time: 3,
+                ..Rig::GYMNASIUM
+            },
+            integration: Integration::Rk4 { substeps: 7 },
+        },
+    ] {
+        assert_eq!(parse(&to_toml(&m), "t").unwrap(), m, "{}", to_toml(&m));
+    }
+}
+
+#[test]
+fn bad_rigs_are_refused_naming_the_field() {
+    let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
+    for (from, to, needle) in [
+        (
+            "pole_mass_kg = 0.08",
+            "pole_mass_kg = 2000.0",
+            "pole_mass_kg: expected a number in (0, 1000], found 2000",
+        ),
+        (
+            "period_s = 0.02",
+            "period_s = 0.0",
+            "period_s: expected a number in [0.002, 0.05], found 0",
+        ),
+        (
+            "period_s = 0.02",
+            "period_s = 0.1",
+            "period_s: expected a number in [0.002, 0.05]",
+        ),
+        (
+            "end_stop_margin_m = 0.05",
+            "end_stop_margin_m = 0.5",
+            "end_stop_margin_m: expected less than track_half_length_m (0.4)",
+        ),
+        (
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = -1.0",
+            "cart_mass_kg: expected a number in (0, 1000], found -1",
+        ),
+        (
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = nan",
+            "cart_mass_kg: expected a number",
+        ),
+        (
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = inf",
+            "cart_mass_kg: expected a number",
+        ),
+        (
+            "stall_force_n = 5.0",
+            "stall_force_n = 0.0",
+            "actuator.stall_force_n: expected a number in (0,",
+        ),
+        (
+            "damping_n_s_per_m = 3.0",
+            "damping_n_s_per_m = -3.0",
+            "actuator.damping_n_s_per_m",
+        ),
+        (
+            "dead_time_periods = 1",
+            "dead_time_periods = 40",
+            "dead_time_periods: expected a number in [0, 16]",
+        ),
+        (
+            "pole_counts_per_rev = 2400",
+            "pole_counts_per_rev = 4",
+            "encoders.pole_counts_per_rev",
+        ),
+        (
+            "cart_coulomb = 0.0",
+            "cart_coulomb = 2.0",
+            "friction.cart_coulomb",
+        ),
+        (
+            "pole_com_m = 0.22",
+            "",
+            "expected one of pole_com_m and pole_length_m, found neither",
+        ),
+        (
+            "pole_com_m = 0.22",
+            "pole_com_m = 0.22\npole_length_m = 0.44",
+            "found both",
+        ),
+        ("cart_mass_kg = 0.6", "", "missing field `cart_mass_kg`"),
+        (
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = 0.6\nwheels = 4",
+            "unknown field `wheels`",
+        ),
+        (
+            "dead_time_periods = 1",
+            "dead_time_periods = 1\n[world]\nintegration = \"rk2\"",
+            "world.integration: expected",
+        ),
+    ] {
+        let text = desk.replace(from, to);
+        let e = parse(&text, "rig desk").unwrap_err();
+        assert!(e.is_input(), "{to}");
+        assert!(e.to_string().contains(needle), "{to}: {e}");
+        assert!(e.to_string().len() < 600, "{}", e.to_string().len());
+    }
+}
