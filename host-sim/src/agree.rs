@@ -120,13 +120,13 @@ fn count_row(net: &Net, s: &Scenario, per_row: u64, seed: u64) -> RowCount {
 }
 
 /// Compares the two networks of `net` on at least `states` visited states (see [the
-/// module](self)), from episodes of `seed`; `net` must have been built with its integer
+/// module](self)), from episodes of `seed` on `machine`'s default set; `net` must have been built with its integer
 /// version.
-pub fn agreement(net: &Net, states: u64, seed: u64) -> Result<Report> {
+pub fn agreement(net: &Net, machine: &twin::Machine, states: u64, seed: u64) -> Result<Report> {
     if net.forward_int(&[0; 4]).is_none() {
         bail!("the policy was loaded without its integer version");
     }
-    let rows = Scenario::default_set();
+    let rows = Scenario::default_set_on(machine);
     let per_row = states.div_ceil(rows.len() as u64);
     let counts: Vec<RowCount> = rows
         .par_iter()

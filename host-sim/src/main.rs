@@ -180,8 +180,8 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
         "--states must be in [1, {MAX_AGREE_STATES}], got {}",
         a.states
     );
-    let (_, net) = a.subject.load(true)?;
-    let report = host_sim::agree::agreement(&net, a.states, a.seed)?;
+    let (machine, net) = a.subject.load(true)?;
+    let report = host_sim::agree::agreement(&net, &machine, a.states, a.seed)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {

@@ -161,7 +161,7 @@ pub const PARTS: &[PartSpec] = &[
                 Kind::LogWhole,
                 16.0,
                 (1u32 << 24) as f64,
-                Fallback::Required,
+                Fallback::Absent,
             ),
             field(
                 "counts per metre",
@@ -172,10 +172,10 @@ pub const PARTS: &[PartSpec] = &[
             ),
             field("discount", Kind::Real, 0.0, 0.99, Fallback::Absent),
         ],
-        syntax: "encoder=N[/M[/D]]",
+        syntax: "encoder[=N[/M[/D]]]",
         doc: "positions read by encoders of N counts per revolution and M per metre (5N if \
-              omitted) through the board's observer, or with D through the model-free \
-              alpha-beta filter of discount D",
+              omitted; the rig's own if both are) through the board's observer, or with D \
+              through the model-free alpha-beta filter of discount D",
     },
     PartSpec {
         key: "push",

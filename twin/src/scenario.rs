@@ -144,11 +144,13 @@ impl Scenario {
                 p.pole_friction = value(1).unwrap_or(0.0);
             }
             "encoder" => {
-                let n = (first as u32).max(16);
-                self.rig.encoders = Encoders {
-                    cart_counts_per_m: value(1).map_or(n.saturating_mul(5), |m| m as u32),
-                    pole_counts_per_rev: n,
-                };
+                if let Some(n) = value(0) {
+                    let n = (n as u32).max(16);
+                    self.rig.encoders = Encoders {
+                        cart_counts_per_m: value(1).map_or(n.saturating_mul(5), |m| m as u32),
+                        pole_counts_per_rev: n,
+                    };
+                }
                 self.sensing = match value(2) {
                     Some(d) => Sensing::AlphaBeta(d as f32),
                     None => Sensing::Observer,

@@ -89,6 +89,10 @@ fn an_encoder_spec_reads_through_the_observer_or_a_filter_of_its_discount() {
         "{e}"
     );
     assert!(Scenario::parse("encoder=2400/16000/x").is_err());
+    // Alone, the part reads the rig's own encoders.
+    let gym = Scenario::parse("encoder").unwrap();
+    assert_eq!(gym.sensing, Sensing::Observer);
+    assert_eq!(gym.rig.encoders, firmware::rig::Rig::GYMNASIUM.encoders);
 }
 
 #[test]
@@ -129,7 +133,10 @@ fn bad_specs_are_rejected_with_the_reason() {
             "encoder=8",
             "encoder counts per revolution must be a whole number in [16, 16777216]",
         ),
-        ("encoder", "encoder needs a value"),
+        (
+            "encoder=",
+            "encoder counts per revolution must be a whole number in [16, 16777216], found \"\"",
+        ),
         ("friction=2", "cart coefficient must be a number in [0, 1]"),
         (
             "friction=0.1/0.5",
