@@ -44,6 +44,9 @@ rustup target add --toolchain "$toolchain" $targets >/dev/null
 missing=""
 command -v qemu-system-arm >/dev/null || missing="$missing qemu-system-arm"
 command -v qemu-system-riscv32 >/dev/null || missing="$missing qemu-system-misc"
+# The C header test compiles the generated header as C and as C++.
+command -v cc >/dev/null || missing="$missing gcc"
+command -v c++ >/dev/null || missing="$missing g++"
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"

@@ -106,6 +106,11 @@ struct EvalArgs {
     controller: Vec<ControllerKind>,
     #[command(flatten)]
     subject: Subject,
+    /// The true machine the episodes run in (a rig file), when the board models another
+    /// (the one --rig or the policy gives, as its observer, predictor and LQR gain do):
+    /// a policy trained for one rig run on another, or a rig identified from a true one.
+    #[arg(long)]
+    world: Option<PathBuf>,
     /// Seed of the starts, noise and pushes.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -217,8 +222,9 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
         .as_deref()
         .map(twin::rigfile::load)
         .transpose()?;
+    let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
     // The scenarios are checked before the policy loads; built on the machine it is run on.
-    let probe = given.unwrap_or(Machine::GYMNASIUM);
+    let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
     let rows = a.horizon.len() * parse_scenarios(&a.scenario, &probe)?.len() * a.controller.len();
     anyhow::ensure!(
         rows <= MAX_ROWS,
@@ -227,7 +233,13 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let (machine, net) = a
         .subject
         .load(a.controller.contains(&ControllerKind::PolicyInt))?;
-    let scenarios = parse_scenarios(&a.scenario, &machine)?;
+    let scenarios = match &world {
+        None => parse_scenarios(&a.scenario, &machine)?,
+        Some(w) => parse_scenarios(&a.scenario, w)?
+            .into_iter()
+            .map(|s| s.known_as(&machine.rig).map_err(anyhow::Error::msg))
+            .collect::<Result<_>>()?,
+    };
     let jobs: Vec<(u32, &Scenario, ControllerKind)> = a
         .horizon
         .iter()

@@ -93,6 +93,24 @@ impl Scenario {
         self.rig.dead_time
     }
 
+    /// The same world with its board modelling another machine, `board`: the physics its
+    /// observer, predictor and gains run, its observer's tuning and its end-stop margin
+    /// (a policy trained for one rig and run on another; a rig identified from a true one).
+    /// The encoders and the dead time stay the world's: the board has them exactly. A board
+    /// whose period is not the world's is refused.
+    pub fn known_as(mut self, board: &Rig) -> Result<Scenario, String> {
+        if board.params.tau != self.rig.params.tau {
+            return Err(format!(
+                "the board's control period must be the world's, {} s; found {} s",
+                self.rig.params.tau, board.params.tau
+            ));
+        }
+        self.rig.params = board.params;
+        self.rig.tuning = board.tuning;
+        self.rig.end_stop_margin = board.end_stop_margin;
+        Ok(self)
+    }
+
     /// Parses a spec on Gymnasium's machine (see [`Scenario::parse_on`]).
     pub fn parse(spec: &str) -> Result<Scenario, String> {
         Scenario::parse_on(spec, &Machine::GYMNASIUM)
