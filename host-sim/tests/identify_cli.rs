@@ -142,62 +142,54 @@ fn refused(dir: &Path, args: &[&Path], wants: &[&str]) {
     assert_eq!(entries(dir), before, "{args:?} wrote something");
 }
 
-#[test]
-fn bad_logs_and_rigs_are_refused_and_nothing_is_written() {
-    let dir = scratch("bad");
-    let [cart, swing, rig] = inputs(&dir);
-    let (out, plots) = (dir.join("rig.toml"), dir.join("plots"));
-    let (rig_flag, out_flag, plots_flag) = (
-        PathBuf::from("--rig"),
-        PathBuf::from("--out"),
-        PathBuf::from("--plots"),
-    );
-    let text = std::fs::read_to_string(&cart).unwrap();
+/// The cart log `cart` with period 10's row broken three ways (a column missing, a gap, a
+/// pole count a revolution and more on), each refused naming the row's line.
+fn malformed_rows_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &Path) {
+    let text = std::fs::read_to_string(cart).unwrap();
     let header = text
         .lines()
         .position(|l| l == firmware::identify::COLUMNS)
         .unwrap();
-    // Period 10's row, on line header + 12, with a column missing, then a gap, then a pole
-    // count a revolution and more on.
+    // The header row is line header + 1, period 10's row line header + 12.
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     let row = lines[header + 11].clone();
+    let f: Vec<&str> = row.split(',').collect();
+    let over = format!(
+        "10,{},{},{}",
+        f[1],
+        f[2],
+        f[3].parse::<i32>().unwrap() + 5000
+    );
     let bad = dir.join("bad.log");
-    let line = header + 12;
+    let plots = dir.join("plots");
+    let at = format!("bad.log:{}:", header + 12);
     for (replacement, want) in [
         ("10,1,5".to_string(), "expected 4 columns"),
         ("11,1,5,0".to_string(), "period: expected 10, found 11"),
-        (
-            {
-                let f: Vec<&str> = row.split(',').collect();
-                format!(
-                    "10,{},{},{}",
-                    f[1],
-                    f[2],
-                    f[3].parse::<i32>().unwrap() + 5000
-                )
-            },
-            "at most a revolution",
-        ),
+        (over, "at most a revolution"),
     ] {
         lines[header + 11] = replacement;
         std::fs::write(&bad, lines.join("\n") + "\n").unwrap();
         lines[header + 11] = row.clone();
-        let at = format!("bad.log:{line}:");
+        let flags = ["--rig", "--out", "--plots"].map(PathBuf::from);
         refused(
-            &dir,
+            dir,
             &[
-                &bad,
-                &swing,
-                &rig_flag,
-                &rig,
-                &out_flag,
-                &out,
-                &plots_flag,
-                &plots,
+                &bad, swing, &flags[0], rig, &flags[1], out, &flags[2], &plots,
             ],
             &[&at, want],
         );
     }
+    std::fs::remove_file(&bad).unwrap();
+}
+
+#[test]
+fn bad_logs_and_rigs_are_refused_and_nothing_is_written() {
+    let dir = scratch("bad");
+    let [cart, swing, rig] = inputs(&dir);
+    let out = dir.join("rig.toml");
+    malformed_rows_are_refused(&dir, [&cart, &swing, &rig], &out);
+    let (rig_flag, out_flag) = (PathBuf::from("--rig"), PathBuf::from("--out"));
     // A rig file whose motor has no force, and one whose log period is not the rig's.
     let measured = std::fs::read_to_string(&rig).unwrap();
     let no_force = dir.join("no-force.toml");
