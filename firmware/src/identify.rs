@@ -4,11 +4,17 @@
 //! `host-sim identify` fits a rig to.
 //!
 //! - [`Cart`]: the pole hanging down, the cart driven by a pseudo-random binary sequence
-//!   ([`Prbs`]) of full-duty pushes, kept on the track by a safety rule: once the cart's
-//!   position, looked ahead over the dead time by its last count difference, is past
-//!   [`Cart::OUTER`] of the usable track (`x_threshold - end_stop_margin`), the command points
-//!   back to the centre until the cart itself is inside [`Cart::INNER`] of it. The sequence
-//!   runs on underneath, so its timing never depends on the track.
+//!   ([`Prbs`]) of full-duty pushes, kept on the track by a safety rule: once the point where
+//!   the cart would stop is past [`Cart::OUTER`] of the usable track
+//!   (`x_threshold - end_stop_margin`), the command points back to the centre (braking the
+//!   cart first if it moves away from it) until the cart itself is inside [`Cart::INNER`]
+//!   of it. The stopping point is the cart's position, looked ahead by its last count
+//!   difference over the dead time, the period a command waits for and two more (a rig
+//!   file's dead time may be short), plus its braking distance at a quarter of the largest
+//!   change of count difference seen so far: the motor's full push as the cart itself shows
+//!   it, whatever the rig file guessed (a stronger motor or a lighter cart reaches a higher
+//!   speed but brakes as hard), taken at a quarter for the swinging pole's pull on the
+//!   cart. The sequence runs on underneath, so its timing never depends on the track.
 //! - [`Swing`]: no motor (duty 0), the cart held still by hand or a brake, the pole raised to
 //!   about 20 degrees off hanging and let go. Logging starts once the pole is raised past
 //!   [`Swing::RAISE_DEG`] and runs until the given number of periods after the release (the
@@ -27,7 +33,7 @@
 //! # cart_counts_per_m: 15000
 //! # pole_counts_per_rev: 2400
 //! # pole_zero: hanging
-//! # prbs: degree 8, hold 2 periods, seed 1; back to the centre past 0.5 of the usable track (0.35 m) until inside 0.2
+//! # prbs: degree 8, hold 2 periods, seed 1; back to the centre once the cart would stop past 0.5 of the usable track (0.35 m), until inside 0.2
 //! period,duty,cart_counts,pole_counts
 //! 0,1,0,0
 //! 1,1,0,0
@@ -238,7 +244,8 @@ impl Display for Detail {
             } => write!(
                 f,
                 "prbs: degree {degree}, hold {hold} periods, seed {seed}; back to the centre \
-                 past {} of the usable track ({usable_m} m) until inside {}",
+                 once the cart would stop past {} of the usable track ({usable_m} m), until \
+                 inside {}",
                 Cart::OUTER,
                 Cart::INNER
             ),
@@ -302,6 +309,8 @@ pub struct Cart {
     inner: i64,
     lookahead: i64,
     last: Option<i32>,
+    speed: Option<i64>,
+    braking: i64,
     returning: i8,
 }
 
@@ -310,6 +319,9 @@ impl Cart {
     pub const OUTER: f64 = 0.5;
     /// The fraction of the usable track inside which the sequence takes over again.
     pub const INNER: f64 = 0.2;
+    /// Periods looked ahead beyond the dead time: the one a command waits for, and two for a
+    /// dead time the rig file puts short.
+    pub const LOOKAHEAD_EXTRA: i64 = 3;
 
     /// `periods` periods of the sequence seeded `seed`, each bit held `hold` periods, on
     /// `rig`'s track and encoders, looking ahead over its dead time.
@@ -326,8 +338,10 @@ impl Cart {
             usable_m: usable,
             outer: counts(Self::OUTER),
             inner: counts(Self::INNER),
-            lookahead: i64::from(rig.dead_time.min(1 << 16)) + 1,
+            lookahead: i64::from(rig.dead_time.min(1 << 16)) + Self::LOOKAHEAD_EXTRA,
             last: None,
+            speed: None,
+            braking: 0,
             returning: 0,
         }
     }
@@ -347,6 +361,16 @@ impl Cart {
         }
     }
 
+    /// Where the cart at `x` moving by `v` counts a period stops, counts: `v` over the
+    /// lookahead, then `2 v^2 / a` at a change of count difference `a` a period, the braking
+    /// distance at a quarter of it. Saturating, so that no count overflows it.
+    fn stopping_point(&self, x: i64, v: i64) -> i64 {
+        let braking = v.saturating_mul(v).saturating_mul(2) / self.braking.max(1);
+        let braking = if v < 0 { -braking } else { braking };
+        x.saturating_add(v.saturating_mul(self.lookahead))
+            .saturating_add(braking)
+    }
+
     /// This period, from the counts just read.
     pub fn step(&mut self, cart_counts: i32, pole_counts: i32) -> Step {
         if self.period >= self.periods {
@@ -356,12 +380,16 @@ impl Cart {
         let x = i64::from(cart_counts);
         let v = self.last.map_or(0, |last| x - i64::from(last));
         self.last = Some(cart_counts);
+        if let Some(before) = self.speed {
+            self.braking = self.braking.max((v - before).abs());
+        }
+        self.speed = Some(v);
         if self.returning != 0 && x.abs() < self.inner {
             self.returning = 0;
         }
-        let ahead = x + v * self.lookahead;
-        if self.returning == 0 && ahead.abs() > self.outer {
-            self.returning = if ahead > 0 { -1 } else { 1 };
+        let stop = self.stopping_point(x, v);
+        if stop.abs() > self.outer {
+            self.returning = if stop > 0 { -1 } else { 1 };
         }
         let row = Row {
             period: self.period,
@@ -378,100 +406,8 @@ impl Cart {
     }
 }
 
-/// Where the swing experiment is.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Phase {
-    /// Waiting for the pole to be raised.
-    Armed,
-    /// Held up; the highest point so far, counts off hanging.
-    Raised {
-        peak: u32,
-    },
-    /// Released; periods still to log.
-    Swinging {
-        left: u32,
-    },
-    Done,
-}
-
-/// The swing experiment: the pole's free swing with the cart held (see [the module](self)).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Swing {
-    counts_per_rev: u32,
-    raise: u32,
-    release: u32,
-    periods: u32,
-    period: u32,
-    phase: Phase,
-}
-
-impl Swing {
-    /// How far off hanging the pole must be raised for logging to start, degrees.
-    pub const RAISE_DEG: u32 = 10;
-
-    /// A swing logged for `periods` periods after the release, read with `encoders`.
-    pub fn new(encoders: Encoders, periods: u32) -> Swing {
-        let per_rev = encoders.sanitised().pole_counts_per_rev;
-        Swing {
-            counts_per_rev: per_rev,
-            raise: (u64::from(per_rev) * u64::from(Self::RAISE_DEG) / 360).max(1) as u32,
-            release: (per_rev / 360).max(2),
-            periods,
-            period: 0,
-            phase: Phase::Armed,
-        }
-    }
-
-    /// The log's comment lines for this experiment on `rig`.
-    pub fn header(&self, rig: &Rig) -> Header {
-        Header {
-            experiment: Experiment::Swing,
-            period_s: rig.params.tau,
-            encoders: rig.encoders,
-            detail: Detail::Swing {
-                periods: self.periods,
-            },
-        }
-    }
-
-    /// How far the pole is off hanging, counts, whatever revolution it is in.
-    fn off_hanging(&self, pole_counts: i32) -> u32 {
-        let per_rev = i64::from(self.counts_per_rev);
-        let r = i64::from(pole_counts).rem_euclid(per_rev);
-        r.min(per_rev - r) as u32
-    }
-
-    /// This period, from the counts just read; the duty is always 0.
-    pub fn step(&mut self, cart_counts: i32, pole_counts: i32) -> Step {
-        let off = self.off_hanging(pole_counts);
-        self.phase = match self.phase {
-            Phase::Armed if off >= self.raise => Phase::Raised { peak: off },
-            Phase::Raised { peak } if off.saturating_add(self.release) <= peak => {
-                Phase::Swinging { left: self.periods }
-            }
-            Phase::Raised { peak } => Phase::Raised {
-                peak: peak.max(off),
-            },
-            Phase::Swinging { left: 0 } => Phase::Done,
-            Phase::Swinging { left } => Phase::Swinging { left: left - 1 },
-            other => other,
-        };
-        match self.phase {
-            Phase::Armed => Step::Wait,
-            Phase::Done => Step::Done,
-            Phase::Raised { .. } | Phase::Swinging { .. } => {
-                let row = Row {
-                    period: self.period,
-                    duty: 0,
-                    cart_counts,
-                    pole_counts,
-                };
-                self.period = self.period.saturating_add(1);
-                Step::Log(row)
-            }
-        }
-    }
-}
+mod swing;
+pub use swing::Swing;
 
 #[cfg(test)]
 mod tests;

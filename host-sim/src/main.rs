@@ -11,6 +11,7 @@ use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
 
+mod identify_cmd;
 mod render_cmd;
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
@@ -51,6 +52,11 @@ enum Command {
     /// Draw one episode: an animated GIF of the cart and pole, and a PNG of x, theta and the
     /// commands over time.
     Render(render_cmd::RenderArgs),
+    /// Fit a rig's motor (stall force, damping), friction (the cart's Coulomb, the pivot's
+    /// viscous), the pole's effective length and the dead time to the board's logs of its
+    /// identification experiments, by simulation-error minimisation; print each estimate
+    /// with a 95% interval and write the identified rig file. Exits 2 on bad input.
+    Identify(identify_cmd::IdentifyArgs),
 }
 
 /// Which policy runs, on which machine.
@@ -150,6 +156,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => run_eval(&a),
         Command::Agree(a) => run_agree(&a).map(|()| true),
         Command::Render(a) => render_cmd::run(&a).map(|()| true),
+        Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,

@@ -16,13 +16,15 @@
 //! (the cart coasts near the end stops), advances them over the dead time, asks the integer
 //! policy, and drives the bridge. A step that outlasts its period is counted as an overrun
 //! in the controller's fault counters and logged, never hidden.
+//!
+//! Built with `--features identify`, the board runs the identification experiments instead
+//! and streams their logs ([`identify`]).
 
 #![no_std]
 #![no_main]
 
 use core::sync::atomic::{AtomicI32, Ordering};
 
-use defmt::{info, warn};
 use embassy_executor::Spawner;
 use embassy_rp::bind_interrupts;
 use embassy_rp::gpio::{Level, Output};
@@ -30,11 +32,12 @@ use embassy_rp::peripherals::PIO0;
 use embassy_rp::pio::{InterruptHandler, Pio};
 use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
 use embassy_rp::pwm::{self, Pwm};
-use embassy_time::{Duration, Instant, Ticker};
-use firmware::controller::{Bridge, Controller};
-use firmware::estimator::ObserverSensor;
-use firmware::policy_int::{POLICY_INT, RIG};
+use firmware::controller::Bridge;
+use firmware::policy_int::RIG;
 use {defmt_rtt as _, panic_probe as _};
+
+#[cfg(feature = "identify")]
+mod identify;
 
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
 const PWM_TOP: u16 = 6_249;
@@ -62,6 +65,14 @@ async fn count<const SM: usize>(
             Ordering::Relaxed,
         );
     }
+}
+
+/// Both encoders' counts, as the control loop reads them.
+fn counts() -> (i32, i32) {
+    (
+        CART_COUNTS.load(Ordering::Relaxed),
+        POLE_COUNTS.load(Ordering::Relaxed),
+    )
 }
 
 #[embassy_executor::task]
@@ -101,17 +112,26 @@ async fn main(spawner: Spawner) {
     config.compare_b = 0;
     let enable = Pwm::new_output_b(p.PWM_SLICE7, p.PIN_15, config);
 
+    let bridge = Bridge::new(direction, enable);
+    #[cfg(feature = "identify")]
+    identify::run(&RIG, bridge, counts).await;
+    #[cfg(not(feature = "identify"))]
+    balance(bridge).await;
+}
+
+/// The balance controller, period by period, for ever.
+#[cfg(not(feature = "identify"))]
+async fn balance<A: firmware::controller::Actuator>(bridge: A) {
+    use defmt::{info, warn};
+    use embassy_time::{Duration, Instant, Ticker};
+    use firmware::controller::Controller;
+    use firmware::estimator::ObserverSensor;
+    use firmware::policy_int::POLICY_INT;
+
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
     // The observer's gain is solved once, now. The PIO program counts one step per quadrature
     // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
-    let counts = || {
-        (
-            CART_COUNTS.load(Ordering::Relaxed),
-            POLE_COUNTS.load(Ordering::Relaxed),
-        )
-    };
     let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer(), counts);
-    let bridge = Bridge::new(direction, enable);
     let mut controller =
         Controller::new(&POLICY_INT, sensor, bridge, RIG.limits()).with_predictor(RIG.predictor());
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);

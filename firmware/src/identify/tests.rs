@@ -42,31 +42,73 @@ fn each_bit_is_held_and_the_degree_covers_the_experiment() {
     assert_eq!(Prbs::new(200, u32::MAX, 0).hold(), 1);
 }
 
-/// Gymnasium's usable track is 2.4 m of 20,480 counts each: the rule turns back past 1.2 m
-/// (24,576 counts) and hands back to the sequence inside 0.48 m (9,830 counts).
+/// The duty `cart` commands at cart count `x`.
+fn duty(cart: &mut Cart, x: i32) -> i8 {
+    match cart.step(x, 0) {
+        Step::Log(row) => row.duty,
+        other => panic!("expected a row, found {other:?}"),
+    }
+}
+
+/// Gymnasium's usable track is 2.4 m of 20,480 counts each: the rule turns back once the
+/// cart would stop past 1.2 m (24,576 counts) and hands back to the sequence inside 0.48 m
+/// (9,830 counts). Without dead time the lookahead is three periods.
 #[test]
 fn the_safety_rule_turns_the_cart_back_and_hands_over_inside() {
     let rig = Rig::GYMNASIUM;
     let mut cart = Cart::new(&rig, 100, 1, 3);
     let mut prbs = Prbs::new(Prbs::degree_for(100, 1), 3, 1);
-    let duty = |cart: &mut Cart, x: i32| match cart.step(x, 0) {
-        Step::Log(row) => row.duty,
-        other => panic!("expected a row, found {other:?}"),
-    };
-    let mut levels = [0i8; 5];
+    let mut levels = [0i8; 3];
     levels.iter_mut().for_each(|l| *l = prbs.next_level());
     // The first reading has no speed: standing at 24,576 counts is not past.
     assert_eq!(duty(&mut cart, 24_576), levels[0]);
+    // Moving by -6 after 0, a change of 6: it would stop at 24,570 - 18 - 72 / 6 = 24,540.
     assert_eq!(duty(&mut cart, 24_570), levels[1]);
-    // Moving by 5 a period, looked ahead one period (no dead time): past.
+    // Moving by 5 after -6, a change of 11: it would stop at 24,575 + 15 + 50 / 11 = 24,594.
     assert_eq!(duty(&mut cart, 24_575), -1);
-    assert_eq!(duty(&mut cart, 9_830), -1);
-    assert_eq!(duty(&mut cart, 9_829), levels[4]);
     // The sequence would have said otherwise where the rule spoke.
-    assert_eq!(levels, [-1, -1, 1, 1, 1]);
+    assert_eq!(levels, [-1, -1, 1]);
+
+    // Standing past 24,576 counts, then coming back by 100 a period (a change of 100): it
+    // would stop 300 + 2 * 100^2 / 100 = 500 on, never past the far side. Sent back until
+    // inside 9,830 counts (9,800, in period 148), then the sequence's.
+    let mut cart = Cart::new(&rig, 200, 1, 3);
+    let mut prbs = Prbs::new(Prbs::degree_for(200, 1), 3, 1);
+    for k in 0..148 {
+        prbs.next_level();
+        assert_eq!(duty(&mut cart, 24_600 - 100 * k), -1, "period {k}");
+    }
+    assert_eq!(duty(&mut cart, 9_800), prbs.next_level());
+
     // The far side sends it towards +x, where the sequence starts towards -x.
     let mut cart = Cart::new(&rig, 100, 1, 3);
     assert_eq!(duty(&mut cart, -30_000), 1);
+}
+
+/// A cart gaining 10 counts a period each period (at `5 k (k + 1)` counts in period `k`)
+/// would stop `3 v + 2 v^2 / 10` on from where it is: in period 30 at 4,650 + 900 + 18,000
+/// = 23,550 counts, inside; in period 31 at 4,960 + 930 + 19,220 = 25,110, past 24,576. It
+/// is braked there, well inside the inner band.
+#[test]
+fn the_safety_rule_brakes_by_the_stopping_distance() {
+    let mut cart = Cart::new(&Rig::GYMNASIUM, 100, 1, 3);
+    let mut prbs = Prbs::new(Prbs::degree_for(100, 1), 3, 1);
+    let at = |k: i32| 5 * k * (k + 1);
+    for k in 0..31 {
+        let level = prbs.next_level();
+        assert_eq!(
+            cart.step(at(k), 0),
+            Step::Log(Row {
+                period: k as u32,
+                duty: level,
+                cart_counts: at(k),
+                pole_counts: 0,
+            })
+        );
+    }
+    for k in 31..33 {
+        assert_eq!(duty(&mut cart, at(k)), -1, "period {k}");
+    }
 }
 
 #[test]
@@ -132,8 +174,8 @@ fn the_log_text_is_the_documented_format() {
     .unwrap();
     let expected = "# cart-pole identification log\n# experiment: cart\n# period_s: 0.02\n\
         # cart_counts_per_m: 20480\n# pole_counts_per_rev: 4096\n# pole_zero: hanging\n\
-        # prbs: degree 8, hold 2 periods, seed 1; back to the centre past 0.5 of the usable \
-        track (2.4 m) until inside 0.2\nperiod,duty,cart_counts,pole_counts\n0,-1,-3,4096\n";
+        # prbs: degree 8, hold 2 periods, seed 1; back to the centre once the cart would stop \
+        past 0.5 of the usable track (2.4 m), until inside 0.2\nperiod,duty,cart_counts,pole_counts\n0,-1,-3,4096\n";
     assert_eq!(csv.0.as_str(), expected);
     assert_eq!(Experiment::from_name("swing"), Some(Experiment::Swing));
     assert_eq!(Experiment::from_name("Swing"), None);

@@ -113,7 +113,7 @@ pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Resul
         && !m.is_dir()
     {
         return Err(weights::Error::Input(format!(
-            "--plot {}: expected a directory (or a new path), found {}",
+            "--plots {}: expected a directory (or a new path), found {}",
             dir.display(),
             weights::files::kind(&m.file_type())
         )));

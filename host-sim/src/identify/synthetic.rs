@@ -10,8 +10,11 @@ use firmware::cartpole::{Plant, State};
 use firmware::identify::{Cart, Csv, Header, Sink, Step, Swing};
 use firmware::rig::Rig;
 
-use crate::identify::held;
+use rand_distr::{Distribution, StandardNormal};
+use rand_pcg::Pcg64Mcg;
 use twin::machine::{self, Machine};
+
+use crate::identify::held;
 
 /// Where a machine's encoders read their zero: the true cart position and pole angle (from
 /// hanging) at count 0's lower edge, anywhere within a count of the start as on a real
@@ -24,13 +27,47 @@ pub struct Zero {
     pub pole: f64,
 }
 
-/// The counts `rig`'s encoders read at `s` with zero `zero`, the pole's count 0 hanging.
-fn counts(rig: &Rig, zero: Zero, s: &State) -> (i32, i32) {
-    let [cart, pole] = rig.encoders.per_count();
-    rig.encoders.counts(
-        s.x + zero.cart * cart,
-        s.theta - core::f64::consts::PI + zero.pole * pole,
-    )
+/// How a machine's encoders read it: where their zero lies, and a vibration or an edge's
+/// jitter, a normal deviate of `jitter_counts` (standard deviation, counts) added to each
+/// reading before it is rounded to a count.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Reading {
+    /// Where the counts are zero.
+    pub zero: Zero,
+    /// The jitter's standard deviation, counts.
+    pub jitter_counts: f64,
+    /// The jitter's seed.
+    pub seed: u64,
+}
+
+/// A machine's encoders as `board`'s rig reads them.
+struct Encoders<'a> {
+    board: &'a Rig,
+    reading: Reading,
+    rng: Pcg64Mcg,
+}
+
+impl Encoders<'_> {
+    fn new(board: &Rig, reading: Reading) -> Encoders<'_> {
+        Encoders {
+            board,
+            reading,
+            rng: Pcg64Mcg::new(u128::from(reading.seed) | 1 << 64),
+        }
+    }
+
+    /// The counts read at `s`, the pole's count 0 hanging.
+    fn read(&mut self, s: &State) -> (i32, i32) {
+        let [cart, pole] = self.board.encoders.per_count();
+        let (zero, sd) = (self.reading.zero, self.reading.jitter_counts);
+        let mut jitter = || {
+            let n: f64 = StandardNormal.sample(&mut self.rng);
+            sd * n
+        };
+        let x = s.x + (zero.cart + jitter()) * cart;
+        let theta = s.theta - core::f64::consts::PI + (zero.pole + jitter()) * pole;
+        self.board.encoders.counts(x, theta)
+    }
 }
 
 /// A log's text: the header, then the rows.
@@ -51,16 +88,15 @@ impl Text {
 
 /// The cart experiment of `periods` periods (bits held `hold` periods, seeded `seed`) as the
 /// board running `board` (its track, encoders and assumed dead time) logs it on the machine
-/// `truth`, whose motor applies each duty after `truth`'s dead time. The pole starts hanging
-/// at rest, the cart at rest at the centre.
+/// `truth`, whose motor applies each duty after `truth`'s dead time, its encoders read as
+/// `reading` says. The pole starts hanging at rest, the cart at rest at the centre.
 pub fn cart_log(
     truth: &Machine,
     board: &Rig,
-    periods: u32,
-    hold: u32,
-    seed: u32,
-    zero: Zero,
+    [periods, hold, seed]: [u32; 3],
+    reading: Reading,
 ) -> String {
+    let mut encoders = Encoders::new(board, reading);
     let mut cart = Cart::new(board, periods, hold, seed);
     let mut text = Text::new(&cart.header(board));
     let plant = Plant::new(&truth.rig.params);
@@ -70,7 +106,7 @@ pub fn cart_log(
         ..State::default()
     };
     loop {
-        let (c, p) = counts(board, zero, &s);
+        let (c, p) = encoders.read(&s);
         let Step::Log(row) = cart.step(c, p) else {
             return text.0.0;
         };
@@ -84,15 +120,15 @@ pub fn cart_log(
 /// The swing experiment as the board running `board` logs it on the machine `truth`, its
 /// cart held: the pole hangs for `rest` periods, a hand raises it to `raise_deg` off
 /// hanging over `lift` periods and holds it for `rest` more, then lets go; the board logs
-/// `periods` periods after the release.
+/// `periods` periods after the release, its encoders read as `reading` says.
 pub fn swing_log(
     truth: &Machine,
     board: &Rig,
     raise_deg: f64,
-    [rest, lift]: [u32; 2],
-    periods: u32,
-    zero: Zero,
+    [rest, lift, periods]: [u32; 3],
+    reading: Reading,
 ) -> String {
+    let mut encoders = Encoders::new(board, reading);
     let mut swing = Swing::new(board.encoders, periods);
     let mut text = Text::new(&swing.header(board));
     let plant = Plant::new(&held(&truth.rig.params));
@@ -109,7 +145,7 @@ pub fn swing_log(
                 ..State::default()
             };
         }
-        let (c, p) = counts(board, zero, &s);
+        let (c, p) = encoders.read(&s);
         match swing.step(c, p) {
             Step::Done => break,
             Step::Log(row) => text.record(&row),
@@ -120,4 +156,36 @@ pub fn swing_log(
         }
     }
     text.0.0
+}
+
+/// How long the cart experiment of [`experiments`] runs, s.
+pub const CART_S: f64 = 10.0;
+/// How long each bit of its sequence is held, s.
+pub const HOLD_S: f64 = 0.04;
+/// How long its swing is logged after the release, s.
+pub const SWING_S: f64 = 20.0;
+/// How far its swing's hand raises the pole, degrees.
+pub const RAISE_DEG: f64 = 20.0;
+
+/// One cart and one swing experiment (about 30 s of logs: [`CART_S`] of the sequence,
+/// seeded `seed`, and [`SWING_S`] of the swing) as the board running `board` logs them on
+/// `truth`.
+pub fn experiments(truth: &Machine, board: &Rig, seed: u32, reading: Reading) -> [String; 2] {
+    let tau = board.params.tau;
+    let periods = |s: f64| (s / tau).round().max(1.0) as u32;
+    [
+        cart_log(
+            truth,
+            board,
+            [periods(CART_S), periods(HOLD_S), seed],
+            reading,
+        ),
+        swing_log(
+            truth,
+            board,
+            RAISE_DEG,
+            [periods(0.3), periods(0.5), periods(SWING_S)],
+            reading,
+        ),
+    ]
 }

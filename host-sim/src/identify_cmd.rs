@@ -1,0 +1,87 @@
+//! `host-sim identify`: the rig's unknowns fitted to the board's logs (`host_sim::identify`),
+//! the estimates printed with their intervals, the identified rig file written whole through
+//! a temporary file, and, if asked, each log's measured and simulated counts drawn.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use anyhow::Result;
+use clap::Args;
+use host_sim::identify::{self, Log, fit, log, report};
+use indicatif::{ProgressBar, ProgressStyle};
+use weights::files::{check_output, read_capped, write_atomic};
+
+#[derive(Args)]
+pub struct IdentifyArgs {
+    /// The board's logs (`firmware::identify`'s text; a file may hold several): at least one
+    /// cart and one swing experiment.
+    #[arg(required = true)]
+    logs: Vec<PathBuf>,
+    /// The rig as its builder measured it (a rig file, `rigs/`): masses, lengths, encoders,
+    /// track and period are taken as they are; its motor, friction, pole length and dead
+    /// time are only where the fit starts.
+    #[arg(long)]
+    rig: PathBuf,
+    /// Where the identified rig file is written.
+    #[arg(long)]
+    out: PathBuf,
+    /// A directory for the plots of measured against simulated counts
+    /// (`identify-N-EXPERIMENT.png` and `.svg`, one per log).
+    #[arg(long)]
+    plots: Option<PathBuf>,
+}
+
+/// The logs in `paths`, each read whole (up to [`log::MAX_LOG_BYTES`]) and parsed.
+fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
+    let mut logs = Vec::new();
+    for path in paths {
+        let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
+        let origin = path.display().to_string();
+        let text = std::str::from_utf8(&bytes)
+            .map_err(|e| weights::Error::Input(format!("{origin}: expected UTF-8 text, {e}")))?;
+        logs.extend(log::parse(text, &origin)?);
+    }
+    Ok(logs)
+}
+
+/// Fits the rig `a` asks for; every input is checked, and every output's place, before the
+/// fit starts.
+pub fn run(a: &IdentifyArgs) -> Result<()> {
+    let machine = twin::rigfile::load(&a.rig)?;
+    let logs = read_logs(&a.logs)?;
+    let inputs: Vec<&Path> = a
+        .logs
+        .iter()
+        .map(PathBuf::as_path)
+        .chain([a.rig.as_path()])
+        .collect();
+    check_output(&a.out, &inputs)?;
+    if let Some(dir) = &a.plots {
+        report::check_plots(dir, &logs, &inputs)?;
+    }
+    identify::check(&logs, &machine)?;
+    let bar = ProgressBar::new_spinner().with_style(
+        ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("static template"),
+    );
+    bar.set_message(format!(
+        "fitting {} logs: the swing, each dead time from 0 to {}, then all together",
+        logs.len(),
+        fit::MAX_DEAD_TIME
+    ));
+    bar.enable_steady_tick(Duration::from_millis(100));
+    let found = fit::fit(&logs, &machine);
+    bar.finish_and_clear();
+    let identified = identify::identified(&machine, &found);
+    let text = report::rig_file(&identified, &found, &logs);
+    // What is written must be a rig file every tool reads back.
+    twin::rigfile::parse(&text, "the identified rig")?;
+    if let Some(dir) = &a.plots {
+        for path in report::plots(dir, &found, &logs)? {
+            eprintln!("{}", path.display());
+        }
+    }
+    write_atomic(&a.out, text.as_bytes())?;
+    print!("{}", report::format(&found, &logs));
+    eprintln!("{}", a.out.display());
+    Ok(())
+}
