@@ -60,13 +60,12 @@ impl Kernel {
     }
 }
 
-#[cfg(test)]
+/// What the kernel says against what the operating system says the CPU has: Linux's flags
+/// in `/proc/cpuinfo`, read independently of the instruction the kernel uses.
+#[cfg(all(test, target_arch = "x86_64", target_os = "linux"))]
 mod tests {
     use super::*;
 
-    /// What the kernel says against what the operating system says the CPU has: Linux's
-    /// flags in `/proc/cpuinfo`, read independently of the instruction the kernel uses.
-    #[cfg(all(target_arch = "x86_64", target_os = "linux"))]
     #[test]
     fn support_follows_the_cpus_own_flags() {
         let info = std::fs::read_to_string("/proc/cpuinfo").expect("Linux has /proc/cpuinfo");

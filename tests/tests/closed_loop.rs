@@ -2,7 +2,7 @@
 //! `Controller` and the digital twin.
 
 use host_sim::eval::{ControllerKind, Net, evaluate};
-use policy_export::config::{Config, KernelChoice};
+use policy_export::config::Config;
 use policy_export::train;
 use twin::Scenario;
 use weights::checkpoint::{load, to_safetensors};
@@ -13,7 +13,6 @@ fn a_small_trained_policy_round_trips_and_balances_better_than_random() {
     // A short robust-preset run: 120 episodes, seconds of training, far from the full budget.
     let cfg = Config {
         episodes: 120,
-        kernel: KernelChoice::Portable,
         ..Config::robust()
     };
     let run = train::train(&cfg, 3, &mut |_| {}).unwrap();

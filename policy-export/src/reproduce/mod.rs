@@ -88,7 +88,6 @@ mod tests {
     fn a_short_study_writes_tables_json_and_figures() {
         let base = Config {
             episodes: 20,
-            kernel: crate::config::KernelChoice::Portable,
             ..Config::paper()
         };
         let vs: Vec<Variant> = variants(&base)
@@ -125,7 +124,6 @@ mod tests {
     fn the_shaping_study_draws_its_readings_apart_beside_its_baseline() {
         let base = Config {
             episodes: 3,
-            kernel: crate::config::KernelChoice::Portable,
             ..Config::paper()
         };
         let vs: Vec<Variant> = variants(&base)
