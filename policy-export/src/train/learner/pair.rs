@@ -76,8 +76,9 @@ impl Pair {
             t.thread().unpark();
         }
         let ra = catch_unwind(AssertUnwindSafe(a));
+        let mut spins = 0u32;
         while self.shared.state.load(Ordering::Acquire) != DONE {
-            std::hint::spin_loop();
+            pause(&mut spins);
         }
         self.shared.state.store(IDLE, Ordering::Relaxed);
         let panicked = self.shared.panic.lock().expect("not poisoned").take();
@@ -101,6 +102,19 @@ impl Drop for Pair {
     }
 }
 
+/// Spins a while, then yields its core at every call: where the other thread has a core of
+/// its own it answers within the spins, and where it waits for one (the machine busy with
+/// other work) a spinning thread would hold the core it waits for.
+#[inline]
+fn pause(spins: &mut u32) {
+    *spins = spins.wrapping_add(1);
+    if *spins < 4096 {
+        std::hint::spin_loop();
+    } else {
+        thread::yield_now();
+    }
+}
+
 /// The helper's loop: spin for a posted job, run it, report; park when none comes.
 fn serve(s: &Shared) {
     loop {
@@ -111,12 +125,11 @@ fn serve(s: &Shared) {
                 POSTED => break,
                 EXIT => return,
                 _ => {
-                    spins = spins.wrapping_add(1);
                     // The clock is read now and then: reading it is slower than a spin.
                     if spins.is_multiple_of(1024) && since.elapsed() > SPIN {
                         thread::park_timeout(Duration::from_millis(50));
                     } else {
-                        std::hint::spin_loop();
+                        pause(&mut spins);
                     }
                 }
             }
