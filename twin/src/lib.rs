@@ -12,6 +12,7 @@
 //!   the actuator.
 //! - [`run`]: the unchanged firmware controller against a world, through pins and the
 //!   firmware's sensors, with per-episode statistics and seeded streams.
+//! - [`lockstep`]: episodes side by side, their worlds integrated together.
 //! - [`calibrate`]: the observations a policy visits, to quantise it on.
 //! - [`domain`]: distributions over scenarios for domain-randomised training.
 //!
@@ -23,6 +24,7 @@
 pub mod calibrate;
 pub mod domain;
 pub mod grammar;
+pub mod lockstep;
 pub mod machine;
 pub mod rigfile;
 pub mod run;
@@ -31,6 +33,6 @@ pub mod world;
 
 pub use domain::Domain;
 pub use machine::{Integration, Machine};
-pub use run::{Episode, EpisodeStats, Frame, run_episode};
+pub use run::{Episode, EpisodeStats, Frame, run_episode, run_episodes};
 pub use scenario::{Push, Scenario};
 pub use world::World;

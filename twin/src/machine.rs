@@ -64,26 +64,69 @@ pub fn advance(
     duty: f64,
     external: f64,
 ) -> State {
-    let x = s.to_array();
-    State::from_array(match integration {
-        Integration::Euler => plant.euler(&x, duty, external),
+    match integration {
+        Integration::Euler => State::from_array(plant.euler(&s.to_array(), duty, external)),
         Integration::Rk4 { substeps } => {
-            let h = plant.tau() / f64::from(substeps.max(1));
-            (0..substeps.max(1)).fold(x, |x, _| rk4_step(plant, &x, h, duty, external))
+            let [next] = rk4_lanes(substeps, [Lane::new(plant, s, duty, external)]);
+            next
         }
-    })
+    }
 }
 
-/// One classic Runge-Kutta step of length `h`.
+/// One world's period as [`rk4_lanes`] integrates it: its plant, state, and the duty and
+/// external force held over the period.
+#[derive(Clone, Copy, Debug)]
+pub struct Lane {
+    plant: Plant<f64>,
+    x: [f64; 4],
+    duty: f64,
+    external: f64,
+}
+
+impl Lane {
+    /// The period of `plant` from `s` under `duty` and `external`.
+    pub fn new(plant: &Plant<f64>, s: &State, duty: f64, external: f64) -> Lane {
+        Lane {
+            plant: *plant,
+            x: s.to_array(),
+            duty,
+            external,
+        }
+    }
+}
+
+/// `N` worlds' periods of `substeps` Runge-Kutta steps each, side by side: every lane's
+/// arithmetic is [`advance`]'s, operation for operation, so each lane's state is what it would
+/// be alone, bit for bit. A lone world's step is one chain of dependent operations (a sine,
+/// then divisions, four times over); `N` independent chains let an out-of-order core overlap
+/// them, which is where a continuous world's time goes.
 #[inline(always)]
-fn rk4_step(plant: &Plant<f64>, x: &[f64; 4], h: f64, duty: f64, external: f64) -> [f64; 4] {
-    let f = |s: &[f64; 4]| plant.derivative(s, duty, external);
-    let at = |d: &[f64; 4], k: f64| core::array::from_fn(|i| x[i] + k * d[i]);
-    let k1 = f(x);
-    let k2 = f(&at(&k1, h / 2.0));
-    let k3 = f(&at(&k2, h / 2.0));
-    let k4 = f(&at(&k3, h));
-    core::array::from_fn(|i| x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]))
+pub fn rk4_lanes<const N: usize>(substeps: u32, lanes: [Lane; N]) -> [State; N] {
+    let n = substeps.max(1);
+    let h: [f64; N] = core::array::from_fn(|j| lanes[j].plant.tau() / f64::from(n));
+    let mut x: [[f64; 4]; N] = core::array::from_fn(|j| lanes[j].x);
+    for _ in 0..n {
+        let f = |s: &[[f64; 4]; N]| -> [[f64; 4]; N] {
+            core::array::from_fn(|j| {
+                let l = &lanes[j];
+                l.plant.derivative(&s[j], l.duty, l.external)
+            })
+        };
+        let at = |d: &[[f64; 4]; N], k: [f64; N]| -> [[f64; 4]; N] {
+            core::array::from_fn(|j| core::array::from_fn(|i| x[j][i] + k[j] * d[j][i]))
+        };
+        let half = h.map(|h| h / 2.0);
+        let k1 = f(&x);
+        let k2 = f(&at(&k1, half));
+        let k3 = f(&at(&k2, half));
+        let k4 = f(&at(&k3, h));
+        x = core::array::from_fn(|j| {
+            core::array::from_fn(|i| {
+                x[j][i] + h[j] / 6.0 * (k1[j][i] + 2.0 * k2[j][i] + 2.0 * k3[j][i] + k4[j][i])
+            })
+        });
+    }
+    x.map(State::from_array)
 }
 
 #[cfg(test)]
@@ -130,5 +173,62 @@ mod tests {
             Integration::rk4(0.0105, 0.001),
             Integration::Rk4 { substeps: 11 }
         );
+    }
+
+    /// Classic Runge-Kutta as a textbook writes it, one world at a time: the lanes must give
+    /// its bits, whichever block a world is integrated in and whatever its neighbours are.
+    #[test]
+    fn lanes_give_each_world_the_textbook_steps_bit_for_bit() {
+        let textbook = |p: &Plant<f64>, x: [f64; 4], n: u32, duty: f64, ext: f64| {
+            let h = p.tau() / f64::from(n);
+            (0..n).fold(x, |x, _| {
+                let f = |s: &[f64; 4]| p.derivative(s, duty, ext);
+                let at = |d: &[f64; 4], k: f64| -> [f64; 4] {
+                    core::array::from_fn(|i| x[i] + k * d[i])
+                };
+                let k1 = f(&x);
+                let k2 = f(&at(&k1, h / 2.0));
+                let k3 = f(&at(&k2, h / 2.0));
+                let k4 = f(&at(&k3, h));
+                core::array::from_fn(|i| {
+                    x[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i])
+                })
+            })
+        };
+        let lanes: [(Params, [f64; 4], f64, f64); 8] = core::array::from_fn(|j| {
+            let k = j as f64;
+            let p = Params {
+                tau: 0.01,
+                masscart: 0.5 + 0.1 * k,
+                length: 0.2 + 0.05 * k,
+                motor_damping: 0.5 * k,
+                // Friction in every other lane: both of the derivative's branches side by side.
+                cart_friction: if j % 2 == 0 { 0.0 } else { 0.05 },
+                pole_friction: if j % 2 == 0 { 0.0 } else { 0.001 },
+                ..Params::default()
+            };
+            let x = [0.01 * k, -0.1 * k, 0.3 - 0.1 * k, 0.2 * k];
+            (p, x, if j % 3 == 0 { -1.0 } else { 0.7 }, 0.5 * k)
+        });
+        let plants = lanes.map(|(p, ..)| Plant::new(&p));
+        let want: [[f64; 4]; 8] =
+            core::array::from_fn(|j| textbook(&plants[j], lanes[j].1, 7, lanes[j].2, lanes[j].3));
+        let lane = |j: usize| {
+            let (_, x, duty, ext) = lanes[j];
+            Lane::new(&plants[j], &State::from_array(x), duty, ext)
+        };
+        let eight = rk4_lanes::<8>(7, core::array::from_fn(lane));
+        let two = rk4_lanes::<2>(7, [lane(5), lane(2)]);
+        for j in 0..8 {
+            assert_eq!(
+                eight[j].to_array().map(f64::to_bits),
+                want[j].map(f64::to_bits)
+            );
+            let (_, x, duty, ext) = lanes[j];
+            let rk4 = Integration::Rk4 { substeps: 7 };
+            let alone = advance(&plants[j], rk4, &State::from_array(x), duty, ext);
+            assert_eq!(alone, eight[j], "lane {j}");
+        }
+        assert_eq!((two[0], two[1]), (eight[5], eight[2]));
     }
 }

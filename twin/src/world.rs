@@ -12,7 +12,7 @@ use firmware::controller::predict::DeadTime;
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-use crate::machine::{self, Integration};
+use crate::machine::{self, Integration, Lane};
 use crate::scenario::{Scenario, Sensing};
 
 /// What the sensors report in one period.
@@ -90,6 +90,21 @@ impl<'s, R: Rng> World<'s, R> {
     /// Ends the period: the motor applies the duty of `delay` periods ago (`duty` itself
     /// without dead time), a push may add its force, the plant steps.
     pub fn apply(&mut self, duty: f64) -> Transition {
+        let drive = self.drive(duty);
+        let next = machine::advance(
+            &self.dynamics,
+            self.scenario.integration,
+            &self.plant.state(),
+            drive.duty,
+            drive.external,
+        );
+        self.land(next)
+    }
+
+    /// The first half of [`World::apply`]: what acts on the cart over this period. The
+    /// caller integrates it (alone, or beside other worlds: `crate::lockstep`) and hands the
+    /// state to [`World::land`].
+    pub(crate) fn drive(&mut self, duty: f64) -> Drive {
         let acting = self.line.send(duty);
         let mut external = 0.0;
         if let Some(push) = self.scenario.push
@@ -102,14 +117,33 @@ impl<'s, R: Rng> World<'s, R> {
             };
             external = side * push.impulse / self.scenario.params.tau;
         }
-        match self.scenario.integration {
-            Integration::Euler => self.plant.advance(acting, external),
-            rk4 => {
-                let s =
-                    machine::advance(&self.dynamics, rk4, &self.plant.state(), acting, external);
-                self.plant.set_next(s)
-            }
+        Drive {
+            duty: acting,
+            external,
         }
+    }
+
+    /// The second half of [`World::apply`]: the plant takes the integrated state.
+    pub(crate) fn land(&mut self, next: State) -> Transition {
+        self.plant.set_next(next)
+    }
+
+    /// The Runge-Kutta steps of this world's period; `None` for Gymnasium's Euler step.
+    pub(crate) fn substeps(&self) -> Option<u32> {
+        match self.scenario.integration {
+            Integration::Rk4 { substeps } => Some(substeps),
+            Integration::Euler => None,
+        }
+    }
+
+    /// This period's integration under `drive`, as [`machine::rk4_lanes`] takes it.
+    pub(crate) fn lane(&self, drive: Drive) -> Lane {
+        Lane::new(
+            &self.dynamics,
+            &self.plant.state(),
+            drive.duty,
+            drive.external,
+        )
     }
 
     /// The plant's true state.
@@ -126,6 +160,14 @@ impl<'s, R: Rng> World<'s, R> {
     pub fn scenario(&self) -> &'s Scenario {
         self.scenario
     }
+}
+
+/// What acts on a world's cart over one period: the duty leaving the dead-time line and the
+/// push's force.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct Drive {
+    duty: f64,
+    external: f64,
 }
 
 #[cfg(test)]

@@ -13,7 +13,9 @@ use std::fmt;
 
 use rayon::prelude::*;
 use serde::Serialize;
-use twin::run::{Stream, episode_rng, run_episode};
+use std::ops::Range;
+
+use twin::run::{Stream, episode_rng, run_episode, run_episodes};
 use twin::{EpisodeStats, Frame, Scenario};
 
 use crate::baselines::{AngleRule, Lqr, Random};
@@ -90,6 +92,39 @@ pub fn episode(
     }
 }
 
+/// Episodes `episodes` of controller `kind`, side by side (`twin::run_episodes`).
+pub fn episodes(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: Range<u64>,
+) -> Vec<EpisodeStats> {
+    let (s, h, e) = (scenario, horizon, episodes);
+    match kind {
+        ControllerKind::Policy => run_episodes(|_| net, s, h, seed, e, true),
+        ControllerKind::PolicyInt => {
+            let int = IntNet::of(net).expect("the caller built the net with its integer version");
+            run_episodes(|_| int, s, h, seed, e, true)
+        }
+        ControllerKind::Lqr => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, false),
+        ControllerKind::LqrPredict => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, true),
+        ControllerKind::Rule => run_episodes(|_| AngleRule, s, h, seed, e, false),
+        ControllerKind::Random => run_episodes(
+            |i| Random(episode_rng(seed, i, Stream::Policy)),
+            s,
+            h,
+            seed,
+            e,
+            false,
+        ),
+    }
+}
+
+/// Episodes a thread runs side by side, enough to keep the lanes full as episodes end.
+const CHUNK: u64 = 64;
+
 /// `episodes` seeded episodes of one controller in one scenario, in parallel, in order.
 pub fn evaluate(
     kind: ControllerKind,
@@ -99,9 +134,12 @@ pub fn evaluate(
     seed: u64,
     episodes: u64,
 ) -> Row {
-    let eps: Vec<EpisodeStats> = (0..episodes)
+    let eps: Vec<EpisodeStats> = (0..episodes.div_ceil(CHUNK))
         .into_par_iter()
-        .map(|i| episode(kind, net, scenario, horizon, seed, i, |_| {}))
+        .flat_map_iter(|c| {
+            let range = c * CHUNK..((c + 1) * CHUNK).min(episodes);
+            self::episodes(kind, net, scenario, horizon, seed, range)
+        })
         .collect();
     let period = (horizon, scenario.params.tau);
     Row::from_episodes(&kind.to_string(), &scenario.name, period, seed, &eps)

@@ -6,7 +6,8 @@ use host_common::wide::WideMlp;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
-use twin::{Domain, Episode};
+use twin::lockstep::run_lockstep;
+use twin::{Domain, Episode, Scenario};
 
 use super::Stream;
 
@@ -55,6 +56,10 @@ impl EvalStreams {
     }
 }
 
+/// Episodes a thread runs side by side ([`twin::lockstep`]), enough to keep the lanes full as
+/// episodes end.
+const CHUNK: usize = 32;
+
 /// Runs `episodes` greedy episodes of at most `max_steps` through the firmware's controller,
 /// each in a world of `domain`; with `compensate`, deciding on readings advanced over the
 /// world's dead time. Episodes run in parallel and are summed in order, so the result does
@@ -68,27 +73,34 @@ pub fn evaluate<const H: usize>(
     streams: EvalStreams,
 ) -> EvalResult {
     let wide = WideMlp::new(net);
-    let per_episode: Vec<(f64, f64, u64)> = (0..episodes as u64)
+    let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(CHUNK))
         .into_par_iter()
-        .map(|e| {
-            let scenario = domain.sample(&mut streams.rng(e, 0));
-            let pair = (streams.rng(e, 2), streams.rng(e, 3));
-            let mut start = streams.rng(e, 1);
-            let mut ep = Episode::start(&*wide, &scenario, max_steps, &mut start, pair, compensate);
-            let p = &scenario.params;
-            let (mut ret, mut cost, mut steps) = (0.0, 0.0, 0u64);
-            loop {
-                ep.decide();
-                let t = ep.apply();
-                ret += f64::from(t.reward);
-                let s = ep.world().state();
-                cost +=
-                    (s.theta / p.theta_threshold_radians).powi(2) + (s.x / p.x_threshold).powi(2);
-                steps += 1;
-                if t.terminated || t.truncated {
-                    return (ret, cost, steps);
-                }
-            }
+        .flat_map_iter(|c| {
+            let first = c * CHUNK;
+            let n = CHUNK.min(episodes - first);
+            let e = |i: usize| (first + i) as u64;
+            let scenarios: Vec<Scenario> = (0..n)
+                .map(|i| domain.sample(&mut streams.rng(e(i), 0)))
+                .collect();
+            let mut sums = vec![(0.0, 0.0, 0u64); n];
+            run_lockstep(
+                n,
+                |i| {
+                    let pair = (streams.rng(e(i), 2), streams.rng(e(i), 3));
+                    let mut start = streams.rng(e(i), 1);
+                    let s = &scenarios[i];
+                    Episode::start(&*wide, s, max_steps, &mut start, pair, compensate)
+                },
+                |i, ep, _, t| {
+                    let (p, s) = (&scenarios[i].params, ep.world().state());
+                    let (ret, cost, steps) = &mut sums[i];
+                    *ret += f64::from(t.reward);
+                    *cost += (s.theta / p.theta_threshold_radians).powi(2)
+                        + (s.x / p.x_threshold).powi(2);
+                    *steps += 1;
+                },
+            );
+            sums
         })
         .collect();
     let (mut sum, mut min, mut cost, mut steps) = (0.0, f64::INFINITY, 0.0, 0u64);

@@ -1,0 +1,147 @@
+//! Episodes side by side: several episodes advanced period by period together, so that their
+//! worlds' Runge-Kutta integrations, each one long chain of dependent operations, run
+//! interleaved ([`crate::machine::rk4_lanes`]). Every episode's periods are the ones it has
+//! alone, bit for bit; only the time changes.
+
+use firmware::cartpole::{State, Transition};
+use firmware::controller::{Command, Policy};
+use firmware::loopback::duty;
+use rand_core::Rng;
+
+use crate::machine::{Lane, rk4_lanes};
+use crate::run::Episode;
+use crate::world::Drive;
+
+/// How many episodes [`run_lockstep`] keeps in flight: enough worlds to fill the widest
+/// block of lanes.
+pub const LANES: usize = 8;
+
+/// Runs episodes `0..n` side by side, [`LANES`] at a time: `start(i)` begins episode `i`, and
+/// `each(i, &episode, command, &transition)` sees every period of it, after the period. An
+/// episode ends with its transition's `terminated` or `truncated`, and the next takes its
+/// place. Each episode's periods are the ones it has alone ([`Episode::decide`], then
+/// [`Episode::apply`]), bit for bit.
+pub fn run_lockstep<'s, P: Policy, R: Rng>(
+    n: usize,
+    mut start: impl FnMut(usize) -> Episode<'s, P, R>,
+    mut each: impl FnMut(usize, &Episode<'s, P, R>, Command, &Transition),
+) {
+    let mut slots: Vec<(usize, Episode<'s, P, R>)> = Vec::with_capacity(LANES.min(n));
+    let mut scratch = Scratch::default();
+    let mut next = 0;
+    loop {
+        while slots.len() < LANES && next < n {
+            slots.push((next, start(next)));
+            next += 1;
+        }
+        if slots.is_empty() {
+            return;
+        }
+        scratch.commands.clear();
+        scratch
+            .commands
+            .extend(slots.iter_mut().map(|(_, ep)| ep.decide()));
+        apply(&mut slots, &mut scratch);
+        let transitions = scratch
+            .transitions
+            .iter()
+            .map(|t| t.expect("every slot applied"));
+        for ((i, ep), (command, t)) in slots.iter().zip(scratch.commands.iter().zip(transitions)) {
+            each(*i, ep, *command, &t);
+        }
+        let mut ended = (scratch.transitions.iter().flatten()).map(|t| t.terminated || t.truncated);
+        slots.retain(|_| !ended.next().expect("one transition a slot"));
+    }
+}
+
+/// The buffers of one lockstep run, kept from period to period.
+#[derive(Default)]
+struct Scratch {
+    commands: Vec<Command>,
+    drives: Vec<Option<Drive>>,
+    next: Vec<Option<State>>,
+    rk4: Vec<(u32, usize)>,
+    /// Slot `k`'s transition, once its world has been through the period.
+    transitions: Vec<Option<Transition>>,
+}
+
+/// Every slot's world through its period: Euler worlds alone, Runge-Kutta worlds of one step
+/// count in blocks of lanes.
+fn apply<P: Policy, R: Rng>(slots: &mut [(usize, Episode<'_, P, R>)], s: &mut Scratch) {
+    s.drives.clear();
+    s.next.clear();
+    s.rk4.clear();
+    s.transitions.clear();
+    s.transitions.resize(slots.len(), None);
+    for (k, (_, ep)) in slots.iter_mut().enumerate() {
+        let duty = duty(ep.controller.actuator());
+        match ep.world.substeps() {
+            Some(n) => {
+                s.drives.push(Some(ep.world.drive(duty)));
+                s.rk4.push((n, k));
+            }
+            None => {
+                s.drives.push(None);
+                s.transitions[k] = Some(ep.world.apply(duty));
+            }
+        }
+        s.next.push(None);
+    }
+    // A domain's worlds share their rig's period, so this is almost always one group.
+    s.rk4.sort_unstable();
+    let mut rest = &s.rk4[..];
+    while let Some(&(n, _)) = rest.first() {
+        let same = rest.iter().take_while(|(m, _)| *m == n).count();
+        let (group, tail) = rest.split_at(same);
+        integrate(group, n, slots, &s.drives, &mut s.next);
+        rest = tail;
+    }
+    for (k, (_, ep)) in slots.iter_mut().enumerate() {
+        if let Some(state) = s.next[k] {
+            s.transitions[k] = Some(ep.world.land(state));
+        }
+    }
+}
+
+/// The slots `group` (`(steps, slot)`, one step count `n`) integrated in blocks of 8, 4, 2
+/// and 1 lanes.
+fn integrate<P: Policy, R: Rng>(
+    group: &[(u32, usize)],
+    n: u32,
+    slots: &[(usize, Episode<'_, P, R>)],
+    drives: &[Option<Drive>],
+    next: &mut [Option<State>],
+) {
+    let lane = |k: usize| {
+        slots[k]
+            .1
+            .world
+            .lane(drives[k].expect("a Runge-Kutta slot"))
+    };
+    fn block<const N: usize>(
+        ks: &[(u32, usize)],
+        n: u32,
+        lane: &impl Fn(usize) -> Lane,
+        next: &mut [Option<State>],
+    ) {
+        let out = rk4_lanes::<N>(n, core::array::from_fn(|j| lane(ks[j].1)));
+        for (&(_, k), s) in ks.iter().zip(out) {
+            next[k] = Some(s);
+        }
+    }
+    let mut rest = group;
+    while !rest.is_empty() {
+        let take = [8, 4, 2, 1]
+            .into_iter()
+            .find(|&b| b <= rest.len())
+            .expect("a block of 1 fits");
+        let (ks, tail) = rest.split_at(take);
+        match take {
+            8 => block::<8>(ks, n, &lane, next),
+            4 => block::<4>(ks, n, &lane, next),
+            2 => block::<2>(ks, n, &lane, next),
+            _ => block::<1>(ks, n, &lane, next),
+        }
+        rest = tail;
+    }
+}
