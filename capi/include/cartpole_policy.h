@@ -3,8 +3,8 @@
  *
  * Call once per 20 ms control period with the state obs = {x (m), x_dot (m/s), theta (rad),
  * theta_dot (rad/s)}; push the cart right (+x) with the full force iff q[1] > q[0].
- * Allocation-free, no global state, safe to call from an interrupt; about 600 bytes of stack
- * on a Cortex-M4F. The caller checks its readings: a NaN gives NaN Q-values (and "left").
+ * Allocation-free, no global state, safe to call from an interrupt; a few hundred bytes of
+ * stack (measured per target in docs/QUANTISATION.md). The caller checks its readings: a NaN gives NaN Q-values (and "left").
  * A NULL argument makes a call write nothing.
  *
  * cartpole_policy_forward runs the policy compiled into the library. cartpole_mlpH_forward
