@@ -1,11 +1,13 @@
 /* cartpole_policy.h: the C API of the cart-pole balance controller, from the Rust crate
  * `firmware`. Link libcartpole_policy.a (cargo build --release -p capi --target <target>).
  *
- * Call once per 20 ms control period with the state obs = {x (m), x_dot (m/s), theta (rad),
- * theta_dot (rad/s)}; push the cart right (+x) with the full force iff q[1] > q[0].
- * Allocation-free, no global state, safe to call from an interrupt; about 600 bytes of stack
- * on a Cortex-M4F. The caller checks its readings: a NaN gives NaN Q-values (and "left").
- * A NULL argument makes a call write nothing.
+ * Call once per control period of the rig the policy was trained for (the shipped
+ * policy's is firmware::policy::RIG.params.tau) with the state obs = {x (m), x_dot (m/s),
+ * theta (rad), theta_dot (rad/s)}; push the cart right (+x) with the full force iff
+ * q[1] > q[0]. Allocation-free, no global state, safe to call from an interrupt; a few
+ * hundred bytes of stack (measured per target in docs/QUANTISATION.md). The caller checks
+ * its readings: a NaN gives NaN Q-values (and "left"). A NULL argument makes a call write
+ * nothing.
  *
  * cartpole_policy_forward runs the policy compiled into the library. cartpole_mlpH_forward
  * runs any weights of width H, such as the `static const struct cartpole_mlpH` that

@@ -41,7 +41,7 @@ fn forward<O: Reading, P: Policy<O>>(w: Option<P>, obs: Option<&O>, q: Option<&m
 }
 
 /// `q = [Q(obs, left), Q(obs, right)]` of the shipped policy; push right iff `q[1] > q[0]`.
-/// Allocation-free and panic-free; about 600 bytes of stack on a Cortex-M4F.
+/// Allocation-free and panic-free; its stack, per target, is in `docs/QUANTISATION.md`.
 // SAFETY: exporting an unmangled symbol is `unsafe` because two such symbols with one name
 // would clash at link time; this crate defines each C name once.
 #[allow(unsafe_code)]

@@ -13,6 +13,38 @@
 //! assert_eq!(rig.limits().max_abs[0], 2.4);
 //! assert_eq!(rig.predictor().delay(), 0);
 //! ```
+//!
+//! A board's whole loop, closed here against the plant in place of the hardware
+//! ([`crate::loopback`]'s pins): encoder counts read through a closure (a board loads them
+//! from its timers or PIO counters there) into the observer, the integer policy, the
+//! predictor and the limits, everything that must agree with the machine taken from the
+//! `RIG` exported beside the policy.
+//!
+//! ```
+//! use core::cell::Cell;
+//! use firmware::cartpole::{CartPole, State};
+//! use firmware::controller::Controller;
+//! use firmware::estimator::ObserverSensor;
+//! use firmware::loopback::{duty, pins};
+//! use firmware::policy_int::{POLICY_INT, RIG};
+//!
+//! let mut plant = CartPole::new(RIG.params, 500);
+//! plant.reset_to(State::from_array([0.02, 0.0, 0.03, 0.0]));
+//! let counts = |s: State| RIG.encoders.counts(s.x, s.theta);
+//! let latest = Cell::new(counts(plant.state()));
+//! let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer(), || latest.get());
+//! let mut controller =
+//!     Controller::new(&POLICY_INT, sensor, pins(), RIG.limits()).with_predictor(RIG.predictor());
+//! // One pass per control period: on a board, `RIG.params.tau` apart on a timer.
+//! for period in 0..500 {
+//!     controller.step();
+//!     let t = plant.advance(duty(controller.actuator()), 0.0);
+//!     latest.set(counts(plant.state()));
+//!     assert!(!t.terminated, "the pole fell in period {period}");
+//! }
+//! assert!(plant.state().theta.abs() < 0.05);
+//! assert_eq!(controller.faults().rejected_readings, 0);
+//! ```
 
 use crate::cartpole::{GYMNASIUM, Params};
 use crate::controller::{Limits, Predictor};

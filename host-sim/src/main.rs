@@ -57,6 +57,9 @@ enum Command {
     /// identification experiments, by simulation-error minimisation; print each estimate
     /// with a 95% interval and write the identified rig file. Exits 2 on bad input.
     Identify(identify_cmd::IdentifyArgs),
+    /// Print the parts scenarios and domains are made of, with their values' bounds and
+    /// defaults: the Markdown table the README and docs/CONTROL.md show.
+    Parts,
 }
 
 /// Which policy runs, on which machine.
@@ -157,6 +160,10 @@ fn main() -> ExitCode {
         Command::Agree(a) => run_agree(&a).map(|()| true),
         Command::Render(a) => render_cmd::run(&a).map(|()| true),
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
+        Command::Parts => {
+            print!("{}", twin::grammar::markdown_table());
+            Ok(true)
+        }
     };
     match result {
         Ok(true) => ExitCode::SUCCESS,

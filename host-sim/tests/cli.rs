@@ -233,7 +233,8 @@ fn the_integer_policy_is_evaluated_and_compared_with_the_float_one() {
         .sum();
     assert_eq!(binned, states);
     assert_eq!(disagree, states - r["agree"].as_u64().unwrap());
-    // Measured on a million states: 91.6%.
+    // The shipped policy's agreement over a million states is in docs/QUANTISATION.md;
+    // this run has far fewer states, so the bound leaves room for sampling.
     assert!(r["agree"].as_u64().unwrap() * 100 > states * 85, "{r}");
     let o = agree(&["--states", "0"]);
     assert_eq!(o.status.code(), Some(2));

@@ -1,11 +1,14 @@
 //! The trajectory and scenario parsers against hostile text: nothing panics, every refusal
 //! is a short message, and whatever is accepted is usable (finite physics, checked cases).
 
+use std::collections::HashMap;
+
 use host_sim::replay;
 use proptest::prelude::*;
 use proptest::test_runner::Config;
-use twin::Scenario;
 use twin::grammar::{FACTOR_RANGE, PARTS};
+use twin::scenario::{NOISE_STD, Sensing};
+use twin::{Push, Scenario};
 
 fn cases() -> Config {
     Config {
@@ -57,6 +60,7 @@ fn check_scenario(spec: &str) {
                 );
             }
             assert!(s.noise_std.iter().all(|v| v.is_finite() && *v >= 0.0));
+            check_parsed(spec, &s);
             // The plant stays finite for a step under the full force.
             let next = firmware::cartpole::advance(
                 &p,
@@ -84,6 +88,98 @@ fn check_scenario(spec: &str) {
             );
             assert!(next.to_array().iter().all(|v| v.is_finite()), "{spec}");
         }
+    }
+}
+
+/// The values each kind of part of an accepted `spec` gave, read from the text here: the
+/// last part of a kind (the one that sets it), a point range as its value, a share dropped.
+fn given(spec: &str) -> HashMap<&str, Vec<f64>> {
+    let mut last = HashMap::new();
+    for part in spec.split('+') {
+        let body = part.split_once('@').map_or(part, |(body, _)| body);
+        let (key, text) = body.split_once('=').unwrap_or((body, ""));
+        let values = text
+            .split('/')
+            .filter(|t| !t.is_empty())
+            .map(|t| {
+                let point = t.split_once("..").map_or(t, |(lo, _)| lo);
+                point
+                    .parse::<f64>()
+                    .unwrap_or_else(|_| panic!("{spec}: accepted {t:?}"))
+            })
+            .collect();
+        last.insert(key, values);
+    }
+    last
+}
+
+/// An accepted scenario holds what its text says: every value within its field's bounds in
+/// [`PARTS`], and the dead time, noise, friction, encoders and pushes as written, or the
+/// defaults the table of parts documents where left out.
+fn check_parsed(spec: &str, s: &Scenario) {
+    let given = given(spec);
+    for (key, values) in &given {
+        if let Some(part) = PARTS.iter().find(|p| p.key == *key) {
+            for (v, f) in values.iter().zip(part.fields) {
+                assert!((f.lo..=f.hi).contains(v), "{spec}: {key} {}", f.name);
+            }
+        }
+    }
+    let (nominal, p) = (Scenario::nominal(), &s.params);
+    let at = |key: &str, i: usize| given.get(key).and_then(|v| v.get(i).copied());
+    let delay = given
+        .get("delay")
+        .map_or(0, |_| at("delay", 0).unwrap_or(1.0) as u32);
+    assert_eq!(s.delay(), delay, "{spec}");
+    let noise = given
+        .get("noise")
+        .map_or(0.0, |_| at("noise", 0).unwrap_or(1.0));
+    assert_eq!(s.noise_std, NOISE_STD.map(|v| v * noise), "{spec}");
+    let friction = (
+        at("friction", 0).unwrap_or(0.0),
+        at("friction", 1).unwrap_or(0.0),
+    );
+    assert_eq!((p.cart_friction, p.pole_friction), friction, "{spec}");
+    let push = given.get("push").map(|_| Push {
+        impulse: at("push", 0).unwrap_or(0.5),
+        every: at("push", 1).map_or(100, |k| k as u32),
+    });
+    assert_eq!(s.push, push, "{spec}");
+    let (encoders, sensing) = match (given.get("encoder"), at("encoder", 0)) {
+        (None, _) => (nominal.rig.encoders, Sensing::Exact),
+        (Some(_), n) => {
+            let mut e = nominal.rig.encoders;
+            if let Some(n) = n {
+                e.pole_counts_per_rev = n as u32;
+                e.cart_counts_per_m = at("encoder", 1).unwrap_or(5.0 * n) as u32;
+            }
+            let d = at("encoder", 2).map(|d| d as f32);
+            (e, d.map_or(Sensing::Observer, Sensing::AlphaBeta))
+        }
+    };
+    assert_eq!((s.rig.encoders, s.sensing), (encoders, sensing), "{spec}");
+}
+
+/// Specs that random text seldom makes whole: each part alone, with and without its
+/// optional values, at its bounds, and parts of one kind repeated.
+#[test]
+fn written_scenarios_hold_what_they_say() {
+    for spec in [
+        "delay",
+        "delay=16+noise=2",
+        "friction=0.1",
+        "friction=1/0.1",
+        "encoder",
+        "encoder=512",
+        "encoder=16777216",
+        "encoder=2400/15000",
+        "encoder=128/640/0.5",
+        "push",
+        "push=1.1/50",
+        "noise+delay=3+delay=4+push=0.2+friction=0.3/0.01+encoder=1024/2048",
+    ] {
+        let s = Scenario::parse(spec).unwrap_or_else(|e| panic!("{spec}: {e}"));
+        check_parsed(spec, &s);
     }
 }
 

@@ -19,6 +19,18 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// `o` is a refusal of bad input: exit status 2, and a message that says `needle`.
+#[track_caller]
+fn assert_refused(o: &Output, needle: &str) {
+    let e = stderr(o);
+    assert_eq!(
+        o.status.code(),
+        Some(2),
+        "expected a refusal saying {needle:?}: {e}"
+    );
+    assert!(e.contains(needle), "expected {needle:?} in: {e}");
+}
+
 #[test]
 fn invalid_hyperparameters_exit_2_before_any_work() {
     let dir = scratch("bad");
@@ -45,8 +57,7 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
             .arg(&out_dir)
             .output()
             .unwrap();
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+        assert_refused(&o, want);
         assert!(
             !out_dir.exists(),
             "{args:?} must fail before writing anything"
@@ -59,12 +70,7 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
         .arg(&toml)
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("unknown key \"learning_rate\""),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "unknown key \"learning_rate\"");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -223,12 +229,7 @@ fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
 
     let sb3 = fixture("sb3_policy.safetensors");
     let o = export(&[sb3.to_str().unwrap(), "--out", out.to_str().unwrap()]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(
-        stderr(&o).contains("under the prefixes q_net.q_net., q_net_target.q_net."),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "under the prefixes q_net.q_net., q_net_target.q_net.");
     let o = export(&[
         sb3.to_str().unwrap(),
         "--prefix",
@@ -247,12 +248,7 @@ fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
         "--out",
         out.to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("hidden widths 120 and 84 differ"),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "hidden widths 120 and 84 differ");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -293,8 +289,7 @@ fn bad_names_and_outputs_exit_2_and_touch_nothing() {
         ),
     ] {
         let o = export(&args);
-        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-        assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+        assert_refused(&o, want);
     }
     assert_eq!(std::fs::read(&input).unwrap(), before);
     assert!(!out.exists());
@@ -334,12 +329,7 @@ fn exporting_a_broken_policy_names_the_tensor() {
         .arg(&out)
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(
-        stderr(&o).contains("layer `fc3` lacks its bias"),
-        "{}",
-        stderr(&o)
-    );
+    assert_refused(&o, "layer `fc3` lacks its bias");
     assert!(!Path::new(&out).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -390,7 +380,6 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
         "--out",
         never.to_str().unwrap(),
     ]);
-    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("--quant"), "{}", stderr(&o));
+    assert_refused(&o, "--quant");
     assert!(!never.exists());
 }

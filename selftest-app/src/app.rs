@@ -1,7 +1,8 @@
 //! What the application does on any microcontroller: the start-up self-test, then the
-//! controller paced by a 50 Hz timer interrupt in each network format, with overruns
-//! counted, the stack measured, and the verdict. The architecture modules (`on_arm`,
-//! `on_riscv`) supply the timer, the sleep, the stack pointer and the output.
+//! controller paced by a timer interrupt every control period of the shipped policy's rig
+//! (`RIG.params.tau`) in each network format, with overruns counted, the stack measured,
+//! and the verdict. The architecture modules (`on_arm`, `on_riscv`) supply the timer, the
+//! sleep, the stack pointer and the output.
 
 use core::sync::atomic::{AtomicU32, Ordering};
 
@@ -111,8 +112,8 @@ pub fn run(board: &mut impl Board) -> bool {
     ok
 }
 
-/// Both network formats paced by the timer, as a board runs them: timer interrupts at 50 Hz,
-/// the core asleep in between. Whether both balanced.
+/// Both network formats paced by the timer, as a board runs them: a timer interrupt every
+/// control period, the core asleep in between. Whether both balanced.
 fn paced_runs(board: &mut impl Board) -> bool {
     board.start_ticker();
     let runs = [

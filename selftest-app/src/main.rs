@@ -1,4 +1,5 @@
-//! The Cortex-M application: a start-up self-test, then the balance controller at 50 Hz.
+//! The Cortex-M application: a start-up self-test, then the balance controller at the
+//! shipped rig's control period.
 //!
 //! On a microcontroller (`target_os = "none"`) it reports over semihosting (or defmt with
 //! the `defmt` feature) and exits with the self-test's verdict, which is what QEMU runs:

@@ -75,12 +75,12 @@ pub const OWN_INT_KERNELS: bool = cfg!(target_arch = "arm");
 /// than [`dot_portable`] itself, so that [`dot_check`] compares two implementations.
 pub const OWN_DOT: bool = cfg!(all(target_arch = "arm", target_abi = "eabihf"));
 
-/// How many of [`INT_CASES`] seeded random observations give `net` different Q-values
-/// through [`QMlp::forward`] (the target's kernels: DSP code on a Cortex-M4F, ARMv6-M code
-/// on a Cortex-M0) and through [`QMlp::forward_portable`] (the definition). A third are
+/// How many of [`INT_CASES`] seeded random observations give different Q-values through
+/// `kernel` (the target's [`QMlp::forward`]: DSP code on a Cortex-M4F, ARMv6-M code on a
+/// Cortex-M0) and through `net`'s [`QMlp::forward_portable`] (the definition). A third are
 /// anywhere in the `i16` range, the rest within +-0.5 units, where a balancing run lives.
-/// Meaningful where [`OWN_INT_KERNELS`]; elsewhere both sides are one function.
-pub fn int_check<const H: usize>(net: &QMlp<H>) -> u32 {
+/// Meaningful where [`OWN_INT_KERNELS`]; elsewhere `forward` is the definition itself.
+pub fn int_check<const H: usize>(net: &QMlp<H>, kernel: impl Fn(&[i16; 4]) -> [i32; 2]) -> u32 {
     let mut rng = Pcg32::seed_from_u64(0x1A7);
     let mut bad = 0;
     for case in 0..INT_CASES {
@@ -88,7 +88,7 @@ pub fn int_check<const H: usize>(net: &QMlp<H>) -> u32 {
             let v = rng.next_u32() as i16;
             if case % 3 == 0 { v } else { v >> 4 }
         });
-        if net.forward(&obs) != net.forward_portable(&obs) {
+        if kernel(&obs) != net.forward_portable(&obs) {
             bad += 1;
         }
     }
@@ -242,7 +242,7 @@ pub fn report<const H: usize>(
         0
     };
     let int_bad = if OWN_INT_KERNELS {
-        let bad = int_check(qnet);
+        let bad = int_check(qnet, |obs| qnet.forward(obs));
         line(format_args!(
             "int: {bad} of {INT_CASES} random observations differ from the portable forward pass"
         ));
@@ -308,7 +308,20 @@ mod tests {
         }
         assert!(encoder_episode::<[i16; 4], _>(&POLICY_INT, 0).success);
         assert!(encoder_episode::<[f32; 4], _>(&POLICY, 0).success);
-        assert_eq!(int_check(&POLICY_INT), 0);
+    }
+
+    /// On the host `forward` is the definition itself, so the check is tried on a kernel
+    /// that is the definition and on one that is wrong for half the observations.
+    #[test]
+    fn the_integer_check_counts_the_observations_a_kernel_gets_wrong() {
+        let net = &POLICY_INT;
+        assert_eq!(int_check(net, |obs| net.forward_portable(obs)), 0);
+        let wrong_for_negative_x = |obs: &[i16; 4]| {
+            let q = net.forward_portable(obs);
+            if obs[0] < 0 { [q[0], q[1] ^ 1] } else { q }
+        };
+        let bad = int_check(net, wrong_for_negative_x);
+        assert!(bad > INT_CASES / 4 && bad < INT_CASES * 3 / 4, "{bad}");
     }
 
     #[test]

@@ -257,6 +257,11 @@ fn depending_on_firmware_brings_no_runtime_linker_script_or_critical_section() {
             "riscv ",
             "riscv-semihosting",
             "defmt",
+            // Random starts are the host tools' and the self-test's (`firmware`'s `rand`
+            // feature); a board draws nothing.
+            "rand ",
+            "rand_core ",
+            "rand_pcg ",
         ] {
             assert!(
                 !tree.contains(app_only),

@@ -1,8 +1,9 @@
 //! The one grammar of worlds: a scenario (`noise+delay=2`) and a domain of them
 //! (`length=0.75..1.25+delay=0..4@0.5`) are written alike, and a scenario is a domain whose
 //! every value is a single point. [`PARTS`] is the one table of parts: their fields, bounds
-//! and defaults and what each means; the parser, the errors, the command-line help and the
-//! README's table are all made from it.
+//! and defaults and what each means; the parser, the errors, the command-line help, the
+//! bounds a rig file's encoders and friction keep, and the table of parts in the README and
+//! `docs/CONTROL.md` (`host-sim parts`) are all made from it.
 //!
 //! A spec is `nominal`, or parts joined by `+`; a part is `KEY`, or `KEY=V[/V...]`, each value
 //! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
@@ -78,6 +79,18 @@ const fn field(name: &'static str, kind: Kind, lo: f64, hi: f64, fallback: Fallb
 /// narrow enough that the plant's arithmetic stays finite.
 pub const FACTOR_RANGE: (f64, f64) = (1e-3, 1e3);
 
+/// The cart's Coulomb friction coefficient a world (and a rig file) may have.
+pub const CART_FRICTION_RANGE: (f64, f64) = (0.0, 1.0);
+
+/// The pivot's viscous friction a world (and a rig file) may have, N m s/rad.
+pub const PIVOT_FRICTION_RANGE: (f64, f64) = (0.0, 0.1);
+
+/// The pole encoder's counts per revolution a world (and a rig file) may have.
+pub const POLE_COUNTS_RANGE: (f64, f64) = (16.0, (1u32 << 24) as f64);
+
+/// The cart encoder's counts per metre of travel a world (and a rig file) may have.
+pub const CART_COUNTS_RANGE: (f64, f64) = (16.0, (1u32 << 26) as f64);
+
 const FACTOR: Field = field(
     "factor",
     Kind::Real,
@@ -111,7 +124,7 @@ pub const PARTS: &[PartSpec] = &[
             Fallback::Value(1.0),
         )],
         syntax: "delay[=N]",
-        doc: "N periods of actuator dead time (1 if omitted), known to the controller",
+        doc: "N periods of actuator dead time, known to the controller",
     },
     PartSpec {
         key: "force",
@@ -140,12 +153,18 @@ pub const PARTS: &[PartSpec] = &[
     PartSpec {
         key: "friction",
         fields: &[
-            field("cart coefficient", Kind::Real, 0.0, 1.0, Fallback::Required),
+            field(
+                "cart coefficient",
+                Kind::Real,
+                CART_FRICTION_RANGE.0,
+                CART_FRICTION_RANGE.1,
+                Fallback::Required,
+            ),
             field(
                 "pivot coefficient",
                 Kind::Real,
-                0.0,
-                0.1,
+                PIVOT_FRICTION_RANGE.0,
+                PIVOT_FRICTION_RANGE.1,
                 Fallback::Value(0.0),
             ),
         ],
@@ -159,23 +178,23 @@ pub const PARTS: &[PartSpec] = &[
             field(
                 "counts per revolution",
                 Kind::LogWhole,
-                16.0,
-                (1u32 << 24) as f64,
+                POLE_COUNTS_RANGE.0,
+                POLE_COUNTS_RANGE.1,
                 Fallback::Absent,
             ),
             field(
                 "counts per metre",
                 Kind::Whole,
-                16.0,
-                (1u32 << 26) as f64,
+                CART_COUNTS_RANGE.0,
+                CART_COUNTS_RANGE.1,
                 Fallback::FiveTimesFirst,
             ),
             field("discount", Kind::Real, 0.0, 0.99, Fallback::Absent),
         ],
         syntax: "encoder[=N[/M[/D]]]",
-        doc: "positions read by encoders of N counts per revolution and M per metre (5N if \
-              omitted; the rig's own if both are) through the board's observer, or with D \
-              through the model-free alpha-beta filter of discount D",
+        doc: "positions read by encoders of N counts per revolution and M per metre (the \
+              rig's own if both are omitted) through the board's observer, or with D through \
+              the model-free alpha-beta filter of discount D",
     },
     PartSpec {
         key: "push",
@@ -190,7 +209,7 @@ pub const PARTS: &[PartSpec] = &[
             ),
         ],
         syntax: "push[=IMPULSE[/EVERY]]",
-        doc: "a push of IMPULSE N s (0.5 if omitted) every EVERY periods (100), to a random side",
+        doc: "a push of IMPULSE N s every EVERY periods, to a random side",
     },
 ];
 
@@ -345,11 +364,29 @@ pub fn scenario_help() -> String {
     )
 }
 
-/// The table of parts in Markdown, as the README shows it.
+/// The table of parts in Markdown, as the README and `docs/CONTROL.md` show it (`host-sim
+/// parts` prints it; a test keeps the documents' copies equal to it).
 pub fn markdown_table() -> String {
-    let mut out = String::from("| part | what it does |\n| --- | --- |\n");
+    let mut out = String::from("| part | values | what it does |\n| --- | --- | --- |\n");
     for p in PARTS {
-        out.push_str(&format!("| `{}` | {} |\n", p.syntax, p.doc));
+        let values: Vec<String> = p.fields.iter().map(describe).collect();
+        out.push_str(&format!(
+            "| `{}` | {} | {} |\n",
+            p.syntax,
+            values.join("; "),
+            p.doc
+        ));
     }
     out
+}
+
+/// A field's bounds and what it is when left out, as the table shows them.
+fn describe(f: &Field) -> String {
+    let left_out = match f.fallback {
+        Fallback::Required => String::new(),
+        Fallback::Value(v) => format!(", default {v}"),
+        Fallback::FiveTimesFirst => ", default 5 times the first".into(),
+        Fallback::Absent => ", optional".into(),
+    };
+    format!("{} {} to {}{left_out}", f.name, f.lo, f.hi)
 }

@@ -38,6 +38,9 @@ use firmware::rig::Rig;
 use serde::Deserialize;
 use weights::{Error, Result, quote};
 
+use crate::grammar::{
+    CART_COUNTS_RANGE, CART_FRICTION_RANGE, PIVOT_FRICTION_RANGE, POLE_COUNTS_RANGE,
+};
 use crate::machine::{Integration, Machine};
 
 /// The key under which a policy file's metadata records the rig it was trained for, as a
@@ -154,23 +157,171 @@ struct Observer {
     accel_sd: [f64; 2],
 }
 
-/// One field's check: `value` must be finite and within `[lo, hi]` (open at `lo` where
-/// `open_lo`).
-fn check(
-    origin: &str,
-    field: &str,
-    value: f64,
-    (lo, hi): (f64, f64),
-    open_lo: bool,
-) -> Result<f64> {
-    let ok = value.is_finite() && (if open_lo { value > lo } else { value >= lo }) && value <= hi;
-    if ok {
-        return Ok(value);
+/// The checks of one rig file's fields, each refusal naming the file (`origin`) and the
+/// field.
+#[derive(Clone, Copy)]
+struct Fields<'a> {
+    origin: &'a str,
+}
+
+impl Fields<'_> {
+    /// `value`, if finite and within `[lo, hi]` (open at `lo` where `open_lo`).
+    fn check(self, field: &str, value: f64, (lo, hi): (f64, f64), open_lo: bool) -> Result<f64> {
+        let ok =
+            value.is_finite() && (if open_lo { value > lo } else { value >= lo }) && value <= hi;
+        if ok {
+            return Ok(value);
+        }
+        let bracket = if open_lo { '(' } else { '[' };
+        Err(self.refuse(format!(
+            "{field}: expected a number in {bracket}{lo}, {hi}], found {value}"
+        )))
     }
-    let bracket = if open_lo { '(' } else { '[' };
-    Err(Error::Input(format!(
-        "{origin}: {field}: expected a number in {bracket}{lo}, {hi}], found {value}"
-    )))
+
+    fn refuse(self, what: String) -> Error {
+        Error::Input(format!("{}: {what}", self.origin))
+    }
+
+    /// The track's half-length and the end-stop margin, which must leave some track.
+    fn track(self, f: &File) -> Result<(f64, f64)> {
+        let half = self.check(
+            "track_half_length_m",
+            f.track_half_length_m,
+            (0.0, 100.0),
+            true,
+        )?;
+        let margin = self.check(
+            "end_stop_margin_m",
+            f.end_stop_margin_m,
+            (0.0, 100.0),
+            false,
+        )?;
+        if margin >= half {
+            return Err(self.refuse(format!(
+                "end_stop_margin_m: expected less than track_half_length_m ({half}), found \
+                 {margin}"
+            )));
+        }
+        Ok((half, margin))
+    }
+
+    /// The pivot to the pole's centre of mass, given as such or by a uniform pole's length.
+    fn pole_com(self, f: &File) -> Result<f64> {
+        match (f.pole_com_m, f.pole_length_m) {
+            (Some(com), None) => self.check("pole_com_m", com, (0.0, 100.0), true),
+            (None, Some(len)) => Ok(self.check("pole_length_m", len, (0.0, 200.0), true)? / 2.0),
+            (com, _) => Err(self.refuse(format!(
+                "expected one of pole_com_m and pole_length_m, found {}",
+                if com.is_some() { "both" } else { "neither" }
+            ))),
+        }
+    }
+
+    /// The physics, on a track of half-length `half`.
+    fn params(self, f: &File, half: f64) -> Result<Params> {
+        let length = self.pole_com(f)?;
+        let c =
+            |field: &str, v: f64, range: (f64, f64), open: bool| self.check(field, v, range, open);
+        Ok(Params {
+            gravity: c(
+                "gravity_m_s2",
+                f.gravity_m_s2.unwrap_or(9.8),
+                (0.0, 100.0),
+                true,
+            )?,
+            masscart: c("cart_mass_kg", f.cart_mass_kg, (0.0, 1000.0), true)?,
+            masspole: c("pole_mass_kg", f.pole_mass_kg, (0.0, 1000.0), true)?,
+            length,
+            force_mag: c(
+                "actuator.stall_force_n",
+                f.actuator.stall_force_n,
+                (0.0, 1e4),
+                true,
+            )?,
+            motor_damping: c(
+                "actuator.damping_n_s_per_m",
+                f.actuator.damping_n_s_per_m,
+                (0.0, 1e4),
+                false,
+            )?,
+            tau: c("period_s", f.period_s, (0.002, 0.05), false)?,
+            theta_threshold_radians: radians(c(
+                "failure_angle_deg",
+                f.failure_angle_deg.unwrap_or(12.0),
+                (0.0, 90.0),
+                true,
+            )?),
+            x_threshold: half,
+            cart_friction: c(
+                "friction.cart_coulomb",
+                f.friction.cart_coulomb,
+                CART_FRICTION_RANGE,
+                false,
+            )?,
+            pole_friction: c(
+                "friction.pivot_viscous_n_m_s",
+                f.friction.pivot_viscous_n_m_s,
+                PIVOT_FRICTION_RANGE,
+                false,
+            )?,
+        })
+    }
+
+    /// The encoders, within the bounds a scenario's encoders have.
+    fn encoders(self, e: &FileEncoders) -> Result<Encoders> {
+        let counts = |field: &str, v: u32, range: (f64, f64)| {
+            self.check(field, f64::from(v), range, false)
+                .map(|v| v as u32)
+        };
+        Ok(Encoders {
+            cart_counts_per_m: counts(
+                "encoders.cart_counts_per_m",
+                e.cart_counts_per_m,
+                CART_COUNTS_RANGE,
+            )?,
+            pole_counts_per_rev: counts(
+                "encoders.pole_counts_per_rev",
+                e.pole_counts_per_rev,
+                POLE_COUNTS_RANGE,
+            )?,
+        })
+    }
+
+    /// The periods of dead time, at most what the predictor bridges.
+    fn dead_time(self, periods: u32) -> Result<u32> {
+        let max = f64::from(crate::scenario::MAX_DELAY);
+        Ok(self.check("dead_time_periods", f64::from(periods), (0.0, max), false)? as u32)
+    }
+
+    /// The observer's tuning, the default where the file has none.
+    fn tuning(self, o: Option<&Observer>) -> Result<Tuning> {
+        let Some(o) = o else {
+            return Ok(Tuning::DEFAULT);
+        };
+        let sd = |field: &str, v: f64| self.check(field, v, (0.0, 1e4), true);
+        Ok(Tuning {
+            force_sd: sd("observer.force_sd", o.force_sd)?,
+            accel_sd: [
+                sd("observer.accel_sd[0]", o.accel_sd[0])?,
+                sd("observer.accel_sd[1]", o.accel_sd[1])?,
+            ],
+        })
+    }
+
+    /// How the world advances over periods of `tau`.
+    fn integration(self, w: &World, tau: f64) -> Result<Integration> {
+        match w.integration.as_str() {
+            "euler" => Ok(Integration::Euler),
+            "continuous" => Ok(Integration::rk4(
+                tau,
+                self.check("world.substep_s", w.substep_s, (1e-5, 0.05), false)?,
+            )),
+            other => Err(self.refuse(format!(
+                "world.integration: expected \"continuous\" or \"euler\", found {}",
+                quote(other)
+            ))),
+        }
+    }
 }
 
 /// Degrees to radians as Gymnasium converts its 12 degrees, so that Gymnasium's rig file
@@ -204,137 +355,18 @@ pub fn load(path: &Path) -> Result<Machine> {
 pub fn parse(text: &str, origin: &str) -> Result<Machine> {
     let f: File = toml::from_str(text)
         .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
-    let c =
-        |field: &str, v: f64, range: (f64, f64), open: bool| check(origin, field, v, range, open);
-    let half = c(
-        "track_half_length_m",
-        f.track_half_length_m,
-        (0.0, 100.0),
-        true,
-    )?;
-    let margin = c(
-        "end_stop_margin_m",
-        f.end_stop_margin_m,
-        (0.0, 100.0),
-        false,
-    )?;
-    if margin >= half {
-        return Err(Error::Input(format!(
-            "{origin}: end_stop_margin_m: expected less than track_half_length_m ({half}), found \
-             {margin}"
-        )));
-    }
-    let com = match (f.pole_com_m, f.pole_length_m) {
-        (Some(com), None) => c("pole_com_m", com, (0.0, 100.0), true)?,
-        (None, Some(len)) => c("pole_length_m", len, (0.0, 200.0), true)? / 2.0,
-        _ => {
-            return Err(Error::Input(format!(
-                "{origin}: expected one of pole_com_m and pole_length_m, found {}",
-                if f.pole_com_m.is_some() {
-                    "both"
-                } else {
-                    "neither"
-                }
-            )));
-        }
+    let fields = Fields { origin };
+    let (half, margin) = fields.track(&f)?;
+    let params = fields.params(&f, half)?;
+    let rig = Rig {
+        params,
+        encoders: fields.encoders(&f.encoders)?,
+        dead_time: fields.dead_time(f.dead_time_periods)?,
+        end_stop_margin: margin,
+        tuning: fields.tuning(f.observer.as_ref())?,
     };
-    let params = Params {
-        gravity: c(
-            "gravity_m_s2",
-            f.gravity_m_s2.unwrap_or(9.8),
-            (0.0, 100.0),
-            true,
-        )?,
-        masscart: c("cart_mass_kg", f.cart_mass_kg, (0.0, 1000.0), true)?,
-        masspole: c("pole_mass_kg", f.pole_mass_kg, (0.0, 1000.0), true)?,
-        length: com,
-        force_mag: c(
-            "actuator.stall_force_n",
-            f.actuator.stall_force_n,
-            (0.0, 1e4),
-            true,
-        )?,
-        motor_damping: c(
-            "actuator.damping_n_s_per_m",
-            f.actuator.damping_n_s_per_m,
-            (0.0, 1e4),
-            false,
-        )?,
-        tau: c("period_s", f.period_s, (0.002, 0.05), false)?,
-        theta_threshold_radians: radians(c(
-            "failure_angle_deg",
-            f.failure_angle_deg.unwrap_or(12.0),
-            (0.0, 90.0),
-            true,
-        )?),
-        x_threshold: half,
-        cart_friction: c(
-            "friction.cart_coulomb",
-            f.friction.cart_coulomb,
-            (0.0, 1.0),
-            false,
-        )?,
-        pole_friction: c(
-            "friction.pivot_viscous_n_m_s",
-            f.friction.pivot_viscous_n_m_s,
-            (0.0, 0.1),
-            false,
-        )?,
-    };
-    let counts = |field: &str, v: u32, hi: u32| {
-        c(field, f64::from(v), (16.0, f64::from(hi)), false).map(|v| v as u32)
-    };
-    let encoders = Encoders {
-        cart_counts_per_m: counts(
-            "encoders.cart_counts_per_m",
-            f.encoders.cart_counts_per_m,
-            1 << 26,
-        )?,
-        pole_counts_per_rev: counts(
-            "encoders.pole_counts_per_rev",
-            f.encoders.pole_counts_per_rev,
-            1 << 24,
-        )?,
-    };
-    let dead_time = c(
-        "dead_time_periods",
-        f64::from(f.dead_time_periods),
-        (0.0, f64::from(crate::scenario::MAX_DELAY)),
-        false,
-    )? as u32;
-    let tuning = match f.observer {
-        None => Tuning::DEFAULT,
-        Some(o) => Tuning {
-            force_sd: c("observer.force_sd", o.force_sd, (0.0, 1e4), true)?,
-            accel_sd: [
-                c("observer.accel_sd[0]", o.accel_sd[0], (0.0, 1e4), true)?,
-                c("observer.accel_sd[1]", o.accel_sd[1], (0.0, 1e4), true)?,
-            ],
-        },
-    };
-    let integration = match f.world.integration.as_str() {
-        "euler" => Integration::Euler,
-        "continuous" => Integration::rk4(
-            params.tau,
-            c("world.substep_s", f.world.substep_s, (1e-5, 0.05), false)?,
-        ),
-        other => {
-            return Err(Error::Input(format!(
-                "{origin}: world.integration: expected \"continuous\" or \"euler\", found {}",
-                quote(other)
-            )));
-        }
-    };
-    Ok(Machine {
-        rig: Rig {
-            params,
-            encoders,
-            dead_time,
-            end_stop_margin: margin,
-            tuning,
-        },
-        integration,
-    })
+    let integration = fields.integration(&f.world, params.tau)?;
+    Ok(Machine { rig, integration })
 }
 
 /// `machine` as a rig file that [`parse`] reads back to it, bit for bit (every f64 in its

@@ -118,21 +118,7 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
             quote(long)
         )));
     }
-    // prefix -> layer name -> tensors.
-    let mut groups: BTreeMap<&str, BTreeMap<&str, Layer>> = BTreeMap::new();
-    for &name in &names {
-        let (stem, param) = name.rsplit_once('.').unwrap_or((name, ""));
-        let (pre, layer) = match stem.rfind('.') {
-            Some(i) => stem.split_at(i + 1),
-            None => ("", stem),
-        };
-        let l = groups.entry(pre).or_default().entry(layer).or_default();
-        match param {
-            "weight" => l.weight = Some(name),
-            "bias" => l.bias = Some(name),
-            _ => l.other.push(name),
-        }
-    }
+    let groups = by_prefix(&names);
     let checked: Vec<(&str, std::result::Result<[&str; 3], String>)> = groups
         .iter()
         .map(|(p, layers)| (*p, chain(&st, layers)))
@@ -178,6 +164,26 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         converted_from,
         metadata,
     })
+}
+
+/// `names` by prefix, then by layer: `network.0.weight` is layer `0`'s weight under
+/// `network.`.
+fn by_prefix<'a>(names: &[&'a str]) -> BTreeMap<&'a str, BTreeMap<&'a str, Layer<'a>>> {
+    let mut groups: BTreeMap<&str, BTreeMap<&str, Layer>> = BTreeMap::new();
+    for &name in names {
+        let (stem, param) = name.rsplit_once('.').unwrap_or((name, ""));
+        let (pre, layer) = match stem.rfind('.') {
+            Some(i) => stem.split_at(i + 1),
+            None => ("", stem),
+        };
+        let l = groups.entry(pre).or_default().entry(layer).or_default();
+        match param {
+            "weight" => l.weight = Some(name),
+            "bias" => l.bias = Some(name),
+            _ => l.other.push(name),
+        }
+    }
+    groups
 }
 
 /// The group to import: the one `prefix` names, or the only one that is a network.

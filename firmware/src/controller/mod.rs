@@ -8,8 +8,14 @@
 //! [`Actuator`], normally a [`Bridge`]: an H-bridge behind embedded-hal 1.0's direction
 //! `OutputPin` (high pushes towards +x) and enable `SetDutyCycle` (full duty is the full
 //! push). Readings come in one of two formats ([`Reading`]): `[f32; 4]` in SI units for the
-//! float network, or `[i16; 4]` in Q3.12 ([`crate::fixed`]) for the integer one, so an
-//! integer pipeline never converts to float between its estimator and its network.
+//! float network, or `[i16; 4]` in Q3.12 ([`crate::fixed`]) for the integer one. The integer
+//! network runs in integers only, but the steps before it need not: the model-based
+//! observer estimates in f32 and hands over Q3.12 ([`Observer::fixed_state`]), and with a
+//! dead time the predictor takes the Q3.12 reading back to f32, advances it and rounds it
+//! again. Only the alpha-beta filter without a dead time keeps the whole path from counts
+//! to decision in integers.
+//!
+//! [`Observer::fixed_state`]: crate::estimator::Observer::fixed_state
 //!
 //! This module is not a scheduler: the caller decides when a period starts (a timer
 //! interrupt, `DelayNs`, or a simulation loop). It is not a filter either: it acts on the

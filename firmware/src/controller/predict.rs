@@ -4,9 +4,9 @@
 //! rig's plant in f32 ([`Plant`], the plant's one set of equations), so that the policy
 //! decides on the state its command will meet: a Smith predictor in its simplest form.
 //!
-//! The f32 plant uses `micromath`'s `sin` and `cos` (measured in the tests below: a
-//! 16-period prediction ends within 4e-4 rad of the f64 plant with `libm`, a quarter of a
-//! 4,096-count encoder's step), at a fraction of `libm`'s cost on a core without an FPU. The
+//! The f32 plant uses `micromath`'s `sin` and `cos` (the tests below hold a 16-period
+//! prediction within 4e-4 rad of the f64 plant with `libm`, a quarter of a 4,096-count
+//! encoder's step), at a fraction of `libm`'s cost on a core without an FPU. The
 //! plant itself keeps `libm`, for bit-exactness with Gymnasium.
 
 use crate::cartpole::{Params, Plant};

@@ -40,6 +40,9 @@ pub struct Reading {
     pub seed: u64,
 }
 
+/// The jitter's stream of [`Reading::seed`] (`host_common::seed`).
+const JITTER_STREAM: u64 = 1;
+
 /// A machine's encoders as `board`'s rig reads them.
 struct Encoders<'a> {
     board: &'a Rig,
@@ -52,7 +55,7 @@ impl Encoders<'_> {
         Encoders {
             board,
             reading,
-            rng: Pcg64Mcg::new(u128::from(reading.seed) | 1 << 64),
+            rng: host_common::seed::rng(reading.seed, 0, JITTER_STREAM),
         }
     }
 

@@ -344,13 +344,13 @@ impl Config {
     }
 
     /// The shipped recipe for `machine`: the same worlds around its rig, with the pushes
-    /// scaled to its motor (a push that takes Gymnasium's 10 N motor five periods to
-    /// answer takes this motor as long in seconds) and every count of periods to its control
-    /// rate (the same seconds of pushes and episodes); dead times stay in periods, a board's
-    /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
+    /// scaled to its motor (a push that takes Gymnasium's motor five periods to answer takes
+    /// this motor as long in seconds) and every count of periods to its control rate (the
+    /// same seconds of pushes and episodes); dead times stay in periods, a board's own unit.
+    /// On Gymnasium's machine it is the shipped recipe exactly.
     pub fn deploy_on(machine: &twin::Machine) -> Config {
-        let p = &machine.rig.params;
-        let (force, rate) = (p.force_mag / 10.0, 0.02 / p.tau);
+        let (p, gym) = (&machine.rig.params, &twin::Machine::GYMNASIUM.rig.params);
+        let (force, rate) = (p.force_mag / gym.force_mag, gym.tau / p.tau);
         let periods = |n: f64| (n * rate).round().max(1.0);
         let steps = |n: f64| periods(n) as u32;
         let push = |lo: f64, hi: f64, every: f64| {

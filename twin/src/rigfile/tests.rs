@@ -57,92 +57,106 @@ fn a_rig_written_reads_back_bit_for_bit() {
     }
 }
 
+/// A change to the desk rig's file, `(from, to)`, and what its refusal must say.
+const BAD_RIGS: &[(&str, &str, &str)] = &[
+    (
+        "pole_mass_kg = 0.08",
+        "pole_mass_kg = 2000.0",
+        "pole_mass_kg: expected a number in (0, 1000], found 2000",
+    ),
+    (
+        "period_s = 0.02",
+        "period_s = 0.0",
+        "period_s: expected a number in [0.002, 0.05], found 0",
+    ),
+    (
+        "period_s = 0.02",
+        "period_s = 0.1",
+        "period_s: expected a number in [0.002, 0.05]",
+    ),
+    (
+        "end_stop_margin_m = 0.05",
+        "end_stop_margin_m = 0.5",
+        "end_stop_margin_m: expected less than track_half_length_m (0.4)",
+    ),
+    (
+        "cart_mass_kg = 0.6",
+        "cart_mass_kg = -1.0",
+        "cart_mass_kg: expected a number in (0, 1000], found -1",
+    ),
+    (
+        "cart_mass_kg = 0.6",
+        "cart_mass_kg = nan",
+        "cart_mass_kg: expected a number",
+    ),
+    (
+        "cart_mass_kg = 0.6",
+        "cart_mass_kg = inf",
+        "cart_mass_kg: expected a number",
+    ),
+    (
+        "stall_force_n = 5.0",
+        "stall_force_n = 0.0",
+        "actuator.stall_force_n: expected a number in (0,",
+    ),
+    (
+        "damping_n_s_per_m = 3.0",
+        "damping_n_s_per_m = -3.0",
+        "actuator.damping_n_s_per_m",
+    ),
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 40",
+        "dead_time_periods: expected a number in [0, 16]",
+    ),
+    (
+        "pole_counts_per_rev = 2400",
+        "pole_counts_per_rev = 4",
+        "encoders.pole_counts_per_rev",
+    ),
+    (
+        "cart_coulomb = 0.0",
+        "cart_coulomb = 2.0",
+        "friction.cart_coulomb",
+    ),
+    (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.2",
+        "friction.pivot_viscous_n_m_s: expected a number in [0, 0.1], found 0.2",
+    ),
+    (
+        "cart_counts_per_m = 15000",
+        "cart_counts_per_m = 100000000",
+        "encoders.cart_counts_per_m: expected a number in [16, 67108864]",
+    ),
+    (
+        "pole_com_m = 0.22",
+        "",
+        "expected one of pole_com_m and pole_length_m, found neither",
+    ),
+    (
+        "pole_com_m = 0.22",
+        "pole_com_m = 0.22\npole_length_m = 0.44",
+        "found both",
+    ),
+    ("cart_mass_kg = 0.6", "", "missing field `cart_mass_kg`"),
+    (
+        "cart_mass_kg = 0.6",
+        "cart_mass_kg = 0.6\nwheels = 4",
+        "unknown field `wheels`",
+    ),
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 1\n[world]\nintegration = \"rk2\"",
+        "world.integration: expected",
+    ),
+];
+
 #[test]
 fn bad_rigs_are_refused_naming_the_field() {
     let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
-    for (from, to, needle) in [
-        (
-            "pole_mass_kg = 0.08",
-            "pole_mass_kg = 2000.0",
-            "pole_mass_kg: expected a number in (0, 1000], found 2000",
-        ),
-        (
-            "period_s = 0.02",
-            "period_s = 0.0",
-            "period_s: expected a number in [0.002, 0.05], found 0",
-        ),
-        (
-            "period_s = 0.02",
-            "period_s = 0.1",
-            "period_s: expected a number in [0.002, 0.05]",
-        ),
-        (
-            "end_stop_margin_m = 0.05",
-            "end_stop_margin_m = 0.5",
-            "end_stop_margin_m: expected less than track_half_length_m (0.4)",
-        ),
-        (
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = -1.0",
-            "cart_mass_kg: expected a number in (0, 1000], found -1",
-        ),
-        (
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = nan",
-            "cart_mass_kg: expected a number",
-        ),
-        (
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = inf",
-            "cart_mass_kg: expected a number",
-        ),
-        (
-            "stall_force_n = 5.0",
-            "stall_force_n = 0.0",
-            "actuator.stall_force_n: expected a number in (0,",
-        ),
-        (
-            "damping_n_s_per_m = 3.0",
-            "damping_n_s_per_m = -3.0",
-            "actuator.damping_n_s_per_m",
-        ),
-        (
-            "dead_time_periods = 1",
-            "dead_time_periods = 40",
-            "dead_time_periods: expected a number in [0, 16]",
-        ),
-        (
-            "pole_counts_per_rev = 2400",
-            "pole_counts_per_rev = 4",
-            "encoders.pole_counts_per_rev",
-        ),
-        (
-            "cart_coulomb = 0.0",
-            "cart_coulomb = 2.0",
-            "friction.cart_coulomb",
-        ),
-        (
-            "pole_com_m = 0.22",
-            "",
-            "expected one of pole_com_m and pole_length_m, found neither",
-        ),
-        (
-            "pole_com_m = 0.22",
-            "pole_com_m = 0.22\npole_length_m = 0.44",
-            "found both",
-        ),
-        ("cart_mass_kg = 0.6", "", "missing field `cart_mass_kg`"),
-        (
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = 0.6\nwheels = 4",
-            "unknown field `wheels`",
-        ),
-        (
-            "dead_time_periods = 1",
-            "dead_time_periods = 1\n[world]\nintegration = \"rk2\"",
-            "world.integration: expected",
-        ),
-    ] {
+    for &(from, to, needle) in BAD_RIGS {
+        assert!(desk.contains(from), "the desk rig has no {from:?}");
         let text = desk.replace(from, to);
         let e = parse(&text, "rig desk").unwrap_err();
         assert!(e.is_input(), "{to}");

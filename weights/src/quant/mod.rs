@@ -2,19 +2,19 @@
 //! `firmware::network::int`, calibrated on observations the policy visits.
 //!
 //! - **Weights**: symmetric int8, `w_q = round(w / s_w)` with `s_w = max|w| / 127`, per
-//!   tensor (what the tools use: it balances better in closed loop, docs/QUANTISATION.md) or
-//!   per output unit ([`Granularity::PerChannel`]).
+//!   output unit (the [`Granularity`] the tools use by default) or per tensor
+//!   ([`Granularity::PerTensor`], `--granularity per-tensor`).
 //! - **Outputs**: the advantages `Q - mean(Q)`, that is `-A` and `+A` with
 //!   `A = (Q_right - Q_left) / 2`, in one scale, so they compare as integers and decide as
-//!   the Q-values do. The common part of the two Q-values decides nothing and is some 200
-//!   times their difference for the shipped policy: with int8 weights per Q-value row, half
-//!   of the visited states' actions flipped (measured on the calibration set), against 6%
-//!   with the advantage row alone quantised.
+//!   the Q-values do. The common part of the two Q-values decides nothing and is far larger
+//!   than their difference: int8 rows of Q-values resolve the common part and round the
+//!   difference away, so many more actions flip than with the advantage row alone
+//!   quantised (docs/QUANTISATION.md, "Why advantages, not Q-values").
 //! - **Activations**: `u8` per hidden layer, `s_h = max h / 255` over the calibration set:
 //!   no observation the policy was seen to visit saturates a unit.
 //! - **Biases**: int32 in the accumulator's scale, `round(b / (s_w * s_in))`. (Correcting
 //!   them for the weights' mean rounding error on the calibration set, as Nagel et al. 2019
-//!   do, was tried: nominal success fell from 99.8% to 89.3% over 1,000 episodes.)
+//!   do, was tried and balanced worse: docs/QUANTISATION.md, "Adaptive rounding".)
 //! - **Requantisation**: the factor `s_w * s_in / s_h` as a 16-bit multiplier and shifts
 //!   ([`Requant`]), the pre-shift just large enough that the largest accumulator below the
 //!   output's saturation fits in 15 bits, the multiplier as large as 16 bits allow.
@@ -45,10 +45,10 @@ pub enum Granularity {
     PerChannel,
 }
 
-/// One scale per unit: for the shipped policy it keeps every robustness row at 100% and the
-/// cart as near the centre as the float policy does, where one scale per tensor lets it
-/// wander up to 1.2 m RMS over 200 s (`docs/QUANTISATION.md`). The earlier shipped policy
-/// measured the other way round, so the better choice depends on the network: check both.
+/// One scale per unit: for the shipped policy it holds the cart as near the centre as the
+/// float policy does, where one scale per tensor lets it wander over long episodes
+/// (`docs/QUANTISATION.md`, "One scale per unit"). The earlier shipped policy measured the
+/// other way round, so the better choice depends on the network: check both.
 impl Default for Granularity {
     fn default() -> Granularity {
         Granularity::PerChannel

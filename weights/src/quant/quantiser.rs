@@ -115,8 +115,8 @@ fn stats(w: &Weights, states: &[[f32; OBS_DIM]]) -> Stats {
 /// rounding to nearest, then flipping single weights to the other side while that lowers the
 /// error (at most 8 sweeps). The idea is AdaRound's (Nagel et al., "Up or Down? Adaptive
 /// Rounding for Post-Training Quantization", ICML 2020), solved greedily instead of learnt.
-/// Measured on the shipped policy with per-unit scales (docs/QUANTISATION.md): nearest
-/// rounding doubles the cart's RMS drift; this keeps it within a fifth.
+/// On the policy shipped when it was chosen, nearest rounding let the cart drift far more
+/// than this does (docs/QUANTISATION.md, "Adaptive rounding").
 pub(super) fn adaptive_round(w: &[f32], s_w: f64, moments: &[f64]) -> Vec<i8> {
     let n = w.len();
     let mut q: Vec<i8> = quantise_weights(w, s_w).collect();

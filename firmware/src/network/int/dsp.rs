@@ -5,10 +5,10 @@
 //! `smlad` adds two 16 x 16-bit products in one instruction. The activations are unpacked
 //! once per layer into halfword pairs ([`Pairs`]: `x0 | x2 << 16`, `x1 | x3 << 16` per group
 //! of four); each word of four weights becomes two such pairs with two `sxtb16`, as in
-//! CMSIS-NN's int8 kernels. Four rows share every activation load: 21 instructions per 16
-//! multiply-accumulates, where ARMv6-M code (`super::thumb`) needs 64. Each layer's bias and
-//! requantisation run in the same routine, with `usat` for the two clamps: 16 instructions
-//! per unit where LLVM's rendering of [`Requant::apply`] takes 22.
+//! CMSIS-NN's int8 kernels. Four rows share every activation load, which takes far fewer
+//! instructions per multiply-accumulate than ARMv6-M code (`super::thumb`). Each layer's bias
+//! and requantisation run in the same routine, with `usat` for the two clamps, shorter than
+//! LLVM's rendering of [`Requant::apply`]. The counts are in `docs/QUANTISATION.md`.
 //!
 //! Integer sums are the same in any order and the requantisation is [`Requant::apply`]'s
 //! arithmetic, so the activations and Q-values are the portable code's, bit for bit; the

@@ -124,7 +124,6 @@ fn the_forward_pass_is_the_layer_formulas_for_any_weights_and_input() {
             let obs: [i16; 4] = core::array::from_fn(|_| rng.next_u32() as i16);
             assert_eq!(n16.forward(&obs), forward_reference(&n16, &obs));
             assert_eq!(n24.forward(&obs), forward_reference(&n24, &obs));
-            assert_eq!(n16.forward(&obs), n16.forward_portable(&obs));
         }
     }
     // The shipped network on a balanced state, a leaning one and the format's extremes.

@@ -2,10 +2,10 @@
 //! (ARMv6-M's instruction set, which the larger cores execute too).
 //!
 //! Compiled from Rust, LLVM keeps the unrolled loop's constant offsets in stack slots on the
-//! M0's eight low registers and spends about eight instructions per multiply-accumulate.
-//! Here each activation is loaded once for both rows, and one index register addresses the
-//! two weight rows and the activations at once (`ldrsb`/`ldrb` with a register offset): eight
-//! instructions per two multiply-accumulates. Integer addition is associative, so the sums
+//! M0's eight low registers and reloads them for every multiply-accumulate. Here each
+//! activation is loaded once for both rows, and one index register addresses the two weight
+//! rows and the activations at once (`ldrsb`/`ldrb` with a register offset); the counts
+//! are in `docs/QUANTISATION.md`. Integer addition is associative, so the sums
 //! are [`super::dot_u8`]'s, bit for bit, whatever the order; the tests and the self-test
 //! check it anyway.
 #![allow(unsafe_code)]
