@@ -242,8 +242,10 @@ int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
 
 /* The same period on a measured state {x (m), x_dot (m/s), theta (rad), theta_dot
  * (rad/s)}, for a board that reads the state, not encoders. A NaN, infinite or out-of-range
- * channel is not an error: the controller rejects the reading, coasts and flags it. An
- * instance reads counts or states, whichever its first step was given. */
+ * channel is not an error: the controller rejects the reading, coasts and flags it. The
+ * integer policy takes the state in Q3.12 (SI units times 4096, rounded, saturated), where
+ * a channel NaN or beyond the format is flagged out of range. An instance reads counts or
+ * states, whichever its first step was given. */
 int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
                                    cartpole_command_t *out);
 

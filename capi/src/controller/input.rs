@@ -48,8 +48,16 @@ impl Format for [f32; OBS_DIM] {
 
 /// The integer pipeline's one float step, as for a Rust board handed float readings.
 impl Format for [i16; OBS_DIM] {
+    /// A NaN channel reads as saturated, which the integer format rejects as a value unknown:
+    /// rounded, it would read as 0, a plausible state the policy would act on.
     fn exact(state: &[f32; OBS_DIM]) -> Self {
-        fixed::from_state(state)
+        state.map(|v| {
+            if v.is_nan() {
+                i16::MAX
+            } else {
+                fixed::from_f32(v)
+            }
+        })
     }
     fn scores(q: [i32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
         ([0.0; N_ACTIONS], q)
