@@ -39,8 +39,8 @@ void cartpole_policy_forward_int(const int16_t obs[4], int32_t q[2]);
 
 /* One macro per network format declares a width's struct and function as every exported
  * header of that width does; each expansion sits under the exported headers' own guard, so
- * either header may come first. The macros are undefined at the end: the header defines no
- * other names. */
+ * either header may come first. The macros are undefined at the end: they are not the
+ * header's to export. */
 #ifdef __cplusplus
 #define CARTPOLE_EXTERN_C extern "C"
 #else
@@ -141,5 +141,128 @@ CARTPOLE_DECLARE_QMLP(256);
 #undef CARTPOLE_DECLARE_QMLP
 #undef CARTPOLE_DECLARE_MLP
 #undef CARTPOLE_EXTERN_C
+
+/* The whole controller: one control period of the Rust firmware's
+ * firmware::controller::Controller::step, the period the trainer, the simulator, the
+ * self-test and the Rust boards run, built from the shipped policy and the RIG it was
+ * exported with (the observer's plant, encoders, dead time and tuning, the dead-time
+ * predictor, the track's limits, the control period). A board:
+ *
+ *     static cartpole_controller_t ctl;
+ *     uint32_t period_us;
+ *     cartpole_controller_init(&ctl, CARTPOLE_POLICY_INT);   once, at start-up
+ *     cartpole_controller_period_us(&ctl, &period_us);       start a timer at this period
+ *     each period:
+ *         cartpole_command_t cmd;
+ *         cartpole_controller_step(&ctl, cart_counts(), pole_counts(), &cmd);
+ *         if the direction pin changes: the enable's duty to 0 first (break before make)
+ *         direction pin = cmd.direction; the enable's duty = cmd.duty of CARTPOLE_DUTY_MAX
+ *
+ * Every function returns CARTPOLE_OK (0) or a negative CARTPOLE_ERR_*, and a refused call
+ * writes nothing and runs nothing. No heap, no global state: each cartpole_controller_t is
+ * one controller, caller-allocated (static, or on a stack that outlives its use); copying
+ * one copies the controller. Steps of one instance must not run concurrently. */
+
+/* The bytes of cartpole_controller_t, on every target: the library checks at compile time
+ * that each policy's controller fits. Its alignment is its union's: that of uint64_t, double
+ * and void * (8 on Cortex-M, RISC-V and 64-bit hosts). */
+#define CARTPOLE_CONTROLLER_SIZE 640
+/* Full scale of cartpole_command_t's duty: the motor's full push. */
+#define CARTPOLE_DUTY_MAX 1000
+/* The fault bits of cartpole_command_t: channel (0 x, 1 x_dot, 2 theta, 3 theta_dot) NaN or
+ * infinite, or beyond the rig's limits (near the track's end stops, a fallen pole). */
+#define CARTPOLE_FAULT_NON_FINITE(channel) (1u << (channel))
+#define CARTPOLE_FAULT_OUT_OF_RANGE(channel) (1u << (4 + (channel)))
+
+/* Return codes. */
+enum cartpole_status {
+    CARTPOLE_OK = 0,
+    CARTPOLE_ERR_NULL = -1,          /* a pointer argument was NULL */
+    CARTPOLE_ERR_UNINITIALISED = -2, /* c was not initialised by cartpole_controller_init */
+    CARTPOLE_ERR_POLICY_KIND = -3,   /* no such policy kind */
+    CARTPOLE_ERR_INPUT = -4          /* counts to an instance that has read states, or back */
+};
+
+/* The shipped policies. */
+enum cartpole_policy_kind {
+    CARTPOLE_POLICY_F32 = 1, /* the float network (a core with an FPU) */
+    CARTPOLE_POLICY_INT = 2  /* the integer network, integer from the estimate to the decision */
+};
+
+/* cartpole_command_t's command. */
+enum cartpole_push {
+    CARTPOLE_PUSH_LEFT = -1,
+    CARTPOLE_COAST = 0, /* duty off: the reading was rejected */
+    CARTPOLE_PUSH_RIGHT = 1
+};
+
+/* One controller; opaque. Initialise it with cartpole_controller_init before any other
+ * call: others refuse memory it did not initialise (CARTPOLE_ERR_UNINITIALISED). */
+typedef struct cartpole_controller {
+    union {
+        unsigned char bytes[CARTPOLE_CONTROLLER_SIZE];
+        uint64_t align_u64;
+        double align_double;
+        void *align_pointer;
+    } opaque;
+} cartpole_controller_t;
+
+/* What one period decided and what its H-bridge pins are now. */
+typedef struct cartpole_command {
+    int32_t command;    /* CARTPOLE_PUSH_LEFT, CARTPOLE_COAST or CARTPOLE_PUSH_RIGHT */
+    uint32_t direction; /* direction pin: 1 high (pushes towards +x), 0 low; kept when coasting */
+    uint32_t duty;      /* enable's duty: 0 (off) to CARTPOLE_DUTY_MAX (the full push) */
+    uint32_t faults;    /* CARTPOLE_FAULT_* bits of this period's reading; 0 if accepted */
+    float q[2];         /* the float policy's [Q(left), Q(right)]; NaN if rejected; 0 for int */
+    int32_t q_int[2];   /* the integer policy's outputs; 0 if rejected; 0 for float */
+    uint32_t step;      /* the period's number, from 0 */
+} cartpole_command_t;
+
+/* Totals since cartpole_controller_init; they saturate rather than wrap. */
+typedef struct cartpole_counters {
+    uint32_t steps;             /* periods run */
+    uint32_t rejected_readings; /* periods that coasted on a rejected reading */
+    uint32_t non_finite;        /* channels read as NaN or infinite */
+    uint32_t out_of_range;      /* channels read beyond the rig's limits */
+    uint32_t overruns;          /* ticks reported by cartpole_controller_record_overruns */
+} cartpole_counters_t;
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* Makes *c a controller of the shipped policy policy_kind (enum cartpole_policy_kind) that
+ * has run no period; again on an instance, starts it afresh. Solves the observer's gain:
+ * call it at start-up, not in the control interrupt. */
+int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
+
+/* One control period on this period's encoder counts (cart: counts per metre of travel,
+ * pole: counts per revolution, zero upright, as the RIG's encoders; the first counts are
+ * taken at rest), read through the rig's observer; the command in *out. */
+int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
+                             int32_t pole_counts, cartpole_command_t *out);
+
+/* The same period on a measured state {x (m), x_dot (m/s), theta (rad), theta_dot
+ * (rad/s)}, for a board that reads the state, not encoders. A NaN, infinite or out-of-range
+ * channel is not an error: the controller rejects the reading, coasts and flags it. The
+ * integer policy takes the state in Q3.12 (SI units times 4096, rounded, saturated), where
+ * a channel NaN or beyond the format is flagged out of range. An instance reads counts or
+ * states, whichever its first step was given. */
+int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
+                                   cartpole_command_t *out);
+
+/* The totals in *out. */
+int cartpole_controller_counters(const cartpole_controller_t *c, cartpole_counters_t *out);
+
+/* Counts ticks timer ticks that arrived while the last step still ran: the loop pacing the
+ * controller knows them, the controller does not. */
+int cartpole_controller_record_overruns(cartpole_controller_t *c, uint32_t ticks);
+
+/* The control period of the rig the policy was trained for, in microseconds (rounded). */
+int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *period_us);
+
+#ifdef __cplusplus
+}
+#endif
 
 #endif /* CARTPOLE_POLICY_H */

@@ -1,0 +1,122 @@
+//! What a C caller hands each period, behind the controller's [`StateSensor`]: encoder
+//! counts, read through the rig's observer exactly as a Rust board reads them
+//! ([`ObserverSensor`]), or the state itself, for a board that measures it.
+
+use core::convert::Infallible;
+
+use firmware::controller::{Command, StateSensor};
+use firmware::estimator::{Estimate, ObserverSensor};
+use firmware::fixed;
+use firmware::loopback::Latest;
+use firmware::network::{N_ACTIONS, OBS_DIM};
+
+/// One period's input from C.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Handed {
+    /// Encoder counts `(cart, pole)`.
+    Counts(i32, i32),
+    /// `[x, x_dot, theta, theta_dot]` in SI units.
+    State([f32; OBS_DIM]),
+}
+
+/// Which kind of input an instance reads: the first step decides. Mixing them would feed
+/// the observer a stale estimate after a run of states, so the other kind is refused.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Reads {
+    Undecided,
+    Counts,
+    State,
+}
+
+/// A reading format of the controller, as C hands it in and reads its scores back.
+pub(crate) trait Format: Estimate {
+    /// A measured state in this format.
+    fn exact(state: &[f32; OBS_DIM]) -> Self;
+    /// The scores as C's pair of float scores and pair of integer scores; the format that is
+    /// not this one's reads zero.
+    fn scores(q: Self::Scores) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]);
+}
+
+impl Format for [f32; OBS_DIM] {
+    fn exact(state: &[f32; OBS_DIM]) -> Self {
+        *state
+    }
+    fn scores(q: [f32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
+        (q, [0; N_ACTIONS])
+    }
+}
+
+/// The integer pipeline's one float step, as for a Rust board handed float readings.
+impl Format for [i16; OBS_DIM] {
+    /// A NaN channel reads as saturated, which the integer format rejects as a value unknown:
+    /// rounded, it would read as 0, a plausible state the policy would act on.
+    fn exact(state: &[f32; OBS_DIM]) -> Self {
+        state.map(|v| {
+            if v.is_nan() {
+                i16::MAX
+            } else {
+                fixed::from_f32(v)
+            }
+        })
+    }
+    fn scores(q: [i32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
+        ([0.0; N_ACTIONS], q)
+    }
+}
+
+/// The controller's sensor for C: the encoders through the observer, or the handed state.
+pub(crate) struct Input<O> {
+    encoders: ObserverSensor<Latest, O>,
+    state: [f32; OBS_DIM],
+    reads: Reads,
+}
+
+impl<O> Input<O> {
+    /// Reads through `encoders` once handed counts.
+    pub(crate) fn new(encoders: ObserverSensor<Latest, O>) -> Self {
+        Input {
+            encoders,
+            state: [0.0; OBS_DIM],
+            reads: Reads::Undecided,
+        }
+    }
+
+    /// Takes this period's input; `false` (and nothing taken) if it is not the kind this
+    /// instance has read so far.
+    pub(crate) fn hand(&mut self, handed: Handed) -> bool {
+        let kind = match handed {
+            Handed::Counts(..) => Reads::Counts,
+            Handed::State(_) => Reads::State,
+        };
+        if self.reads != Reads::Undecided && self.reads != kind {
+            return false;
+        }
+        self.reads = kind;
+        match handed {
+            Handed::Counts(cart, pole) => self.encoders.counter_mut().0 = (cart, pole),
+            Handed::State(state) => self.state = state,
+        }
+        true
+    }
+}
+
+impl<O: Format> StateSensor for Input<O> {
+    type Reading = O;
+    type Error = Infallible;
+
+    #[inline]
+    fn read(&mut self) -> Result<O, Infallible> {
+        match self.reads {
+            Reads::State => Ok(O::exact(&self.state)),
+            Reads::Counts | Reads::Undecided => self.encoders.read(),
+        }
+    }
+
+    /// Only the observer models the commands; a measured state needs none.
+    #[inline]
+    fn commanded(&mut self, command: Command) {
+        if self.reads == Reads::Counts {
+            self.encoders.commanded(command);
+        }
+    }
+}

@@ -1,0 +1,298 @@
+//! The whole control period for C, declared in `capi/include/cartpole_policy.h`:
+//!
+//! ```c
+//! int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
+//! int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
+//!                              int32_t pole_counts, cartpole_command_t *out);
+//! int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
+//!                                    cartpole_command_t *out);
+//! int cartpole_controller_counters(const cartpole_controller_t *c, cartpole_counters_t *out);
+//! int cartpole_controller_record_overruns(cartpole_controller_t *c, uint32_t ticks);
+//! int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *period_us);
+//! ```
+//!
+//! A step is [`Controller::step`](firmware::controller::Controller::step), the period the
+//! trainer, the simulator, the self-test and the Rust boards run, on a controller built as
+//! they build theirs from the shipped policy's `RIG`. Its H-bridge is the loopback's
+//! in-memory pins ([`firmware::loopback::Pins`]), read back into the command C drives its
+//! own bridge from.
+//!
+//! Every call returns [`CARTPOLE_OK`] or a negative error, and a refused call writes
+//! nothing: a NULL pointer ([`CARTPOLE_ERR_NULL`]), a `cartpole_controller_t` that
+//! `cartpole_controller_init` did not initialise ([`CARTPOLE_ERR_UNINITIALISED`]), an unknown
+//! policy ([`CARTPOLE_ERR_POLICY_KIND`]), or a step of the other input kind than the
+//! instance's first ([`CARTPOLE_ERR_INPUT`]). Pointers arrive as `Option<&T>`, as in the
+//! forward passes; non-NULL ones must be valid and aligned.
+
+use core::ffi::c_int;
+
+use firmware::controller::{FaultCounters, FaultFlags, Reading};
+use firmware::loopback::{Duty, Level};
+use firmware::network::{N_ACTIONS, OBS_DIM};
+
+mod input;
+mod storage;
+
+use input::{Format, Handed};
+pub use storage::{CONTROLLER_SIZE, CartpoleController};
+use storage::{F32, Int, Shipped, Slot, slot, slot_mut};
+
+/// The call did what it says.
+pub const CARTPOLE_OK: c_int = 0;
+/// A pointer argument was NULL.
+pub const CARTPOLE_ERR_NULL: c_int = -1;
+/// The `cartpole_controller_t` was not initialised by `cartpole_controller_init`.
+pub const CARTPOLE_ERR_UNINITIALISED: c_int = -2;
+/// `cartpole_controller_init` was given no known policy kind.
+pub const CARTPOLE_ERR_POLICY_KIND: c_int = -3;
+/// Counts handed to an instance that has read states, or the other way round.
+pub const CARTPOLE_ERR_INPUT: c_int = -4;
+
+/// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
+pub const CARTPOLE_POLICY_F32: c_int = 1;
+/// `CARTPOLE_POLICY_INT`: the shipped integer policy (`firmware::policy_int`), integer
+/// arithmetic from the observer's estimate to the decision.
+pub const CARTPOLE_POLICY_INT: c_int = 2;
+
+/// `cartpole_command_t`: what one period decided and drove.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CartpoleCommand {
+    /// `-1` push left, `0` coast, `1` push right ([`Command::level`](firmware::controller::Command::level)).
+    pub command: i32,
+    /// The direction pin: `1` high (pushes towards +x), `0` low. Kept while coasting.
+    pub direction: u32,
+    /// The enable's duty, `0` (off) to [`firmware::loopback::MAX_DUTY`] (the full push).
+    pub duty: u32,
+    /// The period's [`FaultFlags`](firmware::controller::FaultFlags) bits; `0` when the
+    /// reading was accepted.
+    pub faults: u32,
+    /// The float policy's Q-values `[left, right]` (NaN when the reading was rejected); zero
+    /// for the integer policy.
+    pub q: [f32; N_ACTIONS],
+    /// The integer policy's outputs (zero when the reading was rejected); zero for the float
+    /// policy.
+    pub q_int: [i32; N_ACTIONS],
+    /// The period's number, from 0.
+    pub step: u32,
+}
+
+/// `cartpole_counters_t`: totals since `cartpole_controller_init`, saturating.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CartpoleCounters {
+    /// Periods run.
+    pub steps: u32,
+    /// Periods whose reading was rejected, and which coasted.
+    pub rejected_readings: u32,
+    /// Channels read as NaN or infinite.
+    pub non_finite: u32,
+    /// Channels read beyond the rig's limits.
+    pub out_of_range: u32,
+    /// Timer ticks reported by `cartpole_controller_record_overruns`.
+    pub overruns: u32,
+}
+
+/// What C asks of an instance, whichever policy it runs.
+trait Run {
+    /// One period on `handed`; `None` when the instance reads the other kind of input.
+    fn step(&mut self, handed: Handed) -> Option<CartpoleCommand>;
+    fn counters(&self) -> CartpoleCounters;
+    fn record_overruns(&mut self, ticks: u32);
+    fn period_us(&self) -> u32;
+}
+
+impl<K: Shipped> Run for Slot<K> {
+    fn step(&mut self, handed: Handed) -> Option<CartpoleCommand> {
+        let c = &mut self.controller;
+        if !c.sensor_mut().hand(handed) {
+            return None;
+        }
+        let command = c.step();
+        let (&Level(direction), &Duty(duty)) = c.actuator().pins();
+        // `step` has just recorded its period: the fallback is never taken.
+        let (step, q, faults) = c.last().map_or(
+            (
+                c.steps(),
+                <K::Reading as Reading>::UNSCORED,
+                FaultFlags::default(),
+            ),
+            |r| (r.step, r.q, r.faults),
+        );
+        let (q, q_int) = K::Reading::scores(q);
+        Some(CartpoleCommand {
+            command: command.level() as i32,
+            direction: direction.into(),
+            duty: duty.into(),
+            faults: faults.0.into(),
+            q,
+            q_int,
+            step,
+        })
+    }
+
+    fn counters(&self) -> CartpoleCounters {
+        let FaultCounters {
+            rejected_readings,
+            non_finite,
+            out_of_range,
+            overruns,
+            ..
+        } = self.controller.faults();
+        CartpoleCounters {
+            steps: self.controller.steps(),
+            rejected_readings,
+            non_finite,
+            out_of_range,
+            overruns,
+        }
+    }
+
+    fn record_overruns(&mut self, ticks: u32) {
+        self.controller.record_overruns(ticks);
+    }
+
+    fn period_us(&self) -> u32 {
+        self.period_us
+    }
+}
+
+/// The instance in `c`, whichever policy initialised it.
+fn instance(c: &CartpoleController) -> Result<&dyn Run, c_int> {
+    match (slot::<F32>(c), slot::<Int>(c)) {
+        (Some(s), _) => Ok(s),
+        (_, Some(s)) => Ok(s),
+        (None, None) => Err(CARTPOLE_ERR_UNINITIALISED),
+    }
+}
+
+/// [`instance`], to run it.
+fn instance_mut(c: &mut CartpoleController) -> Result<&mut dyn Run, c_int> {
+    // Which policy first, then the one borrow to return.
+    let run: Option<&mut dyn Run> = if slot::<F32>(c).is_some() {
+        slot_mut::<F32>(c).map(|s| s as _)
+    } else {
+        slot_mut::<Int>(c).map(|s| s as _)
+    };
+    run.ok_or(CARTPOLE_ERR_UNINITIALISED)
+}
+
+/// `Ok` as [`CARTPOLE_OK`], an error as its code.
+fn status(done: Result<(), c_int>) -> c_int {
+    done.err().unwrap_or(CARTPOLE_OK)
+}
+
+/// Runs `handed` through the instance in `c` and writes the command to `out`; on any
+/// refusal writes nothing and runs nothing.
+fn step(
+    c: Option<&mut CartpoleController>,
+    handed: Option<Handed>,
+    out: Option<&mut CartpoleCommand>,
+) -> c_int {
+    let (Some(c), Some(handed), Some(out)) = (c, handed, out) else {
+        return CARTPOLE_ERR_NULL;
+    };
+    status(
+        instance_mut(c)
+            .and_then(|r| r.step(handed).ok_or(CARTPOLE_ERR_INPUT))
+            .map(|command| *out = command),
+    )
+}
+
+/// Makes `c` a controller of the shipped policy `policy_kind` ([`CARTPOLE_POLICY_F32`] or
+/// [`CARTPOLE_POLICY_INT`]) on its `RIG`, which has run no period: the observer starts
+/// from the first counts at rest. Solves the observer's gain: call it at start-up, not in
+/// the control interrupt. Initialising an instance again starts it afresh.
+// SAFETY: exporting an unmangled symbol is `unsafe` because two such symbols with one name
+// would clash at link time; this crate defines each C name once.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_init(
+    c: Option<&mut CartpoleController>,
+    policy_kind: c_int,
+) -> c_int {
+    let Some(c) = c else {
+        return CARTPOLE_ERR_NULL;
+    };
+    match policy_kind {
+        CARTPOLE_POLICY_F32 => Slot::<F32>::new(&F32::RIG).store(c),
+        CARTPOLE_POLICY_INT => Slot::<Int>::new(&Int::RIG).store(c),
+        _ => return CARTPOLE_ERR_POLICY_KIND,
+    }
+    CARTPOLE_OK
+}
+
+/// One control period on this period's encoder counts, read through the rig's observer;
+/// the command it decided and drove in `out`.
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_step(
+    c: Option<&mut CartpoleController>,
+    cart_counts: i32,
+    pole_counts: i32,
+    out: Option<&mut CartpoleCommand>,
+) -> c_int {
+    step(c, Some(Handed::Counts(cart_counts, pole_counts)), out)
+}
+
+/// One control period on a measured state `[x, x_dot, theta, theta_dot]` (SI units), for
+/// a board that reads the state rather than encoders; a NaN, infinite or out-of-range
+/// channel is the controller's to reject (it coasts and flags it).
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_step_state(
+    c: Option<&mut CartpoleController>,
+    state: Option<&[f32; OBS_DIM]>,
+    out: Option<&mut CartpoleCommand>,
+) -> c_int {
+    step(c, state.map(|s| Handed::State(*s)), out)
+}
+
+/// The instance's totals in `out`.
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_counters(
+    c: Option<&CartpoleController>,
+    out: Option<&mut CartpoleCounters>,
+) -> c_int {
+    let (Some(c), Some(out)) = (c, out) else {
+        return CARTPOLE_ERR_NULL;
+    };
+    status(instance(c).map(|r| *out = r.counters()))
+}
+
+/// Counts `ticks` timer ticks that arrived while the last step still ran: the loop that
+/// paces the controller knows them, the controller does not.
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_record_overruns(
+    c: Option<&mut CartpoleController>,
+    ticks: u32,
+) -> c_int {
+    let Some(c) = c else {
+        return CARTPOLE_ERR_NULL;
+    };
+    status(instance_mut(c).map(|r| r.record_overruns(ticks)))
+}
+
+/// The control period of the rig the policy was trained for, in microseconds (rounded), in
+/// `period_us`: the period to call a step at.
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_period_us(
+    c: Option<&CartpoleController>,
+    period_us: Option<&mut u32>,
+) -> c_int {
+    let (Some(c), Some(out)) = (c, period_us) else {
+        return CARTPOLE_ERR_NULL;
+    };
+    status(instance(c).map(|r| *out = r.period_us()))
+}
+
+#[cfg(test)]
+mod tests;

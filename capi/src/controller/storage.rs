@@ -1,0 +1,181 @@
+//! The caller-allocated `cartpole_controller_t`: opaque bytes that hold one controller for
+//! one of the shipped policies, and the magic word that tells an initialised one from any
+//! other memory. The only `unsafe` of the controller's API is here: reading the magic from
+//! memory C hands over, and viewing the bytes as the controller the magic names.
+
+use core::ffi::c_void;
+use core::mem::{MaybeUninit, align_of, size_of};
+
+use firmware::controller::{Controller, Policy};
+use firmware::estimator::ObserverSensor;
+use firmware::loopback::{self, Latest, Pins};
+use firmware::network::Mlp;
+use firmware::network::int::QMlp;
+use firmware::rig::Rig;
+
+use super::input::{Format, Input};
+
+/// `CARTPOLE_CONTROLLER_SIZE`: the bytes of `cartpole_controller_t`, one value for every
+/// target so that C code can allocate it statically without knowing the library's layout.
+pub const CONTROLLER_SIZE: usize = 640;
+
+/// `cartpole_controller_t`: aligned as the union of the C header (`uint64_t`, `double`,
+/// `void *`) aligns it, which C99 can say without `_Alignas`.
+#[repr(C)]
+pub struct CartpoleController {
+    opaque: Opaque,
+}
+
+#[repr(C)]
+union Opaque {
+    bytes: [MaybeUninit<u8>; CONTROLLER_SIZE],
+    align_u64: u64,
+    align_double: f64,
+    align_pointer: *mut c_void,
+}
+
+/// One of the shipped policies with the reading format its controller runs in and the rig
+/// it was exported with.
+pub(crate) trait Shipped: 'static {
+    /// The reading format of its controller.
+    type Reading: Format;
+    /// The network, as the controller holds it.
+    type Policy: Policy<Self::Reading>;
+    /// What the first word of an instance of this policy holds.
+    const MAGIC: u32;
+    /// The machine it was trained for.
+    const RIG: Rig;
+    /// The network.
+    fn policy() -> Self::Policy;
+}
+
+/// The float policy, `firmware::policy`.
+pub(crate) struct F32;
+/// The integer policy, `firmware::policy_int`.
+pub(crate) struct Int;
+
+impl Shipped for F32 {
+    type Reading = [f32; 4];
+    type Policy = &'static Mlp<64>;
+    const MAGIC: u32 = u32::from_be_bytes(*b"CPf1");
+    const RIG: Rig = firmware::policy::RIG;
+    fn policy() -> Self::Policy {
+        &firmware::policy::POLICY
+    }
+}
+
+impl Shipped for Int {
+    type Reading = [i16; 4];
+    type Policy = &'static QMlp<64>;
+    const MAGIC: u32 = u32::from_be_bytes(*b"CPi1");
+    const RIG: Rig = firmware::policy_int::RIG;
+    fn policy() -> Self::Policy {
+        &firmware::policy_int::POLICY_INT
+    }
+}
+
+/// The controller C runs: one telemetry record, the period's own, is all C reads back.
+pub(crate) type Running<K> =
+    Controller<<K as Shipped>::Policy, Input<<K as Shipped>::Reading>, Pins, 1>;
+
+/// What an initialised `cartpole_controller_t` holds; `magic` first, where [`magic`] reads
+/// it whichever policy wrote it.
+#[repr(C)]
+pub(crate) struct Slot<K: Shipped> {
+    magic: u32,
+    /// The rig's control period, rounded to microseconds.
+    pub(crate) period_us: u32,
+    pub(crate) controller: Running<K>,
+}
+
+impl<K: Shipped> Slot<K> {
+    /// Fails to compile for a policy whose slot the C type cannot hold.
+    const FITS: () = {
+        assert!(size_of::<Slot<K>>() <= size_of::<CartpoleController>());
+        assert!(align_of::<Slot<K>>() <= align_of::<CartpoleController>());
+    };
+
+    /// A controller for `rig` as every Rust board builds one: the rig's observer behind
+    /// the encoders, its predictor if it has dead time, its limits, pins not yet driven.
+    /// Solves the observer's gain: once, at start-up.
+    pub(crate) fn new(rig: &Rig) -> Self {
+        let encoders = ObserverSensor::new(rig.observer(), Latest::default());
+        let controller = Controller::with_history(
+            K::policy(),
+            Input::new(encoders),
+            loopback::pins(),
+            rig.limits(),
+        );
+        let controller = if rig.dead_time > 0 {
+            controller.with_predictor(rig.predictor())
+        } else {
+            controller
+        };
+        Slot {
+            magic: K::MAGIC,
+            // `as` saturates: a nonsense period reads as 0 or the largest, never wraps.
+            period_us: (rig.params.tau * 1e6 + 0.5) as u32,
+            controller,
+        }
+    }
+
+    /// Puts `self` in `c`, which from now on is an instance of this policy.
+    pub(crate) fn store(self, c: &mut CartpoleController) {
+        let () = Self::FITS;
+        let at = (c as *mut CartpoleController).cast::<Slot<K>>();
+        // SAFETY: `FITS` holds at compile time, so `c` has room for a `Slot<K>` and is
+        // aligned for it; `write` drops nothing of what `c` held (bytes, or an earlier slot,
+        // which owns nothing: its policy is a `&'static`).
+        #[allow(unsafe_code)]
+        unsafe {
+            at.write(self)
+        };
+    }
+}
+
+/// The magic word in `c`: one of the policies' only if `c` was initialised for it.
+fn magic(c: &CartpoleController) -> u32 {
+    let at = (c as *const CartpoleController).cast::<u32>();
+    // SAFETY: `c` spans `CONTROLLER_SIZE` (at least four) bytes aligned for a u64, so for
+    // a u32, and any four bytes are a u32. Memory C never wrote holds bytes of unknown
+    // value, not Rust's uninitialised ones: it reaches Rust through a pointer the compiler
+    // cannot see behind, and Rust code outside this crate cannot make a
+    // `CartpoleController` (its field is private).
+    #[allow(unsafe_code)]
+    unsafe {
+        at.read()
+    }
+}
+
+/// `c` as the slot of the policy `K`, if its magic says it is one.
+pub(crate) fn slot<K: Shipped>(c: &CartpoleController) -> Option<&Slot<K>> {
+    let () = Slot::<K>::FITS;
+    let at = (c as *const CartpoleController).cast::<Slot<K>>();
+    // SAFETY: the magic of `K` is only ever written by `Slot::<K>::store`, which wrote a
+    // whole `Slot<K>` there (room and alignment by `FITS`); a slot owns no pointers but
+    // `&'static` ones, so a C copy of the bytes is a valid slot too.
+    #[allow(unsafe_code)]
+    (magic(c) == K::MAGIC).then(|| unsafe { &*at })
+}
+
+/// [`slot`], to change it.
+pub(crate) fn slot_mut<K: Shipped>(c: &mut CartpoleController) -> Option<&mut Slot<K>> {
+    let () = Slot::<K>::FITS;
+    let is_k = magic(c) == K::MAGIC;
+    let at = (c as *mut CartpoleController).cast::<Slot<K>>();
+    // SAFETY: as for `slot`; `c` is borrowed mutably for as long as the slot is.
+    #[allow(unsafe_code)]
+    is_k.then(|| unsafe { &mut *at })
+}
+
+#[cfg(test)]
+impl CartpoleController {
+    /// Memory C might hand over without initialising it: every byte `byte`.
+    pub(crate) fn filled(byte: u8) -> Self {
+        CartpoleController {
+            opaque: Opaque {
+                bytes: [MaybeUninit::new(byte); CONTROLLER_SIZE],
+            },
+        }
+    }
+}

@@ -1,0 +1,119 @@
+//! What the C program of `tests/c_controller.rs` cannot reach: the shipped rigs have no dead
+//! time and a 20 ms period, so other rigs are built here.
+
+use super::*;
+use firmware::cartpole::{Params, State, advance};
+use firmware::controller::{Controller, Predictor};
+use firmware::estimator::ObserverSensor;
+use firmware::loopback::{self, Latest};
+use firmware::policy::{POLICY, RIG};
+use firmware::rig::Rig;
+
+extern crate std;
+use std::vec::Vec;
+
+/// The shipped rig with `delay` periods of dead time.
+fn delayed(delay: u32) -> Rig {
+    Rig {
+        dead_time: delay,
+        ..RIG
+    }
+}
+
+/// Each period's command (`-1`, `0`, `1`) and Q-values' bits.
+type Decisions = Vec<(i32, [u32; 2])>;
+
+/// The library's commands and Q-values over a closed loop, and those of the firmware's
+/// controller with `predictor`, on the same counts.
+fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
+    let mut slot = Slot::<F32>::new(rig);
+    let sensor = ObserverSensor::new(rig.observer(), Latest::default());
+    let mut reference = Controller::new(&POLICY, sensor, loopback::pins(), rig.limits());
+    if let Some(p) = predictor {
+        reference = reference.with_predictor(p);
+    }
+    let mut s = State::from_array([0.0, 0.1, 0.04, -0.1]);
+    let (mut got, mut want) = (Vec::new(), Vec::new());
+    for _ in 0..200 {
+        let (cart, pole) = rig.encoders.counts(s.x, s.theta);
+        let out = slot.step(Handed::Counts(cart, pole)).unwrap();
+        got.push((out.command, out.q.map(f32::to_bits)));
+        reference.sensor_mut().counter_mut().0 = (cart, pole);
+        let command = reference.step();
+        let q = reference.last().unwrap().q.map(f32::to_bits);
+        want.push((command.level() as i32, q));
+        s = advance(&rig.params, &s, f64::from(command.level()), 0.0);
+    }
+    (got, want)
+}
+
+#[test]
+fn an_instance_of_a_rig_with_dead_time_decides_through_the_rigs_predictor() {
+    let rig = delayed(2);
+    let (got, want) = against(&rig, Some(rig.predictor()));
+    assert_eq!(got, want);
+    // Without the predictor the same counts score otherwise: the comparison sees it.
+    let (got, want) = against(&rig, None);
+    assert_ne!(got, want);
+}
+
+#[test]
+fn the_period_is_the_rigs_tau_in_whole_microseconds() {
+    for (tau, us) in [
+        (0.02, 20_000),
+        (0.0125, 12_500),
+        (1.0 / 3.0, 333_333),
+        (2e-7, 0),
+    ] {
+        let rig = Rig {
+            params: Params { tau, ..RIG.params },
+            ..RIG
+        };
+        assert_eq!(Slot::<Int>::new(&rig).period_us(), us, "tau {tau}");
+    }
+}
+
+#[test]
+fn memory_init_did_not_write_is_refused_by_every_call() {
+    let mut out = CartpoleCommand {
+        command: 7,
+        direction: 7,
+        duty: 7,
+        faults: 7,
+        q: [7.0; 2],
+        q_int: [7; 2],
+        step: 7,
+    };
+    let before = out;
+    for byte in [0x00, 0xab, 0xff] {
+        out = before;
+        let mut c = CartpoleController::filled(byte);
+        let state = [0.0; 4];
+        assert_eq!(
+            cartpole_controller_step(Some(&mut c), 1, 2, Some(&mut out)),
+            CARTPOLE_ERR_UNINITIALISED
+        );
+        assert_eq!(
+            cartpole_controller_step_state(Some(&mut c), Some(&state), Some(&mut out)),
+            CARTPOLE_ERR_UNINITIALISED
+        );
+        assert_eq!(out, before);
+        assert_eq!(
+            cartpole_controller_init(Some(&mut c), 0),
+            CARTPOLE_ERR_POLICY_KIND
+        );
+        assert_eq!(
+            cartpole_controller_record_overruns(Some(&mut c), 1),
+            CARTPOLE_ERR_UNINITIALISED
+        );
+        assert_eq!(
+            cartpole_controller_init(Some(&mut c), CARTPOLE_POLICY_INT),
+            CARTPOLE_OK
+        );
+        assert_eq!(
+            cartpole_controller_step(Some(&mut c), 1, 2, Some(&mut out)),
+            CARTPOLE_OK
+        );
+        assert_eq!(out.step, 0);
+    }
+}
