@@ -133,6 +133,13 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the motor's stall force",
     },
     PartSpec {
+        key: "damping",
+        fields: &[FACTOR],
+        syntax: "damping=F",
+        doc: "F times the motor's damping (back-EMF and drag, N s/m; none on Gymnasium's \
+              machine, so nothing to scale there)",
+    },
+    PartSpec {
         key: "length",
         fields: &[FACTOR],
         syntax: "length=F",

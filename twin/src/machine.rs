@@ -45,6 +45,8 @@ pub struct Machine {
     pub rig: Rig,
     /// How its world advances.
     pub integration: Integration,
+    /// How far its identified values may be off.
+    pub uncertainty: Uncertainty,
 }
 
 impl Machine {
@@ -52,6 +54,30 @@ impl Machine {
     pub const GYMNASIUM: Machine = Machine {
         rig: Rig::GYMNASIUM,
         integration: Integration::Euler,
+        uncertainty: Uncertainty::NONE,
+    };
+}
+
+/// How far identification could pin a machine's fitted values down: the half-width of each
+/// value's 95% confidence interval, relative to the value. Zero for what was weighed,
+/// measured or given (Gymnasium's machine is exact); training for a machine randomises each
+/// value at least this far around it (`policy_export::config::Config::deploy_on`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Uncertainty {
+    /// The motor's stall force.
+    pub stall_force: f64,
+    /// The motor's damping.
+    pub damping: f64,
+    /// The pole's length to its centre of mass.
+    pub pole_com: f64,
+}
+
+impl Uncertainty {
+    /// Values known exactly.
+    pub const NONE: Uncertainty = Uncertainty {
+        stall_force: 0.0,
+        damping: 0.0,
+        pole_com: 0.0,
     };
 }
 

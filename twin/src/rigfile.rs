@@ -26,8 +26,11 @@
 //! Optional: `gravity_m_s2` (9.8, Gymnasium's), `failure_angle_deg` (12), a `[world]` table
 //! with `integration = "continuous"` (the default: Runge-Kutta steps of at most `substep_s`,
 //! 0.001) or `"euler"` (Gymnasium's one step per period), and an `[observer]` table with the
-//! observer's `force_sd` and `accel_sd` (`firmware::estimator::Tuning`). Every value is
-//! checked: a rig that is not physical is refused, naming the field.
+//! observer's `force_sd` and `accel_sd` (`firmware::estimator::Tuning`), and an
+//! `[identified]` table that `host-sim identify` writes: how far each fitted value may be off
+//! (`stall_force`, `damping`, `pole_com`: the half-width of its 95% interval relative to the
+//! value, [`crate::machine::Uncertainty`]). Every value is checked: a rig that is not
+//! physical is refused, naming the field.
 
 use std::fmt::Write;
 use std::path::Path;
@@ -41,7 +44,7 @@ use weights::{Error, Result, quote};
 use crate::grammar::{
     CART_COUNTS_RANGE, CART_FRICTION_RANGE, PIVOT_FRICTION_RANGE, POLE_COUNTS_RANGE,
 };
-use crate::machine::{Integration, Machine};
+use crate::machine::{Integration, Machine, Uncertainty};
 
 /// The key under which a policy file's metadata records the rig it was trained for, as a
 /// rig file's text.
@@ -99,6 +102,20 @@ struct File {
     #[serde(default)]
     world: World,
     observer: Option<Observer>,
+    #[serde(default)]
+    identified: Identified,
+}
+
+/// The `[identified]` table: each fitted value's 95% half-width, relative to the value.
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+struct Identified {
+    #[serde(default)]
+    stall_force: f64,
+    #[serde(default)]
+    damping: f64,
+    #[serde(default)]
+    pole_com: f64,
 }
 
 #[derive(Deserialize)]
@@ -308,6 +325,18 @@ impl Fields<'_> {
         })
     }
 
+    /// The `[identified]` half-widths: relative, so a value off by more than itself (1) is
+    /// not an identification.
+    fn uncertainty(self, i: &Identified) -> Result<Uncertainty> {
+        let c =
+            |field: &str, v: f64| self.check(&format!("identified.{field}"), v, (0.0, 1.0), false);
+        Ok(Uncertainty {
+            stall_force: c("stall_force", i.stall_force)?,
+            damping: c("damping", i.damping)?,
+            pole_com: c("pole_com", i.pole_com)?,
+        })
+    }
+
     /// How the world advances over periods of `tau`.
     fn integration(self, w: &World, tau: f64) -> Result<Integration> {
         match w.integration.as_str() {
@@ -366,7 +395,12 @@ pub fn parse(text: &str, origin: &str) -> Result<Machine> {
         tuning: fields.tuning(f.observer.as_ref())?,
     };
     let integration = fields.integration(&f.world, params.tau)?;
-    Ok(Machine { rig, integration })
+    let uncertainty = fields.uncertainty(&f.identified)?;
+    Ok(Machine {
+        rig,
+        integration,
+        uncertainty,
+    })
 }
 
 /// `machine` as a rig file that [`parse`] reads back to it, bit for bit (every f64 in its
@@ -418,6 +452,14 @@ pub fn to_toml(machine: &Machine) -> String {
         "\n[observer]\nforce_sd = {:?}\naccel_sd = [{:?}, {:?}]",
         t.force_sd, t.accel_sd[0], t.accel_sd[1]
     );
+    let u = &machine.uncertainty;
+    if *u != Uncertainty::NONE {
+        let _ = writeln!(
+            s,
+            "\n[identified]\nstall_force = {:?}\ndamping = {:?}\npole_com = {:?}",
+            u.stall_force, u.damping, u.pole_com
+        );
+    }
     s
 }
 

@@ -154,6 +154,7 @@ impl Scenario {
             "noise" => self.noise_std = NOISE_STD.map(|v| v * first),
             "delay" => self.rig.dead_time = first as u32,
             "force" => p.force_mag *= first,
+            "damping" => p.motor_damping *= first,
             "length" => p.length *= first,
             "polemass" => p.masspole *= first,
             "cartmass" => p.masscart *= first,

@@ -32,6 +32,7 @@ pub mod synthetic;
 use firmware::cartpole::Params;
 use firmware::identify::Experiment;
 use twin::Machine;
+use twin::machine::Uncertainty;
 use weights::{Error, Result};
 
 pub use fit::{Estimate, Fit, Trace};
@@ -76,6 +77,20 @@ pub fn identified(machine: &Machine, fit: &Fit) -> Machine {
     let mut m = *machine;
     m.rig.params = fit.params;
     m.rig.dead_time = fit.dead_time;
+    // Relative, as training widens its ranges; a value at a bound has no interval, and one
+    // of zero (no damping) nothing to scale.
+    let relative = |i: usize| {
+        let e = fit.estimates[i];
+        match e.half_width {
+            Some(h) if e.value > 0.0 => (h / e.value).min(1.0),
+            _ => 0.0,
+        }
+    };
+    m.uncertainty = Uncertainty {
+        stall_force: relative(model::FORCE),
+        damping: relative(model::DAMPING),
+        pole_com: relative(model::LENGTH),
+    };
     m
 }
 

@@ -57,10 +57,12 @@ fn random_rig(rng: &mut Pcg64Mcg, tau: f64, half: f64) -> (Machine, Machine) {
     let truth = Machine {
         rig,
         integration: Integration::rk4(tau, 0.0002),
+        uncertainty: Default::default(),
     };
     let mut measured = Machine {
         rig,
         integration: Integration::rk4(tau, twin::rigfile::DEFAULT_SUBSTEP_S),
+        uncertainty: Default::default(),
     };
     let p = &mut measured.rig.params;
     p.length *= uniform(rng, 0.9, 1.1);

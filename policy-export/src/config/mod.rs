@@ -343,11 +343,12 @@ impl Config {
         Config::deploy_on(&twin::Machine::GYMNASIUM)
     }
 
-    /// The shipped recipe for `machine`: the same worlds around its rig, with the pushes
-    /// scaled to its motor (a push that takes Gymnasium's motor five periods to answer takes
-    /// this motor as long in seconds) and every count of periods to its control rate (the
-    /// same seconds of pushes and episodes); dead times stay in periods, a board's own unit.
-    /// On Gymnasium's machine it is the shipped recipe exactly.
+    /// The shipped recipe for `machine`: the same worlds around its rig (physics drawn at
+    /// least as wide as its identification's intervals, and its motor's damping too), with
+    /// the pushes scaled to its motor (a push that takes Gymnasium's motor five periods to
+    /// answer takes this motor as long in seconds) and every count of periods to its control
+    /// rate (the same seconds of pushes and episodes); dead times stay in periods, a board's
+    /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
     pub fn deploy_on(machine: &twin::Machine) -> Config {
         let (p, gym) = (&machine.rig.params, &twin::Machine::GYMNASIUM.rig.params);
         let (force, rate) = (p.force_mag / gym.force_mag, gym.tau / p.tau);
@@ -362,9 +363,17 @@ impl Config {
             }
         };
         Config {
-            domain: format!("{DEPLOY_DOMAIN}+{}", push(0.8, 1.2, 50.0)),
-            eval_domain: format!("{DEPLOY_EVAL_DOMAIN}+{}@0.5", push(0.5, 0.5, 100.0)),
-            finalist_domain: format!("{DEPLOY_FINALIST_DOMAIN}+{}", push(1.1, 1.1, 50.0)),
+            domain: format!("{}+{}", deploy_domain(machine), push(0.8, 1.2, 50.0)),
+            eval_domain: format!(
+                "{}+{}@0.5",
+                deploy_eval_domain(machine),
+                push(0.5, 0.5, 100.0)
+            ),
+            finalist_domain: format!(
+                "{}+{}",
+                deploy_finalist_domain(machine),
+                push(1.1, 1.1, 50.0)
+            ),
             compensate: true,
             reward: "upright=20+centre=5".into(),
             episodes: 5000,
@@ -434,24 +443,50 @@ impl Config {
     }
 }
 
+/// The plant's physics a deploy domain draws: the pole's length and mass, the cart's mass
+/// and the motor's stall force (and its damping, on a machine that has some) each within
+/// `1 +- width` of the machine's, or wider where identification left a value more uncertain
+/// than that ([`twin::machine::Uncertainty`]).
+fn physics(width: f64, machine: &twin::Machine) -> String {
+    let u = &machine.uncertainty;
+    let range = |key: &str, u: f64| {
+        let w = width.max(u);
+        format!("{key}={}..{}", 1.0 - w, 1.0 + w)
+    };
+    let mut s = [
+        range("length", u.pole_com),
+        range("polemass", 0.0),
+        range("cartmass", 0.0),
+        range("force", u.stall_force),
+    ]
+    .join("+");
+    if machine.rig.params.motor_damping > 0.0 {
+        s = s + "+" + &range("damping", u.damping);
+    }
+    s
+}
+
 /// The worlds the deploy preset trains in, but for the pushes ([`Config::deploy_on`] adds
 /// them: on Gymnasium's machine 0.8 to 1.2 N s every second, where the default set has
 /// 0.5 N s every two): physics, noise and dead time wider than the default evaluation set's
 /// +-20%, noise 1 and one period; friction, and encoders read through the observer.
-pub const DEPLOY_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25\
-    +force=0.75..1.25+friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3\
-    +delay=0..4@0.5";
+pub fn deploy_domain(machine: &twin::Machine) -> String {
+    physics(0.25, machine)
+        + "+friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+delay=0..4@0.5"
+}
 
 /// The worlds its snapshots are chosen on, like the default evaluation set's (with its push,
 /// in half of them).
-pub const DEPLOY_EVAL_DOMAIN: &str = "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25\
-    +force=0.75..1.25+noise=0..1@0.5+delay=0..1";
+pub fn deploy_eval_domain(machine: &twin::Machine) -> String {
+    physics(0.25, machine) + "+noise=0..1@0.5+delay=0..1"
+}
 
 /// The worlds its finalists are tried in for 10,000 steps: plants drawn like the default
 /// set's, half of them with its noise, all under pushes of (Gymnasium's) 1.1 N s every
 /// second.
-pub const DEPLOY_FINALIST_DOMAIN: &str = "length=0.8..1.2+polemass=0.8..1.2\
-    +cartmass=0.8..1.2+force=0.8..1.2+noise=0..1@0.5";
+pub fn deploy_finalist_domain(machine: &twin::Machine) -> String {
+    physics(0.2, machine) + "+noise=0..1@0.5"
+}
 
 /// A configuration that cannot be run; the command line exits with status 2 on it.
 #[derive(Clone, Debug, PartialEq, Eq)]

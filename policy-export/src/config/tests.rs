@@ -348,3 +348,38 @@ fn the_deploy_recipe_is_made_for_its_machine() {
     assert_eq!(d.machine().unwrap(), m);
     d.validate().unwrap();
 }
+
+/// On Gymnasium's machine the deploy domains are the shipped recipe's, to the character (the
+/// recipe's strings are recorded in the policy file); on a rig with a damped motor the damping
+/// is drawn too, and a value identified less precisely than the range is drawn wider.
+#[test]
+fn deploy_domains_widen_to_the_identifications_intervals() {
+    let g = Config::deploy();
+    assert_eq!(
+        g.domain,
+        "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25+force=0.75..1.25\
+         +friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+delay=0..4@0.5\
+         +push=0.8..1.2/50"
+    );
+    assert_eq!(
+        g.finalist_domain,
+        "length=0.8..1.2+polemass=0.8..1.2+cartmass=0.8..1.2+force=0.8..1.2+noise=0..1@0.5\
+         +push=1.1/50"
+    );
+    let mut m = twin::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
+    m.uncertainty.stall_force = 0.4;
+    m.uncertainty.pole_com = 0.1;
+    let d = Config::deploy_on(&m);
+    for spec in [&d.domain, &d.eval_domain] {
+        assert!(spec.starts_with("length=0.75..1.25+"), "{spec}");
+        assert!(
+            spec.contains("+force=0.6..1.4+damping=0.75..1.25+"),
+            "{spec}"
+        );
+    }
+    assert!(
+        d.finalist_domain
+            .contains("+force=0.6..1.4+damping=0.8..1.2+")
+    );
+    d.validate().unwrap();
+}

@@ -51,6 +51,11 @@ fn a_rig_written_reads_back_bit_for_bit() {
                 ..Rig::GYMNASIUM
             },
             integration: Integration::Rk4 { substeps: 7 },
+            uncertainty: Uncertainty {
+                stall_force: 0.031,
+                damping: 0.25 / 3.0,
+                pole_com: 0.004,
+            },
         },
     ] {
         assert_eq!(parse(&to_toml(&m), "t").unwrap(), m, "{}", to_toml(&m));
@@ -59,6 +64,16 @@ fn a_rig_written_reads_back_bit_for_bit() {
 
 /// A change to the desk rig's file, `(from, to)`, and what its refusal must say.
 const BAD_RIGS: &[(&str, &str, &str)] = &[
+    (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.0\n[identified]\nstall_force = -0.01",
+        "identified.stall_force: expected a number in [0, 1], found -0.01",
+    ),
+    (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.0\n[identified]\npole_com = 1.5",
+        "identified.pole_com: expected a number in [0, 1], found 1.5",
+    ),
     (
         "pole_mass_kg = 0.08",
         "pole_mass_kg = 2000.0",

@@ -62,6 +62,7 @@ fn a_scenario_is_built_on_its_rig() {
     let machine = Machine {
         rig,
         integration: Integration::Rk4 { substeps: 10 },
+        uncertainty: Default::default(),
     };
     let s = Scenario::parse_on("cartmass=2", &machine).unwrap();
     assert_eq!(s.integration, machine.integration);
