@@ -9,6 +9,11 @@ use policy_export::config::{Config, KernelChoice};
 use policy_export::train;
 
 fn main() {
+    // One thread: the learner's second core is the thread pool's.
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build_global()
+        .expect("the global pool is built once, first");
     let seeds: u64 = std::env::var("BENCH_SEEDS")
         .ok()
         .and_then(|s| s.parse().ok())
@@ -47,8 +52,9 @@ fn main() {
     randomisation_cost();
 }
 
-/// The deploy preset's training loop with and without its randomised world, periodic and
-/// finalist evaluations off in both so that only training steps are timed.
+/// The deploy preset's training loop with and without its randomised world, and for the desk
+/// rig (its continuous world), periodic and finalist evaluations off in each so that only
+/// training steps are timed.
 fn randomisation_cost() {
     let episodes: usize = std::env::var("BENCH_DR_EPISODES")
         .ok()
@@ -60,10 +66,7 @@ fn randomisation_cost() {
         "{:<10} {:>14} {:>14} {:>14} {:>8}",
         "kernel", "world", "env steps", "us/env step", "ratio"
     );
-    for (name, k) in [
-        ("portable", KernelChoice::Portable),
-        ("auto", KernelChoice::Auto),
-    ] {
+    for (name, k) in [("auto", KernelChoice::Auto)] {
         let randomised = Config {
             kernel: k,
             episodes,
@@ -79,8 +82,22 @@ fn randomisation_cost() {
             reward: String::new(),
             ..randomised.clone()
         };
+        // The same recipe for the desk rig: its world continuous, its episodes at its rate.
+        let desk = twin::rigfile::parse(include_str!("../../rigs/desk.toml"), "desk")
+            .expect("the desk rig parses");
+        let rig = Config {
+            kernel: k,
+            episodes,
+            eval_every: 0,
+            finalists: 0,
+            ..Config::deploy_on(&desk)
+        };
         let mut base = 0.0;
-        for (world, cfg) in [("nominal", &nominal), ("randomised", &randomised)] {
+        for (world, cfg) in [
+            ("nominal", &nominal),
+            ("randomised", &randomised),
+            ("desk rig", &rig),
+        ] {
             let r = train::train(cfg, 0, &mut |_| {}).expect("deploy preset trains");
             let us = r.wall_s * 1e6 / r.env_steps as f64;
             if base == 0.0 {

@@ -212,6 +212,12 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
         print!("{}", toml::to_string(&cfg)?);
         return Ok(());
     }
+    if let Some(n) = args.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.into())
+            .build_global()
+            .map_err(|e| anyhow::anyhow!("--threads {n}: {e}"))?;
+    }
     let seeds: Vec<u64> = args
         .seeds
         .clone()

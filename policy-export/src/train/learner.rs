@@ -233,12 +233,11 @@ fn split_parameters<'a, const H: usize>(
     [first, second]
 }
 
-/// Whether a run may have a second core for its updates: the machine has one, and the run is
-/// not one of several the thread pool runs side by side (seeds, a study), each of which
-/// keeps a core busy.
+/// Whether a run may have a second core for its updates: the thread pool has one (the
+/// machine's cores, or `RAYON_NUM_THREADS`, `train --threads`), and the run is not one of
+/// several the pool runs side by side (seeds, a study), each of which keeps a core busy.
 fn spare_core() -> bool {
-    rayon::current_thread_index().is_none()
-        && std::thread::available_parallelism().is_ok_and(|n| n.get() >= 2)
+    rayon::current_thread_index().is_none() && rayon::current_num_threads() >= 2
 }
 
 /// Xavier-normal or N(0, 0.1^2) weights, biases 0.01, drawn tensor by tensor in PyTorch's
