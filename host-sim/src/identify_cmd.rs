@@ -1,6 +1,8 @@
 //! `host-sim identify`: the rig's unknowns fitted to the board's logs (`host_sim::identify`),
 //! the estimates printed with their intervals, the identified rig file written whole through
-//! a temporary file, and, if asked, each log's measured and simulated counts drawn.
+//! a temporary file, and, if asked, each log's measured and simulated counts drawn. And
+//! `host-sim simulate-logs`: the logs a board would stream from a machine the twin simulates,
+//! to try the identification (and what follows it) on a rig whose truth is known.
 
 use std::path::{Path, PathBuf};
 use std::time::Duration;
@@ -82,6 +84,60 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     }
     write_atomic(&a.out, text.as_bytes())?;
     print!("{}", report::format(&found, &logs));
+    eprintln!("{}", a.out.display());
+    Ok(())
+}
+
+#[derive(Args)]
+pub struct SimulateLogsArgs {
+    /// The true machine the experiments run on (a rig file): its motor, friction, pole and
+    /// dead time are what an identification should find.
+    #[arg(long)]
+    world: PathBuf,
+    /// The rig as its builder measured it, the board's (a rig file): its encoders, track and
+    /// period run the experiments.
+    #[arg(long)]
+    rig: PathBuf,
+    /// The cart experiment's sequence, and the encoders' jitter.
+    #[arg(long, default_value_t = 1)]
+    seed: u32,
+    /// The standard deviation of a vibration or an edge's jitter on each reading, counts.
+    #[arg(long, default_value_t = 0.5)]
+    jitter: f64,
+    /// Where the two logs (cart, then swing) are written, as the board streams them.
+    #[arg(long)]
+    out: PathBuf,
+}
+
+/// Writes the cart and swing experiments' logs `a` asks for; the inputs are checked, and the
+/// output's place, before anything runs.
+pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
+    let truth = twin::rigfile::load(&a.world)?;
+    let board = twin::rigfile::load(&a.rig)?;
+    if truth.rig.params.tau != board.rig.params.tau {
+        return Err(weights::Error::Input(format!(
+            "--rig {}: expected the period of --world ({} s), found {} s",
+            a.rig.display(),
+            truth.rig.params.tau,
+            board.rig.params.tau
+        ))
+        .into());
+    }
+    if !(a.jitter.is_finite() && (0.0..=100.0).contains(&a.jitter)) {
+        return Err(weights::Error::Input(format!(
+            "--jitter: expected counts in [0, 100], found {}",
+            a.jitter
+        ))
+        .into());
+    }
+    check_output(&a.out, &[a.world.as_path(), a.rig.as_path()])?;
+    let reading = identify::synthetic::Reading {
+        jitter_counts: a.jitter,
+        seed: u64::from(a.seed),
+        ..Default::default()
+    };
+    let logs = identify::synthetic::experiments(&truth, &board.rig, a.seed, reading);
+    write_atomic(&a.out, logs.concat().as_bytes())?;
     eprintln!("{}", a.out.display());
     Ok(())
 }

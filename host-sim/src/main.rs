@@ -57,6 +57,10 @@ enum Command {
     /// identification experiments, by simulation-error minimisation; print each estimate
     /// with a 95% interval and write the identified rig file. Exits 2 on bad input.
     Identify(identify_cmd::IdentifyArgs),
+    /// Write the logs of the board's identification experiments (a cart and a swing) as a
+    /// board measured as --rig would stream them from the true machine --world: a rig whose
+    /// truth is known, to try `identify` and what follows it on. Exits 2 on bad input.
+    SimulateLogs(identify_cmd::SimulateLogsArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
     Parts,
@@ -82,9 +86,13 @@ struct Subject {
 
 impl Subject {
     /// The machine, and the network (with its integer version if `int`), loaded lazily by
-    /// the commands after their cheaper checks.
-    fn load(&self, int: bool) -> Result<(Machine, Net)> {
+    /// the commands after their cheaper checks. Where no policy runs (`policy` false: the
+    /// baselines alone), --rig is the machine and a policy's own rig is no concern of it.
+    fn load(&self, int: bool, policy: bool) -> Result<(Machine, Net)> {
         let given = self.rig.as_deref().map(twin::rigfile::load).transpose()?;
+        if let (Some(machine), false) = (given, policy) {
+            return Ok((machine, Net::shipped()));
+        }
         let Some(path) = &self.policy else {
             return Ok((
                 twin::rigfile::choose(given, Some(Machine::GYMNASIUM)),
@@ -160,6 +168,7 @@ fn main() -> ExitCode {
         Command::Agree(a) => run_agree(&a).map(|()| true),
         Command::Render(a) => render_cmd::run(&a).map(|()| true),
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
+        Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
         Command::Parts => {
             print!("{}", twin::grammar::markdown_table());
             Ok(true)
@@ -199,7 +208,7 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
         "--states must be in [1, {MAX_AGREE_STATES}], got {}",
         a.states
     );
-    let (machine, net) = a.subject.load(true)?;
+    let (machine, net) = a.subject.load(true, true)?;
     let report = host_sim::agree::agreement(&net, &machine, a.states, a.seed)?;
     if a.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -244,9 +253,9 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
         rows <= MAX_ROWS,
         "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
     );
-    let (machine, net) = a
-        .subject
-        .load(a.controller.contains(&ControllerKind::PolicyInt))?;
+    let int = a.controller.contains(&ControllerKind::PolicyInt);
+    let policy = int || a.controller.contains(&ControllerKind::Policy);
+    let (machine, net) = a.subject.load(int, policy)?;
     let scenarios = match &world {
         None => parse_scenarios(&a.scenario, &machine)?,
         Some(w) => parse_scenarios(&a.scenario, w)?

@@ -75,7 +75,9 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     }
     check_output(&gif, &[])?;
     check_output(&png, &[])?;
-    let (machine, net) = a.subject.load(a.controller == ControllerKind::PolicyInt)?;
+    let int = a.controller == ControllerKind::PolicyInt;
+    let policy = int || a.controller == ControllerKind::Policy;
+    let (machine, net) = a.subject.load(int, policy)?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let (controller, seed, episode) = (a.controller, a.seed, a.episode);
     let mut frames = Vec::new();
