@@ -149,6 +149,32 @@ fn every_kernel_gives_the_recorded_bits() {
 const RECORDED_LEARNED: u64 = 10_723_517_371_762_992_423;
 const RECORDED_FINGERPRINT: u64 = 1_028_027_037_692_160_617;
 
+/// The shipped recipe itself, cut short: the deploy preset's randomised worlds (friction,
+/// encoders through the observer, dead time, pushes), its reward, its periodic selection and
+/// finalists' trial, for its first 150 episodes and a 500-step trial. Recorded on x86-64;
+/// `scripts/aarch64.sh` runs it under emulation, where the whole recipe would take too long,
+/// so that the fused arithmetic's NEON rendering is held to the recipe's own bits.
+#[test]
+fn the_shipped_recipe_cut_short_gives_the_recorded_bits() {
+    let cfg = Config {
+        episodes: 150,
+        finalist_max_steps: 500,
+        final_eval_episodes: 10,
+        ..Config::deploy()
+    };
+    let r = train(&cfg, 5, &mut |_| {}).unwrap();
+    assert!(r.evals.len() == 15 && r.trial.len() == 15, "{}", r.trial.len());
+    assert_eq!(
+        (fingerprint(&r, true), fingerprint(&r, false)),
+        (RECORDED_RECIPE_LEARNED, RECORDED_RECIPE),
+        "the deploy recipe's training changed (or differs on this platform)"
+    );
+}
+
+/// [`fingerprint`] of the cut-short recipe of seed 5.
+const RECORDED_RECIPE_LEARNED: u64 = 14_376_309_175_019_062_443;
+const RECORDED_RECIPE: u64 = 5_249_041_058_133_458_112;
+
 #[test]
 fn a_diverging_run_stops_with_the_episode_and_step() {
     let cfg = Config {
