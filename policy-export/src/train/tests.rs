@@ -136,12 +136,21 @@ fn choice(kernel: Kernel) -> KernelChoice {
 fn every_kernel_gives_the_recorded_bits() {
     for kernel in Kernel::available() {
         let a = train(&small(choice(kernel)), 3, &mut |_| {}).unwrap();
-        assert_eq!(
-            (fingerprint(&a, true), fingerprint(&a, false)),
+        assert_recorded(
+            &a,
             (RECORDED_LEARNED, RECORDED_FINGERPRINT),
-            "{kernel:?}: the training changed (or differs on this platform)"
+            &format!("{kernel:?}"),
         );
     }
+}
+
+/// `r`'s two [`fingerprint`]s are the `recorded` ones.
+fn assert_recorded(r: &RunResult, recorded: (u64, u64), what: &str) {
+    assert_eq!(
+        (fingerprint(r, true), fingerprint(r, false)),
+        recorded,
+        "{what}: the training changed (or differs on this platform)"
+    );
 }
 
 /// [`fingerprint`] of seed 3 of [`small`]: the weights and the learned columns, and
@@ -163,11 +172,15 @@ fn the_shipped_recipe_cut_short_gives_the_recorded_bits() {
         ..Config::deploy()
     };
     let r = train(&cfg, 5, &mut |_| {}).unwrap();
-    assert!(r.evals.len() == 15 && r.trial.len() == 15, "{}", r.trial.len());
-    assert_eq!(
-        (fingerprint(&r, true), fingerprint(&r, false)),
+    assert!(
+        r.evals.len() == 15 && r.trial.len() == 15,
+        "{}",
+        r.trial.len()
+    );
+    assert_recorded(
+        &r,
         (RECORDED_RECIPE_LEARNED, RECORDED_RECIPE),
-        "the deploy recipe's training changed (or differs on this platform)"
+        "deploy recipe",
     );
 }
 
