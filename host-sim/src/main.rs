@@ -13,6 +13,7 @@ use twin::{Machine, Scenario};
 
 mod identify_cmd;
 mod render_cmd;
+mod tables_cmd;
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
 /// 480 MB at the limit.
@@ -64,6 +65,11 @@ enum Command {
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
     Parts,
+    /// Write the results tables of README.md and docs/*.md from the files of docs/results/:
+    /// every block between a `<!-- results: docs/results/FILE.json OPTION... -->` line and a
+    /// `<!-- /results -->` line. With --check, exit 1 listing the blocks that differ. Exits 2
+    /// on a malformed marker or an unreadable file, naming the document and line.
+    Tables(tables_cmd::TablesArgs),
 }
 
 /// Which policy runs, on which machine.
@@ -169,6 +175,7 @@ fn main() -> ExitCode {
         Command::Render(a) => render_cmd::run(&a).map(|()| true),
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
         Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
+        Command::Tables(a) => tables_cmd::run(&a),
         Command::Parts => {
             print!("{}", twin::grammar::markdown_table());
             Ok(true)

@@ -24,6 +24,7 @@ mod net;
 mod table;
 
 pub use net::{IntNet, Net};
+pub(crate) use table::group;
 pub use table::{Row, WORST, Worst, format_failures, format_table};
 
 /// Which controller drives the cart.

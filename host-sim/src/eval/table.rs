@@ -206,7 +206,7 @@ pub fn format_failures(rows: &[Row], seed: u64) -> String {
 }
 
 /// `1234567` as `1,234,567`.
-fn group(n: usize) -> String {
+pub(crate) fn group(n: usize) -> String {
     let s = n.to_string();
     let mut out = String::new();
     for (i, c) in s.chars().enumerate() {

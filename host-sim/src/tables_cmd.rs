@@ -1,0 +1,90 @@
+//! `host-sim tables`: the results tables of README.md and docs/*.md rendered from the files
+//! of docs/results/ (`host_sim::tables`), written in place or, with `--check`, compared.
+//! Every document is read and rendered before any is written, so a refusal anywhere leaves
+//! all of them as they were.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, anyhow};
+use clap::Args;
+use host_sim::tables::{self, RESULTS_DIR, Stale};
+use weights::files::write_atomic;
+
+#[derive(Args)]
+#[command(after_help = tables::OPTIONS_HELP)]
+pub struct TablesArgs {
+    /// Write nothing: exit 1 listing every block whose table differs from its file.
+    #[arg(long)]
+    check: bool,
+    /// The repository's root (default: the nearest directory at or above the current one
+    /// that holds a Cargo.toml and docs/results/).
+    #[arg(long)]
+    root: Option<PathBuf>,
+}
+
+/// Renders or checks every document; false if `--check` found a stale table.
+pub fn run(a: &TablesArgs) -> Result<bool> {
+    let root = match &a.root {
+        Some(r) => r.clone(),
+        None => find_root(&std::env::current_dir()?)?,
+    };
+    let mut updates: Vec<(PathBuf, String, Vec<Stale>)> = Vec::new();
+    for doc in documents(&root)? {
+        let text = std::fs::read_to_string(root.join(&doc))
+            .with_context(|| format!("reading {}", doc.display()))?;
+        let load = |file: &str| {
+            std::fs::read_to_string(root.join(file)).map_err(|e| format!("reading {file}: {e}"))
+        };
+        let (new, stale) = tables::update(&text, load)
+            .map_err(|r| anyhow!("{}:{}: {}", doc.display(), r.line, r.message))?;
+        updates.push((doc, new, stale));
+    }
+    let mut found = 0;
+    for (doc, new, stale) in &updates {
+        if a.check {
+            for s in stale {
+                eprintln!(
+                    "{}:{}: the table differs from {}",
+                    doc.display(),
+                    s.line,
+                    s.file
+                );
+            }
+        } else if !stale.is_empty() {
+            write_atomic(&root.join(doc), new.as_bytes())?;
+            println!("{}: {} tables written", doc.display(), stale.len());
+        }
+        found += stale.len();
+    }
+    if a.check && found > 0 {
+        eprintln!("{found} tables differ from their results: `host-sim tables` rewrites them");
+    }
+    Ok(!a.check || found == 0)
+}
+
+/// The nearest directory at or above `dir` with a Cargo.toml and the results directory.
+fn find_root(dir: &Path) -> Result<PathBuf> {
+    dir.ancestors()
+        .find(|d| d.join("Cargo.toml").is_file() && d.join(RESULTS_DIR).is_dir())
+        .map(Path::to_path_buf)
+        .ok_or_else(|| {
+            anyhow!(
+                "no directory at or above {} holds a Cargo.toml and {RESULTS_DIR}: give --root",
+                dir.display()
+            )
+        })
+}
+
+/// README.md and docs/*.md, relative to `root`, in a fixed order.
+fn documents(root: &Path) -> Result<Vec<PathBuf>> {
+    let mut docs: Vec<PathBuf> = std::fs::read_dir(root.join("docs"))
+        .with_context(|| format!("listing {}", root.join("docs").display()))?
+        .map(|e| e.map(|e| Path::new("docs").join(e.file_name())))
+        .collect::<std::io::Result<_>>()?;
+    docs.retain(|d| d.extension().is_some_and(|x| x == "md") && root.join(d).is_file());
+    docs.sort();
+    if root.join("README.md").is_file() {
+        docs.insert(0, PathBuf::from("README.md"));
+    }
+    Ok(docs)
+}

@@ -1,0 +1,110 @@
+//! Every results table in README.md and docs/*.md is what `host-sim tables` renders from its
+//! file in docs/results/: a table edited by hand, or a results file measured again without
+//! its tables rewritten, fails here. The other tests run the command on a scratch root, to
+//! show that the check fails and that writing repairs.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn tables(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("tables")
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn the_documents_tables_are_their_results() {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let o = tables(&["--check"], &root);
+    assert!(
+        o.status.success(),
+        "{}\nrun `cargo run -p host-sim -- tables` and commit the documents",
+        stderr(&o)
+    );
+}
+
+const JSON: &str = r#"{"seed": 0, "rows": [{"controller": "policy", "scenario": "noise",
+  "horizon": 500, "success_rate": 0.75, "success_ci95": [0.7, 0.8], "failures": 250,
+  "rms_theta_deg": {"mean": 0.5}, "rms_x_m": {"mean": 0.1}, "switches_per_s": {"mean": 30}}]}"#;
+
+const TABLE: &str = "\
+| scenario | policy success [95% CI] (failed) |
+| --- | ---: |
+| `noise` | 75.0% [70.0, 80.0] (250) |
+";
+
+/// A repository root with one results file and `docs` as its documents.
+fn scratch(name: &str, docs: &[(&str, &str)]) -> PathBuf {
+    let root = std::env::temp_dir().join(format!("host-sim-tables-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    std::fs::create_dir_all(root.join("docs/results")).unwrap();
+    std::fs::write(root.join("Cargo.toml"), "[workspace]\n").unwrap();
+    std::fs::write(root.join("docs/results/r.json"), JSON).unwrap();
+    for (path, text) in docs {
+        std::fs::write(root.join(path), text).unwrap();
+    }
+    root
+}
+
+#[test]
+fn a_stale_table_fails_the_check_and_writing_repairs_it() {
+    let doc = "# A\n\n<!-- results: docs/results/r.json success=policy -->\n| old |\n<!-- /results -->\nend\n";
+    let fresh = doc.replace("| old |\n", TABLE);
+    let root = scratch("stale", &[("README.md", &fresh), ("docs/A.md", doc)]);
+    let check = tables(&["--check"], &root.join("docs"));
+    assert_eq!(check.status.code(), Some(1), "{}", stderr(&check));
+    let err = stderr(&check);
+    assert!(
+        err.contains("docs/A.md:3: the table differs from docs/results/r.json"),
+        "{err}"
+    );
+    assert!(!err.contains("README.md"), "{err}");
+    let write = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
+    assert!(write.status.success(), "{}", stderr(&write));
+    assert_eq!(
+        std::fs::read_to_string(root.join("docs/A.md")).unwrap(),
+        fresh
+    );
+    assert!(tables(&["--check"], &root).status.success());
+    let _ = std::fs::remove_dir_all(&root);
+}
+
+#[test]
+fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
+    let stale = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
+    let cases = [
+        (
+            "<!-- results: docs/results/gone.json success=policy -->\n<!-- /results -->\n",
+            "docs/B.md:2: reading docs/results/gone.json",
+        ),
+        (
+            "<!-- results: docs/results/r.json colour=red -->\n<!-- /results -->\n",
+            "docs/B.md:2: unknown option `colour=red`",
+        ),
+        (
+            "<!-- results: docs/results/r.json success=policy -->\n",
+            "docs/B.md:2: no `<!-- /results -->` line",
+        ),
+    ];
+    for (i, (bad, want)) in cases.into_iter().enumerate() {
+        let root = scratch(
+            &format!("bad{i}"),
+            &[("docs/A.md", stale), ("docs/B.md", &format!("x\n{bad}"))],
+        );
+        for args in [&["--check"][..], &[]] {
+            let o = tables(args, &root);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+            assert!(stderr(&o).contains(want), "{args:?}: {}", stderr(&o));
+        }
+        let a = std::fs::read_to_string(root.join("docs/A.md")).unwrap();
+        assert_eq!(a, stale, "a refusal in one document left another rewritten");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}
