@@ -4,8 +4,8 @@
 //! `export --quant int8` headers through `cartpole_qmlpH_forward`). Their literals are parsed
 //! by the C compiler and the outputs computed by the library; both must equal Rust's, bit for
 //! bit.
-//! The library's header must declare what the exported headers declare, and compile and link
-//! as C++ too.
+//! The library's header must declare what the exported headers declare, and both must
+//! compile and link as C++ too.
 
 mod common;
 
@@ -255,13 +255,6 @@ fn exported_header_case<const H: usize>() {
          \x20   return 0;\n}}\n"
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
-    let out = compile_and_run(
-        &C99,
-        &format!("export-{H}"),
-        &[&dir.join("main.c")],
-        &[&manifest().join("include"), &dir],
-        &probe_args(),
-    );
     let mut want: String = w
         .tensors()
         .iter()
@@ -270,7 +263,17 @@ fn exported_header_case<const H: usize>() {
         .collect();
     let net: Box<Mlp<H>> = w.to_mlp().unwrap();
     want.extend(PROBES.iter().map(|o| q_line(net.forward(o))));
-    assert_eq!(out, want, "width {H}");
+    // As C++ too: the initialisers are positional, which C++ before C++20 requires.
+    for compiler in EVERY {
+        let out = compile_and_run(
+            compiler,
+            &format!("export-{H}{}", compiler.std),
+            &[&dir.join("main.c")],
+            &[&manifest().join("include"), &dir],
+            &probe_args(),
+        );
+        assert_eq!(out, want, "width {H}, {}", compiler.std);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -356,17 +359,19 @@ fn exported_int_header_case<const H: usize>(w: &Weights) {
         ),
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
-    let out = compile_and_run(
-        &C99,
-        &format!("export-int-{H}"),
-        &[&dir.join("main.c")],
-        &[&manifest().join("include"), &dir],
-        &int_probe_args(),
-    );
     let net: Box<QMlp<H>> = q.to_qmlp().unwrap();
     let mut want = format!("{}\n", std::mem::size_of::<QMlp<H>>());
     want.extend(INT_PROBES.iter().map(|o| int_line(net.forward(o))));
-    assert_eq!(out, want, "width {H}");
+    for compiler in EVERY {
+        let out = compile_and_run(
+            compiler,
+            &format!("export-int-{H}{}", compiler.std),
+            &[&dir.join("main.c")],
+            &[&manifest().join("include"), &dir],
+            &int_probe_args(),
+        );
+        assert_eq!(out, want, "width {H}, {}", compiler.std);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

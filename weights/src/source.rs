@@ -270,8 +270,10 @@ pub fn c_header(w: &Weights, name: &str, provenance: &[String]) -> Result<String
         w.params(),
         4 * w.params()
     );
+    // Positional, each field named in a comment: designated initialisers are not C++ before
+    // C++20, and Arduino sketches include these headers as C++.
     for ((tensor, shape), t) in TENSOR_NAMES.iter().zip(shapes(h)).zip(w.tensors()) {
-        let _ = writeln!(s, "    .{} = {{", tensor.replace('.', "_"));
+        let _ = writeln!(s, "    /* {} */ {{", tensor.replace('.', "_"));
         let cols = shape.matrix().map_or(t.len(), |(_, c)| c);
         for row in t.chunks(cols.max(1)) {
             s.push_str(if shape.matrix().is_some() {

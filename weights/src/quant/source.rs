@@ -52,8 +52,10 @@ const RUST: Syntax = Syntax {
     requant: ("::firmware::network::int::Requant::new(", ")"),
 };
 
+/// Positional, each field named in a comment: designated initialisers are not C++ before
+/// C++20, and Arduino sketches include these headers as C++.
 const C: Syntax = Syntax {
-    field: ("    .", " = "),
+    field: ("    /* ", " */ "),
     array: ("{", "}"),
     requant: ("{", "}"),
 };
