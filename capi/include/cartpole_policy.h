@@ -14,7 +14,9 @@
  * `policy-export export --format c` writes; the structs and functions below are declared as
  * those headers declare them (guarded, so both can be included). Every function computes the
  * Rust firmware's forward pass, bit for bit. cartpole_policy_forward_int and
- * cartpole_qmlpH_forward are the integer network's (`export --quant int8` headers).
+ * cartpole_qmlpH_forward are the integer network's (`export --quant int8` headers). The
+ * exported headers carry the machine the policy was trained for too, a struct cartpole_rig
+ * (declared here as there), which the whole controller below is built on.
  */
 #ifndef CARTPOLE_POLICY_H
 #define CARTPOLE_POLICY_H
@@ -138,15 +140,61 @@ CARTPOLE_DECLARE_QMLP(128);
 CARTPOLE_DECLARE_QMLP(256);
 #endif
 
+#ifndef CARTPOLE_RIG_DEFINED
+#define CARTPOLE_RIG_DEFINED
+#include <stdint.h>
+/* A cart-pole machine as its board sees it, the fields of Rust's firmware::rig::Rig in
+ * its order: the physics, the encoders, the dead time, the end-stop margin, the
+ * observer's tuning. */
+struct cartpole_rig {
+    /* gravitational acceleration, m/s^2 */
+    double gravity;
+    /* the cart's mass, kg */
+    double masscart;
+    /* the pole's mass, kg */
+    double masspole;
+    /* pivot to the pole's centre of mass, m (half a uniform pole's length) */
+    double length;
+    /* the motor's force on the cart at full duty and standstill (its stall force), N */
+    double force_mag;
+    /* the force the cart's speed takes from the motor's (back-EMF, drag), N s/m */
+    double motor_damping;
+    /* the control period, s */
+    double tau;
+    /* the pole has fallen beyond this angle from upright, rad */
+    double theta_threshold_radians;
+    /* the end stops' distance from the track's centre, m */
+    double x_threshold;
+    /* Coulomb friction between cart and track, dimensionless */
+    double cart_friction;
+    /* viscous friction at the pivot, N m s/rad */
+    double pole_friction;
+    /* cart encoder counts per metre of travel */
+    uint32_t cart_counts_per_m;
+    /* pole encoder counts per revolution of the pivot */
+    uint32_t pole_counts_per_rev;
+    /* periods from the reading a command is decided on to the motor applying it */
+    uint32_t dead_time;
+    /* how near an end stop the controller stops pushing and coasts, m */
+    double end_stop_margin;
+    /* observer: standard deviation of an unmodelled force on the cart, N */
+    double force_sd;
+    /* observer: standard deviations of unmodelled accelerations of the cart (m/s^2)
+     * and of the pole (rad/s^2) */
+    double accel_sd[2];
+};
+#endif
+
 #undef CARTPOLE_DECLARE_QMLP
 #undef CARTPOLE_DECLARE_MLP
 #undef CARTPOLE_EXTERN_C
 
 /* The whole controller: one control period of the Rust firmware's
  * firmware::controller::Controller::step, the period the trainer, the simulator, the
- * self-test and the Rust boards run, built from the shipped policy and the RIG it was
- * exported with (the observer's plant, encoders, dead time and tuning, the dead-time
- * predictor, the track's limits, the control period). A board:
+ * self-test and the Rust boards run, built from a policy and the rig it was trained for
+ * (the observer's plant, encoders, dead time and tuning, the dead-time predictor, the
+ * track's limits, the control period): the shipped policy and its RIG, or an exported
+ * header's weights and struct cartpole_rig (cartpole_controller_init_mlpH). A board:
  *
  *     static cartpole_controller_t ctl;
  *     uint32_t period_us;
@@ -178,9 +226,10 @@ CARTPOLE_DECLARE_QMLP(256);
 enum cartpole_status {
     CARTPOLE_OK = 0,
     CARTPOLE_ERR_NULL = -1,          /* a pointer argument was NULL */
-    CARTPOLE_ERR_UNINITIALISED = -2, /* c was not initialised by cartpole_controller_init */
+    CARTPOLE_ERR_UNINITIALISED = -2, /* c was not initialised by a cartpole_controller_init* */
     CARTPOLE_ERR_POLICY_KIND = -3,   /* no such policy kind */
-    CARTPOLE_ERR_INPUT = -4          /* counts to an instance that has read states, or back */
+    CARTPOLE_ERR_INPUT = -4,         /* counts to an instance that has read states, or back */
+    CARTPOLE_ERR_RIG = -5            /* a struct cartpole_rig field no machine has */
 };
 
 /* The shipped policies. */
@@ -196,8 +245,9 @@ enum cartpole_push {
     CARTPOLE_PUSH_RIGHT = 1
 };
 
-/* One controller; opaque. Initialise it with cartpole_controller_init before any other
- * call: others refuse memory it did not initialise (CARTPOLE_ERR_UNINITIALISED). */
+/* One controller; opaque. Initialise it with cartpole_controller_init (or _init_mlpH,
+ * _init_qmlpH) before any other call: others refuse memory no init initialised
+ * (CARTPOLE_ERR_UNINITIALISED). */
 typedef struct cartpole_controller {
     union {
         unsigned char bytes[CARTPOLE_CONTROLLER_SIZE];
@@ -235,6 +285,44 @@ extern "C" {
  * has run no period; again on an instance, starts it afresh. Solves the observer's gain:
  * call it at start-up, not in the control interrupt. */
 int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
+
+/* The same for a policy of one's own: the weights w and the machine rig it was trained for,
+ * NAME and NAME_rig of a header `policy-export export --format c` wrote (--quant int8: the
+ * qmlp functions, integer from the estimate to the decision), built as the shipped policy's:
+ * the rig's observer, its dead-time predictor if dead_time > 0, its limits, its period.
+ * Solves the observer's gain: call it at start-up, not in the control interrupt.
+ *
+ * *c keeps w, not a copy: the weights must outlive the controller and every copy of it (the
+ * exported headers' static const ones do). *rig is read during the call only.
+ *
+ * Refused with CARTPOLE_ERR_RIG, writing nothing, unless every field of *rig is finite and
+ * within the ranges of a rig file: gravity (0, 100], masscart and masspole (0, 1000],
+ * length (0, 100], force_mag (0, 1e4], motor_damping [0, 1e4], tau [0.002, 0.05],
+ * theta_threshold_radians (0, pi/2], x_threshold (0, 100], cart_friction [0, 1],
+ * pole_friction [0, 0.1], cart_counts_per_m [16, 2^26], pole_counts_per_rev [16, 2^24],
+ * dead_time [0, 16], end_stop_margin [0, x_threshold), force_sd and accel_sd (0, 1e4]. */
+int cartpole_controller_init_mlp16(cartpole_controller_t *c, const struct cartpole_mlp16 *w,
+                                   const struct cartpole_rig *rig);
+int cartpole_controller_init_mlp32(cartpole_controller_t *c, const struct cartpole_mlp32 *w,
+                                   const struct cartpole_rig *rig);
+int cartpole_controller_init_mlp64(cartpole_controller_t *c, const struct cartpole_mlp64 *w,
+                                   const struct cartpole_rig *rig);
+int cartpole_controller_init_mlp128(cartpole_controller_t *c, const struct cartpole_mlp128 *w,
+                                    const struct cartpole_rig *rig);
+int cartpole_controller_init_mlp256(cartpole_controller_t *c, const struct cartpole_mlp256 *w,
+                                    const struct cartpole_rig *rig);
+int cartpole_controller_init_qmlp16(cartpole_controller_t *c, const struct cartpole_qmlp16 *w,
+                                    const struct cartpole_rig *rig);
+int cartpole_controller_init_qmlp32(cartpole_controller_t *c, const struct cartpole_qmlp32 *w,
+                                    const struct cartpole_rig *rig);
+int cartpole_controller_init_qmlp64(cartpole_controller_t *c, const struct cartpole_qmlp64 *w,
+                                    const struct cartpole_rig *rig);
+int cartpole_controller_init_qmlp128(cartpole_controller_t *c,
+                                     const struct cartpole_qmlp128 *w,
+                                     const struct cartpole_rig *rig);
+int cartpole_controller_init_qmlp256(cartpole_controller_t *c,
+                                     const struct cartpole_qmlp256 *w,
+                                     const struct cartpole_rig *rig);
 
 /* One control period on this period's encoder counts (cart: counts per metre of travel,
  * pole: counts per revolution, zero upright, as the RIG's encoders; the first counts are

@@ -22,6 +22,11 @@
 //! 3. now and then: `cartpole_controller_counters`, and `cartpole_controller_record_overruns`
 //!    when the timer fired during a step.
 //!
+//! A policy of one's own, exported by `policy-export export --format c` (`NAME` and
+//! `NAME_rig`, the [`CartpoleRig`] it was trained for), runs the same way once
+//! `cartpole_controller_init_mlpH(&ctl, &NAME, &NAME_rig)` (or `_qmlpH`, `--quant int8`) has
+//! built its controller.
+//!
 //! The controller drives the loopback's in-memory pins ([`firmware::loopback::Pins`]), which
 //! the step reads back into the command: C drives its bridge from what Rust's `Bridge` would
 //! have driven.
@@ -36,9 +41,11 @@
 
 mod controller;
 mod ffi;
+mod rig;
 
 pub use controller::*;
 pub use ffi::*;
+pub use rig::CartpoleRig;
 
 #[cfg(target_os = "none")]
 #[panic_handler]

@@ -4,23 +4,25 @@
 //! `export --quant int8` headers through `cartpole_qmlpH_forward`). Their literals are parsed
 //! by the C compiler and the outputs computed by the library; both must equal Rust's, bit for
 //! bit.
-//! The library's header must declare what the exported headers declare, and compile and link
-//! as C++ too.
+//! The library's header must declare what the exported headers declare, and both must
+//! compile and link as C++ too.
 
 mod common;
 
 use std::io::Write;
 use std::process::Stdio;
 
+use cartpole_policy::CARTPOLE_ERR_NULL;
 use common::{C99, CXX11, Compiler, EVERY, compile_and_run, manifest};
 
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
+use firmware::rig::Rig;
 use weights::Weights;
 use weights::quant::{self, Granularity};
-use weights::source::{c_header, c_struct};
+use weights::source::{c_header, c_rig_struct, c_struct};
 
 /// Observations the C programs are run on: a balanced state, leaning states, the edges of
 /// the failure box, large rates, and values with long mantissas.
@@ -104,8 +106,8 @@ fn tokens(text: &str) -> Vec<String> {
     out
 }
 
-/// Every width's blocks of the exported headers, float then integer, each as it preprocesses
-/// after the ones before it (so the integer blocks after the first lose the shared struct to
+/// Every width's blocks of the exported headers, float then integer, then the rig's, each as
+/// it preprocesses after the ones before it (so the integer blocks after the first lose the shared struct to
 /// its guard, as they would in one translation unit), must stand in the library's header one
 /// after another, token for token, in C and in C++.
 #[test]
@@ -117,7 +119,8 @@ fn the_library_header_declares_every_width_as_exported_headers_do() {
             SUPPORTED_WIDTHS
                 .iter()
                 .map(|&h| (format!("integer block for width {h}"), quant::c_struct(h))),
-        );
+        )
+        .chain([("rig block".to_string(), c_rig_struct())]);
     for compiler in EVERY {
         let header = preprocessed(compiler, "#include \"cartpole_policy.h\"");
         let mut source = String::new();
@@ -151,13 +154,16 @@ fn a_cpp_program_links_every_function_of_the_header() {
     let dir = std::env::temp_dir().join(format!("cartpole-cpp-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // Without C linkage a call would name a mangled symbol the library lacks; with NULL
-    // weights each call writes nothing, so the shipped policy's outputs stand.
+    // weights each call writes nothing, so the shipped policy's outputs stand, and each init
+    // refuses.
     let calls: String = SUPPORTED_WIDTHS
         .iter()
         .map(|h| {
             format!(
                 "        cartpole_mlp{h}_forward(nullptr, obs, q);\n\
-                 \x20       cartpole_qmlp{h}_forward(nullptr, iobs, qi);\n"
+                 \x20       cartpole_qmlp{h}_forward(nullptr, iobs, qi);\n\
+                 \x20       refused += cartpole_controller_init_mlp{h}(nullptr, nullptr, nullptr);\n\
+                 \x20       refused += cartpole_controller_init_qmlp{h}(nullptr, nullptr, nullptr);\n"
             )
         })
         .collect();
@@ -169,13 +175,14 @@ fn a_cpp_program_links_every_function_of_the_header() {
          \x20       float obs[4], q[2];\n\
          \x20       const int16_t iobs[4] = {{0, 0, 0, 0}};\n\
          \x20       int32_t qi[2];\n\
+         \x20       int refused = 0;\n\
          \x20       unsigned int bits[2];\n\
          \x20       for (int j = 0; j < 4; j++) obs[j] = std::strtof(argv[k + j], nullptr);\n\
          \x20       cartpole_policy_forward(obs, q);\n\
          \x20       cartpole_policy_forward_int(iobs, qi);\n\
          {calls}\
          \x20       std::memcpy(bits, q, sizeof bits);\n\
-         \x20       std::printf(\"%08x %08x\\n%ld %ld\\n\", bits[0], bits[1], (long)qi[0], (long)qi[1]);\n\
+         \x20       std::printf(\"%08x %08x\\n%ld %ld\\n%d\\n\", bits[0], bits[1], (long)qi[0], (long)qi[1], refused);\n\
          \x20   }}\n\
          \x20   return 0;\n}}\n"
     );
@@ -188,9 +195,13 @@ fn a_cpp_program_links_every_function_of_the_header() {
         &probe_args(),
     );
     let int = int_line(POLICY_INT.forward(&[0; 4]));
+    let refused = format!(
+        "{}\n",
+        2 * SUPPORTED_WIDTHS.len() as i32 * CARTPOLE_ERR_NULL
+    );
     let expected: String = PROBES
         .iter()
-        .map(|o| q_line(POLICY.forward(o)) + &int)
+        .map(|o| q_line(POLICY.forward(o)) + &int + &refused)
         .collect();
     assert_eq!(out, expected);
     std::fs::remove_dir_all(&dir).unwrap();
@@ -229,7 +240,13 @@ fn exported_header_case<const H: usize>() {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(
         dir.join("exported.h"),
-        c_header(&w, "test_policy", &["source: the capi test".into()]).unwrap(),
+        c_header(
+            &w,
+            "test_policy",
+            &["source: the capi test".into()],
+            &Rig::GYMNASIUM,
+        )
+        .unwrap(),
     )
     .unwrap();
     // Both headers in one translation unit: their shared definitions are guarded.
@@ -255,13 +272,6 @@ fn exported_header_case<const H: usize>() {
          \x20   return 0;\n}}\n"
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
-    let out = compile_and_run(
-        &C99,
-        &format!("export-{H}"),
-        &[&dir.join("main.c")],
-        &[&manifest().join("include"), &dir],
-        &probe_args(),
-    );
     let mut want: String = w
         .tensors()
         .iter()
@@ -270,7 +280,17 @@ fn exported_header_case<const H: usize>() {
         .collect();
     let net: Box<Mlp<H>> = w.to_mlp().unwrap();
     want.extend(PROBES.iter().map(|o| q_line(net.forward(o))));
-    assert_eq!(out, want, "width {H}");
+    // As C++ too: the initialisers are positional, which C++ before C++20 requires.
+    for compiler in EVERY {
+        let out = compile_and_run(
+            compiler,
+            &format!("export-{H}{}", compiler.std),
+            &[&dir.join("main.c")],
+            &[&manifest().join("include"), &dir],
+            &probe_args(),
+        );
+        assert_eq!(out, want, "width {H}, {}", compiler.std);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -344,7 +364,13 @@ fn exported_int_header_case<const H: usize>(w: &Weights) {
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::write(
         dir.join("exported.h"),
-        quant::c_header(&q, "test_policy", &["source: the capi test".into()]).unwrap(),
+        quant::c_header(
+            &q,
+            "test_policy",
+            &["source: the capi test".into()],
+            &Rig::GYMNASIUM,
+        )
+        .unwrap(),
     )
     .unwrap();
     // With the library's header in the same translation unit: the shared blocks are guarded.
@@ -356,17 +382,19 @@ fn exported_int_header_case<const H: usize>(w: &Weights) {
         ),
     );
     std::fs::write(dir.join("main.c"), main).unwrap();
-    let out = compile_and_run(
-        &C99,
-        &format!("export-int-{H}"),
-        &[&dir.join("main.c")],
-        &[&manifest().join("include"), &dir],
-        &int_probe_args(),
-    );
     let net: Box<QMlp<H>> = q.to_qmlp().unwrap();
     let mut want = format!("{}\n", std::mem::size_of::<QMlp<H>>());
     want.extend(INT_PROBES.iter().map(|o| int_line(net.forward(o))));
-    assert_eq!(out, want, "width {H}");
+    for compiler in EVERY {
+        let out = compile_and_run(
+            compiler,
+            &format!("export-int-{H}{}", compiler.std),
+            &[&dir.join("main.c")],
+            &[&manifest().join("include"), &dir],
+            &int_probe_args(),
+        );
+        assert_eq!(out, want, "width {H}, {}", compiler.std);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

@@ -474,9 +474,9 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
     };
     let text = match (a.format, &quantised) {
         (Format::Rust, None) => source::rust_module(&import.weights, &name, &prov, &rig)?,
-        (Format::C, None) => source::c_header(&import.weights, &name, &prov)?,
+        (Format::C, None) => source::c_header(&import.weights, &name, &prov, &rig)?,
         (Format::Rust, Some(q)) => quant::rust_module(q, &name, &prov, &rig)?,
-        (Format::C, Some(q)) => quant::c_header(q, &name, &prov)?,
+        (Format::C, Some(q)) => quant::c_header(q, &name, &prov, &rig)?,
     };
     write_atomic(&a.out, text.as_bytes())?;
     match &quantised {

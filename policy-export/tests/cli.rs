@@ -194,6 +194,13 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
             && header.contains("source: policy.safetensors (layers fc1, fc2, fc3 under no prefix"),
         "{header}"
     );
+    // The rig the run recorded (Gymnasium's, as trained here) goes beside the weights.
+    assert!(
+        header.contains("static const struct cartpole_rig balance_rig = {")
+            && header.contains("    2.4, /* x_threshold */\n")
+            && header.contains("cartpole_controller_init_mlp64(&ctl, &balance, &balance_rig)"),
+        "{header}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -354,7 +361,7 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
         "firmware/src/policy_int.rs is not what `export --quant int8` writes (README, \
          \"Integer inference\", says how to regenerate it)"
     );
-    // A C header, per channel this time.
+    // A C header, per channel this time, for the board --rig describes.
     let c = dir.join("policy_int.h");
     let o = export(&[
         repo.join("firmware/policy.safetensors").to_str().unwrap(),
@@ -364,6 +371,8 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
         "per-channel",
         "--format",
         "c",
+        "--rig",
+        repo.join("rigs/desk.toml").to_str().unwrap(),
         "--out",
         c.to_str().unwrap(),
     ]);
@@ -371,6 +380,12 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     let header = std::fs::read_to_string(&c).unwrap();
     assert!(header.contains("static const struct cartpole_qmlp64 cartpole_policy_int = {"));
     assert!(header.contains("int8 weights (per-channel)"));
+    assert!(
+        header.contains("static const struct cartpole_rig cartpole_policy_int_rig = {")
+            && header.contains("    15000, /* cart_counts_per_m */\n")
+            && header.contains("    1, /* dead_time */\n"),
+        "{header}"
+    );
     // --granularity means nothing without --quant: refused before any work, nothing written.
     let never = dir.join("never.rs");
     let o = export(&[

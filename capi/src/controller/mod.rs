@@ -2,6 +2,10 @@
 //!
 //! ```c
 //! int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
+//! int cartpole_controller_init_mlp64(cartpole_controller_t *c, const struct cartpole_mlp64 *w,
+//!                                    const struct cartpole_rig *rig);   /* and every width */
+//! int cartpole_controller_init_qmlp64(cartpole_controller_t *c, const struct cartpole_qmlp64 *w,
+//!                                     const struct cartpole_rig *rig);
 //! int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
 //!                              int32_t pole_counts, cartpole_command_t *out);
 //! int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
@@ -13,29 +17,33 @@
 //!
 //! A step is [`Controller::step`](firmware::controller::Controller::step), the period the
 //! trainer, the simulator, the self-test and the Rust boards run, on a controller built as
-//! they build theirs from the shipped policy's `RIG`. Its H-bridge is the loopback's
-//! in-memory pins ([`firmware::loopback::Pins`]), read back into the command C drives its
-//! own bridge from.
+//! they build theirs from a policy and its rig: the shipped policy's `RIG`, or the
+//! `cartpole_rig` an exported header carries beside its weights. Its H-bridge is the
+//! loopback's in-memory pins ([`firmware::loopback::Pins`]), read back into the command C
+//! drives its own bridge from.
 //!
 //! Every call returns [`CARTPOLE_OK`] or a negative error, and a refused call writes
-//! nothing: a NULL pointer ([`CARTPOLE_ERR_NULL`]), a `cartpole_controller_t` that
-//! `cartpole_controller_init` did not initialise ([`CARTPOLE_ERR_UNINITIALISED`]), an unknown
-//! policy ([`CARTPOLE_ERR_POLICY_KIND`]), or a step of the other input kind than the
-//! instance's first ([`CARTPOLE_ERR_INPUT`]). Pointers arrive as `Option<&T>`, as in the
-//! forward passes; non-NULL ones must be valid and aligned.
+//! nothing: a NULL pointer ([`CARTPOLE_ERR_NULL`]), a `cartpole_controller_t` that no init
+//! initialised ([`CARTPOLE_ERR_UNINITIALISED`]), an unknown policy
+//! ([`CARTPOLE_ERR_POLICY_KIND`]), a step of the other input kind than the instance's first
+//! ([`CARTPOLE_ERR_INPUT`]), or a rig no machine has ([`CARTPOLE_ERR_RIG`]). Pointers arrive
+//! as `Option<&T>`, as in the forward passes; non-NULL ones must be valid and aligned.
 
 use core::ffi::c_int;
 
 use firmware::controller::{FaultCounters, FaultFlags, Reading};
 use firmware::loopback::{Duty, Level};
-use firmware::network::{N_ACTIONS, OBS_DIM};
+use firmware::network::int::QMlp;
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+
+use crate::rig::CartpoleRig;
 
 mod input;
 mod storage;
 
 use input::{Format, Handed};
 pub use storage::{CONTROLLER_SIZE, CartpoleController};
-use storage::{F32, Int, Shipped, Slot, slot, slot_mut};
+use storage::{Float, Int, Kind, Slot, magic, slot, slot_mut};
 
 /// The call did what it says.
 pub const CARTPOLE_OK: c_int = 0;
@@ -47,6 +55,8 @@ pub const CARTPOLE_ERR_UNINITIALISED: c_int = -2;
 pub const CARTPOLE_ERR_POLICY_KIND: c_int = -3;
 /// Counts handed to an instance that has read states, or the other way round.
 pub const CARTPOLE_ERR_INPUT: c_int = -4;
+/// A `cartpole_rig` with a field no machine has ([`CartpoleRig::to_rig`]).
+pub const CARTPOLE_ERR_RIG: c_int = -5;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;
@@ -102,7 +112,7 @@ trait Run {
     fn period_us(&self) -> u32;
 }
 
-impl<K: Shipped> Run for Slot<K> {
+impl<K: Kind> Run for Slot<K> {
     fn step(&mut self, handed: Handed) -> Option<CartpoleCommand> {
         let c = &mut self.controller;
         if !c.sensor_mut().hand(handed) {
@@ -157,25 +167,41 @@ impl<K: Shipped> Run for Slot<K> {
     }
 }
 
-/// The instance in `c`, whichever policy initialised it.
-fn instance(c: &CartpoleController) -> Result<&dyn Run, c_int> {
-    match (slot::<F32>(c), slot::<Int>(c)) {
-        (Some(s), _) => Ok(s),
-        (_, Some(s)) => Ok(s),
-        (None, None) => Err(CARTPOLE_ERR_UNINITIALISED),
-    }
-}
+/// The instance in `c` and, mutably, of whichever kind initialised it: one pair for every
+/// width of either format.
+macro_rules! instances {
+    ($($h:literal => $forward:ident / $qforward:ident,)*) => {
+        /// The instance in `c`, whichever kind initialised it.
+        fn instance(c: &CartpoleController) -> Result<&dyn Run, c_int> {
+            $(
+                if let Some(s) = slot::<Float<$h>>(c) {
+                    return Ok(s);
+                }
+                if let Some(s) = slot::<Int<$h>>(c) {
+                    return Ok(s);
+                }
+            )*
+            Err(CARTPOLE_ERR_UNINITIALISED)
+        }
 
-/// [`instance`], to run it.
-fn instance_mut(c: &mut CartpoleController) -> Result<&mut dyn Run, c_int> {
-    // Which policy first, then the one borrow to return.
-    let run: Option<&mut dyn Run> = if slot::<F32>(c).is_some() {
-        slot_mut::<F32>(c).map(|s| s as _)
-    } else {
-        slot_mut::<Int>(c).map(|s| s as _)
+        /// [`instance`], to run it.
+        fn instance_mut(c: &mut CartpoleController) -> Result<&mut dyn Run, c_int> {
+            // Which kind first, then the one borrow to return.
+            let m = magic(c);
+            let run: Option<&mut dyn Run> = $(
+                if m == Float::<$h>::MAGIC {
+                    slot_mut::<Float<$h>>(c).map(|s| s as _)
+                } else if m == Int::<$h>::MAGIC {
+                    slot_mut::<Int<$h>>(c).map(|s| s as _)
+                } else
+            )* {
+                None
+            };
+            run.ok_or(CARTPOLE_ERR_UNINITIALISED)
+        }
     };
-    run.ok_or(CARTPOLE_ERR_UNINITIALISED)
 }
+firmware::for_each_width!(instances);
 
 /// `Ok` as [`CARTPOLE_OK`], an error as its code.
 fn status(done: Result<(), c_int>) -> c_int {
@@ -215,11 +241,86 @@ pub extern "C" fn cartpole_controller_init(
         return CARTPOLE_ERR_NULL;
     };
     match policy_kind {
-        CARTPOLE_POLICY_F32 => Slot::<F32>::new(&F32::RIG).store(c),
-        CARTPOLE_POLICY_INT => Slot::<Int>::new(&Int::RIG).store(c),
+        CARTPOLE_POLICY_F32 => {
+            Slot::<Float<64>>::new(&firmware::policy::POLICY, &firmware::policy::RIG).store(c)
+        }
+        CARTPOLE_POLICY_INT => Slot::<Int<64>>::new(
+            &firmware::policy_int::POLICY_INT,
+            &firmware::policy_int::RIG,
+        )
+        .store(c),
         _ => return CARTPOLE_ERR_POLICY_KIND,
     }
     CARTPOLE_OK
+}
+
+/// Makes `c` a controller of the weights `w` of kind `K` on `rig`, as
+/// [`cartpole_controller_init`] makes one of the shipped policy on its `RIG`; refuses a NULL
+/// and a rig no machine has, writing nothing.
+fn init_exported<K: Kind>(
+    c: Option<&mut CartpoleController>,
+    w: Option<K::Policy>,
+    rig: Option<&CartpoleRig>,
+) -> c_int {
+    let (Some(c), Some(w), Some(rig)) = (c, w, rig) else {
+        return CARTPOLE_ERR_NULL;
+    };
+    let Some(rig) = rig.to_rig() else {
+        return CARTPOLE_ERR_RIG;
+    };
+    Slot::<K>::new(w, &rig).store(c);
+    CARTPOLE_OK
+}
+
+/// `cartpole_controller_init_mlpH` and `cartpole_controller_init_qmlpH` for each width `H`.
+macro_rules! exported_inits {
+    ($($h:literal => $name:ident / $qname:ident,)*) => { $(
+        #[doc = concat!(
+            "Makes `c` a controller of the float 4-", stringify!($h), "-", stringify!($h),
+            "-2 network `w` on `rig` (an exported header's `NAME` and `NAME_rig`). The \
+             controller keeps `w`, not a copy: C must keep the weights for as long as the \
+             controller, or any copy of it, runs (`static const` ones, as exported, always \
+             are). Refuses a rig outside [`CartpoleRig::to_rig`]'s ranges \
+             ([`CARTPOLE_ERR_RIG`]), writing nothing."
+        )]
+        // SAFETY: as for `cartpole_controller_init`: one definition per C name.
+        #[allow(unsafe_code)]
+        #[unsafe(no_mangle)]
+        pub extern "C" fn $name(
+            c: Option<&mut CartpoleController>,
+            // `'static`: the controller keeps it, for as long as C promises (the header).
+            w: Option<&'static Mlp<$h>>,
+            rig: Option<&CartpoleRig>,
+        ) -> c_int {
+            init_exported::<Float<$h>>(c, w, rig)
+        }
+
+        #[doc = concat!(
+            "The integer 4-", stringify!($h), "-", stringify!($h), "-2 network's \
+             counterpart of `cartpole_controller_init_mlp", stringify!($h), "`: integer \
+             arithmetic from the observer's estimate to the decision."
+        )]
+        // SAFETY: as for `cartpole_controller_init`: one definition per C name.
+        #[allow(unsafe_code)]
+        #[unsafe(no_mangle)]
+        pub extern "C" fn $qname(
+            c: Option<&mut CartpoleController>,
+            w: Option<&'static QMlp<$h>>,
+            rig: Option<&CartpoleRig>,
+        ) -> c_int {
+            init_exported::<Int<$h>>(c, w, rig)
+        }
+    )* };
+}
+/// The widths `exported_inits!` is given, for the test that they are every supported one.
+#[cfg(test)]
+const INIT_WIDTHS: [usize; 5] = [16, 32, 64, 128, 256];
+exported_inits! {
+    16 => cartpole_controller_init_mlp16 / cartpole_controller_init_qmlp16,
+    32 => cartpole_controller_init_mlp32 / cartpole_controller_init_qmlp32,
+    64 => cartpole_controller_init_mlp64 / cartpole_controller_init_qmlp64,
+    128 => cartpole_controller_init_mlp128 / cartpole_controller_init_qmlp128,
+    256 => cartpole_controller_init_mlp256 / cartpole_controller_init_qmlp256,
 }
 
 /// One control period on this period's encoder counts, read through the rig's observer;

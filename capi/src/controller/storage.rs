@@ -1,5 +1,5 @@
-//! The caller-allocated `cartpole_controller_t`: opaque bytes that hold one controller for
-//! one of the shipped policies, and the magic word that tells an initialised one from any
+//! The caller-allocated `cartpole_controller_t`: opaque bytes that hold one controller of
+//! one network format and width, and the magic word that tells an initialised one from any
 //! other memory. The only `unsafe` of the controller's API is here: reading the magic from
 //! memory C hands over, and viewing the bytes as the controller the magic names.
 
@@ -34,78 +34,70 @@ union Opaque {
     align_pointer: *mut c_void,
 }
 
-/// One of the shipped policies with the reading format its controller runs in and the rig
-/// it was exported with.
-pub(crate) trait Shipped: 'static {
+/// A network format and width, with the reading format its controller runs in.
+pub(crate) trait Kind: 'static {
     /// The reading format of its controller.
     type Reading: Format;
     /// The network, as the controller holds it.
     type Policy: Policy<Self::Reading>;
-    /// What the first word of an instance of this policy holds.
+    /// What the first word of an instance of this kind holds.
     const MAGIC: u32;
-    /// The machine it was trained for.
-    const RIG: Rig;
-    /// The network.
-    fn policy() -> Self::Policy;
 }
 
-/// The float policy, `firmware::policy`.
-pub(crate) struct F32;
-/// The integer policy, `firmware::policy_int`.
-pub(crate) struct Int;
+/// The float network of width `H` (`firmware::network::Mlp`).
+pub(crate) struct Float<const H: usize>;
+/// The integer network of width `H` (`firmware::network::int::QMlp`).
+pub(crate) struct Int<const H: usize>;
 
-impl Shipped for F32 {
+/// `prefix` then a byte that tells the widths apart (each is a power of two).
+const fn magic_of(prefix: [u8; 3], width: usize) -> u32 {
+    u32::from_be_bytes([
+        prefix[0],
+        prefix[1],
+        prefix[2],
+        width.trailing_zeros() as u8,
+    ])
+}
+
+impl<const H: usize> Kind for Float<H> {
     type Reading = [f32; 4];
-    type Policy = &'static Mlp<64>;
-    const MAGIC: u32 = u32::from_be_bytes(*b"CPf1");
-    const RIG: Rig = firmware::policy::RIG;
-    fn policy() -> Self::Policy {
-        &firmware::policy::POLICY
-    }
+    type Policy = &'static Mlp<H>;
+    const MAGIC: u32 = magic_of(*b"CPf", H);
 }
 
-impl Shipped for Int {
+impl<const H: usize> Kind for Int<H> {
     type Reading = [i16; 4];
-    type Policy = &'static QMlp<64>;
-    const MAGIC: u32 = u32::from_be_bytes(*b"CPi1");
-    const RIG: Rig = firmware::policy_int::RIG;
-    fn policy() -> Self::Policy {
-        &firmware::policy_int::POLICY_INT
-    }
+    type Policy = &'static QMlp<H>;
+    const MAGIC: u32 = magic_of(*b"CPi", H);
 }
 
 /// The controller C runs: one telemetry record, the period's own, is all C reads back.
-pub(crate) type Running<K> =
-    Controller<<K as Shipped>::Policy, Input<<K as Shipped>::Reading>, Pins, 1>;
+pub(crate) type Running<K> = Controller<<K as Kind>::Policy, Input<<K as Kind>::Reading>, Pins, 1>;
 
 /// What an initialised `cartpole_controller_t` holds; `magic` first, where [`magic`] reads
-/// it whichever policy wrote it.
+/// it whichever kind wrote it.
 #[repr(C)]
-pub(crate) struct Slot<K: Shipped> {
+pub(crate) struct Slot<K: Kind> {
     magic: u32,
     /// The rig's control period, rounded to microseconds.
     pub(crate) period_us: u32,
     pub(crate) controller: Running<K>,
 }
 
-impl<K: Shipped> Slot<K> {
-    /// Fails to compile for a policy whose slot the C type cannot hold.
+impl<K: Kind> Slot<K> {
+    /// Fails to compile for a kind whose slot the C type cannot hold.
     const FITS: () = {
         assert!(size_of::<Slot<K>>() <= size_of::<CartpoleController>());
         assert!(align_of::<Slot<K>>() <= align_of::<CartpoleController>());
     };
 
-    /// A controller for `rig` as every Rust board builds one: the rig's observer behind
-    /// the encoders, its predictor if it has dead time, its limits, pins not yet driven.
-    /// Solves the observer's gain: once, at start-up.
-    pub(crate) fn new(rig: &Rig) -> Self {
+    /// A controller of `policy` for `rig` as every Rust board builds one: the rig's
+    /// observer behind the encoders, its predictor if it has dead time, its limits, pins not
+    /// yet driven. Solves the observer's gain: once, at start-up.
+    pub(crate) fn new(policy: K::Policy, rig: &Rig) -> Self {
         let encoders = ObserverSensor::new(rig.observer(), Latest::default());
-        let controller = Controller::with_history(
-            K::policy(),
-            Input::new(encoders),
-            loopback::pins(),
-            rig.limits(),
-        );
+        let controller =
+            Controller::with_history(policy, Input::new(encoders), loopback::pins(), rig.limits());
         let controller = if rig.dead_time > 0 {
             controller.with_predictor(rig.predictor())
         } else {
@@ -125,7 +117,7 @@ impl<K: Shipped> Slot<K> {
         let at = (c as *mut CartpoleController).cast::<Slot<K>>();
         // SAFETY: `FITS` holds at compile time, so `c` has room for a `Slot<K>` and is
         // aligned for it; `write` drops nothing of what `c` held (bytes, or an earlier slot,
-        // which owns nothing: its policy is a `&'static`).
+        // which owns nothing: its policy is a shared reference).
         #[allow(unsafe_code)]
         unsafe {
             at.write(self)
@@ -133,8 +125,8 @@ impl<K: Shipped> Slot<K> {
     }
 }
 
-/// The magic word in `c`: one of the policies' only if `c` was initialised for it.
-fn magic(c: &CartpoleController) -> u32 {
+/// The magic word in `c`: one of the kinds' only if `c` was initialised for it.
+pub(crate) fn magic(c: &CartpoleController) -> u32 {
     let at = (c as *const CartpoleController).cast::<u32>();
     // SAFETY: `c` spans `CONTROLLER_SIZE` (at least four) bytes aligned for a u64, so for
     // a u32, and any four bytes are a u32. Memory C never wrote holds bytes of unknown
@@ -147,19 +139,21 @@ fn magic(c: &CartpoleController) -> u32 {
     }
 }
 
-/// `c` as the slot of the policy `K`, if its magic says it is one.
-pub(crate) fn slot<K: Shipped>(c: &CartpoleController) -> Option<&Slot<K>> {
+/// `c` as the slot of the kind `K`, if its magic says it is one.
+pub(crate) fn slot<K: Kind>(c: &CartpoleController) -> Option<&Slot<K>> {
     let () = Slot::<K>::FITS;
     let at = (c as *const CartpoleController).cast::<Slot<K>>();
     // SAFETY: the magic of `K` is only ever written by `Slot::<K>::store`, which wrote a
-    // whole `Slot<K>` there (room and alignment by `FITS`); a slot owns no pointers but
-    // `&'static` ones, so a C copy of the bytes is a valid slot too.
+    // whole `Slot<K>` there (room and alignment by `FITS`); a slot owns nothing and points
+    // only at its weights, the shipped ones or those C promised to keep for the controller's
+    // life and its copies' (`cartpole_controller_init_mlpH`), so a C copy of the bytes is a
+    // valid slot too.
     #[allow(unsafe_code)]
     (magic(c) == K::MAGIC).then(|| unsafe { &*at })
 }
 
 /// [`slot`], to change it.
-pub(crate) fn slot_mut<K: Shipped>(c: &mut CartpoleController) -> Option<&mut Slot<K>> {
+pub(crate) fn slot_mut<K: Kind>(c: &mut CartpoleController) -> Option<&mut Slot<K>> {
     let () = Slot::<K>::FITS;
     let is_k = magic(c) == K::MAGIC;
     let at = (c as *mut CartpoleController).cast::<Slot<K>>();

@@ -26,7 +26,7 @@ type Decisions = Vec<(i32, [u32; 2])>;
 /// The library's commands and Q-values over a closed loop, and those of the firmware's
 /// controller with `predictor`, on the same counts.
 fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
-    let mut slot = Slot::<F32>::new(rig);
+    let mut slot = Slot::<Float<64>>::new(&POLICY, rig);
     let sensor = ObserverSensor::new(rig.observer(), Latest::default());
     let mut reference = Controller::new(&POLICY, sensor, loopback::pins(), rig.limits());
     if let Some(p) = predictor {
@@ -69,7 +69,11 @@ fn the_period_is_the_rigs_tau_in_whole_microseconds() {
             params: Params { tau, ..RIG.params },
             ..RIG
         };
-        assert_eq!(Slot::<Int>::new(&rig).period_us(), us, "tau {tau}");
+        assert_eq!(
+            Slot::<Int<64>>::new(&firmware::policy_int::POLICY_INT, &rig).period_us(),
+            us,
+            "tau {tau}"
+        );
     }
 }
 
@@ -116,4 +120,69 @@ fn memory_init_did_not_write_is_refused_by_every_call() {
         );
         assert_eq!(out.step, 0);
     }
+}
+
+#[test]
+fn every_supported_width_has_its_exported_inits() {
+    assert_eq!(INIT_WIDTHS.as_slice(), firmware::network::SUPPORTED_WIDTHS);
+}
+
+/// `n` steps of `c` on the same counts; the last command.
+fn steps(c: &mut CartpoleController, n: usize) -> CartpoleCommand {
+    let mut out = CartpoleCommand {
+        command: 7,
+        direction: 7,
+        duty: 7,
+        faults: 7,
+        q: [7.0; 2],
+        q_int: [7; 2],
+        step: 7,
+    };
+    for _ in 0..n {
+        assert_eq!(
+            cartpole_controller_step(Some(&mut *c), 40, -30, Some(&mut out)),
+            CARTPOLE_OK
+        );
+    }
+    out
+}
+
+#[test]
+fn the_shipped_weights_and_rig_given_by_hand_make_the_shipped_controller() {
+    let (mut shipped, mut given) = (CartpoleController::filled(0), CartpoleController::filled(0));
+    let rig = crate::CartpoleRig::from(&RIG);
+    assert_eq!(
+        cartpole_controller_init(Some(&mut shipped), CARTPOLE_POLICY_F32),
+        CARTPOLE_OK
+    );
+    assert_eq!(
+        cartpole_controller_init_mlp64(Some(&mut given), Some(&POLICY), Some(&rig)),
+        CARTPOLE_OK
+    );
+    assert_eq!(steps(&mut shipped, 5), steps(&mut given, 5));
+}
+
+#[test]
+fn a_refused_init_leaves_the_instance_running_as_it_was() {
+    let mut c = CartpoleController::filled(0);
+    let good = crate::CartpoleRig::from(&firmware::policy_int::RIG);
+    let w = &firmware::policy_int::POLICY_INT;
+    assert_eq!(
+        cartpole_controller_init_qmlp64(Some(&mut c), Some(w), Some(&good)),
+        CARTPOLE_OK
+    );
+    steps(&mut c, 3);
+    let bad = crate::CartpoleRig {
+        tau: f64::NAN,
+        ..good
+    };
+    assert_eq!(
+        cartpole_controller_init_qmlp64(Some(&mut c), Some(w), Some(&bad)),
+        CARTPOLE_ERR_RIG
+    );
+    assert_eq!(
+        cartpole_controller_init_qmlp64(Some(&mut c), None, Some(&good)),
+        CARTPOLE_ERR_NULL
+    );
+    assert_eq!(steps(&mut c, 1).step, 3);
 }

@@ -144,12 +144,16 @@ fn sources_name_their_scale_and_size() {
     let rust = rust_module(&q, "P_INT", &["source: a test".into()], &Rig::GYMNASIUM).unwrap();
     assert!(rust.contains("pub static P_INT: ::firmware::network::int::QMlp<64>"));
     assert!(rust.contains("5512 bytes of flash") && rust.contains("per-tensor"));
-    let c = c_header(&q, "p_int", &[]).unwrap();
+    let c = c_header(&q, "p_int", &[], &Rig::GYMNASIUM).unwrap();
     assert!(c.contains("static const struct cartpole_qmlp64 p_int = {"));
     assert!(
         rust_module(&q, "lower", &[], &Rig::GYMNASIUM)
             .unwrap_err()
             .is_input()
     );
-    assert!(c_header(&q, "int", &[]).unwrap_err().is_input());
+    assert!(
+        c_header(&q, "int", &[], &Rig::GYMNASIUM)
+            .unwrap_err()
+            .is_input()
+    );
 }

@@ -1,0 +1,141 @@
+//! `--rig` at the simulator's doors: a rig file no machine has is refused by `eval`, `render`
+//! and `agree` with exit status 2 and a message naming the field, before anything is written
+//! or printed; and a policy run on another rig than the one it records is warned about, while
+//! its own rig is not.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+use firmware::policy::POLICY;
+use weights::Weights;
+use weights::checkpoint::to_safetensors;
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("hs-rig-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// `rigs/desk.toml` spoilt four ways, written into `dir`: each file and the field its
+/// refusal must name.
+fn bad_rigs(dir: &Path) -> Vec<(String, &'static str)> {
+    let desk = std::fs::read_to_string(repo().join("rigs/desk.toml")).unwrap();
+    let spoilt = [
+        ("missing", "period_s = 0.02\n", "", "period_s"),
+        ("nan", "period_s = 0.02", "period_s = nan", "period_s"),
+        (
+            "negative-mass",
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = -0.6",
+            "cart_mass_kg",
+        ),
+        ("zero-period", "period_s = 0.02", "period_s = 0", "period_s"),
+    ];
+    spoilt
+        .iter()
+        .map(|&(name, from, to, field)| {
+            assert!(desk.contains(from), "rigs/desk.toml no longer has {from:?}");
+            let path = dir.join(format!("{name}.toml"));
+            std::fs::write(&path, desk.replacen(from, to, 1)).unwrap();
+            (path.to_str().unwrap().to_string(), field)
+        })
+        .collect()
+}
+
+#[test]
+fn eval_render_and_agree_refuse_a_rig_no_machine_has_naming_the_field() {
+    let dir = scratch("bad");
+    let pics = dir.join("pics");
+    let out = pics.to_str().unwrap();
+    for (rig, field) in bad_rigs(&dir) {
+        let cases: [&[&str]; 4] = [
+            &["eval", "--episodes", "2", "--horizon", "10", "--rig", &rig],
+            &[
+                "eval",
+                "--controller",
+                "lqr",
+                "--episodes",
+                "2",
+                "--rig",
+                &rig,
+            ],
+            &["render", "--horizon", "5", "--rig", &rig, "--out", out],
+            &["agree", "--states", "10", "--rig", &rig],
+        ];
+        for args in cases {
+            let o = run(args);
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+            assert!(err.contains(field) && err.len() < 1_000, "{args:?}: {err}");
+            assert!(o.stdout.is_empty(), "{args:?} printed on stdout");
+            assert!(!pics.exists(), "{args:?} wrote {out}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A run directory whose policy file records `rig_toml` as the rig it was trained for.
+fn run_dir(dir: &Path, rig_toml: &str) -> PathBuf {
+    let run = dir.join("run");
+    std::fs::create_dir_all(&run).unwrap();
+    let meta = BTreeMap::from([(
+        twin::rigfile::METADATA_KEY.to_string(),
+        rig_toml.to_string(),
+    )]);
+    let bytes = to_safetensors(&Weights::from_mlp(&POLICY).unwrap(), &meta).unwrap();
+    std::fs::write(run.join("policy.safetensors"), bytes).unwrap();
+    run
+}
+
+#[test]
+fn eval_warns_when_rig_is_not_the_rig_the_policy_records_and_only_then() {
+    let dir = scratch("warn");
+    let desk = repo().join("rigs/desk.toml");
+    let policy = run_dir(&dir, &std::fs::read_to_string(&desk).unwrap());
+    let eval = |rig: Option<&Path>| {
+        let mut args = vec![
+            "eval",
+            "--policy",
+            policy.to_str().unwrap(),
+            "--controller",
+            "policy",
+            "--scenario",
+            "nominal",
+            "--episodes",
+            "2",
+            "--horizon",
+            "20",
+        ];
+        if let Some(rig) = rig {
+            args.extend(["--rig", rig.to_str().unwrap()]);
+        }
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{args:?}: {err}");
+        assert!(!o.stdout.is_empty(), "{args:?}: no table");
+        err
+    };
+    let other = eval(Some(&repo().join("rigs/gymnasium.toml")));
+    assert!(
+        other.contains("warning: the policy was trained for another rig than --rig gives"),
+        "{other}"
+    );
+    for rig in [Some(desk.as_path()), None] {
+        let err = eval(rig);
+        assert!(!err.contains("warning"), "--rig {rig:?}: {err}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

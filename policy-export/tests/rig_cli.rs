@@ -1,0 +1,81 @@
+//! A rig file no machine has, at each of the trainer's doors that take `--rig`: `train` and
+//! `export` (Rust, C, and int8, whose calibration runs on the rig) refuse it with exit status
+//! 2 and a message naming the field, before writing anything, and print nothing on stdout.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("pe-rig-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// `rigs/desk.toml` spoilt four ways, written into `dir`: each file and the field its
+/// refusal must name.
+fn bad_rigs(dir: &Path) -> Vec<(PathBuf, &'static str)> {
+    let desk = std::fs::read_to_string(repo().join("rigs/desk.toml")).unwrap();
+    let spoilt = [
+        ("missing", "period_s = 0.02\n", "", "period_s"),
+        ("nan", "period_s = 0.02", "period_s = nan", "period_s"),
+        (
+            "negative-mass",
+            "cart_mass_kg = 0.6",
+            "cart_mass_kg = -0.6",
+            "cart_mass_kg",
+        ),
+        ("zero-period", "period_s = 0.02", "period_s = 0", "period_s"),
+    ];
+    spoilt
+        .iter()
+        .map(|&(name, from, to, field)| {
+            assert!(desk.contains(from), "rigs/desk.toml no longer has {from:?}");
+            let path = dir.join(format!("{name}.toml"));
+            std::fs::write(&path, desk.replacen(from, to, 1)).unwrap();
+            (path, field)
+        })
+        .collect()
+}
+
+/// `args` with `--rig rig` and `--out out`: exit 2, `field` named, nothing on stdout, `out`
+/// not written.
+#[track_caller]
+fn refused(args: &[&str], rig: &Path, out: &Path, field: &str) {
+    let o: Output = Command::new(env!("CARGO_BIN_EXE_policy-export"))
+        .args(args)
+        .arg("--rig")
+        .arg(rig)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    let seen = format!("{args:?} --rig {}: {err}", rig.display());
+    assert_eq!(o.status.code(), Some(2), "{seen}");
+    assert!(err.contains(field) && err.len() < 1_000, "{seen}");
+    assert!(o.stdout.is_empty(), "{seen}");
+    assert!(!out.exists(), "{seen}: {} was written", out.display());
+}
+
+#[test]
+fn train_and_export_refuse_a_rig_no_machine_has_naming_the_field() {
+    let dir = scratch("bad");
+    let shipped = repo().join("firmware/policy.safetensors");
+    let src = shipped.to_str().unwrap();
+    for (rig, field) in bad_rigs(&dir) {
+        refused(&["train", "--episodes", "1"], &rig, &dir.join("run"), field);
+        for format in [
+            &["export", src][..],
+            &["export", src, "--format", "c"],
+            &["export", src, "--quant", "int8", "--format", "c"],
+        ] {
+            refused(format, &rig, &dir.join("policy.out"), field);
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
