@@ -132,7 +132,13 @@ impl<T: Real> Plant<T> {
     /// `external` (N, pushes) on the cart.
     #[inline(always)]
     pub fn derivative(&self, s: &[T; 4], duty: T, external: T) -> [T; 4] {
-        let trig = s[2].sin_cos();
+        self.derivative_at(s, s[2].sin_cos(), duty, external)
+    }
+
+    /// [`Plant::derivative`] with the angle's sine and cosine given, `trig = (sin, cos)` of
+    /// `s[2]`: for an integrator that knows them more cheaply than by computing them afresh.
+    #[inline(always)]
+    pub fn derivative_at(&self, s: &[T; 4], trig: (T, T), duty: T, external: T) -> [T; 4] {
         let force = self.motor_force(duty, s[1]) + external;
         let (xacc, thetaacc) = if self.cart_friction != T::ZERO || self.pole_friction != T::ZERO {
             self.florian(s, trig, force)
