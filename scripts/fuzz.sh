@@ -1,11 +1,14 @@
 #!/usr/bin/env bash
-# Fuzzes the host tools' four parsers with libFuzzer (cargo-fuzz, nightly Rust): the
-# checkpoint importer, the TOML configuration, the trajectory parser and the scenario
-# parser, SECONDS each (default 60), seeded with the repository's own valid inputs. Prints
-# each target's executions and coverage; exits 1 on a crash (the input is kept in
-# fuzz/artifacts/). Installs the nightly toolchain and cargo-fuzz if they are missing.
-# FUZZ_SANITIZER=none builds without AddressSanitizer (much faster to build; the parsers are
-# safe Rust, so it finds the same panics), as CI does.
+# Fuzzes the host tools' four parsers with libFuzzer: the checkpoint importer, the TOML
+# configuration, the trajectory parser and the scenario parser, SECONDS each (default 60),
+# seeded with the repository's own valid inputs. Prints each target's executions and
+# coverage; exits 1 on a crash (the input is kept in fuzz/artifacts/TARGET/).
+#
+# The targets (`fuzz/`, a workspace of its own) build with the pinned stable toolchain:
+# libfuzzer-sys brings libFuzzer, and the flags below are the coverage instrumentation
+# cargo-fuzz would pass (it is not needed, nor nightly Rust). No AddressSanitizer, which
+# needs nightly: the parsers are safe Rust, so the fuzzer finds the same panics, with debug
+# assertions and overflow checks on.
 #   scripts/fuzz.sh [SECONDS] [TARGET...]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -13,8 +16,7 @@ seconds=${1:-60}
 shift || true
 targets=("$@")
 [ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse)
-rustup toolchain list | grep -q '^nightly' || rustup toolchain install nightly --profile minimal
-command -v cargo-fuzz >/dev/null || cargo +nightly install cargo-fuzz --locked
+host=$(rustc -vV | sed -n 's/^host: //p')
 corpus=fuzz/corpus
 mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse}
 cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
@@ -28,23 +30,23 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
 done
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
-# The harness must compile with the project's own toolchain: if it does not, our code broke it
-# (a renamed module, say), which is a failure, not a nightly's quirk.
-if ! cargo check -q --locked --manifest-path fuzz/Cargo.toml --bins >"$log" 2>&1; then
+# The target triple keeps the instrumentation off build scripts and procedural macros.
+coverage="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
+-Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
+-Cllvm-args=-sanitizer-coverage-trace-compares --cfg fuzzing -Cdebug-assertions -Coverflow-checks"
+target_dir=${CARGO_TARGET_DIR:-fuzz/target}
+if ! RUSTFLAGS="$coverage" CARGO_TARGET_DIR="$target_dir" cargo build -q --release --locked \
+    --manifest-path fuzz/Cargo.toml --bins --target "$host" >"$log" 2>&1; then
   tail -n 20 "$log"
   echo "fuzz: the targets do not compile against the project's code"
   exit 1
 fi
-if ! cargo +nightly fuzz build -s "${FUZZ_SANITIZER:-address}" >"$log" 2>&1; then
-  tail -n 20 "$log"
-  echo "fuzz: the targets do not build with this nightly toolchain ($(rustc +nightly --version))"
-  exit 3
-fi
 for t in "${targets[@]}"; do
   echo "== fuzz $t for ${seconds} s"
-  if ! cargo +nightly fuzz run -s "${FUZZ_SANITIZER:-address}" "$t" "$corpus/$t" -- \
-      -max_total_time="$seconds" \
-      -max_len=65536 -rss_limit_mb=2048 -print_final_stats=1 >"$log" 2>&1; then
+  mkdir -p "fuzz/artifacts/$t"
+  if ! "$target_dir/$host/release/$t" "$corpus/$t" -artifact_prefix="fuzz/artifacts/$t/" \
+      -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
+      -print_final_stats=1 >"$log" 2>&1; then
     tail -n 40 "$log"
     echo "fuzz $t: failed (a crashing input is kept in fuzz/artifacts/$t/)"
     exit 1
