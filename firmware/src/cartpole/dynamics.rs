@@ -55,12 +55,10 @@ impl Real for f64 {
     fn cos(self) -> f64 {
         libm::cos(self)
     }
-    /// One argument reduction for both: the same bits as `libm::sin` and `libm::cos`
-    /// (the same kernels; checked against them in the tests).
-    #[inline(always)]
-    fn sin_cos(self) -> (f64, f64) {
-        libm::sincos(self)
-    }
+    // `sin_cos` stays the two calls, not `libm::sincos`: as the only caller of libm's
+    // argument reduction, `sincos` takes it inline, and with it the scratch arrays of the
+    // large-argument path, into the frame of every plant step on a microcontroller, for
+    // angles a balancing pole never reaches. Two callers keep the reduction out of line.
 }
 
 impl Real for f32 {
