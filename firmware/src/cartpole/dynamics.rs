@@ -55,12 +55,10 @@ impl Real for f64 {
     fn cos(self) -> f64 {
         libm::cos(self)
     }
-    /// One argument reduction for both: the same bits as `libm::sin` and `libm::cos`
-    /// (the same kernels; checked against them in the tests).
-    #[inline(always)]
-    fn sin_cos(self) -> (f64, f64) {
-        libm::sincos(self)
-    }
+    // `sin_cos` stays the two calls, not `libm::sincos`: as the only caller of libm's
+    // argument reduction, `sincos` takes it inline, and with it the scratch arrays of the
+    // large-argument path, into the frame of every plant step on a microcontroller, for
+    // angles a balancing pole never reaches. Two callers keep the reduction out of line.
 }
 
 impl Real for f32 {
@@ -189,27 +187,37 @@ impl<T: Real> Plant<T> {
     /// sign of `N_c` is taken as positive first (the pole is far lighter than what holds the
     /// cart down) and `theta_acc` is recomputed in the rare step where it comes out negative.
     /// At zero friction the equations reduce to Gymnasium's.
-    fn florian(&self, s: &[T; 4], (sin, cos): (T, T), force: T) -> (T, T) {
+    fn florian(&self, s: &[T; 4], trig: (T, T), force: T) -> (T, T) {
         let [_, x_dot, _, theta_dot] = *s;
-        let (mc, mp) = (self.cart_friction, self.pole_friction);
-        let (m, ml) = (self.total_mass, self.polemass_length);
+        let (sin, cos) = trig;
+        let (mc, m, ml) = (self.cart_friction, self.total_mass, self.polemass_length);
         let w2 = theta_dot * theta_dot;
-        let theta_acc = |nc_sign: T| {
-            let f = mc * sgn(nc_sign * x_dot);
-            let num = self.gravity * sin
-                - cos * ((force + ml * w2 * (sin + f * cos)) / m - f * self.gravity)
-                - mp * theta_dot / ml;
-            num / (self.length * (self.four_thirds - self.masspole * cos / m * (cos - f)))
-        };
         let normal = |ta: T| m * self.gravity - ml * (ta * sin + w2 * cos);
-        let mut ta = theta_acc(T::ONE);
+        let mut ta = self.florian_theta_acc(s, trig, force, T::ONE);
         let mut nc = normal(ta);
         if nc < T::ZERO {
-            ta = theta_acc(-T::ONE);
+            ta = self.florian_theta_acc(s, trig, force, -T::ONE);
             nc = normal(ta);
         }
         let xacc = (force + ml * (w2 * sin - ta * cos) - mc * nc * sgn(nc * x_dot)) / m;
         (xacc, ta)
+    }
+
+    /// Florian's `theta_acc` with `nc_sign` taken as the sign of `N_c`. A method inlined
+    /// twice rather than a closure called twice: such a closure stays out of line, and what it
+    /// borrows (the plant's constants, the angle's sine and cosine) then has to live in
+    /// memory, in the frame of every plant step, friction or not.
+    #[inline(always)]
+    fn florian_theta_acc(&self, s: &[T; 4], (sin, cos): (T, T), force: T, nc_sign: T) -> T {
+        let [_, x_dot, _, theta_dot] = *s;
+        let (mc, mp) = (self.cart_friction, self.pole_friction);
+        let (m, ml) = (self.total_mass, self.polemass_length);
+        let w2 = theta_dot * theta_dot;
+        let f = mc * sgn(nc_sign * x_dot);
+        let num = self.gravity * sin
+            - cos * ((force + ml * w2 * (sin + f * cos)) / m - f * self.gravity)
+            - mp * theta_dot / ml;
+        num / (self.length * (self.four_thirds - self.masspole * cos / m * (cos - f)))
     }
 }
 

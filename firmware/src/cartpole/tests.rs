@@ -150,7 +150,7 @@ fn action_indices_round_trip() {
 
 #[test]
 fn sin_cos_is_sin_and_cos_bit_for_bit() {
-    // Gymnasium's bits rest on libm's sine and cosine; the plant takes both from one call.
+    // Gymnasium's bits rest on libm's sine and cosine, whichever way the plant asks for both.
     let mut x = -40.0f64;
     while x < 40.0 {
         let (s, c) = Real::sin_cos(x);

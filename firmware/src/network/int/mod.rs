@@ -142,18 +142,21 @@ impl<const H: usize> QMlp<H> {
         }
     }
 
-    /// The hidden activations `(h1, h2)` and the output `q` for a fixed-point observation
-    /// (see [the module](self)), by the target's fastest kernels: the DSP extension's on
-    /// ARMv7E-M cores (Cortex-M4, M7: `dsp`), hand-written ARMv6-M code on other Arm cores
-    /// (`thumb`), [`QMlp::layers_portable`] elsewhere. All give the same bits.
+    /// The two outputs `q` (as exported: the advantages of left and right) in the output's
+    /// integer scale for a fixed-point observation (see [the module](self)); push right iff
+    /// `q[1] > q[0]`. By the target's fastest kernels: the DSP extension's on ARMv7E-M cores
+    /// (Cortex-M4, M7: `dsp`), hand-written ARMv6-M code on other Arm cores (`thumb`),
+    /// [`QMlp::forward_portable`] elsewhere. All give the same bits.
+    ///
+    /// Only `q` leaves: returning the hidden activations too would put them in every
+    /// caller's frame, beside this pass's own.
     #[inline]
-    pub fn layers(&self, obs: &[i16; OBS_DIM]) -> ([u8; H], [u8; H], [i32; N_ACTIONS]) {
+    pub fn forward(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
         #[cfg(cartpole_dsp)]
         if H > 0 && H.is_multiple_of(8) {
             let h1 = dsp::input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
             let h2 = dsp::hidden(&self.fc2_weight, &self.fc2_bias, &self.fc2_requant, &h1);
-            let q = dsp::output(&self.fc3_weight, &self.fc3_bias, &h2);
-            return (h1, h2, q);
+            return dsp::output(&self.fc3_weight, &self.fc3_bias, &h2);
         }
         #[cfg(all(target_arch = "arm", not(cartpole_dsp)))]
         if H > 0 && H.is_multiple_of(8) {
@@ -173,19 +176,18 @@ impl<const H: usize> QMlp<H> {
             }
             let [wl, wr] = &self.fc3_weight;
             let [l, r] = thumb::dot2(wl, wr, &h2);
-            let q = [
+            return [
                 l.wrapping_add(self.fc3_bias[0]),
                 r.wrapping_add(self.fc3_bias[1]),
             ];
-            return (h1, h2, q);
         }
-        self.layers_portable(obs)
+        self.forward_portable(obs)
     }
 
-    /// [`QMlp::layers`] in plain Rust: the definition of the integer forward pass, which the
+    /// [`QMlp::forward`] in plain Rust: the definition of the integer forward pass, which the
     /// kernels are tested against (on the device, by the self-test).
     #[inline]
-    pub fn layers_portable(&self, obs: &[i16; OBS_DIM]) -> ([u8; H], [u8; H], [i32; N_ACTIONS]) {
+    pub fn forward_portable(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
         let h1 = input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
         let mut h2 = [0u8; H];
         for (((y, w), b), r) in h2
@@ -200,20 +202,7 @@ impl<const H: usize> QMlp<H> {
         for ((q, w), b) in q.iter_mut().zip(&self.fc3_weight).zip(&self.fc3_bias) {
             *q = dot_u8(w, &h2).wrapping_add(*b);
         }
-        (h1, h2, q)
-    }
-
-    /// The two outputs `q` (as exported: the advantages of left and right) in the output's
-    /// integer scale; push right iff `q[1] > q[0]`.
-    #[inline]
-    pub fn forward(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
-        self.layers(obs).2
-    }
-
-    /// [`QMlp::forward`] by [`QMlp::layers_portable`].
-    #[inline]
-    pub fn forward_portable(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
-        self.layers_portable(obs).2
+        q
     }
 
     /// `Right` iff `q[1] > q[0]`; a tie pushes `Left`, as the float network's
