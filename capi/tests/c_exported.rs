@@ -174,20 +174,7 @@ fn rig_lines(rig: &Rig) -> String {
             .map(|v| format!("{:016x}\n", v.to_bits()))
             .collect()
     };
-    let physics = [
-        p.gravity,
-        p.masscart,
-        p.masspole,
-        p.length,
-        p.force_mag,
-        p.motor_damping,
-        p.tau,
-        p.theta_threshold_radians,
-        p.x_threshold,
-        p.cart_friction,
-        p.pole_friction,
-    ];
-    bits(&physics)
+    bits(&p.values())
         + &format!(
             "{}\n{}\n{}\n",
             e.cart_counts_per_m, e.pole_counts_per_rev, rig.dead_time

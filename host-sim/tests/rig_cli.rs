@@ -11,6 +11,10 @@ use firmware::policy::POLICY;
 use weights::Weights;
 use weights::checkpoint::to_safetensors;
 
+#[path = "../../tests/support/spoilt_rigs.rs"]
+mod spoilt;
+use spoilt::bad_rigs;
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
@@ -29,40 +33,15 @@ fn run(args: &[&str]) -> Output {
         .unwrap()
 }
 
-/// `rigs/desk.toml` spoilt four ways, written into `dir`: each file and the field its
-/// refusal must name.
-fn bad_rigs(dir: &Path) -> Vec<(String, &'static str)> {
-    let desk = std::fs::read_to_string(repo().join("rigs/desk.toml")).unwrap();
-    let spoilt = [
-        ("missing", "period_s = 0.02\n", "", "period_s"),
-        ("nan", "period_s = 0.02", "period_s = nan", "period_s"),
-        (
-            "negative-mass",
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = -0.6",
-            "cart_mass_kg",
-        ),
-        ("zero-period", "period_s = 0.02", "period_s = 0", "period_s"),
-    ];
-    spoilt
-        .iter()
-        .map(|&(name, from, to, field)| {
-            assert!(desk.contains(from), "rigs/desk.toml no longer has {from:?}");
-            let path = dir.join(format!("{name}.toml"));
-            std::fs::write(&path, desk.replacen(from, to, 1)).unwrap();
-            (path.to_str().unwrap().to_string(), field)
-        })
-        .collect()
-}
-
 #[test]
 fn eval_render_and_agree_refuse_a_rig_no_machine_has_naming_the_field() {
     let dir = scratch("bad");
     let pics = dir.join("pics");
     let out = pics.to_str().unwrap();
     for (rig, field) in bad_rigs(&dir) {
+        let rig = rig.to_str().unwrap();
         let cases: [&[&str]; 4] = [
-            &["eval", "--episodes", "2", "--horizon", "10", "--rig", &rig],
+            &["eval", "--episodes", "2", "--horizon", "10", "--rig", rig],
             &[
                 "eval",
                 "--controller",
@@ -70,10 +49,10 @@ fn eval_render_and_agree_refuse_a_rig_no_machine_has_naming_the_field() {
                 "--episodes",
                 "2",
                 "--rig",
-                &rig,
+                rig,
             ],
-            &["render", "--horizon", "5", "--rig", &rig, "--out", out],
-            &["agree", "--states", "10", "--rig", &rig],
+            &["render", "--horizon", "5", "--rig", rig, "--out", out],
+            &["agree", "--states", "10", "--rig", rig],
         ];
         for args in cases {
             let o = run(args);

@@ -5,6 +5,10 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+#[path = "../../tests/support/spoilt_rigs.rs"]
+mod spoilt;
+use spoilt::bad_rigs;
+
 fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
@@ -14,32 +18,6 @@ fn scratch(name: &str) -> PathBuf {
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
-}
-
-/// `rigs/desk.toml` spoilt four ways, written into `dir`: each file and the field its
-/// refusal must name.
-fn bad_rigs(dir: &Path) -> Vec<(PathBuf, &'static str)> {
-    let desk = std::fs::read_to_string(repo().join("rigs/desk.toml")).unwrap();
-    let spoilt = [
-        ("missing", "period_s = 0.02\n", "", "period_s"),
-        ("nan", "period_s = 0.02", "period_s = nan", "period_s"),
-        (
-            "negative-mass",
-            "cart_mass_kg = 0.6",
-            "cart_mass_kg = -0.6",
-            "cart_mass_kg",
-        ),
-        ("zero-period", "period_s = 0.02", "period_s = 0", "period_s"),
-    ];
-    spoilt
-        .iter()
-        .map(|&(name, from, to, field)| {
-            assert!(desk.contains(from), "rigs/desk.toml no longer has {from:?}");
-            let path = dir.join(format!("{name}.toml"));
-            std::fs::write(&path, desk.replacen(from, to, 1)).unwrap();
-            (path, field)
-        })
-        .collect()
 }
 
 /// `args` with `--rig rig` and `--out out`: exit 2, `field` named, nothing on stdout, `out`

@@ -31,26 +31,17 @@ fn awkward_rig() -> Rig {
 fn rig_lines(rig: &Rig) -> Vec<String> {
     let p = &rig.params;
     let t = &rig.tuning;
-    let mut f: Vec<String> = [
-        p.gravity,
-        p.masscart,
-        p.masspole,
-        p.length,
-        p.force_mag,
-        p.motor_damping,
-        p.tau,
-        p.theta_threshold_radians,
-        p.x_threshold,
-        p.cart_friction,
-        p.pole_friction,
-        rig.end_stop_margin,
-        t.force_sd,
-        t.accel_sd[0],
-        t.accel_sd[1],
-    ]
-    .iter()
-    .map(|v| format!("{:016x}", v.to_bits()))
-    .collect();
+    let mut f: Vec<String> = p
+        .values()
+        .into_iter()
+        .chain([
+            rig.end_stop_margin,
+            t.force_sd,
+            t.accel_sd[0],
+            t.accel_sd[1],
+        ])
+        .map(|v| format!("{:016x}", v.to_bits()))
+        .collect();
     let e = &rig.encoders;
     f.push(format!(
         "{} {} {}",

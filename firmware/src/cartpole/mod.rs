@@ -114,7 +114,30 @@ impl Default for Params {
     }
 }
 
+/// How many numbers a [`Params`] holds.
+pub const PARAMS_LEN: usize = 11;
+// Params is these numbers and nothing else, so [`Params::values`] cannot leave one out.
+const _: () = assert!(core::mem::size_of::<Params>() == PARAMS_LEN * 8);
+
 impl Params {
+    /// Every field, in the order of the declaration: what a dump or a digest of the machine
+    /// takes.
+    pub const fn values(&self) -> [f64; PARAMS_LEN] {
+        [
+            self.gravity,
+            self.masscart,
+            self.masspole,
+            self.length,
+            self.force_mag,
+            self.motor_damping,
+            self.tau,
+            self.theta_threshold_radians,
+            self.x_threshold,
+            self.cart_friction,
+            self.pole_friction,
+        ]
+    }
+
     /// Cart plus pole, computed as Gymnasium does (`masspole + masscart`).
     pub fn total_mass(&self) -> f64 {
         self.masspole + self.masscart

@@ -74,7 +74,8 @@ pub fn qmlp<const H: usize>(m: &QMlp<H>) -> u64 {
 /// The digest of a rig: every number a board's observer, predictor and limits are built
 /// from.
 pub fn rig(r: &Rig) -> u64 {
-    // Destructured, so that a field added to the rig or its physics cannot be left out.
+    // Destructured, so that a field added to the rig cannot be left out (and
+    // `Params::values` is every field of the physics).
     let Rig {
         params,
         encoders,
@@ -82,32 +83,6 @@ pub fn rig(r: &Rig) -> u64 {
         end_stop_margin,
         tuning,
     } = *r;
-    let crate::cartpole::Params {
-        gravity,
-        masscart,
-        masspole,
-        length,
-        force_mag,
-        motor_damping,
-        tau,
-        theta_threshold_radians,
-        x_threshold,
-        cart_friction,
-        pole_friction,
-    } = params;
-    let physics = [
-        gravity,
-        masscart,
-        masspole,
-        length,
-        force_mag,
-        motor_damping,
-        tau,
-        theta_threshold_radians,
-        x_threshold,
-        cart_friction,
-        pole_friction,
-    ];
     let counts = [
         encoders.cart_counts_per_m,
         encoders.pole_counts_per_rev,
@@ -120,7 +95,7 @@ pub fn rig(r: &Rig) -> u64 {
         tuning.accel_sd[1],
     ];
     Fnv::default()
-        .all(&physics, f64::to_le_bytes)
+        .all(&params.values(), f64::to_le_bytes)
         .all(&counts, u32::to_le_bytes)
         .all(&tuning, f64::to_le_bytes)
         .finish()
