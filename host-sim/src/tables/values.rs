@@ -2,7 +2,8 @@
 //! number a sentence quotes cannot drift from the measurement it comes from.
 //!
 //! A value is a marker naming a results file, a row and a field, the figure, and a closing
-//! marker, all on one line; both markers are HTML comments, so only the figure shows:
+//! marker, all on one line and not first on it; both markers are HTML comments, so only the
+//! figure shows:
 //!
 //! ```text
 //! RMS x <!-- value: docs/results/eval-shipped.json scenario=nominal horizon=500 controller=policy rms_x_m -->0.092<!-- /value --> m
@@ -28,7 +29,8 @@ pub const CLOSE: &str = "<!-- /value -->";
 /// The syntax, as `host-sim tables --help` shows it.
 pub const HELP: &str = "\
 A value is a figure in running text between `<!-- value: docs/results/FILE.json SELECTOR...
-FIELD[:FORMAT] -->` and `<!-- /value -->`, both on one line. The selectors
+FIELD[:FORMAT] -->` and `<!-- /value -->`, both on one line and after some word of it
+(Markdown shows a line that starts with one as raw HTML). The selectors
 `scenario=SPEC`, `horizon=N` and `controller=C` must leave exactly one row of the file.
 FIELD and its default format:
 
@@ -114,6 +116,13 @@ fn in_line(line: &str, n: usize, start: usize, out: &mut Vec<Marked>) -> Result<
         if rest.starts_with("<!-- /value") {
             return Err(refuse(n, "a closing value marker without an opening one"));
         }
+        if opens_block(&line[..i]) {
+            return Err(refuse(
+                n,
+                "a value marker first on its line, which Markdown shows as raw HTML: \
+                 expected a word before it",
+            ));
+        }
         let after = rest
             .strip_prefix(OPEN)
             .ok_or_else(|| refuse(n, format!("expected `{OPEN} FILE SELECTOR... FIELD -->`")))?;
@@ -134,6 +143,18 @@ fn in_line(line: &str, n: usize, start: usize, out: &mut Vec<Marked>) -> Result<
         from = body + close + CLOSE.len();
     }
     Ok(())
+}
+
+/// Whether a marker after `lead` would start its line's Markdown block, after nothing but
+/// indentation, quote and list markers: CommonMark then reads the whole line as an HTML block,
+/// not as the paragraph's text.
+fn opens_block(lead: &str) -> bool {
+    lead.split_whitespace().all(|w| {
+        let ordered = w
+            .strip_suffix(['.', ')'])
+            .is_some_and(|d| !d.is_empty() && d.bytes().all(|b| b.is_ascii_digit()));
+        matches!(w, ">" | "-" | "*" | "+") || ordered
+    })
 }
 
 /// Where the next `<!-- value` or `<!-- /value` at or after `from` starts, outside `code`.

@@ -156,24 +156,38 @@ fn the_value_finder_refuses_with_the_line() {
             "no `<!-- /value -->`",
         ),
         (format!("a\n\nb {CLOSE}\n"), 3, "without an opening one"),
-        (format!("{open}1{CLOSE} {CLOSE}\n"), 1, "without an opening"),
         (
-            "<!-- value: docs/results/x.json failures\n-->1<!-- /value -->\n".into(),
+            format!("a {open}1{CLOSE} {CLOSE}\n"),
+            1,
+            "without an opening",
+        ),
+        (
+            "a <!-- value: docs/results/x.json failures\n-->1<!-- /value -->\n".into(),
             1,
             "does not end with `-->` on its line",
         ),
         (
-            "x\n<!-- value docs/results/x.json failures -->1<!-- /value -->\n".into(),
+            "x\ny <!-- value docs/results/x.json failures -->1<!-- /value -->\n".into(),
             2,
             "expected `<!-- value: FILE",
         ),
-        (format!("{open}\n1{CLOSE}\n"), 1, "no `<!-- /value -->`"),
+        (format!("a {open}\n1{CLOSE}\n"), 1, "no `<!-- /value -->`"),
         (
-            "<!-- value: docs/results/x.json -->1<!-- /value -->\n".into(),
+            "a <!-- value: docs/results/x.json -->1<!-- /value -->\n".into(),
             1,
             "names no field",
         ),
     ];
+    for lead in ["", "  ", "- ", "> ", "12. ", "  * ", "> 3) "] {
+        let text = format!("a\n{lead}{open}1{CLOSE} b\n");
+        let err = values(&text).unwrap_err();
+        assert_eq!(err.line, 2, "{text}: {err:?}");
+        assert!(err.message.contains("first on its line"), "{text}: {err:?}");
+    }
+    for lead in ["| ", "a ", "12 ", "-- ", "(", "x. "] {
+        let text = format!("a\n{lead}{open}1{CLOSE} b\n");
+        assert_eq!(values(&text).map(|v| v.len()), Ok(1), "{text}");
+    }
     for (text, line, want) in cases {
         let err = values(&text).unwrap_err();
         assert_eq!(err.line, line, "{text}: {err:?}");
