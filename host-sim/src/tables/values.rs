@@ -129,7 +129,12 @@ fn in_line(line: &str, n: usize, start: usize, out: &mut Vec<Marked>) -> Result<
         let end = after
             .find("-->")
             .ok_or_else(|| refuse(n, "the value marker does not end with `-->` on its line"))?;
-        let spec = parse_spec(&after[..end]).map_err(|m| refuse(n, m))?;
+        let inner = &after[..end];
+        if inner.contains("--") || inner.ends_with('-') {
+            // GitHub's Markdown ends or refuses such a comment, and would show the marker.
+            return Err(refuse(n, "expected no `--` inside a value marker"));
+        }
+        let spec = parse_spec(inner).map_err(|m| refuse(n, m))?;
         let body = i + OPEN.len() + end + "-->".len();
         let close = line[body..]
             .find("<!--")

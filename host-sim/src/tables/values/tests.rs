@@ -173,6 +173,16 @@ fn the_value_finder_refuses_with_the_line() {
         ),
         (format!("a {open}\n1{CLOSE}\n"), 1, "no `<!-- /value -->`"),
         (
+            "a <!-- value: docs/results/x.json scenario=a--b failures -->1<!-- /value -->\n".into(),
+            1,
+            "expected no `--` inside",
+        ),
+        (
+            "a <!-- value: docs/results/x.json failures--->1<!-- /value -->\n".into(),
+            1,
+            "expected no `--` inside",
+        ),
+        (
             "a <!-- value: docs/results/x.json -->1<!-- /value -->\n".into(),
             1,
             "names no field",
