@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
-# Fuzzes the host tools' four parsers with libFuzzer: the checkpoint importer, the TOML
-# configuration, the trajectory parser and the scenario parser, SECONDS each (default 60),
-# seeded with the repository's own valid inputs. Prints each target's executions and
+# Fuzzes with libFuzzer the host tools' four parsers (the checkpoint importer, the TOML
+# configuration, the trajectory parser, the scenario parser) and the link's frame reader
+# (what a target reads from its serial port), SECONDS each (default 60), seeded with the
+# repository's own valid inputs. Prints each target's executions and
 # coverage; exits 1 on a crash (the input is kept in fuzz/artifacts/TARGET/).
 #
 # The targets (`fuzz/`, a workspace of its own) build with the pinned stable toolchain:
@@ -15,10 +16,10 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse)
+[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse link_frame)
 host=$(rustc -vV | sed -n 's/^host: //p')
 corpus=fuzz/corpus
-mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse}
+mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse,link_frame}
 cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
 cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
@@ -28,6 +29,25 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
   n=$((n + 1))
   printf '%s' "$spec" >"$corpus/scenario_parse/seed-$n"
 done
+# An exchange's requests as frames (Hello, Start, a reading), written by zlib's CRC-32 and
+# a COBS encoder of their own, so the reader's fuzzing starts past the frame check.
+python3 - "$corpus/link_frame/exchange" <<'PY'
+import struct, sys, zlib
+def cobs(data):
+    out, block = bytearray(), bytearray()
+    for byte in data:
+        if byte:
+            block.append(byte)
+        if not byte or len(block) == 254:
+            out += bytes([len(block) + 1]) + block
+            block = bytearray()
+    return bytes(out + bytes([len(block) + 1]) + block)
+def frame(payload):
+    return cobs(payload + struct.pack("<I", zlib.crc32(payload))) + b"\0"
+with open(sys.argv[1], "wb") as f:
+    f.write(frame(bytes([1, 1, 0, 0])) + frame(bytes([1, 2, 1, 0, 1, 1]))
+            + frame(bytes([1, 4, 2, 0]) + struct.pack("<ii", -120, 2047)))
+PY
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 # The target triple keeps the instrumentation off build scripts and procedural macros.

@@ -15,6 +15,8 @@
 //!   sensors that put them behind a controller.
 //! - [`linear`]: the plant linearised about upright; LQR and Kalman gains designed on it.
 //! - [`controller`]: one control period: sensor, sanitise, predict, policy, actuator.
+//! - [`link`]: the framed, checked link to a host's simulated world, for processor- and
+//!   hardware-in-the-loop runs.
 //! - [`identify`]: the board's identification experiments (a PRBS on the cart, a free swing
 //!   of the pole) and their log.
 //! - [`policy`]: the shipped 4-64-64-2 policy and the rig it was trained for, const arrays
@@ -42,6 +44,7 @@ pub mod estimator;
 pub mod fixed;
 pub mod identify;
 pub mod linear;
+pub mod link;
 pub mod loopback;
 pub mod network;
 pub mod policy;

@@ -1,0 +1,365 @@
+//! The messages, and their bytes inside a frame's payload: a four-byte header (protocol
+//! version, kind, sequence number, little-endian) and a body whose length the kind fixes.
+
+use crate::Action;
+use crate::controller::{Command, FaultFlags};
+
+/// The protocol's version; a frame of another is refused ([`Reason::Version`]).
+pub const VERSION: u8 = 1;
+/// Version, kind and sequence number.
+pub const HEADER_LEN: usize = 4;
+/// The longest payload (header and body) of any message.
+pub const MAX_PAYLOAD: usize = HEADER_LEN + max_body();
+
+/// What a message says. The host sends [`Message::Hello`], [`Message::Start`] and one
+/// reading a period ([`Message::State`] or [`Message::Counts`]); the target answers each,
+/// with [`Message::Info`], [`Message::Started`] and [`Message::Reply`], or with
+/// [`Message::Refused`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Message {
+    /// Host: which policy and rig do you hold?
+    Hello,
+    /// Host: a new episode; reset the controller, its sensor and its predictor.
+    Start(Start),
+    /// Host: this period's exact state, `[x, x_dot, theta, theta_dot]` (state-fed modes).
+    State([f32; 4]),
+    /// Host: this period's encoder counts (what a board's timers hold).
+    Counts {
+        /// Cart encoder.
+        cart: i32,
+        /// Pole encoder.
+        pole: i32,
+    },
+    /// Target: what it holds.
+    Info(Info),
+    /// Target: the episode has started.
+    Started,
+    /// Target: what it drives this period.
+    Reply(Reply),
+    /// Target: the request (or a corrupted frame) was refused, and the motor is off.
+    Refused(Reason),
+}
+
+/// What a target holds: the answer to [`Message::Hello`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Info {
+    /// The policy's arithmetic.
+    pub format: Format,
+    /// The policy's hidden width.
+    pub hidden: u16,
+    /// [`super::digest::mlp`] or [`super::digest::qmlp`] of the policy.
+    pub policy: u64,
+    /// [`super::digest::rig`] of the rig the target's observer and predictor model.
+    pub rig: u64,
+    /// The control period the target was built for, ns.
+    pub period_ns: u32,
+    /// The clock [`Reply::ticks`] counts, Hz.
+    pub clock_hz: u32,
+}
+
+/// A policy's arithmetic.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// f32 network.
+    F32,
+    /// int8 network on Q3.12 readings.
+    Int8,
+}
+
+/// How an episode's readings arrive.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Sensing {
+    /// [`Message::State`]: the state, read exactly (or with the host's noise).
+    State,
+    /// [`Message::Counts`]: encoder counts, through the target's observer.
+    Encoders,
+}
+
+/// A new episode's configuration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Start {
+    /// How readings arrive.
+    pub sensing: Sensing,
+    /// Whether the controller runs its rig's dead-time predictor.
+    pub predict: bool,
+}
+
+/// The policy's two scores, in its arithmetic.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Scores {
+    /// A float policy's Q-values.
+    F32([f32; 2]),
+    /// An integer policy's outputs.
+    I32([i32; 2]),
+}
+
+/// One period's answer.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Reply {
+    /// What the target drives.
+    pub command: Command,
+    /// The policy's scores (the controller's "unscored" values when it coasted).
+    pub scores: Scores,
+    /// Why the reading was rejected, if it was.
+    pub faults: FaultFlags,
+    /// Ticks of [`Info::clock_hz`] from the reading's arrival to the command.
+    pub ticks: u32,
+}
+
+/// Why a target refused a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Reason {
+    /// Another protocol version.
+    Version = 1,
+    /// An unknown kind.
+    Kind = 2,
+    /// A body of the wrong length, or a field out of its range.
+    Length = 3,
+    /// The CRC does not match.
+    Crc = 4,
+    /// More bytes than the longest frame.
+    Oversized = 5,
+    /// Not a COBS encoding.
+    Encoding = 6,
+    /// A reading whose sequence number is not the previous one's plus one.
+    Sequence = 7,
+    /// A reading before any [`Message::Start`].
+    NotStarted = 8,
+    /// A reading of the other kind than the episode's [`Sensing`].
+    Mode = 9,
+}
+
+const KIND_HELLO: u8 = 0x01;
+const KIND_START: u8 = 0x02;
+const KIND_STATE: u8 = 0x03;
+const KIND_COUNTS: u8 = 0x04;
+const KIND_INFO: u8 = 0x81;
+const KIND_STARTED: u8 = 0x82;
+const KIND_REPLY: u8 = 0x83;
+const KIND_REFUSED: u8 = 0xFF;
+
+/// Every kind and its body's length: the one table both directions use.
+const KINDS: [(u8, usize); 8] = [
+    (KIND_HELLO, 0),
+    (KIND_START, 2),
+    (KIND_STATE, 16),
+    (KIND_COUNTS, 8),
+    (KIND_INFO, 27),
+    (KIND_STARTED, 0),
+    (KIND_REPLY, 16),
+    (KIND_REFUSED, 1),
+];
+
+const fn max_body() -> usize {
+    let (mut i, mut max) = (0, 0);
+    while i < KINDS.len() {
+        if KINDS[i].1 > max {
+            max = KINDS[i].1;
+        }
+        i += 1;
+    }
+    max
+}
+
+fn body_len(kind: u8) -> Option<usize> {
+    KINDS.iter().find(|k| k.0 == kind).map(|k| k.1)
+}
+
+/// A message and its sequence number: what one frame carries.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Packet {
+    /// The host numbers its requests; a reply carries its request's number.
+    pub seq: u16,
+    /// The message.
+    pub message: Message,
+}
+
+impl Packet {
+    /// The payload's bytes, at the front of `out`; their number.
+    pub fn encode(&self, out: &mut [u8; MAX_PAYLOAD]) -> usize {
+        let kind = self.message.kind();
+        let mut w = Writer { out, len: 0 };
+        w.put(&[VERSION, kind]);
+        w.put(&self.seq.to_le_bytes());
+        self.message.encode_body(&mut w);
+        w.len
+    }
+
+    /// The packet in `payload`, or why it is refused.
+    pub fn decode(payload: &[u8]) -> Result<Packet, Reason> {
+        let (header, body) = payload.split_at_checked(HEADER_LEN).ok_or(Reason::Length)?;
+        if header[0] != VERSION {
+            return Err(Reason::Version);
+        }
+        let kind = header[1];
+        if body_len(kind).ok_or(Reason::Kind)? != body.len() {
+            return Err(Reason::Length);
+        }
+        let seq = u16::from_le_bytes([header[2], header[3]]);
+        let message = Message::decode_body(kind, &mut Reader(body)).ok_or(Reason::Length)?;
+        Ok(Packet { seq, message })
+    }
+}
+
+impl Message {
+    fn kind(&self) -> u8 {
+        match self {
+            Message::Hello => KIND_HELLO,
+            Message::Start(_) => KIND_START,
+            Message::State(_) => KIND_STATE,
+            Message::Counts { .. } => KIND_COUNTS,
+            Message::Info(_) => KIND_INFO,
+            Message::Started => KIND_STARTED,
+            Message::Reply(_) => KIND_REPLY,
+            Message::Refused(_) => KIND_REFUSED,
+        }
+    }
+
+    fn encode_body(&self, w: &mut Writer<'_>) {
+        match self {
+            Message::Hello | Message::Started => {}
+            Message::Start(s) => w.put(&[s.sensing as u8, s.predict as u8]),
+            Message::State(v) => v.iter().for_each(|x| w.put(&x.to_le_bytes())),
+            Message::Counts { cart, pole } => {
+                w.put(&cart.to_le_bytes());
+                w.put(&pole.to_le_bytes());
+            }
+            Message::Info(i) => {
+                w.put(&[i.format as u8]);
+                w.put(&i.hidden.to_le_bytes());
+                w.put(&i.policy.to_le_bytes());
+                w.put(&i.rig.to_le_bytes());
+                w.put(&i.period_ns.to_le_bytes());
+                w.put(&i.clock_hz.to_le_bytes());
+            }
+            Message::Reply(r) => {
+                w.put(&[command_byte(r.command) as u8]);
+                match r.scores {
+                    Scores::F32(q) => q.iter().for_each(|x| w.put(&x.to_le_bytes())),
+                    Scores::I32(q) => q.iter().for_each(|x| w.put(&x.to_le_bytes())),
+                }
+                w.put(&[matches!(r.scores, Scores::I32(_)) as u8]);
+                w.put(&r.faults.0.to_le_bytes());
+                w.put(&r.ticks.to_le_bytes());
+            }
+            Message::Refused(reason) => w.put(&[*reason as u8]),
+        }
+    }
+
+    /// The body of a message of `kind`, whose length was checked; `None` for a field out
+    /// of its range.
+    fn decode_body(kind: u8, r: &mut Reader<'_>) -> Option<Message> {
+        Some(match kind {
+            KIND_HELLO => Message::Hello,
+            KIND_STARTED => Message::Started,
+            KIND_START => Message::Start(Start {
+                sensing: match r.u8()? {
+                    0 => Sensing::State,
+                    1 => Sensing::Encoders,
+                    _ => return None,
+                },
+                predict: flag(r.u8()?)?,
+            }),
+            KIND_STATE => Message::State([r.f32()?, r.f32()?, r.f32()?, r.f32()?]),
+            KIND_COUNTS => Message::Counts {
+                cart: r.i32()?,
+                pole: r.i32()?,
+            },
+            KIND_INFO => Message::Info(Info {
+                format: [Format::F32, Format::Int8].get(r.u8()? as usize).copied()?,
+                hidden: u16::from_le_bytes(r.bytes()?),
+                policy: u64::from_le_bytes(r.bytes()?),
+                rig: u64::from_le_bytes(r.bytes()?),
+                period_ns: r.u32()?,
+                clock_hz: r.u32()?,
+            }),
+            KIND_REPLY => Message::Reply(decode_reply(r)?),
+            KIND_REFUSED => Message::Refused(reason(r.u8()?)?),
+            _ => return None,
+        })
+    }
+}
+
+fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
+    let command = match r.u8()? as i8 {
+        -1 => Command::Push(Action::Left),
+        1 => Command::Push(Action::Right),
+        0 => Command::Coast,
+        _ => return None,
+    };
+    let raw: [[u8; 4]; 2] = [r.bytes()?, r.bytes()?];
+    let scores = match r.u8()? {
+        0 => Scores::F32(raw.map(f32::from_le_bytes)),
+        1 => Scores::I32(raw.map(i32::from_le_bytes)),
+        _ => return None,
+    };
+    Some(Reply {
+        command,
+        scores,
+        faults: FaultFlags(u16::from_le_bytes(r.bytes()?)),
+        ticks: r.u32()?,
+    })
+}
+
+fn command_byte(c: Command) -> i8 {
+    match c {
+        Command::Push(Action::Left) => -1,
+        Command::Push(Action::Right) => 1,
+        Command::Coast => 0,
+    }
+}
+
+fn flag(b: u8) -> Option<bool> {
+    match b {
+        0 => Some(false),
+        1 => Some(true),
+        _ => None,
+    }
+}
+
+fn reason(b: u8) -> Option<Reason> {
+    use Reason::*;
+    [
+        Version, Kind, Length, Crc, Oversized, Encoding, Sequence, NotStarted, Mode,
+    ]
+    .into_iter()
+    .find(|r| *r as u8 == b)
+}
+
+struct Writer<'a> {
+    out: &'a mut [u8; MAX_PAYLOAD],
+    len: usize,
+}
+
+impl Writer<'_> {
+    /// Every body fits by [`MAX_PAYLOAD`]'s definition; the tests encode each kind.
+    fn put(&mut self, bytes: &[u8]) {
+        let end = self.len + bytes.len();
+        if let Some(dst) = self.out.get_mut(self.len..end) {
+            dst.copy_from_slice(bytes);
+            self.len = end;
+        }
+    }
+}
+
+struct Reader<'a>(&'a [u8]);
+
+impl Reader<'_> {
+    fn bytes<const N: usize>(&mut self) -> Option<[u8; N]> {
+        let (head, rest) = self.0.split_first_chunk::<N>()?;
+        self.0 = rest;
+        Some(*head)
+    }
+    fn u8(&mut self) -> Option<u8> {
+        self.bytes::<1>().map(|[b]| b)
+    }
+    fn u32(&mut self) -> Option<u32> {
+        self.bytes().map(u32::from_le_bytes)
+    }
+    fn i32(&mut self) -> Option<i32> {
+        self.bytes().map(i32::from_le_bytes)
+    }
+    fn f32(&mut self) -> Option<f32> {
+        self.bytes().map(f32::from_le_bytes)
+    }
+}
