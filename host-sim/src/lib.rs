@@ -7,7 +7,7 @@
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
-//! - [`tables`]: the documents' results tables, rendered from `eval --json` files.
+//! - [`tables`]: the documents' results tables and figures, rendered from `eval --json` files.
 //!
 //! Policies run through `host_common::wide`, the firmware's forward pass laid out for host
 //! SIMD, bit-identical.

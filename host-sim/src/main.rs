@@ -65,10 +65,12 @@ enum Command {
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
     Parts,
-    /// Write the results tables of README.md and docs/*.md from the files of docs/results/:
-    /// every block between a `<!-- results: docs/results/FILE.json OPTION... -->` line and a
-    /// `<!-- /results -->` line. With --check, exit 1 listing the blocks that differ. Exits 2
-    /// on a malformed marker or an unreadable file, naming the document and line.
+    /// Write the results tables and values of README.md and docs/*.md from the files of
+    /// docs/results/: every block between a `<!-- results: docs/results/FILE.json OPTION...
+    /// -->` line and a `<!-- /results -->` line, and every figure between `<!-- value: ...
+    /// -->` and `<!-- /value -->`. With --check, exit 1 listing the ones that differ. Exits 2
+    /// on a malformed marker, a value that is not one row's or an unreadable file, naming the
+    /// document and line.
     Tables(tables_cmd::TablesArgs),
 }
 

@@ -10,15 +10,18 @@
 //! <!-- /results -->
 //! ```
 //!
-//! [`OPTIONS_HELP`] lists the options. [`update`] renders every block of a document from its
-//! file; `host-sim tables` writes the documents with it or, with `--check`, compares them.
-//! Markers inside fenced code are text, so a document can show the syntax.
+//! [`OPTIONS_HELP`] lists the options. A figure in running text is tied to one row the same
+//! way ([`values`]). [`update`] renders every block and value of a document from its file;
+//! `host-sim tables` writes the documents with it or, with `--check`, compares them. Markers
+//! inside fenced code are text, so a document can show the syntax.
 
 use std::ops::Range;
 
 use serde::Deserialize;
 
 use crate::eval::group;
+
+pub mod values;
 
 /// How a marker line starts; the results file and the options follow.
 pub const OPEN: &str = "<!-- results:";
@@ -142,12 +145,7 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
         .ok_or("the marker does not end with `-->` on its line")?;
     let mut words = inner.split_whitespace();
     let file = words.next().ok_or("the marker names no results file")?;
-    let name = file.strip_prefix(RESULTS_DIR).unwrap_or_default();
-    if !name.ends_with(".json") || name.contains('/') || name.starts_with('.') {
-        return Err(format!(
-            "expected a file {RESULTS_DIR}NAME.json, found `{file}`"
-        ));
-    }
+    parse_results_file(file)?;
     let mut spec = Spec {
         file: file.to_string(),
         ..Spec::default()
@@ -186,6 +184,17 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
         return Err("brief shortens the success= columns, and there are none".into());
     }
     Ok(spec)
+}
+
+/// `file` if it names a file directly in [`RESULTS_DIR`].
+fn parse_results_file(file: &str) -> Result<&str, String> {
+    let name = file.strip_prefix(RESULTS_DIR).unwrap_or_default();
+    if !name.ends_with(".json") || name.contains('/') || name.starts_with('.') {
+        return Err(format!(
+            "expected a file {RESULTS_DIR}NAME.json, found `{file}`"
+        ));
+    }
+    Ok(file)
 }
 
 fn list(key: &str, value: &str) -> Result<Vec<String>, String> {
@@ -333,34 +342,62 @@ fn success(r: &Row, brief: bool) -> String {
     format!("{rate} [{:.1}, {:.1}] ({failed})", 100.0 * lo, 100.0 * hi)
 }
 
-/// A block whose table differs from what its file gives: its marker's line and file.
+/// A table or value that differs from what its file gives: its marker's line and why.
 #[derive(Debug, PartialEq)]
 pub struct Stale {
     pub line: usize,
-    pub file: String,
+    pub what: String,
 }
 
-/// `text` with every block's table rendered from its results file (`load` reads one, given
-/// its path from the root), and the blocks whose table that changed; or the first refusal.
+/// `text` with every block's table and every value rendered from its results file (`load`
+/// reads one, given its path from the root), and the tables and values that changed, in
+/// order; or the first refusal.
 pub fn update(
     text: &str,
     mut load: impl FnMut(&str) -> Result<String, String>,
 ) -> Result<(String, Vec<Stale>), Refusal> {
+    let found = blocks(text)?;
+    let marked = values::values(text)?;
+    // Each edit: the bytes replaced, their new text, and the stale entry if they differ.
+    let mut edits: Vec<(Range<usize>, String, Stale)> = Vec::new();
+    for b in &found {
+        let json = load(&b.spec.file).map_err(|m| refuse(b.line, m))?;
+        let table = render(&b.spec, &json).map_err(|m| refuse(b.line, m))?;
+        let what = format!("the table differs from {}", b.spec.file);
+        edits.push((b.body.clone(), table, Stale { line: b.line, what }));
+    }
+    let mut rows = values::Rows::default();
+    for v in marked {
+        if let Some(b) = found.iter().find(|b| b.body.contains(&v.body.start)) {
+            let m = format!(
+                "a value inside the table of line {}, which is rewritten",
+                b.line
+            );
+            return Err(refuse(v.line, m));
+        }
+        let figure = rows
+            .render(&v.spec, &mut load)
+            .map_err(|m| refuse(v.line, m))?;
+        let what = format!(
+            "the value `{}` differs from {}'s `{figure}` ({}, {})",
+            &text[v.body.clone()],
+            v.spec.file,
+            v.spec.field,
+            values::selectors(&v.spec)
+        );
+        edits.push((v.body, figure, Stale { line: v.line, what }));
+    }
+    edits.sort_by_key(|(r, ..)| r.start);
     let mut out = String::with_capacity(text.len());
     let mut stale = Vec::new();
     let mut at = 0;
-    for b in blocks(text)? {
-        let json = load(&b.spec.file).map_err(|m| refuse(b.line, m))?;
-        let table = render(&b.spec, &json).map_err(|m| refuse(b.line, m))?;
-        if text[b.body.clone()] != table {
-            stale.push(Stale {
-                line: b.line,
-                file: b.spec.file.clone(),
-            });
+    for (range, new, s) in edits {
+        if text[range.clone()] != new {
+            stale.push(s);
         }
-        out += &text[at..b.body.start];
-        out += &table;
-        at = b.body.end;
+        out += &text[at..range.start];
+        out += &new;
+        at = range.end;
     }
     out += &text[at..];
     Ok((out, stale))

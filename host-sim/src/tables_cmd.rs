@@ -1,5 +1,6 @@
-//! `host-sim tables`: the results tables of README.md and docs/*.md rendered from the files
-//! of docs/results/ (`host_sim::tables`), written in place or, with `--check`, compared.
+//! `host-sim tables`: the results tables and values of README.md and docs/*.md rendered from
+//! the files of docs/results/ (`host_sim::tables`), written in place or, with `--check`,
+//! compared.
 //! Every document is read and rendered before any is written, so a refusal anywhere leaves
 //! all of them as they were.
 
@@ -7,13 +8,13 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
-use host_sim::tables::{self, RESULTS_DIR, Stale};
+use host_sim::tables::{self, RESULTS_DIR, Stale, values};
 use weights::files::write_atomic;
 
 #[derive(Args)]
-#[command(after_help = tables::OPTIONS_HELP)]
+#[command(after_help = format!("{}\n\n{}", tables::OPTIONS_HELP, values::HELP))]
 pub struct TablesArgs {
-    /// Write nothing: exit 1 listing every block whose table differs from its file.
+    /// Write nothing: exit 1 listing every table and value that differs from its file.
     #[arg(long)]
     check: bool,
     /// The repository's root (default: the nearest directory at or above the current one
@@ -22,7 +23,7 @@ pub struct TablesArgs {
     root: Option<PathBuf>,
 }
 
-/// Renders or checks every document; false if `--check` found a stale table.
+/// Renders or checks every document; false if `--check` found a stale table or value.
 pub fn run(a: &TablesArgs) -> Result<bool> {
     let root = match &a.root {
         Some(r) => r.clone(),
@@ -43,21 +44,22 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     for (doc, new, stale) in &updates {
         if a.check {
             for s in stale {
-                eprintln!(
-                    "{}:{}: the table differs from {}",
-                    doc.display(),
-                    s.line,
-                    s.file
-                );
+                eprintln!("{}:{}: {}", doc.display(), s.line, s.what);
             }
         } else if !stale.is_empty() {
             write_atomic(&root.join(doc), new.as_bytes())?;
-            println!("{}: {} tables written", doc.display(), stale.len());
+            println!(
+                "{}: {} tables or values written",
+                doc.display(),
+                stale.len()
+            );
         }
         found += stale.len();
     }
     if a.check && found > 0 {
-        eprintln!("{found} tables differ from their results: `host-sim tables` rewrites them");
+        eprintln!(
+            "{found} tables or values differ from their results: `host-sim tables` rewrites them"
+        );
     }
     Ok(!a.check || found == 0)
 }

@@ -1,7 +1,7 @@
-//! Every results table in README.md and docs/*.md is what `host-sim tables` renders from its
-//! file in docs/results/: a table edited by hand, or a results file measured again without
-//! its tables rewritten, fails here. The other tests run the command on a scratch root, to
-//! show that the check fails and that writing repairs.
+//! Every results table and value in README.md and docs/*.md is what `host-sim tables` renders
+//! from its file in docs/results/: a table or figure edited by hand, or a results file
+//! measured again without its documents rewritten, fails here. The other tests run the
+//! command on a scratch root, to show that the check fails and that writing repairs.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
@@ -54,17 +54,20 @@ fn scratch(name: &str, docs: &[(&str, &str)]) -> PathBuf {
 }
 
 #[test]
-fn a_stale_table_fails_the_check_and_writing_repairs_it() {
-    let doc = "# A\n\n<!-- results: docs/results/r.json success=policy -->\n| old |\n<!-- /results -->\nend\n";
-    let fresh = doc.replace("| old |\n", TABLE);
+fn a_stale_table_or_value_fails_the_check_and_writing_repairs_it() {
+    let doc = "# A\n\n<!-- results: docs/results/r.json success=policy -->\n| old |\n<!-- /results -->\n\
+               It fails <!-- value: docs/results/r.json failures -->25<!-- /value --> times.\n";
+    let fresh = doc.replace("| old |\n", TABLE).replace("-->25<", "-->250<");
     let root = scratch("stale", &[("README.md", &fresh), ("docs/A.md", doc)]);
     let check = tables(&["--check"], &root.join("docs"));
     assert_eq!(check.status.code(), Some(1), "{}", stderr(&check));
     let err = stderr(&check);
     assert!(
-        err.contains("docs/A.md:3: the table differs from docs/results/r.json"),
+        err.contains("docs/A.md:3: the table differs from docs/results/r.json\n"),
         "{err}"
     );
+    let value = "docs/A.md:6: the value `25` differs from docs/results/r.json's `250` (failures, no selector)\n";
+    assert!(err.contains(value), "{err}");
     assert!(!err.contains("README.md"), "{err}");
     let write = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
     assert!(write.status.success(), "{}", stderr(&write));
@@ -91,6 +94,14 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
         (
             "<!-- results: docs/results/r.json success=policy -->\n",
             "docs/B.md:2: no `<!-- /results -->` line",
+        ),
+        (
+            "It fails <!-- value: docs/results/r.json controller=lqr failures -->1<!-- /value -->.\n",
+            "docs/B.md:2: no row of docs/results/r.json matches `controller=lqr`",
+        ),
+        (
+            "It fails <!-- value: docs/results/r.json failures -->1 times.\n",
+            "docs/B.md:2: no `<!-- /value -->` follows this value on its line",
         ),
     ];
     for (i, (bad, want)) in cases.into_iter().enumerate() {

@@ -200,7 +200,7 @@ After.
     assert_eq!(new, text.replace("| an old table |\n", fresh));
     let want = Stale {
         line: 6,
-        file: "docs/results/x.json".into(),
+        what: "the table differs from docs/results/x.json".into(),
     };
     assert_eq!(stale, [want]);
     let (again, none) = update(&new, |_| Ok(JSON.to_string())).unwrap();
