@@ -205,6 +205,7 @@ fn parse_scenarios(specs: &[String], machine: &Machine) -> Result<Vec<Scenario>>
             "all" => out.extend(Scenario::default_set_on(machine)),
             "hard" => out.extend(Scenario::hard_set_on(machine)),
             "hard-candidates" => out.extend(Scenario::hard_candidates()),
+            "faults" => out.extend(Scenario::faults_set_on(machine)),
             _ => out.push(Scenario::parse_on(spec, machine).map_err(anyhow::Error::msg)?),
         }
     }

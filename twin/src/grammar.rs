@@ -218,7 +218,67 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "push[=IMPULSE[/EVERY]]",
         doc: "a push of IMPULSE N s every EVERY periods, to a random side",
     },
+    PartSpec {
+        key: "glitch",
+        fields: &[
+            field("counts", Kind::Whole, 1.0, 1e6, Fallback::Value(100.0)),
+            interval(100.0),
+        ],
+        syntax: "glitch[=N[/EVERY]]",
+        doc: "the pole encoder reads N counts off for one period every EVERY periods (with \
+              exact sensing, the angle is off by N of the rig's pole counts)",
+    },
+    PartSpec {
+        key: "stuck",
+        fields: &[
+            field("periods", Kind::Whole, 1.0, 1e6, Fallback::Value(5.0)),
+            interval(200.0),
+        ],
+        syntax: "stuck[=K[/EVERY]]",
+        doc: "the readings freeze for K periods of every EVERY: the last one before repeats",
+    },
+    PartSpec {
+        key: "drop",
+        fields: &[interval(20.0)],
+        syntax: "drop[=EVERY]",
+        doc: "every EVERY-th reading never arrives: the sensor returns an error",
+    },
+    PartSpec {
+        key: "late",
+        fields: &[interval(50.0)],
+        syntax: "late[=EVERY]",
+        doc: "every EVERY-th period overruns (counted): its command misses the period and the \
+              motor holds the one before",
+    },
+    PartSpec {
+        key: "weak",
+        fields: &[
+            field("factor", Kind::Real, 0.0, 1.0, Fallback::Required),
+            field("periods", Kind::Whole, 1.0, 1e6, Fallback::Value(50.0)),
+            interval(500.0),
+        ],
+        syntax: "weak=F[/K[/EVERY]]",
+        doc: "the motor gives F times its force for K periods of every EVERY",
+    },
+    PartSpec {
+        key: "reset",
+        fields: &[interval(1000.0)],
+        syntax: "reset[=EVERY]",
+        doc: "the controller restarts every EVERY periods: its observer starts again from the \
+              counts, its predictor empty (its counters go on)",
+    },
 ];
+
+/// How many periods a fault recurs after, defaulting to `default`.
+const fn interval(default: f64) -> Field {
+    field(
+        "interval",
+        Kind::Whole,
+        1.0,
+        u32::MAX as f64,
+        Fallback::Value(default),
+    )
+}
 
 /// A closed range `[lo, hi]`; a point when `lo == hi`.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -366,7 +426,7 @@ pub fn scenario_help() -> String {
     format!(
         "Scenarios, one row each: `nominal`, or parts joined by `+` from {}; `all` is the \
          robustness set, `hard` the set beyond it, `hard-candidates` what that set is chosen \
-         from",
+         from, `faults` one row per fault",
         syntax_list()
     )
 }

@@ -8,6 +8,8 @@
 //! - [`scenario`]: one world as a spec (`noise+delay=2`, `length=0.8+encoder=1024`): the
 //!   rig the board knows, the true physics and friction, sensor noise, encoders with the
 //!   firmware's estimator, actuator dead time, pushes; the named sets the tables use.
+//! - [`faults`]: what goes wrong in a real loop (encoder glitches, stuck and dropped
+//!   readings, overruns, a weak motor, controller resets), as scenario parts.
 //! - [`world`]: one episode of a scenario's plant, period by period: the measurement, then
 //!   the actuator.
 //! - [`run`]: the unchanged firmware controller against a world, through pins and the
@@ -23,6 +25,7 @@
 
 pub mod calibrate;
 pub mod domain;
+pub mod faults;
 pub mod grammar;
 pub mod lockstep;
 pub mod machine;

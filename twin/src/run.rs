@@ -7,8 +7,6 @@
 //! mixer): stream 1 the start, 2 the sensor noise, 3 the pushes, 4 a controller's own
 //! randomness. So every controller meets the same starts, noise and pushes.
 
-use std::convert::Infallible;
-
 use firmware::cartpole::{CartPole, State, Transition};
 use firmware::controller::{Command, Controller, Policy, StateSensor};
 use firmware::estimator::{AlphaBeta, AlphaBetaSensor, ObserverSensor};
@@ -75,7 +73,14 @@ pub fn start_state(seed: u64, episode: u64) -> State {
 }
 
 /// The twin's sensor: what the scenario's board reads, from the world's measurement.
-pub enum TwinSensor {
+pub struct TwinSensor {
+    reader: Reader,
+    /// This period's reading never arrived.
+    missing: bool,
+}
+
+/// How the board turns a measurement into a reading.
+enum Reader {
     /// The exact (maybe noisy) state.
     Exact([f32; 4]),
     /// Encoders through the observer.
@@ -84,28 +89,38 @@ pub enum TwinSensor {
     AlphaBeta(AlphaBetaSensor<Latest>),
 }
 
+/// A reading that never arrived (the `drop` fault).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Missing;
+
 impl TwinSensor {
     /// The sensor of `scenario`'s board.
     pub fn of(scenario: &Scenario) -> TwinSensor {
         let rig = &scenario.rig;
-        match scenario.sensing {
-            Sensing::Exact => TwinSensor::Exact([0.0; 4]),
+        let reader = match scenario.sensing {
+            Sensing::Exact => Reader::Exact([0.0; 4]),
             Sensing::Observer => {
-                TwinSensor::Observer(ObserverSensor::new(rig.observer(), Latest::default()))
+                Reader::Observer(ObserverSensor::new(rig.observer(), Latest::default()))
             }
-            Sensing::AlphaBeta(d) => TwinSensor::AlphaBeta(AlphaBetaSensor::new(
+            Sensing::AlphaBeta(d) => Reader::AlphaBeta(AlphaBetaSensor::new(
                 AlphaBeta::new(rig.encoders, d, rig.params.tau as f32),
                 Latest::default(),
             )),
+        };
+        TwinSensor {
+            reader,
+            missing: false,
         }
     }
 
     /// Hands the sensor this period's measurement.
     pub fn set(&mut self, m: Measurement) {
-        match (self, m) {
-            (TwinSensor::Exact(s), Measurement::State(v)) => *s = v,
-            (TwinSensor::Observer(o), Measurement::Counts(c, p)) => o.counter_mut().0 = (c, p),
-            (TwinSensor::AlphaBeta(a), Measurement::Counts(c, p)) => a.counter_mut().0 = (c, p),
+        self.missing = m == Measurement::Missing;
+        match (&mut self.reader, m) {
+            (Reader::Exact(s), Measurement::State(v)) => *s = v,
+            (Reader::Observer(o), Measurement::Counts(c, p)) => o.counter_mut().0 = (c, p),
+            (Reader::AlphaBeta(a), Measurement::Counts(c, p)) => a.counter_mut().0 = (c, p),
+            (_, Measurement::Missing) => {}
             _ => unreachable!("a world measures what its scenario's sensor reads"),
         }
     }
@@ -113,18 +128,21 @@ impl TwinSensor {
 
 impl StateSensor for TwinSensor {
     type Reading = [f32; 4];
-    type Error = Infallible;
+    type Error = Missing;
     #[inline]
-    fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        match self {
-            TwinSensor::Exact(s) => Ok(*s),
-            TwinSensor::Observer(o) => o.read(),
-            TwinSensor::AlphaBeta(a) => a.read(),
+    fn read(&mut self) -> Result<[f32; 4], Missing> {
+        if self.missing {
+            return Err(Missing);
         }
+        Ok(match &mut self.reader {
+            Reader::Exact(s) => *s,
+            Reader::Observer(o) => o.read().unwrap_or_else(|e| match e {}),
+            Reader::AlphaBeta(a) => a.read().unwrap_or_else(|e| match e {}),
+        })
     }
     #[inline]
     fn commanded(&mut self, command: Command) {
-        if let TwinSensor::Observer(o) = self {
+        if let Reader::Observer(o) = &mut self.reader {
             o.commanded(command);
         }
     }
@@ -158,11 +176,22 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         Episode { world, controller }
     }
 
-    /// The controller's period on this period's measurement: what it commands.
+    /// The controller's period on this period's measurement: what it commands. A `reset`
+    /// fault restarts the controller first; a `late` one counts an overrun after.
     pub fn decide(&mut self) -> Command {
+        let scenario = self.world.scenario();
+        let k = self.world.steps();
+        if k > 0 && scenario.faults.reset.is_some_and(|w| w.holds(k)) {
+            *self.controller.sensor_mut() = TwinSensor::of(scenario);
+            self.controller.restart();
+        }
         let m = self.world.measure();
         self.controller.sensor_mut().set(m);
-        self.controller.step()
+        let command = self.controller.step();
+        if scenario.faults.late.is_some_and(|w| w.holds(k)) {
+            self.controller.record_overruns(1);
+        }
+        command
     }
 
     /// The world's period under what the controller drives.

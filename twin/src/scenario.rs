@@ -7,6 +7,7 @@ use firmware::controller::predict::MAX_PREDICT;
 use firmware::estimator::Encoders;
 use firmware::rig::Rig;
 
+use crate::faults::Faults;
 use crate::grammar::{self, FACTOR_RANGE, Fallback, Part};
 use crate::machine::{Integration, Machine};
 
@@ -65,6 +66,8 @@ pub struct Scenario {
     pub push: Option<Push>,
     /// How the world advances the plant over a period.
     pub integration: Integration,
+    /// What goes wrong in the loop.
+    pub faults: Faults,
 }
 
 impl Scenario {
@@ -84,6 +87,7 @@ impl Scenario {
             sensing: Sensing::Exact,
             push: None,
             integration: machine.integration,
+            faults: Faults::default(),
         }
     }
 
@@ -181,7 +185,10 @@ impl Scenario {
                     every: value(1).map_or(100, |k| (k as u32).max(1)),
                 })
             }
-            other => unreachable!("grammar::PARTS has no part {other}"),
+            other => {
+                let known = self.faults.apply(other, value);
+                assert!(known, "grammar::PARTS has no part {other}");
+            }
         }
     }
 
@@ -224,6 +231,11 @@ impl Scenario {
         parse_all(machine, HARD)
     }
 
+    /// The `faults` set around `machine` ([`FAULTS`]).
+    pub fn faults_set_on(machine: &Machine) -> Vec<Scenario> {
+        parse_all(machine, FAULTS)
+    }
+
     /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]).
     pub fn hard_candidates() -> Vec<Scenario> {
         parse_all(&Machine::GYMNASIUM, HARD_CANDIDATES)
@@ -249,6 +261,25 @@ pub const HARD: &[&str] = &[
     "length=0.7+push=1/50",
     "noise+delay=2+push=0.8/50",
     "encoder=512+push=1.1/50",
+];
+
+/// The `faults` set: each fault of a real loop alone, at a mild and a severe level, read
+/// through the encoders and the observer where the fault is the sensor's, and all of them
+/// at once with noise and dead time (`docs/CONTROL.md`, "Faults").
+pub const FAULTS: &[&str] = &[
+    "encoder+glitch",
+    "encoder+glitch=1000/500",
+    "encoder+stuck",
+    "encoder+stuck=25/500",
+    "encoder+drop",
+    "encoder+drop=3",
+    "late",
+    "late=5",
+    "weak=0.5",
+    "weak=0.2/100/1000",
+    "encoder+reset",
+    "encoder+reset=100",
+    "noise+delay+encoder+glitch+stuck+drop+late+weak=0.5+reset",
 ];
 
 /// Perturbations beyond the default set's, one to three kinds at a time and stronger than its

@@ -3,9 +3,10 @@
 //! firmware's, run by [`crate::run`]; this module is the world around it.
 //!
 //! A period is [`World::measure`] (the exact state rounded to f32, with noise, or the two
-//! encoders' counts), then [`World::apply`] (the duty enters the dead-time line; the duty
-//! that leaves it, held over the period, plus any push, drives the plant one period, by the
-//! scenario's integration).
+//! encoders' counts; glitched, stuck or missing as the scenario's faults say), then
+//! [`World::apply`] (the duty enters the dead-time line, unless the period was late; the
+//! duty that leaves it, held over the period and weakened by a weak motor, plus any push,
+//! drives the plant one period, by the scenario's integration).
 
 use firmware::cartpole::{CartPole, Plant, State, Transition, unit_f64};
 use firmware::controller::predict::DeadTime;
@@ -22,6 +23,8 @@ pub enum Measurement {
     State([f32; 4]),
     /// Encoder counts `(cart, pole)`.
     Counts(i32, i32),
+    /// No reading arrived (a `drop` fault): the sensor returns an error.
+    Missing,
 }
 
 /// An episode in progress.
@@ -34,6 +37,10 @@ pub struct World<'s, R> {
     pushes: R,
     /// Motor duties on their way to the motor.
     line: DeadTime<f64>,
+    /// The measurement a stuck sensor repeats.
+    held: Option<Measurement>,
+    /// The duty the bridge holds, which a late period's command does not replace.
+    bridge: f64,
 }
 
 impl<'s, R: Rng> World<'s, R> {
@@ -56,11 +63,31 @@ impl<'s, R: Rng> World<'s, R> {
             noise,
             pushes,
             line: DeadTime::new(scenario.delay() as usize),
+            held: None,
+            bridge: 0.0,
         }
     }
 
-    /// This period's measurement. Call it once a period: it draws the noise.
+    /// This period's measurement, as the scenario's faults leave it. Call it once a period:
+    /// it draws the noise.
     pub fn measure(&mut self) -> Measurement {
+        let k = self.plant.steps();
+        let faults = &self.scenario.faults;
+        let m = faults.corrupt(self.sense(), k, &self.scenario.rig.encoders);
+        if faults.stuck.is_some_and(|w| w.holds(k))
+            && let Some(held) = self.held
+        {
+            return held;
+        }
+        self.held = Some(m);
+        if faults.drop.is_some_and(|w| w.holds(k)) {
+            return Measurement::Missing;
+        }
+        m
+    }
+
+    /// What a sound sensor reads of the state now.
+    fn sense(&mut self) -> Measurement {
         let s = self.plant.state();
         let sd = self.scenario.noise_std;
         let noisy = sd != [0.0; 4];
@@ -105,7 +132,17 @@ impl<'s, R: Rng> World<'s, R> {
     /// caller integrates it (alone, or beside other worlds: `crate::lockstep`) and hands the
     /// state to [`World::land`].
     pub(crate) fn drive(&mut self, duty: f64) -> Drive {
-        let acting = self.line.send(duty);
+        let k = self.plant.steps();
+        let faults = &self.scenario.faults;
+        if !faults.late.is_some_and(|w| w.holds(k)) {
+            self.bridge = duty;
+        }
+        let mut acting = self.line.send(self.bridge);
+        if let Some((factor, w)) = faults.weak
+            && w.holds(k)
+        {
+            acting *= factor;
+        }
         let mut external = 0.0;
         if let Some(push) = self.scenario.push
             && (self.plant.steps() + 1).is_multiple_of(push.every)

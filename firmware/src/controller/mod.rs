@@ -291,6 +291,16 @@ where
         command
     }
 
+    /// Starts the loop again after its board's controller restarted (a watchdog, a reset
+    /// of the control task): the predictor forgets the commands in flight. The sensor is
+    /// the caller's to restart ([`Controller::sensor_mut`]); the period count, the fault
+    /// counters and the telemetry go on, so that the restart stays on the record.
+    pub fn restart(&mut self) {
+        if let Some(p) = &mut self.predictor {
+            p.clear();
+        }
+    }
+
     /// Periods run so far.
     pub fn steps(&self) -> u32 {
         self.steps

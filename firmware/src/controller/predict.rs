@@ -53,6 +53,11 @@ impl<T: Copy + Default> DeadTime<T> {
         out
     }
 
+    /// Empties the line, as at [`DeadTime::new`].
+    pub fn clear(&mut self) {
+        *self = DeadTime::new(self.delay);
+    }
+
     /// The commands still in flight, oldest first.
     pub fn in_flight(&self) -> impl Iterator<Item = T> + '_ {
         (0..self.delay).map(|k| self.line[(self.head + k) % self.delay])
@@ -88,6 +93,11 @@ impl Predictor {
         self.sent
             .in_flight()
             .fold(*reading, |s, duty| self.plant.euler(&s, duty, 0.0))
+    }
+
+    /// Forgets the commands in flight, as at [`Predictor::new`].
+    pub fn clear(&mut self) {
+        self.sent.clear();
     }
 
     /// Records the motor duty commanded this period (`0` for coasting, see
@@ -167,5 +177,10 @@ mod tests {
         assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, -1.0, 0.0), 0.3, 0.0));
         let none = Predictor::new(&p, 0);
         assert_eq!(none.predict(&r), r);
+        // Cleared, the line holds no force: two coasting periods ahead.
+        pred.clear();
+        assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 0.0, 0.0), 0.0, 0.0));
+        pred.record(1.0);
+        assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 0.0, 0.0), 1.0, 0.0));
     }
 }
