@@ -15,6 +15,7 @@
 //!   sensors that put them behind a controller.
 //! - [`linear`]: the plant linearised about upright; LQR and Kalman gains designed on it.
 //! - [`controller`]: one control period: sensor, sanitise, predict, policy, actuator.
+//! - [`config`]: [`ConfigError`], why a checked constructor refused a configuration.
 //! - [`identify`]: the board's identification experiments (a PRBS on the cart, a free swing
 //!   of the pole) and their log.
 //! - [`policy`]: the shipped 4-64-64-2 policy and the rig it was trained for, const arrays
@@ -37,6 +38,7 @@
 extern crate self as firmware;
 
 pub mod cartpole;
+pub mod config;
 pub mod controller;
 pub mod estimator;
 pub mod fixed;
@@ -49,6 +51,7 @@ pub mod policy_int;
 pub mod rig;
 
 pub use cartpole::Action;
+pub use config::ConfigError;
 
 /// Calls `$m!` with every hidden width the trainer, the simulator and the C API are built
 /// for, each beside the names of its C entry points (float / integer network): the project's
