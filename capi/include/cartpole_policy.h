@@ -229,7 +229,8 @@ enum cartpole_status {
     CARTPOLE_ERR_UNINITIALISED = -2, /* c was not initialised by a cartpole_controller_init* */
     CARTPOLE_ERR_POLICY_KIND = -3,   /* no such policy kind */
     CARTPOLE_ERR_INPUT = -4,         /* counts to an instance that has read states, or back */
-    CARTPOLE_ERR_RIG = -5            /* a struct cartpole_rig field no machine has */
+    CARTPOLE_ERR_RIG = -5            /* a struct cartpole_rig field no machine has, or no
+                                        finite observer gain for the rig */
 };
 
 /* The shipped policies. */
@@ -283,7 +284,8 @@ extern "C" {
 
 /* Makes *c a controller of the shipped policy policy_kind (enum cartpole_policy_kind) that
  * has run no period; again on an instance, starts it afresh. Solves the observer's gain:
- * call it at start-up, not in the control interrupt. */
+ * call it at start-up, not in the control interrupt (CARTPOLE_ERR_RIG, writing nothing,
+ * should it not be finite; the shipped rigs' is). */
 int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
 
 /* The same for a policy of one's own: the weights w and the machine rig it was trained for,
@@ -300,7 +302,9 @@ int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
  * length (0, 100], force_mag (0, 1e4], motor_damping [0, 1e4], tau [0.002, 0.05],
  * theta_threshold_radians (0, pi/2], x_threshold (0, 100], cart_friction [0, 1],
  * pole_friction [0, 0.1], cart_counts_per_m [16, 2^26], pole_counts_per_rev [16, 2^24],
- * dead_time [0, 16], end_stop_margin [0, x_threshold), force_sd and accel_sd (0, 1e4]. */
+ * dead_time [0, 16], end_stop_margin [0, x_threshold), force_sd and accel_sd (0, 1e4],
+ * and unless the observer's Kalman gain for them is finite (a cart and a pole of 1e-300 kg,
+ * each within its range, overflow it). */
 int cartpole_controller_init_mlp16(cartpole_controller_t *c, const struct cartpole_mlp16 *w,
                                    const struct cartpole_rig *rig);
 int cartpole_controller_init_mlp32(cartpole_controller_t *c, const struct cartpole_mlp32 *w,

@@ -90,9 +90,9 @@ fn board<P: Policy<S::Reading>, S: StateSensor>(
     sensor: S,
     rig: &Rig,
 ) -> Controller<P, S, Pins, 1> {
-    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits());
+    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits().unwrap());
     if rig.dead_time > 0 {
-        c.with_predictor(rig.predictor())
+        c.with_predictor(rig.predictor().unwrap())
     } else {
         c
     }
@@ -244,7 +244,7 @@ fn policy_script<O: Format, P: Policy<O> + Copy>(
     script: &mut Script,
 ) {
     script.call(&format!("init {kind}"), &format!("init {CARTPOLE_OK}"));
-    let sensor = ObserverSensor::<_, O>::new(rig.observer(), Latest::default());
+    let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
     let wild = [(320, FaultFlags::out_of_range(0))];
     let c = closed_loop(
         board(policy, sensor, rig),

@@ -230,10 +230,10 @@ type Board<P, O> = Controller<P, ObserverSensor<Latest, O>, Pins, 1>;
 
 /// A controller of `policy` as a Rust board builds one from `rig`.
 fn board<O: Format, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
-    let sensor = ObserverSensor::<_, O>::new(rig.observer(), Latest::default());
-    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits());
+    let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
+    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits().unwrap());
     if rig.dead_time > 0 {
-        c.with_predictor(rig.predictor())
+        c.with_predictor(rig.predictor().unwrap())
     } else {
         c
     }

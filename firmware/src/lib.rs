@@ -17,6 +17,7 @@
 //! - [`controller`]: one control period: sensor, sanitise, predict, policy, actuator.
 //! - [`link`]: the framed, checked link to a host's simulated world, for processor- and
 //!   hardware-in-the-loop runs.
+//! - [`config`]: [`ConfigError`], why a checked constructor refused a configuration.
 //! - [`identify`]: the board's identification experiments (a PRBS on the cart, a free swing
 //!   of the pole) and their log.
 //! - [`policy`]: the shipped 4-64-64-2 policy and the rig it was trained for, const arrays
@@ -39,6 +40,7 @@
 extern crate self as firmware;
 
 pub mod cartpole;
+pub mod config;
 pub mod controller;
 pub mod estimator;
 pub mod fixed;
@@ -52,6 +54,7 @@ pub mod policy_int;
 pub mod rig;
 
 pub use cartpole::Action;
+pub use config::ConfigError;
 
 /// Calls `$m!` with every hidden width the trainer, the simulator and the C API are built
 /// for, each beside the names of its C entry points (float / integer network): the project's

@@ -128,13 +128,17 @@ fn kalman_of(p: Mat, r: [f64; 2]) -> [[f64; 2]; 4] {
 }
 
 /// Iterates `step` from `start` until no entry moves by more than 1e-12 of the largest
-/// entry (at most a million times). Relative to the whole matrix, not to each entry: a
+/// entry (at most a million times), or until an entry is no longer finite: from there it
+/// would spin through every iteration on NaN, and the caller refuses a non-finite gain. Relative to the whole matrix, not to each entry: a
 /// covariance's entries span many orders of magnitude (1e-9 m^2 beside 1 rad^2/s^2), and
 /// one near zero may keep moving in digits that do not matter.
 fn solve(start: Mat, step: impl Fn(&Mat) -> Mat) -> Mat {
     let mut pm = start;
     for _ in 0..1_000_000 {
         let next = step(&pm);
+        if !next.iter().flatten().all(|v| v.is_finite()) {
+            return next;
+        }
         let (mut delta, mut scale): (f64, f64) = (0.0, 0.0);
         for i in 0..4 {
             for j in 0..4 {

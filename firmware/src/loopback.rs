@@ -12,6 +12,7 @@ use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::cartpole::{CartPole, State};
+use crate::config::ConfigError;
 use crate::controller::{Bridge, Controller, Limits, Policy, StateSensor};
 use crate::estimator::{Counter, Estimate, ObserverSensor};
 use crate::rig::Rig;
@@ -133,18 +134,19 @@ pub fn run<P: Policy>(
 }
 
 /// [`run`], reading the plant through `rig`'s encoders and observer (a board's pipeline, in
-/// the reading format `O` its policy takes), with `rig`'s limits.
+/// the reading format `O` its policy takes), with `rig`'s limits; refused, before the
+/// first period, for a rig [`Rig::observer`] or [`Rig::limits`] refuses.
 pub fn run_with_encoders<O: Estimate, P: Policy<O>>(
     policy: P,
     plant: &mut CartPole,
     rig: &Rig,
     wait: impl FnMut() -> u32,
-) -> Outcome {
+) -> Result<Outcome, ConfigError> {
     let enc = rig.encoders;
     let counts = |s: State| enc.counts(s.x, s.theta);
-    let sensor = ObserverSensor::<_, O>::new(rig.observer(), Latest(counts(plant.state())));
+    let sensor = ObserverSensor::<_, O>::new(rig.observer()?, Latest(counts(plant.state())));
     let set = |s: &mut ObserverSensor<Latest, O>, state| s.counter_mut().0 = counts(state);
-    run_with(policy, plant, sensor, rig.limits(), set, wait)
+    Ok(run_with(policy, plant, sensor, rig.limits()?, set, wait))
 }
 
 fn run_with<P: Policy<S::Reading>, S: StateSensor>(
@@ -180,7 +182,7 @@ mod tests {
     use crate::policy::POLICY;
 
     fn limits() -> Limits {
-        Rig::GYMNASIUM.limits()
+        Rig::GYMNASIUM.limits().unwrap()
     }
 
     #[test]
@@ -214,7 +216,8 @@ mod tests {
     fn an_encoder_read_plant_balances_through_the_observer() {
         let mut plant = CartPole::new(Params::default(), 500);
         plant.reset_to(State::from_array([0.03, -0.02, 0.04, 0.01]));
-        let out = run_with_encoders::<[f32; 4], _>(&POLICY, &mut plant, &Rig::GYMNASIUM, || 0);
+        let out =
+            run_with_encoders::<[f32; 4], _>(&POLICY, &mut plant, &Rig::GYMNASIUM, || 0).unwrap();
         assert!(out.success && out.faults == 0, "{out:?}");
     }
 

@@ -10,8 +10,9 @@
 //! use firmware::rig::Rig;
 //! let rig = Rig::GYMNASIUM;
 //! assert_eq!(rig.params.tau, 0.02);
-//! assert_eq!(rig.limits().max_abs[0], 2.4);
-//! assert_eq!(rig.predictor().delay(), 0);
+//! assert_eq!(rig.limits()?.max_abs()[0], 2.4);
+//! assert_eq!(rig.predictor()?.delay(), 0);
+//! # Ok::<(), firmware::ConfigError>(())
 //! ```
 //!
 //! A board's whole loop, closed here against the plant in place of the hardware
@@ -32,9 +33,9 @@
 //! plant.reset_to(State::from_array([0.02, 0.0, 0.03, 0.0]));
 //! let counts = |s: State| RIG.encoders.counts(s.x, s.theta);
 //! let latest = Cell::new(counts(plant.state()));
-//! let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer(), || latest.get());
+//! let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer()?, || latest.get());
 //! let mut controller =
-//!     Controller::new(&POLICY_INT, sensor, pins(), RIG.limits()).with_predictor(RIG.predictor());
+//!     Controller::new(&POLICY_INT, sensor, pins(), RIG.limits()?).with_predictor(RIG.predictor()?);
 //! // One pass per control period: on a board, `RIG.params.tau` apart on a timer.
 //! for period in 0..500 {
 //!     controller.step();
@@ -44,9 +45,11 @@
 //! }
 //! assert!(plant.state().theta.abs() < 0.05);
 //! assert_eq!(controller.faults().rejected_readings, 0);
+//! # Ok::<(), firmware::ConfigError>(())
 //! ```
 
 use crate::cartpole::{GYMNASIUM, Params};
+use crate::config::{self, ConfigError, check};
 use crate::controller::{Limits, Predictor};
 use crate::estimator::{Encoders, Observer, Tuning};
 
@@ -82,10 +85,24 @@ impl Rig {
         tuning: Tuning::DEFAULT,
     };
 
+    /// `self`, if every part of it is one a machine can have: the physics
+    /// ([`Params::check`]), the encoders ([`Encoders::check`]), the tuning
+    /// ([`Tuning::check`]), a dead time the predictor's line holds, and a margin that leaves
+    /// some track ([`Limits::track`]). A `const fn`, so that a board's `RIG` can be checked
+    /// as it is compiled: `const _: () = assert!(RIG.check().is_ok());`.
+    pub const fn check(self) -> Result<Rig, ConfigError> {
+        check!(self.params.check());
+        check!(self.encoders.check());
+        check!(self.tuning.check());
+        check!(config::dead_time(self.dead_time as usize));
+        check!(self.limits());
+        Ok(self)
+    }
+
     /// The encoder observer for this machine: its plant, its encoders, its dead time, its
     /// tuning. Solves the observer's gain (a Riccati iteration in f64): call it once, at
-    /// start-up.
-    pub fn observer(&self) -> Observer {
+    /// start-up. Refused as [`Observer::new`] refuses.
+    pub fn observer(&self) -> Result<Observer, ConfigError> {
         Observer::new(
             self.encoders,
             &self.params,
@@ -94,14 +111,86 @@ impl Rig {
         )
     }
 
-    /// The dead-time predictor for this machine.
-    pub fn predictor(&self) -> Predictor {
+    /// The dead-time predictor for this machine; refused as [`Predictor::new`] refuses.
+    pub fn predictor(&self) -> Result<Predictor, ConfigError> {
         Predictor::new(&self.params, self.dead_time as usize)
     }
 
     /// The readings a controller accepts on this machine: the track's end stops less the
-    /// margin ([`Limits::track`]).
-    pub fn limits(&self) -> Limits {
+    /// margin ([`Limits::track`], which refuses a margin that leaves no track).
+    pub const fn limits(&self) -> Result<Limits, ConfigError> {
         Limits::track(self.params.x_threshold as f32, self.end_stop_margin as f32)
+    }
+}
+
+// The shipped policies' machines, checked as the firmware is compiled.
+const _: () = assert!(crate::policy::RIG.check().is_ok());
+const _: () = assert!(crate::policy_int::RIG.check().is_ok());
+const _: () = assert!(Rig::GYMNASIUM.check().is_ok());
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A change that spoils a rig, and the refusal it meets.
+    type Spoiled = (fn(&mut Rig), ConfigError);
+
+    #[test]
+    fn each_part_of_a_rig_is_checked_and_named() {
+        let good = Rig::GYMNASIUM;
+        let cases: [Spoiled; 7] = [
+            (
+                |r| r.params.length = 0.0,
+                ConfigError::NotPositive("params.length"),
+            ),
+            (
+                |r| r.params.gravity = f64::NAN,
+                ConfigError::NotFinite("params.gravity"),
+            ),
+            (
+                |r| r.params.pole_friction = -1e-9,
+                ConfigError::Negative("params.pole_friction"),
+            ),
+            (
+                |r| r.encoders.pole_counts_per_rev = 0,
+                ConfigError::NotPositive("encoders.pole_counts_per_rev"),
+            ),
+            (
+                |r| r.tuning.accel_sd[1] = f64::NAN,
+                ConfigError::NotFinite("tuning.accel_sd[1]"),
+            ),
+            (|r| r.dead_time = 17, ConfigError::TooLarge("dead_time")),
+            (|r| r.end_stop_margin = 2.4, ConfigError::NoTrack),
+        ];
+        for (spoil, why) in cases {
+            let mut r = good;
+            spoil(&mut r);
+            assert_eq!(r.check(), Err(why), "{r:?}");
+        }
+        assert_eq!(good.check(), Ok(good));
+    }
+
+    /// The reported failure: a zero length or a NaN tuning gave an observer whose gains
+    /// were NaN, and which said nothing.
+    #[test]
+    fn an_observer_with_nan_gains_is_never_built() {
+        let mut short = Rig::GYMNASIUM;
+        short.params.length = 0.0;
+        assert_eq!(
+            short.observer().err(),
+            Some(ConfigError::NotPositive("params.length"))
+        );
+        let mut vague = Rig::GYMNASIUM;
+        vague.tuning.force_sd = f64::NAN;
+        assert_eq!(
+            vague.observer().err(),
+            Some(ConfigError::NotFinite("tuning.force_sd"))
+        );
+        // Every field finite and positive, and still the iteration overflows f64.
+        let mut wild = Rig::GYMNASIUM;
+        wild.tuning.force_sd = 1e200;
+        assert_eq!(wild.observer().err(), Some(ConfigError::GainNotFinite));
+        let gain = Rig::GYMNASIUM.observer().unwrap().gain();
+        assert!(gain.iter().flatten().all(|g| g.is_finite()));
     }
 }

@@ -6,8 +6,9 @@
 //! prints the host's values in the same format, and an end-to-end test runs both and
 //! compares the text. A board can run [`report`] at start-up too, with its own output.
 
+use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params};
-use firmware::controller::Policy;
+use firmware::controller::{Limits, Policy};
 use firmware::estimator::Estimate;
 use firmware::loopback::{Outcome, run, run_with_encoders};
 use firmware::network::int::QMlp;
@@ -158,6 +159,13 @@ pub const EPISODES: u32 = 5;
 /// Their length, Gymnasium's `CartPole-v1`.
 pub const EPISODE_STEPS: u32 = firmware::cartpole::V1_EPISODE_STEPS;
 
+/// The shipped rig's limits, built as the self-test is compiled: a board's `static`
+/// configuration, checked by the compiler.
+pub const LIMITS: Limits = match RIG.limits() {
+    Ok(limits) => limits,
+    Err(_) => panic!("the shipped rig leaves no track"),
+};
+
 /// One probe line: index, the observation's bits and the Q-values' bits, in hex. Both sides
 /// format with this, so a bit difference shows as a text difference.
 pub fn probe_line<W: core::fmt::Write>(
@@ -180,7 +188,7 @@ pub fn probe_line<W: core::fmt::Write>(
 /// Episode `episode` of the self-test: a Gymnasium-style random start from a seeded PCG32,
 /// then `policy` through the controller until the pole falls or [`EPISODE_STEPS`] pass.
 pub fn episode<P: Policy>(policy: P, episode: u32) -> Outcome {
-    run(policy, &mut start(episode), RIG.limits(), || 0)
+    run(policy, &mut start(episode), LIMITS, || 0)
 }
 
 /// The plant of episode `episode`, at its start.
@@ -191,8 +199,12 @@ fn start(episode: u32) -> CartPole {
 }
 
 /// Episode `episode` of the self-test read through the shipped rig's encoders and observer,
-/// as a board reads its plant, in the reading format `O` the policy takes.
-pub fn encoder_episode<O: Estimate, P: Policy<O>>(policy: P, episode: u32) -> Outcome {
+/// as a board reads its plant, in the reading format `O` the policy takes; refused as the
+/// firmware refuses the rig's observer.
+pub fn encoder_episode<O: Estimate, P: Policy<O>>(
+    policy: P,
+    episode: u32,
+) -> Result<Outcome, ConfigError> {
     run_with_encoders(policy, &mut start(episode), &RIG, || 0)
 }
 
@@ -277,7 +289,13 @@ fn episodes<O: Estimate, P: Policy + Policy<O> + Copy>(
             o.faults
         ));
     }
-    let enc = encoder_episode::<O, P>(policy, 0);
+    let enc = match encoder_episode::<O, P>(policy, 0) {
+        Ok(enc) => enc,
+        Err(e) => {
+            line(format_args!("{format} estimator episode: refused: {e}"));
+            return false;
+        }
+    };
     line(format_args!(
         "{format} estimator episode: {} steps through {}-count encoders, {}",
         enc.steps,
@@ -306,8 +324,12 @@ mod tests {
                 );
             }
         }
-        assert!(encoder_episode::<[i16; 4], _>(&POLICY_INT, 0).success);
-        assert!(encoder_episode::<[f32; 4], _>(&POLICY, 0).success);
+        assert!(
+            encoder_episode::<[i16; 4], _>(&POLICY_INT, 0)
+                .unwrap()
+                .success
+        );
+        assert!(encoder_episode::<[f32; 4], _>(&POLICY, 0).unwrap().success);
     }
 
     /// On the host `forward` is the definition itself, so the check is tried on a kernel

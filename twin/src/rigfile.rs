@@ -394,6 +394,11 @@ pub fn parse(text: &str, origin: &str) -> Result<Machine> {
         end_stop_margin: margin,
         tuning: fields.tuning(f.observer.as_ref())?,
     };
+    // The firmware's own checks, and the observer's gain, which overflows for some
+    // combinations of values each within its range.
+    rig.check()
+        .and_then(|r| r.observer())
+        .map_err(|e| fields.refuse(format!("the board refuses it: {e}")))?;
     let integration = fields.integration(&f.world, params.tau)?;
     let uncertainty = fields.uncertainty(&f.identified)?;
     Ok(Machine {

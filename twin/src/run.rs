@@ -7,8 +7,9 @@
 //! mixer): stream 1 the start, 2 the sensor noise, 3 the pushes, 4 a controller's own
 //! randomness. So every controller meets the same starts, noise and pushes.
 
+use firmware::ConfigError;
 use firmware::cartpole::{CartPole, State, Transition};
-use firmware::controller::{Command, Controller, Policy, StateSensor};
+use firmware::controller::{Command, Controller, Limits, Policy, Predictor, StateSensor};
 use firmware::estimator::{AlphaBeta, AlphaBetaSensor, ObserverSensor};
 use firmware::loopback::{Latest, Pins, duty, pins};
 use rand_core::Rng;
@@ -94,23 +95,24 @@ enum Reader {
 pub struct Missing;
 
 impl TwinSensor {
-    /// The sensor of `scenario`'s board.
-    pub fn of(scenario: &Scenario) -> TwinSensor {
+    /// The sensor of `scenario`'s board, refused as the firmware refuses its observer or
+    /// filter.
+    pub fn of(scenario: &Scenario) -> Result<TwinSensor, ConfigError> {
         let rig = &scenario.rig;
         let reader = match scenario.sensing {
             Sensing::Exact => Reader::Exact([0.0; 4]),
             Sensing::Observer => {
-                Reader::Observer(ObserverSensor::new(rig.observer(), Latest::default()))
+                Reader::Observer(ObserverSensor::new(rig.observer()?, Latest::default()))
             }
             Sensing::AlphaBeta(d) => Reader::AlphaBeta(AlphaBetaSensor::new(
-                AlphaBeta::new(rig.encoders, d, rig.params.tau as f32),
+                AlphaBeta::new(rig.encoders, d, rig.params.tau as f32)?,
                 Latest::default(),
             )),
         };
-        TwinSensor {
+        Ok(TwinSensor {
             reader,
             missing: false,
-        }
+        })
     }
 
     /// Hands the sensor this period's measurement.
@@ -148,6 +150,31 @@ impl StateSensor for TwinSensor {
     }
 }
 
+/// Why [`Episode::start`] may take the board's parts as built: every scenario's rig comes
+/// from a rig file or a spec, each checked against the firmware when it is read.
+const CHECKED: &str = "a scenario's board is checked as its rig file and spec are read";
+
+/// What a scenario's board builds from its rig, each part checked by the firmware.
+pub struct Board {
+    /// Its encoders' estimator, or the exact state.
+    pub sensor: TwinSensor,
+    /// The readings its controller accepts.
+    pub limits: Limits,
+    /// Its dead-time predictor.
+    pub predictor: Predictor,
+}
+
+impl Scenario {
+    /// The board's parts, or why the firmware refuses to build them.
+    pub fn board(&self) -> Result<Board, ConfigError> {
+        Ok(Board {
+            sensor: TwinSensor::of(self)?,
+            limits: self.rig.limits()?,
+            predictor: self.rig.predictor()?,
+        })
+    }
+}
+
 /// An episode in progress: a world and the firmware's controller closed around it.
 pub struct Episode<'s, P, R> {
     pub(crate) world: World<'s, R>,
@@ -167,11 +194,10 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         predict: bool,
     ) -> Self {
         let world = World::start(scenario, horizon, start, streams.0, streams.1);
-        let sensor = TwinSensor::of(scenario);
-        let mut controller =
-            Controller::with_history(policy, sensor, pins(), scenario.rig.limits());
+        let board = scenario.board().expect(CHECKED);
+        let mut controller = Controller::with_history(policy, board.sensor, pins(), board.limits);
         if predict && scenario.delay() > 0 {
-            controller = controller.with_predictor(scenario.rig.predictor());
+            controller = controller.with_predictor(board.predictor);
         }
         Episode { world, controller }
     }
@@ -182,7 +208,7 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         let scenario = self.world.scenario();
         let k = self.world.steps();
         if k > 0 && scenario.faults.reset.is_some_and(|w| w.holds(k)) {
-            *self.controller.sensor_mut() = TwinSensor::of(scenario);
+            *self.controller.sensor_mut() = TwinSensor::of(scenario).expect(CHECKED);
             self.controller.restart();
         }
         let m = self.world.measure();

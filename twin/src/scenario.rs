@@ -140,6 +140,8 @@ impl Scenario {
             s.apply(&part, &values);
         }
         check_factors(&s.params, &rig.params).map_err(|e| format!("scenario {shown}: {e}"))?;
+        s.board()
+            .map_err(|e| format!("scenario {shown}: the board refuses it: {e}"))?;
         Ok(s)
     }
 

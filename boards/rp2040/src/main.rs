@@ -39,6 +39,14 @@ use {defmt_rtt as _, panic_probe as _};
 #[cfg(feature = "identify")]
 mod identify;
 
+/// The readings the controller accepts: the track less the end-stop margin, a rig that
+/// leaves no track failing the build.
+#[cfg(not(feature = "identify"))]
+const LIMITS: firmware::controller::Limits = match RIG.limits() {
+    Ok(limits) => limits,
+    Err(_) => panic!("RIG's end-stop margin leaves no track"),
+};
+
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
 const PWM_TOP: u16 = 6_249;
 
@@ -131,9 +139,12 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
     // The observer's gain is solved once, now. The PIO program counts one step per quadrature
     // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
-    let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer(), counts);
-    let mut controller =
-        Controller::new(&POLICY_INT, sensor, bridge, RIG.limits()).with_predictor(RIG.predictor());
+    // The limits are checked as the board is compiled; the observer's gain and the
+    // predictor's plant at start-up, where a refusal halts the board (through the panic
+    // handler's log) before the bridge is ever driven.
+    let sensor = ObserverSensor::<_, [i16; 4]>::new(defmt::unwrap!(RIG.observer()), counts);
+    let mut controller = Controller::new(&POLICY_INT, sensor, bridge, LIMITS)
+        .with_predictor(defmt::unwrap!(RIG.predictor()));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-rp2040: integer policy, {} Hz", per_second);

@@ -55,7 +55,8 @@ pub const CARTPOLE_ERR_UNINITIALISED: c_int = -2;
 pub const CARTPOLE_ERR_POLICY_KIND: c_int = -3;
 /// Counts handed to an instance that has read states, or the other way round.
 pub const CARTPOLE_ERR_INPUT: c_int = -4;
-/// A `cartpole_rig` with a field no machine has ([`CartpoleRig::to_rig`]).
+/// A `cartpole_rig` with a field no machine has ([`CartpoleRig::to_rig`]), or one whose
+/// observer the firmware refuses (its Kalman gain not finite).
 pub const CARTPOLE_ERR_RIG: c_int = -5;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
@@ -240,18 +241,21 @@ pub extern "C" fn cartpole_controller_init(
     let Some(c) = c else {
         return CARTPOLE_ERR_NULL;
     };
-    match policy_kind {
+    // The shipped rigs pass the firmware's checks as it is compiled; their gain is
+    // solved here, and a refusal is the rig's.
+    let built = match policy_kind {
         CARTPOLE_POLICY_F32 => {
-            Slot::<Float<64>>::new(&firmware::policy::POLICY, &firmware::policy::RIG).store(c)
+            Slot::<Float<64>>::new(&firmware::policy::POLICY, &firmware::policy::RIG)
+                .map(|s| s.store(c))
         }
         CARTPOLE_POLICY_INT => Slot::<Int<64>>::new(
             &firmware::policy_int::POLICY_INT,
             &firmware::policy_int::RIG,
         )
-        .store(c),
+        .map(|s| s.store(c)),
         _ => return CARTPOLE_ERR_POLICY_KIND,
-    }
-    CARTPOLE_OK
+    };
+    built.map_or(CARTPOLE_ERR_RIG, |()| CARTPOLE_OK)
 }
 
 /// Makes `c` a controller of the weights `w` of kind `K` on `rig`, as
@@ -265,11 +269,13 @@ fn init_exported<K: Kind>(
     let (Some(c), Some(w), Some(rig)) = (c, w, rig) else {
         return CARTPOLE_ERR_NULL;
     };
-    let Some(rig) = rig.to_rig() else {
-        return CARTPOLE_ERR_RIG;
-    };
-    Slot::<K>::new(w, &rig).store(c);
-    CARTPOLE_OK
+    match rig.to_rig().map(|rig| Slot::<K>::new(w, &rig)) {
+        Some(Ok(slot)) => {
+            slot.store(c);
+            CARTPOLE_OK
+        }
+        _ => CARTPOLE_ERR_RIG,
+    }
 }
 
 /// `cartpole_controller_init_mlpH` and `cartpole_controller_init_qmlpH` for each width `H`.
@@ -280,8 +286,8 @@ macro_rules! exported_inits {
             "-2 network `w` on `rig` (an exported header's `NAME` and `NAME_rig`). The \
              controller keeps `w`, not a copy: C must keep the weights for as long as the \
              controller, or any copy of it, runs (`static const` ones, as exported, always \
-             are). Refuses a rig outside [`CartpoleRig::to_rig`]'s ranges \
-             ([`CARTPOLE_ERR_RIG`]), writing nothing."
+             are). Refuses a rig outside [`CartpoleRig::to_rig`]'s ranges, or one whose \
+             observer the firmware refuses ([`CARTPOLE_ERR_RIG`]), writing nothing."
         )]
         // SAFETY: as for `cartpole_controller_init`: one definition per C name.
         #[allow(unsafe_code)]

@@ -6,6 +6,7 @@
 use core::ffi::c_void;
 use core::mem::{MaybeUninit, align_of, size_of};
 
+use firmware::ConfigError;
 use firmware::controller::{Controller, Policy};
 use firmware::estimator::ObserverSensor;
 use firmware::loopback::{self, Latest, Pins};
@@ -93,22 +94,27 @@ impl<K: Kind> Slot<K> {
 
     /// A controller of `policy` for `rig` as every Rust board builds one: the rig's
     /// observer behind the encoders, its predictor if it has dead time, its limits, pins not
-    /// yet driven. Solves the observer's gain: once, at start-up.
-    pub(crate) fn new(policy: K::Policy, rig: &Rig) -> Self {
-        let encoders = ObserverSensor::new(rig.observer(), Latest::default());
-        let controller =
-            Controller::with_history(policy, Input::new(encoders), loopback::pins(), rig.limits());
+    /// yet driven. Solves the observer's gain: once, at start-up. Refused as the firmware
+    /// refuses the rig's observer, limits or predictor.
+    pub(crate) fn new(policy: K::Policy, rig: &Rig) -> Result<Self, ConfigError> {
+        let encoders = ObserverSensor::new(rig.observer()?, Latest::default());
+        let controller = Controller::with_history(
+            policy,
+            Input::new(encoders),
+            loopback::pins(),
+            rig.limits()?,
+        );
         let controller = if rig.dead_time > 0 {
-            controller.with_predictor(rig.predictor())
+            controller.with_predictor(rig.predictor()?)
         } else {
             controller
         };
-        Slot {
+        Ok(Slot {
             magic: K::MAGIC,
             // `as` saturates: a nonsense period reads as 0 or the largest, never wraps.
             period_us: (rig.params.tau * 1e6 + 0.5) as u32,
             controller,
-        }
+        })
     }
 
     /// Puts `self` in `c`, which from now on is an instance of this policy.

@@ -26,9 +26,9 @@ type Decisions = Vec<(i32, [u32; 2])>;
 /// The library's commands and Q-values over a closed loop, and those of the firmware's
 /// controller with `predictor`, on the same counts.
 fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
-    let mut slot = Slot::<Float<64>>::new(&POLICY, rig);
-    let sensor = ObserverSensor::new(rig.observer(), Latest::default());
-    let mut reference = Controller::new(&POLICY, sensor, loopback::pins(), rig.limits());
+    let mut slot = Slot::<Float<64>>::new(&POLICY, rig).unwrap();
+    let sensor = ObserverSensor::new(rig.observer().unwrap(), Latest::default());
+    let mut reference = Controller::new(&POLICY, sensor, loopback::pins(), rig.limits().unwrap());
     if let Some(p) = predictor {
         reference = reference.with_predictor(p);
     }
@@ -50,7 +50,7 @@ fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
 #[test]
 fn an_instance_of_a_rig_with_dead_time_decides_through_the_rigs_predictor() {
     let rig = delayed(2);
-    let (got, want) = against(&rig, Some(rig.predictor()));
+    let (got, want) = against(&rig, Some(rig.predictor().unwrap()));
     assert_eq!(got, want);
     // Without the predictor the same counts score otherwise: the comparison sees it.
     let (got, want) = against(&rig, None);
@@ -70,7 +70,9 @@ fn the_period_is_the_rigs_tau_in_whole_microseconds() {
             ..RIG
         };
         assert_eq!(
-            Slot::<Int<64>>::new(&firmware::policy_int::POLICY_INT, &rig).period_us(),
+            Slot::<Int<64>>::new(&firmware::policy_int::POLICY_INT, &rig)
+                .unwrap()
+                .period_us(),
             us,
             "tau {tau}"
         );
@@ -178,6 +180,18 @@ fn a_refused_init_leaves_the_instance_running_as_it_was() {
     };
     assert_eq!(
         cartpole_controller_init_qmlp64(Some(&mut c), Some(w), Some(&bad)),
+        CARTPOLE_ERR_RIG
+    );
+    // Every field within its range, and still no finite observer gain: the firmware's
+    // refusal is the rig's error too.
+    let feather = crate::CartpoleRig {
+        masscart: 1e-300,
+        masspole: 1e-300,
+        ..good
+    };
+    assert!(feather.to_rig().is_some());
+    assert_eq!(
+        cartpole_controller_init_qmlp64(Some(&mut c), Some(w), Some(&feather)),
         CARTPOLE_ERR_RIG
     );
     assert_eq!(

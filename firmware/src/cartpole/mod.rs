@@ -15,6 +15,8 @@ pub mod dynamics;
 
 pub use dynamics::{Plant, Real};
 
+use crate::config::{ConfigError, check, non_negative, positive};
+
 /// Episode length in the paper (and old `CartPole-v0`): solved at a 100-episode mean >= 195.
 pub const PAPER_EPISODE_STEPS: u32 = 200;
 /// Episode length of Gymnasium's `CartPole-v1`: solved at a 100-episode mean >= 475.
@@ -136,6 +138,28 @@ impl Params {
             self.cart_friction,
             self.pole_friction,
         ]
+    }
+
+    /// `self`, if it is a machine the observer and predictor can model: every field finite,
+    /// masses, length, motor force, period and both failure thresholds above zero (the
+    /// linearisation divides by the masses and the length), damping and friction not
+    /// negative.
+    pub const fn check(self) -> Result<Params, ConfigError> {
+        check!(positive(self.gravity, "params.gravity"));
+        check!(positive(self.masscart, "params.masscart"));
+        check!(positive(self.masspole, "params.masspole"));
+        check!(positive(self.length, "params.length"));
+        check!(positive(self.force_mag, "params.force_mag"));
+        check!(non_negative(self.motor_damping, "params.motor_damping"));
+        check!(positive(self.tau, "params.tau"));
+        check!(positive(
+            self.theta_threshold_radians,
+            "params.theta_threshold_radians"
+        ));
+        check!(positive(self.x_threshold, "params.x_threshold"));
+        check!(non_negative(self.cart_friction, "params.cart_friction"));
+        check!(non_negative(self.pole_friction, "params.pole_friction"));
+        Ok(self)
     }
 
     /// Cart plus pole, computed as Gymnasium does (`masspole + masscart`).

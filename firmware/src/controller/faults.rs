@@ -1,12 +1,14 @@
 //! What a reading may be, what went wrong in a period, and the totals.
 
+use crate::config::{ConfigError, check};
 use crate::network::OBS_DIM;
 
-/// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`.
+/// The largest magnitude accepted on each channel `[x, x_dot, theta, theta_dot]`, each
+/// bound finite and not negative: built only by [`Limits::new`] or [`Limits::track`], which
+/// refuse any other.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limits {
-    /// Per-channel bound on `|reading|`, inclusive.
-    pub max_abs: [f32; OBS_DIM],
+    max_abs: [f32; OBS_DIM],
 }
 
 /// The bound on both rates: far beyond any a balancing run reaches before it fails, so a
@@ -16,19 +18,62 @@ const MAX_RATE: f32 = 20.0;
 /// the pole is down.
 const MAX_ANGLE: f32 = 0.42;
 
+/// The channels' names, as a refusal names them.
+const CHANNELS: [&str; OBS_DIM] = [
+    "limits.max_abs[0]",
+    "limits.max_abs[1]",
+    "limits.max_abs[2]",
+    "limits.max_abs[3]",
+];
+
 impl Limits {
+    /// Per-channel bounds on `|reading|`, inclusive. Refused: a NaN or infinite bound (NaN
+    /// compares as nothing, so it would reject every reading or, compared the other way
+    /// round, none) and a negative one (which accepts nothing).
+    pub const fn new(max_abs: [f32; OBS_DIM]) -> Result<Limits, ConfigError> {
+        let mut i = 0;
+        while i < OBS_DIM {
+            let v = max_abs[i];
+            if !v.is_finite() {
+                return Err(ConfigError::NotFinite(CHANNELS[i]));
+            }
+            if v < 0.0 {
+                return Err(ConfigError::Negative(CHANNELS[i]));
+            }
+            i += 1;
+        }
+        Ok(Limits { max_abs })
+    }
+
     /// For a track whose end stops are `half_length_m` from the centre: the cart's reading
     /// is accepted only while the cart is more than `margin_m` from a stop, so near the ends
     /// the controller coasts (duty off) instead of driving into them: an end-of-track
     /// interlock. Past the pole's bound the controller coasts too.
-    /// A length under the margin, or NaN, leaves no track (every reading coasts); a negative
-    /// or NaN margin counts as none.
-    pub fn track(half_length_m: f32, margin_m: f32) -> Limits {
-        // `max` drops a NaN operand.
-        let x = (half_length_m - margin_m.max(0.0)).max(0.0);
-        Limits {
-            max_abs: [x, MAX_RATE, MAX_ANGLE, MAX_RATE],
+    /// Refused: a length not above zero, a negative margin, a margin that leaves no track,
+    /// anything not finite.
+    pub const fn track(half_length_m: f32, margin_m: f32) -> Result<Limits, ConfigError> {
+        if !half_length_m.is_finite() {
+            return Err(ConfigError::NotFinite("params.x_threshold"));
         }
+        if half_length_m <= 0.0 {
+            return Err(ConfigError::NotPositive("params.x_threshold"));
+        }
+        if !margin_m.is_finite() {
+            return Err(ConfigError::NotFinite("end_stop_margin"));
+        }
+        if margin_m < 0.0 {
+            return Err(ConfigError::Negative("end_stop_margin"));
+        }
+        if margin_m >= half_length_m {
+            return Err(ConfigError::NoTrack);
+        }
+        let x = half_length_m - margin_m;
+        Ok(check!(Limits::new([x, MAX_RATE, MAX_ANGLE, MAX_RATE])))
+    }
+
+    /// Per-channel bound on `|reading|`, inclusive.
+    pub const fn max_abs(&self) -> [f32; OBS_DIM] {
+        self.max_abs
     }
 }
 

@@ -26,7 +26,8 @@
 //! # Faults and the fallback
 //!
 //! A reading is rejected when the sensor returns an error, or when any channel is NaN,
-//! infinite, or outside [`Limits`]. A rejected reading never reaches the policy: the
+//! infinite, or outside [`Limits`] (whose bounds are checked when they are built:
+//! [`Limits::new`] refuses a NaN, infinite or negative one). A rejected reading never reaches the policy: the
 //! controller *coasts* (duty cycle off, the motor pushes neither way), counts the fault in
 //! [`FaultCounters`] and flags it in the telemetry record. Coasting is the one command that
 //! cannot make a wrong reading worse; one coasting period in a balanced run costs a small
@@ -59,13 +60,14 @@
 //!     fn read(&mut self) -> Result<[f32; 4], ()> { Ok([0.0, 0.0, 0.05, 0.2]) }
 //! }
 //!
-//! let mut c = Controller::new(&POLICY, Tilted, Bridge::new(Level(false), Duty(0)), RIG.limits());
+//! let mut c = Controller::new(&POLICY, Tilted, Bridge::new(Level(false), Duty(0)), RIG.limits()?);
 //! // The pole leans towards +x, so the cart must move under it: a push to the right.
 //! assert_eq!(c.step(), Command::Push(Action::Right));
 //! let (_, _, bridge) = c.release();
 //! let (dir, duty) = bridge.release();
 //! assert!(dir.0);
 //! assert_eq!(duty.0, 1000);
+//! # Ok::<(), firmware::ConfigError>(())
 //! ```
 
 use heapless::HistoryBuf;

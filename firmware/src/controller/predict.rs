@@ -10,6 +10,7 @@
 //! plant itself keeps `libm`, for bit-exactness with Gymnasium.
 
 use crate::cartpole::{Params, Plant};
+use crate::config::{self, ConfigError};
 use crate::network::OBS_DIM;
 
 /// Most periods of dead time the predictor can bridge.
@@ -73,13 +74,14 @@ pub struct Predictor {
 }
 
 impl Predictor {
-    /// A predictor for the plant `p` with `delay` periods (clamped to [`MAX_PREDICT`]) of
-    /// dead time.
-    pub fn new(p: &Params, delay: usize) -> Predictor {
-        Predictor {
-            plant: Plant::new(p),
-            sent: DeadTime::new(delay),
-        }
+    /// A predictor for the plant `p` with `delay` periods (at most [`MAX_PREDICT`]) of dead
+    /// time. Refused: a plant that is no machine ([`Params::check`]), whose prediction
+    /// would be NaN, and a dead time beyond the line.
+    pub fn new(p: &Params, delay: usize) -> Result<Predictor, ConfigError> {
+        Ok(Predictor {
+            plant: Plant::new(&p.check()?),
+            sent: DeadTime::new(config::dead_time(delay)?),
+        })
     }
 
     /// Periods of dead time bridged.
@@ -142,7 +144,7 @@ mod tests {
     /// The prediction over `n` periods of mixed pushes, and the f64 plant's state after them.
     fn ahead(n: usize) -> ([f32; 4], [f32; 4]) {
         let p = Params::default();
-        let mut pred = Predictor::new(&p, n);
+        let mut pred = Predictor::new(&p, n).unwrap();
         let start = State::from_array([0.3, -0.5, 0.08, -0.6]);
         let mut truth = start;
         for k in 0..n {
@@ -168,19 +170,35 @@ mod tests {
     fn the_oldest_command_is_applied_first_and_no_delay_is_the_reading() {
         let p = Params::default();
         let m = Plant::<f32>::new(&p);
-        let mut pred = Predictor::new(&p, 2);
+        let mut pred = Predictor::new(&p, 2).unwrap();
         pred.record(1.0);
         pred.record(-1.0);
         let r = [0.0, 0.0, 0.05, 0.0];
         assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 1.0, 0.0), -1.0, 0.0));
         pred.record(0.3);
         assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, -1.0, 0.0), 0.3, 0.0));
-        let none = Predictor::new(&p, 0);
+        let none = Predictor::new(&p, 0).unwrap();
         assert_eq!(none.predict(&r), r);
         // Cleared, the line holds no force: two coasting periods ahead.
         pred.clear();
         assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 0.0, 0.0), 0.0, 0.0));
         pred.record(1.0);
         assert_eq!(pred.predict(&r), m.euler(&m.euler(&r, 0.0, 0.0), 1.0, 0.0));
+    }
+
+    #[test]
+    fn a_plant_or_dead_time_no_machine_has_is_refused() {
+        let p = Params::default();
+        assert_eq!(
+            Predictor::new(&p, MAX_PREDICT + 1),
+            Err(ConfigError::TooLarge("dead_time"))
+        );
+        assert!(Predictor::new(&p, MAX_PREDICT).is_ok());
+        let mut massless = p;
+        massless.masscart = 0.0;
+        assert_eq!(
+            Predictor::new(&massless, 1),
+            Err(ConfigError::NotPositive("params.masscart"))
+        );
     }
 }

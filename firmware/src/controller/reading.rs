@@ -31,11 +31,10 @@ impl Reading for [f32; OBS_DIM] {
 
     fn flags(&self, limits: &Limits) -> FaultFlags {
         let mut flags = FaultFlags::default();
-        for (i, (&v, &max)) in self.iter().zip(&limits.max_abs).enumerate() {
+        for (i, (&v, max)) in self.iter().zip(limits.max_abs()).enumerate() {
             if !v.is_finite() {
                 flags = flags.with(FaultFlags::non_finite(i));
-            } else if v.abs().partial_cmp(&max).is_none_or(|o| o.is_gt()) {
-                // A NaN bound compares as nothing: it rejects every reading rather than none.
+            } else if v.abs() > max {
                 flags = flags.with(FaultFlags::out_of_range(i));
             }
         }
@@ -62,13 +61,8 @@ impl Reading for [i16; OBS_DIM] {
     /// value it stands for is unknown.
     fn flags(&self, limits: &Limits) -> FaultFlags {
         let mut flags = FaultFlags::default();
-        for (i, (&v, &max)) in self.iter().zip(&limits.max_abs).enumerate() {
-            // A NaN bound rejects every reading, as in the float format.
-            let bound = if max.is_nan() {
-                -1
-            } else {
-                i32::from(fixed::from_f32(max)).min(i32::from(i16::MAX) - 1)
-            };
+        for (i, (&v, max)) in self.iter().zip(limits.max_abs()).enumerate() {
+            let bound = i32::from(fixed::from_f32(max)).min(i32::from(i16::MAX) - 1);
             if i32::from(v).abs() > bound {
                 flags = flags.with(FaultFlags::out_of_range(i));
             }

@@ -1,4 +1,5 @@
 use super::*;
+use crate::config::ConfigError;
 use embedded_hal_mock::eh1::MockError;
 use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as PinTx};
 use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as PwmTx};
@@ -34,7 +35,7 @@ const LEAN_LEFT: [f32; 4] = [0.0, 0.0, -0.1, 0.0];
 
 /// The limits the tests read against: a track of +-2.4 m without margin.
 fn limits() -> Limits {
-    Limits::track(2.4, 0.0)
+    Limits::track(2.4, 0.0).unwrap()
 }
 
 fn run(
@@ -158,24 +159,54 @@ fn every_bad_value_on_every_channel_coasts_and_counts() {
 #[test]
 fn limits_are_inclusive_and_all_bad_channels_are_flagged() {
     let l = limits();
-    assert!(l.max_abs.flags(&l).is_empty());
-    let neg = l.max_abs.map(|v| -v);
+    assert!(l.max_abs().flags(&l).is_empty());
+    let neg = l.max_abs().map(|v| -v);
     assert!(neg.flags(&l).is_empty());
     let flags = [f32::NAN, 21.0, -0.5, f32::INFINITY].flags(&l);
     assert_eq!(flags.0, 0b0110_1001);
     assert!(flags.reading_rejected());
-    // A NaN bound accepts nothing, where a comparison written the other way round would
-    // accept everything.
-    let nan = Limits {
-        max_abs: [f32::NAN, 20.0, 0.42, 20.0],
+}
+
+/// The reported failure: a NaN bound compares as nothing, so that the check either rejects
+/// every reading (the controller coasts for ever, without a fault it could name) or, written
+/// the other way round, none (1e30 passes). No such bound is built.
+#[test]
+fn a_bound_that_is_no_bound_is_refused() {
+    let ok = [2.4, 20.0, 0.42, 20.0];
+    for (channel, bad, why) in [
+        (0, f32::NAN, ConfigError::NotFinite("limits.max_abs[0]")),
+        (
+            2,
+            f32::INFINITY,
+            ConfigError::NotFinite("limits.max_abs[2]"),
+        ),
+        (3, -1.0, ConfigError::Negative("limits.max_abs[3]")),
+    ] {
+        let mut max_abs = ok;
+        max_abs[channel] = bad;
+        assert_eq!(Limits::new(max_abs), Err(why));
+    }
+    let l = Limits::new(ok).unwrap();
+    assert_eq!(l.max_abs(), ok);
+    assert_eq!(
+        [1e30f32, 0.0, 0.0, 0.0].flags(&l),
+        FaultFlags::out_of_range(0)
+    );
+    // Zero is a bound: only zero passes.
+    let still = Limits::new([0.0; 4]).unwrap();
+    assert!([0.0f32; 4].flags(&still).is_empty());
+    assert_eq!([0i16, 0, 1, 0].flags(&still), FaultFlags::out_of_range(2));
+    // Checked as a board's `static` is compiled.
+    const TRACK: Limits = match Limits::track(0.5, 0.05) {
+        Ok(l) => l,
+        Err(_) => panic!("a track"),
     };
-    assert_eq!([0.0f32; 4].flags(&nan), FaultFlags::out_of_range(0));
-    assert_eq!([0i16; 4].flags(&nan), FaultFlags::out_of_range(0));
+    assert_eq!(TRACK.max_abs()[0], 0.45);
 }
 
 #[test]
 fn fixed_point_readings_are_checked_in_q3_12_and_saturation_is_a_fault() {
-    let l = Limits::track(0.5, 0.05);
+    let l = Limits::track(0.5, 0.05).unwrap();
     // 0.45 m is 1843.2 in Q3.12: 1843 passes, 1844 does not.
     assert!([1843i16, 0, 0, 0].flags(&l).is_empty());
     assert_eq!([-1844i16, 0, 0, 0].flags(&l), FaultFlags::out_of_range(0));
@@ -226,22 +257,28 @@ fn telemetry_keeps_the_last_n_oldest_first() {
 
 #[test]
 fn a_real_track_interlocks_its_ends() {
-    let l = Limits::track(0.5, 0.05);
-    assert_eq!(l.max_abs[0], 0.45);
+    let l = Limits::track(0.5, 0.05).unwrap();
+    assert_eq!(l.max_abs()[0], 0.45);
     let at = |x: f32| [x, 0.0, 0.05, 0.0].flags(&l);
     assert!(at(0.3).is_empty() && at(-0.45).is_empty());
     assert_eq!(at(0.46), FaultFlags::out_of_range(0));
     assert_eq!(at(-0.5), FaultFlags::out_of_range(0));
     assert!(
         ![2.0f32, 0.0, 0.0, 0.0]
-            .flags(&Limits::track(2.4, 0.5))
+            .flags(&Limits::track(2.4, 0.5).unwrap())
             .is_empty()
     );
-    // Nonsense lengths leave no track, nonsense margins no margin.
-    assert_eq!(Limits::track(f32::NAN, 0.1).max_abs[0], 0.0);
-    assert_eq!(Limits::track(0.1, 0.2).max_abs[0], 0.0);
-    assert_eq!(Limits::track(1.0, f32::NAN).max_abs[0], 1.0);
-    assert_eq!(Limits::track(1.0, -3.0).max_abs[0], 1.0);
+    // Nonsense lengths and margins are refused, naming which.
+    for (half, margin, why) in [
+        (f32::NAN, 0.1, ConfigError::NotFinite("params.x_threshold")),
+        (0.0, 0.0, ConfigError::NotPositive("params.x_threshold")),
+        (0.1, 0.2, ConfigError::NoTrack),
+        (0.1, 0.1, ConfigError::NoTrack),
+        (1.0, f32::NAN, ConfigError::NotFinite("end_stop_margin")),
+        (1.0, -3.0, ConfigError::Negative("end_stop_margin")),
+    ] {
+        assert_eq!(Limits::track(half, margin), Err(why), "{half} {margin}");
+    }
 }
 
 /// A sensor that records each command it is told, with how many readings it had given.

@@ -15,17 +15,18 @@
 //! ```
 //! use firmware::estimator::{AlphaBeta, Encoders};
 //! let enc = Encoders { cart_counts_per_m: 10_000, pole_counts_per_rev: 4_096 };
-//! let mut est = AlphaBeta::new(enc, 0.5, 0.02);
+//! let mut est = AlphaBeta::new(enc, 0.5, 0.02)?;
 //! // The cart moves 1 cm (100 counts) per 20 ms period: 0.5 m/s.
 //! let mut s = [0.0; 4];
 //! for k in 0..40 {
 //!     s = est.update(100 * k, 0);
 //! }
 //! assert!((s[0] - 0.39).abs() < 1e-3 && (s[1] - 0.5).abs() < 1e-3, "{s:?}");
+//! # Ok::<(), firmware::ConfigError>(())
 //! ```
 
-use super::Encoders;
-use crate::cartpole::Params;
+use super::{Encoders, wrap};
+use crate::config::{ConfigError, non_negative, positive};
 use crate::fixed::FRACTION_BITS;
 
 /// One channel's alpha-beta filter in fixed point.
@@ -35,17 +36,47 @@ struct Channel {
     p: i64,
     /// Velocity estimate, 1/4096 count per period.
     v: i64,
+    /// The count measured, unwrapped (the cart) or in the revolution about upright (the
+    /// pole).
+    count: i64,
 }
 
+/// The farthest the cart's unwrapped count goes, so that it stays inside `i64` in fixed
+/// point: 2^47 counts, thousands of kilometres on any encoder.
+const MAX_CART_COUNT: i64 = 1 << 47;
+
 impl Channel {
+    fn start(count: i64) -> Channel {
+        Channel {
+            p: count << FRACTION_BITS,
+            v: 0,
+            count,
+        }
+    }
+
+    /// One period, the counter having `moved` since the last. `per_rev` is the pole's
+    /// counts a revolution, whose count stays within the revolution about upright and
+    /// whose position moves with it by whole turns (as the observer's does, so that the
+    /// residual is never wrapped); `None` for the cart. The arithmetic wraps where wild
+    /// counts would overflow it (and the controller rejects the estimate), never in a run
+    /// it could balance.
     #[inline]
-    fn update(&mut self, count: i32, alpha_q15: i64, beta_q15: i64) {
-        let predicted = self.p + self.v;
-        let residual = (i64::from(count) << FRACTION_BITS) - predicted;
+    fn update(&mut self, moved: i32, (alpha_q15, beta_q15): (i64, i64), per_rev: Option<u32>) {
+        let count = self.count + i64::from(moved);
+        self.count = match per_rev {
+            Some(n) => wrap::count(count, n),
+            None => count.clamp(-MAX_CART_COUNT, MAX_CART_COUNT),
+        };
+        if per_rev.is_some() && self.count != count {
+            self.p = self.p.wrapping_add((self.count - count) << FRACTION_BITS);
+        }
+        let predicted = self.p.wrapping_add(self.v);
+        let residual = (self.count << FRACTION_BITS).wrapping_sub(predicted);
         // Round to nearest: an arithmetic shift alone would bias every correction downwards.
         let half = 1 << 14;
-        self.p = predicted + ((alpha_q15 * residual + half) >> 15);
-        self.v += (beta_q15 * residual + half) >> 15;
+        let correct = |gain: i64| gain.wrapping_mul(residual).wrapping_add(half) >> 15;
+        self.p = predicted.wrapping_add(correct(alpha_q15));
+        self.v = self.v.wrapping_add(correct(beta_q15));
     }
 }
 
@@ -90,38 +121,38 @@ pub struct AlphaBeta {
     beta_q15: i64,
     cart: Channel,
     pole: Channel,
+    /// The counts last read `(cart, pole)`, as the counter gave them.
+    last: (i32, i32),
     started: bool,
     fixed: [ToFixed; 4],
 }
 
 impl AlphaBeta {
-    /// An estimator for `enc` sampled every `period_s` seconds (Gymnasium's period if not
-    /// positive), with filter discount `discount` (clamped to `[0, 0.99]`, NaN taken as 0.5;
-    /// 0.5 is a good start at 50 Hz).
-    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> AlphaBeta {
-        let d = if discount.is_nan() {
-            0.5
-        } else {
-            discount.clamp(0.0, 0.99)
-        };
+    /// An estimator for `enc` sampled every `period_s` seconds, with filter discount
+    /// `discount` in `[0, 0.99]` (0.5 is a good start at 50 Hz). Refused, naming the
+    /// field: encoders of zero counts, a discount outside its range or NaN, a period not
+    /// above zero.
+    pub fn new(enc: Encoders, discount: f32, period_s: f32) -> Result<AlphaBeta, ConfigError> {
+        let enc = enc.check()?;
+        let d = f64::from(discount);
+        let d = non_negative(d, "discount")? as f32;
+        if d > 0.99 {
+            return Err(ConfigError::TooLarge("discount"));
+        }
+        let period_s = positive(f64::from(period_s), "period_s")? as f32;
         let q15 = |v: f32| (v * 32_768.0 + 0.5) as i64;
-        let enc = enc.sanitised();
-        let period_s = if period_s > 0.0 {
-            period_s
-        } else {
-            Params::default().tau as f32
-        };
         // The raw state and the Q3.12 output carry the same fraction bits, so a raw unit is
         // worth SI units per count (per period) of output units.
         let [cart, pole] = enc.per_count();
         let per_s = 1.0 / f64::from(period_s);
-        AlphaBeta {
+        Ok(AlphaBeta {
             enc,
             period_s,
             alpha_q15: q15(1.0 - d * d),
             beta_q15: q15((1.0 - d) * (1.0 - d)),
             cart: Channel::default(),
             pole: Channel::default(),
+            last: (0, 0),
             started: false,
             fixed: [
                 ToFixed::new(cart),
@@ -129,27 +160,35 @@ impl AlphaBeta {
                 ToFixed::new(pole),
                 ToFixed::new(pole * per_s),
             ],
-        }
+        })
     }
 
     /// Takes one period's counts (cart, pole) and returns the estimated state in SI units.
-    /// The first call only initialises the positions (velocities start at zero).
+    /// The first call only initialises the positions (velocities start at zero). The counts
+    /// are taken as differences from the last ones, in wrapping arithmetic, so a counter
+    /// that wraps through `i32::MAX` moves the estimate by the counts it moved; the pole's
+    /// angle stays in (-pi, pi].
     pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
+        let per_rev = self.enc.pole_counts_per_rev;
         if self.started {
-            self.cart.update(cart_counts, self.alpha_q15, self.beta_q15);
-            self.pole.update(pole_counts, self.alpha_q15, self.beta_q15);
+            let gains = (self.alpha_q15, self.beta_q15);
+            self.cart
+                .update(cart_counts.wrapping_sub(self.last.0), gains, None);
+            let pole = pole_counts.wrapping_sub(self.last.1);
+            self.pole.update(pole, gains, Some(per_rev));
         } else {
-            self.cart = Channel {
-                p: i64::from(cart_counts) << FRACTION_BITS,
-                v: 0,
-            };
-            self.pole = Channel {
-                p: i64::from(pole_counts) << FRACTION_BITS,
-                v: 0,
-            };
+            self.cart = Channel::start(i64::from(cart_counts));
+            self.pole = Channel::start(wrap::count(i64::from(pole_counts), per_rev));
             self.started = true;
         }
+        self.last = (cart_counts, pole_counts);
         self.state()
+    }
+
+    /// The pole's position handed out: within the revolution about upright, (-pi, pi].
+    fn angle(&self) -> i64 {
+        let rev = i64::from(self.enc.pole_counts_per_rev) << FRACTION_BITS;
+        wrap::fixed(self.pole.p, rev)
     }
 
     /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
@@ -160,7 +199,7 @@ impl AlphaBeta {
         [
             self.cart.p as f32 * m_per_unit,
             self.cart.v as f32 * m_per_unit / self.period_s,
-            self.pole.p as f32 * rad_per_unit,
+            self.angle() as f32 * rad_per_unit,
             self.pole.v as f32 * rad_per_unit / self.period_s,
         ]
     }
@@ -173,15 +212,16 @@ impl AlphaBeta {
         [
             x.apply(self.cart.p),
             x_dot.apply(self.cart.v),
-            theta.apply(self.pole.p),
+            theta.apply(self.angle()),
             theta_dot.apply(self.pole.v),
         ]
     }
 
     /// The filter's fixed-point state `[cart p, cart v, pole p, pole v]`: positions in 1/4096
-    /// count, velocities in 1/4096 count per period.
+    /// count (the pole's within the revolution about upright), velocities in 1/4096 count per
+    /// period.
     pub fn raw(&self) -> [i64; 4] {
-        [self.cart.p, self.cart.v, self.pole.p, self.pole.v]
+        [self.cart.p, self.cart.v, self.angle(), self.pole.v]
     }
 
     /// Forgets the history: the next update starts afresh.
@@ -206,11 +246,11 @@ mod tests {
 
     #[test]
     fn the_filter_has_its_documented_gains() {
-        let e = AlphaBeta::new(ENC, 0.5, 0.02);
+        let e = AlphaBeta::new(ENC, 0.5, 0.02).unwrap();
         // alpha = 1 - 0.25 = 0.75, beta = 0.25, in Q15.
         assert_eq!((e.alpha_q15, e.beta_q15), (24_576, 8_192));
         // Discount 0: the velocity is the plain backward difference.
-        let mut raw = AlphaBeta::new(ENC, 0.0, 0.02);
+        let mut raw = AlphaBeta::new(ENC, 0.0, 0.02).unwrap();
         raw.update(0, 0);
         let s = raw.update(37, -5);
         let u = 1 << FRACTION_BITS;
@@ -221,7 +261,7 @@ mod tests {
     #[test]
     fn a_constant_velocity_is_tracked_without_error() {
         // 3 counts per period on the pole: 3 * 2 pi / 4096 / 0.02 rad/s.
-        let mut e = AlphaBeta::new(ENC, 0.6, 0.02);
+        let mut e = AlphaBeta::new(ENC, 0.6, 0.02).unwrap();
         let mut s = [0.0; 4];
         for k in 0..200 {
             s = e.update(0, 3 * k);
@@ -235,7 +275,7 @@ mod tests {
     fn a_step_settles_and_smoothing_trades_noise_for_lag() {
         // After a jump of 1000 counts the estimate converges; the filter is stable.
         for d in [0.0, 0.3, 0.6, 0.9] {
-            let mut e = AlphaBeta::new(ENC, d, 0.02);
+            let mut e = AlphaBeta::new(ENC, d, 0.02).unwrap();
             e.update(0, 0);
             let mut last = [0.0; 4];
             for _ in 0..400 {
@@ -248,7 +288,7 @@ mod tests {
         }
         // A position that alternates by one count: the smoother filter reports less speed.
         let jitter = |d: f32| {
-            let mut e = AlphaBeta::new(ENC, d, 0.02);
+            let mut e = AlphaBeta::new(ENC, d, 0.02).unwrap();
             (0..200)
                 .map(|k| e.update(k % 2, 0)[1].abs())
                 .fold(0.0f32, f32::max)
@@ -263,7 +303,7 @@ mod tests {
 
     #[test]
     fn any_counts_are_safe() {
-        let mut e = AlphaBeta::new(ENC, 0.5, 0.02);
+        let mut e = AlphaBeta::new(ENC, 0.5, 0.02).unwrap();
         for (c, p) in [
             (i32::MAX, i32::MIN),
             (i32::MIN, i32::MAX),
@@ -273,15 +313,35 @@ mod tests {
             let s = e.update(c, p);
             assert!(s.iter().all(|v| v.is_finite()), "{s:?}");
         }
-        let degenerate = AlphaBeta::new(
-            Encoders {
-                cart_counts_per_m: 0,
-                pole_counts_per_rev: 0,
-            },
-            f32::NAN,
-            -1.0,
-        );
-        assert!(degenerate.state().iter().all(|v| v.is_finite()));
+        let zero = Encoders {
+            cart_counts_per_m: 0,
+            ..ENC
+        };
+        for (made, why) in [
+            (
+                AlphaBeta::new(zero, 0.5, 0.02),
+                ConfigError::NotPositive("encoders.cart_counts_per_m"),
+            ),
+            (
+                AlphaBeta::new(ENC, f32::NAN, 0.02),
+                ConfigError::NotFinite("discount"),
+            ),
+            (
+                AlphaBeta::new(ENC, 0.991, 0.02),
+                ConfigError::TooLarge("discount"),
+            ),
+            (
+                AlphaBeta::new(ENC, -0.1, 0.02),
+                ConfigError::Negative("discount"),
+            ),
+            (
+                AlphaBeta::new(ENC, 0.5, 0.0),
+                ConfigError::NotPositive("period_s"),
+            ),
+        ] {
+            assert_eq!(made, Err(why));
+        }
+        assert!(AlphaBeta::new(ENC, 0.99, 1e-6).is_ok());
     }
 
     #[test]
@@ -303,7 +363,7 @@ mod tests {
                 0.9,
             ),
         ] {
-            let mut e = AlphaBeta::new(enc, d, 0.02);
+            let mut e = AlphaBeta::new(enc, d, 0.02).unwrap();
             let cart = 1.0 / f64::from(enc.cart_counts_per_m);
             let pole = core::f64::consts::TAU / f64::from(enc.pole_counts_per_rev);
             let k = [cart, cart / 0.02f32 as f64, pole, pole / 0.02f32 as f64];

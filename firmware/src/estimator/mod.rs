@@ -28,7 +28,7 @@
 //! use firmware::cartpole::{Params, State, advance};
 //! let enc = Encoders { cart_counts_per_m: 20_480, pole_counts_per_rev: 4_096 };
 //! let p = Params::default();
-//! let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, 0);
+//! let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, 0)?;
 //! // The cart coasts at 0.5 m/s under an upright pole; the observer is told the duty (0).
 //! let mut s = State { x_dot: 0.5, ..State::default() };
 //! let mut est = [0.0; 4];
@@ -39,15 +39,19 @@
 //!     s = advance(&p, &s, 0.0, 0.0);
 //! }
 //! assert!((est[1] - 0.5).abs() < 1e-3, "{est:?}");
+//! # Ok::<(), firmware::ConfigError>(())
 //! ```
 
 mod alpha_beta;
 mod observer;
 mod sensor;
+mod wrap;
 
 pub use alpha_beta::AlphaBeta;
 pub use observer::{Observer, Tuning};
 pub use sensor::{AlphaBetaSensor, Counter, Estimate, ObserverSensor};
+
+use crate::config::ConfigError;
 
 /// The two encoders' resolutions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -61,13 +65,16 @@ pub struct Encoders {
 }
 
 impl Encoders {
-    /// The same resolutions with zero taken as one count per unit, so that a count's size
-    /// is finite.
-    pub fn sanitised(self) -> Encoders {
-        Encoders {
-            cart_counts_per_m: self.cart_counts_per_m.max(1),
-            pole_counts_per_rev: self.pole_counts_per_rev.max(1),
+    /// `self`, if both resolutions are above zero: a zero count per unit makes a count
+    /// infinitely large.
+    pub const fn check(self) -> Result<Encoders, ConfigError> {
+        if self.cart_counts_per_m == 0 {
+            return Err(ConfigError::NotPositive("encoders.cart_counts_per_m"));
         }
+        if self.pole_counts_per_rev == 0 {
+            return Err(ConfigError::NotPositive("encoders.pole_counts_per_rev"));
+        }
+        Ok(self)
     }
 
     /// A count's size: metres per cart count, radians per pole count.

@@ -1,10 +1,11 @@
 //! The model-based observer ([`Observer`]).
 
 use crate::cartpole::{Params, Plant};
+use crate::config::{self, ConfigError, check, positive};
 use crate::controller::predict::DeadTime;
 use crate::linear::{kalman_gain, linearise};
 
-use super::Encoders;
+use super::{Encoders, wrap};
 
 /// The observer's process noise: how far it expects the plant to stray from its nominal
 /// model in one period. Larger values trust the encoders more and the model less: faster to
@@ -28,6 +29,17 @@ impl Tuning {
         force_sd: 5.0,
         accel_sd: [2.0, 4.0],
     };
+}
+
+impl Tuning {
+    /// `self`, if every standard deviation is finite and above zero: without process noise
+    /// the gain is zero and the observer never looks at the counts.
+    pub const fn check(self) -> Result<Tuning, ConfigError> {
+        check!(positive(self.force_sd, "tuning.force_sd"));
+        check!(positive(self.accel_sd[0], "tuning.accel_sd[0]"));
+        check!(positive(self.accel_sd[1], "tuning.accel_sd[1]"));
+        Ok(self)
+    }
 }
 
 impl Default for Tuning {
@@ -54,8 +66,14 @@ impl Default for Tuning {
 /// line as the predictor and the twin's actuator, and applies each when it reaches the
 /// motor.
 ///
+/// The counts are taken as differences from the last ones, in wrapping arithmetic, so a
+/// hardware counter that wraps through `i32::MAX` moves the estimate by the counts it moved,
+/// not by 2^32. The pole's count is kept in the revolution about upright, the estimate's
+/// angle moved with it by whole turns, and the angle handed out is in (-pi, pi]: a pole
+/// that turns a whole revolution reads upright again.
+///
 /// Fixed-size, allocation-free, panic-free for any counts and commands: a non-finite
-/// estimate (only wild counts can cause one) restarts it from the next counts.
+/// estimate restarts it from the next counts.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Observer {
     enc: Encoders,
@@ -64,6 +82,13 @@ pub struct Observer {
     /// Metres per cart count, radians per pole count.
     per_count: [f32; 2],
     estimate: [f32; 4],
+    /// The counts last read `(cart, pole)`, as the counter gave them; `None` before the
+    /// first.
+    last: Option<(i32, i32)>,
+    /// The cart's count since the start, unwrapped.
+    cart: i64,
+    /// The pole's count in the revolution about upright ([`wrap::count`]).
+    pole: i64,
     /// Commands (fractions of full force) on their way to the motor.
     line: DeadTime<f32>,
     /// The command that acted during the period now ending.
@@ -73,13 +98,25 @@ pub struct Observer {
 
 impl Observer {
     /// An observer for `enc`, modelling the plant as `nominal` (its tau is the period), with
-    /// process noise `tuning` and `dead_time` periods between a command and the motor
-    /// (clamped to [`MAX_PREDICT`](crate::controller::predict::MAX_PREDICT)). Solves the Kalman gain's Riccati equation in f64: a
-    /// board does this once, at start-up.
-    pub fn new(enc: Encoders, nominal: &Params, tuning: Tuning, dead_time: usize) -> Observer {
-        let enc = enc.sanitised();
+    /// process noise `tuning` and `dead_time` periods between a command and the motor (at
+    /// most [`MAX_PREDICT`](crate::controller::predict::MAX_PREDICT)). Solves the Kalman
+    /// gain's Riccati equation in f64: a board does this once, at start-up.
+    ///
+    /// Refused, naming the field: encoders of zero counts, a plant that is no machine
+    /// ([`Params::check`]), a tuning without noise ([`Tuning::check`]), a dead time beyond the
+    /// line; and [`ConfigError::GainNotFinite`] should the gain still overflow.
+    pub fn new(
+        enc: Encoders,
+        nominal: &Params,
+        tuning: Tuning,
+        dead_time: usize,
+    ) -> Result<Observer, ConfigError> {
+        let enc = enc.check()?;
+        let nominal = nominal.check()?;
+        let tuning = tuning.check()?;
+        let dead_time = config::dead_time(dead_time)?;
         let per_count = enc.per_count();
-        let (a, b) = linearise(nominal);
+        let (a, b) = linearise(&nominal);
         let t = nominal.tau;
         let f = tuning.force_sd;
         let [ax, at] = tuning.accel_sd.map(|s| s * t * s * t);
@@ -94,16 +131,22 @@ impl Observer {
         // A count's error is uniform over one count: variance 1/12 count^2.
         let r = per_count.map(|c| c * c / 12.0);
         let gain = kalman_gain(&a, &q, r).map(|row| row.map(|g| g as f32));
-        Observer {
+        if !gain.iter().flatten().all(|g| g.is_finite()) {
+            return Err(ConfigError::GainNotFinite);
+        }
+        Ok(Observer {
             enc,
-            plant: Plant::new(nominal),
+            plant: Plant::new(&nominal),
             gain,
             per_count: per_count.map(|c| c as f32),
             estimate: [0.0; 4],
+            last: None,
+            cart: 0,
+            pole: 0,
             line: DeadTime::new(dead_time),
             acting: 0.0,
             started: false,
-        }
+        })
     }
 
     /// Records the command sent this period, as a fraction of full force (`1` full right,
@@ -122,12 +165,13 @@ impl Observer {
     /// The first call (and the first after [`Observer::reset`]) starts from the counts at
     /// rest.
     pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
-        let yx = (cart_counts as f32 + 0.5) * self.per_count[0];
-        let yt = (pole_counts as f32 + 0.5) * self.per_count[1];
+        self.count(cart_counts, pole_counts);
+        let yx = (self.cart as f32 + 0.5) * self.per_count[0];
+        let yt = (self.pole as f32 + 0.5) * self.per_count[1];
         if !self.started {
             self.estimate = [yx, 0.0, yt, 0.0];
             self.started = true;
-            return self.estimate;
+            return self.state();
         }
         let pred = self.plant.euler(&self.estimate, self.acting, 0.0);
         let e = [yx - pred[0], yt - pred[2]];
@@ -137,18 +181,44 @@ impl Observer {
         if !self.estimate.iter().all(|v| v.is_finite()) {
             self.started = false;
         }
-        self.estimate
+        self.state()
     }
 
-    /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
+    /// Moves the counts by the counter's change since the last reading: the difference of
+    /// two wrapping counter values is the counts moved, whether or not the counter wrapped
+    /// between them (as long as it moved fewer than 2^31). When the pole's count passes
+    /// into the next revolution, the estimate's angle moves by the same whole turns, so that
+    /// the residual between them is the one unwrapped counts would give. (A residual
+    /// wrapped instead would let the estimate settle on a spin of one turn a period, which
+    /// no count can tell from standstill.)
+    fn count(&mut self, cart_counts: i32, pole_counts: i32) {
+        let (cart, pole) = match self.last {
+            Some((c, p)) => (
+                self.cart
+                    .saturating_add(i64::from(cart_counts.wrapping_sub(c))),
+                self.pole + i64::from(pole_counts.wrapping_sub(p)),
+            ),
+            None => (i64::from(cart_counts), i64::from(pole_counts)),
+        };
+        self.cart = cart;
+        self.pole = wrap::count(pole, self.enc.pole_counts_per_rev);
+        if self.pole != pole {
+            self.estimate[2] += (self.pole - pole) as f32 * self.per_count[1];
+        }
+        self.last = Some((cart_counts, pole_counts));
+    }
+
+    /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`, the
+    /// angle in (-pi, pi].
     pub fn state(&self) -> [f32; 4] {
-        self.estimate
+        let [x, x_dot, theta, theta_dot] = self.estimate;
+        [x, x_dot, wrap::angle(theta), theta_dot]
     }
 
     /// The current estimate in the integer network's input format, Q3.12
     /// ([`crate::fixed::from_state`]).
     pub fn fixed_state(&self) -> [i16; 4] {
-        crate::fixed::from_state(&self.estimate)
+        crate::fixed::from_state(&self.state())
     }
 
     /// The steady-state Kalman gain `L`, rows `[x, x_dot, theta, theta_dot]`, columns the
@@ -157,9 +227,11 @@ impl Observer {
         self.gain
     }
 
-    /// Forgets the estimate and the commands in flight: the next update starts afresh.
+    /// Forgets the estimate, the counts and the commands in flight: the next update starts
+    /// afresh.
     pub fn reset(&mut self) {
         self.started = false;
+        self.last = None;
         self.line = DeadTime::new(self.line.delay());
         self.acting = 0.0;
     }

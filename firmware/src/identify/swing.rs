@@ -37,7 +37,8 @@ impl Swing {
 
     /// A swing logged for `periods` periods after the release, read with `encoders`.
     pub fn new(encoders: Encoders, periods: u32) -> Swing {
-        let per_rev = encoders.sanitised().pole_counts_per_rev;
+        // At least one count a revolution, so that the thresholds below exist for any encoders.
+        let per_rev = encoders.pole_counts_per_rev.max(1);
         Swing {
             counts_per_rev: per_rev,
             raise: (u64::from(per_rev) * u64::from(Self::RAISE_DEG) / 360).max(1) as u32,

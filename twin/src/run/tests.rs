@@ -126,7 +126,7 @@ fn the_observer_is_told_the_dead_time_and_the_commands() {
     use firmware::estimator::{Observer, Tuning};
     let (s, periods) = rule_episode("encoder=512+delay=3+force=0.8+length=0.7", 300);
     let enc = s.rig.encoders;
-    let make = |delay| Observer::new(enc, &Params::default(), Tuning::DEFAULT, delay);
+    let make = |delay| Observer::new(enc, &Params::default(), Tuning::DEFAULT, delay).unwrap();
     let (mut board, mut blind) = (make(3), make(0));
     let (mut err_board, mut err_blind) = (0.0f64, 0.0f64);
     for (k, (truth, obs, command)) in periods.iter().enumerate() {

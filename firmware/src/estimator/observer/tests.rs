@@ -4,6 +4,8 @@ use crate::controller::predict::MAX_PREDICT;
 use crate::estimator::AlphaBeta;
 use crate::linear::tests::SCIPY_L;
 
+mod wrapping;
+
 const FINE: Encoders = Encoders {
     cart_counts_per_m: 20_480,
     pole_counts_per_rev: 4_096,
@@ -24,7 +26,7 @@ fn the_gain_is_scipys_kalman_gain() {
         force_sd: 5.0,
         accel_sd: [2.0, 4.0],
     };
-    let o = Observer::new(FINE, &Params::default(), tuning, 0);
+    let o = Observer::new(FINE, &Params::default(), tuning, 0).unwrap();
     for (row, want) in o.gain().iter().zip(SCIPY_L) {
         for (g, w) in row.iter().zip(want) {
             assert!(
@@ -42,8 +44,8 @@ fn the_gain_is_scipys_kalman_gain() {
 /// 20 s.
 fn velocity_errors(enc: Encoders, told: usize, delay: usize) -> ([f64; 2], [f64; 2]) {
     let p = Params::default();
-    let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, told);
-    let mut ab = AlphaBeta::new(enc, 0.5, p.tau as f32);
+    let mut obs = Observer::new(enc, &p, Tuning::DEFAULT, told).unwrap();
+    let mut ab = AlphaBeta::new(enc, 0.5, p.tau as f32).unwrap();
     let mut s = State::from_array([0.03, -0.02, 0.02, -0.01]);
     // The plant's own line of commands, written out rather than `DeadTime`, so that the
     // observer's line is checked against something independent of it.
@@ -100,7 +102,7 @@ fn an_unknown_dead_time_costs_accuracy() {
 
 #[test]
 fn commands_act_after_the_dead_time() {
-    let mut o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 3);
+    let mut o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 3).unwrap();
     let sent = [1.0, -1.0, 0.5, 0.0, -0.25, 1.0];
     let mut acted = [9.0; 6];
     for (a, c) in acted.iter_mut().zip(sent) {
@@ -108,7 +110,7 @@ fn commands_act_after_the_dead_time() {
         *a = o.acting;
     }
     assert_eq!(acted, [0.0, 0.0, 0.0, 1.0, -1.0, 0.5]);
-    let mut now = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 0);
+    let mut now = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 0).unwrap();
     for (c, want) in [(2.0, 1.0), (f32::NAN, 0.0), (-7.0, -1.0), (0.3, 0.3)] {
         now.command(c);
         assert_eq!(now.acting, want);
@@ -117,7 +119,7 @@ fn commands_act_after_the_dead_time() {
 
 #[test]
 fn the_first_counts_start_it_at_rest_and_reset_forgets() {
-    let mut o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 2);
+    let mut o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 2).unwrap();
     let s = o.update(2_048, -10);
     let want = [
         2_048.5 / 20_480.0,
@@ -136,7 +138,7 @@ fn the_first_counts_start_it_at_rest_and_reset_forgets() {
 #[test]
 fn any_counts_and_commands_are_safe() {
     let p = Params::default();
-    let mut o = Observer::new(FINE, &p, Tuning::DEFAULT, 16);
+    let mut o = Observer::new(FINE, &p, Tuning::DEFAULT, 16).unwrap();
     for (k, (c, q)) in [
         (i32::MAX, i32::MIN),
         (i32::MIN, i32::MAX),
@@ -157,22 +159,22 @@ fn any_counts_and_commands_are_safe() {
     }
     o.reset();
     assert!(o.update(5, 5).iter().all(|v| v.is_finite()));
-    let degenerate = Observer::new(
-        Encoders {
-            cart_counts_per_m: 0,
-            pole_counts_per_rev: 0,
-        },
-        &p,
-        Tuning::DEFAULT,
-        usize::MAX,
+    let zero = Encoders {
+        cart_counts_per_m: 0,
+        pole_counts_per_rev: 4_096,
+    };
+    let made = Observer::new(zero, &p, Tuning::DEFAULT, 0);
+    assert_eq!(
+        made.err(),
+        Some(ConfigError::NotPositive("encoders.cart_counts_per_m"))
     );
-    assert!(degenerate.gain().iter().flatten().all(|g| g.is_finite()));
-    assert_eq!(degenerate.line.delay(), MAX_PREDICT);
+    let late = Observer::new(FINE, &p, Tuning::DEFAULT, MAX_PREDICT + 1);
+    assert_eq!(late.err(), Some(ConfigError::TooLarge("dead_time")));
 }
 
 #[test]
 fn the_fixed_state_is_the_state_rounded_in_q12() {
-    let mut o = Observer::new(coarse(128), &Params::default(), Tuning::DEFAULT, 0);
+    let mut o = Observer::new(coarse(128), &Params::default(), Tuning::DEFAULT, 0).unwrap();
     let mut s = State::from_array([0.4, 0.0, 0.05, 0.0]);
     let p = Params::default();
     for k in 0..300 {

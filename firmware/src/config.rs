@@ -1,0 +1,94 @@
+//! Why a configuration was refused: the one error every checked constructor returns
+//! ([`Limits`](crate::controller::Limits), [`Observer`](crate::estimator::Observer),
+//! [`AlphaBeta`](crate::estimator::AlphaBeta), [`Predictor`](crate::controller::Predictor),
+//! and the checks of [`Params`](crate::cartpole::Params),
+//! [`Encoders`](crate::estimator::Encoders), [`Tuning`](crate::estimator::Tuning) and
+//! [`Rig`](crate::rig::Rig)).
+//!
+//! A value these refuse would not fail loudly later: a NaN bound or gain compares as
+//! nothing, a zero length divides to infinity, and the controller would coast or steer on
+//! NaN for ever without a fault to show for it. Refused at construction, the mistake is
+//! named once, before the motor is ever driven.
+
+use core::fmt;
+
+/// A configuration value no machine has: which field, and why. The field is named as its
+/// struct spells it (`"params.length"`, `"limits.max_abs[2]"`).
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ConfigError {
+    /// NaN or infinite.
+    NotFinite(&'static str),
+    /// Zero or negative (a count of zero), where only a positive value has a meaning.
+    NotPositive(&'static str),
+    /// Negative, where only zero or more has a meaning.
+    Negative(&'static str),
+    /// Larger than the most the firmware can hold (the dead time's line, a filter's
+    /// discount).
+    TooLarge(&'static str),
+    /// The end-stop margin is not less than the track's half-length: no track is left.
+    NoTrack,
+    /// Each value is finite, but the observer's Kalman gain is not (the plant and tuning
+    /// overflow f64 in its Riccati iteration).
+    GainNotFinite,
+}
+
+impl fmt::Display for ConfigError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ConfigError::NotFinite(field) => write!(f, "{field}: expected a finite number"),
+            ConfigError::NotPositive(field) => write!(f, "{field}: expected more than zero"),
+            ConfigError::Negative(field) => write!(f, "{field}: expected zero or more"),
+            ConfigError::TooLarge(field) => write!(f, "{field}: larger than the firmware holds"),
+            ConfigError::NoTrack => {
+                f.write_str("end-stop margin: expected less than the track's half-length")
+            }
+            ConfigError::GainNotFinite => {
+                f.write_str("observer: the Kalman gain is not finite for this plant and tuning")
+            }
+        }
+    }
+}
+
+/// `v`, if finite and above zero.
+pub(crate) const fn positive(v: f64, field: &'static str) -> Result<f64, ConfigError> {
+    if !v.is_finite() {
+        Err(ConfigError::NotFinite(field))
+    } else if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(ConfigError::NotPositive(field))
+    }
+}
+
+/// `v`, if finite and not below zero (`-0.0` included).
+pub(crate) const fn non_negative(v: f64, field: &'static str) -> Result<f64, ConfigError> {
+    if !v.is_finite() {
+        Err(ConfigError::NotFinite(field))
+    } else if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(ConfigError::Negative(field))
+    }
+}
+
+/// `delay`, if the dead-time line holds it.
+pub(crate) const fn dead_time(delay: usize) -> Result<usize, ConfigError> {
+    if delay <= crate::controller::predict::MAX_PREDICT {
+        Ok(delay)
+    } else {
+        Err(ConfigError::TooLarge("dead_time"))
+    }
+}
+
+/// `?` for the checks, which are `const fn` (where `?` is not yet allowed) so that a board's
+/// `static` configuration can be checked as it is compiled.
+macro_rules! check {
+    ($e:expr) => {
+        match $e {
+            Ok(v) => v,
+            Err(e) => return Err(e),
+        }
+    };
+}
+pub(crate) use check;
