@@ -104,7 +104,8 @@ pub enum Unit {
 pub enum KernelChoice {
     /// The fastest supported kernel.
     Auto,
-    /// Baseline x86-64, no fused multiply-add.
+    /// The target's baseline: NEON on aarch64; on x86-64, SSE2 with the fused
+    /// multiply-adds in software (the same bits, slowly: a reference for tests).
     Portable,
     /// AVX2 + FMA.
     Avx2,
