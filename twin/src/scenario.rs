@@ -265,22 +265,25 @@ pub const HARD: &[&str] = &[
     "encoder=512+push=1.1/50",
 ];
 
-/// The `faults` set: each fault of a real loop alone, at a mild and a severe level, read
-/// through the encoders and the observer where the fault is the sensor's, and all of them
-/// at once with noise and dead time (`docs/CONTROL.md`, "Faults").
+/// The `faults` set: each fault of a real loop alone, at its default and a severe level
+/// (half a revolution of glitch, half a second stuck, every other reading lost or period
+/// late, the motor dead for 0.2 s every 5 s, a restart every third period), read through
+/// the encoders and the observer where the fault is the sensor's, and all of them at once
+/// with noise and dead time (`docs/FAULTS.md`).
 pub const FAULTS: &[&str] = &[
     "encoder+glitch",
-    "encoder+glitch=1000/500",
+    "encoder+glitch=2000/50",
     "encoder+stuck",
     "encoder+stuck=25/500",
     "encoder+drop",
-    "encoder+drop=3",
+    "encoder+drop=2",
     "late",
-    "late=5",
+    "late=2",
+    "delay+late=5",
     "weak=0.5",
-    "weak=0.2/100/1000",
+    "weak=0/10/250",
     "encoder+reset",
-    "encoder+reset=100",
+    "encoder+reset=3",
     "noise+delay+encoder+glitch+stuck+drop+late+weak=0.5+reset",
 ];
 
