@@ -1,5 +1,6 @@
 //! The firmware's forward pass, rearranged for host SIMD: same operations, same bits. The
-//! one host rendering of it: the simulator balances with it and the trainer acts with it.
+//! host's renderings of it: the simulator balances and the trainer evaluates with
+//! [`WideMlp`]; the trainer acts with [`forward_unpacked`], on weights that change every step.
 //!
 //! [`firmware::network::Mlp::forward`] computes one output at a time; compiled for a host, LLVM
 //! vectorises it with 2-wide SSE code (see `docs/PERFORMANCE.md`). [`WideMlp`] computes a
@@ -59,11 +60,6 @@ impl Aligned {
     fn get(&self) -> &[f32] {
         &self.buf[self.start..self.start + self.buf.len() + 1 - Self::LINE]
     }
-
-    fn get_mut(&mut self) -> &mut [f32] {
-        let len = self.buf.len() + 1 - Self::LINE;
-        &mut self.buf[self.start..self.start + len]
-    }
 }
 
 impl Clone for Aligned {
@@ -95,15 +91,6 @@ impl<const H: usize> WideMlp<H> {
             fc1: Aligned::new(&pack(&net.fc1_weight, width)),
             fc2: Aligned::new(&pack(&net.fc2_weight, width)),
         }))
-    }
-
-    /// Lays out `net` in place of the network held, without allocating: what a trainer does
-    /// after each gradient step.
-    pub fn refresh(&mut self, net: &Mlp<H>) {
-        let width = block(self.kernel);
-        self.net.clone_from(net);
-        pack_into(&net.fc1_weight, width, self.fc1.get_mut());
-        pack_into(&net.fc2_weight, width, self.fc2.get_mut());
     }
 
     /// The kernel [`WideMlp::forward`] runs.
@@ -149,6 +136,27 @@ fn pack_blocks<const I: usize, const O: usize, const W: usize>(w: &[[f32; I]; O]
         for (i, d) in dst.iter_mut().enumerate() {
             *d = core::array::from_fn(|j| block[j][i]);
         }
+    }
+}
+
+/// The firmware's forward pass on `net` as it lies, each hidden and output unit's dot product
+/// in one AVX register ([`crate::dot_x86::dot_avx`], the lanes meeting in `dot`'s tree): for
+/// a network that changes between calls, as the trainer's does after every gradient step,
+/// where [`WideMlp`]'s repacking costs more than its wider blocks save. `kernel` says which
+/// instructions the CPU has (the firmware's own pass without AVX); the same bits as
+/// [`Mlp::forward`] either way. `H` must be a multiple of 8.
+pub fn forward_unpacked<const H: usize>(
+    net: &Mlp<H>,
+    obs: &[f32; OBS_DIM],
+    kernel: Kernel,
+) -> [f32; N_ACTIONS] {
+    match kernel {
+        // SAFETY: both kernels are chosen only on CPUs with AVX2, hence AVX
+        // (`Kernel::supported`).
+        #[cfg(target_arch = "x86_64")]
+        #[allow(unsafe_code)]
+        Kernel::Avx2 | Kernel::Avx512 => unsafe { x86::unpacked(net, obs) },
+        _ => net.forward(obs),
     }
 }
 
@@ -302,6 +310,21 @@ mod x86 {
         _mm512_setzero_ps
     );
 
+    /// [`super::forward_unpacked`] on a CPU with AVX: the first layer's four-term dot
+    /// products in plain Rust, the others in one AVX register each.
+    #[target_feature(enable = "avx")]
+    pub(super) fn unpacked<const H: usize>(net: &Mlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+        const { assert!(H.is_multiple_of(LANES), "whole chunks of eight") };
+        let relu = |v: f32| if v > 0.0 { v } else { 0.0 };
+        let h1: [f32; H] = core::array::from_fn(|o| {
+            relu(firmware::network::dot_portable(&net.fc1_weight[o], obs) + net.fc1_bias[o])
+        });
+        let h2: [f32; H] = core::array::from_fn(|o| {
+            relu(crate::dot_x86::dot_avx(&net.fc2_weight[o], &h1) + net.fc2_bias[o])
+        });
+        core::array::from_fn(|a| crate::dot_x86::dot_avx(&net.fc3_weight[a], &h2) + net.fc3_bias[a])
+    }
+
     /// The output layer: per action, `dot` in one AVX register (the trainer's rendering,
     /// tested bit-identical to `dot`), then the bias.
     #[inline]
@@ -340,8 +363,8 @@ mod tests {
             .collect()
     }
 
-    /// Every kernel this CPU runs against the firmware's forward pass; not the portable
-    /// kernel, whose forward pass is the firmware's own.
+    /// Every kernel this CPU runs against the firmware's forward pass, packed and unpacked;
+    /// not the packed portable kernel, whose forward pass is the firmware's own.
     fn check<const H: usize>(net: &Mlp<H>, rng: &mut Pcg64Mcg) {
         let wides: Vec<_> = Kernel::ALL
             .iter()
@@ -350,6 +373,13 @@ mod tests {
             .collect();
         for obs in observations(rng, 600) {
             let want = net.forward(&obs);
+            for kernel in Kernel::available() {
+                let got = forward_unpacked(net, &obs, kernel);
+                assert!(
+                    same(got, want),
+                    "unpacked {kernel:?} H={H} {obs:?}: {got:?} {want:?}"
+                );
+            }
             for wide in &wides {
                 let got = wide.forward(&obs);
                 let kernel = wide.kernel();
@@ -399,6 +429,7 @@ mod tests {
         for kernel in Kernel::ALL {
             if let Some(wide) = WideMlp::with_kernel(&net, kernel) {
                 assert_eq!(wide.forward(&[0.0; 4]), [0.0, 1.75], "{kernel:?}");
+                assert_eq!(forward_unpacked(&net, &[0.0; 4], kernel), [0.0, 1.75]);
             }
         }
         assert_eq!(net.forward(&[0.0; 4]), [0.0, 1.75]);

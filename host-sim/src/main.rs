@@ -13,6 +13,7 @@ use twin::{Machine, Scenario};
 
 mod identify_cmd;
 mod render_cmd;
+mod soak_cmd;
 mod tables_cmd;
 
 /// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
@@ -62,6 +63,11 @@ enum Command {
     /// board measured as --rig would stream them from the true machine --world: a rig whose
     /// truth is known, to try `identify` and what follows it on. Exits 2 on bad input.
     SimulateLogs(identify_cmd::SimulateLogsArgs),
+    /// Run one episode of many simulated hours (24 by default) through a scenario's sensors
+    /// and faults, and report the largest error of the controller's readings in the first
+    /// hour, the last hour and the whole run, and its coasting periods. Exits 1 if it did
+    /// not balance to the end, 2 on bad input.
+    Soak(soak_cmd::SoakArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
     Parts,
@@ -169,6 +175,7 @@ fn main() -> ExitCode {
             .mut_subcommand("render", |r| {
                 r.mut_arg("scenario", |a| a.help(help.clone()))
             })
+            .mut_subcommand("soak", |r| r.mut_arg("scenario", |a| a.help(help.clone())))
     });
     let result = match cli.command {
         Command::Replay { files } => run_replay(&files),
@@ -178,6 +185,7 @@ fn main() -> ExitCode {
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
         Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
         Command::Tables(a) => tables_cmd::run(&a),
+        Command::Soak(a) => soak_cmd::run(&a),
         Command::Parts => {
             print!("{}", twin::grammar::markdown_table());
             Ok(true)

@@ -45,6 +45,9 @@ pub struct Frame {
     pub state: State,
     /// The command the controller gave in the period.
     pub command: Command,
+    /// The reading it decided on (its sensor's estimate of the state at the period's start;
+    /// zeros when the reading never arrived).
+    pub reading: [f32; 4],
 }
 
 /// The random streams of episode `episode` of `seed`.
@@ -309,7 +312,12 @@ pub fn run_episode<P: Policy>(
         |_, ep, command, t| {
             let state = ep.world().state();
             tally.period(command, &state, t);
-            on_frame(Frame { state, command });
+            let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs);
+            on_frame(Frame {
+                state,
+                command,
+                reading,
+            });
         },
     );
     tally.stats

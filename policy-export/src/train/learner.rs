@@ -8,7 +8,7 @@
 //! give the same bits.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
-use host_common::wide::WideMlp;
+use host_common::wide;
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -55,8 +55,6 @@ pub struct Learner<const H: usize> {
     target: Box<Mlp<H>>,
     online_packed: Box<Packed<H>>,
     target_packed: Box<Packed<H>>,
-    /// The online net laid out for acting: the firmware's forward pass, bit for bit.
-    acting: Box<WideMlp<H>>,
     m: Box<Mlp<H>>,
     v: Box<Mlp<H>>,
     steps: u64,
@@ -88,7 +86,6 @@ impl<const H: usize> Learner<H> {
             target: online.clone(),
             online_packed: Packed::new(&online),
             target_packed: Packed::new(&online),
-            acting: WideMlp::with_kernel(&online, kernel).unwrap_or_else(|| WideMlp::new(&online)),
             online,
             m: nn::boxed_zero(),
             v: nn::boxed_zero(),
@@ -146,7 +143,6 @@ impl<const H: usize> Learner<H> {
             || nn::adam_parts(k, &step, &mut second),
         );
         self.online_packed.pack(&self.online);
-        self.acting.refresh(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
             let tau = cfg.tau as f32;
             nn::soft_update(&mut self.target, &self.online, tau);
@@ -159,7 +155,7 @@ impl<const H: usize> Learner<H> {
 
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
     pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        self.acting.forward(obs)
+        wide::forward_unpacked(&self.online, obs, self.kernel)
     }
 
     /// The network being trained.
