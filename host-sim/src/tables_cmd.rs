@@ -43,7 +43,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     for (doc, new, stale) in &updates {
         if a.check {
             for s in stale {
-                eprintln!(
+                host_common::errln!(
                     "{}:{}: the table differs from {}",
                     doc.display(),
                     s.line,
@@ -52,12 +52,14 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
             }
         } else if !stale.is_empty() {
             write_atomic(&root.join(doc), new.as_bytes())?;
-            println!("{}: {} tables written", doc.display(), stale.len());
+            host_common::outln!("{}: {} tables written", doc.display(), stale.len());
         }
         found += stale.len();
     }
     if a.check && found > 0 {
-        eprintln!("{found} tables differ from their results: `host-sim tables` rewrites them");
+        host_common::errln!(
+            "{found} tables differ from their results: `host-sim tables` rewrites them"
+        );
     }
     Ok(!a.check || found == 0)
 }
