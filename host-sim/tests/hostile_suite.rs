@@ -1,0 +1,415 @@
+//! `host-sim` against a table of hostile command lines: every path argument of every
+//! subcommand given every kind of bad file, every output every place it must not write, and
+//! bad counts and specs; each refused by the rules of `docs/HOSTILE_INPUT.md`, checked by the
+//! shared harness. And standard output closed before the first line: no panic, exit 0.
+
+use std::ffi::OsString;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
+
+use hostile::{BAD, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
+
+fn exe() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+fn repo(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..").join(path)
+}
+
+fn os(args: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
+    args.iter().map(|a| a.as_ref().to_owned()).collect()
+}
+
+fn format(path: &str, cap: u64, malformed: &'static [&'static str]) -> Format {
+    Format {
+        valid: std::fs::read(repo(path)).unwrap(),
+        cap,
+        malformed,
+        fine: &[],
+    }
+}
+
+/// Logs of the desk rig's two experiments, as `simulate-logs` writes them.
+fn logs(s: &Scratch) -> PathBuf {
+    let out = s.join("good.log");
+    let o = Command::new(exe())
+        .args(os(&[
+            &"simulate-logs",
+            &"--world",
+            &repo("rigs/desk.toml"),
+            &"--rig",
+            &repo("rigs/desk-measured.toml"),
+            &"--out",
+            &out,
+        ]))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
+/// The command line of a slot, given the bad path.
+type Args = Box<dyn Fn(&Path) -> Vec<OsString>>;
+type Slot = (&'static str, Format, Args);
+
+/// Every path argument of every subcommand, given every kind of bad file.
+fn bad_inputs(s: &Scratch, log: &Path) -> Vec<Case> {
+    let policy = || {
+        format(
+            "firmware/policy.safetensors",
+            64 << 20,
+            &["expected", "safetensors"],
+        )
+    };
+    let rig = || format("rigs/desk.toml", 64 << 10, &["expected", "missing field"]);
+    let replay = || {
+        let words = &["not a trajectory case", "expected", "no cases"];
+        format("tests/data/gym_traj_public.jsonl", 64 << 20, words)
+    };
+    let log_format = Format {
+        valid: std::fs::read(log).unwrap(),
+        cap: 32 << 20,
+        malformed: &["expected"],
+        fine: &[],
+    };
+    let (measured, good_traj) = (
+        repo("rigs/desk-measured.toml"),
+        repo("tests/data/gym_traj_public.jsonl"),
+    );
+    let (good_log, out, render) = (log.to_path_buf(), s.join("out.toml"), s.join("render"));
+    let eval = |flag: &'static str| -> Args {
+        Box::new(move |b| {
+            os(&[
+                &"eval",
+                &"--episodes",
+                &"1",
+                &"--scenario",
+                &"nominal",
+                &"--controller",
+                &"policy",
+                &flag,
+                &b,
+            ])
+        })
+    };
+    let agree = |flag: &'static str| -> Args {
+        Box::new(move |b| os(&[&"agree", &"--states", &"1", &flag, &b]))
+    };
+    let draw = |flag: &'static str, out: PathBuf| -> Args {
+        Box::new(move |b| os(&[&"render", &"--horizon", &"5", &"--out", &out, &flag, &b]))
+    };
+    let desk = repo("rigs/desk.toml");
+    let (m1, m2, o1, o2, o3, o4) = (
+        measured.clone(),
+        measured.clone(),
+        out.clone(),
+        out.clone(),
+        out.clone(),
+        out,
+    );
+    let slots: Vec<Slot> = vec![
+        ("eval-policy", policy(), eval("--policy")),
+        ("eval-rig", rig(), eval("--rig")),
+        ("eval-world", rig(), eval("--world")),
+        ("agree-policy", policy(), agree("--policy")),
+        ("agree-rig", rig(), agree("--rig")),
+        ("render-policy", policy(), draw("--policy", render.clone())),
+        ("render-rig", rig(), draw("--rig", render)),
+        ("replay", replay(), Box::new(|b| os(&[&"replay", &b]))),
+        // The good file first: nothing of it may be printed before the bad one is refused.
+        (
+            "replay-second",
+            replay(),
+            Box::new(move |b| os(&[&"replay", &good_traj, &b])),
+        ),
+        (
+            "identify-log",
+            log_format,
+            Box::new(move |b| os(&[&"identify", &b, &"--rig", &m1, &"--out", &o1])),
+        ),
+        (
+            "identify-rig",
+            rig(),
+            Box::new(move |b| os(&[&"identify", &good_log, &"--rig", &b, &"--out", &o2])),
+        ),
+        (
+            "simulate-world",
+            rig(),
+            Box::new(move |b| {
+                os(&[
+                    &"simulate-logs",
+                    &"--world",
+                    &b,
+                    &"--rig",
+                    &m2,
+                    &"--out",
+                    &o3,
+                ])
+            }),
+        ),
+        (
+            "simulate-rig",
+            rig(),
+            Box::new(move |b| {
+                os(&[
+                    &"simulate-logs",
+                    &"--world",
+                    &desk,
+                    &"--rig",
+                    &b,
+                    &"--out",
+                    &o4,
+                ])
+            }),
+        ),
+    ];
+    let mut cases = Vec::new();
+    for (tag, format, args) in &slots {
+        for bad in BAD.into_iter().filter(|b| !format.fine.contains(b)) {
+            let path = bad.make(&s.0, tag, format);
+            cases.push(Case::new(
+                format!("{tag} {bad:?}"),
+                &args(&path),
+                &bad.expect(format),
+            ));
+        }
+    }
+    cases
+}
+
+/// Every output, given places it must not write.
+fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
+    let fifo = s.join("out-fifo");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let (dir, file) = (s.join("out-dir"), s.join("out-file"));
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::write(&file, b"keep").unwrap();
+    let (world, rig) = (repo("rigs/desk.toml"), repo("rigs/desk-measured.toml"));
+    let files: [(&str, PathBuf, &[&'static str]); 7] = [
+        ("directory", dir.clone(), &["found a directory"]),
+        ("device", "/dev/null".into(), &["found a device"]),
+        ("fifo", fifo.clone(), &["found a FIFO"]),
+        ("under-file", file.join("x"), &["found a regular file"]),
+        ("proc", "/proc/cartpole/x".into(), &["refuses"]),
+        ("input", rig.clone(), &["would overwrite the input"]),
+        ("log", log.to_path_buf(), &["would overwrite the input"]),
+    ];
+    let mut cases = Vec::new();
+    for (label, out, want) in files {
+        let identify = os(&[&"identify", &log, &"--rig", &rig, &"--out", &out]);
+        cases.push(Case::new(
+            format!("identify --out {label}"),
+            &identify,
+            want,
+        ));
+        // simulate-logs reads no log.
+        if label != "log" {
+            let simulate = os(&[
+                &"simulate-logs",
+                &"--world",
+                &world,
+                &"--rig",
+                &rig,
+                &"--out",
+                &out,
+            ]);
+            cases.push(Case::new(
+                format!("simulate-logs --out {label}"),
+                &simulate,
+                want,
+            ));
+        }
+    }
+    let dirs: [(&str, PathBuf, &[&'static str]); 5] = [
+        ("file", file.clone(), &["found a regular file"]),
+        ("device", "/dev/null".into(), &["found a device"]),
+        ("fifo", fifo, &["found a FIFO"]),
+        ("under-file", file.join("d"), &["found a regular file"]),
+        ("proc", "/proc/cartpole/d".into(), &["refuses"]),
+    ];
+    for (label, out, want) in dirs {
+        let render = os(&[&"render", &"--horizon", &"5", &"--out", &out]);
+        cases.push(Case::new(format!("render --out {label}"), &render, want));
+        let plots = os(&[
+            &"identify",
+            &log,
+            &"--rig",
+            &rig,
+            &"--out",
+            &s.join("id.toml"),
+            &"--plots",
+            &out,
+        ]);
+        cases.push(Case::new(format!("identify --plots {label}"), &plots, want));
+    }
+    // A picture's name taken by a directory.
+    std::fs::create_dir_all(dir.join("episode.gif")).unwrap();
+    let render = os(&[&"render", &"--horizon", &"5", &"--out", &dir]);
+    cases.push(Case::new(
+        "render over a directory".into(),
+        &render,
+        &["found a directory"],
+    ));
+    cases
+}
+
+/// Counts, specs and policies no command can take.
+fn bad_values(s: &Scratch) -> Vec<Case> {
+    let mut cases = Vec::new();
+    let huge = s.join("huge.safetensors");
+    uniform_policy(&huge, 1e30, "");
+    for cmd in [
+        &["eval", "--episodes", "1"][..],
+        &["agree", "--states", "1"],
+        &["render", "--horizon", "5"],
+    ] {
+        let mut args: Vec<OsString> = cmd.iter().map(OsString::from).collect();
+        args.extend(os(&[&"--policy", &huge]));
+        cases.push(Case::new(
+            format!("{cmd:?} infinite outputs"),
+            &args,
+            &["expected finite Q-values"],
+        ));
+    }
+    let numbers = [
+        "-1",
+        "abc",
+        "",
+        "1e999",
+        "NaN",
+        "99999999999999999999999",
+        "0",
+    ];
+    let flags: [(&str, &[&str]); 7] = [
+        ("--episodes", &["eval"]),
+        ("--horizon", &["eval"]),
+        (
+            "--min-success",
+            &["eval", "--episodes", "1", "--scenario", "nominal"],
+        ),
+        ("--states", &["agree"]),
+        ("--horizon", &["render", "--out", "r"]),
+        ("--stride", &["render", "--out", "r"]),
+        (
+            "--jitter",
+            &["simulate-logs", "--world", "w", "--rig", "r", "--out", "o"],
+        ),
+    ];
+    for (flag, cmd) in flags {
+        for v in numbers {
+            // 0 is a fine --min-success.
+            if v == "0" && flag == "--min-success" {
+                continue;
+            }
+            let mut args: Vec<OsString> = cmd.iter().map(OsString::from).collect();
+            args.extend([OsString::from(flag), OsString::from(v)]);
+            let want = [
+                "invalid value",
+                "must be",
+                "must lie",
+                "expected",
+                "No such file",
+            ];
+            cases.push(Case::new(format!("{cmd:?} {flag} {v:?}"), &args, &want));
+        }
+    }
+    let long = "x".repeat(5_000);
+    let specs = [
+        "nominal+mass=2",
+        "wind=3",
+        "mass",
+        "mass=abc",
+        "mass=1e300",
+        "length=999+length=999",
+        "noise=-1",
+        "delay=99",
+        "+",
+        "mass=1..0",
+        "mass=2@7",
+        &long,
+    ];
+    for spec in specs {
+        for cmd in [
+            &["eval", "--episodes", "1"][..],
+            &["render", "--horizon", "5", "--out", "r"],
+        ] {
+            let mut args: Vec<OsString> = cmd.iter().map(OsString::from).collect();
+            args.extend([OsString::from("--scenario"), OsString::from(spec)]);
+            let label: String = format!("{cmd:?} --scenario {spec}")
+                .chars()
+                .take(60)
+                .collect();
+            cases.push(Case::new(
+                label,
+                &args,
+                &["expected", "unknown part", "needs", "must be", "comes to"],
+            ));
+        }
+    }
+    cases
+}
+
+#[test]
+fn every_hostile_command_line_is_refused_by_the_rules() {
+    let s = Scratch::new("hs-suite");
+    let log = logs(&s);
+    let mut cases = bad_inputs(&s, &log);
+    cases.extend(bad_outputs(&s, &log));
+    cases.extend(bad_values(&s));
+    let n = run_all(&exe(), &s.0, &cases);
+    assert!(n >= 200, "{n} cases");
+}
+
+#[test]
+fn a_closed_standard_output_ends_the_command_quietly() {
+    let s = Scratch::new("hs-pipe");
+    let traj = repo("tests/data/gym_traj_public.jsonl");
+    let commands: [Vec<OsString>; 4] = [
+        os(&[
+            &"eval",
+            &"--episodes",
+            &"3",
+            &"--scenario",
+            &"nominal",
+            &"--json",
+        ]),
+        os(&[&"eval", &"--episodes", &"3", &"--scenario", &"nominal"]),
+        os(&[&"replay", &traj]),
+        os(&[&"parts"]),
+    ];
+    for args in commands {
+        let (code, err) = with_stdout_closed(&exe(), &args, &s.0);
+        assert_eq!(code, Some(0), "{args:?}: {err}");
+        assert!(
+            !err.contains("panicked") && !err.contains("Broken pipe"),
+            "{args:?}: {err}"
+        );
+    }
+    // Written work is finished all the same.
+    let out = s.join("pics");
+    let (code, err) = with_stdout_closed(
+        &exe(),
+        &os(&[&"render", &"--horizon", &"5", &"--out", &out]),
+        &s.0,
+    );
+    assert_eq!(code, Some(0), "{err}");
+    assert!(out.join("episode.gif").is_file() && out.join("episode.png").is_file());
+    // A full disk is not a reader that left: exit 1, said.
+    let full = Command::new(exe())
+        .args(["parts"])
+        .stdout(std::fs::File::create("/dev/full").unwrap())
+        .output()
+        .unwrap();
+    assert_eq!(full.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&full.stderr).contains("writing standard output"));
+}
