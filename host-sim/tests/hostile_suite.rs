@@ -10,7 +10,7 @@ use std::process::Command;
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::{BAD, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
+use hostile::{BAD, Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
@@ -359,6 +359,37 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
     cases
 }
 
+/// Results files of `tables` that are no files: a FIFO (which blocked) and a link to
+/// `/dev/zero` (read until memory ran out).
+fn bad_tables(s: &Scratch) -> Vec<Case> {
+    let mut cases = Vec::new();
+    for (kind, bad) in [("fifo", Bad::Fifo), ("zero", Bad::LinkToDevice)] {
+        let root = s.join(&format!("tables-{kind}"));
+        std::fs::create_dir_all(root.join("docs/results")).unwrap();
+        std::fs::write(root.join("Cargo.toml"), b"").unwrap();
+        let marker = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
+        std::fs::write(root.join("docs/A.md"), marker).unwrap();
+        let format = Format {
+            valid: Vec::new(),
+            cap: 0,
+            malformed: &[],
+            fine: &[],
+        };
+        let made = bad.make(&root.join("docs/results"), "r", &format);
+        std::fs::rename(made, root.join("docs/results/r.json")).unwrap();
+        for check in [&["--check"][..], &[]] {
+            let mut args = os(&[&"tables", &"--root", &root]);
+            args.extend(check.iter().map(OsString::from));
+            cases.push(Case::new(
+                format!("tables {kind} {check:?}"),
+                &args,
+                &bad.expect(&format),
+            ));
+        }
+    }
+    cases
+}
+
 #[test]
 fn every_hostile_command_line_is_refused_by_the_rules() {
     let s = Scratch::new("hs-suite");
@@ -366,6 +397,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     let mut cases = bad_inputs(&s, &log);
     cases.extend(bad_outputs(&s, &log));
     cases.extend(bad_values(&s));
+    cases.extend(bad_tables(&s));
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }
