@@ -260,3 +260,58 @@ impl Drop for Staging {
         let _ = std::fs::remove_dir_all(&self.tmp);
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scratch(name: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("outdir-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn a_committed_staging_replaces_only_its_own_kind_holding_only_its_files() {
+        let dir = scratch("commit");
+        let dest = dir.join("run");
+        let st = Staging::new(&dest, "train").unwrap();
+        std::fs::create_dir(st.path().join("seed-1")).unwrap();
+        std::fs::write(st.path().join("seed-1/summary.json"), b"{}").unwrap();
+        std::fs::write(st.path().join("aggregate.json"), b"{}").unwrap();
+        st.commit().unwrap();
+        let marker = Marker::read(&dest, "train").unwrap();
+        assert_eq!(
+            marker.files,
+            ["aggregate.json", "seed-1/", "seed-1/summary.json"]
+        );
+        check_output_dir(&dest, "train").unwrap();
+        let e = check_output_dir(&dest, "reproduce")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("not of policy-export reproduce"), "{e}");
+        std::fs::write(dest.join("seed-1/notes.txt"), b"mine").unwrap();
+        let e = check_output_dir(&dest, "train").unwrap_err().to_string();
+        assert!(
+            e.contains("1 entry policy-export did not write (\"seed-1/notes.txt\")"),
+            "{e}"
+        );
+        std::fs::remove_file(dest.join("seed-1/notes.txt")).unwrap();
+        std::os::unix::fs::symlink("/etc", dest.join("link")).unwrap();
+        let e = check_output_dir(&dest, "train").unwrap_err().to_string();
+        assert!(
+            e.contains("a symbolic link \"link\", which this tool never writes"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// `reproduce --out docs/reproduction`, as the documents give it, may replace the
+    /// committed run: its marker lists every file in it.
+    #[test]
+    fn the_committed_reproduction_is_marked_as_this_tools() {
+        let committed = Path::new(env!("CARGO_MANIFEST_DIR")).join("../docs/reproduction");
+        check_output_dir(&committed, "reproduce").unwrap();
+    }
+}
