@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Fuzzes the host tools' four parsers with libFuzzer: the checkpoint importer, the TOML
-# configuration, the trajectory parser and the scenario parser, SECONDS each (default 60),
+# configuration, the trajectory parser and the scenario parser, and the rendering of
+# untrusted text into exported source (names, comments), SECONDS each (default 60),
 # seeded with the repository's own valid inputs. Prints each target's executions and
 # coverage; exits 1 on a crash (the input is kept in fuzz/artifacts/TARGET/).
 #
@@ -15,10 +16,10 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse)
+[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse source_comment)
 host=$(rustc -vV | sed -n 's/^host: //p')
 corpus=fuzz/corpus
-mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse}
+mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse,source_comment}
 cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
 cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
@@ -28,6 +29,8 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
   n=$((n + 1))
   printf '%s' "$spec" >"$corpus/scenario_parse/seed-$n"
 done
+printf 'cartpole_policy\nsource: a */ b /* c ??/ \\' >"$corpus/source_comment/seed-1"
+printf 'POLICY' >"$corpus/source_comment/seed-2"
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
 # The target triple keeps the instrumentation off build scripts and procedural macros.
