@@ -56,117 +56,94 @@ fn logs(s: &Scratch) -> PathBuf {
 type Args = Box<dyn Fn(&Path) -> Vec<OsString>>;
 type Slot = (&'static str, Format, Args);
 
-/// Every path argument of every subcommand, given every kind of bad file.
-fn bad_inputs(s: &Scratch, log: &Path) -> Vec<Case> {
-    let policy = || {
-        format(
-            "firmware/policy.safetensors",
-            64 << 20,
-            &["expected", "safetensors"],
-        )
-    };
+/// Where a slot's command line takes the bad path.
+const BAD_PATH: &str = "<bad>";
+
+/// The command line `template` with the bad path in its place.
+fn with_bad(template: Vec<OsString>) -> Args {
+    Box::new(move |b| {
+        let at = |a: &OsString| if a == BAD_PATH { b.into() } else { a.clone() };
+        template.iter().map(at).collect()
+    })
+}
+
+/// Every path argument of every subcommand: its file format and its command line.
+fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
+    let words = &["expected", "safetensors"];
+    let policy = || format("firmware/policy.safetensors", 64 << 20, words);
     let rig = || format("rigs/desk.toml", 64 << 10, &["expected", "missing field"]);
-    let replay = || {
-        let words = &["not a trajectory case", "expected", "no cases"];
-        format("tests/data/gym_traj_public.jsonl", 64 << 20, words)
-    };
+    let words = &["not a trajectory case", "expected", "no cases"];
+    let replay = || format("tests/data/gym_traj_public.jsonl", 64 << 20, words);
     let log_format = Format {
         valid: std::fs::read(log).unwrap(),
         cap: 32 << 20,
         malformed: &["expected"],
         fine: &[],
     };
-    let (measured, good_traj) = (
-        repo("rigs/desk-measured.toml"),
+    let (desk, measured) = (repo("rigs/desk.toml"), repo("rigs/desk-measured.toml"));
+    let (traj, out, render) = (
         repo("tests/data/gym_traj_public.jsonl"),
+        s.join("out.toml"),
+        s.join("render"),
     );
-    let (good_log, out, render) = (log.to_path_buf(), s.join("out.toml"), s.join("render"));
-    let eval = |flag: &'static str| -> Args {
-        Box::new(move |b| {
-            os(&[
-                &"eval",
-                &"--episodes",
-                &"1",
-                &"--scenario",
-                &"nominal",
-                &"--controller",
-                &"policy",
-                &flag,
-                &b,
-            ])
-        })
+    let eval = |flag: &str| {
+        let nominal: Vec<OsString> = "eval --episodes 1 --scenario nominal --controller policy"
+            .split(' ')
+            .map(OsString::from)
+            .collect();
+        with_bad([nominal, os(&[&flag, &BAD_PATH])].concat())
     };
-    let agree = |flag: &'static str| -> Args {
-        Box::new(move |b| os(&[&"agree", &"--states", &"1", &flag, &b]))
+    let agree = |flag: &str| with_bad(os(&[&"agree", &"--states", &"1", &flag, &BAD_PATH]));
+    let draw = |flag: &str| {
+        with_bad(os(&[
+            &"render",
+            &"--horizon",
+            &"5",
+            &"--out",
+            &render,
+            &flag,
+            &BAD_PATH,
+        ]))
     };
-    let draw = |flag: &'static str, out: PathBuf| -> Args {
-        Box::new(move |b| os(&[&"render", &"--horizon", &"5", &"--out", &out, &flag, &b]))
+    let identify = |log: &dyn AsRef<std::ffi::OsStr>, rig: &dyn AsRef<std::ffi::OsStr>| {
+        with_bad(os(&[&"identify", log, &"--rig", rig, &"--out", &out]))
     };
-    let desk = repo("rigs/desk.toml");
-    let (m1, m2, o1, o2, o3, o4) = (
-        measured.clone(),
-        measured.clone(),
-        out.clone(),
-        out.clone(),
-        out.clone(),
-        out,
-    );
-    let slots: Vec<Slot> = vec![
+    let simulate = |world: &dyn AsRef<std::ffi::OsStr>, rig: &dyn AsRef<std::ffi::OsStr>| {
+        with_bad(os(&[
+            &"simulate-logs",
+            &"--world",
+            world,
+            &"--rig",
+            rig,
+            &"--out",
+            &out,
+        ]))
+    };
+    vec![
         ("eval-policy", policy(), eval("--policy")),
         ("eval-rig", rig(), eval("--rig")),
         ("eval-world", rig(), eval("--world")),
         ("agree-policy", policy(), agree("--policy")),
         ("agree-rig", rig(), agree("--rig")),
-        ("render-policy", policy(), draw("--policy", render.clone())),
-        ("render-rig", rig(), draw("--rig", render)),
-        ("replay", replay(), Box::new(|b| os(&[&"replay", &b]))),
+        ("render-policy", policy(), draw("--policy")),
+        ("render-rig", rig(), draw("--rig")),
+        ("replay", replay(), with_bad(os(&[&"replay", &BAD_PATH]))),
         // The good file first: nothing of it may be printed before the bad one is refused.
         (
             "replay-second",
             replay(),
-            Box::new(move |b| os(&[&"replay", &good_traj, &b])),
+            with_bad(os(&[&"replay", &traj, &BAD_PATH])),
         ),
-        (
-            "identify-log",
-            log_format,
-            Box::new(move |b| os(&[&"identify", &b, &"--rig", &m1, &"--out", &o1])),
-        ),
-        (
-            "identify-rig",
-            rig(),
-            Box::new(move |b| os(&[&"identify", &good_log, &"--rig", &b, &"--out", &o2])),
-        ),
-        (
-            "simulate-world",
-            rig(),
-            Box::new(move |b| {
-                os(&[
-                    &"simulate-logs",
-                    &"--world",
-                    &b,
-                    &"--rig",
-                    &m2,
-                    &"--out",
-                    &o3,
-                ])
-            }),
-        ),
-        (
-            "simulate-rig",
-            rig(),
-            Box::new(move |b| {
-                os(&[
-                    &"simulate-logs",
-                    &"--world",
-                    &desk,
-                    &"--rig",
-                    &b,
-                    &"--out",
-                    &o4,
-                ])
-            }),
-        ),
-    ];
+        ("identify-log", log_format, identify(&BAD_PATH, &measured)),
+        ("identify-rig", rig(), identify(&log, &BAD_PATH)),
+        ("simulate-world", rig(), simulate(&BAD_PATH, &measured)),
+        ("simulate-rig", rig(), simulate(&desk, &BAD_PATH)),
+    ]
+}
+
+/// Every path argument of every subcommand, given every kind of bad file.
+fn bad_inputs(s: &Scratch, log: &Path) -> Vec<Case> {
+    let slots = slots(s, log);
     let mut cases = Vec::new();
     for (tag, format, args) in &slots {
         for bad in BAD.into_iter().filter(|b| !format.fine.contains(b)) {
@@ -263,7 +240,7 @@ fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
     cases
 }
 
-/// Counts, specs and policies no command can take.
+/// Counts and policies no command can take.
 fn bad_values(s: &Scratch) -> Vec<Case> {
     let mut cases = Vec::new();
     let huge = s.join("huge.safetensors");
@@ -323,6 +300,12 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             cases.push(Case::new(format!("{cmd:?} {flag} {v:?}"), &args, &want));
         }
     }
+    cases
+}
+
+/// Scenario specs no command can take.
+fn bad_specs() -> Vec<Case> {
+    let mut cases = Vec::new();
     let long = "x".repeat(5_000);
     let specs = [
         "nominal+mass=2",
@@ -397,6 +380,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     let mut cases = bad_inputs(&s, &log);
     cases.extend(bad_outputs(&s, &log));
     cases.extend(bad_values(&s));
+    cases.extend(bad_specs());
     cases.extend(bad_tables(&s));
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");

@@ -15,7 +15,7 @@ use policy_export::run::{self, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
 use weights::checkpoint;
-use weights::files::{MAX_POLICY_BYTES, check_io, read_capped, write_atomic};
+use weights::files::{check_io, write_atomic};
 use weights::quant::{self, Granularity};
 use weights::source;
 
@@ -420,26 +420,6 @@ fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<(
     Ok(())
 }
 
-/// Where an exported policy came from: its run's summary, or the file and its layout.
-fn provenance(a: &ExportArgs, import: &checkpoint::Import) -> Result<Vec<String>> {
-    let summary_path = a.src.join("summary.json");
-    if !(a.src.is_dir() && summary_path.is_file()) {
-        return Ok(vec![format!(
-            "source: {} ({})",
-            a.src.file_name().unwrap_or_default().to_string_lossy(),
-            import.describe()
-        )]);
-    }
-    let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
-    let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
-        weights::Error::Input(format!(
-            "{}: not a run summary: {e}",
-            summary_path.display()
-        ))
-    })?;
-    Ok(run::provenance(&s))
-}
-
 fn cmd_export(a: &ExportArgs) -> Result<()> {
     let name = a.name.clone().unwrap_or_else(|| {
         match (a.format, a.quant.is_some()) {
@@ -462,7 +442,7 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
     let given = a.rig.as_deref().map(twin::rigfile::load).transpose()?;
     let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
     let rig = machine.rig;
-    let prov = provenance(a, &import)?;
+    let prov = run::source_provenance(&a.src, &import)?;
     let quantised = match a.quant {
         None => None,
         Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(

@@ -14,8 +14,8 @@ use std::path::Path;
 use anyhow::{Context, Result};
 use host_common::stats::mean;
 use serde::{Deserialize, Serialize};
-use weights::checkpoint::to_safetensors;
-use weights::files::write_atomic;
+use weights::checkpoint::{Import, to_safetensors};
+use weights::files::{MAX_POLICY_BYTES, read_capped, write_atomic};
 use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 use crate::config::Config;
@@ -160,6 +160,26 @@ pub fn provenance(s: &Summary) -> Vec<String> {
             s.final_eval.mean, s.final_eval.min, s.final_eval.episodes, s.final_eval.max_steps
         ),
     ]
+}
+
+/// Where an exported policy came from: its run's summary, or the file and its layout.
+pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
+    let summary_path = src.join("summary.json");
+    if !(src.is_dir() && summary_path.is_file()) {
+        return Ok(vec![format!(
+            "source: {} ({})",
+            src.file_name().unwrap_or_default().to_string_lossy(),
+            import.describe()
+        )]);
+    }
+    let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
+    let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
+        weights::Error::Input(format!(
+            "{}: not a run summary: {e}",
+            summary_path.display()
+        ))
+    })?;
+    Ok(provenance(&s))
 }
 
 /// The configuration a policy file records: everything its weights depend on. The kernel

@@ -214,8 +214,8 @@ fn bad_outputs(s: &Scratch) -> Vec<Case> {
     cases
 }
 
-/// Names, prefixes and numbers no export or run can take, and policies nobody can use.
-fn bad_values(s: &Scratch) -> Vec<Case> {
+/// Names no export can take.
+fn bad_names(s: &Scratch) -> Vec<Case> {
     let p = policy();
     let out = s.join("named.h");
     let long = "N".repeat(100_000);
@@ -234,7 +234,7 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
     for name in rust_names {
         let args = os(&[&"export", &p, &"--name", &name, &"--out", &out]);
         cases.push(Case::new(
-            format!("rust --name {:.20?}", name),
+            format!("rust --name {name:?}"),
             &args,
             &["--name"],
         ));
@@ -267,16 +267,23 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             ]);
             args.extend(quant.iter().map(OsString::from));
             cases.push(Case::new(
-                format!("c --name {:.20?} {quant:?}", name),
+                format!("c --name {name:?} {quant:?}"),
                 &args,
                 &["--name"],
             ));
         }
     }
+    cases
+}
+
+/// Prefixes that name no network, and a policy nobody can use.
+fn bad_policies(s: &Scratch) -> Vec<Case> {
+    let (p, out, long) = (policy(), s.join("named.h"), "N".repeat(100_000));
+    let mut cases = Vec::new();
     for prefix in ["nope.", "fc", "\n", &long] {
         let args = os(&[&"export", &p, &"--prefix", &prefix, &"--out", &out]);
         cases.push(Case::new(
-            format!("--prefix {prefix:.20?}"),
+            format!("--prefix {prefix:?}"),
             &args,
             &["prefix"],
         ));
@@ -297,6 +304,12 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             &["expected finite Q-values"],
         ));
     }
+    cases
+}
+
+/// Numbers no run can take.
+fn bad_numbers() -> Vec<Case> {
+    let mut cases = Vec::new();
     let flags = [
         "--episodes",
         "--max-steps",
@@ -336,7 +349,9 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     let s = Scratch::new("pe-suite");
     let mut cases = bad_inputs(&s);
     cases.extend(bad_outputs(&s));
-    cases.extend(bad_values(&s));
+    cases.extend(bad_names(&s));
+    cases.extend(bad_policies(&s));
+    cases.extend(bad_numbers());
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 230, "{n} cases");
 }
