@@ -251,6 +251,8 @@ fn bad_names(s: &Scratch) -> Vec<Case> {
         "a\nb",
         "__x",
         "a*/b",
+        "class",
+        "namespace",
         &long,
     ];
     for name in c_names {

@@ -42,73 +42,138 @@ pub fn check_rust_name(name: &str) -> Result<()> {
     }
 }
 
+/// C's keywords.
+const C_KEYWORDS: [&str; 44] = [
+    "auto",
+    "break",
+    "case",
+    "char",
+    "const",
+    "continue",
+    "default",
+    "do",
+    "double",
+    "else",
+    "enum",
+    "extern",
+    "float",
+    "for",
+    "goto",
+    "if",
+    "inline",
+    "int",
+    "long",
+    "register",
+    "restrict",
+    "return",
+    "short",
+    "signed",
+    "sizeof",
+    "static",
+    "struct",
+    "switch",
+    "typedef",
+    "union",
+    "unsigned",
+    "void",
+    "volatile",
+    "while",
+    "_Bool",
+    "_Complex",
+    "_Imaginary",
+    "_Alignas",
+    "_Alignof",
+    "_Atomic",
+    "_Generic",
+    "_Noreturn",
+    "_Static_assert",
+    "_Thread_local",
+];
+
+/// C++'s keywords beyond C's: the headers are included from C++ too (Arduino sketches).
+const CXX_KEYWORDS: [&str; 58] = [
+    "alignas",
+    "alignof",
+    "and",
+    "and_eq",
+    "asm",
+    "bitand",
+    "bitor",
+    "bool",
+    "catch",
+    "char16_t",
+    "char32_t",
+    "char8_t",
+    "class",
+    "compl",
+    "concept",
+    "consteval",
+    "constexpr",
+    "constinit",
+    "const_cast",
+    "co_await",
+    "co_return",
+    "co_yield",
+    "decltype",
+    "delete",
+    "dynamic_cast",
+    "explicit",
+    "export",
+    "false",
+    "friend",
+    "mutable",
+    "namespace",
+    "new",
+    "noexcept",
+    "not",
+    "not_eq",
+    "nullptr",
+    "operator",
+    "or",
+    "or_eq",
+    "private",
+    "protected",
+    "public",
+    "reinterpret_cast",
+    "requires",
+    "static_assert",
+    "static_cast",
+    "template",
+    "this",
+    "throw",
+    "true",
+    "try",
+    "typeid",
+    "typename",
+    "using",
+    "virtual",
+    "xor",
+    "xor_eq",
+    "thread_local",
+];
+
 /// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits and underscores, not
-/// starting with a digit, not a C keyword, not reserved (`_` followed by a capital or `_`,
+/// starting with a digit, not a C or C++ keyword, not reserved (`_` followed by a capital or `_`,
 /// or ending in `_t`, POSIX's), not ending in `_rig` (so that no header's `NAME_rig` is
 /// another's `NAME`), and such that neither `NAME`, `NAME_rig` nor the include guard
 /// ([`c_guard`]) is an identifier of the C API (`cartpole_policy.h`), which a board
 /// includes beside it.
 pub fn check_c_name(name: &str) -> Result<()> {
     check_length(name)?;
-    const KEYWORDS: [&str; 44] = [
-        "auto",
-        "break",
-        "case",
-        "char",
-        "const",
-        "continue",
-        "default",
-        "do",
-        "double",
-        "else",
-        "enum",
-        "extern",
-        "float",
-        "for",
-        "goto",
-        "if",
-        "inline",
-        "int",
-        "long",
-        "register",
-        "restrict",
-        "return",
-        "short",
-        "signed",
-        "sizeof",
-        "static",
-        "struct",
-        "switch",
-        "typedef",
-        "union",
-        "unsigned",
-        "void",
-        "volatile",
-        "while",
-        "_Bool",
-        "_Complex",
-        "_Imaginary",
-        "_Alignas",
-        "_Alignof",
-        "_Atomic",
-        "_Generic",
-        "_Noreturn",
-        "_Static_assert",
-        "_Thread_local",
-    ];
     let b = name.as_bytes();
     let ok = b
         .first()
         .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
         && b.iter().all(|c| c.is_ascii_alphanumeric() || *c == b'_')
         && !(b.len() >= 2 && b[0] == b'_' && (b[1] == b'_' || b[1].is_ascii_uppercase()))
-        && !KEYWORDS.contains(&name)
+        && !C_KEYWORDS.contains(&name)
+        && !CXX_KEYWORDS.contains(&name)
         && !name.ends_with("_t")
         && !name.ends_with("_rig");
     if !ok {
         return Err(Error::Input(format!(
             "--name: expected a C identifier (letters, digits, `_`, e.g. cartpole_policy; not \
-             ending in _t or _rig), found {}",
+             a C or C++ keyword, not ending in _t or _rig), found {}",
             quote(name)
         )));
     }
@@ -214,6 +279,10 @@ mod tests {
             "cartpole",
             "balance_rig",
             "int32_t",
+            "class",
+            "new",
+            "this",
+            "xor",
         ] {
             assert!(check_c_name(bad).is_err(), "{bad} accepted");
         }
