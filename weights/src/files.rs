@@ -298,7 +298,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::Io(format!("creating {}: {e}", dir.display())))?;
-    remove_stale(path, &["tmp"]);
+    // A killed writer's temporary, or a probe of check_place.
+    remove_stale(path, &["tmp", "probe"]);
     let tmp = temp_path(path);
     std::fs::write(&tmp, bytes)
         .and_then(|()| std::fs::rename(&tmp, path))
@@ -340,6 +341,8 @@ mod tests {
             Path::new(&format!("d/.episode.png.{}.tmp.png", std::process::id()))
         );
         let dead = dir.join(".policy.rs.4000000000.tmp");
+        let probe = dir.join(".policy.rs.4000000000.probe");
+        std::fs::write(&probe, b"").unwrap();
         // PID 1 (init) always runs.
         let live = dir.join(".policy.rs.1.tmp");
         let other = dir.join(".other.rs.4000000000.tmp");
@@ -348,6 +351,7 @@ mod tests {
         }
         write_atomic(&p, b"whole").unwrap();
         assert_eq!(dead.exists(), !Path::new("/proc/self").exists());
+        assert_eq!(probe.exists(), !Path::new("/proc/self").exists());
         assert!(live.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -372,6 +376,50 @@ mod tests {
         assert!(check_output(&other, &[&input]).is_err());
         assert!(check_output(&dir.join("new.rs"), &[&input]).is_ok());
         assert_eq!(std::fs::read(&input).unwrap(), b"weights");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn inputs_and_places_are_checked_with_their_flags_before_any_work() {
+        let dir = scratch("io");
+        let (input, file) = (dir.join("in.bin"), dir.join("file"));
+        std::fs::write(&input, b"w").unwrap();
+        std::fs::write(&file, b"mine").unwrap();
+        let ok = check_io(
+            &[("SRC", &input)],
+            &[("--out", &dir.join("new/deeper/out.rs"))],
+        );
+        ok.unwrap();
+        type Paths<'a> = &'a [(&'a str, &'a Path)];
+        let cases: [(Paths, Paths, &str); 4] = [
+            (&[("SRC", &dir)], &[], "SRC "),
+            (
+                &[],
+                &[("--out", &file.join("x.rs"))],
+                "found a regular file",
+            ),
+            (
+                &[],
+                &[("--out", Path::new("/proc/cartpole/x.rs"))],
+                "refuses",
+            ),
+            (
+                &[("SRC", &input)],
+                &[("--out", &input)],
+                "would overwrite the input",
+            ),
+        ];
+        for (inputs, outputs, want) in cases {
+            let e = check_io(inputs, outputs).unwrap_err();
+            assert!(e.is_input() && e.to_string().contains(want), "{e}");
+        }
+        // Nothing was created, not even the probe.
+        let mut left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["file", "in.bin"]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
