@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # Fuzzes with libFuzzer the host tools' four parsers (the checkpoint importer, the TOML
-# configuration, the trajectory parser, the scenario parser) and the link's frame reader
-# (what a target reads from its serial port), SECONDS each (default 60), seeded with the
-# repository's own valid inputs. Prints each target's executions and
+# configuration, the trajectory parser, the scenario parser), the rendering of untrusted
+# text into exported source (names, comments) and the link's frame reader (what a target
+# reads from its serial port), SECONDS each (default 60), seeded with the repository's own
+# valid inputs. Prints each target's executions and
 # coverage; exits 1 on a crash (the input is kept in fuzz/artifacts/TARGET/).
 #
 # The targets (`fuzz/`, a workspace of its own) build with the pinned stable toolchain:
@@ -16,10 +17,10 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse link_frame)
+[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse source_comment link_frame)
 host=$(rustc -vV | sed -n 's/^host: //p')
 corpus=fuzz/corpus
-mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse,link_frame}
+mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse,source_comment,link_frame}
 cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
 cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
@@ -29,6 +30,8 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
   n=$((n + 1))
   printf '%s' "$spec" >"$corpus/scenario_parse/seed-$n"
 done
+printf 'cartpole_policy\nsource: a */ b /* c ??/ \\' >"$corpus/source_comment/seed-1"
+printf 'POLICY' >"$corpus/source_comment/seed-2"
 # An exchange's requests as frames (Hello, Start, a reading), written by zlib's CRC-32 and
 # a COBS encoder of their own, so the reader's fuzzing starts past the frame check.
 python3 - "$corpus/link_frame/exchange" <<'PY'

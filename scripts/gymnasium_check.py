@@ -8,17 +8,28 @@ starts and physics. An independent check of what `host-sim eval --scenario nomin
         [--episodes 1000] [--max-steps 500] [--seed 0]
 
 Episode i starts from `env.reset(seed=SEED + i)`. Prints the failures as a count, the five
-shortest episodes, and RMS theta and x. Exit status 2 on a bad policy file or argument.
+shortest episodes, and RMS theta and x. Exit status 2, with one line, on a bad policy file
+or argument (scripts/safe_input.py): the policy a regular file of at most 64 MiB, episodes
+and steps each at most 1,000,000 and together at most 100,000,000, the seed below 2^32.
 """
 
-import argparse
 import json
+import math
 import struct
 import sys
 
-import gymnasium as gym
-import numpy as np
+from safe_input import Refusal, bounded_int, parser, quote, read_capped, run
 
+PROG = "gymnasium_check.py"
+# The tools' own limits (docs/HOSTILE_INPUT.md): a policy file of at most 64 MiB whose
+# header declares at most 1 MiB.
+MAX_POLICY_BYTES = 64 << 20
+MAX_HEADER_BYTES = 1 << 20
+MAX_EPISODES = 1_000_000
+MAX_STEPS = 1_000_000
+# Episodes times steps: about an hour of Gymnasium at the limit.
+MAX_TOTAL_STEPS = 100_000_000
+WIDTHS = (16, 32, 64, 128, 256)
 SHAPES = {
     "fc1.weight": (None, 4),
     "fc1.bias": (None,),
@@ -29,50 +40,66 @@ SHAPES = {
 }
 
 
-def fail(msg):
-    print(f"gymnasium_check.py: {msg}", file=sys.stderr)
-    sys.exit(2)
+def tensor_spec(path, header, name, body_len):
+    """The shape and byte range of tensor `name` in a parsed header, checked."""
+    t = header.get(name)
+    if not isinstance(t, dict):
+        found = sorted(k for k in header if k != "__metadata__")[:10]
+        raise Refusal(f"{path}: expected a tensor {name}, found tensors {quote(str(found))}")
+    if t.get("dtype") != "F32":
+        raise Refusal(f"{path}: expected {name} as F32, found {quote(str(t.get('dtype')))}")
+    shape, offsets = t.get("shape"), t.get("data_offsets")
+    ints = lambda v, n: isinstance(v, list) and len(v) == n and all(type(x) is int and x >= 0 for x in v)
+    if not (ints(shape, len(SHAPES[name])) and ints(offsets, 2)):
+        raise Refusal(f"{path}: expected {name} with a shape and data_offsets of whole numbers, "
+                      f"found {quote(str(t))}")
+    lo, hi = offsets
+    if not lo <= hi <= body_len or hi - lo != 4 * math.prod(shape):
+        raise Refusal(f"{path}: {name} has shape {shape} and offsets [{lo}, {hi}], which do not "
+                      f"fit the file's {body_len} bytes of data")
+    return tuple(shape), lo, hi
 
 
 def load(path):
     """The six tensors of a 4-H-H-2 safetensors file named as `policy-export` writes them
-    (fc1, fc2, fc3), as float32 arrays."""
-    try:
-        with open(path, "rb") as f:
-            data = f.read()
-    except OSError as e:
-        fail(f"cannot read the policy file {path}: {e.strerror}")
+    (fc1, fc2, fc3), as float32 arrays; every check before NumPy is imported."""
+    data = read_capped(path, MAX_POLICY_BYTES)
     if len(data) < 8:
-        fail(f"{path}: expected a safetensors file, found {len(data)} bytes")
+        raise Refusal(f"{path}: expected a safetensors file, found {len(data)} bytes")
     n = struct.unpack("<Q", data[:8])[0]
-    if n > len(data) - 8:
-        fail(f"{path}: expected a safetensors file, found a header length of {n} in {len(data)} bytes")
+    if n > min(MAX_HEADER_BYTES, len(data) - 8):
+        raise Refusal(f"{path}: expected a safetensors header of at most "
+                      f"{min(MAX_HEADER_BYTES, len(data) - 8)} bytes, found a length of {n}")
     try:
         header = json.loads(data[8 : 8 + n])
-    except (ValueError, UnicodeDecodeError):
-        fail(f"{path}: expected a safetensors JSON header of {n} bytes, found none")
+    except (ValueError, UnicodeDecodeError, RecursionError):
+        raise Refusal(f"{path}: expected a safetensors JSON header of {n} bytes, found none")
+    if not isinstance(header, dict):
+        raise Refusal(f"{path}: expected a JSON object as the header, found {type(header).__name__}")
     body = data[8 + n :]
-    tensors = {}
-    for name, want in SHAPES.items():
-        t = header.get(name)
-        if not isinstance(t, dict):
-            fail(f"{path}: expected a tensor {name}, found tensors {sorted(k for k in header if k != '__metadata__')}")
-        if t.get("dtype") != "F32":
-            fail(f"{path}: expected {name} as F32, found {t.get('dtype')}")
-        shape = tuple(t.get("shape", ()))
-        lo, hi = t.get("data_offsets", (0, -1))
-        if len(shape) != len(want) or not 0 <= lo <= hi <= len(body) or hi - lo != 4 * int(np.prod(shape)):
-            fail(f"{path}: {name} has shape {list(shape)} and offsets [{lo}, {hi}], which do not fit the file")
-        tensors[name] = np.frombuffer(body[lo:hi], dtype="<f4").reshape(shape)
-    h = tensors["fc1.bias"].shape[0]
-    expect = {"fc1.weight": (h, 4), "fc2.weight": (h, h), "fc2.bias": (h,), "fc3.weight": (2, h), "fc3.bias": (2,)}
+    specs = {name: tensor_spec(path, header, name, len(body)) for name in SHAPES}
+    h = specs["fc1.bias"][0][0]
+    expect = {"fc1.weight": (h, 4), "fc1.bias": (h,), "fc2.weight": (h, h), "fc2.bias": (h,),
+              "fc3.weight": (2, h), "fc3.bias": (2,)}
+    if h not in WIDTHS:
+        raise Refusal(f"{path}: expected a hidden width of {WIDTHS}, found {h}")
     for name, shape in expect.items():
-        if tensors[name].shape != shape:
-            fail(f"{path}: expected {name} of shape {list(shape)} for width {h}, found {list(tensors[name].shape)}")
+        if specs[name][0] != shape:
+            raise Refusal(f"{path}: expected {name} of shape {list(shape)} for width {h}, "
+                          f"found {list(specs[name][0])}")
+    import numpy as np
+
+    tensors = {}
+    for name, (shape, lo, hi) in specs.items():
+        tensors[name] = np.frombuffer(body[lo:hi], dtype="<f4").reshape(shape)
+        if not np.all(np.isfinite(tensors[name])):
+            raise Refusal(f"{path}: expected finite values in {name}, found NaN or infinity")
     return tensors
 
 
 def act(t, obs):
+    import numpy as np
+
     x = np.asarray(obs, dtype=np.float32)
     h1 = np.maximum(t["fc1.weight"] @ x + t["fc1.bias"], np.float32(0))
     h2 = np.maximum(t["fc2.weight"] @ h1 + t["fc2.bias"], np.float32(0))
@@ -82,19 +109,18 @@ def act(t, obs):
 
 
 def main():
-    p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    p = parser(PROG, __doc__.split("\n\n")[0])
     p.add_argument("--policy", default="firmware/policy.safetensors")
-    p.add_argument("--episodes", type=int, default=1000)
-    p.add_argument("--max-steps", type=int, default=500)
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--episodes", type=bounded_int(1, MAX_EPISODES), default=1000)
+    p.add_argument("--max-steps", type=bounded_int(1, MAX_STEPS), default=500)
+    p.add_argument("--seed", type=bounded_int(0, 2**32 - 1), default=0)
     a = p.parse_args()
-    if a.episodes < 1:
-        fail(f"--episodes: expected at least 1, found {a.episodes}")
-    if a.max_steps < 1:
-        fail(f"--max-steps: expected at least 1, found {a.max_steps}")
-    if a.seed < 0:
-        fail(f"--seed: expected a non-negative integer, found {a.seed}")
+    if a.episodes * a.max_steps > MAX_TOTAL_STEPS:
+        raise Refusal(f"--episodes x --max-steps: expected at most {MAX_TOTAL_STEPS} steps, "
+                      f"found {a.episodes * a.max_steps}")
     t = load(a.policy)
+    import gymnasium as gym
+    import numpy as np
 
     env = gym.make("CartPole-v1", max_episode_steps=a.max_steps)
     lengths, starts = [], []
@@ -129,4 +155,4 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    run(PROG, main)

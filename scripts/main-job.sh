@@ -15,7 +15,9 @@ pe() { target/release/policy-export "$@"; }
 echo "== train (deploy preset, seed 5) -> $out"
 pe train --preset deploy --seed 5 --out "$out"
 echo "== export"
-pe export "$out" --format c --out "$out/cartpole_policy.h"
+# Beside the run directory, not in it: a file added to it would make it no longer the
+# tool's to replace on the next run.
+pe export "$out" --format c --out "${out%/}-cartpole_policy.h"
 if cmp -s "$out/policy.rs" firmware/src/policy.rs &&
    cmp -s "$out/policy.safetensors" firmware/policy.safetensors; then
   echo "$out/policy.rs and policy.safetensors are byte-identical to the shipped ones"

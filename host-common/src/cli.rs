@@ -1,8 +1,75 @@
 //! Command-line parsing with the project's refusal rules: clap's own message for a bad
 //! flag, but with no line longer than a few hundred characters (clap quotes the offending
 //! value whole, and a value can be 128 KB), and exit status 2.
+//!
+//! And the tools' one way to print: [`out!`](crate::out), [`outln!`](crate::outln) and
+//! [`errln!`](crate::errln) never panic, where `print!` panics once its reader has gone
+//! (`host-sim eval --json | head -c 100`). A closed standard output ends the printing, not
+//! the work: files being written are still finished, and [`exit`] then reports success
+//! quietly, as Unix tools do when their reader has seen enough. Any other failure to write
+//! it (a full disk) turns success into exit status 1. Both binaries deny `print!` and
+//! `eprint!` (clippy's `print_stdout`, `print_stderr`), so nothing prints another way.
+
+use std::io::Write;
+use std::process::ExitCode;
+use std::sync::Mutex;
 
 use clap::error::ErrorKind;
+
+/// The first error writing standard output, after which nothing more is written to it.
+static STDOUT_FAILED: Mutex<Option<std::io::Error>> = Mutex::new(None);
+
+/// Writes to standard output unless an earlier write failed; a failure is kept for
+/// [`exit`], never a panic. What [`out!`](crate::out) and [`outln!`](crate::outln) call.
+pub fn write_stdout(args: std::fmt::Arguments<'_>) {
+    let mut failed = STDOUT_FAILED.lock().unwrap_or_else(|p| p.into_inner());
+    if failed.is_some() {
+        return;
+    }
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_fmt(args).and_then(|()| out.flush()) {
+        *failed = Some(e);
+    }
+}
+
+/// Writes to standard error, ignoring failure: with standard error gone there is nowhere
+/// left to say anything. What [`errln!`](crate::errln) calls.
+pub fn write_stderr(args: std::fmt::Arguments<'_>) {
+    let _ = std::io::stderr().lock().write_fmt(args);
+}
+
+/// `print!` that never panics: see the module's documentation.
+#[macro_export]
+macro_rules! out {
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!($($arg)*)) };
+}
+
+/// `println!` that never panics: see the module's documentation.
+#[macro_export]
+macro_rules! outln {
+    () => { $crate::cli::write_stdout(format_args!("\n")) };
+    ($($arg:tt)*) => { $crate::cli::write_stdout(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+/// `eprintln!` that never panics.
+#[macro_export]
+macro_rules! errln {
+    ($($arg:tt)*) => { $crate::cli::write_stderr(format_args!("{}\n", format_args!($($arg)*))) };
+}
+
+/// The process's exit status for a command that ended with `status`: unchanged, except that
+/// a success whose standard output could not be written for another reason than a reader
+/// that left (a closed pipe) becomes 1, with the reason.
+pub fn exit(status: u8) -> ExitCode {
+    let failed = STDOUT_FAILED.lock().unwrap_or_else(|p| p.into_inner());
+    match failed.as_ref() {
+        Some(e) if status == 0 && e.kind() != std::io::ErrorKind::BrokenPipe => {
+            write_stderr(format_args!("error: writing standard output: {e}\n"));
+            ExitCode::from(1)
+        }
+        _ => ExitCode::from(status),
+    }
+}
 
 /// Longest line of a refusal printed.
 const LINE_MAX: usize = 300;
@@ -30,7 +97,7 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
                 e.exit()
             }
             for line in e.render().to_string().lines() {
-                eprintln!("{}", cut(line));
+                crate::errln!("{}", cut(line));
             }
             std::process::exit(2)
         }

@@ -76,6 +76,16 @@ fn empty_bins() -> Vec<Bin> {
         .collect()
 }
 
+/// The float network's margin `|Q[1] - Q[0]|` and whether the two networks choose
+/// differently. A non-finite Q-value decides nothing: a disagreement, in the widest bin.
+fn compare(q: [f32; 2], qi: [i32; 2]) -> (f64, bool) {
+    if !q.iter().all(|v| v.is_finite()) {
+        return (f64::MAX, true);
+    }
+    let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
+    (margin, (q[1] > q[0]) != (qi[1] > qi[0]))
+}
+
 /// Compares the two networks on `per_row` states of scenario `s`, from episodes of `seed`.
 /// Episodes end early when the policy fails, so they run one at a time until the row has
 /// its share.
@@ -100,8 +110,7 @@ fn count_row(net: &Net, s: &Scenario, per_row: u64, seed: u64) -> RowCount {
         for obs in one.iter().take((per_row - count.states) as usize) {
             let q = net.forward(obs);
             let qi = net.forward_int(&fixed_obs(obs)).unwrap_or_default();
-            let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
-            let differ = (q[1] > q[0]) != (qi[1] > qi[0]);
+            let (margin, differ) = compare(q, qi);
             count.states += 1;
             let bin = bins.iter_mut().find(|b| margin < b.margin_below);
             if let Some(b) = bin {
@@ -213,4 +222,21 @@ pub fn format_report(r: &Report) -> String {
         let _ = writeln!(s, "\nlargest margin of a disagreement: {m:.4} at {obs:?}");
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_nan_or_infinite_q_value_is_a_disagreement_not_a_zero_margin() {
+        assert_eq!(compare([1.0, 3.0], [0, 5]), (2.0, false));
+        assert_eq!(compare([1.0, 3.0], [5, 0]), (2.0, true));
+        for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+            assert_eq!(compare([bad, 0.0], [0, 5]), (f64::MAX, true));
+            assert_eq!(compare([0.0, bad], [5, 0]), (f64::MAX, true));
+        }
+        // The widest bin takes it.
+        assert!(f64::MAX < *MARGIN_BINS.last().unwrap());
+    }
 }

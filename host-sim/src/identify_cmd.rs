@@ -11,7 +11,7 @@ use anyhow::Result;
 use clap::Args;
 use host_sim::identify::{self, Log, fit, log, report};
 use indicatif::{ProgressBar, ProgressStyle};
-use weights::files::{check_output, read_capped, write_atomic};
+use weights::files::{read_capped, write_atomic};
 
 #[derive(Args)]
 pub struct IdentifyArgs {
@@ -49,15 +49,12 @@ fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
 /// Fits the rig `a` asks for; every input is checked, and every output's place, before the
 /// fit starts.
 pub fn run(a: &IdentifyArgs) -> Result<()> {
+    let mut labelled: Vec<(&str, PathBuf)> = a.logs.iter().map(|l| ("LOG", l.clone())).collect();
+    labelled.push(("--rig", a.rig.clone()));
+    crate::check_io(&labelled, &[("--out", &a.out)])?;
     let machine = twin::rigfile::load(&a.rig)?;
     let logs = read_logs(&a.logs)?;
-    let inputs: Vec<&Path> = a
-        .logs
-        .iter()
-        .map(PathBuf::as_path)
-        .chain([a.rig.as_path()])
-        .collect();
-    check_output(&a.out, &inputs)?;
+    let inputs: Vec<&Path> = labelled.iter().map(|(_, p)| p.as_path()).collect();
     if let Some(dir) = &a.plots {
         report::check_plots(dir, &logs, &inputs)?;
     }
@@ -79,12 +76,12 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     twin::rigfile::parse(&text, "the identified rig")?;
     if let Some(dir) = &a.plots {
         for path in report::plots(dir, &found, &logs)? {
-            eprintln!("{}", path.display());
+            host_common::errln!("{}", path.display());
         }
     }
     write_atomic(&a.out, text.as_bytes())?;
-    print!("{}", report::format(&found, &logs));
-    eprintln!("{}", a.out.display());
+    host_common::out!("{}", report::format(&found, &logs));
+    host_common::errln!("{}", a.out.display());
     Ok(())
 }
 
@@ -112,6 +109,10 @@ pub struct SimulateLogsArgs {
 /// Writes the cart and swing experiments' logs `a` asks for; the inputs are checked, and the
 /// output's place, before anything runs.
 pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
+    crate::check_io(
+        &[("--world", a.world.clone()), ("--rig", a.rig.clone())],
+        &[("--out", &a.out)],
+    )?;
     let truth = twin::rigfile::load(&a.world)?;
     let board = twin::rigfile::load(&a.rig)?;
     if truth.rig.params.tau != board.rig.params.tau {
@@ -130,7 +131,6 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
         ))
         .into());
     }
-    check_output(&a.out, &[a.world.as_path(), a.rig.as_path()])?;
     let reading = identify::synthetic::Reading {
         jitter_counts: a.jitter,
         seed: u64::from(a.seed),
@@ -138,6 +138,6 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     };
     let logs = identify::synthetic::experiments(&truth, &board.rig, a.seed, reading);
     write_atomic(&a.out, logs.concat().as_bytes())?;
-    eprintln!("{}", a.out.display());
+    host_common::errln!("{}", a.out.display());
     Ok(())
 }

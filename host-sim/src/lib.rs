@@ -13,6 +13,7 @@
 //! SIMD, bit-identical.
 
 #![forbid(unsafe_code)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod agree;
 pub mod baselines;

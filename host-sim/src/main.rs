@@ -1,6 +1,7 @@
 //! `host-sim`: checks and exercises the firmware's plant and controller on the host.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 
 use anyhow::{Context, Result};
@@ -99,6 +100,16 @@ struct Subject {
 }
 
 impl Subject {
+    /// The files this subject reads, by flag: the policy's (a run directory's
+    /// `policy.safetensors`) and the rig file.
+    fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
+        let policy = self.policy.as_deref().map(weights::checkpoint::policy_file);
+        [("--policy", policy), ("--rig", self.rig.clone())]
+            .into_iter()
+            .filter_map(|(flag, p)| Some((flag, p?)))
+            .collect()
+    }
+
     /// The machine, and the network (with its integer version if `int`), loaded lazily by
     /// the commands after their cheaper checks. Where no policy runs (`policy` false: the
     /// baselines alone), --rig is the machine and a policy's own rig is no concern of it.
@@ -187,23 +198,30 @@ fn main() -> ExitCode {
         Command::Tables(a) => tables_cmd::run(&a),
         Command::Soak(a) => soak_cmd::run(&a),
         Command::Parts => {
-            print!("{}", twin::grammar::markdown_table());
+            host_common::out!("{}", twin::grammar::markdown_table());
             Ok(true)
         }
     };
     match result {
-        Ok(true) => ExitCode::SUCCESS,
-        Ok(false) => ExitCode::from(1),
+        Ok(true) => host_common::cli::exit(0),
+        Ok(false) => host_common::cli::exit(1),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            host_common::errln!("error: {e:#}");
             // Everything but a failure to write is the input's fault.
             let system = matches!(
                 e.downcast_ref::<weights::Error>(),
                 Some(weights::Error::Io(_))
             );
-            ExitCode::from(if system { 1 } else { 2 })
+            host_common::cli::exit(if system { 1 } else { 2 })
         }
     }
+}
+
+/// Checks, before any work, every input a command reads and every output it writes
+/// (`weights::files::check_io`), each with its flag.
+fn check_io(inputs: &[(&str, PathBuf)], outputs: &[(&str, &Path)]) -> Result<()> {
+    let inputs: Vec<(&str, &Path)> = inputs.iter().map(|(f, p)| (*f, p.as_path())).collect();
+    Ok(weights::files::check_io(&inputs, outputs)?)
 }
 
 fn parse_scenarios(specs: &[String], machine: &Machine) -> Result<Vec<Scenario>> {
@@ -226,12 +244,13 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
         "--states must be in [1, {MAX_AGREE_STATES}], got {}",
         a.states
     );
+    check_io(&a.subject.inputs(), &[])?;
     let (machine, net) = a.subject.load(true, true)?;
     let report = host_sim::agree::agreement(&net, &machine, a.states, a.seed)?;
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        host_common::outln!("{}", serde_json::to_string_pretty(&report)?);
     } else {
-        print!("{}", host_sim::agree::format_report(&report));
+        host_common::out!("{}", host_sim::agree::format_report(&report));
     }
     Ok(())
 }
@@ -257,6 +276,9 @@ fn check_eval(a: &EvalArgs) -> Result<()> {
 
 fn run_eval(a: &EvalArgs) -> Result<bool> {
     check_eval(a)?;
+    let mut inputs = a.subject.inputs();
+    inputs.extend(a.world.clone().map(|w| ("--world", w)));
+    check_io(&inputs, &[])?;
     let given = a
         .subject
         .rig
@@ -308,10 +330,10 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
 fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
     if a.json {
         let doc = serde_json::json!({ "seed": a.seed, "rows": rows });
-        println!("{}", serde_json::to_string_pretty(&doc)?);
+        host_common::outln!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
-        print!("{}", eval::format_table(rows));
-        print!("{}", eval::format_failures(rows, a.seed));
+        host_common::out!("{}", eval::format_table(rows));
+        host_common::out!("{}", eval::format_failures(rows, a.seed));
     }
     let failing: Vec<&Row> = rows
         .iter()
@@ -321,7 +343,7 @@ fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
         })
         .collect();
     for r in &failing {
-        eprintln!(
+        host_common::errln!(
             "policy below --min-success on {} at horizon {}: {:.1}%",
             r.scenario,
             r.horizon,
@@ -331,15 +353,36 @@ fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
     Ok(failing.is_empty())
 }
 
+/// Most files one `replay` takes: all are checked before the first is replayed.
+const MAX_REPLAY_FILES: usize = 1_000;
+
 fn run_replay(files: &[PathBuf]) -> anyhow::Result<bool> {
+    anyhow::ensure!(
+        files.len() <= MAX_REPLAY_FILES,
+        "replay: expected at most {MAX_REPLAY_FILES} files, found {}",
+        files.len()
+    );
+    let inputs: Vec<(&str, PathBuf)> = files.iter().map(|f| ("FILE", f.clone())).collect();
+    check_io(&inputs, &[])?;
+    // Every file is parsed before anything is printed, and again when its turn comes, so
+    // that memory holds one file's cases at a time.
+    for f in files {
+        replay::load(f)?;
+    }
     let params = Params::default();
     let mut all_ok = true;
     for file in files {
         let cases = replay::load(file)?;
-        println!("{}", file.display());
-        println!(
+        host_common::outln!("{}", file.display());
+        host_common::outln!(
             "{:>4} {:>6} {:>6} {:>12} {:>10} {:>10} {:>11}  result",
-            "case", "seed", "steps", "max |dev|", "rollout≠", "step≠", "terminated"
+            "case",
+            "seed",
+            "steps",
+            "max |dev|",
+            "rollout≠",
+            "step≠",
+            "terminated"
         );
         let (mut steps, mut failed) = (0, 0);
         for (i, case) in cases.iter().enumerate() {
@@ -351,15 +394,18 @@ fn run_replay(files: &[PathBuf]) -> anyhow::Result<bool> {
             };
             let seed = case.seed.map_or("-".into(), |s| s.to_string());
             let verdict = if r.matches() { "bit-exact" } else { "MISMATCH" };
-            println!(
+            host_common::outln!(
                 "{i:>4} {seed:>6} {:>6} {:>12.3e} {:>10} {:>10} {term:>11}  {verdict}",
-                r.steps, r.rollout_max_abs_dev, r.rollout_mismatches, r.step_mismatches
+                r.steps,
+                r.rollout_max_abs_dev,
+                r.rollout_mismatches,
+                r.step_mismatches
             );
             if !r.matches() {
                 failed += 1;
             }
         }
-        println!(
+        host_common::outln!(
             "{} cases, {steps} steps, {failed} mismatched\n",
             cases.len()
         );

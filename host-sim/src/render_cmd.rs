@@ -8,7 +8,7 @@ use clap::Args;
 use host_sim::eval::{self, ControllerKind};
 use host_sim::render;
 use twin::Scenario;
-use weights::files::{check_output, remove_stale, temp_path_keeping_extension};
+use weights::files::{remove_stale, temp_path_keeping_extension};
 
 use crate::Subject;
 
@@ -73,8 +73,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             weights::files::kind(&m.file_type())
         );
     }
-    check_output(&gif, &[])?;
-    check_output(&png, &[])?;
+    crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
     let int = a.controller == ControllerKind::PolicyInt;
     let policy = int || a.controller == ControllerKind::Policy;
     let (machine, net) = a.subject.load(int, policy)?;
@@ -116,6 +115,6 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         std::fs::rename(tmp, path)
             .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;
     }
-    println!("{}\n{}", gif.display(), png.display());
+    host_common::outln!("{}\n{}", gif.display(), png.display());
     Ok(())
 }

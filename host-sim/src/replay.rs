@@ -173,9 +173,7 @@ pub fn replay_case(case: &Case, params: &Params) -> Result<CaseReport> {
         if !bit_equal(&got, &want) {
             report.rollout_mismatches += 1;
         }
-        for (g, w) in got.iter().zip(&want) {
-            report.rollout_max_abs_dev = report.rollout_max_abs_dev.max((g - w).abs());
-        }
+        report.rollout_max_abs_dev = report.rollout_max_abs_dev.max(deviation(&got, &want));
         let terminal = params.is_terminal(&state);
         if terminal != case.terminated[i] {
             report.termination_agrees = false;
@@ -195,8 +193,20 @@ pub fn replay_case(case: &Case, params: &Params) -> Result<CaseReport> {
     Ok(report)
 }
 
+/// Bit for bit, and no NaN on either side: a NaN is never a match, even of itself.
 fn bit_equal(a: &[f64; 4], b: &[f64; 4]) -> bool {
-    a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+    a.iter()
+        .zip(b)
+        .all(|(x, y)| x.to_bits() == y.to_bits() && !x.is_nan())
+}
+
+/// The largest `|a - b|` over the four variables; infinite where either is NaN (`f64::max`
+/// would drop a NaN and report no deviation at all).
+fn deviation(a: &[f64; 4], b: &[f64; 4]) -> f64 {
+    a.iter().zip(b).fold(0.0, |m, (x, y)| {
+        let d = (x - y).abs();
+        if d.is_nan() { f64::INFINITY } else { m.max(d) }
+    })
 }
 
 /// Parses Python's `float.hex()` form (`-0x1.921fb54442d18p+1`, `0x0.0p+0`, subnormals as
@@ -290,6 +300,29 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_nan_in_a_recording_is_a_mismatch_of_infinite_deviation() {
+        let p = Params::default();
+        let next = cartpole::step(&p, &State::default(), Action::Right).to_array();
+        let mut nan = next;
+        nan[2] = f64::NAN;
+        let case = Case {
+            seed: None,
+            kind: None,
+            initial_state: [0.0; 4],
+            actions: vec![1],
+            states: vec![[0.0; 4], nan],
+            states_hex: vec![],
+            terminated: vec![false],
+            terminated_at: None,
+        };
+        let r = replay_case(&case, &p).unwrap();
+        assert!(!r.matches());
+        assert_eq!(r.rollout_max_abs_dev, f64::INFINITY);
+        assert!(!bit_equal(&nan, &nan));
+        assert_eq!(deviation(&next, &next), 0.0);
     }
 
     #[test]

@@ -82,7 +82,7 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
     let mut truth: Option<State> = None;
     let mut k = 0u32;
     let stats = eval::episode(a.controller, &net, &scenario, periods, a.seed, 0, |f| {
-        if k % hour == 0 {
+        if k.is_multiple_of(hour) {
             hours.push([0.0; 4]);
         }
         let worst = hours.last_mut().expect("pushed at the hour's first period");
@@ -113,9 +113,9 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
         wall_s: started.elapsed().as_secs_f64(),
     };
     if a.json {
-        println!("{}", serde_json::to_string_pretty(&soak)?);
+        host_common::outln!("{}", serde_json::to_string_pretty(&soak)?);
     } else {
-        print!("{}", report(&soak, tau));
+        host_common::out!("{}", report(&soak, tau));
     }
     Ok(soak.balanced)
 }

@@ -31,11 +31,10 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     };
     let mut updates: Vec<(PathBuf, String, Vec<Stale>)> = Vec::new();
     for doc in documents(&root)? {
-        let text = std::fs::read_to_string(root.join(&doc))
-            .with_context(|| format!("reading {}", doc.display()))?;
-        let load = |file: &str| {
-            std::fs::read_to_string(root.join(file)).map_err(|e| format!("reading {file}: {e}"))
-        };
+        let text =
+            read_text(&root.join(&doc)).with_context(|| format!("reading {}", doc.display()))?;
+        let load =
+            |file: &str| read_text(&root.join(file)).map_err(|e| format!("reading {file}: {e:#}"));
         let (new, stale) = tables::update(&text, load)
             .map_err(|r| anyhow!("{}:{}: {}", doc.display(), r.line, r.message))?;
         updates.push((doc, new, stale));
@@ -44,11 +43,11 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     for (doc, new, stale) in &updates {
         if a.check {
             for s in stale {
-                eprintln!("{}:{}: {}", doc.display(), s.line, s.what);
+                host_common::errln!("{}:{}: {}", doc.display(), s.line, s.what);
             }
         } else if !stale.is_empty() {
             write_atomic(&root.join(doc), new.as_bytes())?;
-            println!(
+            host_common::outln!(
                 "{}: {} tables or values written",
                 doc.display(),
                 stale.len()
@@ -57,11 +56,20 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
         found += stale.len();
     }
     if a.check && found > 0 {
-        eprintln!(
+        host_common::errln!(
             "{found} tables or values differ from their results: `host-sim tables` rewrites them"
         );
     }
     Ok(!a.check || found == 0)
+}
+
+/// Largest document or results file read: the largest is a few hundred KB.
+const MAX_TEXT_BYTES: u64 = 16 << 20;
+
+/// The UTF-8 text of the regular file `path` (not a FIFO, never past [`MAX_TEXT_BYTES`]).
+fn read_text(path: &Path) -> Result<String> {
+    let bytes = weights::files::read_capped(path, MAX_TEXT_BYTES)?;
+    String::from_utf8(bytes).map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", path.display()))
 }
 
 /// The nearest directory at or above `dir` with a Cargo.toml and the results directory.

@@ -4,6 +4,7 @@
 //! - [`nn`]: batched forward, backward, clipping and Adam for the 4-H-H-2 network.
 //! - [`train`]: the Double DQN / DQN loop, replay buffer, learner and evaluation.
 //! - [`run`]: the run directory (metrics, summary, policy files).
+//! - [`outdir`]: output directories written as a unit, replaced only if provably ours.
 //! - [`reproduce`]: the paper's ablations over many seeds, tables and figures.
 //!
 //! Policy files (safetensors in and out, Rust and C source) are the `weights` crate's;
@@ -13,10 +14,12 @@
 //! `#[target_feature]`, and the AVX-512 build's 4-row blocks (`kernels::avx512`) use
 //! intrinsics, each after checking that the CPU has every feature it enables.
 #![deny(unsafe_code)]
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod config;
 #[allow(unsafe_code)]
 pub mod nn;
+pub mod outdir;
 pub mod reproduce;
 pub mod run;
 pub mod train;

@@ -1,4 +1,5 @@
 //! `policy-export`: trains the cart-pole controller and exports it for firmware.
+#![deny(clippy::print_stdout, clippy::print_stderr)]
 
 use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
@@ -9,11 +10,12 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use policy_export::config::{Config, ConfigError, KernelChoice};
-use policy_export::run::{self, Staging, Summary};
+use policy_export::outdir::Staging;
+use policy_export::run::{self, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
 use weights::checkpoint;
-use weights::files::{MAX_POLICY_BYTES, check_output, read_capped, write_atomic};
+use weights::files::{check_io, write_atomic};
 use weights::quant::{self, Granularity};
 use weights::source;
 
@@ -144,7 +146,7 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
     }
     base.validate()?;
     // The output is checked now and written beside, then renamed: all of it or none.
-    let staging = Staging::new(out, &["results.json"])?;
+    let staging = Staging::new(out, "reproduce")?;
     let variants: Vec<_> = all
         .into_iter()
         .filter(|v| studies.is_empty() || studies.iter().any(|s| s == v.study))
@@ -164,7 +166,7 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
         bar.inc(1);
         let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
         if bar.is_hidden() && (n.is_multiple_of((total / 10).max(1)) || n == total) {
-            eprintln!("{n}/{total} runs, {:.0} s", started.elapsed().as_secs_f64());
+            host_common::errln!("{n}/{total} runs, {:.0} s", started.elapsed().as_secs_f64());
         }
     };
     let runs = reproduce::run(&variants, seeds, &tick)?;
@@ -172,8 +174,8 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
     let command = std::env::args().collect::<Vec<_>>().join(" ");
     let rows = reproduce::write(staging.path(), &variants, &runs, &command)?;
     staging.commit()?;
-    print!("{}", reproduce::tables_md(&rows));
-    eprintln!(
+    host_common::out!("{}", reproduce::tables_md(&rows));
+    host_common::errln!(
         "{total} runs in {:.1} s on {} threads; results in {}",
         started.elapsed().as_secs_f64(),
         rayon::current_num_threads(),
@@ -195,13 +197,13 @@ fn main() -> ExitCode {
         } => cmd_reproduce(seeds, &out, &study, kernel),
     };
     match result {
-        Ok(()) => ExitCode::SUCCESS,
+        Ok(()) => host_common::cli::exit(0),
         Err(e) => {
-            eprintln!("error: {e:#}");
+            host_common::errln!("error: {e:#}");
             let input = e.downcast_ref::<ConfigError>().is_some()
                 || e.downcast_ref::<weights::Error>()
                     .is_some_and(weights::Error::is_input);
-            ExitCode::from(if input { 2 } else { 1 })
+            host_common::cli::exit(if input { 2 } else { 1 })
         }
     }
 }
@@ -209,7 +211,7 @@ fn main() -> ExitCode {
 fn cmd_train(args: TrainArgs) -> Result<()> {
     let cfg = build_config(&args)?;
     if args.print_config {
-        print!("{}", toml::to_string(&cfg)?);
+        host_common::out!("{}", toml::to_string(&cfg)?);
         return Ok(());
     }
     if let Some(n) = args.threads {
@@ -227,7 +229,7 @@ fn cmd_train(args: TrainArgs) -> Result<()> {
     let staging = args
         .out
         .as_deref()
-        .map(|d| Staging::new(d, run::RUN_MARKERS))
+        .map(|d| Staging::new(d, "train"))
         .transpose()?;
     let progress = Progress::new(&cfg);
     let one = |seed: u64| {
@@ -359,9 +361,12 @@ impl SeedProgress<'_> {
                 let _g = all.log.lock();
                 // The time left, were the rest as fast as what came before.
                 let eta = e.wall_s * (all.len.saturating_sub(done)) as f64 / done.max(1) as f64;
-                eprintln!(
+                host_common::errln!(
                     "seed {seed} {} {done}/{} ({:.0} s, eta {eta:.0} s): episode {}, {msg}",
-                    all.unit, all.len, e.wall_s, e.episode
+                    all.unit,
+                    all.len,
+                    e.wall_s,
+                    e.episode
                 );
             }
             None => {}
@@ -371,7 +376,7 @@ impl SeedProgress<'_> {
 
 /// One line per seed.
 fn print_summary(s: &Summary) {
-    println!(
+    host_common::outln!(
         "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, policy at {} env \
          steps, greedy eval {:>6.1} (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",
         s.seed,
@@ -391,7 +396,7 @@ fn print_summary(s: &Summary) {
 /// The seeds together, printed and written into the run directory as `aggregate.json`.
 fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<()> {
     let agg = run::aggregate(summaries);
-    println!(
+    host_common::outln!(
         "{} seeds: median final mean100 {:.1}, {} of {} with greedy eval >= 475{}; \
          {} evaluation episodes ({} env steps) chose the policies; median {:.1} s",
         summaries.len(),
@@ -415,26 +420,6 @@ fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<(
     Ok(())
 }
 
-/// Where an exported policy came from: its run's summary, or the file and its layout.
-fn provenance(a: &ExportArgs, import: &checkpoint::Import) -> Result<Vec<String>> {
-    let summary_path = a.src.join("summary.json");
-    if !(a.src.is_dir() && summary_path.is_file()) {
-        return Ok(vec![format!(
-            "source: {} ({})",
-            a.src.file_name().unwrap_or_default().to_string_lossy(),
-            import.describe()
-        )]);
-    }
-    let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
-    let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
-        weights::Error::Input(format!(
-            "{}: not a run summary: {e}",
-            summary_path.display()
-        ))
-    })?;
-    Ok(run::provenance(&s))
-}
-
 fn cmd_export(a: &ExportArgs) -> Result<()> {
     let name = a.name.clone().unwrap_or_else(|| {
         match (a.format, a.quant.is_some()) {
@@ -449,17 +434,15 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         Format::Rust => source::check_rust_name(&name)?,
         Format::C => source::check_c_name(&name)?,
     }
-    let src_file = if a.src.is_dir() {
-        a.src.join("policy.safetensors")
-    } else {
-        a.src.clone()
-    };
-    check_output(&a.out, &[&a.src, &src_file])?;
+    let src_file = checkpoint::policy_file(&a.src);
+    let mut inputs = vec![("SRC", src_file.as_path())];
+    inputs.extend(a.rig.as_deref().map(|r| ("--rig", r)));
+    check_io(&inputs, &[("--out", &a.out)])?;
     let import = checkpoint::load(&a.src, a.prefix.as_deref())?;
     let given = a.rig.as_deref().map(twin::rigfile::load).transpose()?;
     let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
     let rig = machine.rig;
-    let prov = provenance(a, &import)?;
+    let prov = run::source_provenance(&a.src, &import)?;
     let quantised = match a.quant {
         None => None,
         Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(
@@ -480,13 +463,13 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
     };
     write_atomic(&a.out, text.as_bytes())?;
     match &quantised {
-        None => eprintln!(
+        None => host_common::errln!(
             "wrote {}: {name}, {} parameters ({})",
             a.out.display(),
             import.weights.params(),
             import.describe()
         ),
-        Some(q) => eprintln!(
+        Some(q) => host_common::errln!(
             "wrote {}: {name}, {} parameters in {} bytes ({}; {})",
             a.out.display(),
             import.weights.params(),

@@ -5,18 +5,17 @@
 //! array module `firmware` compiles); with `--seeds`, one such directory per seed under
 //! `seed-N/` and `aggregate.json`.
 //!
-//! A run directory is written as a unit: into a hidden sibling first ([`Staging`]), renamed
-//! into place when complete. A killed run leaves the old directory (or none) and a stale
-//! sibling, which the next run removes; never a mix of two runs.
+//! A run directory is written as a unit and replaced only when it is provably this tool's:
+//! [`crate::outdir`].
 
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use anyhow::{Context, Result, bail};
+use anyhow::{Context, Result};
 use host_common::stats::mean;
 use serde::{Deserialize, Serialize};
-use weights::checkpoint::to_safetensors;
-use weights::files::write_atomic;
+use weights::checkpoint::{Import, to_safetensors};
+use weights::files::{MAX_POLICY_BYTES, read_capped, write_atomic};
 use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 use crate::config::Config;
@@ -163,111 +162,24 @@ pub fn provenance(s: &Summary) -> Vec<String> {
     ]
 }
 
-/// Files that mark a directory as a run directory, which a new run may replace.
-pub const RUN_MARKERS: &[&str] = &["summary.json", "aggregate.json"];
-
-/// Checks, before any work, that `dir` can receive a tool's output directory: absent, empty,
-/// or an earlier output of the same kind (holding one of `markers`), which the new output
-/// replaces as a whole.
-pub fn check_output_dir(dir: &Path, markers: &[&str]) -> Result<()> {
-    if dir.file_name().is_none() {
-        bail!(weights::Error::Input(format!(
-            "--out {}: expected a directory name",
-            dir.display()
-        )));
+/// Where an exported policy came from: its run's summary, or the file and its layout.
+pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
+    let summary_path = src.join("summary.json");
+    if !(src.is_dir() && summary_path.is_file()) {
+        return Ok(vec![format!(
+            "source: {} ({})",
+            src.file_name().unwrap_or_default().to_string_lossy(),
+            import.describe()
+        )]);
     }
-    match std::fs::symlink_metadata(dir) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
-        Err(e) => bail!(weights::Error::Input(format!(
-            "--out {}: {e}",
-            dir.display()
-        ))),
-        Ok(m) if !m.is_dir() => bail!(weights::Error::Input(format!(
-            "--out {}: expected a directory (or a new path), found {}",
-            dir.display(),
-            weights::files::kind(&m.file_type())
-        ))),
-        Ok(_) => {
-            let mut entries = std::fs::read_dir(dir)
-                .with_context(|| format!("reading {}", dir.display()))?
-                .peekable();
-            let empty = entries.peek().is_none();
-            if empty || markers.iter().any(|m| dir.join(m).is_file()) {
-                Ok(())
-            } else {
-                bail!(weights::Error::Input(format!(
-                    "--out {}: expected a new path, an empty directory or an earlier output \
-                     (with {}), found a directory with other files; not replacing it",
-                    dir.display(),
-                    markers.join(" or ")
-                )))
-            }
-        }
-    }
-}
-
-/// A run directory being written: a hidden sibling of the destination, renamed over it by
-/// [`Staging::commit`], removed if dropped uncommitted.
-pub struct Staging {
-    tmp: PathBuf,
-    dest: PathBuf,
-    markers: &'static [&'static str],
-}
-
-impl Staging {
-    /// A fresh staging directory for `dest`, which must pass [`check_output_dir`] with
-    /// `markers`; stale ones of killed runs are removed first.
-    pub fn new(dest: &Path, markers: &'static [&'static str]) -> Result<Staging> {
-        check_output_dir(dest, markers)?;
-        let parent = match dest.parent() {
-            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
-            _ => PathBuf::from("."),
-        };
-        std::fs::create_dir_all(&parent)
-            .with_context(|| format!("creating {}", parent.display()))?;
-        let name = dest
-            .file_name()
-            .unwrap_or_default()
-            .to_string_lossy()
-            .into_owned();
-        weights::files::remove_stale(dest, &["partial", "old"]);
-        let tmp = parent.join(format!(".{name}.{}.partial", std::process::id()));
-        let _ = std::fs::remove_dir_all(&tmp);
-        std::fs::create_dir(&tmp).with_context(|| format!("creating {}", tmp.display()))?;
-        Ok(Staging {
-            tmp,
-            dest: dest.to_path_buf(),
-            markers,
-        })
-    }
-
-    /// Where to write the run's files.
-    pub fn path(&self) -> &Path {
-        &self.tmp
-    }
-
-    /// Puts the finished directory in place of the destination.
-    pub fn commit(self) -> Result<()> {
-        check_output_dir(&self.dest, self.markers)?;
-        let old = self.tmp.with_extension("old");
-        let had_old = self.dest.exists();
-        if had_old {
-            std::fs::rename(&self.dest, &old)
-                .with_context(|| format!("moving {} aside", self.dest.display()))?;
-        }
-        std::fs::rename(&self.tmp, &self.dest)
-            .with_context(|| format!("renaming onto {}", self.dest.display()))?;
-        if had_old {
-            std::fs::remove_dir_all(&old).with_context(|| format!("removing {}", old.display()))?;
-        }
-        Ok(())
-    }
-}
-
-impl Drop for Staging {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.tmp);
-    }
+    let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
+    let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
+        weights::Error::Input(format!(
+            "{}: not a run summary: {e}",
+            summary_path.display()
+        ))
+    })?;
+    Ok(provenance(&s))
 }
 
 /// The configuration a policy file records: everything its weights depend on. The kernel
@@ -281,7 +193,8 @@ fn weights_config(cfg: &Config) -> Result<String> {
     Ok(serde_json::to_string(&v)?)
 }
 
-/// Writes one run's files into `dir` (a [`Staging`] path or one of its `seed-N`).
+/// Writes one run's files into `dir` (a [`crate::outdir::Staging`] path or one of its
+/// `seed-N`).
 pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<Summary> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let summary = summarize(cfg, seed, r);

@@ -126,59 +126,80 @@ fn outputs_that_are_not_the_tools_are_refused_before_the_work() {
     let f = file.to_str().unwrap();
     refused(
         &["train", "--seeds", "0..3", "--out", f],
-        "expected a directory (or a new path), found",
+        "not replacing it: it is a regular file",
     );
     refused(
         &["reproduce", "--seeds", "2", "--out", f],
-        "expected a directory (or a new path), found",
+        "not replacing it: it is a regular file",
     );
-    refused(&["train", "--out", "/dev/null"], "found a device");
+    refused(&["train", "--out", "/dev/null"], "it is a device");
+    // A directory of someone else's, even one with a file named as a run's.
     let foreign = dir.join("photos");
     std::fs::create_dir(&foreign).unwrap();
     std::fs::write(foreign.join("cat.jpg"), b"meow").unwrap();
-    refused(
-        &["train", "--out", foreign.to_str().unwrap()],
-        "found a directory with other files",
-    );
+    std::fs::write(foreign.join("summary.json"), b"{}").unwrap();
+    for args in [
+        &["train", "--episodes", "1", "--out"][..],
+        &["train", "--episodes", "1", "--seeds", "0..2", "--out"],
+        &["reproduce", "--seeds", "2", "--study", "table4", "--out"],
+    ] {
+        let mut args = args.to_vec();
+        args.push(foreign.to_str().unwrap());
+        refused(&args, "holds no .cartpole-run marker");
+    }
     assert_eq!(std::fs::read(&file).unwrap(), b"mine");
     assert_eq!(std::fs::read(foreign.join("cat.jpg")).unwrap(), b"meow");
+    assert_eq!(std::fs::read(foreign.join("summary.json")).unwrap(), b"{}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-#[test]
-fn a_run_directory_is_replaced_whole_and_stale_stagings_are_removed() {
-    let dir = scratch("whole");
-    let out = dir.join("run");
-    // What a killed run of a process that no longer exists leaves behind.
-    let stale = dir.join(".run.4000000000.partial");
-    std::fs::create_dir(&stale).unwrap();
-    std::fs::write(stale.join("summary.json"), b"{}").unwrap();
-    let train = |seed: &str| {
-        let o = run(&[
-            "train",
-            "--episodes",
-            "5",
-            "--seed",
-            seed,
-            "--out",
-            out.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        std::fs::read(out.join("policy.safetensors")).unwrap()
-    };
-    let first = train("1");
-    std::fs::write(out.join("cartpole_policy.h"), b"an export of the first run").unwrap();
-    let second = train("2");
-    assert_ne!(first, second);
-    let mut names: Vec<String> = std::fs::read_dir(&out)
+fn names(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
         .collect();
     names.sort();
-    // The second run replaced the whole directory: no file of the first is left in it.
+    names
+}
+
+#[test]
+fn a_run_directory_is_replaced_whole_only_while_it_holds_only_the_runs_files() {
+    let dir = scratch("whole");
+    let out = dir.join("run");
+    let o = out.to_str().unwrap();
+    // What killed runs of processes that no longer exist leave behind: one marked as this
+    // tool's staging (removed), one not (kept: nothing shows it is ours).
+    let marker = r#"{"tool":"policy-export","version":"0","kind":"train","files":[]}"#;
+    let stale = dir.join(".run.4000000000.partial");
+    std::fs::create_dir(&stale).unwrap();
+    std::fs::write(stale.join(".cartpole-run"), marker).unwrap();
+    let unmarked = dir.join(".run.4000000001.partial");
+    std::fs::create_dir(&unmarked).unwrap();
+    std::fs::write(unmarked.join("summary.json"), b"{}").unwrap();
+    let train = |seed: &str| {
+        let o = run(&["train", "--episodes", "5", "--seed", seed, "--out", o]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::read(out.join("policy.safetensors")).unwrap()
+    };
+    let first = train("1");
+    // A file the user put in the run directory makes it theirs.
+    std::fs::write(out.join("cartpole_policy.h"), b"an export of the first run").unwrap();
+    refused(
+        &["train", "--episodes", "5", "--out", o],
+        "holds 1 entry policy-export did not write (\"cartpole_policy.h\")",
+    );
     assert_eq!(
-        names,
+        std::fs::read(out.join("policy.safetensors")).unwrap(),
+        first
+    );
+    std::fs::remove_file(out.join("cartpole_policy.h")).unwrap();
+    let second = train("2");
+    assert_ne!(first, second);
+    // The second run replaced the whole directory.
+    assert_eq!(
+        names(&out),
         [
+            ".cartpole-run",
             "metrics.csv",
             "policy.rs",
             "policy.safetensors",
@@ -188,11 +209,17 @@ fn a_run_directory_is_replaced_whole_and_stale_stagings_are_removed() {
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["seed"], 2);
-    let left: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name())
-        .collect();
-    assert_eq!(left, ["run"], "stale staging left behind");
+    assert_eq!(names(&dir), [".run.4000000001.partial", "run"]);
+    // Another tool's marker, or another kind's, is not this run's.
+    std::fs::write(
+        out.join(".cartpole-run"),
+        marker.replace("train", "reproduce"),
+    )
+    .unwrap();
+    refused(
+        &["train", "--episodes", "5", "--out", o],
+        "marks an output of \"policy-export\" \"reproduce\", not of policy-export train",
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

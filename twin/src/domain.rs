@@ -189,6 +189,10 @@ mod tests {
             ("length", "length needs a value"),
             ("length=2..1", "needs LO..HI with LO <= HI"),
             ("wind=1", "unknown part"),
+            (
+                "nominal+length=1.1",
+                "expected nominal alone (no parts) or parts joined by +",
+            ),
             ("noise=0..1@2", "needs a share in [0, 1]"),
             (
                 "delay=0..40",

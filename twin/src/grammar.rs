@@ -320,6 +320,12 @@ pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
     if spec.is_empty() || spec == "nominal" {
         return Ok(Vec::new());
     }
+    if spec.split('+').any(|raw| raw == "nominal") {
+        return Err(format!(
+            "{what} {shown}: expected nominal alone (no parts) or parts joined by +, found \
+             nominal joined with parts"
+        ));
+    }
     spec.split('+')
         .map(|raw| parse_part(raw).map_err(|e| format!("{what} {shown}: {e}")))
         .collect()

@@ -74,14 +74,20 @@ fn show_prefix(p: &str) -> String {
     }
 }
 
-/// Reads the checkpoint at `path` (a `.safetensors` file, or a run directory's
-/// `policy.safetensors`) and finds its network; `prefix` chooses among several.
-pub fn load(path: &Path, prefix: Option<&str>) -> Result<Import> {
-    let file = if path.is_dir() {
+/// The file a policy argument names: `path` itself, or a run directory's
+/// `policy.safetensors`.
+pub fn policy_file(path: &Path) -> std::path::PathBuf {
+    if path.is_dir() {
         path.join("policy.safetensors")
     } else {
         path.to_path_buf()
-    };
+    }
+}
+
+/// Reads the checkpoint at `path` (a `.safetensors` file, or a run directory's
+/// `policy.safetensors`) and finds its network; `prefix` chooses among several.
+pub fn load(path: &Path, prefix: Option<&str>) -> Result<Import> {
+    let file = policy_file(path);
     let bytes = read_capped(&file, MAX_POLICY_BYTES)?;
     import(&bytes, prefix).map_err(|e| match e {
         Error::Input(m) => Error::Input(format!("{}: {m}", file.display())),
@@ -156,6 +162,7 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         Error::Input(m) => Error::Input(rename(&m, &own)),
         other => other,
     })?;
+    weights.check_outputs()?;
     Ok(Import {
         weights,
         prefix: pre.to_string(),

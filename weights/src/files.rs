@@ -25,9 +25,17 @@ fn open_regular(path: &Path) -> Result<File> {
         // returns at once and the type check below refuses it.
         opts.custom_flags(libc::O_NONBLOCK);
     }
-    let file = opts
-        .open(path)
-        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+    let file = opts.open(path).map_err(|e| {
+        // A socket cannot be opened at all: say what it is rather than the system's word.
+        Error::Input(match std::fs::metadata(path) {
+            Ok(m) if !m.is_file() => format!(
+                "{}: expected a regular file, found {}",
+                path.display(),
+                kind(&m.file_type())
+            ),
+            _ => format!("{}: {e}", path.display()),
+        })
+    })?;
     let meta = file
         .metadata()
         .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
@@ -57,7 +65,7 @@ pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
     Ok(bytes)
 }
 
-/// What a non-regular file is, for messages: "a FIFO", "a device", "a directory", ...
+/// What a file is, for messages: "a regular file", "a FIFO", "a device", "a directory", ...
 pub fn kind(t: &std::fs::FileType) -> &'static str {
     #[cfg(unix)]
     {
@@ -72,7 +80,9 @@ pub fn kind(t: &std::fs::FileType) -> &'static str {
             return "a socket";
         }
     }
-    if t.is_dir() {
+    if t.is_file() {
+        "a regular file"
+    } else if t.is_dir() {
         "a directory"
     } else if t.is_symlink() {
         "a symbolic link"
@@ -81,9 +91,87 @@ pub fn kind(t: &std::fs::FileType) -> &'static str {
     }
 }
 
+/// Checks, before the work, every input a command will read and every output it will write,
+/// each given with the flag or argument that named it (for the message): each input a
+/// regular file this process can open ([`check_input`]), each output a path
+/// [`check_output`] accepts against every input. The first refusal is returned, prefixed by
+/// its flag; nothing is read or written but a probe of each output's place.
+pub fn check_io(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<()> {
+    let labelled = |label: &str, e: Error| match e {
+        Error::Input(m) => Error::Input(format!("{label} {m}")),
+        other => other,
+    };
+    for (label, path) in inputs {
+        check_input(path).map_err(|e| labelled(label, e))?;
+    }
+    let all: Vec<&Path> = inputs.iter().map(|(_, p)| *p).collect();
+    for (label, path) in outputs {
+        check_output(path, &all).map_err(|e| labelled(label, e))?;
+    }
+    Ok(())
+}
+
+/// Checks that `path` can be read: a regular file this process can open (without blocking,
+/// so a FIFO is refused, not waited on).
+pub fn check_input(path: &Path) -> Result<()> {
+    open_regular(path).map(drop)
+}
+
+/// Checks that something can be created at `path`: its nearest existing ancestor is a
+/// directory in which this process can create an entry. Permissions cannot tell (root
+/// ignores them; a read-only mount or `/proc` refuses anyway), so it is tried: a hidden
+/// `.NAME.PID.probe` is created there and removed at once.
+pub fn check_place(path: &Path) -> Result<()> {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    for dir in path.ancestors().skip(1) {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        let meta = match std::fs::metadata(dir) {
+            Ok(m) => m,
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                continue;
+            }
+            Err(e) => return Err(Error::Input(format!("{}: {e}", dir.display()))),
+        };
+        if !meta.is_dir() {
+            return Err(Error::Input(format!(
+                "{}: expected {} to be a directory, found {}",
+                path.display(),
+                dir.display(),
+                kind(&meta.file_type())
+            )));
+        }
+        let probe = dir.join(format!(".{name}.{}.probe", std::process::id()));
+        return std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&probe)
+            .map(|_| {
+                let _ = std::fs::remove_file(&probe);
+            })
+            .map_err(|e| {
+                Error::Input(format!(
+                    "{}: expected a directory this process can write in, but {} refuses: {e}",
+                    path.display(),
+                    dir.display()
+                ))
+            });
+    }
+    Ok(())
+}
+
 /// Checks that `path` can be an output: absent, or a regular file (which will be replaced),
-/// and not the same file as any of `inputs`. Call it before the work that produces the
-/// output, so a bad `--out` costs nothing.
+/// not the same file as any of `inputs`, in a place this process can write
+/// ([`check_place`]). Call it before the work that produces the output, so a bad `--out`
+/// costs nothing.
 pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
     if path.file_name().is_none() {
         return Err(Error::Input(format!(
@@ -92,7 +180,12 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
         )));
     }
     match std::fs::symlink_metadata(path) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        // A missing parent, or a file where one should be: check_place says which.
+        Err(e)
+            if matches!(
+                e.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) => {}
         Err(e) => return Err(Error::Input(format!("{}: {e}", path.display()))),
         Ok(meta) if !meta.is_file() => {
             return Err(Error::Input(format!(
@@ -112,7 +205,7 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
             )));
         }
     }
-    Ok(())
+    check_place(path)
 }
 
 fn same_file(a: &Path, b: &Path) -> bool {
@@ -155,11 +248,23 @@ pub fn pid_alive(pid: u32) -> bool {
         || Path::new(&format!("/proc/{pid}")).exists()
 }
 
-/// Removes what killed writers left beside `path`: entries `.NAME.PID.SUFFIX` (for each of
-/// `suffixes`) whose process is gone.
+/// Removes what killed writers left beside `path`: regular files `.NAME.PID.SUFFIX` (for
+/// each of `suffixes`) whose process is gone. Directories are never removed here: a writer
+/// of directories proves each is its own first ([`stale`] finds them).
 pub fn remove_stale(path: &Path, suffixes: &[&str]) {
+    for p in stale(path, suffixes) {
+        if std::fs::symlink_metadata(&p).is_ok_and(|m| m.is_file()) {
+            let _ = std::fs::remove_file(&p);
+        }
+    }
+}
+
+/// The entries `.NAME.PID.SUFFIX` beside `path` (for each of `suffixes`) whose process is
+/// gone: what killed writers of `path` left.
+pub fn stale(path: &Path, suffixes: &[&str]) -> Vec<PathBuf> {
+    let mut found = Vec::new();
     let (Some(name), Some(dir)) = (path.file_name(), path.parent()) else {
-        return;
+        return found;
     };
     let dir = if dir.as_os_str().is_empty() {
         Path::new(".")
@@ -168,7 +273,7 @@ pub fn remove_stale(path: &Path, suffixes: &[&str]) {
     };
     let prefix = format!(".{}.", name.to_string_lossy());
     let Ok(entries) = std::fs::read_dir(dir) else {
-        return;
+        return found;
     };
     for e in entries.flatten() {
         let file = e.file_name().to_string_lossy().into_owned();
@@ -176,10 +281,10 @@ pub fn remove_stale(path: &Path, suffixes: &[&str]) {
             continue;
         };
         if suffixes.contains(&suffix) && pid.parse().is_ok_and(|p| !pid_alive(p)) {
-            let p = e.path();
-            let _ = std::fs::remove_file(&p).or_else(|_| std::fs::remove_dir_all(&p));
+            found.push(e.path());
         }
     }
+    found
 }
 
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so
@@ -193,7 +298,8 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::Io(format!("creating {}: {e}", dir.display())))?;
-    remove_stale(path, &["tmp"]);
+    // A killed writer's temporary, or a probe of check_place.
+    remove_stale(path, &["tmp", "probe"]);
     let tmp = temp_path(path);
     std::fs::write(&tmp, bytes)
         .and_then(|()| std::fs::rename(&tmp, path))
@@ -235,6 +341,8 @@ mod tests {
             Path::new(&format!("d/.episode.png.{}.tmp.png", std::process::id()))
         );
         let dead = dir.join(".policy.rs.4000000000.tmp");
+        let probe = dir.join(".policy.rs.4000000000.probe");
+        std::fs::write(&probe, b"").unwrap();
         // PID 1 (init) always runs.
         let live = dir.join(".policy.rs.1.tmp");
         let other = dir.join(".other.rs.4000000000.tmp");
@@ -243,6 +351,7 @@ mod tests {
         }
         write_atomic(&p, b"whole").unwrap();
         assert_eq!(dead.exists(), !Path::new("/proc/self").exists());
+        assert_eq!(probe.exists(), !Path::new("/proc/self").exists());
         assert!(live.exists() && other.exists());
         std::fs::remove_dir_all(&dir).unwrap();
     }
@@ -267,6 +376,50 @@ mod tests {
         assert!(check_output(&other, &[&input]).is_err());
         assert!(check_output(&dir.join("new.rs"), &[&input]).is_ok());
         assert_eq!(std::fs::read(&input).unwrap(), b"weights");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn inputs_and_places_are_checked_with_their_flags_before_any_work() {
+        let dir = scratch("io");
+        let (input, file) = (dir.join("in.bin"), dir.join("file"));
+        std::fs::write(&input, b"w").unwrap();
+        std::fs::write(&file, b"mine").unwrap();
+        let ok = check_io(
+            &[("SRC", &input)],
+            &[("--out", &dir.join("new/deeper/out.rs"))],
+        );
+        ok.unwrap();
+        type Paths<'a> = &'a [(&'a str, &'a Path)];
+        let cases: [(Paths, Paths, &str); 4] = [
+            (&[("SRC", &dir)], &[], "SRC "),
+            (
+                &[],
+                &[("--out", &file.join("x.rs"))],
+                "found a regular file",
+            ),
+            (
+                &[],
+                &[("--out", Path::new("/proc/cartpole/x.rs"))],
+                "refuses",
+            ),
+            (
+                &[("SRC", &input)],
+                &[("--out", &input)],
+                "would overwrite the input",
+            ),
+        ];
+        for (inputs, outputs, want) in cases {
+            let e = check_io(inputs, outputs).unwrap_err();
+            assert!(e.is_input() && e.to_string().contains(want), "{e}");
+        }
+        // Nothing was created, not even the probe.
+        let mut left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        left.sort();
+        assert_eq!(left, ["file", "in.bin"]);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 

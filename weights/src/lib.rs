@@ -140,6 +140,45 @@ impl Weights {
     pub fn params(&self) -> usize {
         firmware::network::params(self.width)
     }
+
+    /// Checks that the network's Q-values are finite on [`probe_states`]: finite weights can
+    /// still overflow f32 on the way (weights of 1e30 do), and a policy whose every output
+    /// is infinite or NaN decides nothing.
+    pub fn check_outputs(&self) -> Result<()> {
+        struct Probe<'a>(&'a Weights);
+        impl width::ForWidth for Probe<'_> {
+            type Output = Result<()>;
+            fn run<const H: usize>(self) -> Result<()> {
+                let net = self.0.to_mlp::<H>()?;
+                for obs in probe_states() {
+                    let q = net.forward(&obs);
+                    if !q.iter().all(|v| v.is_finite()) {
+                        return Err(Error::Input(format!(
+                            "expected finite Q-values on the start states and a grid of the \
+                             track, found {q:?} at state {obs:?}: the weights overflow f32"
+                        )));
+                    }
+                }
+                Ok(())
+            }
+        }
+        width::by_width(self.width, Probe(self))?
+    }
+}
+
+/// The states a policy is checked on before it is used or exported: the corners of
+/// Gymnasium's start box (every variable within 0.05 of zero), and a grid of the track's
+/// and the angle's limits and zero with velocities of -2, 0 and 2 (m/s and rad/s).
+pub fn probe_states() -> impl Iterator<Item = [f32; 4]> {
+    let p = firmware::cartpole::GYMNASIUM;
+    let (x, th) = (p.x_threshold as f32, p.theta_threshold_radians as f32);
+    let corners =
+        (0..16).map(|i: u32| core::array::from_fn(|k| if i >> k & 1 == 1 { 0.05 } else { -0.05 }));
+    let grid = (0..81).map(move |i: u32| {
+        let level = |k: u32| (i / 3u32.pow(k) % 3) as f32 - 1.0;
+        [level(0) * x, level(1) * 2.0, level(2) * th, level(3) * 2.0]
+    });
+    corners.chain(grid)
 }
 
 #[cfg(test)]
@@ -160,6 +199,27 @@ mod tests {
         nan[4][7] = f32::NAN;
         let e = Weights::new(16, nan).unwrap_err().to_string();
         assert!(e.contains("`fc3.weight`: element 7 is NaN"), "{e}");
+    }
+
+    #[test]
+    fn outputs_that_overflow_are_refused() {
+        let ok = shapes(16).map(|s| vec![0.5; s.len()]);
+        Weights::new(16, ok.clone())
+            .unwrap()
+            .check_outputs()
+            .unwrap();
+        // Each weight is finite; the first layer's outputs (about 1e38 at the track's end)
+        // overflow in the second.
+        let mut huge = ok;
+        huge[0].fill(1e38);
+        huge[2].fill(1e38);
+        let w = Weights::new(16, huge).unwrap();
+        let e = w.check_outputs().unwrap_err();
+        assert!(
+            e.is_input() && e.to_string().contains("expected finite Q-values"),
+            "{e}"
+        );
+        assert_eq!(probe_states().count(), 97);
     }
 
     #[test]

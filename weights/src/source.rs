@@ -17,100 +17,19 @@ use std::fmt::Write;
 use firmware::network::{TENSOR_NAMES, shapes};
 use firmware::rig::Rig;
 
-use crate::{Error, Result, Weights, quote};
+use crate::{Result, Weights};
 
 mod c_rig;
+mod comment;
+mod names;
 pub use c_rig::{c_rig_item, c_rig_struct};
+pub use comment::{COMMENT_MAX, comment_text};
+pub use names::{MAX_NAME_CHARS, c_guard, check_c_name, check_rust_name};
 
 /// The static's name when none is given: `POLICY` in Rust, `cartpole_policy` in C.
 pub const DEFAULT_RUST_NAME: &str = "POLICY";
 /// See [`DEFAULT_RUST_NAME`].
 pub const DEFAULT_C_NAME: &str = "cartpole_policy";
-
-/// Checks a Rust static's name: upper case, digits and underscores, not starting with a
-/// digit (what `non_upper_case_globals` accepts), and not a keyword.
-pub fn check_rust_name(name: &str) -> Result<()> {
-    let ok = name.starts_with(|c: char| c.is_ascii_uppercase() || c == '_')
-        && name
-            .chars()
-            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
-        && name != "_"
-        && name != "Self";
-    if ok {
-        Ok(())
-    } else {
-        Err(Error::Input(format!(
-            "--name: expected a Rust static's name (upper case, digits, `_`, e.g. POLICY), found {}",
-            quote(name)
-        )))
-    }
-}
-
-/// Checks a C identifier for the header's object: letters, digits and underscores, not
-/// starting with a digit, not a C keyword, not reserved (`_` followed by a capital or `_`).
-pub fn check_c_name(name: &str) -> Result<()> {
-    const KEYWORDS: [&str; 44] = [
-        "auto",
-        "break",
-        "case",
-        "char",
-        "const",
-        "continue",
-        "default",
-        "do",
-        "double",
-        "else",
-        "enum",
-        "extern",
-        "float",
-        "for",
-        "goto",
-        "if",
-        "inline",
-        "int",
-        "long",
-        "register",
-        "restrict",
-        "return",
-        "short",
-        "signed",
-        "sizeof",
-        "static",
-        "struct",
-        "switch",
-        "typedef",
-        "union",
-        "unsigned",
-        "void",
-        "volatile",
-        "while",
-        "_Bool",
-        "_Complex",
-        "_Imaginary",
-        "_Alignas",
-        "_Alignof",
-        "_Atomic",
-        "_Generic",
-        "_Noreturn",
-        "_Static_assert",
-        "_Thread_local",
-    ];
-    let b = name.as_bytes();
-    let ok = b
-        .first()
-        .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
-        && b.iter().all(|c| c.is_ascii_alphanumeric() || *c == b'_')
-        && !(b.len() >= 2 && b[0] == b'_' && (b[1] == b'_' || b[1].is_ascii_uppercase()))
-        && !KEYWORDS.contains(&name);
-    if ok {
-        Ok(())
-    } else {
-        Err(Error::Input(format!(
-            "--name: expected a C identifier (letters, digits, `_`, e.g. cartpole_policy), found {}",
-            quote(name)
-        )))
-    }
-}
 
 /// The Rust module: `pub static NAME: ::firmware::network::Mlp<H>`, with a doc header that
 /// says what it is, how to use it and where it came from (`provenance`, one line each), and
@@ -132,7 +51,7 @@ pub fn rust_module(w: &Weights, name: &str, provenance: &[String], rig: &Rig) ->
     if !provenance.is_empty() {
         s.push_str("//!\n");
         for line in provenance {
-            let _ = writeln!(s, "//! - {line}");
+            let _ = writeln!(s, "//! - {}", comment_text(line));
         }
     }
     let _ = writeln!(
@@ -254,7 +173,7 @@ pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Re
     let h = w.width();
     let init = format!("cartpole_controller_init_mlp{h}");
     let rig_item = c_rig_item(name, rig, &init)?;
-    let guard = format!("CARTPOLE_POLICY_{}_H", name.to_ascii_uppercase());
+    let guard = c_guard(name);
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -269,7 +188,7 @@ pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Re
          * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]."
     );
     for line in provenance {
-        let _ = writeln!(s, " * - {line}");
+        let _ = writeln!(s, " * - {}", comment_text(line));
     }
     let _ = writeln!(s, " */\n#ifndef {guard}\n#define {guard}\n");
     s.push_str(&c_struct(h));
@@ -321,28 +240,101 @@ fn push_list(s: &mut String, values: &[f32], suffix: &str) {
 mod tests {
     use super::*;
 
+    /// Provenance lines no comment can hold as they are.
+    const HOSTILE: [&str; 12] = [
+        "a.safetensors\npub fn leaked() {}",
+        "b\r\n#define leaked 1",
+        "c */ int leaked = 1; /*",
+        "d /* nested",
+        "e\0nul",
+        "f\u{2028}pub fn leaked() {}\u{2029}",
+        "g \\",
+        "h ??/",
+        "i // line",
+        "j \u{feff}\u{202e}bidi",
+        "*/",
+        "",
+    ];
+
+    /// `text` with the provenance lines (`prefix` then the line) removed, and those lines.
+    fn split(text: &str, prefix: &str) -> (Vec<String>, Vec<String>) {
+        let (prov, rest): (Vec<&str>, Vec<&str>) =
+            text.lines().partition(|l| l.starts_with(prefix));
+        let own = |v: Vec<&str>| v.into_iter().map(String::from).collect();
+        (own(rest), own(prov))
+    }
+
     #[test]
-    fn names_are_checked_for_each_language() {
-        for ok in ["POLICY", "BALANCE_V2", "_P"] {
-            check_rust_name(ok).unwrap();
-        }
-        for bad in ["policy", "2FAST", "", "_", "A-B", "POLICY;fn"] {
-            let e = check_rust_name(bad).unwrap_err();
-            assert!(e.is_input() && e.to_string().contains("--name"), "{bad}");
-        }
-        for ok in ["cartpole_policy", "P", "_p", "w64"] {
-            check_c_name(ok).unwrap();
-        }
-        for bad in ["int", "static", "__x", "_X", "9a", "a b", "", "a;b"] {
-            assert!(check_c_name(bad).is_err(), "{bad}");
+    fn hostile_provenance_stays_in_one_comment_line_and_the_code_is_unchanged() {
+        let w = Weights::new(16, shapes(16).map(|s| vec![0.25; s.len()])).unwrap();
+        let rig = Rig::GYMNASIUM;
+        let long = "x".repeat(100_000);
+        let mut hostile: Vec<String> = HOSTILE.iter().map(|s| s.to_string()).collect();
+        hostile.push(long);
+        let benign = vec!["source: plain".to_string(); hostile.len()];
+        for (text, plain, prefix) in [
+            (
+                rust_module(&w, "POLICY", &hostile, &rig).unwrap(),
+                rust_module(&w, "POLICY", &benign, &rig).unwrap(),
+                "//! - ",
+            ),
+            (
+                c_header(&w, "balance", &hostile, &rig).unwrap(),
+                c_header(&w, "balance", &benign, &rig).unwrap(),
+                " * - ",
+            ),
+        ] {
+            let (code, prov) = split(&text, prefix);
+            assert_eq!(code, split(&plain, prefix).0, "code changed");
+            assert_eq!(prov.len(), hostile.len());
+            for line in &prov {
+                assert!(line.len() < COMMENT_MAX + 20, "{} bytes", line.len());
+                assert!(line.bytes().all(|b| (b' '..=b'~').contains(&b)), "{line}");
+                let inner = &line[prefix.len()..];
+                for seq in ["*/", "/*", "//", "??"] {
+                    assert!(!inner.contains(seq), "{seq} in {line}");
+                }
+            }
         }
     }
 
     #[test]
-    fn a_long_bad_name_is_quoted_short() {
-        let e = check_rust_name(&"x".repeat(100_000))
-            .unwrap_err()
-            .to_string();
-        assert!(e.len() < 400, "{}", e.len());
+    fn a_header_with_hostile_provenance_compiles_and_leaks_nothing() {
+        let w = Weights::new(16, shapes(16).map(|s| vec![0.25; s.len()])).unwrap();
+        let prov: Vec<String> = HOSTILE.iter().map(|s| s.to_string()).collect();
+        let dir = std::env::temp_dir().join(format!("weights-comment-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        for name in ["balance", "Balance"] {
+            let h = c_header(&w, name, &prov, &Rig::GYMNASIUM).unwrap();
+            std::fs::write(dir.join(format!("{name}.h")), h).unwrap();
+        }
+        // `leaked` would be defined twice if any text became code; both headers compile
+        // together, their names differing only in case.
+        let main = dir.join("main.c");
+        std::fs::write(
+            &main,
+            "#include \"balance.h\"\n#include \"Balance.h\"\nstatic const int leaked = 2;\n\
+             int main(void) { return (int)balance.fc3_bias[0] + (int)Balance_rig.tau + leaked; }\n",
+        )
+        .unwrap();
+        let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+        let out = std::process::Command::new(&cc)
+            .args([
+                "-std=c99",
+                "-pedantic",
+                "-Wall",
+                "-Wextra",
+                "-Werror",
+                "-fsyntax-only",
+            ])
+            .arg(&main)
+            .output()
+            .unwrap_or_else(|e| panic!("running {cc}: {e}"));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }

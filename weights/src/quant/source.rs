@@ -9,6 +9,7 @@ use firmware::rig::Rig;
 
 use super::Quantised;
 use crate::Result;
+use crate::source::comment_text;
 
 /// One field's values, for the source writers.
 enum Values<'a> {
@@ -112,9 +113,9 @@ pub fn rust_module(q: &Quantised, name: &str, provenance: &[String], rig: &Rig) 
         q.q_scale
     );
     for line in provenance {
-        let _ = writeln!(s, "//! - {line}");
+        let _ = writeln!(s, "//! - {}", comment_text(line));
     }
-    let _ = writeln!(s, "//! - {}", q.describe());
+    let _ = writeln!(s, "//! - {}", comment_text(&q.describe()));
     let _ = writeln!(
         s,
         "\n/// {} bytes of flash (int8 weights, int32 biases, a requantisation per hidden unit).",
@@ -171,7 +172,7 @@ pub fn c_header(q: &Quantised, name: &str, provenance: &[String], rig: &Rig) -> 
     let h = q.width;
     let init = format!("cartpole_controller_init_qmlp{h}");
     let rig_item = crate::source::c_rig_item(name, rig, &init)?;
-    let guard = format!("CARTPOLE_POLICY_{}_H", name.to_ascii_uppercase());
+    let guard = crate::source::c_guard(name);
     let mut s = String::new();
     let _ = writeln!(
         s,
@@ -187,9 +188,9 @@ pub fn c_header(q: &Quantised, name: &str, provenance: &[String], rig: &Rig) -> 
         q.q_scale
     );
     for line in provenance {
-        let _ = writeln!(s, " * - {line}");
+        let _ = writeln!(s, " * - {}", comment_text(line));
     }
-    let _ = writeln!(s, " * - {}", q.describe());
+    let _ = writeln!(s, " * - {}", comment_text(&q.describe()));
     let _ = writeln!(s, " */\n#ifndef {guard}\n#define {guard}\n");
     s.push_str(&c_struct(h));
     s.push('\n');

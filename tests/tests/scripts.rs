@@ -1,0 +1,296 @@
+//! The Python scripts (`scripts/gymnasium_check.py`, `scripts/count_insns.py`) against
+//! hostile input: each refusal exits 2 within seconds with one line naming what was expected,
+//! and no traceback. Every check here comes before the scripts import NumPy, Gymnasium or
+//! Unicorn, so it runs with python3 alone; skipped only where python3 is absent. The
+//! emulator's instruction cap is checked too where Unicorn is installed.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+use e2e::repo;
+
+fn python() -> Option<&'static str> {
+    let ok = Command::new("python3")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    ok.then_some("python3")
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("scripts-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// Runs `script` with `args`, killed after 20 s; its exit status and standard error.
+fn run(py: &str, script: &str, args: &[&str], cwd: &Path) -> (Option<i32>, String, Duration) {
+    let err = cwd.join(".stderr");
+    let started = Instant::now();
+    let mut child = Command::new(py)
+        .arg(repo().join("scripts").join(script))
+        .args(args)
+        .current_dir(cwd)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .spawn()
+        .unwrap();
+    let status = loop {
+        if let Some(s) = child.try_wait().unwrap() {
+            break s.code();
+        }
+        if started.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            let _ = child.wait();
+            break None;
+        }
+        std::thread::sleep(Duration::from_millis(5));
+    };
+    let said = std::fs::read_to_string(&err).unwrap_or_default();
+    (status, said, started.elapsed())
+}
+
+/// Exit 2 within seconds, one line with `want`, no traceback.
+fn refused(py: &str, script: &str, args: &[&str], cwd: &Path, want: &str) {
+    let (code, err, took) = run(py, script, args, cwd);
+    let seen = format!("{script} {args:?}: exit {code:?} after {took:?}: {err}");
+    assert_eq!(code, Some(2), "{seen}");
+    assert!(took < Duration::from_secs(10), "{seen}");
+    assert!(err.contains(want) && !err.contains("Traceback"), "{seen}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{seen}");
+}
+
+/// Files no script may read as they are: a FIFO (which blocked), a device (read until
+/// memory ran out), a missing file, a directory.
+fn bad_files(dir: &Path) -> [(String, &'static str); 4] {
+    let fifo = dir.join("fifo");
+    assert!(
+        Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    [
+        (
+            fifo.display().to_string(),
+            "expected a regular file, found a FIFO",
+        ),
+        (
+            "/dev/zero".into(),
+            "expected a regular file, found a device",
+        ),
+        (dir.join("missing").display().to_string(), "No such file"),
+        (dir.display().to_string(), "found a directory"),
+    ]
+}
+
+#[test]
+fn gymnasium_check_refuses_bad_files_counts_and_headers() {
+    let Some(py) = python() else {
+        eprintln!("skipped: no python3");
+        return;
+    };
+    let dir = scratch("gym");
+    let script = "gymnasium_check.py";
+    for (path, want) in bad_files(&dir) {
+        refused(py, script, &["--policy", &path], &dir, want);
+    }
+    let counts: [(&[&str], &str); 6] = [
+        (
+            &["--episodes", "1000000000000"],
+            "expected an integer in [1, 1000000]",
+        ),
+        (&["--episodes", "0"], "expected an integer in [1, 1000000]"),
+        (&["--max-steps", "x"], "expected an integer, found 'x'"),
+        (&["--seed", "-1"], "expected an integer in [0, 4294967295]"),
+        (
+            &["--episodes", "1000000", "--max-steps", "1000"],
+            "expected at most 100000000 steps",
+        ),
+        (&["--bogus"], "unrecognized arguments"),
+    ];
+    for (args, want) in counts {
+        refused(py, script, args, &dir, want);
+    }
+    // Headers whose values are of the wrong type raised TypeError with a traceback.
+    let headers = [
+        (r#"{"fc1.weight":"x"}"#, "expected a tensor fc1.weight"),
+        (
+            r#"{"fc1.weight":{"dtype":"F32","shape":"ab","data_offsets":[0,4]}}"#,
+            "expected fc1.weight with a shape and data_offsets of whole numbers",
+        ),
+        (r#"[1, 2]"#, "expected a JSON object as the header"),
+        ("{\"a\":", "expected a safetensors JSON header"),
+    ];
+    for (header, want) in headers {
+        let path = dir.join("h.safetensors");
+        let mut bytes = (header.len() as u64).to_le_bytes().to_vec();
+        bytes.extend_from_slice(header.as_bytes());
+        std::fs::write(&path, bytes).unwrap();
+        refused(
+            py,
+            script,
+            &["--policy", path.to_str().unwrap()],
+            &dir,
+            want,
+        );
+    }
+    let short = dir.join("short.safetensors");
+    std::fs::write(&short, (1u64 << 40).to_le_bytes()).unwrap();
+    let want = "expected a safetensors header of at most 0 bytes";
+    refused(
+        py,
+        script,
+        &["--policy", short.to_str().unwrap()],
+        &dir,
+        want,
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn count_insns_refuses_bad_files_counts_and_non_arm_elves() {
+    let Some(py) = python() else {
+        eprintln!("skipped: no python3");
+        return;
+    };
+    let dir = scratch("insns");
+    let script = "count_insns.py";
+    for (path, want) in bad_files(&dir) {
+        refused(py, script, &[&path], &dir, want);
+    }
+    let garbage = dir.join("garbage");
+    std::fs::write(&garbage, b"\x7fELF\x01").unwrap();
+    let host = std::env::current_exe().unwrap();
+    let (g, h) = (garbage.to_str().unwrap(), host.to_str().unwrap());
+    let cases: [(&[&str], &str); 6] = [
+        (&[g], "expected an ELF file"),
+        (&[h], "expected a 32-bit little-endian Arm ELF"),
+        (
+            &[h, "--nout", "100000000"],
+            "expected an integer in [1, 64]",
+        ),
+        (
+            &[h, "--max-insns", "0"],
+            "expected an integer in [1, 1000000000]",
+        ),
+        (&[h, "--in", "1,x"], "--in: expected at most 64 numbers"),
+        (
+            &[h, "--in-type", "i8", "--in", "300"],
+            "--in: expected at most 64 numbers",
+        ),
+    ];
+    for (args, want) in cases {
+        refused(py, script, args, &dir, want);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// With Unicorn installed: a function that never returns is stopped at the cap and reported.
+#[test]
+fn count_insns_stops_a_function_that_never_returns() {
+    let Some(py) = python() else {
+        eprintln!("skipped: no python3");
+        return;
+    };
+    let has_unicorn = Command::new(py)
+        .args(["-c", "import unicorn, capstone, elftools"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !has_unicorn {
+        eprintln!("skipped: Unicorn, Capstone or pyelftools not installed");
+        return;
+    }
+    let dir = scratch("loop");
+    let elf = dir.join("loop.elf");
+    std::fs::write(&elf, looping_elf()).unwrap();
+    let (e, cap) = (elf.to_str().unwrap(), "5000");
+    let want = "spin: expected it to return within --max-insns 5000 instructions";
+    refused(
+        py,
+        "count_insns.py",
+        &[e, "spin", "--max-insns", cap],
+        &dir,
+        want,
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A minimal Arm ELF: one loadable segment at 0 holding a Thumb `b .` (0xe7fe), and a
+/// symbol table naming it `spin`, a function.
+fn looping_elf() -> Vec<u8> {
+    let le16 = |v: u16| v.to_le_bytes().to_vec();
+    let le32 = |v: u32| v.to_le_bytes().to_vec();
+    // Layout: ELF header (52), program header (32), code (4), .symtab (2 x 16),
+    // .strtab, .shstrtab, then 4 section headers (40 each).
+    let code = [0xfe, 0xe7, 0x00, 0xbf];
+    let strtab = b"\0spin\0";
+    let shstrtab = b"\0.symtab\0.strtab\0.shstrtab\0";
+    let (code_off, sym_off) = (84u32, 88u32);
+    let str_off = sym_off + 32;
+    let shstr_off = str_off + strtab.len() as u32;
+    let sh_off = (shstr_off + shstrtab.len() as u32 + 3) & !3;
+    let mut b = b"\x7fELF\x01\x01\x01".to_vec();
+    b.resize(16, 0);
+    b.extend([le16(2), le16(40), le32(1), le32(1), le32(52), le32(sh_off)].concat());
+    b.extend(
+        [
+            le32(0x0500_0000),
+            le16(52),
+            le16(32),
+            le16(1),
+            le16(40),
+            le16(4),
+            le16(3),
+        ]
+        .concat(),
+    );
+    // PT_LOAD: offset, vaddr, paddr, filesz, memsz, flags (R+X), align.
+    b.extend(
+        [
+            le32(1),
+            le32(code_off),
+            le32(0),
+            le32(0),
+            le32(4),
+            le32(4),
+            le32(5),
+            le32(4),
+        ]
+        .concat(),
+    );
+    b.extend(code);
+    b.extend([0u8; 16]);
+    // spin: name 1, value 1 (Thumb), size 4, info FUNC|GLOBAL, section 0xfff1 (absolute).
+    b.extend([le32(1), le32(1), le32(4), vec![0x12, 0], le16(0xfff1)].concat());
+    b.extend(strtab);
+    b.extend(shstrtab);
+    b.resize(sh_off as usize, 0);
+    b.extend([0u8; 40]);
+    let section =
+        |name: u32, kind: u32, off: u32, size: u32, link: u32, info: u32, entsize: u32| {
+            [
+                le32(name),
+                le32(kind),
+                le32(0),
+                le32(0),
+                le32(off),
+                le32(size),
+                le32(link),
+                le32(info),
+                le32(1),
+                le32(entsize),
+            ]
+            .concat()
+        };
+    b.extend(section(1, 2, sym_off, 32, 2, 1, 16));
+    b.extend(section(9, 3, str_off, strtab.len() as u32, 0, 0, 0));
+    b.extend(section(17, 3, shstr_off, shstrtab.len() as u32, 0, 0, 0));
+    b
+}

@@ -1,0 +1,300 @@
+//! The names an export gives its items: checked so that the generated source compiles, alone
+//! and beside the C API and other exports.
+
+use crate::{Error, Result, quote};
+
+/// Longest name: C guarantees 63 significant characters of an identifier, and the include
+/// guard puts 18 before it ([`c_guard`]).
+pub const MAX_NAME_CHARS: usize = 40;
+
+/// Refuses a name longer than [`MAX_NAME_CHARS`].
+fn check_length(name: &str) -> Result<()> {
+    if name.chars().count() <= MAX_NAME_CHARS {
+        return Ok(());
+    }
+    Err(Error::Input(format!(
+        "--name: expected at most {MAX_NAME_CHARS} characters, found {} ({})",
+        name.chars().count(),
+        quote(name)
+    )))
+}
+
+/// Checks a Rust static's name: at most [`MAX_NAME_CHARS`] characters of upper case, digits and underscores, not starting with a
+/// digit (what `non_upper_case_globals` accepts), not a keyword, and not `RIG`, the
+/// module's other item.
+pub fn check_rust_name(name: &str) -> Result<()> {
+    check_length(name)?;
+    let ok = name.starts_with(|c: char| c.is_ascii_uppercase() || c == '_')
+        && name
+            .chars()
+            .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
+        && name != "_"
+        && name != "Self"
+        && name != "RIG";
+    if ok {
+        Ok(())
+    } else {
+        Err(Error::Input(format!(
+            "--name: expected a Rust static's name (upper case, digits, `_`, e.g. POLICY; not \
+             RIG), found {}",
+            quote(name)
+        )))
+    }
+}
+
+/// C's keywords.
+const C_KEYWORDS: [&str; 44] = [
+    "auto",
+    "break",
+    "case",
+    "char",
+    "const",
+    "continue",
+    "default",
+    "do",
+    "double",
+    "else",
+    "enum",
+    "extern",
+    "float",
+    "for",
+    "goto",
+    "if",
+    "inline",
+    "int",
+    "long",
+    "register",
+    "restrict",
+    "return",
+    "short",
+    "signed",
+    "sizeof",
+    "static",
+    "struct",
+    "switch",
+    "typedef",
+    "union",
+    "unsigned",
+    "void",
+    "volatile",
+    "while",
+    "_Bool",
+    "_Complex",
+    "_Imaginary",
+    "_Alignas",
+    "_Alignof",
+    "_Atomic",
+    "_Generic",
+    "_Noreturn",
+    "_Static_assert",
+    "_Thread_local",
+];
+
+/// C++'s keywords beyond C's: the headers are included from C++ too (Arduino sketches).
+const CXX_KEYWORDS: [&str; 58] = [
+    "alignas",
+    "alignof",
+    "and",
+    "and_eq",
+    "asm",
+    "bitand",
+    "bitor",
+    "bool",
+    "catch",
+    "char16_t",
+    "char32_t",
+    "char8_t",
+    "class",
+    "compl",
+    "concept",
+    "consteval",
+    "constexpr",
+    "constinit",
+    "const_cast",
+    "co_await",
+    "co_return",
+    "co_yield",
+    "decltype",
+    "delete",
+    "dynamic_cast",
+    "explicit",
+    "export",
+    "false",
+    "friend",
+    "mutable",
+    "namespace",
+    "new",
+    "noexcept",
+    "not",
+    "not_eq",
+    "nullptr",
+    "operator",
+    "or",
+    "or_eq",
+    "private",
+    "protected",
+    "public",
+    "reinterpret_cast",
+    "requires",
+    "static_assert",
+    "static_cast",
+    "template",
+    "this",
+    "throw",
+    "true",
+    "try",
+    "typeid",
+    "typename",
+    "using",
+    "virtual",
+    "xor",
+    "xor_eq",
+    "thread_local",
+];
+
+/// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits and underscores, not
+/// starting with a digit, not a C or C++ keyword, not reserved (`_` followed by a capital or `_`,
+/// or ending in `_t`, POSIX's), not ending in `_rig` (so that no header's `NAME_rig` is
+/// another's `NAME`), and such that neither `NAME`, `NAME_rig` nor the include guard
+/// ([`c_guard`]) is an identifier of the C API (`cartpole_policy.h`), which a board
+/// includes beside it.
+pub fn check_c_name(name: &str) -> Result<()> {
+    check_length(name)?;
+    let b = name.as_bytes();
+    let ok = b
+        .first()
+        .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
+        && b.iter().all(|c| c.is_ascii_alphanumeric() || *c == b'_')
+        && !(b.len() >= 2 && b[0] == b'_' && (b[1] == b'_' || b[1].is_ascii_uppercase()))
+        && !C_KEYWORDS.contains(&name)
+        && !CXX_KEYWORDS.contains(&name)
+        && !name.ends_with("_t")
+        && !name.ends_with("_rig");
+    if !ok {
+        return Err(Error::Input(format!(
+            "--name: expected a C identifier (letters, digits, `_`, e.g. cartpole_policy; not \
+             a C or C++ keyword, not ending in _t or _rig), found {}",
+            quote(name)
+        )));
+    }
+    let api = api_identifiers();
+    match [name.to_string(), format!("{name}_rig"), c_guard(name)]
+        .into_iter()
+        .find(|id| api.contains(&id.as_str()))
+    {
+        None => Ok(()),
+        Some(id) => Err(Error::Input(format!(
+            "--name: expected a name whose header declares nothing of the C API's, found {} \
+             (the header would define {id}, which cartpole_policy.h declares)",
+            quote(name)
+        ))),
+    }
+}
+
+/// The include guard of the header for the object `name`: the name as it is, so that names
+/// differing only in case (C's are case-sensitive) give headers that compile together.
+pub fn c_guard(name: &str) -> String {
+    format!("CARTPOLE_POLICY_H_{name}")
+}
+
+/// The C API's header, whose identifiers an exported header must not define.
+const API_HEADER: &str = include_str!("../../../capi/include/cartpole_policy.h");
+
+/// The identifiers of the C API in its namespace (those starting `cartpole_` or `CARTPOLE_`,
+/// outside comments): its functions, types, struct tags, macros and constants.
+fn api_identifiers() -> Vec<&'static str> {
+    let mut ids = Vec::new();
+    let mut rest = API_HEADER;
+    while !rest.is_empty() {
+        if let Some(r) = rest.strip_prefix("/*") {
+            rest = r.split_once("*/").map_or("", |(_, after)| after);
+        } else if let Some(r) = rest.strip_prefix("//") {
+            rest = r.split_once('\n').map_or("", |(_, after)| after);
+        } else if rest.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_') {
+            let end = rest
+                .find(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .unwrap_or(rest.len());
+            let id = &rest[..end];
+            if id.starts_with("cartpole_") || id.starts_with("CARTPOLE_") {
+                ids.push(id);
+            }
+            rest = &rest[end..];
+        } else {
+            let skip = rest.chars().next().map_or(1, char::len_utf8);
+            rest = &rest[skip..];
+        }
+    }
+    ids
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_are_checked_for_each_language() {
+        for ok in ["POLICY", "BALANCE_V2", "_P"] {
+            check_rust_name(ok).unwrap();
+        }
+        for bad in ["policy", "2FAST", "", "_", "A-B", "POLICY;fn"] {
+            let e = check_rust_name(bad).unwrap_err();
+            assert!(e.is_input() && e.to_string().contains("--name"), "{bad}");
+        }
+        for ok in ["cartpole_policy", "P", "_p", "w64"] {
+            check_c_name(ok).unwrap();
+        }
+        for bad in ["int", "static", "__x", "_X", "9a", "a b", "", "a;b"] {
+            assert!(check_c_name(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_long_bad_name_is_quoted_short() {
+        let e = check_rust_name(&"x".repeat(100_000))
+            .unwrap_err()
+            .to_string();
+        assert!(e.len() < 400, "{}", e.len());
+    }
+
+    #[test]
+    fn c_names_that_clash_with_the_api_or_other_headers_are_refused() {
+        let api = api_identifiers();
+        for id in [
+            "cartpole_controller_init",
+            "cartpole_mlp64",
+            "CARTPOLE_DUTY_MAX",
+            "cartpole_rig",
+        ] {
+            assert!(api.contains(&id), "{id} missing from {api:?}");
+        }
+        assert!(
+            !api.contains(&"cartpole_policy"),
+            "a comment's word taken as an identifier"
+        );
+        for bad in [
+            "cartpole_controller_init",
+            "cartpole_controller_step",
+            "CARTPOLE_DUTY_MAX",
+            "cartpole_mlp16",
+            "cartpole",
+            "balance_rig",
+            "int32_t",
+            "class",
+            "new",
+            "this",
+            "xor",
+        ] {
+            assert!(check_c_name(bad).is_err(), "{bad} accepted");
+        }
+        check_rust_name("RIG").unwrap_err();
+        for ok in [
+            "cartpole_policy",
+            "cartpole_policy_int",
+            "Balance",
+            "balance",
+        ] {
+            check_c_name(ok).unwrap();
+        }
+        assert_ne!(c_guard("Balance"), c_guard("balance"));
+    }
+}
