@@ -58,8 +58,10 @@ impl Action {
 }
 
 /// Physical constants and episode limits. `Default` is Gymnasium's `CartPole-v1`; robustness
-/// studies change single fields (a 20% heavier pole, a weaker motor).
+/// studies change single fields (a 20% heavier pole, a weaker motor). The layout is C's
+/// (`repr(C)`): the C API's `struct cartpole_rig` starts with these fields in this order.
 #[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
 pub struct Params {
     /// Gravitational acceleration, m/s^2.
     pub gravity: f64,
