@@ -10,7 +10,7 @@ use std::process::Command;
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::{BAD, Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
+use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
@@ -144,30 +144,13 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
 /// Every path argument of every subcommand, given every kind of bad file.
 fn bad_inputs(s: &Scratch, log: &Path) -> Vec<Case> {
     let slots = slots(s, log);
-    let mut cases = Vec::new();
-    for (tag, format, args) in &slots {
-        for bad in BAD.into_iter().filter(|b| !format.fine.contains(b)) {
-            let path = bad.make(&s.0, tag, format);
-            cases.push(Case::new(
-                format!("{tag} {bad:?}"),
-                &args(&path),
-                &bad.expect(format),
-            ));
-        }
-    }
-    cases
+    hostile::bad_input_cases(&s.0, slots.iter().map(|(t, f, a)| (*t, f, &**a as _)))
 }
 
 /// Every output, given places it must not write.
 fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
     let fifo = s.join("out-fifo");
-    assert!(
-        Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap()
-            .success()
-    );
+    hostile::mkfifo(&fifo);
     let (dir, file) = (s.join("out-dir"), s.join("out-file"));
     std::fs::create_dir(&dir).unwrap();
     std::fs::write(&file, b"keep").unwrap();

@@ -11,7 +11,7 @@ use std::process::Command;
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::{BAD, Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
+use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_policy-export"))
@@ -96,30 +96,13 @@ fn bad_inputs(s: &Scratch) -> Vec<Case> {
             Box::new(|b| os(&[&"train", &"--rig", &b, &"--episodes", &"1"])),
         ),
     ];
-    let mut cases = Vec::new();
-    for (tag, format, args) in &slots {
-        for bad in BAD.into_iter().filter(|b| !format.fine.contains(b)) {
-            let path = bad.make(&s.0, tag, format);
-            cases.push(Case::new(
-                format!("{tag} {bad:?}"),
-                &args(&path),
-                &bad.expect(format),
-            ));
-        }
-    }
-    cases
+    hostile::bad_input_cases(&s.0, slots.iter().map(|(t, f, a)| (*t, *f, &**a as _)))
 }
 
 /// Places a file output must not write, each with the words its refusal must say.
 fn bad_file_outputs(s: &Scratch, input: &Path) -> Vec<(String, PathBuf, &'static str)> {
     let fifo = s.join("out-fifo");
-    assert!(
-        Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .unwrap()
-            .success()
-    );
+    hostile::mkfifo(&fifo);
     let dir = s.join("out-dir");
     std::fs::create_dir(&dir).unwrap();
     let file = s.join("out-file");

@@ -118,8 +118,7 @@ impl Bad {
             Bad::Missing => {}
             Bad::Directory => std::fs::create_dir(&p).unwrap(),
             Bad::Fifo => {
-                let ok = Command::new("mkfifo").arg(&p).status().unwrap().success();
-                assert!(ok, "mkfifo");
+                mkfifo(&p);
             }
             Bad::Socket => {
                 std::mem::forget(std::os::unix::net::UnixListener::bind(&p).unwrap());
@@ -163,6 +162,32 @@ impl Bad {
             Bad::Empty | Bad::Garbage | Bad::Truncated | Bad::NotUtf8 => f.malformed.to_vec(),
         }
     }
+}
+
+/// A FIFO at `path`: a file no tool may wait on.
+pub fn mkfifo(path: &Path) {
+    let ok = Command::new("mkfifo").arg(path).status().unwrap().success();
+    assert!(ok, "mkfifo {}", path.display());
+}
+
+/// Every slot's command line (its tag, file format and arguments around the bad path) given
+/// every kind of bad file its format cannot take, made in `dir`.
+pub fn bad_input_cases<'a>(
+    dir: &Path,
+    slots: impl IntoIterator<Item = (&'a str, &'a Format, &'a dyn Fn(&Path) -> Vec<OsString>)>,
+) -> Vec<Case> {
+    let mut cases = Vec::new();
+    for (tag, format, args) in slots {
+        for bad in BAD.into_iter().filter(|b| !format.fine.contains(b)) {
+            let path = bad.make(dir, tag, format);
+            cases.push(Case::new(
+                format!("{tag} {bad:?}"),
+                &args(&path),
+                &bad.expect(format),
+            ));
+        }
+    }
+    cases
 }
 
 /// One command that must be refused, and what its message must say (any of `expect`).
