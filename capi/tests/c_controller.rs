@@ -8,6 +8,8 @@
 //! nothing.
 
 mod common;
+#[path = "common/steps.rs"]
+mod steps;
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
@@ -23,19 +25,19 @@ use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::Action;
 use firmware::cartpole::{State, advance};
 use firmware::controller::{Command, Controller, FaultFlags, Policy, Reading, StateSensor};
-use firmware::estimator::{Estimate, ObserverSensor};
+use firmware::estimator::ObserverSensor;
 use firmware::fixed;
-use firmware::loopback::{self, Duty, Latest, Level, MAX_DUTY, Pins};
+use firmware::loopback::{self, Latest, MAX_DUTY, Pins};
 use firmware::rig::Rig;
 use firmware::{policy, policy_int};
+use steps::Scores;
 
 /// Periods of each closed loop.
 const PERIODS: usize = 400;
 
 /// A reading format as the header reports it: the float policy's scores in `q`, the integer
 /// one's in `q_int`, zero in the other.
-trait Format: Estimate {
-    fn pair(q: Self::Scores) -> ([f32; 2], [i32; 2]);
+trait Format: Scores {
     /// A measured state in this format.
     fn exact(state: &[f32; 4]) -> Self;
     /// The flag of `channel` measured NaN or infinite.
@@ -43,9 +45,6 @@ trait Format: Estimate {
 }
 
 impl Format for [f32; 4] {
-    fn pair(q: [f32; 2]) -> ([f32; 2], [i32; 2]) {
-        (q, [0; 2])
-    }
     fn exact(state: &[f32; 4]) -> Self {
         *state
     }
@@ -56,9 +55,6 @@ impl Format for [f32; 4] {
 
 /// In Q3.12, rounded and saturated, a NaN saturated too: out of range, as the header says.
 impl Format for [i16; 4] {
-    fn pair(q: [i32; 2]) -> ([f32; 2], [i32; 2]) {
-        ([0.0; 2], q)
-    }
     fn exact(state: &[f32; 4]) -> Self {
         state.map(|v| {
             if v.is_nan() {
@@ -119,24 +115,7 @@ where
     S: StateSensor,
     S::Reading: Format,
 {
-    let r = c.last().unwrap();
-    let command = match r.command {
-        Command::Push(Action::Left) => -1,
-        Command::Push(Action::Right) => 1,
-        Command::Coast => 0,
-    };
-    let (&Level(direction), &Duty(duty)) = c.actuator().pins();
-    let (q, qi) = S::Reading::pair(r.q);
-    format!(
-        "0 {command} {} {duty} {} {:08x} {:08x} {} {} {}",
-        u32::from(direction),
-        r.faults.0,
-        q[0].to_bits(),
-        q[1].to_bits(),
-        qi[0],
-        qi[1],
-        r.step
-    )
+    steps::step_line(0, c.last().unwrap(), c.actuator())
 }
 
 /// An outside force on the cart in period `k`, N: a shove the policy recovers from, then one

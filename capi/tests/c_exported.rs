@@ -10,6 +10,8 @@
 //! nothing.
 
 mod common;
+#[path = "common/steps.rs"]
+mod steps;
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
@@ -23,12 +25,13 @@ use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::Action;
 use firmware::cartpole::{Params, State, advance};
 use firmware::controller::{Command, Controller, Policy};
-use firmware::estimator::{Encoders, Estimate, ObserverSensor, Tuning};
-use firmware::loopback::{self, Duty, Latest, Level, Pins};
+use firmware::estimator::{Encoders, ObserverSensor, Tuning};
+use firmware::loopback::{self, Latest, Pins};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, shapes};
 use firmware::policy::POLICY;
 use firmware::rig::Rig;
+use steps::Scores;
 use weights::Weights;
 use weights::quant::{self, Granularity, Quantised};
 use weights::source::c_header;
@@ -208,28 +211,10 @@ fn exported_headers_carry_their_rig_bit_for_bit_in_c_and_cpp() {
 /// Periods of each closed loop.
 const PERIODS: usize = 400;
 
-/// A reading format as the header reports it: the float policy's scores in `q`, the integer
-/// one's in `q_int`, zero in the other.
-trait Format: Estimate {
-    fn pair(q: Self::Scores) -> ([f32; 2], [i32; 2]);
-}
-
-impl Format for [f32; 4] {
-    fn pair(q: [f32; 2]) -> ([f32; 2], [i32; 2]) {
-        (q, [0; 2])
-    }
-}
-
-impl Format for [i16; 4] {
-    fn pair(q: [i32; 2]) -> ([f32; 2], [i32; 2]) {
-        ([0.0; 2], q)
-    }
-}
-
 type Board<P, O> = Controller<P, ObserverSensor<Latest, O>, Pins, 1>;
 
 /// A controller of `policy` as a Rust board builds one from `rig`.
-fn board<O: Format, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
+fn board<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
     let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
     let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits().unwrap());
     if rig.dead_time > 0 {
@@ -240,25 +225,8 @@ fn board<O: Format, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
 }
 
 /// The line `exported_controller script` prints for the step `c` has just run.
-fn step_line<O: Format, P: Policy<O>>(c: &Board<P, O>) -> String {
-    let r = c.last().unwrap();
-    let command = match r.command {
-        Command::Push(Action::Left) => -1,
-        Command::Push(Action::Right) => 1,
-        Command::Coast => 0,
-    };
-    let (&Level(direction), &Duty(duty)) = c.actuator().pins();
-    let (q, qi) = O::pair(r.q);
-    format!(
-        "{CARTPOLE_OK} {command} {} {duty} {} {:08x} {:08x} {} {} {}\n",
-        u32::from(direction),
-        r.faults.0,
-        q[0].to_bits(),
-        q[1].to_bits(),
-        qi[0],
-        qi[1],
-        r.step
-    )
+fn step_line<O: Scores, P: Policy<O>>(c: &Board<P, O>) -> String {
+    steps::step_line(CARTPOLE_OK, c.last().unwrap(), c.actuator()) + "\n"
 }
 
 /// An outside force on the cart in period `k`, N: a shove, then one that topples the pole,
@@ -274,7 +242,7 @@ fn shove(k: usize) -> f64 {
 /// A closed loop of `policy` on `rig`'s plant: the counts script for the C program and what
 /// it must print. Asserts that the periods pushed both ways and coasted, so that the
 /// comparison means something.
-fn closed_loop<O: Format, P: Policy<O>>(policy: P, rig: &Rig) -> (String, String) {
+fn closed_loop<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> (String, String) {
     let mut c = board::<O, P>(policy, rig);
     let mut s = State::from_array([0.02, 0.0, 0.03, 0.0]);
     let (mut calls, mut want) = (String::new(), format!("init {CARTPOLE_OK}\n"));
