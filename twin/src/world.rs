@@ -208,4 +208,4 @@ pub(crate) struct Drive {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

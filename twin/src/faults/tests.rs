@@ -4,18 +4,8 @@ use rand_pcg::Pcg64Mcg;
 
 use super::*;
 use crate::scenario::Scenario;
-use crate::world::World;
+use crate::world::tests::world;
 use crate::{Episode, Machine};
-
-fn world(s: &Scenario) -> World<'_, Pcg64Mcg> {
-    World::start(
-        s,
-        500,
-        &mut Pcg64Mcg::new(1),
-        Pcg64Mcg::new(2),
-        Pcg64Mcg::new(3),
-    )
-}
 
 /// Duty of period `k` in the tests below: no two periods in a row alike for long.
 fn duty(k: u32) -> f64 {

@@ -2,7 +2,8 @@ use super::*;
 use firmware::cartpole::{Action, Params, advance};
 use rand_pcg::Pcg64Mcg;
 
-fn world(s: &Scenario) -> World<'_, Pcg64Mcg> {
+/// A world of `s` from the streams every world test uses (the faults' tests too).
+pub(crate) fn world(s: &Scenario) -> World<'_, Pcg64Mcg> {
     World::start(
         s,
         500,
