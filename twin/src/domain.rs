@@ -125,6 +125,24 @@ mod tests {
     use rand_pcg::Pcg64Mcg;
 
     #[test]
+    fn a_domain_draws_faults_too() {
+        let d = Domain::parse("encoder+stuck=1..10/100..200@0.5+weak=0..0.5/20/100..400").unwrap();
+        let mut rng = Pcg64Mcg::new(3);
+        let mut stuck = 0;
+        for _ in 0..2000 {
+            let f = d.sample(&mut rng).faults;
+            if let Some(w) = f.stuck {
+                stuck += 1;
+                assert!((1..=10).contains(&w.periods) && (100..=200).contains(&w.every));
+            }
+            let (factor, w) = f.weak.expect("every sample is weak");
+            assert!((0.0..=0.5).contains(&factor) && w.periods == 20);
+            assert!((100..=400).contains(&w.every), "{w:?}");
+        }
+        assert!((850..1150).contains(&stuck), "{stuck}");
+    }
+
+    #[test]
     fn samples_stay_in_their_ranges_and_shares_hold() {
         let d = Domain::parse(
             "length=0.5..1.5+polemass=2+friction=0..0.1/0..0.002+noise=0..2@0.5+encoder=256..4096\
