@@ -53,11 +53,6 @@ pub struct Faults {
 }
 
 impl Faults {
-    /// Whether any fault is set.
-    pub fn any(&self) -> bool {
-        *self != Faults::default()
-    }
-
     /// Sets the fault of part `key` from its values (`value(i)` the `i`th field, its
     /// default filled in); false if `key` is no fault's part.
     pub(crate) fn apply(&mut self, key: &str, value: impl Fn(usize) -> Option<f64>) -> bool {

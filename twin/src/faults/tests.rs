@@ -56,7 +56,7 @@ fn the_parts_set_the_faults_with_their_defaults() {
         ))
     );
     assert_eq!(f("reset=40").reset, Some(w(40)));
-    assert!(!f("noise+delay").any());
+    assert_eq!(f("noise+delay"), Faults::default());
     for bad in [
         "weak",
         "weak=1.5",
