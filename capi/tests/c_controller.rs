@@ -39,13 +39,13 @@ const PERIODS: usize = 400;
 /// one's in `q_int`, zero in the other.
 trait Format: Scores {
     /// A measured state in this format.
-    fn exact(state: &[f32; 4]) -> Self;
+    fn measured_as(state: &[f32; 4]) -> Self;
     /// The flag of `channel` measured NaN or infinite.
     fn not_finite(channel: usize) -> FaultFlags;
 }
 
 impl Format for [f32; 4] {
-    fn exact(state: &[f32; 4]) -> Self {
+    fn measured_as(state: &[f32; 4]) -> Self {
         *state
     }
     fn not_finite(channel: usize) -> FaultFlags {
@@ -55,7 +55,7 @@ impl Format for [f32; 4] {
 
 /// In Q3.12, rounded and saturated, a NaN saturated too: out of range, as the header says.
 impl Format for [i16; 4] {
-    fn exact(state: &[f32; 4]) -> Self {
+    fn measured_as(state: &[f32; 4]) -> Self {
         state.map(|v| {
             if v.is_nan() {
                 i16::MIN
@@ -249,7 +249,7 @@ fn policy_script<O: Format, P: Policy<O> + Copy>(
         script,
         |sensor, s, k| {
             let m = measured(s, k);
-            sensor.0 = O::exact(&m);
+            sensor.0 = O::measured_as(&m);
             let bits = m.map(|v| format!("{:08x}", v.to_bits())).join(" ");
             format!("state {bits}")
         },

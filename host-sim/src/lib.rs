@@ -6,6 +6,8 @@
 //! - [`agree`]: how often the integer network acts as the float one, and where they part.
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
+//! - [`pil`]: processor-in-the-loop, the board's controller on a target driven over the
+//!   link, compared period by period with the same code run here.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
 //! - [`tables`]: the documents' results tables and figures, rendered from `eval --json` files.
 //!
@@ -19,6 +21,7 @@ pub mod agree;
 pub mod baselines;
 pub mod eval;
 pub mod identify;
+pub mod pil;
 pub mod render;
 pub mod replay;
 pub mod tables;

@@ -13,6 +13,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
 
 mod identify_cmd;
+mod pil_cmd;
 mod render_cmd;
 mod soak_cmd;
 mod tables_cmd;
@@ -143,9 +144,9 @@ struct EvalArgs {
     /// Scenarios, one row each (see `--help` for the parts).
     #[arg(long, value_delimiter = ',', default_value = "all")]
     scenario: Vec<String>,
-    /// Controllers to compare.
-    #[arg(long, value_delimiter = ',', default_value = "policy,lqr,rule,random")]
-    controller: Vec<ControllerKind>,
+    /// Controllers to compare [default: policy,lqr,rule,random; with --pil: policy].
+    #[arg(long, value_delimiter = ',')]
+    controller: Option<Vec<ControllerKind>>,
     #[command(flatten)]
     subject: Subject,
     /// The true machine the episodes run in (a rig file), when the board models another
@@ -162,6 +163,20 @@ struct EvalArgs {
     /// Exit 1 if the network's success rate falls below this in any row (0 to 1).
     #[arg(long)]
     min_success: Option<f64>,
+    #[command(flatten)]
+    pil: pil_cmd::PilArgs,
+}
+
+impl EvalArgs {
+    /// The controllers asked for, or the default.
+    fn controllers(&self) -> Vec<ControllerKind> {
+        use ControllerKind::*;
+        match (&self.controller, &self.pil.pil) {
+            (Some(c), _) => c.clone(),
+            (None, Some(_)) => vec![Policy],
+            (None, None) => vec![Policy, Lqr, Rule, Random],
+        }
+    }
 }
 
 #[derive(Args)]
@@ -279,6 +294,8 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let mut inputs = a.subject.inputs();
     inputs.extend(a.world.clone().map(|w| ("--world", w)));
     check_io(&inputs, &[])?;
+    let controllers = a.controllers();
+    let pil = a.pil.place(a.subject.policy.is_some(), &controllers)?;
     let given = a
         .subject
         .rig
@@ -288,13 +305,13 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
     // The scenarios are checked before the policy loads; built on the machine it is run on.
     let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
-    let rows = a.horizon.len() * parse_scenarios(&a.scenario, &probe)?.len() * a.controller.len();
+    let rows = a.horizon.len() * parse_scenarios(&a.scenario, &probe)?.len() * controllers.len();
     anyhow::ensure!(
         rows <= MAX_ROWS,
         "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
     );
-    let int = a.controller.contains(&ControllerKind::PolicyInt);
-    let policy = int || a.controller.contains(&ControllerKind::Policy);
+    let int = controllers.contains(&ControllerKind::PolicyInt);
+    let policy = int || controllers.contains(&ControllerKind::Policy);
     let (machine, net) = a.subject.load(int, policy)?;
     let scenarios = match &world {
         None => parse_scenarios(&a.scenario, &machine)?,
@@ -307,11 +324,14 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
         .horizon
         .iter()
         .flat_map(|&h| {
-            let s = &scenarios;
+            let (s, c) = (&scenarios, &controllers);
             s.iter()
-                .flat_map(move |s| a.controller.iter().map(move |&c| (h, s, c)))
+                .flat_map(move |s| c.iter().map(move |&c| (h, s, c)))
         })
         .collect();
+    if let Some(place) = pil {
+        return pil_cmd::run(a, &place, &jobs);
+    }
     let bar = ProgressBar::new(jobs.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} rows, {elapsed} {msg}")
             .expect("static template"),
@@ -335,6 +355,11 @@ fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
         host_common::out!("{}", eval::format_table(rows));
         host_common::out!("{}", eval::format_failures(rows, a.seed));
     }
+    Ok(met_min_success(a, rows))
+}
+
+/// Whether the policy met `--min-success` in every row; the rows it did not are named.
+fn met_min_success(a: &EvalArgs, rows: &[Row]) -> bool {
     let failing: Vec<&Row> = rows
         .iter()
         .filter(|r| {
@@ -350,7 +375,7 @@ fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
             100.0 * r.success_rate
         );
     }
-    Ok(failing.is_empty())
+    failing.is_empty()
 }
 
 /// Most files one `replay` takes: all are checked before the first is replayed.

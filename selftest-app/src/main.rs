@@ -22,10 +22,20 @@
 #[cfg(target_os = "none")]
 mod app;
 #[cfg(all(target_os = "none", target_arch = "arm"))]
+mod arm_selftest;
+#[cfg(all(target_os = "none", target_arch = "arm"))]
 mod on_arm;
 #[cfg(all(target_os = "none", target_arch = "riscv32"))]
 mod on_riscv;
+#[cfg(all(target_os = "none", target_arch = "riscv32"))]
+mod riscv_selftest;
 mod selftest;
+
+/// What the architecture's entry runs: the self-test and the paced loop; whether all passed.
+#[cfg(target_os = "none")]
+fn run(board: &mut impl app::Board) -> bool {
+    app::run(board)
+}
 
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {

@@ -1,20 +1,17 @@
-//! The RISC-V side of the binary, for QEMU's `virt` machine (`riscv32imac`, no FPU, like
-//! most RISC-V microcontrollers): riscv-rt entry, the machine timer of the CLINT as the
-//! control period's ticker, output and exit over semihosting.
+//! The RISC-V side of both binaries, for QEMU's `virt` machine (`riscv32imac`, no FPU, like
+//! most RISC-V microcontrollers): riscv-rt entry, the CLINT's `mtime` as the link's clock,
+//! exit and panics over semihosting. The self-test's part is `riscv_selftest`, the link's
+//! is in `uart`.
 
-use riscv::interrupt::Interrupt;
 use riscv_semihosting::debug::{self, EXIT_FAILURE, EXIT_SUCCESS};
 
-use crate::app::{self, Board};
-
 /// The CLINT of QEMU's `virt` machine: `mtime` counts at 10 MHz (in virtual time under
-/// `-icount`), `mtimecmp` of hart 0 raises the machine timer interrupt when reached.
+/// `-icount`).
 const MTIME: usize = 0x0200_BFF8;
-const MTIMECMP: usize = 0x0200_4000;
-const TIMEBASE_HZ: u64 = 10_000_000;
+pub(crate) const TIMEBASE_HZ: u64 = 10_000_000;
 
 #[allow(unsafe_code)]
-fn mtime() -> u64 {
+pub(crate) fn mtime() -> u64 {
     // SAFETY: the CLINT's registers on this machine; two 32-bit reads, retried across a
     // carry of the low word.
     unsafe {
@@ -28,104 +25,12 @@ fn mtime() -> u64 {
     }
 }
 
-#[allow(unsafe_code)]
-fn set_mtimecmp(t: u64) {
-    // SAFETY: hart 0's compare register. The high word goes to all ones first, so no
-    // intermediate value of the pair lies in the past and fires early.
-    unsafe {
-        core::ptr::write_volatile((MTIMECMP + 4) as *mut u32, u32::MAX);
-        core::ptr::write_volatile(MTIMECMP as *mut u32, t as u32);
-        core::ptr::write_volatile((MTIMECMP + 4) as *mut u32, (t >> 32) as u32);
-    }
-}
-
-/// The next compare value: one period after the last.
-static NEXT: core::sync::atomic::AtomicU32 = core::sync::atomic::AtomicU32::new(0);
-
-#[riscv_rt::core_interrupt(Interrupt::MachineTimer)]
-fn machine_timer() {
-    // Re-armed one period after the previous deadline, not after now, so the ticks keep a
-    // fixed rate however late the interrupt is taken.
-    let periods = NEXT
-        .load(core::sync::atomic::Ordering::Relaxed)
-        .wrapping_add(1);
-    NEXT.store(periods, core::sync::atomic::Ordering::Relaxed);
-    set_mtimecmp(START.load() + u64::from(periods) * PERIOD.load());
-    app::tick();
-}
-
-/// `mtime` when the ticker started, and the period in `mtime` ticks (each written once,
-/// before the interrupt is enabled).
-static START: Once = Once(core::cell::Cell::new(0));
-static PERIOD: Once = Once(core::cell::Cell::new(0));
-
-struct Once(core::cell::Cell<u64>);
-
-// SAFETY: a single hart; written before the timer interrupt is enabled and only read after.
-#[allow(unsafe_code)]
-unsafe impl Sync for Once {}
-
-impl Once {
-    fn load(&self) -> u64 {
-        self.0.get()
-    }
-}
-
-struct Virt;
-
-impl Board for Virt {
-    fn line(&mut self, args: core::fmt::Arguments<'_>) {
-        riscv_semihosting::hprintln!("{}", args);
-    }
-
-    #[allow(unsafe_code)]
-    fn start_ticker(&mut self) {
-        PERIOD.0.set(app::period_ticks(TIMEBASE_HZ));
-        START.0.set(mtime());
-        NEXT.store(1, core::sync::atomic::Ordering::Relaxed);
-        set_mtimecmp(START.load() + PERIOD.load());
-        // SAFETY: the handler above is the only one enabled; it touches only atomics and the
-        // CLINT.
-        unsafe {
-            riscv::register::mie::set_mtimer();
-            riscv::interrupt::enable();
-        }
-    }
-
-    fn stop_ticker(&mut self) {
-        riscv::interrupt::disable();
-        // SAFETY-free: clearing the enable bit only masks the interrupt.
-        #[allow(unsafe_code)]
-        unsafe {
-            riscv::register::mie::clear_mtimer();
-        }
-    }
-
-    fn sleep(&self) {
-        riscv::asm::wfi();
-    }
-
-    fn virtual_ns(&self) -> Option<u64> {
-        Some(mtime() * (1_000_000_000 / TIMEBASE_HZ))
-    }
-
-    #[inline(never)]
-    #[allow(unsafe_code)]
-    fn stack_used(&self, f: impl FnOnce()) -> usize {
-        unsafe extern "C" {
-            /// The lowest address of the stack region (riscv-rt's `.stack` section).
-            static mut __estack: u32;
-        }
-        let sp: usize;
-        // SAFETY: reads the stack pointer into a register; no memory, no side effect.
-        unsafe { core::arch::asm!("mv {}, sp", out(reg) sp, options(nomem, nostack)) };
-        app::paint_and_measure(sp, core::ptr::addr_of_mut!(__estack) as usize, f)
-    }
-}
+/// The `virt` machine's hart.
+pub(crate) struct Virt;
 
 #[riscv_rt::entry]
 fn main() -> ! {
-    let ok = app::run(&mut Virt);
+    let ok = crate::run(&mut Virt);
     exit(ok)
 }
 

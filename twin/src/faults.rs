@@ -53,6 +53,11 @@ pub struct Faults {
 }
 
 impl Faults {
+    /// Whether the board's controller restarts before period `k` (never before the first).
+    pub fn resets(&self, k: u32) -> bool {
+        k > 0 && self.reset.is_some_and(|w| w.holds(k))
+    }
+
     /// Sets the fault of part `key` from its values (`value(i)` the `i`th field, its
     /// default filled in); false if `key` is no fault's part.
     pub(crate) fn apply(&mut self, key: &str, value: impl Fn(usize) -> Option<f64>) -> bool {

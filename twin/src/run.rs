@@ -9,15 +9,15 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, State, Transition};
-use firmware::controller::{Command, Controller, Limits, Policy, Predictor, StateSensor};
-use firmware::estimator::{AlphaBeta, AlphaBetaSensor, ObserverSensor};
-use firmware::loopback::{Latest, Pins, duty, pins};
+use firmware::controller::{Command, Controller, Limits, Policy, Predictor};
+use firmware::link::LinkSensor;
+use firmware::loopback::{Pins, duty, pins};
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 
 use crate::lockstep::run_lockstep;
-use crate::scenario::{Scenario, Sensing};
-use crate::world::{Measurement, World};
+use crate::scenario::Scenario;
+use crate::world::World;
 
 /// What one episode did, summed over its periods.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -76,81 +76,15 @@ pub fn start_state(seed: u64, episode: u64) -> State {
     plant.state()
 }
 
-/// The twin's sensor: what the scenario's board reads, from the world's measurement.
-pub struct TwinSensor {
-    reader: Reader,
-    /// This period's reading never arrived.
-    missing: bool,
-}
+/// The twin's sensor: the link's, which reads what the world measured as the scenario's
+/// board does (the exact state, or counts through its observer or filter).
+pub type TwinSensor = LinkSensor<[f32; 4]>;
 
-/// How the board turns a measurement into a reading.
-enum Reader {
-    /// The exact (maybe noisy) state.
-    Exact([f32; 4]),
-    /// Encoders through the observer.
-    Observer(ObserverSensor<Latest>),
-    /// Encoders through the alpha-beta filter.
-    AlphaBeta(AlphaBetaSensor<Latest>),
-}
-
-/// A reading that never arrived (the `drop` fault).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Missing;
-
-impl TwinSensor {
-    /// The sensor of `scenario`'s board, refused as the firmware refuses its observer or
-    /// filter.
-    pub fn of(scenario: &Scenario) -> Result<TwinSensor, ConfigError> {
-        let rig = &scenario.rig;
-        let reader = match scenario.sensing {
-            Sensing::Exact => Reader::Exact([0.0; 4]),
-            Sensing::Observer => {
-                Reader::Observer(ObserverSensor::new(rig.observer()?, Latest::default()))
-            }
-            Sensing::AlphaBeta(d) => Reader::AlphaBeta(AlphaBetaSensor::new(
-                AlphaBeta::new(rig.encoders, d, rig.params.tau as f32)?,
-                Latest::default(),
-            )),
-        };
-        Ok(TwinSensor {
-            reader,
-            missing: false,
-        })
-    }
-
-    /// Hands the sensor this period's measurement.
-    pub fn set(&mut self, m: Measurement) {
-        self.missing = m == Measurement::Missing;
-        match (&mut self.reader, m) {
-            (Reader::Exact(s), Measurement::State(v)) => *s = v,
-            (Reader::Observer(o), Measurement::Counts(c, p)) => o.counter_mut().0 = (c, p),
-            (Reader::AlphaBeta(a), Measurement::Counts(c, p)) => a.counter_mut().0 = (c, p),
-            (_, Measurement::Missing) => {}
-            _ => unreachable!("a world measures what its scenario's sensor reads"),
-        }
-    }
-}
-
-impl StateSensor for TwinSensor {
-    type Reading = [f32; 4];
-    type Error = Missing;
-    #[inline]
-    fn read(&mut self) -> Result<[f32; 4], Missing> {
-        if self.missing {
-            return Err(Missing);
-        }
-        Ok(match &mut self.reader {
-            Reader::Exact(s) => *s,
-            Reader::Observer(o) => o.read().unwrap_or_else(|e| match e {}),
-            Reader::AlphaBeta(a) => a.read().unwrap_or_else(|e| match e {}),
-        })
-    }
-    #[inline]
-    fn commanded(&mut self, command: Command) {
-        if let Reader::Observer(o) = &mut self.reader {
-            o.commanded(command);
-        }
-    }
+/// The sensor of `scenario`'s board, refused as the firmware refuses its observer or
+/// filter.
+pub fn sensor(scenario: &Scenario) -> Result<TwinSensor, ConfigError> {
+    let rig = &scenario.rig;
+    LinkSensor::new(scenario.sensing, rig, || rig.observer())
 }
 
 /// Why [`Episode::start`] may take the board's parts as built: every scenario's rig comes
@@ -171,7 +105,7 @@ impl Scenario {
     /// The board's parts, or why the firmware refuses to build them.
     pub fn board(&self) -> Result<Board, ConfigError> {
         Ok(Board {
-            sensor: TwinSensor::of(self)?,
+            sensor: sensor(self)?,
             limits: self.rig.limits()?,
             predictor: self.rig.predictor()?,
         })
@@ -210,8 +144,8 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     pub fn decide(&mut self) -> Command {
         let scenario = self.world.scenario();
         let k = self.world.steps();
-        if k > 0 && scenario.faults.reset.is_some_and(|w| w.holds(k)) {
-            *self.controller.sensor_mut() = TwinSensor::of(scenario).expect(CHECKED);
+        if scenario.faults.resets(k) {
+            *self.controller.sensor_mut() = sensor(scenario).expect(CHECKED);
             self.controller.restart();
         }
         let m = self.world.measure();
@@ -246,13 +180,14 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
 
 /// An episode's statistics as its periods come.
 #[derive(Default)]
-struct Tally {
+pub struct Tally {
     stats: EpisodeStats,
     previous: Option<Command>,
 }
 
 impl Tally {
-    fn period(&mut self, command: Command, s: &State, t: &Transition) {
+    /// One period: what was commanded, the state after it, how it ended.
+    pub fn period(&mut self, command: Command, s: &State, t: &Transition) {
         let stats = &mut self.stats;
         if self.previous.is_some_and(|p| p != command) {
             stats.switches += 1;
@@ -268,6 +203,11 @@ impl Tally {
         if t.terminated || t.truncated {
             stats.success = !t.terminated;
         }
+    }
+
+    /// The statistics so far.
+    pub fn stats(&self) -> EpisodeStats {
+        self.stats
     }
 }
 
@@ -320,7 +260,7 @@ pub fn run_episode<P: Policy>(
             });
         },
     );
-    tally.stats
+    tally.stats()
 }
 
 /// [`run_episode`] for every episode of `episodes`, side by side
@@ -345,7 +285,7 @@ pub fn run_episodes<P: Policy>(
         },
         |i, ep, command, t| tallies[i].period(command, &ep.world().state(), t),
     );
-    tallies.into_iter().map(|t| t.stats).collect()
+    tallies.into_iter().map(|t| t.stats()).collect()
 }
 
 #[cfg(test)]

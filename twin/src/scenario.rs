@@ -22,17 +22,8 @@ pub const MAX_SPEC_BYTES: usize = 1000;
 /// predictor and observer keep.
 pub const MAX_DELAY: u32 = MAX_PREDICT as u32;
 
-/// How the controller reads the plant.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Sensing {
-    /// The exact state, rounded to f32 (with noise, if any): Gymnasium's observation.
-    Exact,
-    /// The rig's encoders through the model-based observer, told the commands sent and the
-    /// dead time (`firmware::estimator::ObserverSensor`).
-    Observer,
-    /// The rig's encoders through the model-free alpha-beta filter of this discount.
-    AlphaBeta(f32),
-}
+/// How the controller reads the plant: the link's, which a board's sensor is built from.
+pub use firmware::link::Sensing;
 
 /// A disturbance: an extra force of `impulse / tau` for one period, every `every` periods,
 /// towards a random side.

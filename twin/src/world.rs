@@ -16,16 +16,8 @@ use rand_distr::{Distribution, StandardNormal};
 use crate::machine::{self, Integration, Lane};
 use crate::scenario::{Scenario, Sensing};
 
-/// What the sensors report in one period.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum Measurement {
-    /// The state, as an exact sensor reads it.
-    State([f32; 4]),
-    /// Encoder counts `(cart, pole)`.
-    Counts(i32, i32),
-    /// No reading arrived (a `drop` fault): the sensor returns an error.
-    Missing,
-}
+/// What the sensors report in one period: the link's, which a board's sensor reads.
+pub use firmware::link::Measurement;
 
 /// An episode in progress.
 pub struct World<'s, R> {

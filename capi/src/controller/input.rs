@@ -6,7 +6,6 @@ use core::convert::Infallible;
 
 use firmware::controller::{Command, StateSensor};
 use firmware::estimator::{Estimate, ObserverSensor};
-use firmware::fixed;
 use firmware::loopback::Latest;
 use firmware::network::{N_ACTIONS, OBS_DIM};
 
@@ -30,35 +29,18 @@ enum Reads {
 
 /// A reading format of the controller, as C hands it in and reads its scores back.
 pub(crate) trait Format: Estimate {
-    /// A measured state in this format.
-    fn exact(state: &[f32; OBS_DIM]) -> Self;
     /// The scores as C's pair of float scores and pair of integer scores; the format that is
     /// not this one's reads zero.
     fn scores(q: Self::Scores) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]);
 }
 
 impl Format for [f32; OBS_DIM] {
-    fn exact(state: &[f32; OBS_DIM]) -> Self {
-        *state
-    }
     fn scores(q: [f32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
         (q, [0; N_ACTIONS])
     }
 }
 
-/// The integer pipeline's one float step, as for a Rust board handed float readings.
 impl Format for [i16; OBS_DIM] {
-    /// A NaN channel reads as saturated, which the integer format rejects as a value unknown:
-    /// rounded, it would read as 0, a plausible state the policy would act on.
-    fn exact(state: &[f32; OBS_DIM]) -> Self {
-        state.map(|v| {
-            if v.is_nan() {
-                i16::MAX
-            } else {
-                fixed::from_f32(v)
-            }
-        })
-    }
     fn scores(q: [i32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
         ([0.0; N_ACTIONS], q)
     }

@@ -103,6 +103,8 @@ impl<C: Counter, O> AlphaBetaSensor<C, O> {
 
 /// The formats the estimators hand their estimate out in.
 pub trait Estimate: Reading {
+    /// An exact state, `[x, x_dot, theta, theta_dot]`, in this format.
+    fn exact(state: &[f32; OBS_DIM]) -> Self;
     /// The observer's estimate in this format.
     fn observed(observer: &Observer) -> Self;
     /// The alpha-beta filter's estimate in this format.
@@ -110,6 +112,9 @@ pub trait Estimate: Reading {
 }
 
 impl Estimate for [f32; OBS_DIM] {
+    fn exact(state: &[f32; OBS_DIM]) -> Self {
+        *state
+    }
     fn observed(observer: &Observer) -> Self {
         observer.state()
     }
@@ -119,6 +124,17 @@ impl Estimate for [f32; OBS_DIM] {
 }
 
 impl Estimate for [i16; OBS_DIM] {
+    /// A NaN channel reads as saturated, which the integer format rejects as a value unknown:
+    /// rounded, it would read as 0, a plausible state the policy would act on.
+    fn exact(state: &[f32; OBS_DIM]) -> Self {
+        state.map(|v| {
+            if v.is_nan() {
+                i16::MAX
+            } else {
+                crate::fixed::from_f32(v)
+            }
+        })
+    }
     fn observed(observer: &Observer) -> Self {
         observer.fixed_state()
     }

@@ -12,13 +12,15 @@ pub const HEADER_LEN: usize = 4;
 pub const MAX_PAYLOAD: usize = HEADER_LEN + max_body();
 
 /// What a message says. The host sends [`Message::Hello`], [`Message::Start`] and one
-/// reading a period ([`Message::State`] or [`Message::Counts`]); the target answers each,
+/// reading a period ([`Message::State`], [`Message::Counts`] or [`Message::Missed`]); the
+/// target answers each,
 /// with [`Message::Info`], [`Message::Started`] and [`Message::Reply`], or with
 /// [`Message::Refused`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Message {
-    /// Host: which policy and rig do you hold?
-    Hello,
+    /// Host: which policy of this format, and which rig, do you hold? The format is the
+    /// one the episodes that follow run.
+    Hello(Format),
     /// Host: a new episode; reset the controller, its sensor and its predictor.
     Start(Start),
     /// Host: this period's exact state, `[x, x_dot, theta, theta_dot]` (state-fed modes).
@@ -30,6 +32,9 @@ pub enum Message {
         /// Pole encoder.
         pole: i32,
     },
+    /// Host: this period's reading did not arrive (a dropped reading): the target runs the
+    /// period on a sensor error.
+    Missed,
     /// Target: what it holds.
     Info(Info),
     /// Target: the episode has started.
@@ -66,22 +71,36 @@ pub enum Format {
     Int8,
 }
 
-/// How an episode's readings arrive.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+/// How the controller reads the plant: what readings the host sends
+/// ([`Message::State`] or [`Message::Counts`]) and what the target estimates the state with.
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Sensing {
-    /// [`Message::State`]: the state, read exactly (or with the host's noise).
-    State,
-    /// [`Message::Counts`]: encoder counts, through the target's observer.
-    Encoders,
+    /// The exact state, rounded to f32 (with noise, if any): Gymnasium's observation.
+    Exact,
+    /// The rig's encoders through the model-based observer, told the commands sent and the
+    /// dead time ([`crate::estimator::ObserverSensor`]).
+    Observer,
+    /// The rig's encoders through the model-free alpha-beta filter of this discount.
+    AlphaBeta(f32),
 }
 
-/// A new episode's configuration.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+impl Sensing {
+    /// Whether readings of this sensing are encoder counts.
+    pub fn counts(self) -> bool {
+        !matches!(self, Sensing::Exact)
+    }
+}
+
+/// A new episode's configuration: how it senses, and the one part of the rig a host may
+/// set per episode, the dead time (a board configured for its measured latency).
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Start {
     /// How readings arrive.
     pub sensing: Sensing,
     /// Whether the controller runs its rig's dead-time predictor.
     pub predict: bool,
+    /// The periods of dead time the observer and predictor assume, in place of the rig's.
+    pub dead_time: u8,
 }
 
 /// The policy's two scores, in its arithmetic.
@@ -127,23 +146,28 @@ pub enum Reason {
     NotStarted = 8,
     /// A reading of the other kind than the episode's [`Sensing`].
     Mode = 9,
+    /// A Hello asking for a format the target holds no policy of, or a Start the target's
+    /// rig cannot run (its observer or predictor refuses the dead time or the filter).
+    Unsupported = 10,
 }
 
 const KIND_HELLO: u8 = 0x01;
 const KIND_START: u8 = 0x02;
 const KIND_STATE: u8 = 0x03;
 const KIND_COUNTS: u8 = 0x04;
+const KIND_MISSED: u8 = 0x05;
 const KIND_INFO: u8 = 0x81;
 const KIND_STARTED: u8 = 0x82;
 const KIND_REPLY: u8 = 0x83;
 const KIND_REFUSED: u8 = 0xFF;
 
 /// Every kind and its body's length: the one table both directions use.
-const KINDS: [(u8, usize); 8] = [
-    (KIND_HELLO, 0),
-    (KIND_START, 2),
+const KINDS: [(u8, usize); 9] = [
+    (KIND_HELLO, 1),
+    (KIND_START, 7),
     (KIND_STATE, 16),
     (KIND_COUNTS, 8),
+    (KIND_MISSED, 0),
     (KIND_INFO, 27),
     (KIND_STARTED, 0),
     (KIND_REPLY, 16),
@@ -204,10 +228,11 @@ impl Packet {
 impl Message {
     fn kind(&self) -> u8 {
         match self {
-            Message::Hello => KIND_HELLO,
+            Message::Hello(_) => KIND_HELLO,
             Message::Start(_) => KIND_START,
             Message::State(_) => KIND_STATE,
             Message::Counts { .. } => KIND_COUNTS,
+            Message::Missed => KIND_MISSED,
             Message::Info(_) => KIND_INFO,
             Message::Started => KIND_STARTED,
             Message::Reply(_) => KIND_REPLY,
@@ -217,8 +242,17 @@ impl Message {
 
     fn encode_body(&self, w: &mut Writer<'_>) {
         match self {
-            Message::Hello | Message::Started => {}
-            Message::Start(s) => w.put(&[s.sensing as u8, s.predict as u8]),
+            Message::Missed | Message::Started => {}
+            Message::Hello(format) => w.put(&[*format as u8]),
+            Message::Start(s) => {
+                let (code, discount) = match s.sensing {
+                    Sensing::Exact => (0, 0.0),
+                    Sensing::Observer => (1, 0.0),
+                    Sensing::AlphaBeta(d) => (2, d),
+                };
+                w.put(&[code, s.predict as u8, s.dead_time]);
+                w.put(&f32::to_le_bytes(discount));
+            }
             Message::State(v) => v.iter().for_each(|x| w.put(&x.to_le_bytes())),
             Message::Counts { cart, pole } => {
                 w.put(&cart.to_le_bytes());
@@ -250,23 +284,17 @@ impl Message {
     /// of its range.
     fn decode_body(kind: u8, r: &mut Reader<'_>) -> Option<Message> {
         Some(match kind {
-            KIND_HELLO => Message::Hello,
+            KIND_HELLO => Message::Hello(format(r.u8()?)?),
             KIND_STARTED => Message::Started,
-            KIND_START => Message::Start(Start {
-                sensing: match r.u8()? {
-                    0 => Sensing::State,
-                    1 => Sensing::Encoders,
-                    _ => return None,
-                },
-                predict: flag(r.u8()?)?,
-            }),
+            KIND_MISSED => Message::Missed,
+            KIND_START => Message::Start(decode_start(r)?),
             KIND_STATE => Message::State([r.f32()?, r.f32()?, r.f32()?, r.f32()?]),
             KIND_COUNTS => Message::Counts {
                 cart: r.i32()?,
                 pole: r.i32()?,
             },
             KIND_INFO => Message::Info(Info {
-                format: [Format::F32, Format::Int8].get(r.u8()? as usize).copied()?,
+                format: format(r.u8()?)?,
                 hidden: u16::from_le_bytes(r.bytes()?),
                 policy: u64::from_le_bytes(r.bytes()?),
                 rig: u64::from_le_bytes(r.bytes()?),
@@ -278,6 +306,26 @@ impl Message {
             _ => return None,
         })
     }
+}
+
+fn decode_start(r: &mut Reader<'_>) -> Option<Start> {
+    let (code, predict, dead_time) = (r.u8()?, flag(r.u8()?)?, r.u8()?);
+    let discount = r.f32()?;
+    let sensing = match (code, discount.to_bits()) {
+        (0, 0) => Sensing::Exact,
+        (1, 0) => Sensing::Observer,
+        (2, _) => Sensing::AlphaBeta(discount),
+        _ => return None,
+    };
+    Some(Start {
+        sensing,
+        predict,
+        dead_time,
+    })
+}
+
+fn format(b: u8) -> Option<Format> {
+    [Format::F32, Format::Int8].get(b as usize).copied()
 }
 
 fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
@@ -320,7 +368,16 @@ fn flag(b: u8) -> Option<bool> {
 fn reason(b: u8) -> Option<Reason> {
     use Reason::*;
     [
-        Version, Kind, Length, Crc, Oversized, Encoding, Sequence, NotStarted, Mode,
+        Version,
+        Kind,
+        Length,
+        Crc,
+        Oversized,
+        Encoding,
+        Sequence,
+        NotStarted,
+        Mode,
+        Unsupported,
     ]
     .into_iter()
     .find(|r| *r as u8 == b)

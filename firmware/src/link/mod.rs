@@ -19,14 +19,18 @@ pub mod crc;
 pub mod digest;
 pub mod frame;
 mod message;
+mod sensor;
 pub mod session;
+pub mod target;
 
 pub use frame::{FrameReader, MAX_FRAME};
 pub use message::{
     Format, HEADER_LEN, Info, MAX_PAYLOAD, Message, Packet, Reason, Reply, Scores, Sensing, Start,
     VERSION,
 };
-pub use session::{Request, Session};
+pub use sensor::{LinkSensor, Missing};
+pub use session::{Measurement, Request, Session};
+pub use target::{Period, Target};
 
 #[cfg(test)]
 mod tests;

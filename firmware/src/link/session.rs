@@ -1,33 +1,40 @@
 //! The target's side of the exchange (`docs/LINK.md`, "The exchange" and "Faults"): which
-//! frames it acts on, which it refuses and why. The board does the acting: it answers
+//! frames it acts on, which it refuses and why. The board does the acting
+//! ([`super::target::Target`] for one that runs the controller): it answers
 //! [`Request::Hello`] with its `Info`, resets its controller on [`Request::Start`], runs one
 //! period on a reading, and drives the motor off on [`Request::Refuse`].
 
-use super::message::{Message, Packet, Reason, Sensing, Start};
+use super::message::{Format, Message, Packet, Reason, Start};
 
 /// What the target is asked to do, after the session's checks.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Request {
-    /// Answer with `Info`.
-    Hello,
+    /// Answer with `Info` for a policy of this format, which the episodes that follow run.
+    Hello(Format),
     /// Reset the controller, its sensor and its predictor for an episode; answer `Started`.
     Start(Start),
-    /// Run one period on this state; answer `Reply`.
-    State([f32; 4]),
-    /// Run one period on these counts; answer `Reply`.
-    Counts {
-        /// Cart encoder.
-        cart: i32,
-        /// Pole encoder.
-        pole: i32,
-    },
+    /// Run one period on this measurement; answer `Reply`.
+    Period(Measurement),
     /// Drive the motor off and answer `Refused` with this reason.
     Refuse(Reason),
+}
+
+/// What the sensors report in one period: what a host's world sends, and what a board's
+/// sensor is handed ([`super::LinkSensor::set`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Measurement {
+    /// The state, as an exact sensor reads it.
+    State([f32; 4]),
+    /// Encoder counts `(cart, pole)`.
+    Counts(i32, i32),
+    /// No reading arrived (a dropped reading): the sensor returns an error.
+    Missing,
 }
 
 /// The target's state between frames.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Session {
+    hello: bool,
     start: Option<Start>,
     seq: u16,
     refused: u32,
@@ -42,42 +49,47 @@ impl Session {
             Err(reason) => return self.refuse(self.seq, reason),
         };
         let seq = packet.seq;
-        match packet.message {
-            Message::Hello => {
-                self.seq = seq;
-                (seq, Request::Hello)
+        let m = match packet.message {
+            Message::Hello(format) => {
+                (self.seq, self.hello, self.start) = (seq, true, None);
+                return (seq, Request::Hello(format));
             }
+            Message::Start(_) if !self.hello => return self.refuse(seq, Reason::NotStarted),
             Message::Start(start) => {
-                self.seq = seq;
-                self.start = Some(start);
-                (seq, Request::Start(start))
+                (self.seq, self.start) = (seq, Some(start));
+                return (seq, Request::Start(start));
             }
-            Message::State(v) => self.reading(seq, Sensing::State, Request::State(v)),
-            Message::Counts { cart, pole } => {
-                self.reading(seq, Sensing::Encoders, Request::Counts { cart, pole })
-            }
+            Message::State(v) => Measurement::State(v),
+            Message::Counts { cart, pole } => Measurement::Counts(cart, pole),
+            Message::Missed => Measurement::Missing,
             // A target-to-host kind sent to the target.
-            _ => self.refuse(seq, Reason::Kind),
-        }
-    }
-
-    /// Frames refused so far (saturating).
-    pub fn refused(&self) -> u32 {
-        self.refused
-    }
-
-    fn reading(&mut self, seq: u16, sensing: Sensing, request: Request) -> (u16, Request) {
+            _ => return self.refuse(seq, Reason::Kind),
+        };
         let Some(start) = self.start else {
             return self.refuse(seq, Reason::NotStarted);
         };
-        if start.sensing != sensing {
+        if matches!(m, Measurement::Counts(..)) != start.sensing.counts()
+            && m != Measurement::Missing
+        {
             return self.refuse(seq, Reason::Mode);
         }
         if seq != self.seq.wrapping_add(1) {
             return self.refuse(seq, Reason::Sequence);
         }
         self.seq = seq;
-        (seq, request)
+        (seq, Request::Period(m))
+    }
+
+    /// Ends the episode, after the target refused it something the session let through (a
+    /// Start its rig cannot run): readings are refused until the next Start.
+    pub fn stop(&mut self) {
+        self.start = None;
+        self.refused = self.refused.saturating_add(1);
+    }
+
+    /// Frames refused so far (saturating).
+    pub fn refused(&self) -> u32 {
+        self.refused
     }
 
     fn refuse(&mut self, seq: u16, reason: Reason) -> (u16, Request) {

@@ -141,15 +141,24 @@ fn every_kind() -> Vec<Packet> {
         })
     };
     let messages = [
-        Message::Hello,
+        Message::Hello(Format::F32),
+        Message::Hello(Format::Int8),
         Message::Start(Start {
-            sensing: Sensing::Encoders,
+            sensing: Sensing::Observer,
             predict: true,
+            dead_time: u8::MAX,
         }),
         Message::Start(Start {
-            sensing: Sensing::State,
+            sensing: Sensing::Exact,
             predict: false,
+            dead_time: 0,
         }),
+        Message::Start(Start {
+            sensing: Sensing::AlphaBeta(0.5),
+            predict: false,
+            dead_time: 2,
+        }),
+        Message::Missed,
         Message::State([f32::MIN, -0.0, f32::INFINITY, 1e-40]),
         Message::Counts {
             cart: i32::MIN,
@@ -240,17 +249,21 @@ fn malformed_payloads_are_refused_for_what_they_are() {
         received(&bytes)
     };
     assert_eq!(frame_of(&[2, 0x01, 0, 0]), [Err(Reason::Version)]);
-    assert_eq!(frame_of(&[1, 0x05, 0, 0]), [Err(Reason::Kind)]);
-    assert_eq!(frame_of(&[1, 0x01, 0, 0, 9]), [Err(Reason::Length)]);
-    assert_eq!(frame_of(&[1, 0x02, 0, 0, 2, 0]), [Err(Reason::Length)]);
-    assert_eq!(frame_of(&[1, 0x02, 0, 0, 1, 2]), [Err(Reason::Length)]);
+    assert_eq!(frame_of(&[1, 0x06, 0, 0]), [Err(Reason::Kind)]);
+    // A format, a sensing, a flag out of range; a discount where no filter runs.
+    assert_eq!(frame_of(&[1, 0x01, 0, 0, 2]), [Err(Reason::Length)]);
+    let start = |b: [u8; 7]| frame_of(&[&[1, 0x02, 0, 0][..], &b].concat());
+    assert_eq!(start([3, 0, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
+    assert_eq!(start([1, 2, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
+    assert_eq!(start([1, 0, 0, 0, 0, 0, 0x3F]), [Err(Reason::Length)]);
+    assert_eq!(frame_of(&[1, 0x02, 0, 0, 1, 0]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[1, 0xFF, 0, 0, 0]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[1, 0x01, 0]), [Err(Reason::Length)]);
     assert_eq!(
-        frame_of(&[1, 0x01, 3, 0]),
+        frame_of(&[1, 0x01, 3, 0, 1]),
         [Ok(Packet {
             seq: 3,
-            message: Message::Hello
+            message: Message::Hello(Format::Int8)
         })]
     );
 }
@@ -259,7 +272,7 @@ fn malformed_payloads_are_refused_for_what_they_are() {
 fn an_oversized_frame_is_dropped_whole_and_the_next_one_read() {
     let next = Packet {
         seq: 1,
-        message: Message::Hello,
+        message: Message::Hello(Format::F32),
     };
     let mut bytes = std::vec![0x55u8; 3 * MAX_FRAME];
     bytes.push(0);
@@ -325,23 +338,33 @@ fn a_session_acts_on_readings_in_sequence_of_its_mode_and_refuses_the_rest() {
     let mut s = Session::default();
     let p = |seq, message| Ok(Packet { seq, message });
     let counts = Message::Counts { cart: 5, pole: -5 };
-    let request = Request::Counts { cart: 5, pole: -5 };
+    let request = Request::Period(Measurement::Counts(5, -5));
     let start = Start {
-        sensing: Sensing::Encoders,
+        sensing: Sensing::Observer,
         predict: true,
+        dead_time: 1,
     };
     assert_eq!(
         s.accept(p(9, counts)),
         (9, Request::Refuse(Reason::NotStarted))
     );
-    assert_eq!(s.accept(p(40, Message::Hello)), (40, Request::Hello));
+    // A Start before any Hello: the format is not known.
+    assert_eq!(
+        s.accept(p(9, Message::Start(start))),
+        (9, Request::Refuse(Reason::NotStarted))
+    );
+    let hello = Message::Hello(Format::F32);
+    assert_eq!(s.accept(p(40, hello)), (40, Request::Hello(Format::F32)));
     assert_eq!(
         s.accept(p(u16::MAX, Message::Start(start))),
         (u16::MAX, Request::Start(start))
     );
-    // The sequence wraps.
+    // The sequence wraps; a missed reading counts in it.
     assert_eq!(s.accept(p(0, counts)), (0, request));
-    assert_eq!(s.accept(p(1, counts)), (1, request));
+    assert_eq!(
+        s.accept(p(1, Message::Missed)),
+        (1, Request::Period(Measurement::Missing))
+    );
     // A replay, a gap, the other mode, a reply's kind, a frame that could not be read.
     assert_eq!(
         s.accept(p(1, counts)),
@@ -363,5 +386,11 @@ fn a_session_acts_on_readings_in_sequence_of_its_mode_and_refuses_the_rest() {
     );
     // None of the refusals moved the sequence on.
     assert_eq!(s.accept(p(2, counts)), (2, request));
-    assert_eq!(s.refused(), 6);
+    assert_eq!(s.refused(), 7);
+    // A new Hello ends the episode.
+    assert_eq!(s.accept(p(5, hello)), (5, Request::Hello(Format::F32)));
+    assert_eq!(
+        s.accept(p(6, counts)),
+        (6, Request::Refuse(Reason::NotStarted))
+    );
 }

@@ -1,0 +1,218 @@
+//! A target that runs the board's controller for a host's world: the policy in either
+//! format, its rig's observer or filter, predictor and limits, one controller period per
+//! reading, the time each took. What a processor- or hardware-in-the-loop build runs
+//! between its serial port and its clock; the host's software-in-the-loop check runs the
+//! same code.
+
+use crate::config::ConfigError;
+use crate::controller::{Controller, FaultFlags, Limits, Predictor, StateSensor};
+use crate::estimator::{Estimate, Observer};
+use crate::loopback::{Pins, pins};
+use crate::network::Mlp;
+use crate::network::int::QMlp;
+use crate::rig::Rig;
+
+use super::message::{Format, Info, Message, Packet, Reason, Reply, Scores, Start};
+use super::sensor::LinkSensor;
+use super::session::{Request, Session};
+use super::{Measurement, digest};
+
+/// What a target holds: both formats of its policy and the rig it was built for.
+pub struct Target<'p, const H: usize> {
+    policy: &'p Mlp<H>,
+    policy_int: &'p QMlp<H>,
+    rig: Rig,
+    period: Period,
+    session: Session,
+    format: Format,
+    running: Running<'p, H>,
+    /// The last observer built, and the dead time it was built for: a Start with the same
+    /// dead time copies it rather than solving its gain again.
+    observer: Option<(u8, Observer)>,
+}
+
+/// The clock the target's times are counted on, and the control period it was built for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Period {
+    /// Ticks per second of the clock [`Target::handle`] is given.
+    pub clock_hz: u32,
+    /// The control period, ns.
+    pub ns: u32,
+}
+
+type Float<'p, const H: usize> = Controller<&'p Mlp<H>, LinkSensor<[f32; 4]>, Pins, 1>;
+type Int<'p, const H: usize> = Controller<&'p QMlp<H>, LinkSensor<[i16; 4]>, Pins, 1>;
+
+/// The episode's controller, in the format Hello asked for.
+enum Running<'p, const H: usize> {
+    Idle,
+    F32(Float<'p, H>),
+    Int8(Int<'p, H>),
+}
+
+impl<'p, const H: usize> Target<'p, H> {
+    /// A target holding `policy`, its integer version `policy_int` and `rig` (the board's
+    /// `POLICY`, `POLICY_INT` and `RIG`), timing periods on `period`'s clock.
+    pub fn new(policy: &'p Mlp<H>, policy_int: &'p QMlp<H>, rig: Rig, period: Period) -> Self {
+        Target {
+            policy,
+            policy_int,
+            rig,
+            period,
+            session: Session::default(),
+            format: Format::F32,
+            running: Running::Idle,
+            observer: None,
+        }
+    }
+
+    /// The answer to one frame as the reader gave it. `elapsed` reads the clock's ticks
+    /// since the frame's last byte arrived: a reply's ticks are its reading at the command.
+    pub fn handle(&mut self, frame: Result<Packet, Reason>, elapsed: impl Fn() -> u32) -> Packet {
+        let (seq, request) = self.session.accept(frame);
+        let message = match request {
+            Request::Hello(format) => {
+                self.format = format;
+                self.running = Running::Idle;
+                Message::Info(self.info())
+            }
+            Request::Start(start) => match self.start(start) {
+                Ok(running) => {
+                    self.running = running;
+                    Message::Started
+                }
+                Err(_) => self.refuse(Reason::Unsupported),
+            },
+            Request::Period(m) => match self.period(m) {
+                Some(mut reply) => {
+                    reply.ticks = elapsed();
+                    Message::Reply(reply)
+                }
+                // After a refusal: the motor stays off until the next Start.
+                None => self.refuse(Reason::NotStarted),
+            },
+            // Counted by the session.
+            Request::Refuse(reason) => self.stop(reason),
+        };
+        Packet { seq, message }
+    }
+
+    /// Frames refused so far (saturating), the session's and the target's.
+    pub fn refused(&self) -> u32 {
+        self.session.refused()
+    }
+
+    fn info(&self) -> Info {
+        let (format, policy) = match self.format {
+            Format::F32 => (Format::F32, digest::mlp(self.policy)),
+            Format::Int8 => (Format::Int8, digest::qmlp(self.policy_int)),
+        };
+        Info {
+            format,
+            hidden: H as u16,
+            policy,
+            rig: digest::rig(&self.rig),
+            period_ns: self.period.ns,
+            clock_hz: self.period.clock_hz,
+        }
+    }
+
+    /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
+    /// (if asked) predictor.
+    fn start(&mut self, start: Start) -> Result<Running<'p, H>, ConfigError> {
+        let rig = Rig {
+            dead_time: u32::from(start.dead_time),
+            ..self.rig
+        }
+        .check()?;
+        let limits = rig.limits()?;
+        let predictor = match start.predict && rig.dead_time > 0 {
+            true => Some(rig.predictor()?),
+            false => None,
+        };
+        let cache = &mut self.observer;
+        let observer = || match cache {
+            Some((d, o)) if *d == start.dead_time => Ok(o.clone()),
+            _ => {
+                let o = rig.observer()?;
+                *cache = Some((start.dead_time, o.clone()));
+                Ok(o)
+            }
+        };
+        Ok(match self.format {
+            Format::F32 => Running::F32(controller(
+                self.policy,
+                LinkSensor::new(start.sensing, &rig, observer)?,
+                limits,
+                predictor,
+            )),
+            Format::Int8 => Running::Int8(controller(
+                self.policy_int,
+                LinkSensor::new(start.sensing, &rig, observer)?,
+                limits,
+                predictor,
+            )),
+        })
+    }
+
+    /// One controller period on `m`; `None` when no episode runs.
+    fn period(&mut self, m: Measurement) -> Option<Reply> {
+        Some(match &mut self.running {
+            Running::Idle => return None,
+            Running::F32(c) => step(c, m, Scores::F32),
+            Running::Int8(c) => step(c, m, Scores::I32),
+        })
+    }
+
+    /// A refusal of the target's own (the session let the frame through): counted by the
+    /// session, which refuses readings until the next Start.
+    fn refuse(&mut self, reason: Reason) -> Message {
+        self.session.stop();
+        self.stop(reason)
+    }
+
+    /// Ends the episode (the motor is off until the next Start) and answers `reason`.
+    fn stop(&mut self, reason: Reason) -> Message {
+        self.running = Running::Idle;
+        Message::Refused(reason)
+    }
+}
+
+fn controller<P, O: Estimate>(
+    policy: P,
+    sensor: LinkSensor<O>,
+    limits: Limits,
+    predictor: Option<Predictor>,
+) -> Controller<P, LinkSensor<O>, Pins, 1>
+where
+    P: crate::controller::Policy<O>,
+{
+    let c = Controller::with_history(policy, sensor, pins(), limits);
+    match predictor {
+        Some(p) => c.with_predictor(p),
+        None => c,
+    }
+}
+
+fn step<P, O: Estimate>(
+    c: &mut Controller<P, LinkSensor<O>, Pins, 1>,
+    m: Measurement,
+    scores: impl Fn(O::Scores) -> Scores,
+) -> Reply
+where
+    P: crate::controller::Policy<O>,
+    LinkSensor<O>: StateSensor<Reading = O>,
+{
+    c.sensor_mut().set(m);
+    let command = c.step();
+    let last = c.last();
+    Reply {
+        command,
+        scores: scores(last.map_or(O::UNSCORED, |r| r.q)),
+        faults: last.map_or(FaultFlags::SENSOR_ERROR, |r| r.faults),
+        ticks: 0,
+    }
+}
+
+#[cfg(test)]
+mod tests;

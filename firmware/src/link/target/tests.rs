@@ -1,0 +1,164 @@
+extern crate std;
+use std::vec::Vec;
+
+use super::*;
+use crate::cartpole::{CartPole, State};
+use crate::controller::Command;
+use crate::estimator::ObserverSensor;
+use crate::link::{Sensing, digest};
+use crate::loopback::{Latest, duty};
+use crate::policy::{POLICY, RIG};
+use crate::policy_int::POLICY_INT;
+
+const PERIOD: Period = Period {
+    clock_hz: 1_000,
+    ns: 20_000_000,
+};
+
+fn target() -> Target<'static, 64> {
+    Target::new(&POLICY, &POLICY_INT, RIG, PERIOD)
+}
+
+/// Sends `message` numbered `seq`; the answer's message, checked to carry `seq`.
+fn send(t: &mut Target<'_, 64>, seq: u16, message: Message) -> Message {
+    let answer = t.handle(Ok(Packet { seq, message }), || 7);
+    assert_eq!(answer.seq, seq);
+    answer.message
+}
+
+fn reply(m: Message) -> Reply {
+    match m {
+        Message::Reply(r) => r,
+        other => panic!("a Reply was due, got {other:?}"),
+    }
+}
+
+/// A closed loop of the plant and a controller built as a board builds it (the rig's
+/// observer on the counts, its predictor for `dead_time` periods, its limits); beside it
+/// the target, handed the same counts as frames. Their commands, period by period.
+fn both<O: Estimate, P: crate::controller::Policy<O>>(
+    policy: P,
+    format: Format,
+    dead_time: u8,
+) -> Vec<(Command, Command)> {
+    let rig = Rig {
+        dead_time: dead_time.into(),
+        ..RIG
+    };
+    let mut plant = CartPole::new(rig.params, 300);
+    plant.reset_to(State::from_array([0.03, 0.0, -0.04, 0.02]));
+    let counts = |s: State| rig.encoders.counts(s.x, s.theta);
+    let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
+    let mut board = Controller::new(policy, sensor, pins(), rig.limits().unwrap())
+        .with_predictor(rig.predictor().unwrap());
+    let mut t = target();
+    assert!(matches!(
+        send(&mut t, 0, Message::Hello(format)),
+        Message::Info(_)
+    ));
+    let start = Start {
+        sensing: Sensing::Observer,
+        predict: true,
+        dead_time,
+    };
+    assert_eq!(send(&mut t, 1, Message::Start(start)), Message::Started);
+    let mut out = Vec::new();
+    for seq in 2.. {
+        let (cart, pole) = counts(plant.state());
+        board.sensor_mut().counter_mut().0 = (cart, pole);
+        let want = board.step();
+        let got = reply(send(&mut t, seq, Message::Counts { cart, pole }));
+        assert_eq!(got.ticks, 7);
+        out.push((got.command, want));
+        let step = plant.advance(duty(board.actuator()), 0.0);
+        if step.terminated || step.truncated {
+            return out;
+        }
+    }
+    unreachable!()
+}
+
+#[test]
+fn the_target_commands_what_a_board_built_from_its_rig_commands() {
+    for dead_time in [0, 2] {
+        let f32s = both::<[f32; 4], _>(&POLICY, Format::F32, dead_time);
+        let ints = both::<[i16; 4], _>(&POLICY_INT, Format::Int8, dead_time);
+        for run in [f32s, ints] {
+            assert_eq!(run.len(), 300, "the board balanced for the whole run");
+            for (k, (got, want)) in run.iter().enumerate() {
+                assert_eq!(got, want, "period {k}, dead time {dead_time}");
+            }
+        }
+    }
+}
+
+#[test]
+fn hello_says_what_the_target_holds_in_the_format_asked_for() {
+    let mut t = target();
+    let Message::Info(info) = send(&mut t, 3, Message::Hello(Format::Int8)) else {
+        panic!("an Info was due");
+    };
+    assert_eq!(info.format, Format::Int8);
+    assert_eq!(info.hidden, 64);
+    assert_eq!(info.policy, digest::qmlp(&POLICY_INT));
+    assert_eq!(info.rig, digest::rig(&RIG));
+    assert_eq!(
+        (info.period_ns, info.clock_hz),
+        (PERIOD.ns, PERIOD.clock_hz)
+    );
+    let Message::Info(info) = send(&mut t, 4, Message::Hello(Format::F32)) else {
+        panic!("an Info was due");
+    };
+    assert_eq!(info.policy, digest::mlp(&POLICY));
+}
+
+#[test]
+fn a_refusal_stops_the_motor_until_the_next_start() {
+    let mut t = target();
+    let exact = Start {
+        sensing: Sensing::Exact,
+        predict: false,
+        dead_time: 0,
+    };
+    let state = Message::State([0.0, 0.0, 0.01, 0.0]);
+    // Before any Hello, and before any Start.
+    assert_eq!(
+        send(&mut t, 1, Message::Start(exact)),
+        Message::Refused(Reason::NotStarted)
+    );
+    send(&mut t, 2, Message::Hello(Format::F32));
+    assert_eq!(send(&mut t, 3, state), Message::Refused(Reason::NotStarted));
+    // A dead time the predictor's line cannot hold, a filter the firmware refuses.
+    for bad in [
+        Start {
+            dead_time: 200,
+            ..exact
+        },
+        Start {
+            sensing: Sensing::AlphaBeta(f32::NAN),
+            ..exact
+        },
+    ] {
+        assert_eq!(
+            send(&mut t, 4, Message::Start(bad)),
+            Message::Refused(Reason::Unsupported)
+        );
+        assert_eq!(send(&mut t, 5, state), Message::Refused(Reason::NotStarted));
+    }
+    assert_eq!(send(&mut t, 6, Message::Start(exact)), Message::Started);
+    assert_eq!(
+        reply(send(&mut t, 7, state)).command,
+        Command::Push(crate::Action::Right)
+    );
+    // A missed reading coasts, counted as the sensor's error.
+    let missed = reply(send(&mut t, 8, Message::Missed));
+    assert_eq!(missed.command, Command::Coast);
+    assert_eq!(missed.faults, FaultFlags::SENSOR_ERROR);
+    // A corrupted frame mid-episode: refused, and the readings after it too.
+    let crc = t.handle(Err(Reason::Crc), || 0);
+    assert_eq!((crc.seq, crc.message), (8, Message::Refused(Reason::Crc)));
+    assert_eq!(send(&mut t, 9, state), Message::Refused(Reason::NotStarted));
+    assert_eq!(send(&mut t, 10, Message::Start(exact)), Message::Started);
+    assert!(matches!(send(&mut t, 11, state), Message::Reply(_)));
+    assert_eq!(t.refused(), 8);
+}

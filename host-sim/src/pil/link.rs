@@ -1,0 +1,208 @@
+//! The host's end of the link (`docs/LINK.md`): requests out, answers back within a
+//! timeout, every answer checked for its kind and sequence number. A [`Remote`] is a target
+//! in another process (QEMU, or the target built for the host) or the same target code in
+//! this one, the software-in-the-loop reference.
+
+use std::io::{Read, Write};
+use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
+use std::time::Duration;
+
+use anyhow::{Context, Result, anyhow, bail};
+use firmware::link::{
+    Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Period, Reason, Reply,
+    Start, Target, frame,
+};
+use firmware::network::Mlp;
+use firmware::network::int::QMlp;
+use firmware::rig::Rig;
+
+/// A target the host's world talks to, one request and its answer at a time.
+pub trait Remote {
+    /// Sends `message` numbered `seq` and returns the answer, checked to carry `seq`.
+    fn exchange(&mut self, seq: u16, message: Message) -> Result<Message>;
+}
+
+/// Numbers the requests to a [`Remote`] and checks that each answer is of the kind asked
+/// for: the host's side of the exchange.
+pub struct Session<R> {
+    remote: R,
+    seq: u16,
+}
+
+impl<R: Remote> Session<R> {
+    /// A session with `remote`, starting at sequence number 0.
+    pub fn new(remote: R) -> Self {
+        Session { remote, seq: 0 }
+    }
+
+    /// What the target holds for `format`.
+    pub fn hello(&mut self, format: Format) -> Result<Info> {
+        match self.request(Message::Hello(format))? {
+            Message::Info(info) => Ok(info),
+            other => Err(unexpected("Info", other)),
+        }
+    }
+
+    /// Starts an episode.
+    pub fn start(&mut self, start: Start) -> Result<()> {
+        match self.request(Message::Start(start))? {
+            Message::Started => Ok(()),
+            other => Err(unexpected("Started", other)),
+        }
+    }
+
+    /// One period on `m`.
+    pub fn period(&mut self, m: Measurement) -> Result<Reply> {
+        let message = match m {
+            Measurement::State(v) => Message::State(v),
+            Measurement::Counts(cart, pole) => Message::Counts { cart, pole },
+            Measurement::Missing => Message::Missed,
+        };
+        match self.request(message)? {
+            Message::Reply(r) => Ok(r),
+            other => Err(unexpected("Reply", other)),
+        }
+    }
+
+    fn request(&mut self, message: Message) -> Result<Message> {
+        self.seq = self.seq.wrapping_add(1);
+        self.remote.exchange(self.seq, message)
+    }
+}
+
+fn unexpected(wanted: &str, got: Message) -> anyhow::Error {
+    match got {
+        Message::Refused(reason) => anyhow!("the target refused the request: {}", describe(reason)),
+        other => anyhow!("the target answered {other:?} where {wanted} was due"),
+    }
+}
+
+/// What a refusal's reason means, as `docs/LINK.md` says.
+pub fn describe(reason: Reason) -> &'static str {
+    match reason {
+        Reason::Version => "another protocol version",
+        Reason::Kind => "an unknown kind",
+        Reason::Length => "a body of the wrong length, or a field out of its range",
+        Reason::Crc => "a corrupted frame (CRC)",
+        Reason::Oversized => "a frame longer than the longest",
+        Reason::Encoding => "not a COBS encoding",
+        Reason::Sequence => "a reading out of sequence",
+        Reason::NotStarted => "a reading before any Start",
+        Reason::Mode => "a reading of the other kind than Start said",
+        Reason::Unsupported => "a format or a Start its policy or rig cannot run",
+    }
+}
+
+/// The target code in this process: the software-in-the-loop reference a processor-in-
+/// the-loop run is compared with, frame for frame.
+pub struct Local<const H: usize>(Target<'static, H>);
+
+impl<const H: usize> Local<H> {
+    /// A target holding `policy`, `policy_int` and `rig` (a board's `POLICY`, `POLICY_INT`
+    /// and `RIG`), timed on nothing: its ticks are 0.
+    pub fn new(policy: &'static Mlp<H>, policy_int: &'static QMlp<H>, rig: Rig) -> Self {
+        let period = Period {
+            clock_hz: 1,
+            ns: (rig.params.tau * 1e9).round() as u32,
+        };
+        Local(Target::new(policy, policy_int, rig, period))
+    }
+}
+
+impl<const H: usize> Remote for Local<H> {
+    fn exchange(&mut self, seq: u16, message: Message) -> Result<Message> {
+        Ok(self.0.handle(Ok(Packet { seq, message }), || 0).message)
+    }
+}
+
+/// A target in a child process that speaks the link on its standard input and output
+/// (QEMU with the target's semihosting console there, or the target built for the host).
+pub struct Process {
+    child: Child,
+    input: ChildStdin,
+    frames: Receiver<Result<Packet, Reason>>,
+    timeout: Duration,
+    what: String,
+}
+
+impl Process {
+    /// Starts `command`; `what` names it in messages; answers later than `timeout` end the
+    /// run.
+    pub fn spawn(mut command: Command, what: String, timeout: Duration) -> Result<Process> {
+        let mut child = command
+            .stdin(Stdio::piped())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::inherit())
+            .spawn()
+            .with_context(|| format!("could not start {what}"))?;
+        let (Some(input), Some(mut output)) = (child.stdin.take(), child.stdout.take()) else {
+            bail!("{what} has no standard input or output");
+        };
+        let (tx, frames) = channel();
+        // Bytes are read as they come and gathered into frames, so that an answer's wait
+        // can time out.
+        std::thread::spawn(move || {
+            let mut reader = FrameReader::default();
+            let mut buf = [0u8; 4096];
+            while let Ok(n @ 1..) = output.read(&mut buf) {
+                for &b in &buf[..n] {
+                    if let Some(f) = reader.push(b)
+                        && tx.send(f).is_err()
+                    {
+                        return;
+                    }
+                }
+            }
+        });
+        Ok(Process {
+            child,
+            input,
+            frames,
+            timeout,
+            what,
+        })
+    }
+
+    /// Why no answer came: the process ended, or the timeout passed.
+    fn silent(&mut self, e: RecvTimeoutError) -> anyhow::Error {
+        match (e, self.child.try_wait()) {
+            (_, Ok(Some(status))) => anyhow!("{} ended ({status}) without answering", self.what),
+            (RecvTimeoutError::Timeout, _) => anyhow!(
+                "{} did not answer within {} s",
+                self.what,
+                self.timeout.as_secs_f64()
+            ),
+            (RecvTimeoutError::Disconnected, _) => anyhow!("{} closed the link", self.what),
+        }
+    }
+}
+
+impl Remote for Process {
+    fn exchange(&mut self, seq: u16, message: Message) -> Result<Message> {
+        let mut out = [0u8; MAX_FRAME];
+        let n = frame::encode(&Packet { seq, message }, &mut out);
+        if self.input.write_all(&out[..n]).is_err() {
+            return Err(self.silent(RecvTimeoutError::Disconnected));
+        }
+        let answer = match self.frames.recv_timeout(self.timeout) {
+            Ok(a) => a,
+            Err(e) => return Err(self.silent(e)),
+        };
+        let packet = answer.map_err(|r| anyhow!("a corrupted answer: {}", describe(r)))?;
+        if packet.seq != seq {
+            bail!(
+                "an answer numbered {} to request {seq}: the link lost or repeated a frame",
+                packet.seq
+            );
+        }
+        Ok(packet.message)
+    }
+}
+
+impl Drop for Process {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}

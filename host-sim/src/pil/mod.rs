@@ -1,0 +1,157 @@
+//! Processor-in-the-loop: the board's controller running on a target (the `pil`
+//! application in QEMU, or the target code built for the host), driven period by period by
+//! the twin's world over the link (`docs/LINK.md`), and the same target code in this
+//! process fed the same frames: the software-in-the-loop reference every answer is compared
+//! with. `docs/PIL.md` has the results.
+//!
+//! - `link`: the host's end of the exchange, a target in a process or in this one.
+//! - `run`: episodes over the link, their statistics, the comparison and the target's time.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use anyhow::{Result, bail};
+
+pub mod link;
+mod run;
+
+pub use run::{Check, Mismatch, handshake, run_row};
+
+/// A QEMU machine the `pil` application runs on: one per target of the matrix, the
+/// machines the self-test runs on (`.cargo/config.toml`; a test checks they agree).
+#[derive(Debug)]
+pub struct Machine {
+    /// The Rust target.
+    pub target: &'static str,
+    /// The QEMU program.
+    pub program: &'static str,
+    /// The machine and CPU.
+    pub args: &'static [&'static str],
+}
+
+/// The four targets of the matrix.
+pub const MACHINES: [Machine; 4] = [
+    Machine {
+        target: "thumbv7em-none-eabihf",
+        program: "qemu-system-arm",
+        args: &["-cpu", "cortex-m4", "-machine", "mps2-an386"],
+    },
+    Machine {
+        target: "thumbv6m-none-eabi",
+        program: "qemu-system-arm",
+        args: &["-cpu", "cortex-m0", "-machine", "microbit"],
+    },
+    Machine {
+        target: "thumbv8m.main-none-eabihf",
+        program: "qemu-system-arm",
+        args: &["-cpu", "cortex-m33", "-machine", "mps2-an505"],
+    },
+    Machine {
+        target: "riscv32imac-unknown-none-elf",
+        program: "qemu-system-riscv32",
+        args: &["-machine", "virt", "-bios", "none"],
+    },
+];
+
+/// What QEMU is told besides the machine: virtual time at one instruction per 64 ns (as
+/// the self-test's runners), no display, monitor or serial port on standard output, and
+/// the semihosting console, which carries the link, on standard input and output.
+const QEMU_ARGS: [&str; 10] = [
+    "-icount",
+    "shift=6",
+    "-display",
+    "none",
+    "-monitor",
+    "none",
+    "-serial",
+    "none",
+    "-semihosting-config",
+    "enable=on,target=native",
+];
+
+/// Nanoseconds of virtual time per instruction under `-icount shift=6`.
+pub const NS_PER_INSTRUCTION: u32 = 64;
+
+/// Where the target runs.
+#[derive(Debug)]
+pub enum Place {
+    /// The `pil` application for a target, in QEMU.
+    Qemu {
+        /// The machine.
+        machine: &'static Machine,
+        /// The application's ELF.
+        elf: PathBuf,
+    },
+    /// A program that speaks the link on its standard input and output (the `pil`
+    /// application built for the host).
+    Exec(PathBuf),
+}
+
+impl Place {
+    /// The place `spec` names (`qemu:TARGET` or `exec:PATH`), with the ELF `elf` for QEMU
+    /// (by default the `pil` application's release build for the target); refused, naming
+    /// what was expected, when the target is unknown or the file is missing.
+    pub fn parse(spec: &str, elf: Option<&Path>) -> Result<Place> {
+        let targets = || MACHINES.map(|m| m.target).join(", ");
+        let place = match spec.split_once(':') {
+            Some(("qemu", target)) => {
+                let Some(machine) = MACHINES.iter().find(|m| m.target == target) else {
+                    bail!(
+                        "--pil qemu:TARGET: TARGET must be one of {}, found '{target}'",
+                        targets()
+                    );
+                };
+                let elf = elf.map_or_else(|| default_elf(target), Path::to_path_buf);
+                if !elf.is_file() {
+                    bail!(
+                        "--pil {spec}: no application at {} (build it with `cargo build --release \
+                         -p selftest-app --bin pil --target {target}`, or give --pil-elf)",
+                        elf.display()
+                    );
+                }
+                Place::Qemu { machine, elf }
+            }
+            Some(("exec", path)) if Path::new(path).is_file() => Place::Exec(path.into()),
+            Some(("exec", path)) => bail!("--pil exec:PATH: no program at '{path}'"),
+            _ => bail!(
+                "--pil must be qemu:TARGET (TARGET one of {}) or exec:PATH, found '{spec}'",
+                targets()
+            ),
+        };
+        if elf.is_some() && matches!(place, Place::Exec(_)) {
+            bail!("--pil-elf goes with --pil qemu:TARGET, found --pil {spec}");
+        }
+        Ok(place)
+    }
+
+    /// The target, started, as a link's remote; answers later than `timeout` end the run.
+    pub fn start(&self, timeout: Duration) -> Result<link::Process> {
+        let (command, what) = match self {
+            Place::Qemu { machine, elf } => {
+                let mut c = Command::new(machine.program);
+                c.args(machine.args).args(QEMU_ARGS).arg("-kernel").arg(elf);
+                (c, format!("QEMU ({})", machine.target))
+            }
+            Place::Exec(path) => (Command::new(path), path.display().to_string()),
+        };
+        link::Process::spawn(command, what, timeout)
+    }
+
+    /// The place as the tables name it.
+    pub fn name(&self) -> String {
+        match self {
+            Place::Qemu { machine, .. } => format!("qemu:{}", machine.target),
+            Place::Exec(path) => format!("exec:{}", path.display()),
+        }
+    }
+}
+
+/// The `pil` application's release build for `target`, in cargo's target directory.
+fn default_elf(target: &str) -> PathBuf {
+    let dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(
+        || Path::new(env!("CARGO_MANIFEST_DIR")).join("../target"),
+        PathBuf::from,
+    );
+    dir.join(target).join("release").join("pil")
+}

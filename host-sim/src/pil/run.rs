@@ -1,0 +1,168 @@
+//! Episodes over the link: the twin's world measured and moved by what the target
+//! commands, the software-in-the-loop reference fed the same frames, and what the two say
+//! compared period by period.
+
+use anyhow::{Result, bail, ensure};
+use firmware::link::{Format, Info, Reply, Scores, Start, digest};
+use firmware::rig::Rig;
+use serde::Serialize;
+use twin::run::{Stream, Tally, episode_rng};
+use twin::{EpisodeStats, Scenario, World};
+
+use super::link::{Remote, Session};
+
+/// What the comparison with the software-in-the-loop reference and the target's clock
+/// found over a row's episodes.
+#[derive(Clone, Debug, Default, Serialize)]
+pub struct Check {
+    /// Periods run.
+    pub periods: u64,
+    /// Periods whose command, scores (bit for bit) or fault flags differ from the
+    /// reference's.
+    pub mismatches: u64,
+    /// The first of them.
+    pub first: Option<Mismatch>,
+    /// The target's time per period, ns: median, 99th percentile, worst.
+    pub time_ns: [u64; 3],
+    /// Periods whose time exceeded the control period.
+    pub overruns: u64,
+}
+
+/// One period where the target and the reference differ.
+#[derive(Clone, Debug, Serialize)]
+pub struct Mismatch {
+    /// Episode.
+    pub episode: u64,
+    /// Period of the episode.
+    pub period: u32,
+    /// What the target answered.
+    pub target: String,
+    /// What the reference answered.
+    pub reference: String,
+}
+
+/// Whether two answers say the same: the command, the scores bit for bit, the flags.
+fn same(a: &Reply, b: &Reply) -> bool {
+    let scores = match (a.scores, b.scores) {
+        (Scores::F32(x), Scores::F32(y)) => x.map(f32::to_bits) == y.map(f32::to_bits),
+        (x, y) => x == y,
+    };
+    a.command == b.command && scores && a.faults == b.faults
+}
+
+/// Checks that `target` holds what the reference holds for `format`, and runs `scenario`'s
+/// board (its rig less the dead time, which Start sets); the target's `Info`.
+pub fn handshake(
+    target: &mut Session<impl Remote>,
+    reference: &mut Session<impl Remote>,
+    format: Format,
+    scenarios: &[Scenario],
+) -> Result<Info> {
+    let (got, want) = (target.hello(format)?, reference.hello(format)?);
+    let differs = |what: &str| {
+        anyhow::anyhow!(
+            "the target holds another {what} than this build of the firmware ({format:?}: \
+             target {got:?}, here {want:?}); rebuild the pil application"
+        )
+    };
+    ensure!(
+        got.hidden == want.hidden && got.policy == want.policy,
+        differs("policy")
+    );
+    ensure!(
+        got.rig == want.rig && got.period_ns == want.period_ns,
+        differs("rig")
+    );
+    ensure!(got.clock_hz > 0, "the target's clock runs at 0 Hz");
+    for s in scenarios {
+        let board = Rig {
+            dead_time: firmware::policy::RIG.dead_time,
+            ..s.rig
+        };
+        if digest::rig(&board) != got.rig {
+            bail!(
+                "scenario {}: its board's rig differs from the target's in more than the dead \
+                 time (a rig file or encoder of its own); the target runs the rig it was built \
+                 with",
+                s.name
+            );
+        }
+        ensure!(
+            s.delay() <= u32::from(u8::MAX),
+            "scenario {}: a dead time of {} periods does not fit the link's Start",
+            s.name,
+            s.delay()
+        );
+    }
+    Ok(got)
+}
+
+/// Episodes `0..episodes` of `seed` under `scenario`, `horizon` periods at most, with the
+/// target's commands moving the world; each period compared with `reference`'s answer and
+/// timed on `info`'s clock. `progress` sees every finished episode.
+#[allow(clippy::too_many_arguments)]
+pub fn run_row(
+    target: &mut Session<impl Remote>,
+    reference: &mut Session<impl Remote>,
+    info: &Info,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: u64,
+    mut progress: impl FnMut(),
+) -> Result<(Vec<EpisodeStats>, Check)> {
+    let start = Start {
+        sensing: scenario.sensing,
+        // As `eval`'s policy rows: the board is told its dead time.
+        predict: true,
+        dead_time: scenario.delay() as u8,
+    };
+    let mut check = Check::default();
+    let mut times = Vec::new();
+    let mut stats = Vec::with_capacity(episodes as usize);
+    for e in 0..episodes {
+        let mut start_rng = episode_rng(seed, e, Stream::Start);
+        let (noise, pushes) = (
+            episode_rng(seed, e, Stream::Noise),
+            episode_rng(seed, e, Stream::Pushes),
+        );
+        let mut world = World::start(scenario, horizon, &mut start_rng, noise, pushes);
+        let mut tally = Tally::default();
+        for k in 0.. {
+            if k == 0 || scenario.faults.resets(k) {
+                target.start(start)?;
+                reference.start(start)?;
+            }
+            let m = world.measure();
+            let got = target.period(m)?;
+            let want = reference.period(m)?;
+            if !same(&got, &want) {
+                check.mismatches += 1;
+                check.first.get_or_insert_with(|| Mismatch {
+                    episode: e,
+                    period: k,
+                    target: format!("{got:?}"),
+                    reference: format!("{want:?}"),
+                });
+            }
+            times.push(u64::from(got.ticks) * 1_000_000_000 / u64::from(info.clock_hz));
+            let t = world.apply(f64::from(got.command.level()));
+            tally.period(got.command, &world.state(), &t);
+            if t.terminated || t.truncated {
+                break;
+            }
+        }
+        stats.push(tally.stats());
+        progress();
+    }
+    check.periods = times.len() as u64;
+    check.overruns = times
+        .iter()
+        .filter(|&&t| t > u64::from(info.period_ns))
+        .count() as u64;
+    times.sort_unstable();
+    let at =
+        |q: f64| times.get(((times.len() as f64 * q) as usize).min(times.len().saturating_sub(1)));
+    check.time_ns = [at(0.5), at(0.99), times.last()].map(|t| t.copied().unwrap_or(0));
+    Ok((stats, check))
+}
