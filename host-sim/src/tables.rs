@@ -21,6 +21,7 @@ use serde::Deserialize;
 
 use crate::eval::group;
 
+mod pil;
 pub mod values;
 
 /// How a marker line starts; the results file and the options follow.
@@ -43,7 +44,11 @@ first column its spec; the columns follow in this order:
   brief          success rates alone, e.g. `100.0%`
   below=A,B      `below?`: `yes` where B's success interval lies wholly below A's
   compare=A,B    RMS theta (deg, 2 decimals), RMS x (m, 3 decimals) and command switches
-                 per second (1 decimal), each as `A / B`";
+                 per second (1 decimal), each as `A / B`
+  pil=C          controller C's processor-in-the-loop check (`eval --pil --json`): periods,
+                 answers that differ from the reference's, the target's time per period
+                 (median, 99th percentile and worst, us), the worst as a share of the
+                 period, and the periods over it";
 
 /// What a marker asks for.
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -62,6 +67,8 @@ pub struct Spec {
     pub below: Option<[String; 2]>,
     /// RMS theta, RMS x and switches of the first against the second.
     pub compare: Option<[String; 2]>,
+    /// A controller's processor-in-the-loop columns.
+    pub pil: Option<String>,
 }
 
 /// A marked block: its marker's line (from 1), what it asks for, and the bytes of its table.
@@ -169,16 +176,24 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
             ("success", true) => spec.success = list(key, value)?,
             ("below", true) => spec.below = Some(pair(key, value)?),
             ("compare", true) => spec.compare = Some(pair(key, value)?),
+            ("pil", true) => spec.pil = Some(list(key, value)?.join(",")),
             _ => {
                 return Err(format!(
                     "unknown option `{word}` (known: horizon=N, scenarios=A,B, \
-                     success=C,D, brief, below=A,B, compare=A,B)"
+                     success=C,D, brief, below=A,B, compare=A,B, pil=C)"
                 ));
             }
         }
     }
-    if spec.success.is_empty() && spec.below.is_none() && spec.compare.is_none() {
-        return Err("the marker asks for no column: give success=, below= or compare=".into());
+    let columns = [
+        spec.below.is_some(),
+        spec.compare.is_some(),
+        spec.pil.is_some(),
+    ];
+    if spec.success.is_empty() && !columns.contains(&true) {
+        return Err(
+            "the marker asks for no column: give success=, below=, compare= or pil=".into(),
+        );
     }
     if spec.brief && spec.success.is_empty() {
         return Err("brief shortens the success= columns, and there are none".into());
@@ -216,6 +231,9 @@ fn pair(key: &str, value: &str) -> Result<[String; 2], String> {
 #[derive(Deserialize)]
 struct Results {
     rows: Vec<Row>,
+    /// `eval --pil`'s checks.
+    #[serde(default)]
+    pil: Vec<pil::Check>,
 }
 
 /// The fields of `eval::Row` the tables show.
@@ -224,6 +242,7 @@ struct Row {
     controller: String,
     scenario: String,
     horizon: u32,
+    period_s: f64,
     success_rate: f64,
     success_ci95: [f64; 2],
     failures: usize,
@@ -295,6 +314,11 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
             let (sa, sb) = (a.switches_per_s.mean, b.switches_per_s.mean);
             cells.push(format!("{sa:.1} / {sb:.1}"));
         }
+        if let Some(c) = &spec.pil {
+            let check = pil::find(&results.pil, c, name, horizon)
+                .ok_or_else(|| format!("{} has no pil check of `{c}` on `{name}`", spec.file))?;
+            cells.extend(pil::cells(check, find(c)?.period_s));
+        }
         out += &format!("| {} |\n", cells.join(" | "));
     }
     Ok(out)
@@ -325,6 +349,12 @@ fn header(spec: &Spec) -> String {
     if let Some([a, b]) = &spec.compare {
         for quantity in ["RMS theta deg", "RMS x m", "switches/s"] {
             names.push(format!("{quantity} {a} / {b}"));
+            align.push("---:");
+        }
+    }
+    if let Some(c) = &spec.pil {
+        for name in pil::COLUMNS {
+            names.push(format!("{c} {name}"));
             align.push("---:");
         }
     }

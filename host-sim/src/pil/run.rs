@@ -2,7 +2,7 @@
 //! commands, the software-in-the-loop reference fed the same frames, and what the two say
 //! compared period by period.
 
-use anyhow::{Result, bail, ensure};
+use anyhow::{Context, Result, bail, ensure};
 use firmware::link::{Format, Info, Reply, Scores, Start, digest};
 use firmware::rig::Rig;
 use serde::Serialize;
@@ -58,7 +58,8 @@ pub fn handshake(
     format: Format,
     scenarios: &[Scenario],
 ) -> Result<Info> {
-    let (got, want) = (target.hello(format)?, reference.hello(format)?);
+    let got = target.hello(format).context("the handshake")?;
+    let want = reference.hello(format)?;
     let differs = |what: &str| {
         anyhow::anyhow!(
             "the target holds another {what} than this build of the firmware ({format:?}: \
@@ -129,13 +130,14 @@ pub fn run_row(
         let mut world = World::start(scenario, horizon, &mut start_rng, noise, pushes);
         let mut tally = Tally::default();
         for k in 0.. {
+            let at = || format!("{}, episode {e}, period {k}", scenario.name);
             if k == 0 || scenario.faults.resets(k) {
-                target.start(start)?;
-                reference.start(start)?;
+                target.start(start).with_context(at)?;
+                reference.start(start).with_context(at)?;
             }
             let m = world.measure();
-            let got = target.period(m)?;
-            let want = reference.period(m)?;
+            let got = target.period(m).with_context(at)?;
+            let want = reference.period(m).with_context(at)?;
             if !same(&got, &want) {
                 check.mismatches += 1;
                 check.first.get_or_insert_with(|| Mismatch {

@@ -4,19 +4,19 @@ use crate::tables::update;
 /// Four rows in `eval --json`'s shape (fields neither a table nor a value shows left out), with figures
 /// whose roundings are worked out by hand below; the last has no `mean_abs_x_m`.
 const JSON: &str = r#"{"seed": 0, "rows": [
-  {"controller": "policy", "scenario": "nominal", "horizon": 500, "episodes": 1000,
+  {"controller": "policy", "scenario": "nominal", "horizon": 500, "period_s": 0.02, "episodes": 1000,
    "success_ci95": [0.99, 1.0], "failures": 0, "success_rate": 1.0, "rms_theta_deg": {"mean": 0.2582, "ci95": 0.01},
    "rms_x_m": {"mean": 0.09184, "ci95": 0.002}, "mean_abs_x_m": {"mean": 0.0876, "ci95": 0.1},
    "switches_per_s": {"mean": 33.4226, "ci95": 0.1}, "mean_steps": 500.0},
-  {"controller": "policy", "scenario": "push=1.1/50", "horizon": 10000, "episodes": 1000,
+  {"controller": "policy", "scenario": "push=1.1/50", "horizon": 10000, "period_s": 0.02, "episodes": 1000,
    "success_ci95": [0.98, 0.99], "failures": 10, "success_rate": 0.99, "rms_theta_deg": {"mean": 2.7129, "ci95": 0.1},
    "rms_x_m": {"mean": 1.0684, "ci95": 0.1}, "mean_abs_x_m": {"mean": 0.9, "ci95": 0.1},
    "switches_per_s": {"mean": 31.46, "ci95": 0.1}, "mean_steps": 9950.27},
-  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 10000, "episodes": 1000,
+  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 10000, "period_s": 0.02, "episodes": 1000,
    "success_ci95": [0.72, 0.77], "failures": 251, "success_rate": 0.749, "rms_theta_deg": {"mean": 3.1241, "ci95": 0.1},
    "rms_x_m": {"mean": 0.63166, "ci95": 0.1}, "mean_abs_x_m": {"mean": 0.5, "ci95": 0.1},
    "switches_per_s": {"mean": 36.06, "ci95": 0.1}, "mean_steps": 8000.0},
-  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 500, "episodes": 12345,
+  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 500, "period_s": 0.02, "episodes": 12345,
    "success_ci95": [0.89, 0.91], "failures": 1234, "success_rate": 0.90004, "rms_theta_deg": {"mean": 3.0, "ci95": 0.1},
    "rms_x_m": {"mean": 0.6, "ci95": 0.1}, "switches_per_s": {"mean": 36.0, "ci95": 0.1},
    "mean_steps": 480.0}

@@ -1,0 +1,160 @@
+//! `eval --pil` against bad input before any work (a place that is none, flags that do not
+//! go with it) and against targets that misbehave on the link (silence, an early exit, an
+//! echo, garbage, a truncated, oversized, replayed or other version's frame, a refusal,
+//! another policy): each refused by the rules of `docs/HOSTILE_INPUT.md` (exit 2, a message
+//! naming what was expected, nothing on standard output, no file touched) and within the
+//! timeout given.
+
+use std::ffi::OsString;
+use std::os::unix::fs::PermissionsExt;
+use std::path::{Path, PathBuf};
+
+// The shared harness; the file-making half of it is the other suites'.
+#[allow(dead_code)]
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
+
+use firmware::link::{Format, Info, MAX_FRAME, Message, Packet, Reason, frame};
+use hostile::{Case, Scratch, run_all};
+
+fn exe() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
+}
+
+/// A program at `dir/name` that writes `bytes` and then waits, as a target that answered
+/// the first request so and then fell silent.
+fn target(dir: &Path, name: &str, bytes: &[u8]) -> PathBuf {
+    let data = dir.join(format!("{name}.bin"));
+    std::fs::write(&data, bytes).unwrap();
+    let script = dir.join(name);
+    let body = format!("#!/bin/sh\ncat '{}'\nexec sleep 30\n", data.display());
+    std::fs::write(&script, body).unwrap();
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+    script
+}
+
+fn wire(seq: u16, message: Message) -> Vec<u8> {
+    let mut out = [0u8; MAX_FRAME];
+    let n = frame::encode(&Packet { seq, message }, &mut out);
+    out[..n].to_vec()
+}
+
+/// Frames a target could answer the Hello (request 1) with, and what each must be called.
+fn answers() -> Vec<(&'static str, Vec<u8>, &'static str)> {
+    let info = Info {
+        format: Format::F32,
+        hidden: 64,
+        policy: 1,
+        rig: 2,
+        period_ns: 20_000_000,
+        clock_hz: 1,
+    };
+    let good = wire(1, Message::Info(info));
+    let mut truncated = good.clone();
+    truncated.remove(3);
+    let mut version = wire(1, Message::Started);
+    // The version byte is the payload's first: past COBS's code byte, not a zero.
+    version[1] = 2;
+    vec![
+        ("silent", Vec::new(), "did not answer within 0.5 s"),
+        ("garbage", b"garbage\0".to_vec(), "corrupted answer"),
+        ("truncated", truncated, "corrupted answer"),
+        (
+            "oversized",
+            [vec![0x55; 100], vec![0]].concat(),
+            "longer than the longest",
+        ),
+        ("version", version, "corrupted answer"),
+        (
+            "replayed",
+            wire(7, Message::Info(info)),
+            "numbered 7 to request 1",
+        ),
+        (
+            "refusing",
+            wire(1, Message::Refused(Reason::Unsupported)),
+            "refused",
+        ),
+        ("other-policy", good, "holds another policy"),
+    ]
+}
+
+#[test]
+fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
+    let s = Scratch::new("pil-cli");
+    let eval = |rest: &[&dyn AsRef<std::ffi::OsStr>]| -> Vec<OsString> {
+        let head: [&dyn AsRef<std::ffi::OsStr>; 5] =
+            [&"eval", &"--episodes", &"1", &"--scenario", &"nominal"];
+        head.iter()
+            .chain(rest)
+            .map(|a| a.as_ref().to_owned())
+            .collect()
+    };
+    let echo = "exec:/bin/cat";
+    let mut cases = vec![
+        Case::new(
+            "no place".into(),
+            &eval(&[&"--pil", &"usb"]),
+            &["qemu:TARGET"],
+        ),
+        Case::new(
+            "unknown target".into(),
+            &eval(&[&"--pil", &"qemu:avr"]),
+            &["must be one of"],
+        ),
+        Case::new(
+            "missing elf".into(),
+            &eval(&[
+                &"--pil",
+                &"qemu:thumbv6m-none-eabi",
+                &"--pil-elf",
+                &s.join("none"),
+            ]),
+            &["no application at"],
+        ),
+        Case::new(
+            "missing program".into(),
+            &eval(&[&"--pil", &"exec:/no/such"]),
+            &["no program"],
+        ),
+        Case::new(
+            "elf for exec".into(),
+            &eval(&[&"--pil", &echo, &"--pil-elf", &"/bin/cat"]),
+            &["goes with --pil qemu"],
+        ),
+        Case::new(
+            "a baseline".into(),
+            &eval(&[&"--pil", &echo, &"--controller", &"lqr"]),
+            &["policy and policy-int"],
+        ),
+        Case::new(
+            "a policy file".into(),
+            &eval(&[&"--pil", &echo, &"--policy", &"/bin/cat"]),
+            &["compiled into the target"],
+        ),
+        Case::new(
+            "no timeout".into(),
+            &eval(&[&"--pil", &echo, &"--pil-timeout", &"0"]),
+            &["must lie in"],
+        ),
+        Case::new(
+            "an echo".into(),
+            &eval(&[&"--pil", &echo]),
+            &["where Info was due"],
+        ),
+        Case::new(
+            "an early exit".into(),
+            &eval(&[&"--pil", &"exec:/bin/true"]),
+            &["ended"],
+        ),
+    ];
+    let dir = s.join("targets");
+    std::fs::create_dir(&dir).unwrap();
+    for (name, bytes, want) in answers() {
+        let place = format!("exec:{}", target(&dir, name, &bytes).display());
+        let args = eval(&[&"--pil", &place, &"--pil-timeout", &"0.5"]);
+        cases.push(Case::new(name.into(), &args, &[want]));
+    }
+    let n = run_all(&exe(), &s.0, &cases);
+    assert_eq!(n, cases.len());
+}

@@ -1,0 +1,153 @@
+//! The processor-in-the-loop application (`selftest-app`'s `pil`) on every microcontroller
+//! target in QEMU, driven by the twin's world over the link: every answer must equal the
+//! same target code's run here, period by period, in both formats, with encoders, faults
+//! and dead time; and the application built for the host must give `eval`'s rows.
+//!
+//! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
+
+use std::path::PathBuf;
+use std::process::Command;
+use std::time::Duration;
+
+use e2e::{mcu_targets, repo, runners};
+use firmware::link::Format;
+use firmware::policy::{POLICY, RIG};
+use firmware::policy_int::POLICY_INT;
+use host_sim::eval::{self, ControllerKind, Net, Row};
+use host_sim::pil::link::{Local, Session};
+use host_sim::pil::{MACHINES, Place, handshake, run_row};
+use twin::Scenario;
+
+/// Builds the `pil` application for `target` (the host without one); the executable.
+fn build(target: Option<&str>) -> PathBuf {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut c = Command::new(cargo);
+    c.args([
+        "build",
+        "-q",
+        "--release",
+        "-p",
+        "selftest-app",
+        "--bin",
+        "pil",
+    ])
+    .arg("--message-format=json")
+    .current_dir(repo());
+    if let Some(t) = target {
+        c.args(["--target", t]);
+    }
+    let out = c.output().expect("running cargo");
+    assert!(
+        out.status.success(),
+        "{target:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|m| m["target"]["name"] == "pil")
+        .find_map(|m| m["executable"].as_str().map(PathBuf::from))
+        .unwrap_or_else(|| panic!("{target:?}: cargo named no pil executable"))
+}
+
+fn reference() -> Session<Local<64>> {
+    Session::new(Local::new(&POLICY, &POLICY_INT, RIG))
+}
+
+/// Encoders through the observer with dropped readings and restarts, and the exact state
+/// with noise, dead time and pushes.
+fn scenarios() -> Vec<Scenario> {
+    ["encoder+drop=40+reset=150", "noise+delay+push"]
+        .map(|s| Scenario::parse(s).unwrap())
+        .into()
+}
+
+#[test]
+fn the_pil_machines_are_the_self_tests_machines() {
+    let runners = runners();
+    assert_eq!(
+        MACHINES.map(|m| m.target).to_vec(),
+        mcu_targets(),
+        "one machine per target, in rust-toolchain.toml's order"
+    );
+    for m in &MACHINES {
+        let (_, runner) = runners.iter().find(|(t, _)| t == m.target).unwrap();
+        let want = std::iter::once(m.program).chain(m.args.iter().copied());
+        let words: Vec<&str> = runner.split_whitespace().collect();
+        for w in want {
+            assert!(
+                words.contains(&w),
+                "{}: `{w}` is not in its runner `{runner}`",
+                m.target
+            );
+        }
+    }
+}
+
+#[test]
+fn on_every_target_the_pil_application_answers_as_the_controller_here() {
+    if std::env::var_os("CARTPOLE_SKIP_QEMU").is_some_and(|v| v == "1") {
+        eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, no processor-in-the-loop run");
+        return;
+    }
+    let scenarios = scenarios();
+    for target in mcu_targets() {
+        let elf = build(Some(&target));
+        let place = Place::parse(&format!("qemu:{target}"), Some(&elf)).unwrap();
+        let mut remote = Session::new(place.start(Duration::from_secs(60)).unwrap());
+        let mut here = reference();
+        for format in [Format::F32, Format::Int8] {
+            let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+            for s in &scenarios {
+                let (eps, check) =
+                    run_row(&mut remote, &mut here, &info, s, 200, 0, 2, || ()).unwrap();
+                let what = format!("{target} {format:?} {}", s.name);
+                assert_eq!(eps.len(), 2, "{what}");
+                assert!(check.periods >= 200, "{what}: {check:?}");
+                assert_eq!(check.mismatches, 0, "{what}: {check:?}");
+                let [median, _, worst] = check.time_ns;
+                assert!(median > 0, "{what}: the target's clock did not move");
+                // Under -icount the time counts instructions: with an FPU, or in integers,
+                // the period fits; on the Cortex-M0 the integer pipeline with its observer
+                // fits in a fifth of it (docs/PIL.md).
+                let fpu = target.ends_with("eabihf");
+                if fpu || format == Format::Int8 {
+                    assert_eq!(check.overruns, 0, "{what}: {check:?}");
+                }
+                if target == "thumbv6m-none-eabi" && format == Format::Int8 {
+                    assert!(5 * worst < u64::from(info.period_ns), "{what}: {check:?}");
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn the_host_build_of_the_pil_application_gives_evals_rows() {
+    let exe = build(None);
+    let place = Place::parse(&format!("exec:{}", exe.display()), None).unwrap();
+    let mut remote = Session::new(place.start(Duration::from_secs(10)).unwrap());
+    let mut here = reference();
+    let mut scenarios = scenarios();
+    scenarios.push(Scenario::parse("encoder+glitch+stuck+late+weak=0.5").unwrap());
+    let net = Net::shipped();
+    for (format, kind) in [
+        (Format::F32, ControllerKind::Policy),
+        (Format::Int8, ControllerKind::PolicyInt),
+    ] {
+        let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+        for s in &scenarios {
+            let (eps, check) = run_row(&mut remote, &mut here, &info, s, 400, 3, 8, || ()).unwrap();
+            assert_eq!(check.mismatches, 0, "{}: {check:?}", s.name);
+            let pil = Row::from_episodes(&kind.to_string(), &s.name, (400, s.params.tau), 3, &eps);
+            let here = eval::evaluate(kind, &net, s, 400, 3, 8);
+            // `eval`'s integer rows run the network behind a float reading; the board rounds
+            // the reading to Q3.12 first, and with dead time predicts from the rounded one
+            // (docs/PIL.md): the same commands only without dead time.
+            if kind == ControllerKind::Policy || s.delay() == 0 {
+                assert_eq!(pil, here, "{kind} {}", s.name);
+            }
+        }
+    }
+}
