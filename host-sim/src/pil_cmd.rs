@@ -25,9 +25,10 @@ const MAX_TIMEOUT_S: f64 = 3600.0;
 /// Where the controller runs, when not here.
 #[derive(Args)]
 pub struct PilArgs {
-    /// Run the policy rows on a target over the link instead of here (processor-in-the-
-    /// loop): `qemu:TARGET` starts the `pil` application for one of the matrix's targets in
-    /// QEMU; `exec:PATH` a program that speaks the link on its standard input and output.
+    /// Run the policy rows on a target over the link instead of here: `qemu:TARGET` starts
+    /// the `pil` application for one of the matrix's targets in QEMU (processor in the
+    /// loop); `serial:PATH` talks to a board on a serial port (hardware in the loop);
+    /// `exec:PATH` starts a program that speaks the link on its standard input and output.
     /// Each period is compared with the same controller code run here; exits 1 on any
     /// difference.
     #[arg(long, value_name = "SPEC")]

@@ -1,7 +1,8 @@
 //! The processor-in-the-loop application (`selftest-app`'s `pil`) on every microcontroller
 //! target in QEMU, driven by the twin's world over the link: every answer must equal the
 //! same target code's run here, period by period, in both formats, with encoders, faults
-//! and dead time; and the application built for the host must give `eval`'s rows.
+//! and dead time; the application built for the host must give `eval`'s rows; and so must
+//! a board on the far end of a serial port (a pseudo-terminal pair).
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
@@ -16,6 +17,7 @@ use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Local, Session};
 use host_sim::pil::{MACHINES, Place, handshake, run_row};
+use serialport::SerialPort;
 use twin::Scenario;
 
 /// Builds the `pil` application for `target` (the host without one); the executable.
@@ -150,4 +152,57 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
             }
         }
     }
+}
+
+/// A board on the far end of a pseudo-terminal: the link's target on the bytes it reads,
+/// until the host's end closes.
+fn board_on(mut port: serialport::TTYPort) {
+    use std::io::{Read, Write};
+    let period = firmware::link::Period {
+        clock_hz: 1,
+        ns: 20_000_000,
+    };
+    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, period);
+    let mut reader = firmware::link::FrameReader::default();
+    let mut buf = [0u8; 64];
+    let mut out = [0u8; firmware::link::MAX_FRAME];
+    loop {
+        let n = match port.read(&mut buf) {
+            Ok(0) | Err(_) => return,
+            Ok(n) => n,
+        };
+        for &b in &buf[..n] {
+            if let Some(frame) = reader.push(b) {
+                let answer = target.handle(frame, || 1);
+                let k = firmware::link::frame::encode(&answer, &mut out);
+                if port.write_all(&out[..k]).is_err() {
+                    return;
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn a_board_on_a_serial_port_gives_evals_rows() {
+    let (board, host) = serialport::TTYPort::pair().unwrap();
+    let path = host.name().expect("the host's end of the pair has a name");
+    let _board = std::thread::spawn(move || board_on(board));
+    let place = Place::parse(&format!("serial:{path}"), None).unwrap();
+    let mut remote = Session::new(place.start(Duration::from_secs(10)).unwrap());
+    let mut here = reference();
+    let s = Scenario::parse("encoder+drop=40+reset=150+noise+push").unwrap();
+    let info = handshake(
+        &mut remote,
+        &mut here,
+        Format::F32,
+        std::slice::from_ref(&s),
+    )
+    .unwrap();
+    let (eps, check) = run_row(&mut remote, &mut here, &info, &s, 300, 1, 4, || ()).unwrap();
+    assert_eq!(check.mismatches, 0, "{check:?}");
+    let kind = ControllerKind::Policy;
+    let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 1, &eps);
+    assert_eq!(pil, eval::evaluate(kind, &Net::shipped(), &s, 300, 1, 4));
+    drop(host);
 }

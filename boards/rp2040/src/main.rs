@@ -18,80 +18,24 @@
 //! in the controller's fault counters and logged, never hidden.
 //!
 //! Built with `--features identify`, the board runs the identification experiments instead
-//! and streams their logs ([`identify`]).
+//! and streams their logs ([`identify`]); with `--features hil`, it answers a world
+//! simulated on the host over USB, its motor never driven ([`hil`]).
 
 #![no_std]
 #![no_main]
 
-use core::sync::atomic::{AtomicI32, Ordering};
-
 use embassy_executor::Spawner;
-use embassy_rp::bind_interrupts;
-use embassy_rp::gpio::{Level, Output};
-use embassy_rp::peripherals::PIO0;
-use embassy_rp::pio::{InterruptHandler, Pio};
-use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
-use embassy_rp::pwm::{self, Pwm};
-use firmware::controller::Bridge;
-use firmware::policy_int::RIG;
 use {defmt_rtt as _, panic_probe as _};
 
+#[cfg(all(feature = "hil", feature = "identify"))]
+compile_error!("`hil` answers a simulated world and `identify` drives the motor: pick one");
+
+#[cfg(feature = "hil")]
+mod hil;
 #[cfg(feature = "identify")]
 mod identify;
-
-/// The readings the controller accepts: the track less the end-stop margin, a rig that
-/// leaves no track failing the build.
-#[cfg(not(feature = "identify"))]
-const LIMITS: firmware::controller::Limits = match RIG.limits() {
-    Ok(limits) => limits,
-    Err(_) => panic!("RIG's end-stop margin leaves no track"),
-};
-
-/// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
-const PWM_TOP: u16 = 6_249;
-
-bind_interrupts!(struct Irqs {
-    PIO0_IRQ_0 => InterruptHandler<PIO0>;
-});
-
-/// Encoder counts, written only by their encoder's task and read by the control loop. Load
-/// and store, no read-modify-write: the Cortex-M0+ has no atomic one, and there is one writer.
-static CART_COUNTS: AtomicI32 = AtomicI32::new(0);
-static POLE_COUNTS: AtomicI32 = AtomicI32::new(0);
-
-async fn count<const SM: usize>(
-    encoder: &mut PioEncoder<'static, PIO0, SM>,
-    counts: &AtomicI32,
-) -> ! {
-    loop {
-        let step = match encoder.read().await {
-            Direction::Clockwise => 1,
-            Direction::CounterClockwise => -1,
-        };
-        counts.store(
-            counts.load(Ordering::Relaxed).wrapping_add(step),
-            Ordering::Relaxed,
-        );
-    }
-}
-
-/// Both encoders' counts, as the control loop reads them.
-fn counts() -> (i32, i32) {
-    (
-        CART_COUNTS.load(Ordering::Relaxed),
-        POLE_COUNTS.load(Ordering::Relaxed),
-    )
-}
-
-#[embassy_executor::task]
-async fn cart_encoder(mut encoder: PioEncoder<'static, PIO0, 0>) -> ! {
-    count(&mut encoder, &CART_COUNTS).await
-}
-
-#[embassy_executor::task]
-async fn pole_encoder(mut encoder: PioEncoder<'static, PIO0, 1>) -> ! {
-    count(&mut encoder, &POLE_COUNTS).await
-}
+#[cfg(not(feature = "hil"))]
+mod machine;
 
 #[embassy_executor::main(
     executor = "embassy_rp::executor::Executor",
@@ -99,76 +43,12 @@ async fn pole_encoder(mut encoder: PioEncoder<'static, PIO0, 1>) -> ! {
 )]
 async fn main(spawner: Spawner) {
     let p = embassy_rp::init(Default::default());
-
-    // Encoders: cart on GP2/GP3, pole on GP4/GP5 (A/B; swap a pair to flip its sign).
-    let Pio {
-        mut common,
-        sm0,
-        sm1,
-        ..
-    } = Pio::new(p.PIO0, Irqs);
-    let program = PioEncoderProgram::new(&mut common);
-    let cart = PioEncoder::new(&mut common, sm0, p.PIN_2, p.PIN_3, &program);
-    let pole = PioEncoder::new(&mut common, sm1, p.PIN_4, p.PIN_5, &program);
-    spawner.spawn(cart_encoder(cart).unwrap());
-    spawner.spawn(pole_encoder(pole).unwrap());
-
-    // H-bridge: direction on GP14 (high pushes towards +x), enable PWM on GP15 (slice 7 B).
-    let direction = Output::new(p.PIN_14, Level::Low);
-    let mut config = pwm::Config::default();
-    config.top = PWM_TOP;
-    config.compare_b = 0;
-    let enable = Pwm::new_output_b(p.PWM_SLICE7, p.PIN_15, config);
-
-    let bridge = Bridge::new(direction, enable);
-    #[cfg(feature = "identify")]
-    identify::run(&RIG, bridge, counts).await;
-    #[cfg(not(feature = "identify"))]
-    balance(bridge).await;
-}
-
-/// The balance controller, period by period, for ever.
-#[cfg(not(feature = "identify"))]
-async fn balance<A: firmware::controller::Actuator>(bridge: A) {
-    use defmt::{info, warn};
-    use embassy_time::{Duration, Instant, Ticker};
-    use firmware::controller::Controller;
-    use firmware::estimator::ObserverSensor;
-    use firmware::policy_int::POLICY_INT;
-
-    // The pole's zero is where it is at power-on: hold it upright until the first log line.
-    // The observer's gain is solved once, now. The PIO program counts one step per quadrature
-    // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
-    // The limits are checked as the board is compiled; the observer's gain and the
-    // predictor's plant at start-up, where a refusal halts the board (through the panic
-    // handler's log) before the bridge is ever driven.
-    let sensor = ObserverSensor::<_, [i16; 4]>::new(defmt::unwrap!(RIG.observer()), counts);
-    let mut controller = Controller::new(&POLICY_INT, sensor, bridge, LIMITS)
-        .with_predictor(defmt::unwrap!(RIG.predictor()));
-    let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
-    let per_second = (1.0 / RIG.params.tau) as u32;
-    info!("cartpole-rp2040: integer policy, {} Hz", per_second);
-
-    let mut ticker = Ticker::every(period);
-    loop {
-        ticker.next().await;
-        let start = Instant::now();
-        let command = controller.step();
-        let took = start.elapsed();
-        if took >= period {
-            // Whole periods lost while this step ran.
-            let late = (took.as_ticks() / period.as_ticks()) as u32;
-            controller.record_overruns(late);
-            warn!("step took {} us: {} overrun(s)", took.as_micros(), late);
-        }
-        if controller.steps().is_multiple_of(per_second) {
-            let faults = controller.faults();
-            if let Some(r) = controller.last() {
-                info!(
-                    "step {}: {} obs {} q {} faults {}",
-                    r.step, command, r.obs, r.q, faults
-                );
-            }
-        }
+    #[cfg(feature = "hil")]
+    {
+        // The USB device and the link run in this task; nothing is spawned.
+        let _ = spawner;
+        hil::run(p.USB).await;
     }
+    #[cfg(not(feature = "hil"))]
+    machine::on_the_machine(spawner, p).await;
 }

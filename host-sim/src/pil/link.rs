@@ -23,6 +23,25 @@ pub trait Remote {
     fn exchange(&mut self, seq: u16, message: Message) -> Result<Message>;
 }
 
+impl<R: Remote + ?Sized> Remote for Box<R> {
+    fn exchange(&mut self, seq: u16, message: Message) -> Result<Message> {
+        (**self).exchange(seq, message)
+    }
+}
+
+/// The message of an answer to request `seq` as the frame reader gave it, or why it is
+/// none: a frame that could not be read, or one numbered for another request.
+pub fn answer(frame: Result<Packet, Reason>, seq: u16) -> Result<Message> {
+    let packet = frame.map_err(|r| anyhow!("a corrupted answer: {}", describe(r)))?;
+    if packet.seq != seq {
+        bail!(
+            "an answer numbered {} to request {seq}: the link lost or repeated a frame",
+            packet.seq
+        );
+    }
+    Ok(packet.message)
+}
+
 /// Numbers the requests to a [`Remote`] and checks that each answer is of the kind asked
 /// for: the host's side of the exchange.
 pub struct Session<R> {
@@ -185,18 +204,10 @@ impl Remote for Process {
         if self.input.write_all(&out[..n]).is_err() {
             return Err(self.silent(RecvTimeoutError::Disconnected));
         }
-        let answer = match self.frames.recv_timeout(self.timeout) {
-            Ok(a) => a,
-            Err(e) => return Err(self.silent(e)),
-        };
-        let packet = answer.map_err(|r| anyhow!("a corrupted answer: {}", describe(r)))?;
-        if packet.seq != seq {
-            bail!(
-                "an answer numbered {} to request {seq}: the link lost or repeated a frame",
-                packet.seq
-            );
+        match self.frames.recv_timeout(self.timeout) {
+            Ok(frame) => answer(frame, seq),
+            Err(e) => Err(self.silent(e)),
         }
-        Ok(packet.message)
     }
 }
 

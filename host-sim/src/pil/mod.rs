@@ -15,6 +15,7 @@ use anyhow::{Result, bail};
 
 pub mod link;
 mod run;
+pub mod serial;
 
 pub use run::{Check, Mismatch, handshake, run_row};
 
@@ -86,6 +87,8 @@ pub enum Place {
     /// A program that speaks the link on its standard input and output (the `pil`
     /// application built for the host).
     Exec(PathBuf),
+    /// A board on a serial port (hardware in the loop).
+    Serial(PathBuf),
 }
 
 impl Place {
@@ -114,19 +117,25 @@ impl Place {
             }
             Some(("exec", path)) if Path::new(path).is_file() => Place::Exec(path.into()),
             Some(("exec", path)) => bail!("--pil exec:PATH: no program at '{path}'"),
+            Some(("serial", path)) if is_char_device(Path::new(path)) => Place::Serial(path.into()),
+            Some(("serial", path)) => {
+                bail!("--pil serial:PATH: expected a serial port (a character device) at '{path}'")
+            }
             _ => bail!(
-                "--pil must be qemu:TARGET (TARGET one of {}) or exec:PATH, found '{spec}'",
+                "--pil must be qemu:TARGET (TARGET one of {}), serial:PATH or exec:PATH, found \
+                 '{spec}'",
                 targets()
             ),
         };
-        if elf.is_some() && matches!(place, Place::Exec(_)) {
+        if elf.is_some() && !matches!(place, Place::Qemu { .. }) {
             bail!("--pil-elf goes with --pil qemu:TARGET, found --pil {spec}");
         }
         Ok(place)
     }
 
-    /// The target, started, as a link's remote; answers later than `timeout` end the run.
-    pub fn start(&self, timeout: Duration) -> Result<link::Process> {
+    /// The target, started (or its port opened), as a link's remote; answers later than
+    /// `timeout` end the run.
+    pub fn start(&self, timeout: Duration) -> Result<Box<dyn link::Remote>> {
         let (command, what) = match self {
             Place::Qemu { machine, elf } => {
                 let mut c = Command::new(machine.program);
@@ -134,8 +143,9 @@ impl Place {
                 (c, format!("QEMU ({})", machine.target))
             }
             Place::Exec(path) => (Command::new(path), path.display().to_string()),
+            Place::Serial(path) => return Ok(Box::new(serial::Serial::open(path, timeout)?)),
         };
-        link::Process::spawn(command, what, timeout)
+        Ok(Box::new(link::Process::spawn(command, what, timeout)?))
     }
 
     /// The place as the tables name it.
@@ -143,8 +153,14 @@ impl Place {
         match self {
             Place::Qemu { machine, .. } => format!("qemu:{}", machine.target),
             Place::Exec(path) => format!("exec:{}", path.display()),
+            Place::Serial(path) => format!("serial:{}", path.display()),
         }
     }
+}
+
+fn is_char_device(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    std::fs::metadata(path).is_ok_and(|m| m.file_type().is_char_device())
 }
 
 /// The `pil` application's release build for `target`, in cargo's target directory.
