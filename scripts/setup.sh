@@ -47,6 +47,8 @@ command -v qemu-system-riscv32 >/dev/null || missing="$missing qemu-system-misc"
 # The C header test compiles the generated header as C and as C++.
 command -v cc >/dev/null || missing="$missing gcc"
 command -v c++ >/dev/null || missing="$missing g++"
+# The C processor-in-the-loop application (scripts/c-app.sh) is built for the Cortex-M4F.
+command -v arm-none-eabi-gcc >/dev/null || missing="$missing gcc-arm-none-eabi"
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"

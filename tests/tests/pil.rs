@@ -2,7 +2,8 @@
 //! target in QEMU, driven by the twin's world over the link: every answer must equal the
 //! same target code's run here, period by period, in both formats, with encoders, faults
 //! and dead time; the application built for the host must give `eval`'s rows; and so must
-//! a board on the far end of a serial port (a pseudo-terminal pair).
+//! a board on the far end of a serial port (a pseudo-terminal pair). The C application
+//! (`capi/c-app`) on the Cortex-M4F must answer as the Rust one.
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
@@ -89,8 +90,7 @@ fn the_pil_machines_are_the_self_tests_machines() {
 
 #[test]
 fn on_every_target_the_pil_application_answers_as_the_controller_here() {
-    if std::env::var_os("CARTPOLE_SKIP_QEMU").is_some_and(|v| v == "1") {
-        eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, no processor-in-the-loop run");
+    if skip_qemu() {
         return;
     }
     let scenarios = scenarios();
@@ -123,6 +123,47 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
             }
         }
     }
+}
+
+fn skip_qemu() -> bool {
+    let skip = std::env::var_os("CARTPOLE_SKIP_QEMU").is_some_and(|v| v == "1");
+    if skip {
+        eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, no processor-in-the-loop run");
+    }
+    skip
+}
+
+#[test]
+fn the_c_application_answers_as_the_rust_one() {
+    if skip_qemu() {
+        return;
+    }
+    let out = std::env::temp_dir().join(format!("c-app-{}", std::process::id()));
+    let built = Command::new(repo().join("scripts/c-app.sh"))
+        .arg(&out)
+        .env("PROFILE", "quick")
+        .current_dir(repo())
+        .output()
+        .expect("running scripts/c-app.sh");
+    assert!(
+        built.status.success(),
+        "{}",
+        String::from_utf8_lossy(&built.stderr)
+    );
+    let elf = out.join("c-pil.elf");
+    let place = Place::parse("qemu:thumbv7em-none-eabihf", Some(&elf)).unwrap();
+    let mut remote = Session::new(place.start(Duration::from_secs(60)).unwrap());
+    let mut here = reference();
+    let scenarios = ["encoder+noise+push", "noise+delay+push"].map(|s| Scenario::parse(s).unwrap());
+    for format in [Format::F32, Format::Int8] {
+        let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+        for s in &scenarios {
+            let (_, check) = run_row(&mut remote, &mut here, &info, s, 300, 0, 3, || ()).unwrap();
+            assert_eq!(check.mismatches, 0, "{format:?} {}: {check:?}", s.name);
+            assert_eq!(check.overruns, 0, "{format:?} {}: {check:?}", s.name);
+        }
+    }
+    std::fs::remove_dir_all(&out).unwrap();
 }
 
 #[test]
