@@ -16,7 +16,7 @@
 #include "shipped.h"
 #include "shipped_int.h"
 
-enum { MAX_FRAME = 37, MAX_PAYLOAD = 31, VERSION = 1, CLOCK_HZ = 25000000 };
+enum { MAX_FRAME = 37, MAX_PAYLOAD = 31, VERSION = 2, CLOCK_HZ = 25000000 };
 enum { HELLO = 0x01, START = 0x02, STATE = 0x03, COUNTS = 0x04, MISSED = 0x05 };
 enum { INFO = 0x81, STARTED = 0x82, REPLY = 0x83, REFUSED = 0xFF };
 enum { R_VERSION = 1, R_KIND = 2, R_LENGTH = 3, R_CRC = 4, R_OVERSIZED = 5, R_ENCODING = 6 };
@@ -227,7 +227,7 @@ static int start(struct writer *w, const uint8_t *body, uint16_t seq)
         return refuse(w, R_NOT_STARTED);
     }
     t.seq = seq;
-    if (sensing == 2 || dead_time > 16 || (dead_time > 0 && !predict)) {
+    if (sensing == 2 || (dead_time > 0 && !predict)) {
         return refuse(w, R_UNSUPPORTED);
     }
     if (dead_time != t.fresh_dead_time) {
@@ -285,13 +285,17 @@ static int body_len(int kind)
     return -1;
 }
 
-/* Whether a body's fields are in their ranges: a format, a sensing, a flag, and a discount
- * only with the filter. */
+/* Whether a body's fields are in their ranges (a target's kinds too, which are refused as
+ * kinds once read): a format, a sensing, a flag, a discount only with the filter, a
+ * command, a scores' type, a reason. */
 static int fields_valid(int kind, const uint8_t *body)
 {
     switch (kind) {
     case HELLO: return body[0] <= 1;
     case START: return body[0] <= 2 && body[1] <= 1 && (body[0] == 2 || u32_at(body + 3) == 0);
+    case INFO: return body[0] <= 1;
+    case REPLY: return (body[0] <= 1 || body[0] == 0xFF) && body[9] <= 1;
+    case REFUSED: return body[0] >= R_VERSION && body[0] <= R_UNSUPPORTED;
     default: return 1;
     }
 }

@@ -6,18 +6,14 @@
 //! send.
 #![no_main]
 
-use firmware::link::{FrameReader, MAX_FRAME, Packet, Period, Target, frame};
+use firmware::link::{FrameReader, MAX_FRAME, Packet, Target, frame};
 use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut reader = FrameReader::default();
-    let period = Period {
-        clock_hz: 1,
-        ns: 20_000_000,
-    };
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, period);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, 1);
     for &byte in data {
         let Some(got) = reader.push(byte) else {
             continue;

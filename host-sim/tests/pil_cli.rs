@@ -52,9 +52,16 @@ fn answers() -> Vec<(&'static str, Vec<u8>, &'static str)> {
     let good = wire(1, Message::Info(info));
     let mut truncated = good.clone();
     truncated.remove(3);
-    let mut version = wire(1, Message::Started);
-    // The version byte is the payload's first: past COBS's code byte, not a zero.
-    version[1] = 2;
+    // A Started of version 1, its CRC right.
+    let payload = [1, 0x82, 1, 0];
+    let raw = [
+        &payload[..],
+        &firmware::link::crc::crc32(&payload).to_le_bytes(),
+    ]
+    .concat();
+    let mut version = [0u8; MAX_FRAME];
+    let n = firmware::link::cobs::encode(&raw, &mut version).unwrap();
+    let version = [&version[..n], &[0]].concat();
     vec![
         ("silent", Vec::new(), "did not answer within 0.5 s"),
         ("garbage", b"garbage\0".to_vec(), "corrupted answer"),
@@ -64,7 +71,7 @@ fn answers() -> Vec<(&'static str, Vec<u8>, &'static str)> {
             [vec![0x55; 100], vec![0]].concat(),
             "longer than the longest",
         ),
-        ("version", version, "corrupted answer"),
+        ("version", version, "another protocol version"),
         (
             "replayed",
             wire(7, Message::Info(info)),

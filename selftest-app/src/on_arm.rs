@@ -1,5 +1,5 @@
 //! The Cortex-M side of both binaries: reset entry, the core's clock, exit and panics over
-//! semihosting. The self-test's part is `arm_selftest`, the link's is in `uart`.
+//! semihosting. The self-test's part is `arm_selftest`, the link's is in `port`.
 
 use cortex_m::peripheral::SYST;
 use cortex_m_rt::entry;

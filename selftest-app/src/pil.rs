@@ -20,18 +20,13 @@ mod on_riscv;
 #[cfg(target_os = "none")]
 mod port;
 
-use firmware::link::{FrameReader, MAX_FRAME, Period, Target, frame};
+use firmware::link::Target;
 use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 
-/// The control period the target was built for, ns.
-fn period_ns() -> u32 {
-    libm::round(RIG.params.tau * 1e9) as u32
-}
-
-/// Serves the link until the host closes it: every frame answered, the period timed from
-/// the frame's last byte to the command on `clock_hz`'s `now`, with `since` its
-/// difference. Whether the link ended cleanly.
+/// Serves the link until the host closes it: every frame answered, the period timed on a
+/// clock of `clock_hz` (`now`, with `since` its difference) from the frame's last byte to
+/// the command. Whether the link ended cleanly.
 fn serve(
     clock_hz: u32,
     mut read: impl FnMut() -> Option<u8>,
@@ -39,21 +34,13 @@ fn serve(
     now: impl Fn() -> u32,
     since: impl Fn(u32, u32) -> u32,
 ) -> bool {
-    let period = Period {
-        clock_hz,
-        ns: period_ns(),
-    };
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, period);
-    let mut reader = FrameReader::default();
-    let mut out = [0u8; MAX_FRAME];
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, clock_hz);
     while let Some(byte) = read() {
         let arrived = now();
-        if let Some(frame) = reader.push(byte) {
-            let answer = target.handle(frame, || since(arrived, now()));
-            let n = frame::encode(&answer, &mut out);
-            if !write(&out[..n]) {
-                return false;
-            }
+        if let Some(answer) = target.receive(byte, || since(arrived, now()))
+            && !write(answer)
+        {
+            return false;
         }
     }
     true

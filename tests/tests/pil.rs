@@ -199,26 +199,18 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
 /// until the host's end closes.
 fn board_on(mut port: serialport::TTYPort) {
     use std::io::{Read, Write};
-    let period = firmware::link::Period {
-        clock_hz: 1,
-        ns: 20_000_000,
-    };
-    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, period);
-    let mut reader = firmware::link::FrameReader::default();
+    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, 1);
     let mut buf = [0u8; 64];
-    let mut out = [0u8; firmware::link::MAX_FRAME];
     loop {
         let n = match port.read(&mut buf) {
             Ok(0) | Err(_) => return,
             Ok(n) => n,
         };
         for &b in &buf[..n] {
-            if let Some(frame) = reader.push(b) {
-                let answer = target.handle(frame, || 1);
-                let k = firmware::link::frame::encode(&answer, &mut out);
-                if port.write_all(&out[..k]).is_err() {
-                    return;
-                }
+            if let Some(answer) = target.receive(b, || 1)
+                && port.write_all(answer).is_err()
+            {
+                return;
             }
         }
     }

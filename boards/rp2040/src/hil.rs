@@ -15,9 +15,9 @@ use embassy_time::{Instant, TICK_HZ};
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::driver::EndpointError;
 use embassy_usb::{Builder, Config};
-use firmware::link::{FrameReader, MAX_FRAME, Period, Target, frame};
-use firmware::policy::POLICY;
-use firmware::policy_int::{POLICY_INT, RIG};
+use firmware::link::{MAX_FRAME, Target};
+use firmware::policy::{POLICY, RIG};
+use firmware::policy_int::POLICY_INT;
 
 embassy_rp::bind_interrupts!(struct Irqs {
     USBCTRL_IRQ => InterruptHandler<USB>;
@@ -59,26 +59,22 @@ pub async fn run(usb: Peri<'static, USB>) -> ! {
 
 /// One connection: every frame answered, each period timed from its frame's last byte.
 async fn serve<'d>(class: &mut CdcAcmClass<'d, Driver<'d, USB>>) -> EndpointError {
-    let period = Period {
-        clock_hz: TICK_HZ as u32,
-        ns: (RIG.params.tau * 1e9) as u32,
-    };
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, period);
-    let mut reader = FrameReader::default();
-    let (mut buf, mut out) = ([0u8; PACKET as usize], [0u8; MAX_FRAME]);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, TICK_HZ as u32);
+    let mut buf = [0u8; PACKET as usize];
     loop {
         let n = match class.read_packet(&mut buf).await {
             Ok(n) => n,
-            Err(e) => return e,
+            Err(e) => {
+                warn!("hil: {} frames refused", target.refused());
+                return e;
+            }
         };
         for &b in &buf[..n] {
             let arrived = Instant::now();
-            if let Some(f) = reader.push(b) {
-                let answer = target.handle(f, || arrived.elapsed().as_ticks() as u32);
-                let len = frame::encode(&answer, &mut out);
-                if let Err(e) = class.write_packet(&out[..len]).await {
-                    return e;
-                }
+            if let Some(answer) = target.receive(b, || arrived.elapsed().as_ticks() as u32)
+                && let Err(e) = class.write_packet(answer).await
+            {
+                return e;
             }
         }
     }

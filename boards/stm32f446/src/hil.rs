@@ -1,6 +1,6 @@
 //! Hardware in the loop (`cargo build --release --features hil`): instead of reading its
 //! encoders and driving its motor, the board answers a world simulated on the host over the
-//! ST-LINK's virtual serial port (USART2: PA2, PA3) at 115,200 baud, one frame of
+//! ST-LINK's virtual serial port (USART2: PA2, PA3) at the link's baud rate, one frame of
 //! `docs/LINK.md` a control period. Its controller is the one it balances with
 //! (`firmware::link::Target`, in either format), run on this core and timed on its clock;
 //! its H-bridge is never driven. `host-sim eval --pil serial:/dev/ttyACM0`.
@@ -10,16 +10,13 @@ use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{Peripherals, bind_interrupts, peripherals};
 use embassy_time::{Instant, TICK_HZ};
 use embedded_io_async::{Read, Write};
-use firmware::link::{FrameReader, MAX_FRAME, Period, Target, frame};
+use firmware::link::{BAUD, Target};
 use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 
 bind_interrupts!(struct Irqs {
     USART2 => usart::BufferedInterruptHandler<peripherals::USART2>;
 });
-
-/// The line rate `host-sim`'s serial link expects.
-const BAUD: u32 = 115_200;
 
 /// Serves the link for ever.
 pub async fn run(p: Peripherals) -> ! {
@@ -35,31 +32,24 @@ pub async fn run(p: Peripherals) -> ! {
         Irqs,
         config,
     ));
-    let period = Period {
-        clock_hz: TICK_HZ as u32,
-        ns: (RIG.params.tau * 1e9) as u32,
-    };
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, period);
-    let mut reader = FrameReader::default();
-    let (mut buf, mut out) = ([0u8; 32], [0u8; MAX_FRAME]);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, TICK_HZ as u32);
+    let mut buf = [0u8; 32];
     loop {
         let n = match uart.read(&mut buf).await {
             Ok(n) => n,
             Err(e) => {
                 // A framing or overrun error loses bytes: the frame they belonged to fails
                 // its check and is refused, and the host ends the run.
-                warn!("hil: {}", e);
+                warn!("hil: {}, {} frames refused", e, target.refused());
                 continue;
             }
         };
         for &b in &buf[..n] {
             let arrived = Instant::now();
-            if let Some(f) = reader.push(b) {
-                let answer = target.handle(f, || arrived.elapsed().as_ticks() as u32);
-                let len = frame::encode(&answer, &mut out);
-                if let Err(e) = uart.write_all(&out[..len]).await {
-                    warn!("hil: {}", e);
-                }
+            if let Some(answer) = target.receive(b, || arrived.elapsed().as_ticks() as u32)
+                && let Err(e) = uart.write_all(answer).await
+            {
+                warn!("hil: {}", e);
             }
         }
     }

@@ -5,7 +5,7 @@ use crate::Action;
 use crate::controller::{Command, FaultFlags};
 
 /// The protocol's version; a frame of another is refused ([`Reason::Version`]).
-pub const VERSION: u8 = 1;
+pub const VERSION: u8 = 2;
 /// Version, kind and sequence number.
 pub const HEADER_LEN: usize = 4;
 /// The longest payload (header and body) of any message.

@@ -24,13 +24,16 @@ pub mod session;
 pub mod target;
 
 pub use frame::{FrameReader, MAX_FRAME};
+
+/// The line rate of the link on a UART (USB CDC-ACM ignores it).
+pub const BAUD: u32 = 115_200;
 pub use message::{
     Format, HEADER_LEN, Info, MAX_PAYLOAD, Message, Packet, Reason, Reply, Scores, Sensing, Start,
     VERSION,
 };
 pub use sensor::{LinkSensor, Missing};
 pub use session::{Measurement, Request, Session};
-pub use target::{Period, Target};
+pub use target::{Target, period_ns};
 
 #[cfg(test)]
 mod tests;

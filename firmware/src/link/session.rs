@@ -37,7 +37,6 @@ pub struct Session {
     hello: bool,
     start: Option<Start>,
     seq: u16,
-    refused: u32,
 }
 
 impl Session {
@@ -80,20 +79,13 @@ impl Session {
         (seq, Request::Period(m))
     }
 
-    /// Ends the episode, after the target refused it something the session let through (a
-    /// Start its rig cannot run): readings are refused until the next Start.
+    /// Ends the episode after a refusal, the session's or the target's: readings are
+    /// refused until the next Start.
     pub fn stop(&mut self) {
         self.start = None;
-        self.refused = self.refused.saturating_add(1);
-    }
-
-    /// Frames refused so far (saturating).
-    pub fn refused(&self) -> u32 {
-        self.refused
     }
 
     fn refuse(&mut self, seq: u16, reason: Reason) -> (u16, Request) {
-        self.refused = self.refused.saturating_add(1);
         (seq, Request::Refuse(reason))
     }
 }

@@ -12,6 +12,7 @@ use crate::network::Mlp;
 use crate::network::int::QMlp;
 use crate::rig::Rig;
 
+use super::frame::{self, FrameReader, MAX_FRAME};
 use super::message::{Format, Info, Message, Packet, Reason, Reply, Scores, Start};
 use super::sensor::LinkSensor;
 use super::session::{Request, Session};
@@ -22,8 +23,11 @@ pub struct Target<'p, const H: usize> {
     policy: &'p Mlp<H>,
     policy_int: &'p QMlp<H>,
     rig: Rig,
-    period: Period,
+    clock_hz: u32,
     session: Session,
+    reader: FrameReader,
+    out: [u8; MAX_FRAME],
+    refused: u32,
     format: Format,
     running: Running<'p, H>,
     /// The last observer built, and the dead time it was built for: a Start with the same
@@ -31,13 +35,9 @@ pub struct Target<'p, const H: usize> {
     observer: Option<(u8, Observer)>,
 }
 
-/// The clock the target's times are counted on, and the control period it was built for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Period {
-    /// Ticks per second of the clock [`Target::handle`] is given.
-    pub clock_hz: u32,
-    /// The control period, ns.
-    pub ns: u32,
+/// `rig`'s control period in whole nanoseconds, as `Info` carries it.
+pub fn period_ns(rig: &Rig) -> u32 {
+    libm::round(rig.params.tau * 1e9) as u32
 }
 
 type Float<'p, const H: usize> = Controller<&'p Mlp<H>, LinkSensor<[f32; 4]>, Pins, 1>;
@@ -52,18 +52,31 @@ enum Running<'p, const H: usize> {
 
 impl<'p, const H: usize> Target<'p, H> {
     /// A target holding `policy`, its integer version `policy_int` and `rig` (the board's
-    /// `POLICY`, `POLICY_INT` and `RIG`), timing periods on `period`'s clock.
-    pub fn new(policy: &'p Mlp<H>, policy_int: &'p QMlp<H>, rig: Rig, period: Period) -> Self {
+    /// `POLICY`, `POLICY_INT` and `RIG`), timing periods on a clock of `clock_hz` ticks a
+    /// second.
+    pub fn new(policy: &'p Mlp<H>, policy_int: &'p QMlp<H>, rig: Rig, clock_hz: u32) -> Self {
         Target {
             policy,
             policy_int,
             rig,
-            period,
+            clock_hz,
             session: Session::default(),
+            reader: FrameReader::default(),
+            out: [0; MAX_FRAME],
+            refused: 0,
             format: Format::F32,
             running: Running::Idle,
             observer: None,
         }
+    }
+
+    /// Takes one byte as it arrives; at a frame's end, the answer's bytes to send. `elapsed`
+    /// reads the clock's ticks since this byte arrived (see [`Target::handle`]).
+    pub fn receive(&mut self, byte: u8, elapsed: impl Fn() -> u32) -> Option<&[u8]> {
+        let frame = self.reader.push(byte)?;
+        let answer = self.handle(frame, elapsed);
+        let n = frame::encode(&answer, &mut self.out);
+        self.out.get(..n)
     }
 
     /// The answer to one frame as the reader gave it. `elapsed` reads the clock's ticks
@@ -88,18 +101,16 @@ impl<'p, const H: usize> Target<'p, H> {
                     reply.ticks = elapsed();
                     Message::Reply(reply)
                 }
-                // After a refusal: the motor stays off until the next Start.
                 None => self.refuse(Reason::NotStarted),
             },
-            // Counted by the session.
-            Request::Refuse(reason) => self.stop(reason),
+            Request::Refuse(reason) => self.refuse(reason),
         };
         Packet { seq, message }
     }
 
-    /// Frames refused so far (saturating), the session's and the target's.
+    /// Frames refused so far (saturating): a board logs them when its link ends.
     pub fn refused(&self) -> u32 {
-        self.session.refused()
+        self.refused
     }
 
     fn info(&self) -> Info {
@@ -112,8 +123,8 @@ impl<'p, const H: usize> Target<'p, H> {
             hidden: H as u16,
             policy,
             rig: digest::rig(&self.rig),
-            period_ns: self.period.ns,
-            clock_hz: self.period.clock_hz,
+            period_ns: period_ns(&self.rig),
+            clock_hz: self.clock_hz,
         }
     }
 
@@ -164,16 +175,12 @@ impl<'p, const H: usize> Target<'p, H> {
         })
     }
 
-    /// A refusal of the target's own (the session let the frame through): counted by the
-    /// session, which refuses readings until the next Start.
+    /// Ends the episode (the motor is off, and readings are refused, until the next Start),
+    /// counts the refusal and answers `reason`.
     fn refuse(&mut self, reason: Reason) -> Message {
-        self.session.stop();
-        self.stop(reason)
-    }
-
-    /// Ends the episode (the motor is off until the next Start) and answers `reason`.
-    fn stop(&mut self, reason: Reason) -> Message {
         self.running = Running::Idle;
+        self.session.stop();
+        self.refused = self.refused.saturating_add(1);
         Message::Refused(reason)
     }
 }

@@ -10,8 +10,8 @@ use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
 use firmware::link::{
-    Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Period, Reason, Reply,
-    Start, Target, frame,
+    Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Reason, Reply, Start,
+    Target, frame,
 };
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
@@ -121,11 +121,7 @@ impl<const H: usize> Local<H> {
     /// A target holding `policy`, `policy_int` and `rig` (a board's `POLICY`, `POLICY_INT`
     /// and `RIG`), timed on nothing: its ticks are 0.
     pub fn new(policy: &'static Mlp<H>, policy_int: &'static QMlp<H>, rig: Rig) -> Self {
-        let period = Period {
-            clock_hz: 1,
-            ns: (rig.params.tau * 1e9).round() as u32,
-        };
-        Local(Target::new(policy, policy_int, rig, period))
+        Local(Target::new(policy, policy_int, rig, 1))
     }
 }
 

@@ -1,10 +1,12 @@
-//! Processor-in-the-loop: the board's controller running on a target (the `pil`
-//! application in QEMU, or the target code built for the host), driven period by period by
+//! The controller in the loop: the board's controller running on a target (the `pil`
+//! application in QEMU, a board on a serial port, or the target code built for the host),
+//! driven period by period by
 //! the twin's world over the link (`docs/LINK.md`), and the same target code in this
 //! process fed the same frames: the software-in-the-loop reference every answer is compared
 //! with. `docs/PIL.md` has the results.
 //!
 //! - `link`: the host's end of the exchange, a target in a process or in this one.
+//! - `serial`: a board on a serial port.
 //! - `run`: episodes over the link, their statistics, the comparison and the target's time.
 
 use std::path::{Path, PathBuf};
@@ -92,7 +94,8 @@ pub enum Place {
 }
 
 impl Place {
-    /// The place `spec` names (`qemu:TARGET` or `exec:PATH`), with the ELF `elf` for QEMU
+    /// The place `spec` names (`qemu:TARGET`, `serial:PATH` or `exec:PATH`), with the ELF
+    /// `elf` for QEMU
     /// (by default the `pil` application's release build for the target); refused, naming
     /// what was expected, when the target is unknown or the file is missing.
     pub fn parse(spec: &str, elf: Option<&Path>) -> Result<Place> {

@@ -6,13 +6,10 @@ use std::path::Path;
 use std::time::{Duration, Instant};
 
 use anyhow::{Context, Result, anyhow, bail};
-use firmware::link::{FrameReader, MAX_FRAME, Message, Packet, frame};
+use firmware::link::{BAUD, FrameReader, MAX_FRAME, Message, Packet, frame};
 use serialport::{SerialPort, TTYPort};
 
 use super::link::{Remote, answer};
-
-/// The line rate a UART target is expected at.
-pub const BAUD: u32 = 115_200;
 
 /// A board on a serial port.
 pub struct Serial {
@@ -29,12 +26,14 @@ impl Serial {
         let name = path
             .to_str()
             .context("a serial port's path must be UTF-8")?;
-        let port = serialport::new(name, BAUD)
+        let mut port = serialport::new(name, BAUD)
             .timeout(timeout)
             .open_native()
             .with_context(|| format!("could not open {} as a serial port", path.display()))?;
-        // Whatever a board sent before the host came is no answer to it.
+        // Whatever a board sent before the host came is no answer to it, and a zero ends
+        // whatever line noise the board read before this frame.
         port.clear(serialport::ClearBuffer::All)?;
+        port.write_all(&[0])?;
         Ok(Serial {
             port,
             reader: FrameReader::default(),
@@ -48,9 +47,10 @@ impl Remote for Serial {
     fn exchange(&mut self, seq: u16, message: Message) -> Result<Message> {
         let mut out = [0u8; MAX_FRAME];
         let n = frame::encode(&Packet { seq, message }, &mut out);
+        // Not flushed: draining a tty waits without a timeout on a board that stopped
+        // reading; a frame is far smaller than the tty's buffer.
         self.port
             .write_all(&out[..n])
-            .and_then(|()| self.port.flush())
             .with_context(|| format!("writing to {}", self.what))?;
         let deadline = Instant::now() + self.timeout;
         let mut buf = [0u8; 64];

@@ -10,13 +10,10 @@ use crate::loopback::{Latest, duty};
 use crate::policy::{POLICY, RIG};
 use crate::policy_int::POLICY_INT;
 
-const PERIOD: Period = Period {
-    clock_hz: 1_000,
-    ns: 20_000_000,
-};
+const CLOCK_HZ: u32 = 1_000;
 
 fn target() -> Target<'static, 64> {
-    Target::new(&POLICY, &POLICY_INT, RIG, PERIOD)
+    Target::new(&POLICY, &POLICY_INT, RIG, CLOCK_HZ)
 }
 
 /// Sends `message` numbered `seq`; the answer's message, checked to carry `seq`.
@@ -102,10 +99,7 @@ fn hello_says_what_the_target_holds_in_the_format_asked_for() {
     assert_eq!(info.hidden, 64);
     assert_eq!(info.policy, digest::qmlp(&POLICY_INT));
     assert_eq!(info.rig, digest::rig(&RIG));
-    assert_eq!(
-        (info.period_ns, info.clock_hz),
-        (PERIOD.ns, PERIOD.clock_hz)
-    );
+    assert_eq!((info.period_ns, info.clock_hz), (20_000_000, CLOCK_HZ));
     let Message::Info(info) = send(&mut t, 4, Message::Hello(Format::F32)) else {
         panic!("an Info was due");
     };
@@ -160,5 +154,40 @@ fn a_refusal_stops_the_motor_until_the_next_start() {
     assert_eq!(send(&mut t, 9, state), Message::Refused(Reason::NotStarted));
     assert_eq!(send(&mut t, 10, Message::Start(exact)), Message::Started);
     assert!(matches!(send(&mut t, 11, state), Message::Reply(_)));
-    assert_eq!(t.refused(), 8);
+    // A replayed reading: refused, and after it any reading, in sequence or not, of either
+    // kind, until the next Start.
+    assert_eq!(send(&mut t, 11, state), Message::Refused(Reason::Sequence));
+    for (seq, m) in [
+        (12, state),
+        (20, state),
+        (12, Message::Counts { cart: 0, pole: 0 }),
+    ] {
+        assert_eq!(send(&mut t, seq, m), Message::Refused(Reason::NotStarted));
+    }
+    assert_eq!(t.refused(), 12);
+}
+
+#[test]
+fn bytes_in_answers_out() {
+    let mut t = target();
+    let mut wire = [0u8; MAX_FRAME];
+    let hello = Packet {
+        seq: 5,
+        message: Message::Hello(Format::F32),
+    };
+    let n = frame::encode(&hello, &mut wire);
+    let (last, head) = wire[..n].split_last().unwrap();
+    assert!(head.iter().all(|&b| t.receive(b, || 0).is_none()));
+    let answer = t
+        .receive(*last, || 0)
+        .expect("a frame's last byte gets its answer");
+    let mut reader = FrameReader::default();
+    let got: Vec<_> = answer.iter().filter_map(|&b| reader.push(b)).collect();
+    assert!(matches!(
+        got[..],
+        [Ok(Packet {
+            seq: 5,
+            message: Message::Info(_)
+        })]
+    ));
 }
