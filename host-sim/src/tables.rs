@@ -242,7 +242,9 @@ struct Row {
     controller: String,
     scenario: String,
     horizon: u32,
-    period_s: f64,
+    /// The control period, s (results files older than the field have none).
+    #[serde(default)]
+    period_s: Option<f64>,
     success_rate: f64,
     success_ci95: [f64; 2],
     failures: usize,
@@ -317,7 +319,10 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
         if let Some(c) = &spec.pil {
             let check = pil::find(&results.pil, c, name, horizon)
                 .ok_or_else(|| format!("{} has no pil check of `{c}` on `{name}`", spec.file))?;
-            cells.extend(pil::cells(check, find(c)?.period_s));
+            let period = find(c)?
+                .period_s
+                .ok_or_else(|| format!("{} gives no period_s for `{c}` on `{name}`", spec.file))?;
+            cells.extend(pil::cells(check, period));
         }
         out += &format!("| {} |\n", cells.join(" | "));
     }

@@ -3,19 +3,19 @@ use super::*;
 /// Four rows at horizon 500 and one at 10,000, in `eval --json`'s shape (the fields the
 /// tables do not show left out), with values whose roundings are worked out by hand below.
 const JSON: &str = r#"{"seed": 0, "rows": [
-  {"controller": "policy", "scenario": "nominal", "horizon": 500, "period_s": 0.02, "success_rate": 1.0,
+  {"controller": "policy", "scenario": "nominal", "horizon": 500, "success_rate": 1.0,
    "success_ci95": [0.996173, 1.0], "failures": 0, "rms_theta_deg": {"mean": 0.2582, "ci95": 0.1},
    "rms_x_m": {"mean": 0.09184, "ci95": 0.1}, "switches_per_s": {"mean": 33.4226, "ci95": 0.1}},
-  {"controller": "lqr", "scenario": "nominal", "horizon": 500, "period_s": 0.02, "success_rate": 1.0,
+  {"controller": "lqr", "scenario": "nominal", "horizon": 500, "success_rate": 1.0,
    "success_ci95": [0.996173, 1.0], "failures": 0, "rms_theta_deg": {"mean": 0.3049, "ci95": 0.1},
    "rms_x_m": {"mean": 0.2016, "ci95": 0.1}, "switches_per_s": {"mean": 33.36, "ci95": 0.1}},
-  {"controller": "policy", "scenario": "push=1.1/50", "horizon": 500, "period_s": 0.02, "success_rate": 0.5,
+  {"controller": "policy", "scenario": "push=1.1/50", "horizon": 500, "success_rate": 0.5,
    "success_ci95": [0.4501, 0.5499], "failures": 500, "rms_theta_deg": {"mean": 1.234, "ci95": 0.1},
    "rms_x_m": {"mean": 0.5, "ci95": 0.1}, "switches_per_s": {"mean": 30.04, "ci95": 0.1}},
-  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 500, "period_s": 0.02, "success_rate": 0.0,
+  {"controller": "lqr", "scenario": "push=1.1/50", "horizon": 500, "success_rate": 0.0,
    "success_ci95": [0.0, 0.0038], "failures": 1000, "rms_theta_deg": {"mean": 2.5, "ci95": 0.1},
    "rms_x_m": {"mean": 0.25, "ci95": 0.1}, "switches_per_s": {"mean": 12.0, "ci95": 0.1}},
-  {"controller": "policy", "scenario": "delay", "horizon": 10000, "period_s": 0.02, "success_rate": 1.0,
+  {"controller": "policy", "scenario": "delay", "horizon": 10000, "success_rate": 1.0,
    "success_ci95": [0.996173, 1.0], "failures": 0, "rms_theta_deg": {"mean": 0.2, "ci95": 0.1},
    "rms_x_m": {"mean": 0.1, "ci95": 0.1}, "switches_per_s": {"mean": 32.0, "ci95": 0.1}}
 ]}"#;
@@ -209,20 +209,20 @@ After.
     assert_eq!(err, refuse(6, "cannot read docs/results/x.json"));
 }
 
-#[test]
-fn renders_the_processor_in_the_loop_columns() {
-    let json = JSON.replacen(
-        "\n]}",
-        r#"], "pil": [
+/// Two rows' processor-in-the-loop checks, as `eval --pil --json` ends.
+const PIL: &str = r#"], "pil": [
   {"target": "qemu:t", "controller": "policy", "scenario": "nominal", "horizon": 500,
    "periods": 500000, "mismatches": 0, "first": null,
    "time_ns": [623400, 629100, 634951], "overruns": 0},
   {"target": "qemu:t", "controller": "policy", "scenario": "push=1.1/50", "horizon": 500,
    "periods": 1234, "mismatches": 1001, "first": null,
    "time_ns": [44254400, 44772200, 45300700], "overruns": 1234}
-]}"#,
-        1,
-    );
+]}"#;
+
+#[test]
+fn renders_the_processor_in_the_loop_columns() {
+    let without_period = JSON.replacen("\n]}", PIL, 1);
+    let json = without_period.replace("\"horizon\": 500,", "\"horizon\": 500, \"period_s\": 0.02,");
     let table = render(&spec("horizon=500 success=policy brief pil=policy"), &json).unwrap();
     let want = "\
 | scenario | policy success | policy periods | policy mismatches | policy time us median / p99 / worst | policy worst of period | policy overruns |
@@ -233,4 +233,6 @@ fn renders_the_processor_in_the_loop_columns() {
     assert_eq!(table, want);
     let lqr = render(&spec("horizon=500 pil=lqr"), &json).unwrap_err();
     assert!(lqr.contains("no pil check of `lqr` on `nominal`"), "{lqr}");
+    let old = render(&spec("horizon=500 pil=policy"), &without_period).unwrap_err();
+    assert!(old.contains("gives no period_s"), "{old}");
 }
