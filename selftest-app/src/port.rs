@@ -5,7 +5,8 @@
 //! there QEMU hands the guest one byte (CMSDK, nRF51) or one FIFO trigger's worth (16550)
 //! per round of its main loop while the polling core holds the emulator's lock, 1,000 to
 //! 2,300 periods a second; a semihosting read halts the core until the bytes are there, and
-//! the exchange runs at about 19,000 (docs/PIL.md). The frames are the same either way.
+//! the exchange runs several times faster (docs/PIL.md, "Speed"). The frames are the same
+//! either way.
 
 #![allow(unsafe_code)]
 
