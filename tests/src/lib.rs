@@ -3,6 +3,7 @@
 //! them there), and the QEMU runners `.cargo/config.toml` gives them.
 
 use std::path::{Path, PathBuf};
+use std::process::Command;
 
 /// The repository's root.
 pub fn repo() -> PathBuf {
@@ -59,4 +60,38 @@ pub fn runners() -> Vec<(String, String)> {
         walk("", targets, &mut found);
     }
     found
+}
+
+/// Builds `selftest-app`'s binary `bin` in release for `target` (the host without one); the
+/// executable's path, as cargo names it.
+pub fn build_app(bin: &str, target: Option<&str>) -> PathBuf {
+    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
+    let mut c = Command::new(cargo);
+    c.args([
+        "build",
+        "-q",
+        "--release",
+        "-p",
+        "selftest-app",
+        "--bin",
+        bin,
+    ])
+    .arg("--message-format=json")
+    .current_dir(repo());
+    if let Some(t) = target {
+        c.args(["--target", t]);
+    }
+    let out = c.output().expect("running cargo");
+    assert!(
+        out.status.success(),
+        "{bin} for {target:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout)
+        .expect("cargo's messages are UTF-8")
+        .lines()
+        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
+        .filter(|m| m["target"]["name"] == bin)
+        .find_map(|m| m["executable"].as_str().map(PathBuf::from))
+        .unwrap_or_else(|| panic!("{bin} for {target:?}: cargo named no executable"))
 }

@@ -4,10 +4,7 @@
 //! the workspace root first (`selftest-app/build.rs` says how). The check is where the image
 //! starts, read from the ELF's program headers: it must be where the target's machine boots.
 
-use std::path::PathBuf;
-use std::process::Command;
-
-use e2e::{default_target, mcu_targets, repo};
+use e2e::{build_app, default_target, mcu_targets, repo};
 
 /// Where the target's QEMU machine takes its first instruction or vector table from.
 fn boot_address(target: &str) -> u64 {
@@ -20,29 +17,6 @@ fn boot_address(target: &str) -> u64 {
         "riscv32imac-unknown-none-elf" => 0x8000_0000,
         other => panic!("{other}: no boot address known here; add its machine's"),
     }
-}
-
-/// Builds the self-test for `target` as `scripts/mcu.sh` does; the ELF's path.
-fn build(target: &str) -> PathBuf {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let out = Command::new(cargo)
-        .args(["build", "-q", "--release", "-p", "selftest-app"])
-        .args(["--target", target, "--message-format=json"])
-        .current_dir(repo())
-        .output()
-        .expect("running cargo");
-    assert!(
-        out.status.success(),
-        "{target}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|m| m["target"]["name"] == "selftest-app")
-        .find_map(|m| m["executable"].as_str().map(PathBuf::from))
-        .unwrap_or_else(|| panic!("{target}: cargo named no selftest-app executable"))
 }
 
 /// The lowest physical address a loaded segment of a 32-bit little-endian ELF fills.
@@ -90,7 +64,8 @@ fn every_target_is_linked_where_its_machine_boots() {
     let wrong: Vec<String> = mcu_targets()
         .iter()
         .filter_map(|target| {
-            let elf = std::fs::read(build(target)).expect("reading the ELF");
+            let elf =
+                std::fs::read(build_app("selftest-app", Some(target))).expect("reading the ELF");
             let (start, want) = (image_start(&elf), boot_address(target));
             (start != want).then(|| format!("{target}: image at {start:#x}, boots at {want:#x}"))
         })

@@ -7,11 +7,10 @@
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
-use std::path::PathBuf;
 use std::process::Command;
 use std::time::Duration;
 
-use e2e::{mcu_targets, repo, runners};
+use e2e::{build_app, mcu_targets, repo, runners};
 use firmware::link::Format;
 use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
@@ -20,39 +19,6 @@ use host_sim::pil::link::{Local, Session};
 use host_sim::pil::{MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
 use twin::Scenario;
-
-/// Builds the `pil` application for `target` (the host without one); the executable.
-fn build(target: Option<&str>) -> PathBuf {
-    let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
-    let mut c = Command::new(cargo);
-    c.args([
-        "build",
-        "-q",
-        "--release",
-        "-p",
-        "selftest-app",
-        "--bin",
-        "pil",
-    ])
-    .arg("--message-format=json")
-    .current_dir(repo());
-    if let Some(t) = target {
-        c.args(["--target", t]);
-    }
-    let out = c.output().expect("running cargo");
-    assert!(
-        out.status.success(),
-        "{target:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|m| m["target"]["name"] == "pil")
-        .find_map(|m| m["executable"].as_str().map(PathBuf::from))
-        .unwrap_or_else(|| panic!("{target:?}: cargo named no pil executable"))
-}
 
 fn reference() -> Session<Local<64>> {
     Session::new(Local::new(&POLICY, &POLICY_INT, RIG))
@@ -95,7 +61,7 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     }
     let scenarios = scenarios();
     for target in mcu_targets() {
-        let elf = build(Some(&target));
+        let elf = build_app("pil", Some(&target));
         let place = Place::parse(&format!("qemu:{target}"), Some(&elf)).unwrap();
         let mut remote = Session::new(place.start(Duration::from_secs(60)).unwrap());
         let mut here = reference();
@@ -168,7 +134,7 @@ fn the_c_application_answers_as_the_rust_one() {
 
 #[test]
 fn the_host_build_of_the_pil_application_gives_evals_rows() {
-    let exe = build(None);
+    let exe = build_app("pil", None);
     let place = Place::parse(&format!("exec:{}", exe.display()), None).unwrap();
     let mut remote = Session::new(place.start(Duration::from_secs(10)).unwrap());
     let mut here = reference();
