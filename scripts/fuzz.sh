@@ -48,9 +48,9 @@ def cobs(data):
 def frame(payload):
     return cobs(payload + struct.pack("<I", zlib.crc32(payload))) + b"\0"
 with open(sys.argv[1], "wb") as f:
-    f.write(frame(bytes([1, 1, 0, 0, 1])) + frame(bytes([1, 2, 1, 0, 1, 1, 2]) + bytes(4))
-            + frame(bytes([1, 4, 2, 0]) + struct.pack("<ii", -120, 2047))
-            + frame(bytes([1, 5, 3, 0])))
+    f.write(frame(bytes([2, 1, 0, 0, 1])) + frame(bytes([2, 2, 1, 0, 1, 1, 2]) + bytes(4))
+            + frame(bytes([2, 4, 2, 0]) + struct.pack("<ii", -120, 2047))
+            + frame(bytes([2, 5, 3, 0])))
 PY
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT
