@@ -214,7 +214,7 @@ struct cartpole_rig {
 /* The bytes of cartpole_controller_t, on every target: the library checks at compile time
  * that each policy's controller fits. Its alignment is its union's: that of uint64_t, double
  * and void * (8 on Cortex-M, RISC-V and 64-bit hosts). */
-#define CARTPOLE_CONTROLLER_SIZE 640
+#define CARTPOLE_CONTROLLER_SIZE 768
 /* Full scale of cartpole_command_t's duty: the motor's full push. */
 #define CARTPOLE_DUTY_MAX 1000
 /* The fault bits of cartpole_command_t: channel (0 x, 1 x_dot, 2 theta, 3 theta_dot) NaN or

@@ -66,6 +66,12 @@ pub fn lqr_gain(p: &Params, q: Vec4, r: f64) -> Vec4 {
     gain(&a, &b, &pm, r)
 }
 
+/// The LQR that balances: `Q = I`, `R = 1` on `p`'s plant. The simulator's LQR baseline and
+/// the runtime monitor's fallback ([`crate::controller::monitor`]) both use it.
+pub fn balance_gain(p: &Params) -> Vec4 {
+    lqr_gain(p, [1.0; 4], 1.0)
+}
+
 /// One application of the control Riccati map to `p`.
 fn riccati_step(a: &Mat, b: &Vec4, p: &Mat, q: Vec4, r: f64) -> Mat {
     let k = gain(a, b, p, r);

@@ -103,6 +103,7 @@ pub fn run(board: &mut impl Board) -> bool {
     // functions in this ELF (the instruction counts are taken from them).
     let forward: Forward = core::hint::black_box(selftest::selftest_forward);
     let forward_int: ForwardInt = core::hint::black_box(selftest::selftest_forward_int);
+    let monitored: ForwardInt = core::hint::black_box(selftest::selftest_monitored_int);
     let mut ok = selftest::report(
         &POLICY,
         &POLICY_INT,
@@ -111,8 +112,9 @@ pub fn run(board: &mut impl Board) -> bool {
         |l| board.line(l),
     );
     ok &= paced_runs(board);
+    ok &= monitor_check(board, forward_int, monitored);
     stack_report(board, forward, forward_int);
-    instruction_report(board, forward, forward_int);
+    instruction_report(board, forward, [forward_int, monitored]);
     board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
     ok
 }
@@ -182,8 +184,26 @@ fn stack_report(board: &mut impl Board, forward: Forward, forward_int: ForwardIn
     ));
 }
 
-/// Instructions per forward pass in each format, where the board has a fine clock.
-fn instruction_report(board: &mut impl Board, forward: Forward, forward_int: ForwardInt) {
+/// Whether the monitor lets the integer policy decide a balanced state (the same outputs)
+/// and hands a state beyond the envelope's rates to the fallback (no outputs).
+fn monitor_check(board: &mut impl Board, forward_int: ForwardInt, monitored: ForwardInt) -> bool {
+    let inside = &selftest::INT_PROBES[1];
+    let (mut want, mut got) = ([0; 2], [1; 2]);
+    forward_int(Some(inside), Some(&mut want));
+    monitored(Some(inside), Some(&mut got));
+    let mut fallback = [1; 2];
+    monitored(Some(&[0, i16::MAX - 1, 0, 0]), Some(&mut fallback));
+    let ok = want == got && fallback == [0; 2];
+    board.line(format_args!(
+        "monitor: the policy inside the envelope, the fallback beyond it: {}",
+        if ok { "yes" } else { "NO" }
+    ));
+    ok
+}
+
+/// Instructions per forward pass in each format, and per integer pass under the monitor,
+/// where the board has a fine clock.
+fn instruction_report(board: &mut impl Board, forward: Forward, int: [ForwardInt; 2]) {
     let Some(before) = board.virtual_ns() else {
         return;
     };
@@ -196,20 +216,25 @@ fn instruction_report(board: &mut impl Board, forward: Forward, forward_int: For
         );
     }
     let mid = board.virtual_ns().unwrap_or(before);
+    let mut ends = [mid; 2];
     let mut qi = [0; 2];
-    for _ in 0..10 {
-        forward_int(
-            Some(core::hint::black_box(&selftest::INT_PROBES[1])),
-            Some(&mut qi),
-        );
+    for (end, f) in ends.iter_mut().zip(int) {
+        for _ in 0..10 {
+            f(
+                Some(core::hint::black_box(&selftest::INT_PROBES[1])),
+                Some(&mut qi),
+            );
+        }
+        *end = board.virtual_ns().unwrap_or(mid);
     }
-    let after = board.virtual_ns().unwrap_or(mid);
     core::hint::black_box((q, qi));
     let per_call = |ns: u64| ns / 10 / (1_000_000_000 / u64::from(MODEL_HZ));
     board.line(format_args!(
-        "instructions per forward pass: f32 {}, int8 {} (virtual time under -icount)",
+        "instructions per forward pass: f32 {}, int8 {}, int8 under the monitor {} (virtual \
+         time under -icount)",
         per_call(mid - before),
-        per_call(after - mid)
+        per_call(ends[0] - mid),
+        per_call(ends[1] - ends[0])
     ));
 }
 

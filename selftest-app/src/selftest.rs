@@ -8,7 +8,8 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params};
-use firmware::controller::{Limits, Policy};
+use firmware::controller::{FaultCounters, Limits, Monitor, Policy};
+use firmware::envelope::ASSURANCE;
 use firmware::estimator::Estimate;
 use firmware::loopback::{Outcome, run, run_with_encoders};
 use firmware::network::int::QMlp;
@@ -37,6 +38,22 @@ pub extern "C" fn selftest_forward(obs: Option<&[f32; 4]>, q: Option<&mut [f32; 
 pub extern "C" fn selftest_forward_int(obs: Option<&[i16; 4]>, q: Option<&mut [i32; 2]>) {
     if let (Some(obs), Some(q)) = (obs, q) {
         *q = firmware::policy_int::POLICY_INT.forward(obs);
+    }
+}
+
+/// One period of the runtime monitor (`firmware::controller::monitor`) around the integer
+/// policy, as a fresh monitor of the shipped assurance decides on `obs`: the policy's
+/// outputs inside the envelope, zeros where the fallback decides. Its instructions less
+/// [`selftest_forward_int`]'s are the monitor's cost.
+// SAFETY: as for `selftest_forward`.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn selftest_monitored_int(obs: Option<&[i16; 4]>, q: Option<&mut [i32; 2]>) {
+    if let (Some(obs), Some(q)) = (obs, q) {
+        let mut monitor = Monitor::new(ASSURANCE);
+        let mut counters = FaultCounters::default();
+        let mut policy = &firmware::policy_int::POLICY_INT;
+        (*q, _, _) = monitor.decide(obs, obs, false, &mut policy, &mut counters);
     }
 }
 

@@ -18,7 +18,7 @@ use super::input::{Format, Input};
 
 /// `CARTPOLE_CONTROLLER_SIZE`: the bytes of `cartpole_controller_t`, one value for every
 /// target so that C code can allocate it statically without knowing the library's layout.
-pub const CONTROLLER_SIZE: usize = 640;
+pub const CONTROLLER_SIZE: usize = 768;
 
 /// `cartpole_controller_t`: aligned as the union of the C header (`uint64_t`, `double`,
 /// `void *`) aligns it, which C99 can say without `_Alignas`.

@@ -9,6 +9,9 @@ use crate::network::OBS_DIM;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Limits {
     max_abs: [f32; OBS_DIM],
+    /// The bounds in Q3.12 for a fixed-point reading, computed once: a core without an FPU
+    /// would otherwise convert four floats every period.
+    fixed: [i16; OBS_DIM],
 }
 
 /// The bound on both rates: far beyond any a balancing run reaches before it fails, so a
@@ -32,6 +35,7 @@ impl Limits {
     /// round, none) and a negative one (which accepts nothing).
     pub const fn new(max_abs: [f32; OBS_DIM]) -> Result<Limits, ConfigError> {
         let mut i = 0;
+        let mut fixed = [0; OBS_DIM];
         while i < OBS_DIM {
             let v = max_abs[i];
             if !v.is_finite() {
@@ -40,9 +44,10 @@ impl Limits {
             if v < 0.0 {
                 return Err(ConfigError::Negative(CHANNELS[i]));
             }
+            fixed[i] = fixed_bound(v);
             i += 1;
         }
-        Ok(Limits { max_abs })
+        Ok(Limits { max_abs, fixed })
     }
 
     /// For a track whose end stops are `half_length_m` from the centre: the cart's reading
@@ -75,10 +80,32 @@ impl Limits {
     pub const fn max_abs(&self) -> [f32; OBS_DIM] {
         self.max_abs
     }
+
+    /// Per-channel bound on `|reading|` of a Q3.12 reading, inclusive: each bound rounded
+    /// to the format ([`crate::fixed::from_f32`]), and below the format's largest value,
+    /// which a saturated channel reads as.
+    pub const fn fixed(&self) -> [i16; OBS_DIM] {
+        self.fixed
+    }
 }
 
-/// Why one period's reading was rejected, as bits: per channel `i`, bit `i` is "not finite"
-/// and bit `4 + i` "out of range"; then a sensor error and an actuator error.
+/// `v` (finite, not negative) in Q3.12 as [`crate::fixed::from_f32`] rounds it, at most
+/// `i16::MAX - 1`; a `const fn`, so that a board's limits are converted as it compiles.
+const fn fixed_bound(v: f32) -> i16 {
+    let scaled = v * crate::fixed::ONE;
+    // Half away from zero is half up for a value not below zero; below 2^23 adding a half
+    // is exact in f32, and beyond the format saturates anyway.
+    if scaled >= (i16::MAX - 1) as f32 {
+        i16::MAX - 1
+    } else {
+        (scaled + 0.5) as i16
+    }
+}
+
+/// What went wrong in one period, and who decided, as bits: per channel `i`, bit `i` is
+/// "not finite" and bit `4 + i` "out of range"; then a sensor error and an actuator error;
+/// then the runtime monitor's ([`super::monitor`]) fallback and stop, and a reading that
+/// came from the model alone.
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct FaultFlags(pub u16);
@@ -88,6 +115,15 @@ impl FaultFlags {
     pub const SENSOR_ERROR: FaultFlags = FaultFlags(1 << 8);
     /// The direction pin or the duty cycle returned an error.
     pub const ACTUATOR_ERROR: FaultFlags = FaultFlags(1 << 9);
+    /// The monitor's fallback decided the period.
+    pub const FALLBACK: FaultFlags = FaultFlags(1 << 10);
+    /// The monitor has stopped the controller: duty off.
+    pub const STOPPED: FaultFlags = FaultFlags(1 << 11);
+    /// The reading came from the estimator's model alone, its encoders found frozen
+    /// ([`StateSensor::model_only`](super::StateSensor::model_only)); it was acted on.
+    pub const MODEL_ONLY: FaultFlags = FaultFlags(1 << 12);
+    /// The flags that reject a reading: the channels' and the sensor's error.
+    const REJECTING: u16 = (1 << 9) - 1;
 
     /// Channel `channel` (0..4) was NaN or infinite.
     pub const fn non_finite(channel: usize) -> FaultFlags {
@@ -111,7 +147,7 @@ impl FaultFlags {
 
     /// Any reading fault: an error, a non-finite or an out-of-range channel.
     pub const fn reading_rejected(self) -> bool {
-        self.0 & !Self::ACTUATOR_ERROR.0 != 0
+        self.0 & Self::REJECTING != 0
     }
 
     /// Both sets of flags.
@@ -138,6 +174,19 @@ pub struct FaultCounters {
     /// paces the controller, `Controller::record_overruns`): each is a period the
     /// controller started late.
     pub overruns: u32,
+    /// Readings that came from the estimator's model alone (a frozen encoder), and were
+    /// acted on.
+    pub model_only: u32,
+    /// Switches from the policy to the monitor's fallback.
+    pub fallbacks: u32,
+    /// Switches back from the fallback to the policy.
+    pub recoveries: u32,
+    /// Periods the fallback decided.
+    pub fallback_periods: u32,
+    /// Periods whose policy scores were not finite (the fallback decided them).
+    pub non_finite_scores: u32,
+    /// Times the monitor stopped the controller (at most one per controller built).
+    pub safe_stops: u32,
 }
 
 impl FaultCounters {

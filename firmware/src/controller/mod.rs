@@ -78,11 +78,13 @@ use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
 
 mod bridge;
 mod faults;
+pub mod monitor;
 pub mod predict;
 mod reading;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
+pub use monitor::{Assurance, Mode, Monitor};
 pub use predict::Predictor;
 pub use reading::Reading;
 
@@ -107,6 +109,15 @@ pub trait StateSensor {
     #[inline]
     fn commanded(&mut self, command: Command) {
         let _ = command;
+    }
+
+    /// Whether the last reading came from the estimator's model alone, its measurement not
+    /// believed (an [`Observer`](crate::estimator::Observer) that found its encoders frozen,
+    /// [`Observer::watching`](crate::estimator::Observer::watching)). The controller acts on
+    /// it, and counts and flags it.
+    #[inline]
+    fn model_only(&self) -> bool {
+        false
     }
 }
 
@@ -214,6 +225,7 @@ pub struct Controller<P, S: StateSensor, A, const N: usize = DEFAULT_HISTORY> {
     faults: FaultCounters,
     telemetry: HistoryBuf<Record<S::Reading>, N>,
     predictor: Option<Predictor>,
+    monitor: Option<Monitor>,
 }
 
 impl<P, S, A> Controller<P, S, A>
@@ -246,6 +258,7 @@ where
             faults: FaultCounters::default(),
             telemetry: HistoryBuf::new(),
             predictor: None,
+            monitor: None,
         }
     }
 
@@ -256,6 +269,14 @@ where
         self
     }
 
+    /// The same controller under a runtime monitor ([`monitor`]): the policy drives only
+    /// inside `assurance`'s envelope, the LQR fallback elsewhere, and the motor stops where
+    /// even the fallback cannot recover.
+    pub fn with_monitor(mut self, assurance: Assurance) -> Self {
+        self.monitor = Some(Monitor::new(assurance));
+        self
+    }
+
     /// One control period: read, sanitise, decide, actuate, record, tell the sensor.
     #[inline]
     pub fn step(&mut self) -> Command {
@@ -263,16 +284,34 @@ where
             Ok(obs) => (obs, obs.flags(&self.limits)),
             Err(_) => (S::Reading::ZERO, FaultFlags::SENSOR_ERROR),
         };
-        let (q, command) = if flags.is_empty() {
+        let model_only = !flags.reading_rejected() && self.sensor.model_only();
+        if model_only {
+            self.faults.model_only = self.faults.model_only.saturating_add(1);
+            flags = flags.with(FaultFlags::MODEL_ONLY);
+        }
+        let (q, command) = if flags.reading_rejected() {
+            self.faults.count_rejected(flags);
+            if let Some(m) = &mut self.monitor {
+                m.rejected(flags, &mut self.faults);
+            }
+            (S::Reading::UNSCORED, Command::Coast)
+        } else {
             let seen = match &self.predictor {
                 Some(p) => obs.predicted(p),
                 None => obs,
             };
-            let q = self.policy.scores(&seen);
-            (q, Command::Push(S::Reading::decide(&q)))
-        } else {
-            self.faults.count_rejected(flags);
-            (S::Reading::UNSCORED, Command::Coast)
+            match &mut self.monitor {
+                Some(m) => {
+                    let (q, command, who) =
+                        m.decide(&obs, &seen, model_only, &mut self.policy, &mut self.faults);
+                    flags = flags.with(who);
+                    (q, command)
+                }
+                None => {
+                    let q = self.policy.scores(&seen);
+                    (q, Command::Push(S::Reading::decide(&q)))
+                }
+            }
         };
         if let Some(p) = &mut self.predictor {
             p.record(command.level());
@@ -311,6 +350,11 @@ where
     /// Fault totals so far.
     pub fn faults(&self) -> FaultCounters {
         self.faults
+    }
+
+    /// Who drives, when a monitor decides ([`Controller::with_monitor`]).
+    pub fn mode(&self) -> Option<Mode> {
+        self.monitor.as_ref().map(Monitor::mode)
     }
 
     /// Counts `ticks` timer ticks that arrived while the last step still ran. The

@@ -22,6 +22,16 @@ pub trait Reading: Copy {
     /// Right only if its score is strictly larger; ties (and NaN) push left, as `argmax`
     /// does in NumPy and PyTorch.
     fn decide(scores: &Self::Scores) -> Action;
+    /// Whether every score is a number a decision can rest on.
+    fn finite(scores: &Self::Scores) -> bool;
+    /// Bang-bang state feedback: right when `-gain . self > 0` (in SI units), else left.
+    fn bang_bang(&self, gain: &[f32; OBS_DIM]) -> Action;
+}
+
+/// Right when `-gain . s > 0`: the sign of the linear controller's force.
+fn bang_bang(s: &[f32; OBS_DIM], gain: &[f32; OBS_DIM]) -> Action {
+    let u: f32 = s.iter().zip(gain).map(|(s, k)| -k * s).sum();
+    if u > 0.0 { Action::Right } else { Action::Left }
 }
 
 impl Reading for [f32; OBS_DIM] {
@@ -50,6 +60,14 @@ impl Reading for [f32; OBS_DIM] {
     fn decide(scores: &[f32; N_ACTIONS]) -> Action {
         argmax(scores)
     }
+
+    fn finite(scores: &[f32; N_ACTIONS]) -> bool {
+        scores.iter().all(|q| q.is_finite())
+    }
+
+    fn bang_bang(&self, gain: &[f32; OBS_DIM]) -> Action {
+        bang_bang(self, gain)
+    }
 }
 
 impl Reading for [i16; OBS_DIM] {
@@ -61,9 +79,8 @@ impl Reading for [i16; OBS_DIM] {
     /// value it stands for is unknown.
     fn flags(&self, limits: &Limits) -> FaultFlags {
         let mut flags = FaultFlags::default();
-        for (i, (&v, max)) in self.iter().zip(limits.max_abs()).enumerate() {
-            let bound = i32::from(fixed::from_f32(max)).min(i32::from(i16::MAX) - 1);
-            if i32::from(v).abs() > bound {
+        for (i, (&v, bound)) in self.iter().zip(limits.fixed()).enumerate() {
+            if i32::from(v).abs() > i32::from(bound) {
                 flags = flags.with(FaultFlags::out_of_range(i));
             }
         }
@@ -84,5 +101,15 @@ impl Reading for [i16; OBS_DIM] {
         } else {
             Action::Left
         }
+    }
+
+    /// Integers are always numbers.
+    fn finite(_: &[i32; N_ACTIONS]) -> bool {
+        true
+    }
+
+    /// In f32 (exact from Q3.12): four products once a period, and only in the fallback.
+    fn bang_bang(&self, gain: &[f32; OBS_DIM]) -> Action {
+        bang_bang(&fixed::to_state(self), gain)
     }
 }

@@ -321,3 +321,19 @@ fn the_sensor_is_told_each_command_after_its_reading() {
     let (_, sensor, _) = c.release();
     assert_eq!(sensor.told, [(1, sent[0]), (2, sent[1]), (3, sent[2])]);
 }
+
+/// The fixed-point bounds computed as the limits are built are the ones the reading's
+/// conversion gives (`fixed::from_f32`, held below the saturated value).
+#[test]
+fn fixed_point_bounds_are_the_conversions_of_the_float_ones() {
+    let mut v = 0.0f32;
+    while v < 10.0 {
+        let l = Limits::new([v; 4]).unwrap();
+        let want = i32::from(crate::fixed::from_f32(v)).min(i32::from(i16::MAX) - 1);
+        assert_eq!(i32::from(l.fixed()[0]), want, "{v}");
+        // Halves of a Q3.12 step, where rounding decides, and the values between.
+        v += 1.0 / 8192.0 + 1e-7;
+    }
+    let half = Limits::new([0.5 / 4096.0, 1.5 / 4096.0, 2.5 / 4096.0, 1e30]).unwrap();
+    assert_eq!(half.fixed(), [1, 2, 3, i16::MAX - 1]);
+}

@@ -94,7 +94,28 @@ pub struct Observer {
     /// The command that acted during the period now ending.
     acting: f32,
     started: bool,
+    /// Whether a repeated pair of counts that the model says cannot repeat is taken for a
+    /// frozen encoder ([`Observer::watching`]).
+    watch: bool,
+    /// Whether the last update found the encoders frozen.
+    frozen: bool,
+    /// The running mean of the residuals' size, in counts (only while watching).
+    residual: f32,
 }
+
+/// The larger of residuals `e` (m, rad) in counts of its encoder.
+fn counts(e: [f32; 2], per_count: [f32; 2]) -> f32 {
+    (e[0] / per_count[0]).abs().max((e[1] / per_count[1]).abs())
+}
+
+/// The weight of the newest residual in the running mean of their size: about the last
+/// eight periods.
+const RESIDUAL_WEIGHT: f32 = 0.125;
+
+/// How far, in counts of either encoder, the model's prediction must have moved from a
+/// repeated pair of counts for the pair to read as a frozen encoder. One count would let
+/// quantisation alone flag a cart or pole turning round; two do not, on the rigs tried.
+pub const FROZEN_COUNTS: f32 = 2.0;
 
 impl Observer {
     /// An observer for `enc`, modelling the plant as `nominal` (its tau is the period), with
@@ -146,7 +167,27 @@ impl Observer {
             line: DeadTime::new(dead_time),
             acting: 0.0,
             started: false,
+            watch: false,
+            frozen: false,
+            residual: 0.0,
         })
+    }
+
+    /// The same observer, watching for a frozen encoder: when both counts repeat the last
+    /// ones while the model's prediction has moved more than [`FROZEN_COUNTS`] from them, the
+    /// counts are not believed; the estimate is the prediction alone, and
+    /// [`Observer::frozen`] says so. A cable pulled from a quadrature encoder freezes its
+    /// counter this way, and an observer corrected towards the frozen counts comes to believe
+    /// the cart and pole stopped where they were. A plant at rest repeats its counts too, but
+    /// then the prediction does not move.
+    pub fn watching(mut self) -> Observer {
+        self.watch = true;
+        self
+    }
+
+    /// Whether the last update found the encoders frozen and went on the model alone.
+    pub fn frozen(&self) -> bool {
+        self.frozen
     }
 
     /// Records the command sent this period, as a fraction of full force (`1` full right,
@@ -165,23 +206,49 @@ impl Observer {
     /// The first call (and the first after [`Observer::reset`]) starts from the counts at
     /// rest.
     pub fn update(&mut self, cart_counts: i32, pole_counts: i32) -> [f32; 4] {
+        let repeated = self.last == Some((cart_counts, pole_counts));
         self.count(cart_counts, pole_counts);
         let yx = (self.cart as f32 + 0.5) * self.per_count[0];
         let yt = (self.pole as f32 + 0.5) * self.per_count[1];
         if !self.started {
+            self.frozen = false;
             self.estimate = [yx, 0.0, yt, 0.0];
             self.started = true;
             return self.state();
         }
         let pred = self.plant.euler(&self.estimate, self.acting, 0.0);
         let e = [yx - pred[0], yt - pred[2]];
-        for ((s, p), g) in self.estimate.iter_mut().zip(pred).zip(self.gain) {
-            *s = p + g[0] * e[0] + g[1] * e[1];
+        self.frozen = self.watch && repeated && self.moved(e);
+        if self.frozen && self.quiet() {
+            self.estimate = pred;
+        } else {
+            if self.watch && !self.frozen {
+                self.track(e);
+            }
+            for ((s, p), g) in self.estimate.iter_mut().zip(pred).zip(self.gain) {
+                *s = p + g[0] * e[0] + g[1] * e[1];
+            }
         }
         if !self.estimate.iter().all(|v| v.is_finite()) {
             self.started = false;
         }
         self.state()
+    }
+
+    /// Whether residuals `e` (m, rad) exceed [`FROZEN_COUNTS`] of either encoder.
+    fn moved(&self, e: [f32; 2]) -> bool {
+        counts(e, self.per_count) > FROZEN_COUNTS
+    }
+
+    /// Follows the residuals' size, in counts.
+    fn track(&mut self, e: [f32; 2]) {
+        self.residual += (counts(e, self.per_count) - self.residual) * RESIDUAL_WEIGHT;
+    }
+
+    /// Whether the recent residuals are small enough for the estimate's velocities, and
+    /// the prediction made from them, to be trusted over a frozen count.
+    fn quiet(&self) -> bool {
+        self.residual <= FROZEN_COUNTS
     }
 
     /// Moves the counts by the counter's change since the last reading: the difference of
@@ -231,6 +298,8 @@ impl Observer {
     /// afresh.
     pub fn reset(&mut self) {
         self.started = false;
+        self.frozen = false;
+        self.residual = 0.0;
         self.last = None;
         self.line = DeadTime::new(self.line.delay());
         self.acting = 0.0;

@@ -69,6 +69,10 @@ impl<C: Counter, O: Estimate> StateSensor for ObserverSensor<C, O> {
     fn commanded(&mut self, command: Command) {
         self.observer.command(command.level());
     }
+    #[inline]
+    fn model_only(&self) -> bool {
+        self.observer.frozen()
+    }
 }
 
 /// The encoders read through the model-free [`AlphaBeta`] filter, which needs no commands.

@@ -115,4 +115,11 @@ impl<O: Estimate> StateSensor for LinkSensor<O> {
             o.commanded(command);
         }
     }
+    #[inline]
+    fn model_only(&self) -> bool {
+        match &self.reader {
+            Reader::Observer(o) => !self.missing && o.model_only(),
+            _ => false,
+        }
+    }
 }

@@ -4,6 +4,7 @@ use crate::controller::predict::MAX_PREDICT;
 use crate::estimator::AlphaBeta;
 use crate::linear::tests::SCIPY_L;
 
+mod frozen;
 mod wrapping;
 
 const FINE: Encoders = Encoders {

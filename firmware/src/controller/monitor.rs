@@ -1,0 +1,265 @@
+//! Runtime assurance: a monitor that lets the learned policy drive only where it is known to
+//! do well, and hands the loop to a verified fallback elsewhere.
+//!
+//! The design is the Simplex architecture (Sha, "Using Simplicity to Control Complexity",
+//! IEEE Software 18(4), 2001; Seto, Krogh, Sha and Chutinan, "The Simplex Architecture for
+//! Safe Online Control System Upgrades", ACC 1998): a high-performance controller (the
+//! policy) runs while the state stays inside an envelope where it has been verified, a
+//! simple controller whose behaviour is understood (LQR on the same estimate) takes over
+//! when the state leaves it, and a decision module between them switches. Here:
+//!
+//! - **Policy** while the reading lies inside the *envelope* ([`Assurance::envelope`], the
+//!   states the policy visited in the evaluation it passed, with a margin, generated beside
+//!   the policy by `host-sim envelope`), its readings are sound, and its scores are finite.
+//! - **Fallback** (bang-bang LQR, `u = -K s`, on the state the command will meet) when the
+//!   reading leaves the envelope, when [`Assurance::fault_run`] readings in a row were
+//!   rejected or came from the model alone (a frozen encoder), or when the policy's scores
+//!   are not finite. Back to the policy only after [`Assurance::dwell`] sound periods in a
+//!   row inside the envelope shrunk by [`HYSTERESIS`], so that a state on the envelope's edge
+//!   does not switch every period.
+//! - **Stopped** (duty off, latched) when [`Assurance::fault_run`] readings in a row lie
+//!   beyond what the fallback can still recover ([`Assurance::recoverable`]: the pole past
+//!   the rig's failure angle, or the cart at the end of its accepted track, where the
+//!   controller's limits already coast each period); one such reading is more likely a
+//!   glitch than a state. A stopped controller stays stopped; a board re-arms it by building
+//!   it again.
+//!
+//! Every switch is counted in the controller's
+//! [`FaultCounters`](super::FaultCounters) and every period flagged in its telemetry
+//! ([`FaultFlags::FALLBACK`], [`FaultFlags::STOPPED`]). The monitor is fixed-size and
+//! allocation-free, and runs on the reading's own format: the envelope checks of an integer
+//! reading are integer compares.
+
+use super::{Command, FaultCounters, FaultFlags, Limits, Policy, Reading};
+use crate::config::{ConfigError, check};
+use crate::rig::Rig;
+
+/// The fraction of the envelope a reading must lie within, channel by channel, for the
+/// fallback to hand the loop back.
+pub const HYSTERESIS: f32 = 0.8;
+
+/// Which controller drives.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Mode {
+    /// The learned policy.
+    Policy,
+    /// The LQR fallback.
+    Fallback,
+    /// Duty off, until the controller is built again.
+    Stopped,
+}
+
+/// What the monitor holds: where the policy may drive, where the fallback can recover, the
+/// fallback's gain, and its timing. Built once ([`Assurance::new`] is a `const fn`, so a
+/// board's configuration is checked as it is compiled).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Assurance {
+    envelope: Limits,
+    calm: Limits,
+    recoverable: Limits,
+    gain: [f32; 4],
+    dwell: u16,
+    fault_run: u16,
+}
+
+impl Assurance {
+    /// Sound periods inside the shrunk envelope before the policy drives again: half a
+    /// second at 50 Hz.
+    pub const DWELL: u16 = 25;
+    /// Rejected or model-only readings in a row that hand the loop to the fallback.
+    pub const FAULT_RUN: u16 = 3;
+
+    /// The assurance of a policy whose `envelope` was measured, on `rig`, with the
+    /// fallback's LQR `gain` (`u = -K s`, in newtons per unit of each channel;
+    /// [`crate::linear::balance_gain`] designs it). Refused: a gain that is not finite.
+    pub const fn new(
+        envelope: Limits,
+        rig: &Rig,
+        gain: [f32; 4],
+    ) -> Result<Assurance, ConfigError> {
+        let mut i = 0;
+        while i < 4 {
+            if !gain[i].is_finite() {
+                return Err(ConfigError::NotFinite("assurance.gain"));
+            }
+            i += 1;
+        }
+        let e = envelope.max_abs();
+        let calm = check!(Limits::new([
+            e[0] * HYSTERESIS,
+            e[1] * HYSTERESIS,
+            e[2] * HYSTERESIS,
+            e[3] * HYSTERESIS,
+        ]));
+        let track = check!(rig.limits()).max_abs();
+        let recoverable = check!(Limits::new([
+            track[0],
+            track[1],
+            rig.params.theta_threshold_radians as f32,
+            track[3],
+        ]));
+        Ok(Assurance {
+            envelope,
+            calm,
+            recoverable,
+            gain,
+            dwell: Assurance::DWELL,
+            fault_run: Assurance::FAULT_RUN,
+        })
+    }
+
+    /// [`Assurance::new`] with the fallback designed for `rig`'s plant here
+    /// ([`crate::linear::balance_gain`], a Riccati iteration in f64: once, at start-up).
+    pub fn for_rig(envelope: Limits, rig: &Rig) -> Result<Assurance, ConfigError> {
+        let k = crate::linear::balance_gain(&rig.params);
+        Assurance::new(envelope, rig, k.map(|v| v as f32))
+    }
+
+    /// Where the policy drives.
+    pub const fn envelope(&self) -> Limits {
+        self.envelope
+    }
+
+    /// Where the fallback drives; beyond, the monitor stops.
+    pub const fn recoverable(&self) -> Limits {
+        self.recoverable
+    }
+
+    /// The fallback's gain.
+    pub const fn gain(&self) -> [f32; 4] {
+        self.gain
+    }
+
+    /// Sound periods inside the shrunk envelope before the policy drives again.
+    pub const fn dwell(&self) -> u16 {
+        self.dwell
+    }
+
+    /// Faulty readings in a row that hand the loop to the fallback.
+    pub const fn fault_run(&self) -> u16 {
+        self.fault_run
+    }
+}
+
+/// The decision module: which controller drives this period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Monitor {
+    assurance: Assurance,
+    mode: Mode,
+    /// Sound periods in a row inside the shrunk envelope, while in the fallback.
+    calm: u16,
+    /// Faulty readings in a row.
+    faulty: u16,
+    /// Readings in a row beyond what the fallback can recover.
+    lost: u16,
+}
+
+impl Monitor {
+    /// A monitor that starts with the policy driving.
+    pub const fn new(assurance: Assurance) -> Monitor {
+        Monitor {
+            assurance,
+            mode: Mode::Policy,
+            calm: 0,
+            faulty: 0,
+            lost: 0,
+        }
+    }
+
+    /// Who drives now.
+    pub fn mode(&self) -> Mode {
+        self.mode
+    }
+
+    /// A period whose reading was rejected with `flags` (the controller coasts): one more
+    /// faulty reading, and, if the cart's or the pole's channel was out of range, one more
+    /// beyond what the fallback can recover.
+    pub fn rejected(&mut self, flags: FaultFlags, counters: &mut FaultCounters) {
+        let beyond = [0, 2]
+            .iter()
+            .any(|&c| flags.contains(FaultFlags::out_of_range(c)));
+        self.beyond(beyond, counters);
+        if self.mode != Mode::Stopped {
+            self.fault(counters);
+        }
+    }
+
+    /// A period with reading `obs`, `seen` the state the command will meet (`obs` itself
+    /// without a predictor), `model_only` when the reading came from the model alone: the
+    /// scores recorded, the command, and the flags of who decided.
+    pub fn decide<O: Reading, P: Policy<O>>(
+        &mut self,
+        obs: &O,
+        seen: &O,
+        model_only: bool,
+        policy: &mut P,
+        counters: &mut FaultCounters,
+    ) -> (O::Scores, Command, FaultFlags) {
+        let beyond = !obs.flags(&self.assurance.recoverable).is_empty();
+        self.beyond(beyond, counters);
+        if self.mode == Mode::Stopped {
+            return (O::UNSCORED, Command::Coast, FaultFlags::STOPPED);
+        }
+        if model_only {
+            self.fault(counters);
+        } else {
+            self.faulty = 0;
+        }
+        if self.mode == Mode::Policy && !obs.flags(&self.assurance.envelope).is_empty() {
+            self.fall_back(counters);
+        }
+        if self.mode == Mode::Fallback {
+            let calm = !model_only && obs.flags(&self.assurance.calm).is_empty();
+            self.calm = if calm { self.calm.saturating_add(1) } else { 0 };
+            if self.calm >= self.assurance.dwell {
+                self.mode = Mode::Policy;
+                counters.recoveries = counters.recoveries.saturating_add(1);
+            }
+        }
+        let mut q = O::UNSCORED;
+        if self.mode == Mode::Policy {
+            q = policy.scores(seen);
+            if O::finite(&q) {
+                return (q, Command::Push(O::decide(&q)), FaultFlags::default());
+            }
+            counters.non_finite_scores = counters.non_finite_scores.saturating_add(1);
+            self.fall_back(counters);
+        }
+        counters.fallback_periods = counters.fallback_periods.saturating_add(1);
+        let command = Command::Push(seen.bang_bang(&self.assurance.gain));
+        (q, command, FaultFlags::FALLBACK)
+    }
+
+    /// One more faulty reading; a run of them hands the loop to the fallback.
+    fn fault(&mut self, counters: &mut FaultCounters) {
+        self.faulty = self.faulty.saturating_add(1);
+        self.calm = 0;
+        if self.mode == Mode::Policy && self.faulty >= self.assurance.fault_run {
+            self.fall_back(counters);
+        }
+    }
+
+    /// One more reading beyond what the fallback can recover, or the end of a run of them;
+    /// a run stops the controller.
+    fn beyond(&mut self, beyond: bool, counters: &mut FaultCounters) {
+        self.lost = if beyond {
+            self.lost.saturating_add(1)
+        } else {
+            0
+        };
+        if self.mode != Mode::Stopped && self.lost >= self.assurance.fault_run {
+            self.mode = Mode::Stopped;
+            counters.safe_stops = counters.safe_stops.saturating_add(1);
+        }
+    }
+
+    fn fall_back(&mut self, counters: &mut FaultCounters) {
+        self.mode = Mode::Fallback;
+        self.calm = 0;
+        counters.fallbacks = counters.fallbacks.saturating_add(1);
+    }
+}
+
+#[cfg(test)]
+mod tests;
