@@ -12,11 +12,11 @@ use std::cell::RefCell;
 
 use firmware::cartpole::{Params, unit_f64};
 use firmware::controller::Policy;
-use firmware::linear::{Vec4, dot, lqr_gain};
+use firmware::linear::{Vec4, balance_gain, dot};
 use firmware::rig::Rig;
 use rand_pcg::Pcg64Mcg;
 
-/// Bang-bang LQR: push right when `-K s > 0`. `K` comes from [`lqr_gain`] with the rig's
+/// Bang-bang LQR: push right when `-K s > 0`. `K` comes from [`balance_gain`] with the rig's
 /// parameters, the model its board knows (not a scenario's perturbed physics).
 #[derive(Clone, Copy, Debug)]
 pub struct Lqr {
@@ -36,7 +36,7 @@ impl Lqr {
         let k = LAST.with_borrow_mut(|last| match last {
             Some((q, k)) if *q == p => *k,
             _ => {
-                let k = lqr_gain(&p, [1.0; 4], 1.0);
+                let k = balance_gain(&p);
                 *last = Some((p, k));
                 k
             }

@@ -5,6 +5,8 @@
 //!   reports, per case, how far the states drift (they should not move by a single bit).
 //! - [`agree`]: how often the integer network acts as the float one, and where they part.
 //! - [`baselines`]: discrete LQR from the Riccati equation, the angle rule, random.
+//! - [`envelope`]: where a policy drives in the episodes it balances: the runtime
+//!   monitor's envelope.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
 //! - [`pil`]: processor-in-the-loop, the board's controller on a target driven over the
 //!   link, compared period by period with the same code run here.
@@ -19,6 +21,7 @@
 
 pub mod agree;
 pub mod baselines;
+pub mod envelope;
 pub mod eval;
 pub mod identify;
 pub mod pil;

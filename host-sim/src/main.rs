@@ -12,6 +12,7 @@ use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
 
+mod envelope_cmd;
 mod identify_cmd;
 mod pil_cmd;
 mod render_cmd;
@@ -70,6 +71,11 @@ enum Command {
     /// hour, the last hour and the whole run, and its coasting periods. Exits 1 if it did
     /// not balance to the end, 2 on bad input.
     Soak(soak_cmd::SoakArgs),
+    /// Measure where the shipped policy drives in the episodes it balances (the default and
+    /// hard sets by default) and write the runtime monitor's envelope: a quantile of each
+    /// channel's readings with a margin, as the firmware's `envelope` module with --out.
+    /// Exits 2 on bad input.
+    Envelope(envelope_cmd::EnvelopeArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
     Parts,
@@ -109,6 +115,21 @@ impl Subject {
             .into_iter()
             .filter_map(|(flag, p)| Some((flag, p?)))
             .collect()
+    }
+
+    /// [`Subject::load`] for `kinds` of controller: the network with its integer version if
+    /// one runs it. Refused: the monitored policy for a network other than the shipped one,
+    /// whose envelope nobody measured.
+    fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
+        if let (Some(path), true) = (&self.policy, kinds.contains(&ControllerKind::Monitored)) {
+            anyhow::bail!(
+                "--controller monitored runs the shipped policy with the envelope measured for                  it (host-sim envelope), found --policy {}",
+                path.display()
+            );
+        }
+        let int = kinds.contains(&ControllerKind::PolicyInt);
+        let policy = kinds.iter().any(|k| k.runs_policy());
+        self.load(int, policy)
     }
 
     /// The machine, and the network (with its integer version if `int`), loaded lazily by
@@ -212,6 +233,7 @@ fn main() -> ExitCode {
         Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
         Command::Tables(a) => tables_cmd::run(&a),
         Command::Soak(a) => soak_cmd::run(&a),
+        Command::Envelope(a) => envelope_cmd::run(&a).map(|()| true),
         Command::Parts => {
             host_common::out!("{}", twin::grammar::markdown_table());
             Ok(true)
@@ -310,9 +332,7 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
         rows <= MAX_ROWS,
         "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
     );
-    let int = controllers.contains(&ControllerKind::PolicyInt);
-    let policy = int || controllers.contains(&ControllerKind::Policy);
-    let (machine, net) = a.subject.load(int, policy)?;
+    let (machine, net) = a.subject.load_for(&controllers)?;
     let scenarios = match &world {
         None => parse_scenarios(&a.scenario, &machine)?,
         Some(w) => parse_scenarios(&a.scenario, w)?

@@ -74,9 +74,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         );
     }
     crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
-    let int = a.controller == ControllerKind::PolicyInt;
-    let policy = int || a.controller == ControllerKind::Policy;
-    let (machine, net) = a.subject.load(int, policy)?;
+    let (machine, net) = a.subject.load_for(&[a.controller])?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let (controller, seed, episode) = (a.controller, a.seed, a.episode);
     let mut frames = Vec::new();

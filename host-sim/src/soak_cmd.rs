@@ -65,9 +65,7 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
         "--hours must be a number of simulated hours in (0, {MAX_HOURS}], found {}",
         a.hours
     );
-    let int = a.controller == ControllerKind::PolicyInt;
-    let policy = int || a.controller == ControllerKind::Policy;
-    let (machine, net) = a.subject.load(int, policy)?;
+    let (machine, net) = a.subject.load_for(&[a.controller])?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let tau = scenario.params.tau;
     let periods = (a.hours * 3600.0 / tau).ceil();

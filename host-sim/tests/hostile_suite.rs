@@ -172,6 +172,11 @@ fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
             &identify,
             want,
         ));
+        // envelope reads no file at all.
+        if !matches!(label, "input" | "log") {
+            let envelope = os(&[&"envelope", &"--out", &out]);
+            cases.push(Case::new(format!("envelope --out {label}"), &envelope, want));
+        }
         // simulate-logs reads no log.
         if label != "log" {
             let simulate = os(&[
@@ -250,9 +255,13 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
         "99999999999999999999999",
         "0",
     ];
-    let flags: [(&str, &[&str]); 7] = [
+    let flags: [(&str, &[&str]); 11] = [
         ("--episodes", &["eval"]),
         ("--horizon", &["eval"]),
+        ("--episodes", &["envelope"]),
+        ("--horizon", &["envelope"]),
+        ("--quantile", &["envelope"]),
+        ("--margin", &["envelope"]),
         (
             "--min-success",
             &["eval", "--episodes", "1", "--scenario", "nominal"],

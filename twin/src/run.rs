@@ -9,7 +9,7 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, State, Transition};
-use firmware::controller::{Command, Controller, Limits, Policy, Predictor};
+use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Predictor};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
 use rand_core::Rng;
@@ -36,6 +36,8 @@ pub struct EpisodeStats {
     pub switches: u32,
     /// Periods that coasted on a rejected reading.
     pub faults: u32,
+    /// Periods a runtime monitor's fallback decided.
+    pub fallback: u32,
 }
 
 /// One period of a recorded episode (for rendering).
@@ -81,10 +83,36 @@ pub fn start_state(seed: u64, episode: u64) -> State {
 pub type TwinSensor = LinkSensor<[f32; 4]>;
 
 /// The sensor of `scenario`'s board, refused as the firmware refuses its observer or
-/// filter.
-pub fn sensor(scenario: &Scenario) -> Result<TwinSensor, ConfigError> {
+/// filter; with `watch`, its observer watches for frozen encoders
+/// ([`firmware::estimator::Observer::watching`]).
+pub fn sensor(scenario: &Scenario, watch: bool) -> Result<TwinSensor, ConfigError> {
     let rig = &scenario.rig;
-    LinkSensor::new(scenario.sensing, rig, || rig.observer())
+    LinkSensor::new(scenario.sensing, rig, || {
+        let o = rig.observer()?;
+        Ok(if watch { o.watching() } else { o })
+    })
+}
+
+/// What a board knows beyond its readings: its dead time, and where its policy may drive.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Aids {
+    /// Decide on the state the command will meet: the rig's predictor over the scenario's
+    /// dead time, as a board that knows its dead time does.
+    pub predict: bool,
+    /// Run under the runtime monitor ([`firmware::controller::monitor`]) with this envelope,
+    /// the fallback designed for the scenario's rig, and the observer watching for frozen
+    /// encoders.
+    pub envelope: Option<Limits>,
+}
+
+impl From<bool> for Aids {
+    /// Told the dead time or not; no monitor.
+    fn from(predict: bool) -> Aids {
+        Aids {
+            predict,
+            envelope: None,
+        }
+    }
 }
 
 /// Why [`Episode::start`] may take the board's parts as built: every scenario's rig comes
@@ -102,10 +130,11 @@ pub struct Board {
 }
 
 impl Scenario {
-    /// The board's parts, or why the firmware refuses to build them.
-    pub fn board(&self) -> Result<Board, ConfigError> {
+    /// The board's parts, or why the firmware refuses to build them; with `watch`, its
+    /// observer watches for frozen encoders.
+    pub fn board(&self, watch: bool) -> Result<Board, ConfigError> {
         Ok(Board {
-            sensor: sensor(self)?,
+            sensor: sensor(self, watch)?,
             limits: self.rig.limits()?,
             predictor: self.rig.predictor()?,
         })
@@ -116,27 +145,38 @@ impl Scenario {
 pub struct Episode<'s, P, R> {
     pub(crate) world: World<'s, R>,
     pub(crate) controller: Controller<P, TwinSensor, Pins, 1>,
+    /// Whether the observer watches for frozen encoders (kept across a `reset` fault).
+    watch: bool,
 }
 
 impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
-    /// Starts `policy` on a world of `scenario` (see [`World::start`]). With `predict`, the
-    /// controller runs the rig's predictor over the rig's dead time and decides on the state
-    /// its command will meet, as a board that knows its dead time does.
+    /// Starts `policy` on a world of `scenario` (see [`World::start`]), with the board's
+    /// `aids` (a `bool` says whether it is told its dead time).
     pub fn start(
         policy: P,
         scenario: &'s Scenario,
         horizon: u32,
         start: &mut impl Rng,
         streams: (R, R),
-        predict: bool,
+        aids: impl Into<Aids>,
     ) -> Self {
+        let aids = aids.into();
         let world = World::start(scenario, horizon, start, streams.0, streams.1);
-        let board = scenario.board().expect(CHECKED);
+        let watch = aids.envelope.is_some();
+        let board = scenario.board(watch).expect(CHECKED);
         let mut controller = Controller::with_history(policy, board.sensor, pins(), board.limits);
-        if predict && scenario.delay() > 0 {
+        if aids.predict && scenario.delay() > 0 {
             controller = controller.with_predictor(board.predictor);
         }
-        Episode { world, controller }
+        if let Some(envelope) = aids.envelope {
+            let assurance = Assurance::for_rig(envelope, &scenario.rig).expect(CHECKED);
+            controller = controller.with_monitor(assurance);
+        }
+        Episode {
+            world,
+            controller,
+            watch,
+        }
     }
 
     /// The controller's period on this period's measurement: what it commands. A `reset`
@@ -145,7 +185,7 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         let scenario = self.world.scenario();
         let k = self.world.steps();
         if scenario.faults.resets(k) {
-            *self.controller.sensor_mut() = sensor(scenario).expect(CHECKED);
+            *self.controller.sensor_mut() = sensor(scenario, self.watch).expect(CHECKED);
             self.controller.restart();
         }
         let m = self.world.measure();
@@ -167,6 +207,13 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         &self.world
     }
 
+    /// Whether a monitor's fallback decided the last period.
+    pub fn fallback(&self) -> bool {
+        self.controller
+            .last()
+            .is_some_and(|r| r.faults.contains(FaultFlags::FALLBACK))
+    }
+
     /// The controller.
     pub fn controller(&self) -> &Controller<P, TwinSensor, Pins, 1> {
         &self.controller
@@ -186,9 +233,11 @@ pub struct Tally {
 }
 
 impl Tally {
-    /// One period: what was commanded, the state after it, how it ended.
-    pub fn period(&mut self, command: Command, s: &State, t: &Transition) {
+    /// One period: what was commanded (with `fallback`, by a monitor's fallback), the state
+    /// after it, how it ended.
+    pub fn period(&mut self, command: Command, fallback: bool, s: &State, t: &Transition) {
         let stats = &mut self.stats;
+        stats.fallback += u32::from(fallback);
         if self.previous.is_some_and(|p| p != command) {
             stats.switches += 1;
         }
@@ -218,40 +267,42 @@ fn start_episode<'s, P: Policy>(
     horizon: u32,
     seed: u64,
     episode: u64,
-    predict: bool,
+    aids: Aids,
 ) -> Episode<'s, P, Pcg64Mcg> {
     let streams = (
         episode_rng(seed, episode, Stream::Noise),
         episode_rng(seed, episode, Stream::Pushes),
     );
     let mut start = episode_rng(seed, episode, Stream::Start);
-    Episode::start(policy, scenario, horizon, &mut start, streams, predict)
+    Episode::start(policy, scenario, horizon, &mut start, streams, aids)
 }
 
 /// Runs one episode of `policy` under `scenario` for at most `horizon` periods from the
-/// Gymnasium-style random start of (`seed`, `episode`). With `predict`, the controller is
-/// told the scenario's dead time and decides on the state its command will meet
-/// ([`firmware::controller::predict`], with the rig's model). `on_frame` sees every period.
+/// Gymnasium-style random start of (`seed`, `episode`), with the board's `aids` ([`Aids`]; a
+/// `bool` says whether the controller is told the scenario's dead time and decides on the
+/// state its command will meet, [`firmware::controller::predict`]). `on_frame` sees every
+/// period.
 pub fn run_episode<P: Policy>(
     policy: P,
     scenario: &Scenario,
     horizon: u32,
     seed: u64,
     episode: u64,
-    predict: bool,
+    aids: impl Into<Aids>,
     mut on_frame: impl FnMut(Frame),
 ) -> EpisodeStats {
+    let aids = aids.into();
     let mut policy = Some(policy);
     let mut tally = Tally::default();
     run_lockstep(
         1,
         |_| {
             let p = policy.take().expect("one episode");
-            start_episode(p, scenario, horizon, seed, episode, predict)
+            start_episode(p, scenario, horizon, seed, episode, aids)
         },
         |_, ep, command, t| {
             let state = ep.world().state();
-            tally.period(command, &state, t);
+            tally.period(command, ep.fallback(), &state, t);
             let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs);
             on_frame(Frame {
                 state,
@@ -272,8 +323,9 @@ pub fn run_episodes<P: Policy>(
     horizon: u32,
     seed: u64,
     episodes: core::ops::Range<u64>,
-    predict: bool,
+    aids: impl Into<Aids>,
 ) -> Vec<EpisodeStats> {
+    let aids = aids.into();
     let first = episodes.start;
     let n = (episodes.end.saturating_sub(first)) as usize;
     let mut tallies: Vec<Tally> = (0..n).map(|_| Tally::default()).collect();
@@ -281,9 +333,9 @@ pub fn run_episodes<P: Policy>(
         n,
         |i| {
             let e = first + i as u64;
-            start_episode(policy(e), scenario, horizon, seed, e, predict)
+            start_episode(policy(e), scenario, horizon, seed, e, aids)
         },
-        |i, ep, command, t| tallies[i].period(command, &ep.world().state(), t),
+        |i, ep, command, t| tallies[i].period(command, ep.fallback(), &ep.world().state(), t),
     );
     tallies.into_iter().map(|t| t.stats()).collect()
 }

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::ops::Range;
 
-use twin::run::{Stream, episode_rng, run_episode, run_episodes};
+use twin::run::{Aids, Stream, episode_rng, run_episode, run_episodes};
 use twin::{EpisodeStats, Frame, Scenario};
 
 use crate::baselines::{AngleRule, Lqr, Random};
@@ -35,6 +35,9 @@ pub enum ControllerKind {
     Policy,
     /// Its integer version (int8 weights, no floating point in the forward pass).
     PolicyInt,
+    /// The Q-network under the runtime monitor: LQR outside its envelope, a safe stop
+    /// where even LQR cannot recover, frozen encoders watched for.
+    Monitored,
     /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
     Lqr,
     /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
@@ -45,11 +48,22 @@ pub enum ControllerKind {
     Random,
 }
 
+impl ControllerKind {
+    /// Whether the Q-network drives (in any form).
+    pub fn runs_policy(self) -> bool {
+        matches!(
+            self,
+            ControllerKind::Policy | ControllerKind::PolicyInt | ControllerKind::Monitored
+        )
+    }
+}
+
 impl fmt::Display for ControllerKind {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         f.write_str(match self {
             ControllerKind::Policy => "policy",
             ControllerKind::PolicyInt => "policy-int",
+            ControllerKind::Monitored => "monitored",
             ControllerKind::Lqr => "lqr",
             ControllerKind::LqrPredict => "lqr-predict",
             ControllerKind::Rule => "rule",
@@ -72,6 +86,9 @@ pub fn episode(
     match kind {
         // The policy is told the dead time, as a board knows its own.
         ControllerKind::Policy => run_episode(net, s, h, seed, episode, true, on_frame),
+        ControllerKind::Monitored => {
+            run_episode(net, s, h, seed, episode, monitored(net), on_frame)
+        }
         ControllerKind::PolicyInt => {
             let int = IntNet::of(net).expect("the caller built the net with its integer version");
             run_episode(int, s, h, seed, episode, true, on_frame)
@@ -105,6 +122,7 @@ pub fn episodes(
     let (s, h, e) = (scenario, horizon, episodes);
     match kind {
         ControllerKind::Policy => run_episodes(|_| net, s, h, seed, e, true),
+        ControllerKind::Monitored => run_episodes(|_| net, s, h, seed, e, monitored(net)),
         ControllerKind::PolicyInt => {
             let int = IntNet::of(net).expect("the caller built the net with its integer version");
             run_episodes(|_| int, s, h, seed, e, true)
@@ -122,6 +140,17 @@ pub fn episodes(
         ),
     }
 }
+
+/// What a monitored policy's board knows: its dead time and its envelope.
+fn monitored(net: &Net) -> Aids {
+    Aids {
+        predict: true,
+        envelope: Some(net.envelope().expect(NO_ENVELOPE)),
+    }
+}
+
+/// Why a monitored run may take the network's envelope as given.
+const NO_ENVELOPE: &str = "the caller refused `monitored` for a network without an envelope";
 
 /// Episodes a thread runs side by side, enough to keep the lanes full as episodes end.
 const CHUNK: u64 = 64;

@@ -3,7 +3,8 @@
 use std::fmt;
 
 use anyhow::Result;
-use firmware::controller::Policy;
+use firmware::controller::{Limits, Policy};
+use firmware::envelope::ENVELOPE;
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
 use firmware::policy::POLICY;
@@ -20,6 +21,7 @@ use weights::width::{ForWidth, by_width};
 pub struct Net {
     float: Box<dyn Forward>,
     int: Option<Box<dyn IntForward>>,
+    envelope: Option<Limits>,
 }
 
 /// A [`QMlp`] of some width, behind one type.
@@ -63,16 +65,19 @@ impl ForWidth for Build<'_> {
         Ok(Net {
             float: WideMlp::new(&mlp),
             int,
+            envelope: None,
         })
     }
 }
 
 impl Net {
-    /// The policy compiled into `firmware`, and its integer version compiled beside it.
+    /// The policy compiled into `firmware`, its integer version and its envelope compiled
+    /// beside it.
     pub fn shipped() -> Net {
         Net {
             float: WideMlp::new(&POLICY),
             int: Some(Box::new(POLICY_INT.clone())),
+            envelope: Some(ENVELOPE),
         }
     }
 
@@ -97,6 +102,12 @@ impl Net {
                 int: q.as_ref(),
             },
         )??)
+    }
+
+    /// The envelope the runtime monitor lets this network drive in: measured for the
+    /// shipped policy (`firmware::envelope`), none for another.
+    pub fn envelope(&self) -> Option<Limits> {
+        self.envelope
     }
 
     /// The float network's Q-values.

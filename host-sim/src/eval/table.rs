@@ -40,6 +40,8 @@ pub struct Row {
     pub switches_per_s: Estimate,
     /// Periods that coasted on a rejected reading, over all episodes.
     pub faults: u64,
+    /// Share of the periods a runtime monitor's fallback decided (0 without a monitor).
+    pub fallback_share: f64,
     /// Episodes that fell or left the track before the horizon.
     pub failures: usize,
     /// The shortest failed episodes (at most [`WORST`]), to find out why.
@@ -94,6 +96,8 @@ impl Row {
             mean_abs_x_m: Estimate::of(&per(&|e| e.sum_abs_x / steps(e))),
             switches_per_s: Estimate::of(&per(&|e| f64::from(e.switches) / (steps(e) * period_s))),
             faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
+            fallback_share: eps.iter().map(|e| f64::from(e.fallback)).sum::<f64>()
+                / eps.iter().map(|e| f64::from(e.steps)).sum::<f64>().max(1.0),
             failures: eps.len() - successes,
             worst: worst(seed, eps),
         }
@@ -233,10 +237,13 @@ mod tests {
                 sum_abs_x: f64::from(s * 10) * 2.0,
                 switches: s * 5,
                 faults: 1,
+                fallback: s,
             })
             .collect();
         let r = Row::from_episodes("c", "s", (400, 0.02), 9, &eps);
         assert_eq!((r.min_steps, r.p5_steps, r.faults), (10, 20, 40));
+        // A tenth of every episode's periods: 820 of 8,200.
+        assert_eq!(r.fallback_share, 0.1);
         assert_eq!(r.failures, 39);
         assert_eq!(
             r.worst.iter().map(|w| w.episode).collect::<Vec<_>>(),

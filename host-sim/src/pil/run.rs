@@ -3,6 +3,7 @@
 //! compared period by period.
 
 use anyhow::{Context, Result, bail, ensure};
+use firmware::controller::FaultFlags;
 use firmware::link::{Format, Info, Reply, Scores, Start, digest};
 use firmware::rig::Rig;
 use serde::Serialize;
@@ -149,7 +150,8 @@ pub fn run_row(
             }
             times.push(u64::from(got.ticks) * 1_000_000_000 / u64::from(info.clock_hz));
             let t = world.apply(f64::from(got.command.level()));
-            tally.period(got.command, &world.state(), &t);
+            let fallback = got.faults.contains(FaultFlags::FALLBACK);
+            tally.period(got.command, fallback, &world.state(), &t);
             if t.terminated || t.truncated {
                 break;
             }

@@ -39,6 +39,7 @@ FIELD and its default format:
   rms_theta_deg                 .2 (the mean over episodes, as every field below)
   rms_x_m, mean_abs_x_m         .3
   switches_per_s, mean_steps    .1
+  fallback_share                %2 (the share of periods a monitor's fallback decided)
 
 FORMAT is `%N` (a percentage with N decimals), `.N` (N decimals) or `int` (rounded, with
 thousands separators). With --check, exit 1 listing every value that differs from its row.";
@@ -55,7 +56,7 @@ pub enum Format {
 }
 
 /// Every field a value can show, with its default format.
-const FIELDS: [(&str, Format); 9] = [
+const FIELDS: [(&str, Format); 10] = [
     ("success_rate", Format::Percent(1)),
     ("failures", Format::Int),
     ("successes", Format::Int),
@@ -65,6 +66,7 @@ const FIELDS: [(&str, Format); 9] = [
     ("mean_abs_x_m", Format::Fixed(3)),
     ("switches_per_s", Format::Fixed(1)),
     ("mean_steps", Format::Fixed(1)),
+    ("fallback_share", Format::Percent(2)),
 ];
 
 /// What an opening marker asks for.

@@ -1,0 +1,235 @@
+//! The runtime monitor's envelope, measured: the readings a policy decided on in the
+//! episodes it balanced, per channel, as a histogram; the envelope is a quantile of each
+//! channel's `|reading|` with a margin ([`Visited::envelope`]), and it is written as the
+//! Rust module `firmware::envelope` beside the shipped policy ([`rust_module`]).
+//!
+//! Only successful episodes count, and only the periods whose reading was taken (a rejected
+//! reading coasts and is no state the policy chose to be in).
+
+use std::fmt::Write as _;
+
+use firmware::controller::Command;
+use firmware::linear::balance_gain;
+use firmware::rig::Rig;
+use rayon::prelude::*;
+use serde::Serialize;
+use twin::Scenario;
+use weights::source::comment_text;
+
+use crate::eval::{ControllerKind, Net, episode};
+
+/// Bins per channel: each covers 1/4096 of the channel's bound.
+const BINS: usize = 4096;
+/// The bound each channel's bins cover, `[x, x_dot, theta, theta_dot]`: the widest readings
+/// a controller on Gymnasium's machine accepts ([`firmware::controller::Limits::track`]).
+/// Larger readings fall in the last bin.
+const RANGE: [f32; 4] = [2.4, 20.0, 0.42, 20.0];
+
+/// How often each `|reading|` was seen, per channel, over the periods of balanced episodes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Visited {
+    bins: [Vec<u64>; 4],
+    /// Episodes run, and those that balanced to the horizon.
+    pub episodes: u64,
+    /// Episodes that balanced to the horizon, whose readings are counted.
+    pub balanced: u64,
+    /// Readings counted.
+    pub periods: u64,
+}
+
+impl Visited {
+    fn empty() -> Visited {
+        Visited {
+            bins: std::array::from_fn(|_| vec![0; BINS]),
+            episodes: 0,
+            balanced: 0,
+            periods: 0,
+        }
+    }
+
+    fn add(&mut self, reading: &[f32; 4]) {
+        for ((bins, v), range) in self.bins.iter_mut().zip(reading).zip(RANGE) {
+            let i = (v.abs() / range * BINS as f32) as usize;
+            bins[i.min(BINS - 1)] += 1;
+        }
+        self.periods += 1;
+    }
+
+    fn merge(mut self, other: Visited) -> Visited {
+        for (a, b) in self.bins.iter_mut().zip(&other.bins) {
+            a.iter_mut().zip(b).for_each(|(a, b)| *a += b);
+        }
+        self.episodes += other.episodes;
+        self.balanced += other.balanced;
+        self.periods += other.periods;
+        self
+    }
+
+    /// Per channel, the smallest bound (a bin's upper edge) that at least `quantile` of the
+    /// readings lie within; `1.0` gives the largest reading's bin.
+    pub fn quantile(&self, quantile: f64) -> [f32; 4] {
+        let want = (quantile * self.periods as f64).ceil() as u64;
+        std::array::from_fn(|c| {
+            let mut seen = 0;
+            let bin = self.bins[c]
+                .iter()
+                .position(|n| {
+                    seen += n;
+                    seen >= want.max(1)
+                })
+                .unwrap_or(BINS - 1);
+            (bin + 1) as f32 * RANGE[c] / BINS as f32
+        })
+    }
+
+    /// The envelope: each channel's `quantile` times `margin`, within its bound.
+    pub fn envelope(&self, quantile: f64, margin: f32) -> [f32; 4] {
+        let q = self.quantile(quantile);
+        std::array::from_fn(|c| (q[c] * margin).min(RANGE[c]))
+    }
+}
+
+/// The readings the policy (told its dead time, as `eval` runs it) decided on in `episodes`
+/// seeded episodes of each scenario, counted where the episode balanced for `horizon`
+/// periods. `done` is called after each scenario.
+pub fn visited(
+    net: &Net,
+    scenarios: &[Scenario],
+    horizon: u32,
+    episodes: u64,
+    seed: u64,
+    done: impl Fn(&Scenario) + Sync,
+) -> Visited {
+    scenarios
+        .iter()
+        .map(|s| {
+            let v = (0..episodes)
+                .into_par_iter()
+                .map(|e| one(net, s, horizon, seed, e))
+                .reduce(Visited::empty, Visited::merge);
+            done(s);
+            v
+        })
+        .fold(Visited::empty(), Visited::merge)
+}
+
+/// One episode's readings, counted only if it balanced.
+fn one(net: &Net, s: &Scenario, horizon: u32, seed: u64, e: u64) -> Visited {
+    let mut v = Visited::empty();
+    let stats = episode(ControllerKind::Policy, net, s, horizon, seed, e, |f| {
+        if f.command != Command::Coast {
+            v.add(&f.reading);
+        }
+    });
+    if !stats.success {
+        v = Visited::empty();
+    }
+    v.episodes = 1;
+    v.balanced = u64::from(stats.success);
+    v
+}
+
+/// What `host-sim envelope --json` reports.
+#[derive(Debug, Serialize)]
+pub struct Report {
+    /// Scenarios measured.
+    pub scenarios: Vec<String>,
+    /// Episodes per scenario, and their horizon.
+    pub episodes: u64,
+    /// Periods per episode.
+    pub horizon: u32,
+    /// Episodes that balanced, of all run.
+    pub balanced: u64,
+    /// All episodes run.
+    pub episodes_run: u64,
+    /// Readings counted.
+    pub periods: u64,
+    /// The quantile taken and the margin on it.
+    pub quantile: f64,
+    /// See `quantile`.
+    pub margin: f32,
+    /// Each channel's 0.99, 0.999 and 0.9999 quantiles and largest reading.
+    pub quantiles: [[f32; 4]; 4],
+    /// The envelope, `[x, x_dot, theta, theta_dot]`.
+    pub envelope: [f32; 4],
+}
+
+impl Report {
+    /// The report of `v` with its envelope.
+    pub fn of(
+        v: &Visited,
+        names: Vec<String>,
+        run: (u64, u32),
+        quantile: f64,
+        margin: f32,
+    ) -> Report {
+        Report {
+            scenarios: names,
+            episodes: run.0,
+            horizon: run.1,
+            balanced: v.balanced,
+            episodes_run: v.episodes,
+            periods: v.periods,
+            quantile,
+            margin,
+            quantiles: [0.99, 0.999, 0.9999, 1.0].map(|q| v.quantile(q)),
+            envelope: v.envelope(quantile, margin),
+        }
+    }
+}
+
+/// The Rust module `firmware::envelope`: the envelope, the digest of the policy it was
+/// measured for, the fallback's gain for `rig`, and the monitor's whole configuration,
+/// checked as the firmware is compiled. `provenance` lines go into its header, escaped.
+pub fn rust_module(envelope: [f32; 4], digest: u64, rig: &Rig, provenance: &[String]) -> String {
+    let gain = balance_gain(&rig.params).map(|k| k as f32);
+    let mut s = String::from(
+        "//! The shipped policy's envelope: where the runtime monitor\n\
+         //! ([`crate::controller::monitor`]) lets it drive, and the monitor's configuration.\n\
+         //! Generated by `host-sim envelope`; do not edit.\n//!\n",
+    );
+    for line in provenance {
+        let _ = writeln!(s, "//! - {}", comment_text(line));
+    }
+    let _ = write!(
+        s,
+        "\nuse crate::controller::{{Assurance, Limits}};\nuse crate::policy::RIG;\n\n\
+         /// FNV-1a 64 digest of the policy the envelope was measured for\n\
+         /// ([`crate::link::digest::mlp`] of [`crate::policy::POLICY`]).\n\
+         pub const POLICY_DIGEST: u64 = {digest:#018x};\n\n\
+         /// Per-channel bound on `|reading|`, `[x, x_dot, theta, theta_dot]`.\n\
+         pub const ENVELOPE: Limits = match Limits::new({envelope:?}) {{\n    \
+         Ok(l) => l,\n    Err(_) => panic!(\"the envelope is no limits\"),\n}};\n\n\
+         /// The fallback's LQR gain for [`RIG`] ([`crate::linear::balance_gain`]).\n\
+         pub const FALLBACK_GAIN: [f32; 4] = {gain:?};\n\n\
+         /// The monitor's configuration for the shipped policy on [`RIG`].\n\
+         pub const ASSURANCE: Assurance = match Assurance::new(ENVELOPE, &RIG, FALLBACK_GAIN) {{\n    \
+         Ok(a) => a,\n    Err(_) => panic!(\"the assurance is refused\"),\n}};\n"
+    );
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_are_bin_edges_counted_by_hand() {
+        let mut v = Visited::empty();
+        // 1,000 readings of x: 990 at 0.1 m, 9 at 0.5 m, one at 1.2 m.
+        for i in 0..1000 {
+            let x = match i {
+                0..990 => 0.1,
+                990..999 => -0.5,
+                _ => 1.2,
+            };
+            v.add(&[x, 0.0, 0.0, 0.0]);
+        }
+        let edge = |x: f32| ((x / 2.4 * 4096.0).floor() + 1.0) * 2.4 / 4096.0;
+        assert_eq!(v.quantile(0.99)[0], edge(0.1));
+        assert_eq!(v.quantile(0.999)[0], edge(0.5));
+        assert_eq!(v.quantile(1.0)[0], edge(1.2));
+        assert_eq!(v.quantile(0.5)[1], 20.0 / 4096.0);
+        assert_eq!(v.envelope(0.999, 10.0)[0], 2.4);
+    }
+}

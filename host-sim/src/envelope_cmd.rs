@@ -1,0 +1,151 @@
+//! `host-sim envelope`: measures where the shipped policy drives in the episodes it balances
+//! and writes the runtime monitor's envelope beside it (`firmware/src/envelope.rs`).
+
+use std::path::PathBuf;
+
+use anyhow::{Result, ensure};
+use clap::Args;
+use firmware::link::digest;
+use firmware::policy::{POLICY, RIG};
+use host_sim::envelope::{Report, rust_module, visited};
+use host_sim::eval::Net;
+use indicatif::{ProgressBar, ProgressStyle};
+use twin::Machine;
+use weights::files::write_atomic;
+
+/// Most episodes per scenario.
+const MAX_EPISODES: u64 = 100_000;
+/// Longest episode, periods.
+const MAX_HORIZON: u32 = 1_000_000;
+
+#[derive(Args)]
+pub struct EnvelopeArgs {
+    /// Scenario specs or sets (see `eval`) whose balanced episodes the envelope covers.
+    #[arg(long, value_delimiter = ',', default_value = "all,hard")]
+    scenario: Vec<String>,
+    /// Episodes per scenario.
+    #[arg(long, default_value_t = 100)]
+    episodes: u64,
+    /// Periods per episode.
+    #[arg(long, default_value_t = 10_000)]
+    horizon: u32,
+    /// Seed of the starts, noise and pushes.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// The share of each channel's readings the envelope covers before its margin (1: the
+    /// largest reading seen).
+    #[arg(long, default_value_t = 1.0)]
+    quantile: f64,
+    /// The factor on each channel's quantile.
+    #[arg(long, default_value_t = 1.1)]
+    margin: f32,
+    /// Write the firmware's module (`firmware/src/envelope.rs`) here.
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// Print the measurement as JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+/// Measures and writes; every argument and the output's place are checked first.
+pub fn run(a: &EnvelopeArgs) -> Result<()> {
+    ensure!(
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be in [1, {MAX_EPISODES}], got {}",
+        a.episodes
+    );
+    ensure!(
+        (1..=MAX_HORIZON).contains(&a.horizon),
+        "--horizon must be in [1, {MAX_HORIZON}], got {}",
+        a.horizon
+    );
+    ensure!(
+        a.quantile > 0.0 && a.quantile <= 1.0,
+        "--quantile must be in (0, 1], got {}",
+        a.quantile
+    );
+    ensure!(
+        a.margin.is_finite() && a.margin >= 1.0 && a.margin <= 10.0,
+        "--margin must be in [1, 10], got {}",
+        a.margin
+    );
+    let outputs: Vec<(&str, &std::path::Path)> =
+        a.out.iter().map(|p| ("--out", p.as_path())).collect();
+    crate::check_io(&[], &outputs)?;
+    let scenarios = crate::parse_scenarios(&a.scenario, &Machine::GYMNASIUM)?;
+    let bar = ProgressBar::new(scenarios.len() as u64).with_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} scenarios, {elapsed} (eta {eta}) {msg}")
+            .expect("static template"),
+    );
+    let net = Net::shipped();
+    let v = visited(&net, &scenarios, a.horizon, a.episodes, a.seed, |s| {
+        bar.set_message(s.name.clone());
+        bar.inc(1);
+    });
+    bar.finish_and_clear();
+    ensure!(
+        v.balanced > 0,
+        "no episode balanced for {} periods: there are no readings to take an envelope from",
+        a.horizon
+    );
+    let names: Vec<String> = scenarios.iter().map(|s| s.name.clone()).collect();
+    let report = Report::of(&v, names, (a.episodes, a.horizon), a.quantile, a.margin);
+    if let Some(out) = &a.out {
+        let provenance = [
+            format!(
+                "measured: `host-sim envelope --scenario {} --episodes {} --horizon {} --seed {} \
+                 --quantile {} --margin {}`",
+                a.scenario.join(","),
+                a.episodes,
+                a.horizon,
+                a.seed,
+                a.quantile,
+                a.margin
+            ),
+            format!(
+                "{} readings of {} balanced episodes of {}",
+                v.periods, v.balanced, v.episodes
+            ),
+        ];
+        let text = rust_module(report.envelope, digest::mlp(&POLICY), &RIG, &provenance);
+        write_atomic(out, text.as_bytes())?;
+        host_common::errln!("{}", out.display());
+    }
+    if a.json {
+        host_common::outln!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        host_common::outln!("{}", format(&report));
+    }
+    Ok(())
+}
+
+/// The measurement as a table.
+fn format(r: &Report) -> String {
+    let mut s = format!(
+        "{} readings of {} balanced episodes of {} ({} scenarios, {} periods each)\n\
+         {:<10} {:>9} {:>9} {:>9} {:>9}\n",
+        r.periods,
+        r.balanced,
+        r.episodes_run,
+        r.scenarios.len(),
+        r.horizon,
+        "",
+        "x m",
+        "x_dot m/s",
+        "theta rad",
+        "omega r/s"
+    );
+    let rows = ["0.99", "0.999", "0.9999", "largest"];
+    for (name, q) in rows.iter().zip(r.quantiles) {
+        s += &format!(
+            "{name:<10} {:>9.4} {:>9.4} {:>9.4} {:>9.4}\n",
+            q[0], q[1], q[2], q[3]
+        );
+    }
+    let e = r.envelope;
+    s += &format!(
+        "{:<10} {:>9.4} {:>9.4} {:>9.4} {:>9.4}  ({} quantile x {})",
+        "envelope", e[0], e[1], e[2], e[3], r.quantile, r.margin
+    );
+    s
+}

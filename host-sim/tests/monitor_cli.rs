@@ -1,0 +1,114 @@
+//! The runtime monitor from the command line: `host-sim envelope` regenerates the shipped
+//! envelope byte for byte, `eval --controller monitored` holds the fault the policy alone
+//! does not and fires nowhere else, and bad input exits 2 before any work.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn run(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn repo(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(path)
+}
+
+/// The command recorded in the shipped module writes the shipped module again.
+#[test]
+fn the_shipped_envelope_regenerates_byte_for_byte() {
+    let shipped = std::fs::read_to_string(repo("firmware/src/envelope.rs")).unwrap();
+    let line = shipped
+        .lines()
+        .find_map(|l| l.strip_prefix("//! - measured: `host-sim "))
+        .expect("the module records its command");
+    let dir = std::env::temp_dir().join(format!("hs-envelope-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("envelope.rs");
+    let mut args: Vec<&str> = line.trim_end_matches('`').split(' ').collect();
+    args.extend(["--out", out.to_str().unwrap()]);
+    let o = run(&args);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(std::fs::read_to_string(&out).unwrap(), shipped);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn rows(args: &[&str]) -> Vec<serde_json::Value> {
+    let o = run(&[&["eval", "--json", "--episodes", "40"][..], args].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    v["rows"].as_array().unwrap().clone()
+}
+
+#[test]
+fn the_monitor_holds_a_frozen_encoder_and_fires_nowhere_else() {
+    // Half a second of frozen encoder every ten: the policy alone falls in many episodes.
+    let r = rows(&[
+        "--scenario",
+        "encoder+stuck=25/500",
+        "--horizon",
+        "3000",
+        "--controller",
+        "policy,monitored",
+    ]);
+    let (alone, watched) = (&r[0], &r[1]);
+    assert!(alone["failures"].as_u64().unwrap() >= 5, "{alone}");
+    assert_eq!(watched["failures"], 0, "{watched}");
+    assert!(watched["fallback_share"].as_f64().unwrap() > 0.0);
+    // Where nothing goes wrong, the monitored rows are the policy's, and the fallback never
+    // decides a period.
+    let r = rows(&[
+        "--scenario",
+        "noise+delay+push",
+        "--controller",
+        "policy,monitored",
+    ]);
+    let strip = |row: &serde_json::Value| {
+        let mut row = row.clone();
+        row.as_object_mut().unwrap().remove("controller");
+        row
+    };
+    assert_eq!(strip(&r[0]), strip(&r[1]));
+    assert_eq!(r[1]["fallback_share"], 0.0);
+}
+
+#[test]
+fn bad_input_exits_2_before_any_work() {
+    let fixture = repo("weights/tests/fixtures/cleanrl.safetensors");
+    let dir = std::env::temp_dir();
+    let cases: [(&[&str], &str); 5] = [
+        (
+            &[
+                "eval",
+                "--controller",
+                "monitored",
+                "--policy",
+                fixture.to_str().unwrap(),
+            ],
+            "--controller monitored runs the shipped policy",
+        ),
+        (
+            &["envelope", "--quantile", "0"],
+            "--quantile must be in (0, 1]",
+        ),
+        (
+            &["envelope", "--margin", "NaN"],
+            "--margin must be in [1, 10]",
+        ),
+        (
+            &["envelope", "--episodes", "0"],
+            "--episodes must be in [1, 100000]",
+        ),
+        (&["envelope", "--out", dir.to_str().unwrap()], "--out"),
+    ];
+    for (args, want) in cases {
+        let o = run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want) && o.stdout.is_empty(), "{args:?}: {err}");
+    }
+}
