@@ -8,11 +8,13 @@
 
 use std::fmt::Write as _;
 
-use firmware::controller::Command;
+use std::path::Path;
+
+use firmware::controller::{Command, Limits};
 use firmware::linear::balance_gain;
 use firmware::rig::Rig;
 use rayon::prelude::*;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use twin::Scenario;
 use weights::source::comment_text;
 
@@ -127,6 +129,27 @@ fn one(net: &Net, s: &Scenario, horizon: u32, seed: u64, e: u64) -> Visited {
     v.episodes = 1;
     v.balanced = u64::from(stats.success);
     v
+}
+
+/// Largest envelope file read: a report is under a kilobyte.
+const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
+
+/// The envelope of a file `host-sim envelope --json` printed, as the monitor takes it:
+/// refused (naming the file) unless it is such a report whose four bounds are finite and
+/// not negative.
+pub fn read(path: &Path) -> weights::Result<Limits> {
+    #[derive(Deserialize)]
+    struct Envelope {
+        envelope: [f32; 4],
+    }
+    let bytes = weights::files::read_capped(path, MAX_ENVELOPE_BYTES)?;
+    let bad = |why: String| weights::Error::Input(format!("--envelope {}: {why}", path.display()));
+    let e: Envelope = serde_json::from_slice(&bytes).map_err(|e| {
+        bad(format!(
+            "expected the JSON `host-sim envelope --json` prints, {e}"
+        ))
+    })?;
+    Limits::new(e.envelope).map_err(|e| bad(e.to_string()))
 }
 
 /// What `host-sim envelope --json` reports.

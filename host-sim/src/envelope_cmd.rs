@@ -1,5 +1,6 @@
-//! `host-sim envelope`: measures where the shipped policy drives in the episodes it balances
-//! and writes the runtime monitor's envelope beside it (`firmware/src/envelope.rs`).
+//! `host-sim envelope`: measures where a policy drives in the episodes it balances: the
+//! runtime monitor's envelope, written beside the shipped policy (`firmware/src/envelope.rs`)
+//! or, for another, printed as the JSON `eval --envelope` reads.
 
 use std::path::PathBuf;
 
@@ -8,10 +9,11 @@ use clap::Args;
 use firmware::link::digest;
 use firmware::policy::{POLICY, RIG};
 use host_sim::envelope::{Report, rust_module, visited};
-use host_sim::eval::Net;
+use host_sim::eval::ControllerKind;
 use indicatif::{ProgressBar, ProgressStyle};
-use twin::Machine;
 use weights::files::write_atomic;
+
+use crate::Subject;
 
 /// Most episodes per scenario.
 const MAX_EPISODES: u64 = 100_000;
@@ -39,9 +41,12 @@ pub struct EnvelopeArgs {
     /// The factor on each channel's quantile.
     #[arg(long, default_value_t = 1.1)]
     margin: f32,
-    /// Write the firmware's module (`firmware/src/envelope.rs`) here.
+    /// Write the firmware's module (`firmware/src/envelope.rs`) here: the shipped policy's
+    /// only.
     #[arg(long)]
     out: Option<PathBuf>,
+    #[command(flatten)]
+    subject: Subject,
     /// Print the measurement as JSON.
     #[arg(long)]
     json: bool,
@@ -69,15 +74,26 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         "--margin must be in [1, 10], got {}",
         a.margin
     );
+    ensure!(
+        a.subject.envelope.is_none(),
+        "host-sim envelope measures an envelope and takes none: found --envelope"
+    );
+    if let (Some(policy), Some(_)) = (&a.subject.policy, &a.out) {
+        anyhow::bail!(
+            "--out writes the firmware's module, the shipped policy's envelope: for --policy {} \
+             use --json and give the file to eval --envelope",
+            policy.display()
+        );
+    }
     let outputs: Vec<(&str, &std::path::Path)> =
         a.out.iter().map(|p| ("--out", p.as_path())).collect();
-    crate::check_io(&[], &outputs)?;
-    let scenarios = crate::parse_scenarios(&a.scenario, &Machine::GYMNASIUM)?;
+    crate::check_io(&a.subject.inputs(), &outputs)?;
+    let (machine, net) = a.subject.load_for(&[ControllerKind::Policy])?;
+    let scenarios = crate::parse_scenarios(&a.scenario, &machine)?;
     let bar = ProgressBar::new(scenarios.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenarios, {elapsed} (eta {eta}) {msg}")
             .expect("static template"),
     );
-    let net = Net::shipped();
     let v = visited(&net, &scenarios, a.horizon, a.episodes, a.seed, |s| {
         bar.set_message(s.name.clone());
         bar.inc(1);

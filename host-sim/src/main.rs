@@ -71,10 +71,10 @@ enum Command {
     /// hour, the last hour and the whole run, and its coasting periods. Exits 1 if it did
     /// not balance to the end, 2 on bad input.
     Soak(soak_cmd::SoakArgs),
-    /// Measure where the shipped policy drives in the episodes it balances (the default and
-    /// hard sets by default) and write the runtime monitor's envelope: a quantile of each
-    /// channel's readings with a margin, as the firmware's `envelope` module with --out.
-    /// Exits 2 on bad input.
+    /// Measure where a policy drives in the episodes it balances (the default and hard sets
+    /// by default): the runtime monitor's envelope, a quantile of each channel's readings
+    /// with a margin; the shipped policy's as the firmware's `envelope` module with --out,
+    /// any policy's as JSON for `eval --envelope` with --json. Exits 2 on bad input.
     Envelope(envelope_cmd::EnvelopeArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
     /// defaults: the Markdown table the README and docs/CONTROL.md show.
@@ -104,6 +104,11 @@ struct Subject {
     /// records, or Gymnasium's machine; a different one than the recorded is warned about.
     #[arg(long)]
     rig: Option<PathBuf>,
+    /// The runtime monitor's envelope for --controller monitored: the JSON `host-sim
+    /// envelope --json` prints (for --policy, measured with the same --policy). The shipped
+    /// policy's is compiled in.
+    #[arg(long)]
+    envelope: Option<PathBuf>,
 }
 
 impl Subject {
@@ -111,25 +116,41 @@ impl Subject {
     /// `policy.safetensors`) and the rig file.
     fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
         let policy = self.policy.as_deref().map(weights::checkpoint::policy_file);
-        [("--policy", policy), ("--rig", self.rig.clone())]
-            .into_iter()
-            .filter_map(|(flag, p)| Some((flag, p?)))
-            .collect()
+        [
+            ("--policy", policy),
+            ("--rig", self.rig.clone()),
+            ("--envelope", self.envelope.clone()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, p)| Some((flag, p?)))
+        .collect()
     }
 
     /// [`Subject::load`] for `kinds` of controller: the network with its integer version if
-    /// one runs it. Refused: the monitored policy for a network other than the shipped one,
-    /// whose envelope nobody measured.
+    /// one runs it, and the envelope of --envelope. Refused: the monitored controller for a
+    /// --policy without an --envelope measured for it.
     fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
-        if let (Some(path), true) = (&self.policy, kinds.contains(&ControllerKind::Monitored)) {
+        let monitored = kinds.contains(&ControllerKind::Monitored);
+        if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
             anyhow::bail!(
-                "--controller monitored runs the shipped policy with the envelope measured for                  it (host-sim envelope), found --policy {}",
+                "--controller monitored needs the envelope measured for --policy {}: give \
+                 --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
                 path.display()
             );
         }
+        let envelope = self
+            .envelope
+            .as_deref()
+            .map(host_sim::envelope::read)
+            .transpose()?;
         let int = kinds.contains(&ControllerKind::PolicyInt);
         let policy = kinds.iter().any(|k| k.runs_policy());
-        self.load(int, policy)
+        let (machine, net) = self.load(int, policy)?;
+        let net = match envelope {
+            Some(e) => net.with_envelope(e),
+            None => net,
+        };
+        Ok((machine, net))
     }
 
     /// The machine, and the network (with its integer version if `int`), loaded lazily by

@@ -72,6 +72,7 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
     let words = &["expected", "safetensors"];
     let policy = || format("firmware/policy.safetensors", 64 << 20, words);
     let rig = || format("rigs/desk.toml", 64 << 10, &["expected", "missing field"]);
+    let envelope = || format("docs/results/envelope.json", 64 << 10, &["expected"]);
     let words = &["not a trajectory case", "expected", "no cases"];
     let replay = || format("tests/data/gym_traj_public.jsonl", 64 << 20, words);
     let log_format = Format {
@@ -123,6 +124,7 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
         ("eval-policy", policy(), eval("--policy")),
         ("eval-rig", rig(), eval("--rig")),
         ("eval-world", rig(), eval("--world")),
+        ("eval-envelope", envelope(), eval("--envelope")),
         ("agree-policy", policy(), agree("--policy")),
         ("agree-rig", rig(), agree("--rig")),
         ("render-policy", policy(), draw("--policy")),
@@ -175,7 +177,11 @@ fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
         // envelope reads no file at all.
         if !matches!(label, "input" | "log") {
             let envelope = os(&[&"envelope", &"--out", &out]);
-            cases.push(Case::new(format!("envelope --out {label}"), &envelope, want));
+            cases.push(Case::new(
+                format!("envelope --out {label}"),
+                &envelope,
+                want,
+            ));
         }
         // simulate-logs reads no log.
         if label != "log" {

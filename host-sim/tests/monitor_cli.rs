@@ -1,6 +1,7 @@
 //! The runtime monitor from the command line: `host-sim envelope` regenerates the shipped
-//! envelope byte for byte, `eval --controller monitored` holds the fault the policy alone
-//! does not and fires nowhere else, and bad input exits 2 before any work.
+//! envelope byte for byte and measures a policy file's, `eval --controller monitored` holds
+//! the fault the policy alone does not and fires nowhere else, and bad input exits 2 before
+//! any work.
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -76,39 +77,101 @@ fn the_monitor_holds_a_frozen_encoder_and_fires_nowhere_else() {
     assert_eq!(r[1]["fallback_share"], 0.0);
 }
 
+/// A policy file's envelope, measured and handed to `eval`, monitors that policy.
+#[test]
+fn a_policy_files_envelope_is_measured_and_monitors_it() {
+    let policy = repo("firmware/policy.safetensors");
+    let dir = std::env::temp_dir().join(format!("hs-envelope-file-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("envelope.json");
+    let o = run(&[
+        "envelope",
+        "--policy",
+        policy.to_str().unwrap(),
+        "--scenario",
+        "nominal,noise+push",
+        "--episodes",
+        "10",
+        "--horizon",
+        "2000",
+        "--json",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(&file, &o.stdout).unwrap();
+    let report: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let (envelope, largest) = (&report["envelope"], &report["quantiles"][3]);
+    let range = [2.4, 20.0, 0.42, 20.0];
+    for c in 0..4 {
+        // The largest reading times the margin, within the bins' range.
+        let (e, l) = (envelope[c].as_f64().unwrap(), largest[c].as_f64().unwrap());
+        let margin = e > l && e <= 1.1 * l + 1e-6;
+        assert!(margin || e == range[c], "{report}");
+    }
+    let r = rows(&[
+        "--policy",
+        policy.to_str().unwrap(),
+        "--envelope",
+        file.to_str().unwrap(),
+        "--scenario",
+        "encoder+stuck=25/500",
+        "--horizon",
+        "3000",
+        "--controller",
+        "monitored",
+    ]);
+    assert_eq!(r[0]["failures"], 0, "{}", r[0]);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 #[test]
 fn bad_input_exits_2_before_any_work() {
     let fixture = repo("weights/tests/fixtures/cleanrl.safetensors");
-    let dir = std::env::temp_dir();
-    let cases: [(&[&str], &str); 5] = [
+    let fixture = fixture.to_str().unwrap();
+    let dir = std::env::temp_dir().join(format!("hs-envelope-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (not_json, negative) = (dir.join("a.json"), dir.join("b.json"));
+    std::fs::write(&not_json, br#"{"envelope": [1, 2, "x", 3]}"#).unwrap();
+    std::fs::write(&negative, br#"{"envelope": [1, -2, 3, 3]}"#).unwrap();
+    let (not_json, negative) = (not_json.to_str().unwrap(), negative.to_str().unwrap());
+    let monitored = ["eval", "--controller", "monitored"];
+    let cases: Vec<(Vec<&str>, &str)> = vec![
         (
-            &[
-                "eval",
-                "--controller",
-                "monitored",
-                "--policy",
-                fixture.to_str().unwrap(),
-            ],
-            "--controller monitored runs the shipped policy",
+            [&monitored[..], &["--policy", fixture]].concat(),
+            "--controller monitored needs the envelope measured for --policy",
         ),
         (
-            &["envelope", "--quantile", "0"],
+            [&monitored[..], &["--envelope", not_json]].concat(),
+            "expected the JSON `host-sim envelope --json` prints",
+        ),
+        (
+            [&monitored[..], &["--envelope", negative]].concat(),
+            "limits.max_abs[1]: expected zero or more",
+        ),
+        (
+            vec!["envelope", "--policy", fixture, "--out", "x.rs"],
+            "--out writes the firmware's module",
+        ),
+        (vec!["envelope", "--envelope", negative], "takes none"),
+        (
+            vec!["envelope", "--quantile", "0"],
             "--quantile must be in (0, 1]",
         ),
         (
-            &["envelope", "--margin", "NaN"],
+            vec!["envelope", "--margin", "NaN"],
             "--margin must be in [1, 10]",
         ),
         (
-            &["envelope", "--episodes", "0"],
+            vec!["envelope", "--episodes", "0"],
             "--episodes must be in [1, 100000]",
         ),
-        (&["envelope", "--out", dir.to_str().unwrap()], "--out"),
+        (vec!["envelope", "--out", dir.to_str().unwrap()], "--out"),
     ];
     for (args, want) in cases {
-        let o = run(args);
+        let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains(want) && o.stdout.is_empty(), "{args:?}: {err}");
     }
+    assert!(!std::path::Path::new("x.rs").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
 }

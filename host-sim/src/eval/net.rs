@@ -105,9 +105,15 @@ impl Net {
     }
 
     /// The envelope the runtime monitor lets this network drive in: measured for the
-    /// shipped policy (`firmware::envelope`), none for another.
+    /// shipped policy (`firmware::envelope`), none for another until it is given one.
     pub fn envelope(&self) -> Option<Limits> {
         self.envelope
+    }
+
+    /// The same network with the envelope `host-sim envelope` measured for it.
+    pub fn with_envelope(mut self, envelope: Limits) -> Net {
+        self.envelope = Some(envelope);
+        self
     }
 
     /// The float network's Q-values.
