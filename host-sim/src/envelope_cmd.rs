@@ -54,26 +54,7 @@ pub struct EnvelopeArgs {
 
 /// Measures and writes; every argument and the output's place are checked first.
 pub fn run(a: &EnvelopeArgs) -> Result<()> {
-    ensure!(
-        (1..=MAX_EPISODES).contains(&a.episodes),
-        "--episodes must be in [1, {MAX_EPISODES}], got {}",
-        a.episodes
-    );
-    ensure!(
-        (1..=MAX_HORIZON).contains(&a.horizon),
-        "--horizon must be in [1, {MAX_HORIZON}], got {}",
-        a.horizon
-    );
-    ensure!(
-        a.quantile > 0.0 && a.quantile <= 1.0,
-        "--quantile must be in (0, 1], got {}",
-        a.quantile
-    );
-    ensure!(
-        a.margin.is_finite() && a.margin >= 1.0 && a.margin <= 10.0,
-        "--margin must be in [1, 10], got {}",
-        a.margin
-    );
+    check(a)?;
     ensure!(
         a.subject.envelope.is_none(),
         "host-sim envelope measures an envelope and takes none: found --envelope"
@@ -132,6 +113,31 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
     } else {
         host_common::outln!("{}", format(&report));
     }
+    Ok(())
+}
+
+/// The counts and shares `a` asks for, each within its bounds.
+fn check(a: &EnvelopeArgs) -> Result<()> {
+    ensure!(
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be in [1, {MAX_EPISODES}], got {}",
+        a.episodes
+    );
+    ensure!(
+        (1..=MAX_HORIZON).contains(&a.horizon),
+        "--horizon must be in [1, {MAX_HORIZON}], got {}",
+        a.horizon
+    );
+    ensure!(
+        a.quantile > 0.0 && a.quantile <= 1.0,
+        "--quantile must be in (0, 1], got {}",
+        a.quantile
+    );
+    ensure!(
+        a.margin.is_finite() && a.margin >= 1.0 && a.margin <= 10.0,
+        "--margin must be in [1, 10], got {}",
+        a.margin
+    );
     Ok(())
 }
 

@@ -201,8 +201,16 @@ fn bad_outputs(s: &Scratch, log: &Path) -> Vec<Case> {
             ));
         }
     }
+    cases.extend(bad_output_dirs(s, log, &dir, &file, fifo));
+    cases
+}
+
+/// Every output directory, given places it must not write.
+fn bad_output_dirs(s: &Scratch, log: &Path, dir: &Path, file: &Path, fifo: PathBuf) -> Vec<Case> {
+    let rig = repo("rigs/desk-measured.toml");
+    let mut cases = Vec::new();
     let dirs: [(&str, PathBuf, &[&'static str]); 5] = [
-        ("file", file.clone(), &["found a regular file"]),
+        ("file", file.to_path_buf(), &["found a regular file"]),
         ("device", "/dev/null".into(), &["found a device"]),
         ("fifo", fifo, &["found a FIFO"]),
         ("under-file", file.join("d"), &["found a regular file"]),
