@@ -221,6 +221,12 @@ struct cartpole_rig {
  * infinite, or beyond the rig's limits (near the track's end stops, a fallen pole). */
 #define CARTPOLE_FAULT_NON_FINITE(channel) (1u << (channel))
 #define CARTPOLE_FAULT_OUT_OF_RANGE(channel) (1u << (4 + (channel)))
+/* Under the runtime monitor (cartpole_controller_monitor): the period was decided by the LQR
+ * fallback; the monitor has stopped the controller (duty off); the reading came from the
+ * observer's model alone, its encoders found frozen. */
+#define CARTPOLE_FAULT_FALLBACK (1u << 10)
+#define CARTPOLE_FAULT_STOPPED (1u << 11)
+#define CARTPOLE_FAULT_MODEL_ONLY (1u << 12)
 
 /* Return codes. */
 enum cartpole_status {
@@ -229,8 +235,10 @@ enum cartpole_status {
     CARTPOLE_ERR_UNINITIALISED = -2, /* c was not initialised by a cartpole_controller_init* */
     CARTPOLE_ERR_POLICY_KIND = -3,   /* no such policy kind */
     CARTPOLE_ERR_INPUT = -4,         /* counts to an instance that has read states, or back */
-    CARTPOLE_ERR_RIG = -5            /* a struct cartpole_rig field no machine has, or no
-                                        finite observer gain for the rig */
+    CARTPOLE_ERR_RIG = -5,           /* a struct cartpole_rig field no machine has, or no
+                                        finite observer gain for the rig; to
+                                        cartpole_controller_monitor, another rig than c's */
+    CARTPOLE_ERR_ENVELOPE = -6       /* an envelope bound NaN, infinite or negative */
 };
 
 /* The shipped policies. */
@@ -276,6 +284,12 @@ typedef struct cartpole_counters {
     uint32_t non_finite;        /* channels read as NaN or infinite */
     uint32_t out_of_range;      /* channels read beyond the rig's limits */
     uint32_t overruns;          /* ticks reported by cartpole_controller_record_overruns */
+    uint32_t model_only;        /* readings from the model alone, encoders frozen (monitored) */
+    uint32_t fallbacks;         /* switches from the policy to the LQR fallback */
+    uint32_t recoveries;        /* switches back to the policy */
+    uint32_t fallback_periods;  /* periods the fallback decided */
+    uint32_t non_finite_scores; /* periods whose policy scores were not finite */
+    uint32_t safe_stops;        /* times the monitor stopped the controller */
 } cartpole_counters_t;
 
 #ifdef __cplusplus
@@ -352,6 +366,19 @@ int cartpole_controller_record_overruns(cartpole_controller_t *c, uint32_t ticks
 
 /* The control period of the rig the policy was trained for, in microseconds (rounded). */
 int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *period_us);
+
+/* Puts *c under the runtime monitor from its next period (docs/FAULTS.md): the policy drives
+ * while the reading lies inside envelope {x (m), x_dot (m/s), theta (rad), theta_dot
+ * (rad/s)}, bounds on each channel's magnitude (NULL: the shipped policy's, measured by
+ * `host-sim envelope`); bang-bang LQR designed for rig drives outside it, after 3 faulty
+ * readings in a row and on non-finite scores, until 25 sound periods inside 0.8 of the
+ * envelope; 3 readings in a row past the rig's failure angle or at the end of its track
+ * stop the controller (duty off) until it is initialised again. The observer then watches
+ * for frozen encoders. rig must be the machine c was initialised for (NAME_rig; NULL: the
+ * shipped policies'). Solves the LQR gain: call it at start-up. Refused, writing nothing:
+ * CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_RIG (a rig no machine has, or not c's). */
+int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
+                                const struct cartpole_rig *rig);
 
 #ifdef __cplusplus
 }

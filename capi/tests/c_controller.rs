@@ -3,7 +3,8 @@
 //! prints must equal what the same calls give on a firmware `Controller` built here, in
 //! Rust, from the shipped policies' `RIG`s, as a Rust board builds it: encoder counts through
 //! an `ObserverSensor`, or measured states, period by period, command, pins, scores and
-//! faults; then the counters and the control period. The refusals (NULL pointers,
+//! faults; then the counters and the control period; and the same under the runtime monitor
+//! through a frozen encoder. The refusals (NULL pointers,
 //! uninitialised memory, unknown policies, mixed inputs) must return their codes and write
 //! nothing.
 
@@ -17,14 +18,17 @@ use std::mem::{align_of, size_of};
 use std::path::PathBuf;
 
 use cartpole_policy::{
-    CARTPOLE_ERR_INPUT, CARTPOLE_ERR_NULL, CARTPOLE_ERR_POLICY_KIND, CARTPOLE_ERR_UNINITIALISED,
-    CARTPOLE_OK, CARTPOLE_POLICY_F32, CARTPOLE_POLICY_INT, CONTROLLER_SIZE, CartpoleCommand,
-    CartpoleController, CartpoleCounters,
+    CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_INPUT, CARTPOLE_ERR_NULL, CARTPOLE_ERR_POLICY_KIND,
+    CARTPOLE_ERR_RIG, CARTPOLE_ERR_UNINITIALISED, CARTPOLE_OK, CARTPOLE_POLICY_F32,
+    CARTPOLE_POLICY_INT, CONTROLLER_SIZE, CartpoleCommand, CartpoleController, CartpoleCounters,
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::Action;
 use firmware::cartpole::{State, advance};
-use firmware::controller::{Command, Controller, FaultFlags, Policy, Reading, StateSensor};
+use firmware::controller::{
+    Assurance, Command, Controller, FaultFlags, Policy, Reading, StateSensor,
+};
+use firmware::envelope::ENVELOPE;
 use firmware::estimator::ObserverSensor;
 use firmware::fixed;
 use firmware::loopback::{self, Latest, MAX_DUTY, Pins};
@@ -203,12 +207,18 @@ fn epilogue<P: Policy<S::Reading>, S: StateSensor>(
     script.call("overrun 3", &format!("overrun {CARTPOLE_OK}"));
     let f = c.faults();
     let counters = format!(
-        "counters {CARTPOLE_OK} {} {} {} {} {}",
+        "counters {CARTPOLE_OK} {} {} {} {} {} {} {} {} {} {} {}",
         c.steps(),
         f.rejected_readings,
         f.non_finite,
         f.out_of_range,
-        f.overruns
+        f.overruns,
+        f.model_only,
+        f.fallbacks,
+        f.recoveries,
+        f.fallback_periods,
+        f.non_finite_scores,
+        f.safe_stops
     );
     script.call("counters", &counters);
     let us = (rig.params.tau * 1e6).round() as u32;
@@ -255,6 +265,40 @@ fn policy_script<O: Format, P: Policy<O> + Copy>(
         },
     );
     epilogue(c, rig, "count 0 0", script);
+    monitored_script(policy, rig, kind, script);
+}
+
+/// Under the runtime monitor with the shipped envelope, the encoders frozen for half a
+/// second: the observer predicts through the freeze (flagged), the fallback takes over, and
+/// the shove that topples the pole ends in coasting.
+fn monitored_script<O: Format, P: Policy<O> + Copy>(
+    policy: P,
+    rig: &Rig,
+    kind: i32,
+    script: &mut Script,
+) {
+    script.call(&format!("init {kind}"), &format!("init {CARTPOLE_OK}"));
+    script.call("monitor", &format!("monitor {CARTPOLE_OK}"));
+    let observer = rig.observer().unwrap().watching();
+    let sensor = ObserverSensor::<_, O>::new(observer, Latest::default());
+    let assurance = Assurance::for_rig(ENVELOPE, rig).unwrap();
+    let frozen = [(160, FaultFlags::MODEL_ONLY), (160, FaultFlags::FALLBACK)];
+    let mut held = (0, 0);
+    let c = closed_loop(
+        board(policy, sensor, rig).with_monitor(assurance),
+        (rig, &frozen),
+        script,
+        |sensor, s, k| {
+            if !(150..175).contains(&k) {
+                held = counts(rig, s, k);
+            }
+            sensor.counter_mut().0 = held;
+            format!("count {} {}", held.0, held.1)
+        },
+    );
+    let f = c.faults();
+    assert!(f.model_only >= 20 && f.fallbacks >= 1, "{f:?}");
+    epilogue(c, rig, "state 0 0 0 0", script);
 }
 
 /// Compiles the program with `compiler` and runs it with `args`.
@@ -337,14 +381,22 @@ fn refused_calls_return_their_codes_and_write_nothing() {
                 FaultFlags::non_finite(2).0,
                 FaultFlags::out_of_range(3).0
             ),
-            format!("zeroed {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
-            format!("garbage {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!(
+                "monitor-constants {CARTPOLE_ERR_RIG} {CARTPOLE_ERR_ENVELOPE} {} {} {}",
+                FaultFlags::FALLBACK.0,
+                FaultFlags::STOPPED.0,
+                FaultFlags::MODEL_ONLY.0
+            ),
+            format!("zeroed {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!("garbage {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
             format!("kinds {0} {0} {0}", CARTPOLE_ERR_POLICY_KIND),
-            format!("after-bad-kinds {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!("after-bad-kinds {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
             format!("init-null {null}"),
-            format!("null {null} {null} {null} {null} {null} 1"),
+            format!("null {null} {null} {null} {null} {null} {null} 1"),
             format!("init {CARTPOLE_OK}"),
             format!("null-outputs {null} {null} {null} {null} 1"),
+            // A negative bound is refused; a huge one is an envelope the policy never leaves.
+            format!("monitor {CARTPOLE_ERR_ENVELOPE} {CARTPOLE_OK}"),
             format!("ran {CARTPOLE_OK} 0 {CARTPOLE_OK} {us}"),
         ]
         .join("\n")

@@ -2,8 +2,8 @@
  *
  *   controller script FILE   runs FILE's calls, one a line, on one cartpole_controller_t and
  *                            prints what each returned and wrote:
- *                              init KIND | count CART POLE | state X XDOT THETA THETADOT (f32
- *                              bits in hex) | overrun TICKS | counters | period
+ *                              init KIND | monitor | count CART POLE | state X XDOT THETA
+ *                              THETADOT (f32 bits in hex) | overrun TICKS | counters | period
  *   controller refusals KIND prints the layout and the constants, then the calls the library
  *                            must refuse, their codes and whether they wrote anything. */
 #include <stddef.h>
@@ -40,9 +40,12 @@ static void print_step(int rc, const cartpole_command_t *out) {
 static void print_counters(const cartpole_controller_t *c) {
     cartpole_counters_t n;
     int rc = cartpole_controller_counters(c, &n);
-    printf("counters %d %lu %lu %lu %lu %lu\n", rc, (unsigned long)n.steps,
+    printf("counters %d %lu %lu %lu %lu %lu", rc, (unsigned long)n.steps,
            (unsigned long)n.rejected_readings, (unsigned long)n.non_finite,
            (unsigned long)n.out_of_range, (unsigned long)n.overruns);
+    printf(" %lu %lu %lu %lu %lu %lu\n", (unsigned long)n.model_only, (unsigned long)n.fallbacks,
+           (unsigned long)n.recoveries, (unsigned long)n.fallback_periods,
+           (unsigned long)n.non_finite_scores, (unsigned long)n.safe_stops);
 }
 
 /* One line of a script; 0 if it is none of the calls. */
@@ -66,6 +69,8 @@ static int run_line(cartpole_controller_t *c, const char *line) {
         print_step(cartpole_controller_step_state(c, state, &out), &out);
     } else if (sscanf(line, "overrun %lu", &ticks) == 1) {
         printf("overrun %d\n", cartpole_controller_record_overruns(c, (uint32_t)ticks));
+    } else if (strncmp(line, "monitor", 7) == 0) {
+        printf("monitor %d\n", cartpole_controller_monitor(c, NULL, NULL));
     } else if (strncmp(line, "counters", 8) == 0) {
         print_counters(c);
     } else if (strncmp(line, "period", 6) == 0) {
@@ -109,6 +114,9 @@ static void layout(void) {
            CARTPOLE_ERR_UNINITIALISED, CARTPOLE_ERR_POLICY_KIND, CARTPOLE_ERR_INPUT,
            CARTPOLE_POLICY_F32, CARTPOLE_POLICY_INT, CARTPOLE_PUSH_LEFT, CARTPOLE_COAST,
            CARTPOLE_PUSH_RIGHT);
+    printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
+           (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
+           (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);
 }
 
 /* Every call on c and on NULL outputs, then whether the outputs are as they were. */
@@ -117,7 +125,7 @@ static void refused_calls(const char *what, cartpole_controller_t *c) {
     cartpole_command_t out;
     cartpole_counters_t n;
     uint32_t us;
-    int r[5];
+    int r[6];
     memset(&out, UNWRITTEN, sizeof out);
     memset(&n, UNWRITTEN, sizeof n);
     memset(&us, UNWRITTEN, sizeof us);
@@ -126,7 +134,8 @@ static void refused_calls(const char *what, cartpole_controller_t *c) {
     r[2] = cartpole_controller_counters(c, &n);
     r[3] = cartpole_controller_record_overruns(c, 1);
     r[4] = cartpole_controller_period_us(c, &us);
-    printf("%s %d %d %d %d %d %d\n", what, r[0], r[1], r[2], r[3], r[4],
+    r[5] = cartpole_controller_monitor(c, NULL, NULL);
+    printf("%s %d %d %d %d %d %d %d\n", what, r[0], r[1], r[2], r[3], r[4], r[5],
            unwritten(&out, sizeof out) && unwritten(&n, sizeof n) && unwritten(&us, sizeof us));
 }
 
@@ -155,6 +164,13 @@ static void refusals(int kind) {
     r[2] = cartpole_controller_counters(&c, NULL);
     r[3] = cartpole_controller_period_us(&c, NULL);
     printf("null-outputs %d %d %d %d %d\n", r[0], r[1], r[2], r[3], unwritten(&out, sizeof out));
+    {
+        const float negative[4] = {1.0f, -1.0f, 0.1f, 1.0f};
+        const float huge[4] = {1e30f, 1e38f, 1e38f, 1e38f};
+        r[0] = cartpole_controller_monitor(&c, negative, NULL);
+        r[1] = cartpole_controller_monitor(&c, huge, NULL);
+        printf("monitor %d %d\n", r[0], r[1]);
+    }
     memset(&n, 0, sizeof n);
     us = 0;
     r[0] = cartpole_controller_counters(&c, &n);

@@ -63,6 +63,13 @@ impl<O> Input<O> {
         }
     }
 
+    /// Has the observer watch for frozen encoders from the next period
+    /// ([`firmware::estimator::Observer::watching`]).
+    pub(crate) fn watch(&mut self) {
+        let observer = self.encoders.observer_mut();
+        *observer = observer.clone().watching();
+    }
+
     /// Takes this period's input; `false` (and nothing taken) if it is not the kind this
     /// instance has read so far.
     pub(crate) fn hand(&mut self, handed: Handed) -> bool {
@@ -100,5 +107,11 @@ impl<O: Format> StateSensor for Input<O> {
         if self.reads == Reads::Counts {
             self.encoders.commanded(command);
         }
+    }
+
+    /// Only the observer can find its encoders frozen.
+    #[inline]
+    fn model_only(&self) -> bool {
+        self.reads == Reads::Counts && self.encoders.model_only()
     }
 }

@@ -13,6 +13,8 @@
 //! int cartpole_controller_counters(const cartpole_controller_t *c, cartpole_counters_t *out);
 //! int cartpole_controller_record_overruns(cartpole_controller_t *c, uint32_t ticks);
 //! int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *period_us);
+//! int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
+//!                                 const struct cartpole_rig *rig);
 //! ```
 //!
 //! A step is [`Controller::step`](firmware::controller::Controller::step), the period the
@@ -31,7 +33,7 @@
 
 use core::ffi::c_int;
 
-use firmware::controller::{FaultCounters, FaultFlags, Reading};
+use firmware::controller::{Assurance, FaultCounters, FaultFlags, Limits, Reading};
 use firmware::loopback::{Duty, Level};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
@@ -56,8 +58,11 @@ pub const CARTPOLE_ERR_POLICY_KIND: c_int = -3;
 /// Counts handed to an instance that has read states, or the other way round.
 pub const CARTPOLE_ERR_INPUT: c_int = -4;
 /// A `cartpole_rig` with a field no machine has ([`CartpoleRig::to_rig`]), or one whose
-/// observer the firmware refuses (its Kalman gain not finite).
+/// observer the firmware refuses (its Kalman gain not finite); to
+/// `cartpole_controller_monitor`, also a rig other than the instance's.
 pub const CARTPOLE_ERR_RIG: c_int = -5;
+/// An envelope with a bound that is NaN, infinite or negative.
+pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;
@@ -102,6 +107,18 @@ pub struct CartpoleCounters {
     pub out_of_range: u32,
     /// Timer ticks reported by `cartpole_controller_record_overruns`.
     pub overruns: u32,
+    /// Readings from the observer's model alone, its encoders found frozen (monitored).
+    pub model_only: u32,
+    /// Switches from the policy to the monitor's fallback.
+    pub fallbacks: u32,
+    /// Switches back to the policy.
+    pub recoveries: u32,
+    /// Periods the fallback decided.
+    pub fallback_periods: u32,
+    /// Periods whose policy scores were not finite.
+    pub non_finite_scores: u32,
+    /// Times the monitor stopped the controller.
+    pub safe_stops: u32,
 }
 
 /// What C asks of an instance, whichever policy it runs.
@@ -111,6 +128,9 @@ trait Run {
     fn counters(&self) -> CartpoleCounters;
     fn record_overruns(&mut self, ticks: u32);
     fn period_us(&self) -> u32;
+    /// Puts the controller under the monitor of `assurance`, its observer watching for
+    /// frozen encoders; refused if `rig` is not the digest of the instance's rig.
+    fn monitor(&mut self, assurance: Assurance, rig: u64) -> Result<(), c_int>;
 }
 
 impl<K: Kind> Run for Slot<K> {
@@ -148,6 +168,12 @@ impl<K: Kind> Run for Slot<K> {
             non_finite,
             out_of_range,
             overruns,
+            model_only,
+            fallbacks,
+            recoveries,
+            fallback_periods,
+            non_finite_scores,
+            safe_stops,
             ..
         } = self.controller.faults();
         CartpoleCounters {
@@ -156,7 +182,22 @@ impl<K: Kind> Run for Slot<K> {
             non_finite,
             out_of_range,
             overruns,
+            model_only,
+            fallbacks,
+            recoveries,
+            fallback_periods,
+            non_finite_scores,
+            safe_stops,
         }
+    }
+
+    fn monitor(&mut self, assurance: Assurance, rig: u64) -> Result<(), c_int> {
+        if rig != self.rig {
+            return Err(CARTPOLE_ERR_RIG);
+        }
+        self.controller.sensor_mut().watch();
+        self.controller.set_monitor(assurance);
+        Ok(())
     }
 
     fn record_overruns(&mut self, ticks: u32) {
@@ -399,6 +440,43 @@ pub extern "C" fn cartpole_controller_period_us(
         return CARTPOLE_ERR_NULL;
     };
     status(instance(c).map(|r| *out = r.period_us()))
+}
+
+/// Puts `c`'s controller under the runtime monitor from its next period
+/// (`firmware::controller::monitor`): the policy drives inside `envelope` (per-channel
+/// bounds on `|reading|`; NULL: the shipped policy's, `firmware::envelope`), bang-bang LQR
+/// designed for `rig` outside it and after runs of faulty readings, a latched stop beyond
+/// what LQR can recover; the observer watches for frozen encoders. `rig` must be the machine
+/// `c` was initialised for (NULL: the shipped policies'). Solves the LQR gain: call it at
+/// start-up. Refused, writing nothing: an envelope bound NaN, infinite or negative
+/// ([`CARTPOLE_ERR_ENVELOPE`]), a rig no machine has or not the instance's
+/// ([`CARTPOLE_ERR_RIG`]).
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_monitor(
+    c: Option<&mut CartpoleController>,
+    envelope: Option<&[f32; OBS_DIM]>,
+    rig: Option<&CartpoleRig>,
+) -> c_int {
+    let Some(c) = c else {
+        return CARTPOLE_ERR_NULL;
+    };
+    let envelope = match envelope.map(|e| Limits::new(*e)) {
+        None => firmware::envelope::ENVELOPE,
+        Some(Ok(e)) => e,
+        Some(Err(_)) => return CARTPOLE_ERR_ENVELOPE,
+    };
+    let rig = match rig.map(CartpoleRig::to_rig) {
+        None => firmware::policy::RIG,
+        Some(Some(rig)) => rig,
+        Some(None) => return CARTPOLE_ERR_RIG,
+    };
+    let Ok(assurance) = Assurance::for_rig(envelope, &rig) else {
+        return CARTPOLE_ERR_RIG;
+    };
+    let digest = firmware::link::digest::rig(&rig);
+    status(instance_mut(c).and_then(|r| r.monitor(assurance, digest)))
 }
 
 #[cfg(test)]

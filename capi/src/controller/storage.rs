@@ -82,6 +82,9 @@ pub(crate) struct Slot<K: Kind> {
     magic: u32,
     /// The rig's control period, rounded to microseconds.
     pub(crate) period_us: u32,
+    /// The rig's digest ([`firmware::link::digest::rig`]): the monitor's fallback must be
+    /// designed for the machine the controller was built for.
+    pub(crate) rig: u64,
     pub(crate) controller: Running<K>,
 }
 
@@ -113,6 +116,7 @@ impl<K: Kind> Slot<K> {
             magic: K::MAGIC,
             // `as` saturates: a nonsense period reads as 0 or the largest, never wraps.
             period_us: (rig.params.tau * 1e6 + 0.5) as u32,
+            rig: firmware::link::digest::rig(rig),
             controller,
         })
     }

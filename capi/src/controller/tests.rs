@@ -195,3 +195,56 @@ fn a_refused_init_leaves_the_instance_running_as_it_was() {
     );
     assert_eq!(steps(&mut c, 1).step, 3);
 }
+
+/// The monitor's fallback must be designed for the instance's machine: another rig is
+/// refused, and so is a rig no machine has; a refused call leaves the instance unmonitored.
+#[test]
+fn the_monitor_takes_only_the_instances_rig() {
+    let mut c = CartpoleController::filled(0);
+    let slow = delayed(2);
+    let w = &POLICY;
+    let given = crate::CartpoleRig::from(&slow);
+    assert_eq!(
+        cartpole_controller_init_mlp64(Some(&mut c), Some(w), Some(&given)),
+        CARTPOLE_OK
+    );
+    // NULL is the shipped rig, which has no dead time: not this instance's.
+    assert_eq!(
+        cartpole_controller_monitor(Some(&mut c), None, None),
+        CARTPOLE_ERR_RIG
+    );
+    let mut bad = given;
+    bad.params.length = -1.0;
+    assert_eq!(
+        cartpole_controller_monitor(Some(&mut c), None, Some(&bad)),
+        CARTPOLE_ERR_RIG
+    );
+    let nan = [1.0, f32::NAN, 0.1, 1.0];
+    assert_eq!(
+        cartpole_controller_monitor(Some(&mut c), Some(&nan), Some(&given)),
+        CARTPOLE_ERR_ENVELOPE
+    );
+    assert_eq!(
+        cartpole_controller_monitor(None, None, None),
+        CARTPOLE_ERR_NULL
+    );
+    // A tiny envelope: once monitored, the fallback decides every period.
+    let tiny = [1e-6; 4];
+    steps(&mut c, 2);
+    assert_eq!(
+        steps(&mut c, 1).faults & u32::from(FaultFlags::FALLBACK.0),
+        0
+    );
+    assert_eq!(
+        cartpole_controller_monitor(Some(&mut c), Some(&tiny), Some(&given)),
+        CARTPOLE_OK
+    );
+    let out = steps(&mut c, 1);
+    assert_ne!(out.faults & u32::from(FaultFlags::FALLBACK.0), 0, "{out:?}");
+    let mut n = CartpoleCounters::default();
+    assert_eq!(
+        cartpole_controller_counters(Some(&c), Some(&mut n)),
+        CARTPOLE_OK
+    );
+    assert_eq!((n.fallbacks, n.fallback_periods, n.steps), (1, 1, 4));
+}

@@ -273,8 +273,14 @@ where
     /// inside `assurance`'s envelope, the LQR fallback elsewhere, and the motor stops where
     /// even the fallback cannot recover.
     pub fn with_monitor(mut self, assurance: Assurance) -> Self {
-        self.monitor = Some(Monitor::new(assurance));
+        self.set_monitor(assurance);
         self
+    }
+
+    /// [`Controller::with_monitor`] on a controller in place (one C owns), from its next
+    /// period; a monitor it had is replaced, its mode with it.
+    pub fn set_monitor(&mut self, assurance: Assurance) {
+        self.monitor = Some(Monitor::new(assurance));
     }
 
     /// One control period: read, sanitise, decide, actuate, record, tell the sensor.

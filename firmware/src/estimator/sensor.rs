@@ -45,6 +45,12 @@ impl<C: Counter, O> ObserverSensor<C, O> {
         &self.observer
     }
 
+    /// The observer, to change it in place (to watch for frozen encoders,
+    /// [`Observer::watching`]).
+    pub fn observer_mut(&mut self) -> &mut Observer {
+        &mut self.observer
+    }
+
     /// The counter, to hand it the next period's counts where the caller owns them.
     pub fn counter_mut(&mut self) -> &mut C {
         &mut self.counter
