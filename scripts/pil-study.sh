@@ -7,7 +7,8 @@
 # FPU (soft float, some 700,000 instructions a period) gets 100.
 # And the C application (scripts/c-app.sh) on the Cortex-M4F, 200 episodes a row (100,000
 # periods a format). Writes docs/results/pil-TARGET-FORMAT.json and pil-c-app-FORMAT.json,
-# and prints each run's wall time.
+# and, on the Cortex-M0, pil-thumbv6m-none-eabi-monitor.json (the integer pipeline with and
+# without the runtime monitor, through faults), and prints each run's wall time.
 #   scripts/pil-study.sh [TARGET... | c-app]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -26,6 +27,15 @@ run() { # NAME FORMAT EPISODES --pil... : one results file
     >"docs/results/pil-$name-$format.json"
   echo "$name $format: $((SECONDS - start)) s"
 }
+monitor() { # the runtime monitor on the Cortex-M0's integer pipeline, through faults
+  local start=$SECONDS
+  echo "== thumbv6m-none-eabi: policy-int with and without the runtime monitor"
+  target/release/host-sim eval --pil qemu:thumbv6m-none-eabi \
+    --controller policy-int,monitored-int --horizon 1000 --episodes 200 --json \
+    --scenario encoder,encoder+stuck=25/500,noise+delay+encoder+glitch+stuck+drop+late+weak=0.5+reset \
+    >docs/results/pil-thumbv6m-none-eabi-monitor.json
+  echo "monitor: $((SECONDS - start)) s"
+}
 for t in $targets; do
   if [ "$t" = c-app ]; then
     elf=$(scripts/c-app.sh | tail -1)
@@ -40,4 +50,5 @@ for t in $targets; do
     [ "$format" = f32 ] && [[ $t != *eabihf ]] && episodes=100
     run "$t" "$format" "$episodes" --pil "qemu:$t"
   done
+  if [ "$t" = thumbv6m-none-eabi ]; then monitor; fi
 done

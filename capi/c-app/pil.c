@@ -222,7 +222,8 @@ static int info(struct writer *w, const uint8_t *body, uint16_t seq)
  * again. */
 static int start(struct writer *w, const uint8_t *body, uint16_t seq)
 {
-    int sensing = body[0], predict = body[1], dead_time = body[2];
+    int sensing = body[0], predict = body[1] & 1, monitor = body[1] & 2, dead_time = body[2];
+    struct cartpole_rig rig = shipped_rig;
     if (!t.hello) {
         return refuse(w, R_NOT_STARTED);
     }
@@ -230,9 +231,8 @@ static int start(struct writer *w, const uint8_t *body, uint16_t seq)
     if (sensing == 2 || (dead_time > 0 && !predict)) {
         return refuse(w, R_UNSUPPORTED);
     }
+    rig.dead_time = (uint32_t)dead_time;
     if (dead_time != t.fresh_dead_time) {
-        struct cartpole_rig rig = shipped_rig;
-        rig.dead_time = (uint32_t)dead_time;
         int ok = t.format ? cartpole_controller_init_qmlp64(&t.fresh, &shipped_int, &rig)
                           : cartpole_controller_init_mlp64(&t.fresh, &shipped, &rig);
         if (ok != CARTPOLE_OK) {
@@ -241,6 +241,10 @@ static int start(struct writer *w, const uint8_t *body, uint16_t seq)
         t.fresh_dead_time = dead_time;
     }
     t.running = t.fresh;
+    /* Solved on every monitored Start: an instance of the C API keeps no gain for another. */
+    if (monitor && cartpole_controller_monitor(&t.running, NULL, &rig) != CARTPOLE_OK) {
+        return refuse(w, R_UNSUPPORTED);
+    }
     t.started = 1;
     t.counts = sensing == 1;
     return STARTED;
@@ -286,13 +290,13 @@ static int body_len(int kind)
 }
 
 /* Whether a body's fields are in their ranges (a target's kinds too, which are refused as
- * kinds once read): a format, a sensing, a flag, a discount only with the filter, a
+ * kinds once read): a format, a sensing, the options, a discount only with the filter, a
  * command, a scores' type, a reason. */
 static int fields_valid(int kind, const uint8_t *body)
 {
     switch (kind) {
     case HELLO: return body[0] <= 1;
-    case START: return body[0] <= 2 && body[1] <= 1 && (body[0] == 2 || u32_at(body + 3) == 0);
+    case START: return body[0] <= 2 && body[1] <= 3 && (body[0] == 2 || u32_at(body + 3) == 0);
     case INFO: return body[0] <= 1;
     case REPLY: return (body[0] <= 1 || body[0] == 0xFF) && body[9] <= 1;
     case REFUSED: return body[0] >= R_VERSION && body[0] <= R_UNSUPPORTED;

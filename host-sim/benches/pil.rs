@@ -35,7 +35,7 @@ fn rate(place: &Place, format: Format) -> Option<f64> {
         let (_, check) = run_row(
             &mut remote,
             &mut here,
-            &info,
+            (&info, false),
             &scenario,
             500,
             0,

@@ -130,7 +130,7 @@ impl Subject {
     /// one runs it, and the envelope of --envelope. Refused: the monitored controller for a
     /// --policy without an --envelope measured for it.
     fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
-        let monitored = kinds.contains(&ControllerKind::Monitored);
+        let monitored = kinds.iter().any(|k| k.monitored());
         if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
             anyhow::bail!(
                 "--controller monitored needs the envelope measured for --policy {}: give \
@@ -143,7 +143,7 @@ impl Subject {
             .as_deref()
             .map(host_sim::envelope::read)
             .transpose()?;
-        let int = kinds.contains(&ControllerKind::PolicyInt);
+        let int = kinds.iter().any(|k| k.int());
         let policy = kinds.iter().any(|k| k.runs_policy());
         let (machine, net) = self.load(int, policy)?;
         let net = match envelope {

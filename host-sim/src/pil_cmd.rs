@@ -44,7 +44,7 @@ pub struct PilArgs {
 
 impl PilArgs {
     /// Where the controller runs, checked with the rest of `eval`'s input before any work:
-    /// the target runs the policy compiled into it, so no `--policy`, and only policy rows.
+    /// the target runs the policy compiled into it, so no `--policy`, and only its rows.
     pub fn place(&self, policy: bool, controllers: &[ControllerKind]) -> Result<Option<Place>> {
         let Some(spec) = &self.pil else {
             return Ok(None);
@@ -55,11 +55,11 @@ impl PilArgs {
                  (export yours into firmware/src and rebuild the pil application)"
             );
         }
-        if let Some(c) = controllers
-            .iter()
-            .find(|c| !matches!(c, ControllerKind::Policy | ControllerKind::PolicyInt))
-        {
-            bail!("--pil runs the controllers policy and policy-int, found --controller {c}");
+        if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
+            bail!(
+                "--pil runs the controllers policy, policy-int, monitored and monitored-int, \
+                 found --controller {c}"
+            );
         }
         if !(self.pil_timeout > 0.0 && self.pil_timeout <= MAX_TIMEOUT_S) {
             bail!(
@@ -95,16 +95,13 @@ pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)
     );
     let (mut rows, mut checks) = (Vec::new(), Vec::new());
     for &(h, s, c) in jobs {
-        let format = match c {
-            ControllerKind::PolicyInt => Format::Int8,
-            _ => Format::F32,
-        };
+        let format = if c.int() { Format::Int8 } else { Format::F32 };
         let info = handshake(&mut target, &mut reference, format, &scenarios)?;
         bar.set_message(format!("{c} on {} at {h}", s.name));
         let (eps, check) = run_row(
             &mut target,
             &mut reference,
-            &info,
+            (&info, c.monitored()),
             s,
             h,
             a.seed,

@@ -3,7 +3,8 @@
 //! same target code's run here, period by period, in both formats, with encoders, faults
 //! and dead time; the application built for the host must give `eval`'s rows; and so must
 //! a board on the far end of a serial port (a pseudo-terminal pair). The C application
-//! (`capi/c-app`) on the Cortex-M4F must answer as the Rust one.
+//! (`capi/c-app`) on the Cortex-M4F must answer as the Rust one. Under the runtime monitor
+//! too, through a frozen encoder.
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
@@ -11,11 +12,11 @@ use std::process::Command;
 use std::time::Duration;
 
 use e2e::{build_app, mcu_targets, repo, runners};
-use firmware::link::Format;
+use firmware::link::{Format, Info};
 use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{self, ControllerKind, Net, Row};
-use host_sim::pil::link::{Local, Session};
+use host_sim::pil::link::{Local, Remote, Session};
 use host_sim::pil::{MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
 use twin::Scenario;
@@ -69,7 +70,7 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
             let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
             for s in &scenarios {
                 let (eps, check) =
-                    run_row(&mut remote, &mut here, &info, s, 200, 0, 2, || ()).unwrap();
+                    run_row(&mut remote, &mut here, (&info, false), s, 200, 0, 2, || ()).unwrap();
                 let what = format!("{target} {format:?} {}", s.name);
                 assert_eq!(eps.len(), 2, "{what}");
                 assert!(check.periods >= 200, "{what}: {check:?}");
@@ -87,8 +88,31 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
                     assert!(5 * worst < u64::from(info.period_ns), "{what}: {check:?}");
                 }
             }
+            monitored_row(
+                &mut remote,
+                &mut here,
+                &info,
+                &format!("{target} {format:?}"),
+            );
         }
     }
+}
+
+/// Under the runtime monitor, with the encoders frozen for a quarter of every 2 s: the
+/// target's monitor answers as the one here, and its fallback took over.
+fn monitored_row(
+    remote: &mut Session<impl Remote>,
+    here: &mut Session<Local<64>>,
+    info: &Info,
+    what: &str,
+) {
+    let frozen = Scenario::parse("encoder+stuck=25/100").unwrap();
+    let (eps, check) = run_row(remote, here, (info, true), &frozen, 200, 0, 2, || ()).unwrap();
+    assert_eq!(check.mismatches, 0, "{what} monitored: {check:?}");
+    assert!(
+        eps.iter().all(|e| e.fallback > 0),
+        "{what} monitored: {eps:?}"
+    );
 }
 
 fn skip_qemu() -> bool {
@@ -124,10 +148,12 @@ fn the_c_application_answers_as_the_rust_one() {
     for format in [Format::F32, Format::Int8] {
         let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
         for s in &scenarios {
-            let (_, check) = run_row(&mut remote, &mut here, &info, s, 300, 0, 3, || ()).unwrap();
+            let (_, check) =
+                run_row(&mut remote, &mut here, (&info, false), s, 300, 0, 3, || ()).unwrap();
             assert_eq!(check.mismatches, 0, "{format:?} {}: {check:?}", s.name);
             assert_eq!(check.overruns, 0, "{format:?} {}: {check:?}", s.name);
         }
+        monitored_row(&mut remote, &mut here, &info, &format!("C {format:?}"));
     }
     std::fs::remove_dir_all(&out).unwrap();
 }
@@ -144,17 +170,20 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
     for (format, kind) in [
         (Format::F32, ControllerKind::Policy),
         (Format::Int8, ControllerKind::PolicyInt),
+        (Format::F32, ControllerKind::Monitored),
+        (Format::Int8, ControllerKind::MonitoredInt),
     ] {
         let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
         for s in &scenarios {
-            let (eps, check) = run_row(&mut remote, &mut here, &info, s, 400, 3, 8, || ()).unwrap();
+            let run = (&info, kind.monitored());
+            let (eps, check) = run_row(&mut remote, &mut here, run, s, 400, 3, 8, || ()).unwrap();
             assert_eq!(check.mismatches, 0, "{}: {check:?}", s.name);
             let pil = Row::from_episodes(&kind.to_string(), &s.name, (400, s.params.tau), 3, &eps);
             let here = eval::evaluate(kind, &net, s, 400, 3, 8);
             // `eval`'s integer rows run the network behind a float reading; the board rounds
             // the reading to Q3.12 first, and with dead time predicts from the rounded one
             // (docs/PIL.md): the same commands only without dead time.
-            if kind == ControllerKind::Policy || s.delay() == 0 {
+            if !kind.int() || s.delay() == 0 {
                 assert_eq!(pil, here, "{kind} {}", s.name);
             }
         }
@@ -198,7 +227,8 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
         std::slice::from_ref(&s),
     )
     .unwrap();
-    let (eps, check) = run_row(&mut remote, &mut here, &info, &s, 300, 1, 4, || ()).unwrap();
+    let (eps, check) =
+        run_row(&mut remote, &mut here, (&info, false), &s, 300, 1, 4, || ()).unwrap();
     assert_eq!(check.mismatches, 0, "{check:?}");
     let kind = ControllerKind::Policy;
     let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 1, &eps);

@@ -99,6 +99,10 @@ pub struct Start {
     pub sensing: Sensing,
     /// Whether the controller runs its rig's dead-time predictor.
     pub predict: bool,
+    /// Whether the controller runs under the runtime monitor
+    /// ([`crate::controller::monitor`]) with the shipped policy's envelope
+    /// ([`crate::envelope::ENVELOPE`]), its observer watching for frozen encoders.
+    pub monitor: bool,
     /// The periods of dead time the observer and predictor assume, in place of the rig's.
     pub dead_time: u8,
 }
@@ -250,7 +254,8 @@ impl Message {
                     Sensing::Observer => (1, 0.0),
                     Sensing::AlphaBeta(d) => (2, d),
                 };
-                w.put(&[code, s.predict as u8, s.dead_time]);
+                let options = u8::from(s.predict) | u8::from(s.monitor) << 1;
+                w.put(&[code, options, s.dead_time]);
                 w.put(&f32::to_le_bytes(discount));
             }
             Message::State(v) => v.iter().for_each(|x| w.put(&x.to_le_bytes())),
@@ -309,7 +314,10 @@ impl Message {
 }
 
 fn decode_start(r: &mut Reader<'_>) -> Option<Start> {
-    let (code, predict, dead_time) = (r.u8()?, flag(r.u8()?)?, r.u8()?);
+    let (code, options, dead_time) = (r.u8()?, r.u8()?, r.u8()?);
+    if options > 0b11 {
+        return None;
+    }
     let discount = r.f32()?;
     let sensing = match (code, discount.to_bits()) {
         (0, 0) => Sensing::Exact,
@@ -319,7 +327,8 @@ fn decode_start(r: &mut Reader<'_>) -> Option<Start> {
     };
     Some(Start {
         sensing,
-        predict,
+        predict: options & 1 != 0,
+        monitor: options & 0b10 != 0,
         dead_time,
     })
 }
@@ -354,14 +363,6 @@ fn command_byte(c: Command) -> i8 {
         Command::Push(Action::Left) => -1,
         Command::Push(Action::Right) => 1,
         Command::Coast => 0,
-    }
-}
-
-fn flag(b: u8) -> Option<bool> {
-    match b {
-        0 => Some(false),
-        1 => Some(true),
-        _ => None,
     }
 }
 

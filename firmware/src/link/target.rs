@@ -5,7 +5,8 @@
 //! same code.
 
 use crate::config::ConfigError;
-use crate::controller::{Controller, FaultFlags, Limits, Predictor, StateSensor};
+use crate::controller::{Assurance, Controller, FaultFlags, Limits, Predictor, StateSensor};
+use crate::envelope::ENVELOPE;
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
 use crate::network::Mlp;
@@ -33,6 +34,9 @@ pub struct Target<'p, const H: usize> {
     /// The last observer built, and the dead time it was built for: a Start with the same
     /// dead time copies it rather than solving its gain again.
     observer: Option<(u8, Observer)>,
+    /// The runtime monitor's configuration, once a Start asked for it: its LQR gain is
+    /// solved once (it depends on the rig's plant, not on the dead time a Start sets).
+    assurance: Option<Assurance>,
 }
 
 /// `rig`'s control period in whole nanoseconds, as `Info` carries it.
@@ -67,6 +71,7 @@ impl<'p, const H: usize> Target<'p, H> {
             format: Format::F32,
             running: Running::Idle,
             observer: None,
+            assurance: None,
         }
     }
 
@@ -129,7 +134,7 @@ impl<'p, const H: usize> Target<'p, H> {
     }
 
     /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
-    /// (if asked) predictor.
+    /// (if asked) predictor and runtime monitor, with the shipped policy's envelope.
     fn start(&mut self, start: Start) -> Result<Running<'p, H>, ConfigError> {
         let rig = Rig {
             dead_time: u32::from(start.dead_time),
@@ -141,27 +146,34 @@ impl<'p, const H: usize> Target<'p, H> {
             true => Some(rig.predictor()?),
             false => None,
         };
-        let cache = &mut self.observer;
-        let observer = || match cache {
-            Some((d, o)) if *d == start.dead_time => Ok(o.clone()),
-            _ => {
-                let o = rig.observer()?;
-                *cache = Some((start.dead_time, o.clone()));
-                Ok(o)
-            }
+        let monitor = match (start.monitor, self.assurance) {
+            (false, _) => None,
+            (true, Some(a)) => Some(a),
+            (true, None) => Some(*self.assurance.insert(Assurance::for_rig(ENVELOPE, &rig)?)),
         };
+        let cache = &mut self.observer;
+        let observer = || {
+            let o = match cache {
+                Some((d, o)) if *d == start.dead_time => o.clone(),
+                _ => {
+                    let o = rig.observer()?;
+                    *cache = Some((start.dead_time, o.clone()));
+                    o
+                }
+            };
+            Ok(if start.monitor { o.watching() } else { o })
+        };
+        let aids = (limits, predictor, monitor);
         Ok(match self.format {
             Format::F32 => Running::F32(controller(
                 self.policy,
                 LinkSensor::new(start.sensing, &rig, observer)?,
-                limits,
-                predictor,
+                aids,
             )),
             Format::Int8 => Running::Int8(controller(
                 self.policy_int,
                 LinkSensor::new(start.sensing, &rig, observer)?,
-                limits,
-                predictor,
+                aids,
             )),
         })
     }
@@ -185,20 +197,24 @@ impl<'p, const H: usize> Target<'p, H> {
     }
 }
 
+/// A controller of `policy` on `sensor` with its limits, and its predictor and monitor if
+/// the episode runs them.
 fn controller<P, O: Estimate>(
     policy: P,
     sensor: LinkSensor<O>,
-    limits: Limits,
-    predictor: Option<Predictor>,
+    (limits, predictor, monitor): (Limits, Option<Predictor>, Option<Assurance>),
 ) -> Controller<P, LinkSensor<O>, Pins, 1>
 where
     P: crate::controller::Policy<O>,
 {
-    let c = Controller::with_history(policy, sensor, pins(), limits);
-    match predictor {
-        Some(p) => c.with_predictor(p),
-        None => c,
+    let mut c = Controller::with_history(policy, sensor, pins(), limits);
+    if let Some(p) = predictor {
+        c = c.with_predictor(p);
     }
+    if let Some(a) = monitor {
+        c.set_monitor(a);
+    }
+    c
 }
 
 fn step<P, O: Estimate>(

@@ -146,16 +146,19 @@ fn every_kind() -> Vec<Packet> {
         Message::Start(Start {
             sensing: Sensing::Observer,
             predict: true,
+            monitor: true,
             dead_time: u8::MAX,
         }),
         Message::Start(Start {
             sensing: Sensing::Exact,
             predict: false,
+            monitor: false,
             dead_time: 0,
         }),
         Message::Start(Start {
             sensing: Sensing::AlphaBeta(0.5),
             predict: false,
+            monitor: false,
             dead_time: 2,
         }),
         Message::Missed,
@@ -250,11 +253,12 @@ fn malformed_payloads_are_refused_for_what_they_are() {
     };
     assert_eq!(frame_of(&[1, 0x01, 0, 0, 0]), [Err(Reason::Version)]);
     assert_eq!(frame_of(&[2, 0x06, 0, 0]), [Err(Reason::Kind)]);
-    // A format, a sensing, a flag out of range; a discount where no filter runs.
+    // A format, a sensing, an option bit the protocol has not; a discount where no filter
+    // runs.
     assert_eq!(frame_of(&[2, 0x01, 0, 0, 2]), [Err(Reason::Length)]);
     let start = |b: [u8; 7]| frame_of(&[&[2, 0x02, 0, 0][..], &b].concat());
     assert_eq!(start([3, 0, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
-    assert_eq!(start([1, 2, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
+    assert_eq!(start([1, 4, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
     assert_eq!(start([1, 0, 0, 0, 0, 0, 0x3F]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[2, 0x02, 0, 0, 1, 0]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[2, 0xFF, 0, 0, 0]), [Err(Reason::Length)]);
@@ -342,6 +346,7 @@ fn a_session_acts_on_readings_in_sequence_of_its_mode_and_refuses_the_rest() {
     let start = Start {
         sensing: Sensing::Observer,
         predict: true,
+        monitor: false,
         dead_time: 1,
     };
     assert_eq!(

@@ -38,6 +38,8 @@ pub enum ControllerKind {
     /// The Q-network under the runtime monitor: LQR outside its envelope, a safe stop
     /// where even LQR cannot recover, frozen encoders watched for.
     Monitored,
+    /// Its integer version under the same monitor.
+    MonitoredInt,
     /// Bang-bang discrete LQR, Q = I, R = 1, gain for the nominal plant.
     Lqr,
     /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
@@ -51,9 +53,22 @@ pub enum ControllerKind {
 impl ControllerKind {
     /// Whether the Q-network drives (in any form).
     pub fn runs_policy(self) -> bool {
+        self.int() || matches!(self, ControllerKind::Policy | ControllerKind::Monitored)
+    }
+
+    /// Whether the integer network drives.
+    pub fn int(self) -> bool {
         matches!(
             self,
-            ControllerKind::Policy | ControllerKind::PolicyInt | ControllerKind::Monitored
+            ControllerKind::PolicyInt | ControllerKind::MonitoredInt
+        )
+    }
+
+    /// Whether the runtime monitor decides who drives.
+    pub fn monitored(self) -> bool {
+        matches!(
+            self,
+            ControllerKind::Monitored | ControllerKind::MonitoredInt
         )
     }
 }
@@ -64,6 +79,7 @@ impl fmt::Display for ControllerKind {
             ControllerKind::Policy => "policy",
             ControllerKind::PolicyInt => "policy-int",
             ControllerKind::Monitored => "monitored",
+            ControllerKind::MonitoredInt => "monitored-int",
             ControllerKind::Lqr => "lqr",
             ControllerKind::LqrPredict => "lqr-predict",
             ControllerKind::Rule => "rule",
@@ -89,9 +105,9 @@ pub fn episode(
         ControllerKind::Monitored => {
             run_episode(net, s, h, seed, episode, monitored(net), on_frame)
         }
-        ControllerKind::PolicyInt => {
-            let int = IntNet::of(net).expect("the caller built the net with its integer version");
-            run_episode(int, s, h, seed, episode, true, on_frame)
+        ControllerKind::PolicyInt => run_episode(int(net), s, h, seed, episode, true, on_frame),
+        ControllerKind::MonitoredInt => {
+            run_episode(int(net), s, h, seed, episode, monitored(net), on_frame)
         }
         ControllerKind::Lqr => run_episode(Lqr::of(&s.rig), s, h, seed, episode, false, on_frame),
         ControllerKind::LqrPredict => {
@@ -123,10 +139,8 @@ pub fn episodes(
     match kind {
         ControllerKind::Policy => run_episodes(|_| net, s, h, seed, e, true),
         ControllerKind::Monitored => run_episodes(|_| net, s, h, seed, e, monitored(net)),
-        ControllerKind::PolicyInt => {
-            let int = IntNet::of(net).expect("the caller built the net with its integer version");
-            run_episodes(|_| int, s, h, seed, e, true)
-        }
+        ControllerKind::PolicyInt => run_episodes(|_| int(net), s, h, seed, e, true),
+        ControllerKind::MonitoredInt => run_episodes(|_| int(net), s, h, seed, e, monitored(net)),
         ControllerKind::Lqr => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, false),
         ControllerKind::LqrPredict => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, true),
         ControllerKind::Rule => run_episodes(|_| AngleRule, s, h, seed, e, false),
@@ -139,6 +153,11 @@ pub fn episodes(
             false,
         ),
     }
+}
+
+/// The integer version of `net`.
+fn int(net: &Net) -> IntNet<'_> {
+    IntNet::of(net).expect("the caller built the net with its integer version")
 }
 
 /// What a monitored policy's board knows: its dead time and its envelope.

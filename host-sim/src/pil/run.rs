@@ -100,13 +100,14 @@ pub fn handshake(
 }
 
 /// Episodes `0..episodes` of `seed` under `scenario`, `horizon` periods at most, with the
-/// target's commands moving the world; each period compared with `reference`'s answer and
-/// timed on `info`'s clock. `progress` sees every finished episode.
+/// target's commands moving the world (under its runtime monitor with `monitor`); each
+/// period compared with `reference`'s answer and timed on `info`'s clock. `progress` sees
+/// every finished episode.
 #[allow(clippy::too_many_arguments)]
 pub fn run_row(
     target: &mut Session<impl Remote>,
     reference: &mut Session<impl Remote>,
-    info: &Info,
+    (info, monitor): (&Info, bool),
     scenario: &Scenario,
     horizon: u32,
     seed: u64,
@@ -117,6 +118,7 @@ pub fn run_row(
         sensing: scenario.sensing,
         // As `eval`'s policy rows: the board is told its dead time.
         predict: true,
+        monitor,
         dead_time: scenario.delay() as u8,
     };
     let mut check = Check::default();

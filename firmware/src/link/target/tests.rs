@@ -31,13 +31,14 @@ fn reply(m: Message) -> Reply {
 }
 
 /// A closed loop of the plant and a controller built as a board builds it (the rig's
-/// observer on the counts, its predictor for `dead_time` periods, its limits); beside it
-/// the target, handed the same counts as frames. Their commands, period by period.
+/// observer on the counts, its predictor for `dead_time` periods, its limits, and with
+/// `monitor` the runtime monitor, the encoders frozen for half a second); beside it the
+/// target, handed the same counts as frames. Their commands and faults, period by period.
 fn both<O: Estimate, P: crate::controller::Policy<O>>(
     policy: P,
     format: Format,
-    dead_time: u8,
-) -> Vec<(Command, Command)> {
+    (dead_time, monitor): (u8, bool),
+) -> Vec<((Command, u16), (Command, u16))> {
     let rig = Rig {
         dead_time: dead_time.into(),
         ..RIG
@@ -45,9 +46,18 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
     let mut plant = CartPole::new(rig.params, 300);
     plant.reset_to(State::from_array([0.03, 0.0, -0.04, 0.02]));
     let counts = |s: State| rig.encoders.counts(s.x, s.theta);
-    let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
+    let observer = rig.observer().unwrap();
+    let observer = if monitor {
+        observer.watching()
+    } else {
+        observer
+    };
+    let sensor = ObserverSensor::<_, O>::new(observer, Latest::default());
     let mut board = Controller::new(policy, sensor, pins(), rig.limits().unwrap())
         .with_predictor(rig.predictor().unwrap());
+    if monitor {
+        board.set_monitor(Assurance::for_rig(ENVELOPE, &rig).unwrap());
+    }
     let mut t = target();
     assert!(matches!(
         send(&mut t, 0, Message::Hello(format)),
@@ -56,17 +66,22 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
     let start = Start {
         sensing: Sensing::Observer,
         predict: true,
+        monitor,
         dead_time,
     };
     assert_eq!(send(&mut t, 1, Message::Start(start)), Message::Started);
     let mut out = Vec::new();
-    for seq in 2.. {
-        let (cart, pole) = counts(plant.state());
+    let mut held = (0, 0);
+    for seq in 2u16.. {
+        if !(monitor && (100..125).contains(&seq)) {
+            held = counts(plant.state());
+        }
+        let (cart, pole) = held;
         board.sensor_mut().counter_mut().0 = (cart, pole);
-        let want = board.step();
+        let want = (board.step(), board.last().unwrap().faults.0);
         let got = reply(send(&mut t, seq, Message::Counts { cart, pole }));
         assert_eq!(got.ticks, 7);
-        out.push((got.command, want));
+        out.push(((got.command, got.faults.0), want));
         let step = plant.advance(duty(board.actuator()), 0.0);
         if step.terminated || step.truncated {
             return out;
@@ -77,14 +92,18 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
 
 #[test]
 fn the_target_commands_what_a_board_built_from_its_rig_commands() {
-    for dead_time in [0, 2] {
-        let f32s = both::<[f32; 4], _>(&POLICY, Format::F32, dead_time);
-        let ints = both::<[i16; 4], _>(&POLICY_INT, Format::Int8, dead_time);
+    for aids in [(0, false), (2, false), (0, true)] {
+        let f32s = both::<[f32; 4], _>(&POLICY, Format::F32, aids);
+        let ints = both::<[i16; 4], _>(&POLICY_INT, Format::Int8, aids);
         for run in [f32s, ints] {
             assert_eq!(run.len(), 300, "the board balanced for the whole run");
             for (k, (got, want)) in run.iter().enumerate() {
-                assert_eq!(got, want, "period {k}, dead time {dead_time}");
+                assert_eq!(got, want, "period {k}, dead time and monitor {aids:?}");
             }
+            // Monitored, the frozen encoder was seen and the fallback took over.
+            let flagged = |f: FaultFlags| run.iter().any(|(got, _)| got.1 & f.0 != 0);
+            assert_eq!(flagged(FaultFlags::MODEL_ONLY), aids.1);
+            assert_eq!(flagged(FaultFlags::FALLBACK), aids.1);
         }
     }
 }
@@ -112,6 +131,7 @@ fn a_refusal_stops_the_motor_until_the_next_start() {
     let exact = Start {
         sensing: Sensing::Exact,
         predict: false,
+        monitor: false,
         dead_time: 0,
     };
     let state = Message::State([0.0, 0.0, 0.01, 0.0]);
