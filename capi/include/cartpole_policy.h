@@ -281,8 +281,10 @@ typedef struct cartpole_command {
 typedef struct cartpole_counters {
     uint32_t steps;             /* periods run */
     uint32_t rejected_readings; /* periods that coasted on a rejected reading */
+    uint32_t sensor_errors;     /* readings the sensor failed to give */
     uint32_t non_finite;        /* channels read as NaN or infinite */
     uint32_t out_of_range;      /* channels read beyond the rig's limits */
+    uint32_t actuator_errors;   /* periods whose pin or duty write failed */
     uint32_t overruns;          /* ticks reported by cartpole_controller_record_overruns */
     uint32_t model_only;        /* readings from the model alone, encoders frozen (monitored) */
     uint32_t fallbacks;         /* switches from the policy to the LQR fallback */

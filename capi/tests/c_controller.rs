@@ -14,7 +14,7 @@ mod steps;
 
 use std::collections::HashSet;
 use std::fmt::Write as _;
-use std::mem::{align_of, size_of};
+use std::mem::{align_of, offset_of, size_of};
 use std::path::PathBuf;
 
 use cartpole_policy::{
@@ -207,11 +207,13 @@ fn epilogue<P: Policy<S::Reading>, S: StateSensor>(
     script.call("overrun 3", &format!("overrun {CARTPOLE_OK}"));
     let f = c.faults();
     let counters = format!(
-        "counters {CARTPOLE_OK} {} {} {} {} {} {} {} {} {} {} {}",
+        "counters {CARTPOLE_OK} {} {} {} {} {} {} {} {} {} {} {} {} {}",
         c.steps(),
         f.rejected_readings,
+        f.sensor_errors,
         f.non_finite,
         f.out_of_range,
+        f.actuator_errors,
         f.overruns,
         f.model_only,
         f.fallbacks,
@@ -357,6 +359,27 @@ fn a_c_program_runs_the_firmware_controller_period_for_period() {
     std::fs::remove_file(&path).unwrap();
 }
 
+/// Where C's flat `cartpole_counters_t` has each field: where Rust's has it, the controller's
+/// `FaultCounters` nested after the period count.
+fn counters_offsets() -> String {
+    let offsets = [
+        offset_of!(CartpoleCounters, faults.rejected_readings),
+        offset_of!(CartpoleCounters, faults.sensor_errors),
+        offset_of!(CartpoleCounters, faults.non_finite),
+        offset_of!(CartpoleCounters, faults.out_of_range),
+        offset_of!(CartpoleCounters, faults.actuator_errors),
+        offset_of!(CartpoleCounters, faults.overruns),
+        offset_of!(CartpoleCounters, faults.model_only),
+        offset_of!(CartpoleCounters, faults.fallbacks),
+        offset_of!(CartpoleCounters, faults.recoveries),
+        offset_of!(CartpoleCounters, faults.fallback_periods),
+        offset_of!(CartpoleCounters, faults.non_finite_scores),
+        offset_of!(CartpoleCounters, faults.safe_stops),
+    ];
+    let offsets: Vec<String> = offsets.iter().map(usize::to_string).collect();
+    format!("counters-offsets {}", offsets.join(" "))
+}
+
 #[test]
 fn refused_calls_return_their_codes_and_write_nothing() {
     let uninit = CARTPOLE_ERR_UNINITIALISED;
@@ -381,6 +404,7 @@ fn refused_calls_return_their_codes_and_write_nothing() {
                 FaultFlags::non_finite(2).0,
                 FaultFlags::out_of_range(3).0
             ),
+            counters_offsets(),
             format!(
                 "monitor-constants {CARTPOLE_ERR_RIG} {CARTPOLE_ERR_ENVELOPE} {} {} {}",
                 FaultFlags::FALLBACK.0,

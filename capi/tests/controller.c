@@ -40,9 +40,10 @@ static void print_step(int rc, const cartpole_command_t *out) {
 static void print_counters(const cartpole_controller_t *c) {
     cartpole_counters_t n;
     int rc = cartpole_controller_counters(c, &n);
-    printf("counters %d %lu %lu %lu %lu %lu", rc, (unsigned long)n.steps,
-           (unsigned long)n.rejected_readings, (unsigned long)n.non_finite,
-           (unsigned long)n.out_of_range, (unsigned long)n.overruns);
+    printf("counters %d %lu %lu %lu %lu %lu %lu %lu", rc, (unsigned long)n.steps,
+           (unsigned long)n.rejected_readings, (unsigned long)n.sensor_errors,
+           (unsigned long)n.non_finite, (unsigned long)n.out_of_range,
+           (unsigned long)n.actuator_errors, (unsigned long)n.overruns);
     printf(" %lu %lu %lu %lu %lu %lu\n", (unsigned long)n.model_only, (unsigned long)n.fallbacks,
            (unsigned long)n.recoveries, (unsigned long)n.fallback_periods,
            (unsigned long)n.non_finite_scores, (unsigned long)n.safe_stops);
@@ -114,6 +115,19 @@ static void layout(void) {
            CARTPOLE_ERR_UNINITIALISED, CARTPOLE_ERR_POLICY_KIND, CARTPOLE_ERR_INPUT,
            CARTPOLE_POLICY_F32, CARTPOLE_POLICY_INT, CARTPOLE_PUSH_LEFT, CARTPOLE_COAST,
            CARTPOLE_PUSH_RIGHT);
+    printf("counters-offsets %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu %lu\n",
+           (unsigned long)offsetof(cartpole_counters_t, rejected_readings),
+           (unsigned long)offsetof(cartpole_counters_t, sensor_errors),
+           (unsigned long)offsetof(cartpole_counters_t, non_finite),
+           (unsigned long)offsetof(cartpole_counters_t, out_of_range),
+           (unsigned long)offsetof(cartpole_counters_t, actuator_errors),
+           (unsigned long)offsetof(cartpole_counters_t, overruns),
+           (unsigned long)offsetof(cartpole_counters_t, model_only),
+           (unsigned long)offsetof(cartpole_counters_t, fallbacks),
+           (unsigned long)offsetof(cartpole_counters_t, recoveries),
+           (unsigned long)offsetof(cartpole_counters_t, fallback_periods),
+           (unsigned long)offsetof(cartpole_counters_t, non_finite_scores),
+           (unsigned long)offsetof(cartpole_counters_t, safe_stops));
     printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
            (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
            (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);

@@ -93,32 +93,15 @@ pub struct CartpoleCommand {
     pub step: u32,
 }
 
-/// `cartpole_counters_t`: totals since `cartpole_controller_init`, saturating.
+/// `cartpole_counters_t`: totals since `cartpole_controller_init`, saturating: the periods
+/// run, then the controller's [`FaultCounters`] (`repr(C)`, flat in C, the same layout).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct CartpoleCounters {
     /// Periods run.
     pub steps: u32,
-    /// Periods whose reading was rejected, and which coasted.
-    pub rejected_readings: u32,
-    /// Channels read as NaN or infinite.
-    pub non_finite: u32,
-    /// Channels read beyond the rig's limits.
-    pub out_of_range: u32,
-    /// Timer ticks reported by `cartpole_controller_record_overruns`.
-    pub overruns: u32,
-    /// Readings from the observer's model alone, its encoders found frozen (monitored).
-    pub model_only: u32,
-    /// Switches from the policy to the monitor's fallback.
-    pub fallbacks: u32,
-    /// Switches back to the policy.
-    pub recoveries: u32,
-    /// Periods the fallback decided.
-    pub fallback_periods: u32,
-    /// Periods whose policy scores were not finite.
-    pub non_finite_scores: u32,
-    /// Times the monitor stopped the controller.
-    pub safe_stops: u32,
+    /// The controller's totals.
+    pub faults: FaultCounters,
 }
 
 /// What C asks of an instance, whichever policy it runs.
@@ -163,31 +146,9 @@ impl<K: Kind> Run for Slot<K> {
     }
 
     fn counters(&self) -> CartpoleCounters {
-        let FaultCounters {
-            rejected_readings,
-            non_finite,
-            out_of_range,
-            overruns,
-            model_only,
-            fallbacks,
-            recoveries,
-            fallback_periods,
-            non_finite_scores,
-            safe_stops,
-            ..
-        } = self.controller.faults();
         CartpoleCounters {
             steps: self.controller.steps(),
-            rejected_readings,
-            non_finite,
-            out_of_range,
-            overruns,
-            model_only,
-            fallbacks,
-            recoveries,
-            fallback_periods,
-            non_finite_scores,
-            safe_stops,
+            faults: self.controller.faults(),
         }
     }
 

@@ -246,5 +246,8 @@ fn the_monitor_takes_only_the_instances_rig() {
         cartpole_controller_counters(Some(&c), Some(&mut n)),
         CARTPOLE_OK
     );
-    assert_eq!((n.fallbacks, n.fallback_periods, n.steps), (1, 1, 4));
+    assert_eq!(
+        (n.faults.fallbacks, n.faults.fallback_periods, n.steps),
+        (1, 1, 4)
+    );
 }

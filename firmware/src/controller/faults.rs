@@ -156,9 +156,11 @@ impl FaultFlags {
     }
 }
 
-/// Totals since the controller started; they saturate rather than wrap.
+/// Totals since the controller started; they saturate rather than wrap. `repr(C)`: the C
+/// API's `cartpole_counters_t` holds them after its period count, field for field.
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[repr(C)]
 pub struct FaultCounters {
     /// Periods whose reading was rejected (and so coasted).
     pub rejected_readings: u32,
