@@ -132,7 +132,7 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
         Case::new(
             "a baseline".into(),
             &eval(&[&"--pil", &echo, &"--controller", &"lqr"]),
-            &["policy and policy-int"],
+            &["policy, policy-int, monitored and monitored-int"],
         ),
         Case::new(
             "a policy file".into(),
