@@ -112,10 +112,14 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
     // The limits are checked as the board is compiled; the observer's gain and the
     // predictor's plant at start-up, where a refusal halts the board (through the panic
-    // handler's log) before the bridge is ever driven.
-    let sensor = ObserverSensor::<_, [i16; 4]>::new(defmt::unwrap!(RIG.observer()), counts);
+    // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
+    // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
+    // is configured as the firmware compiles (`firmware::envelope::ASSURANCE`).
+    let observer = defmt::unwrap!(RIG.observer()).watching();
+    let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, counts);
     let mut controller = Controller::new(&POLICY_INT, sensor, bridge, LIMITS)
-        .with_predictor(defmt::unwrap!(RIG.predictor()));
+        .with_predictor(defmt::unwrap!(RIG.predictor()))
+        .with_monitor(firmware::envelope::ASSURANCE);
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-rp2040: integer policy, {} Hz", per_second);
@@ -136,8 +140,13 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
             let faults = controller.faults();
             if let Some(r) = controller.last() {
                 info!(
-                    "step {}: {} obs {} q {} faults {}",
-                    r.step, command, r.obs, r.q, faults
+                    "step {}: {} obs {} q {} mode {} faults {}",
+                    r.step,
+                    command,
+                    r.obs,
+                    r.q,
+                    controller.mode(),
+                    faults
                 );
             }
         }

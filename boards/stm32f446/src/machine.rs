@@ -70,11 +70,15 @@ pub async fn balance(p: Peripherals) -> ! {
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
     // The observer's gain is solved once, now; a refusal halts the board (through the panic
-    // handler's log) before the bridge is ever driven.
+    // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
+    // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
+    // is configured as the firmware compiles (`firmware::envelope::ASSURANCE`).
     let counts = move || (cart.read(), pole.read());
-    let sensor = ObserverSensor::<_, [f32; 4]>::new(defmt::unwrap!(RIG.observer()), counts);
+    let observer = defmt::unwrap!(RIG.observer()).watching();
+    let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, counts);
     let mut controller = Controller::new(&POLICY, sensor, bridge, LIMITS)
-        .with_predictor(defmt::unwrap!(RIG.predictor()));
+        .with_predictor(defmt::unwrap!(RIG.predictor()))
+        .with_monitor(firmware::envelope::ASSURANCE);
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-stm32f446: f32 policy, {} Hz", per_second);
@@ -95,11 +99,12 @@ pub async fn balance(p: Peripherals) -> ! {
             && let Some(r) = controller.last()
         {
             info!(
-                "step {}: {} obs {} q {} faults {}",
+                "step {}: {} obs {} q {} mode {} faults {}",
                 r.step,
                 command,
                 r.obs,
                 r.q,
+                controller.mode(),
                 controller.faults()
             );
         }
