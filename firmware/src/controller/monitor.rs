@@ -8,24 +8,24 @@
 //! simple controller whose behaviour is understood (LQR on the same estimate) takes over
 //! when the state leaves it, and a decision module between them switches. Here:
 //!
-//! - **Policy** while the reading lies inside the *envelope* ([`Assurance::envelope`], the
+//! - **Policy** while the reading lies inside the *envelope* (the
 //!   states the policy visited in the evaluation it passed, with a margin, generated beside
 //!   the policy by `host-sim envelope`), its readings are sound, and its scores are finite.
 //! - **Fallback** (bang-bang LQR, `u = -K s`, on the state the command will meet) when the
-//!   reading leaves the envelope, when [`Assurance::fault_run`] readings in a row were
+//!   reading leaves the envelope, when [`Assurance::FAULT_RUN`] readings in a row were
 //!   rejected or came from the model alone (a frozen encoder), or when the policy's scores
-//!   are not finite. Back to the policy only after [`Assurance::dwell`] sound periods in a
+//!   are not finite. Back to the policy only after [`Assurance::DWELL`] sound periods in a
 //!   row inside the envelope shrunk by [`HYSTERESIS`], so that a state on the envelope's edge
 //!   does not switch every period.
-//! - **Stopped** (duty off, latched) when [`Assurance::fault_run`] readings in a row lie
-//!   beyond what the fallback can still recover ([`Assurance::recoverable`]: the pole past
+//! - **Stopped** (duty off, latched) when [`Assurance::FAULT_RUN`] readings in a row lie
+//!   beyond what the fallback can still recover (the pole past
 //!   the rig's failure angle, or the cart at the end of its accepted track, where the
 //!   controller's limits already coast each period); one such reading is more likely a
 //!   glitch than a state. A stopped controller stays stopped; a board re-arms it by building
 //!   it again.
 //!
 //! Every switch is counted in the controller's
-//! [`FaultCounters`](super::FaultCounters) and every period flagged in its telemetry
+//! [`FaultCounters`] and every period flagged in its telemetry
 //! ([`FaultFlags::FALLBACK`], [`FaultFlags::STOPPED`]). The monitor is fixed-size and
 //! allocation-free, and runs on the reading's own format: the envelope checks of an integer
 //! reading are integer compares.
@@ -59,8 +59,6 @@ pub struct Assurance {
     calm: Limits,
     recoverable: Limits,
     gain: [f32; 4],
-    dwell: u16,
-    fault_run: u16,
 }
 
 impl Assurance {
@@ -104,8 +102,6 @@ impl Assurance {
             calm,
             recoverable,
             gain,
-            dwell: Assurance::DWELL,
-            fault_run: Assurance::FAULT_RUN,
         })
     }
 
@@ -114,31 +110,6 @@ impl Assurance {
     pub fn for_rig(envelope: Limits, rig: &Rig) -> Result<Assurance, ConfigError> {
         let k = crate::linear::balance_gain(&rig.params);
         Assurance::new(envelope, rig, k.map(|v| v as f32))
-    }
-
-    /// Where the policy drives.
-    pub const fn envelope(&self) -> Limits {
-        self.envelope
-    }
-
-    /// Where the fallback drives; beyond, the monitor stops.
-    pub const fn recoverable(&self) -> Limits {
-        self.recoverable
-    }
-
-    /// The fallback's gain.
-    pub const fn gain(&self) -> [f32; 4] {
-        self.gain
-    }
-
-    /// Sound periods inside the shrunk envelope before the policy drives again.
-    pub const fn dwell(&self) -> u16 {
-        self.dwell
-    }
-
-    /// Faulty readings in a row that hand the loop to the fallback.
-    pub const fn fault_run(&self) -> u16 {
-        self.fault_run
     }
 }
 
@@ -212,7 +183,7 @@ impl Monitor {
         if self.mode == Mode::Fallback {
             let calm = !model_only && obs.flags(&self.assurance.calm).is_empty();
             self.calm = if calm { self.calm.saturating_add(1) } else { 0 };
-            if self.calm >= self.assurance.dwell {
+            if self.calm >= Assurance::DWELL {
                 self.mode = Mode::Policy;
                 counters.recoveries = counters.recoveries.saturating_add(1);
             }
@@ -235,7 +206,7 @@ impl Monitor {
     fn fault(&mut self, counters: &mut FaultCounters) {
         self.faulty = self.faulty.saturating_add(1);
         self.calm = 0;
-        if self.mode == Mode::Policy && self.faulty >= self.assurance.fault_run {
+        if self.mode == Mode::Policy && self.faulty >= Assurance::FAULT_RUN {
             self.fall_back(counters);
         }
     }
@@ -248,7 +219,7 @@ impl Monitor {
         } else {
             0
         };
-        if self.mode != Mode::Stopped && self.lost >= self.assurance.fault_run {
+        if self.mode != Mode::Stopped && self.lost >= Assurance::FAULT_RUN {
             self.mode = Mode::Stopped;
             counters.safe_stops = counters.safe_stops.saturating_add(1);
         }

@@ -115,7 +115,7 @@ const RESIDUAL_WEIGHT: f32 = 0.125;
 /// How far, in counts of either encoder, the model's prediction must have moved from a
 /// repeated pair of counts for the pair to read as a frozen encoder. One count would let
 /// quantisation alone flag a cart or pole turning round; two do not, on the rigs tried.
-pub const FROZEN_COUNTS: f32 = 2.0;
+const FROZEN_COUNTS: f32 = 2.0;
 
 impl Observer {
     /// An observer for `enc`, modelling the plant as `nominal` (its tau is the period), with
@@ -174,7 +174,7 @@ impl Observer {
     }
 
     /// The same observer, watching for a frozen encoder: when both counts repeat the last
-    /// ones while the model's prediction has moved more than [`FROZEN_COUNTS`] from them, the
+    /// ones while the model's prediction has moved more than two counts from them, the
     /// counts are not believed; the estimate is the prediction alone, and
     /// [`Observer::frozen`] says so. A cable pulled from a quadrature encoder freezes its
     /// counter this way, and an observer corrected towards the frozen counts comes to believe
@@ -263,7 +263,14 @@ impl Observer {
             Some((c, p)) => (
                 self.cart
                     .saturating_add(i64::from(cart_counts.wrapping_sub(c))),
-                self.pole + i64::from(pole_counts.wrapping_sub(p)),
+                // A pole turns less than half a revolution in a period: a larger jump (a
+                // glitch) is the same angle whole turns away, taken as the smaller move, so
+                // that the estimate is never shifted by turns f32 cannot hold exactly.
+                self.pole
+                    + wrap::count(
+                        i64::from(pole_counts.wrapping_sub(p)),
+                        self.enc.pole_counts_per_rev,
+                    ),
             ),
             None => (i64::from(cart_counts), i64::from(pole_counts)),
         };
