@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# Fuzzes with libFuzzer the host tools' four parsers (the checkpoint importer, the TOML
-# configuration, the trajectory parser, the scenario parser), the rendering of untrusted
+# Fuzzes with libFuzzer the host tools' parsers (the checkpoint importer, with its
+# restricted pickle reader and its ONNX reader on their own, the TOML configuration, the
+# trajectory parser, the scenario parser), the rendering of untrusted
 # text into exported source (names, comments) and the link's frame reader (what a target
 # reads from its serial port), SECONDS each (default 60), seeded with the repository's own
 # valid inputs. Prints each target's executions and
@@ -17,11 +18,23 @@ cd "$(dirname "$0")/.."
 seconds=${1:-60}
 shift || true
 targets=("$@")
-[ ${#targets[@]} -gt 0 ] || targets=(weights_import config_toml replay_parse scenario_parse source_comment link_frame)
+[ ${#targets[@]} -gt 0 ] || targets=(weights_import torch_pickle onnx_model config_toml replay_parse scenario_parse source_comment link_frame)
 host=$(rustc -vV | sed -n 's/^host: //p')
 corpus=fuzz/corpus
-mkdir -p "$corpus"/{weights_import,config_toml,replay_parse,scenario_parse,source_comment,link_frame}
-cp weights/tests/fixtures/*.safetensors firmware/policy.safetensors "$corpus/weights_import/"
+mkdir -p "$corpus"/{weights_import,torch_pickle,onnx_model,config_toml,replay_parse,scenario_parse,source_comment,link_frame}
+fixtures=weights/tests/fixtures
+cp "$fixtures"/*.safetensors "$fixtures"/*.pth "$fixtures"/*.zip "$fixtures"/*.cleanrl_model \
+  firmware/policy.safetensors "$corpus/weights_import/"
+cp "$fixtures"/*.onnx "$corpus/onnx_model/"
+# The pickles inside PyTorch's zips (stored uncompressed, so a zip reader is not needed).
+python3 - "$corpus/torch_pickle" "$fixtures"/*.pth <<'PY'
+import os, sys, zipfile
+for path in sys.argv[2:]:
+    with zipfile.ZipFile(path) as z:
+        name = next(n for n in z.namelist() if n.endswith("data.pkl"))
+        with open(os.path.join(sys.argv[1], os.path.basename(path) + ".pkl"), "wb") as f:
+            f.write(z.read(name))
+PY
 cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
 head -n 3 tests/data/gym_traj_public.jsonl >"$corpus/replay_parse/three.jsonl"

@@ -1,5 +1,11 @@
-//! Safetensors checkpoints: the trainer's canonical file, and state dicts as PyTorch users
-//! save them.
+//! Checkpoints as PyTorch users save them, and the trainer's canonical file.
+//!
+//! Four formats, told apart by their first bytes:
+//! - safetensors (the trainer's own file, and `safetensors.torch.save_file`);
+//! - PyTorch's zip (`torch.save(state_dict)`: `.pt`, `.pth`, CleanRL's `.cleanrl_model`), whose
+//!   pickle is read by a restricted reader that runs nothing ([`pickle`]);
+//! - Stable-Baselines3's `model.zip`, the same zip inside as `policy.pth`;
+//! - ONNX (`torch.onnx.export`), recognised by its graph ([`onnx`]).
 //!
 //! A state dict names each tensor `<prefix><layer>.<weight|bias>`: `fc1.weight` for a module
 //! with attributes `fc1`, `fc2`, `fc3`; `0.weight`, `2.weight`, `4.weight` for an
@@ -15,19 +21,48 @@
 //! F32 tensors are taken as they are, F16 and BF16 exactly widened, F64 rounded to nearest
 //! (the network runs in f32); every value must be finite.
 
+pub mod onnx;
+pub mod pickle;
+mod protobuf;
+mod safetensors_file;
+pub mod state_dict;
+mod torch;
+
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
 use std::path::Path;
 
 use firmware::network::{N_ACTIONS, OBS_DIM, TENSOR_NAMES};
-use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+
+pub use safetensors_file::{MAX_HEADER_BYTES, to_safetensors};
+use state_dict::{StateDict, to_f32};
 
 use crate::files::{MAX_POLICY_BYTES, read_capped};
 use crate::{Error, Result, Weights, quote};
 
-/// Largest safetensors header read. The header is JSON listing every tensor; a few hundred
-/// bytes per tensor, so this allows thousands while bounding the memory a hostile file costs.
-pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+/// The kind of file a network was read from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// A safetensors file.
+    Safetensors,
+    /// PyTorch's zip of a pickled state dict (`torch.save`).
+    TorchZip,
+    /// Stable-Baselines3's `model.zip`, through its `policy.pth`.
+    Sb3Zip,
+    /// An ONNX model.
+    Onnx,
+}
+
+impl std::fmt::Display for Format {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Format::Safetensors => "safetensors",
+            Format::TorchZip => "PyTorch zip",
+            Format::Sb3Zip => "Stable-Baselines3 model.zip",
+            Format::Onnx => "ONNX",
+        })
+    }
+}
 
 /// A network found in a checkpoint, and where.
 #[derive(Clone, Debug, PartialEq)]
@@ -45,13 +80,16 @@ pub struct Import {
     pub converted_from: Option<String>,
     /// The file's `__metadata__` (the trainer writes its configuration there).
     pub metadata: BTreeMap<String, String>,
+    /// The kind of file it was read from.
+    pub format: Format,
 }
 
 impl Import {
     /// One line for a log: `fc1, fc2, fc3 under prefix network., width 64`.
     pub fn describe(&self) -> String {
         let mut s = format!(
-            "layers {} under {}, hidden width {}",
+            "{}: layers {} under {}, hidden width {}",
+            self.format,
             self.layers.join(", "),
             show_prefix(&self.prefix),
             self.weights.width()
@@ -104,17 +142,43 @@ struct Layer<'a> {
     other: Vec<&'a str>,
 }
 
-/// Finds the 4-H-H-2 network in safetensors `bytes`; `prefix` chooses among several.
+/// Finds the 4-H-H-2 network in a checkpoint's `bytes` (any of the module's formats);
+/// `prefix` chooses among several.
 pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
-    let st = parse(bytes)?;
-    let metadata = SafeTensors::read_metadata(bytes)
-        .ok()
-        .and_then(|(_, m)| m.metadata().clone())
-        .map(|m| m.into_iter().collect())
-        .unwrap_or_default();
-    // Sorted, so that messages naming a tensor name the same one every time.
-    let mut names = st.names();
-    names.sort_unstable();
+    if bytes.starts_with(b"PK") {
+        let (dict, format) = torch::read(bytes)?;
+        return from_dict(&dict, prefix, BTreeMap::new(), format);
+    }
+    if let [0x80, 2..=5, 0x8a, ..] = bytes {
+        return Err(Error::Input(
+            "a PyTorch file in the legacy format (before PyTorch 1.6); save it again with \
+             torch.save, whose zip format is read"
+                .into(),
+        ));
+    }
+    // Safetensors' JSON header starts at byte 8; an ONNX model with its IR version (field 1,
+    // varint: byte 0x08).
+    if bytes.first() == Some(&0x08) && bytes.get(8) != Some(&b'{') {
+        if let Some(p) = prefix.filter(|p| !p.is_empty()) {
+            return Err(Error::Input(format!(
+                "an ONNX model holds one network; --prefix {} does not apply",
+                quote(p)
+            )));
+        }
+        return onnx::import(bytes);
+    }
+    let (dict, metadata) = safetensors_file::read(bytes)?;
+    from_dict(&dict, prefix, metadata, Format::Safetensors)
+}
+
+/// Finds the 4-H-H-2 network among a state dict's tensors.
+fn from_dict(
+    dict: &StateDict,
+    prefix: Option<&str>,
+    metadata: BTreeMap<String, String>,
+    format: Format,
+) -> Result<Import> {
+    let names: Vec<&str> = dict.keys().map(String::as_str).collect();
     // Messages quote names; PyTorch's are short (`q_net_target.q_net.4.weight` is 27 bytes).
     if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
         return Err(Error::Input(format!(
@@ -127,7 +191,7 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
     let groups = by_prefix(&names);
     let checked: Vec<(&str, std::result::Result<[&str; 3], String>)> = groups
         .iter()
-        .map(|(p, layers)| (*p, chain(&st, layers)))
+        .map(|(p, layers)| (*p, chain(dict, layers)))
         .collect();
     let (pre, layers) = select(&checked, prefix)?;
     let group = &groups[pre];
@@ -150,19 +214,11 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
     let mut tensors: [Vec<f32>; 6] = Default::default();
     let mut converted_from = None;
     for (t, name) in tensors.iter_mut().zip(&own) {
-        let view = st
-            .tensor(name)
-            .map_err(|e| Error::Input(format!("tensor `{name}`: {e}")))?;
-        let (values, from) = to_f32(name, &view)?;
+        let (values, from) = to_f32(name, &dict[*name])?;
         converted_from = converted_from.or(from);
         *t = values;
     }
-    let width = tensors[1].len();
-    let weights = Weights::new(width, tensors).map_err(|e| match e {
-        Error::Input(m) => Error::Input(rename(&m, &own)),
-        other => other,
-    })?;
-    weights.check_outputs()?;
+    let weights = checked_weights(tensors, &own)?;
     Ok(Import {
         weights,
         prefix: pre.to_string(),
@@ -170,7 +226,20 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         ignored: outside.len(),
         converted_from,
         metadata,
+        format,
     })
+}
+
+/// The network of `tensors` (canonical order, named `names` in the file), with finite
+/// Q-values.
+fn checked_weights(tensors: [Vec<f32>; 6], names: &[&str]) -> Result<Weights> {
+    let width = tensors[1].len();
+    let weights = Weights::new(width, tensors).map_err(|e| match e {
+        Error::Input(m) => Error::Input(rename(&m, names)),
+        other => other,
+    })?;
+    weights.check_outputs()?;
+    Ok(weights)
 }
 
 /// `names` by prefix, then by layer: `network.0.weight` is layer `0`'s weight under
@@ -265,7 +334,7 @@ fn rename(msg: &str, own: &[&str]) -> String {
 /// The order is the names' natural order (`fc1 < fc2 < fc10`, `0 < 2 < 4`); names that do not
 /// sort that way (`input`, `hidden`, `output`) are ordered by the one chain their shapes form.
 fn chain<'a>(
-    st: &SafeTensors,
+    dict: &StateDict,
     layers: &BTreeMap<&'a str, Layer<'a>>,
 ) -> std::result::Result<[&'a str; 3], String> {
     let mut order: Vec<&str> = layers.keys().copied().collect();
@@ -288,7 +357,7 @@ fn chain<'a>(
             let missing = if l.weight.is_none() { "weight" } else { "bias" };
             return Err(format!("layer `{key}` lacks its {missing}"));
         };
-        let shape = |n: &str| st.tensor(n).map(|t| t.shape().to_vec()).unwrap_or_default();
+        let shape = |n: &str| dict.get(n).map(|t| t.shape.clone()).unwrap_or_default();
         let (ws, bs) = (shape(w), shape(bias));
         let [out, inp] = ws[..] else {
             return Err(format!("`{w}` has shape {ws:?}, expected [out, in]"));
@@ -300,30 +369,7 @@ fn chain<'a>(
         }
         dims.insert(key, (w, out, inp));
     }
-    let why = |[a, b, c]: [&str; 3]| -> Option<String> {
-        let ((w1, h1, i1), (w2, h2, i2), (w3, o3, i3)) = (dims[a], dims[b], dims[c]);
-        if i1 != OBS_DIM {
-            Some(format!(
-                "`{w1}` is [{h1}, {i1}]: the first layer takes the {OBS_DIM} observations"
-            ))
-        } else if i2 != h1 || i3 != h2 {
-            Some(format!(
-                "the layers do not chain: `{w1}` [{h1}, {i1}], `{w2}` [{h2}, {i2}], `{w3}` \
-                 [{o3}, {i3}]"
-            ))
-        } else if h1 != h2 {
-            Some(format!(
-                "hidden widths {h1} and {h2} differ; the network has two hidden layers of one \
-                 width"
-            ))
-        } else if o3 != N_ACTIONS {
-            Some(format!(
-                "`{w3}` is [{o3}, {i3}]: the output layer has {N_ACTIONS} outputs (left, right)"
-            ))
-        } else {
-            None
-        }
-    };
+    let why = |[a, b, c]: [&str; 3]| unchained([dims[a], dims[b], dims[c]]);
     let Some(first) = why([a, b, c]) else {
         return Ok([a, b, c]);
     };
@@ -335,6 +381,33 @@ fn chain<'a>(
     {
         [only] => Ok(*only),
         _ => Err(first),
+    }
+}
+
+/// Why three linear layers `(weight name, out, in)`, in this order, are not a 4-H-H-2
+/// network, if they are not.
+fn unchained(layers: [(&str, usize, usize); 3]) -> Option<String> {
+    let [(w1, h1, i1), (w2, h2, i2), (w3, o3, i3)] = layers;
+    if i1 != OBS_DIM {
+        Some(format!(
+            "`{w1}` is [{h1}, {i1}]: the first layer takes the {OBS_DIM} observations"
+        ))
+    } else if i2 != h1 || i3 != h2 {
+        Some(format!(
+            "the layers do not chain: `{w1}` [{h1}, {i1}], `{w2}` [{h2}, {i2}], `{w3}` \
+             [{o3}, {i3}]"
+        ))
+    } else if h1 != h2 {
+        Some(format!(
+            "hidden widths {h1} and {h2} differ; the network has two hidden layers of one \
+             width"
+        ))
+    } else if o3 != N_ACTIONS {
+        Some(format!(
+            "`{w3}` is [{o3}, {i3}]: the output layer has {N_ACTIONS} outputs (left, right)"
+        ))
+    } else {
+        None
     }
 }
 
@@ -361,122 +434,6 @@ fn natural(a: &str, b: &str) -> Ordering {
         })
     }
     runs(a).cmp(runs(b))
-}
-
-/// Checks the header's size before the safetensors crate parses it.
-fn parse(bytes: &[u8]) -> Result<SafeTensors<'_>> {
-    let Some(len) = bytes.first_chunk::<8>().map(|b| u64::from_le_bytes(*b)) else {
-        return Err(Error::Input(format!(
-            "not a safetensors file: {} bytes, shorter than its 8-byte header length",
-            bytes.len()
-        )));
-    };
-    if len > MAX_HEADER_BYTES {
-        return Err(Error::Input(format!(
-            "not a policy checkpoint: its header declares {len} bytes, expected at most {MAX_HEADER_BYTES}"
-        )));
-    }
-    SafeTensors::deserialize(bytes)
-        .map_err(|e| Error::Input(format!("not a safetensors file: {e}")))
-}
-
-/// The tensor's values as f32, and the dtype they were converted from, if not F32.
-fn to_f32(name: &str, t: &TensorView) -> Result<(Vec<f32>, Option<String>)> {
-    let d = t.data();
-    let v: Vec<f32> = match t.dtype() {
-        Dtype::F32 => d
-            .chunks_exact(4)
-            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
-            .collect(),
-        Dtype::F64 => d
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8")) as f32)
-            .collect(),
-        Dtype::BF16 => d
-            .chunks_exact(2)
-            .map(|c| f32::from_bits(u32::from(u16::from_le_bytes([c[0], c[1]])) << 16))
-            .collect(),
-        Dtype::F16 => d
-            .chunks_exact(2)
-            .map(|c| f16_to_f32(u16::from_le_bytes([c[0], c[1]])))
-            .collect(),
-        other => {
-            return Err(Error::Input(format!(
-                "tensor `{name}`: expected dtype F32 (or F64, F16, BF16), found {other:?}"
-            )));
-        }
-    };
-    let from = (t.dtype() != Dtype::F32).then(|| format!("{:?}", t.dtype()));
-    Ok((v, from))
-}
-
-/// IEEE binary16 to binary32, exactly (every f16 is an f32).
-fn f16_to_f32(h: u16) -> f32 {
-    let sign = u32::from(h >> 15) << 31;
-    let exp = u32::from((h >> 10) & 0x1f);
-    let man = u32::from(h & 0x3ff);
-    let bits = match (exp, man) {
-        (0, 0) => sign,
-        // Subnormal: value man * 2^-24, normalised for f32.
-        (0, m) => {
-            let shift = m.leading_zeros() - 21;
-            sign | ((127 - 15 - shift + 1) << 23) | ((m << shift) & 0x3ff) << 13
-        }
-        (0x1f, m) => sign | 0x7f80_0000 | (m << 13),
-        (e, m) => sign | ((e + 127 - 15) << 23) | (m << 13),
-    };
-    f32::from_bits(bits)
-}
-
-/// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in
-/// the header's `__metadata__`, header keys sorted so the same weights and metadata always
-/// give the same bytes.
-pub fn to_safetensors(w: &Weights, metadata: &BTreeMap<String, String>) -> Result<Vec<u8>> {
-    let shapes = firmware::network::shapes(w.width());
-    let bytes: Vec<Vec<u8>> = w
-        .tensors()
-        .iter()
-        .map(|t| t.iter().flat_map(|v| v.to_le_bytes()).collect())
-        .collect();
-    let views = TENSOR_NAMES
-        .iter()
-        .zip(shapes)
-        .zip(&bytes)
-        .map(|((name, shape), data)| {
-            TensorView::new(Dtype::F32, shape.dims().to_vec(), data)
-                .map(|v| (*name, v))
-                .map_err(|e| Error::Io(format!("tensor `{name}`: {e}")))
-        })
-        .collect::<Result<Vec<_>>>()?;
-    let meta = (!metadata.is_empty()).then(|| metadata.clone().into_iter().collect());
-    let raw = safetensors::serialize(views, meta)
-        .map_err(|e| Error::Io(format!("serialising safetensors: {e}")))?;
-    Ok(canonical_header(&raw))
-}
-
-/// `bytes` with its JSON header's keys sorted. The safetensors crate writes the metadata (and
-/// may write the tensor entries) in `HashMap` order, which differs from run to run. The
-/// header stays padded with spaces to a multiple of 8 bytes, as the format recommends; tensor
-/// offsets are relative to the data, so they do not change.
-fn canonical_header(bytes: &[u8]) -> Vec<u8> {
-    let len = u64::from_le_bytes(*bytes.first_chunk::<8>().expect("serialised header")) as usize;
-    let (header, data) = bytes[8..].split_at(len);
-    let mut fields: BTreeMap<String, serde_json::Value> =
-        serde_json::from_slice(header).expect("the safetensors crate writes JSON");
-    if let Some(serde_json::Value::Object(meta)) = fields.remove("__metadata__") {
-        let sorted: BTreeMap<String, serde_json::Value> = meta.into_iter().collect();
-        fields.insert(
-            "__metadata__".into(),
-            serde_json::to_value(sorted).expect("strings"),
-        );
-    }
-    let mut header = serde_json::to_vec(&fields).expect("JSON values serialise");
-    header.resize(header.len().next_multiple_of(8), b' ');
-    let mut out = Vec::with_capacity(8 + header.len() + data.len());
-    out.extend_from_slice(&(header.len() as u64).to_le_bytes());
-    out.extend_from_slice(&header);
-    out.extend_from_slice(data);
-    out
 }
 
 #[cfg(test)]

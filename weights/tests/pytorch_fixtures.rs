@@ -1,11 +1,12 @@
 //! Checkpoints written by real PyTorch and Stable-Baselines3 code (`tests/fixtures/`, made by
-//! `make_fixtures.py`): each imports as its layout says, and the imported network computes
-//! the Q-values PyTorch itself computed (in f64) for the same observations.
+//! `make_fixtures.py`): safetensors, `torch.save` zips, SB3's `model.zip` and ONNX from both
+//! of `torch.onnx.export`'s exporters. Each imports as its layout says, and the imported
+//! network computes the Q-values PyTorch itself computed (in f64) for the same observations.
 
 use std::path::PathBuf;
 
 use firmware::network::Mlp;
-use weights::checkpoint::{self, Import};
+use weights::checkpoint::{self, Format, Import};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -18,7 +19,7 @@ fn expected() -> serde_json::Value {
 }
 
 /// The imported network's Q-values against PyTorch's: f32 arithmetic in another summation
-/// order, so within f32 rounding of the values' size.
+/// order, so within f32 rounding of the values' size, and within 1e-6 absolute.
 fn check_q_values(file: &str, got: &Import) {
     let doc = expected();
     let obs: Vec<[f32; 4]> = doc["observations"]
@@ -46,7 +47,7 @@ fn check_q_values(file: &str, got: &Import) {
             let w = want[k][a].as_f64().unwrap();
             let err = (f64::from(q[a]) - w).abs();
             assert!(
-                err <= 1e-5 * w.abs().max(1.0),
+                err <= 1e-6 && err <= 1e-5 * w.abs().max(1.0),
                 "{file} obs {k} action {a}: {} vs {w}",
                 q[a]
             );
@@ -116,4 +117,93 @@ fn a_run_directory_reads_its_policy_file() {
     let net: Box<Mlp<64>> = got.weights.to_mlp().unwrap();
     assert_eq!(net.fc1_weight[0][0], got.weights.tensors()[0][0]);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn load(file: &str, prefix: Option<&str>) -> Import {
+    checkpoint::load(&fixture(file), prefix).unwrap_or_else(|e| panic!("{file}: {e}"))
+}
+
+fn refusal(file: &str) -> String {
+    let e = checkpoint::load(&fixture(file), None).unwrap_err();
+    assert!(e.is_input(), "{file}: {e}");
+    e.to_string()
+}
+
+#[test]
+fn torch_save_zips_and_onnx_exports_import_and_compute_pytorchs_q_values() {
+    for (file, format, prefix, width) in [
+        ("sequential64.pth", Format::TorchZip, "", 64),
+        ("sequential64_protocol4.pth", Format::TorchZip, "", 64),
+        ("cleanrl.cleanrl_model", Format::TorchZip, "network.", 16),
+        ("fc_named_f64.pth", Format::TorchZip, "", 16),
+        ("fc_strided.pth", Format::TorchZip, "", 16),
+        ("sequential64_gemm.onnx", Format::Onnx, "", 64),
+        ("sequential64_matmul.onnx", Format::Onnx, "", 64),
+    ] {
+        let got = load(file, None);
+        assert_eq!(
+            (got.format, got.prefix.as_str()),
+            (format, prefix),
+            "{file}"
+        );
+        assert_eq!(got.weights.width(), width, "{file}");
+        check_q_values(file, &got);
+    }
+    assert_eq!(
+        load("fc_named_f64.pth", None).converted_from.as_deref(),
+        Some("F64")
+    );
+}
+
+#[test]
+fn every_format_of_one_network_gives_the_same_bits() {
+    let reference = load("sequential64.safetensors", None).weights;
+    for file in [
+        "sequential64.pth",
+        "sequential64_protocol4.pth",
+        "sequential64_gemm.onnx",
+        "sequential64_matmul.onnx",
+    ] {
+        assert_eq!(load(file, None).weights, reference, "{file}");
+    }
+    // A state dict of transposed views reads through its strides to the module's values.
+    assert_eq!(
+        load("fc_strided.pth", None).weights,
+        load("fc_named.safetensors", None).weights
+    );
+    assert_eq!(
+        load("cleanrl.cleanrl_model", None).weights,
+        load("cleanrl.safetensors", None).weights
+    );
+}
+
+#[test]
+fn an_sb3_model_zip_reads_its_policy_and_asks_which_network() {
+    let msg = refusal("sb3_dqn.zip");
+    assert!(
+        msg.contains("2 networks found, under the prefixes q_net.q_net., q_net_target.q_net."),
+        "{msg}"
+    );
+    for prefix in ["q_net.q_net.", "q_net_target.q_net."] {
+        let got = load("sb3_dqn.zip", Some(prefix));
+        assert_eq!(got.format, Format::Sb3Zip);
+        check_q_values("sb3_dqn.zip", &got);
+        let same = load("sb3_policy.safetensors", Some(prefix));
+        assert_eq!(got.weights, same.weights, "{prefix}");
+    }
+}
+
+#[test]
+fn a_pickle_that_asks_for_another_global_is_refused_by_name() {
+    let msg = refusal("evil.pth");
+    assert!(msg.contains("refused global \"posix.system\""), "{msg}");
+}
+
+#[test]
+fn an_onnx_graph_with_another_operator_is_refused_by_name() {
+    let msg = refusal("tanh.onnx");
+    assert!(
+        msg.contains("(\"Tanh\") is not part of a 4-H-H-2 Q-network"),
+        "{msg}"
+    );
 }

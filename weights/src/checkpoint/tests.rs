@@ -1,5 +1,7 @@
 use super::*;
 use firmware::network::shapes;
+use safetensors::tensor::{Dtype, SafeTensors, TensorView};
+use state_dict::f16_to_f32;
 
 /// A width-16 network's tensors with recognisable values: tensor `t`, element `i` is
 /// `t + i / 1000`.

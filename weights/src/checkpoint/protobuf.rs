@@ -1,0 +1,167 @@
+//! Protocol Buffers' wire format, as far as reading an ONNX model needs: fields of a
+//! message, each a number and a varint, a fixed 32- or 64-bit value, or length-delimited
+//! bytes (a string, a nested message, a packed array).
+
+use crate::{Error, Result};
+
+/// One field's value as the wire carries it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Wire<'a> {
+    /// Wire type 0.
+    Varint(u64),
+    /// Wire type 1.
+    Fixed64(u64),
+    /// Wire type 2: a string, bytes, a nested message or a packed array.
+    Bytes(&'a [u8]),
+    /// Wire type 5.
+    Fixed32(u32),
+}
+
+fn refuse<T>(why: &str, at: usize) -> Result<T> {
+    Err(Error::Input(format!(
+        "ONNX: {why} at byte {at} of a message"
+    )))
+}
+
+/// The fields of one message, in order.
+pub struct Fields<'a> {
+    bytes: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Fields<'a> {
+    /// The fields of the message `bytes`.
+    pub fn new(bytes: &'a [u8]) -> Self {
+        Fields { bytes, pos: 0 }
+    }
+
+    fn varint(&mut self) -> Result<u64> {
+        let mut v = 0u64;
+        for shift in (0..64).step_by(7) {
+            let Some(&b) = self.bytes.get(self.pos) else {
+                return refuse("the message ends inside a varint", self.pos);
+            };
+            self.pos += 1;
+            v |= u64::from(b & 0x7f) << shift;
+            if b & 0x80 == 0 {
+                return Ok(v);
+            }
+        }
+        refuse("a varint longer than 10 bytes", self.pos)
+    }
+
+    fn take(&mut self, n: u64) -> Result<&'a [u8]> {
+        let end = usize::try_from(n)
+            .ok()
+            .and_then(|n| self.pos.checked_add(n))
+            .filter(|&e| e <= self.bytes.len());
+        let Some(end) = end else {
+            return refuse("a field runs past the end of its message", self.pos);
+        };
+        let s = &self.bytes[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+
+    /// The next field's number and value, or `None` at the end of the message.
+    pub fn next_field(&mut self) -> Result<Option<(u64, Wire<'a>)>> {
+        if self.pos == self.bytes.len() {
+            return Ok(None);
+        }
+        let at = self.pos;
+        let key = self.varint()?;
+        let value = match key & 7 {
+            0 => Wire::Varint(self.varint()?),
+            1 => Wire::Fixed64(u64::from_le_bytes(self.take(8)?.try_into().expect("8"))),
+            2 => {
+                let n = self.varint()?;
+                Wire::Bytes(self.take(n)?)
+            }
+            5 => Wire::Fixed32(u32::from_le_bytes(self.take(4)?.try_into().expect("4"))),
+            t => return refuse(&format!("wire type {t} (groups are not used by ONNX)"), at),
+        };
+        if key >> 3 == 0 {
+            return refuse("field number 0", at);
+        }
+        Ok(Some((key >> 3, value)))
+    }
+}
+
+/// Every field of `bytes` in order.
+pub fn fields(bytes: &[u8]) -> Result<Vec<(u64, Wire<'_>)>> {
+    let mut f = Fields::new(bytes);
+    let mut out = Vec::new();
+    while let Some(x) = f.next_field()? {
+        out.push(x);
+    }
+    Ok(out)
+}
+
+/// The varints of a repeated integer field, packed (one length-delimited run) or not.
+pub fn varints(values: &[Wire]) -> Result<Vec<u64>> {
+    let mut out = Vec::new();
+    for v in values {
+        match *v {
+            Wire::Varint(x) => out.push(x),
+            Wire::Bytes(b) => {
+                let mut f = Fields::new(b);
+                while f.pos < b.len() {
+                    out.push(f.varint()?);
+                }
+            }
+            _ => return refuse("an integer field of another wire type", 0),
+        }
+    }
+    Ok(out)
+}
+
+/// Length-delimited bytes as UTF-8 text.
+pub fn text<'a>(w: &Wire<'a>) -> Result<&'a str> {
+    match w {
+        Wire::Bytes(b) => {
+            std::str::from_utf8(b).or_else(|_| refuse("a string that is not UTF-8", 0))
+        }
+        _ => refuse("a string field of another wire type", 0),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The examples of the Protocol Buffers encoding guide: field 1 = 150 is `08 96 01`,
+    /// field 2 = "testing" is `12 07 74 65 73 74 69 6e 67`, a packed field 4 = [3, 270,
+    /// 86942] is `22 06 03 8e 02 9e a7 05`.
+    #[test]
+    fn the_encoding_guides_examples_read_as_the_guide_says() {
+        assert_eq!(
+            fields(&[0x08, 0x96, 0x01]).unwrap(),
+            [(1, Wire::Varint(150))]
+        );
+        let t = fields(b"\x12\x07testing").unwrap();
+        assert_eq!((t[0].0, text(&t[0].1).unwrap()), (2, "testing"));
+        let p = fields(&[0x22, 0x06, 0x03, 0x8e, 0x02, 0x9e, 0xa7, 0x05]).unwrap();
+        assert_eq!(varints(&[p[0].1]).unwrap(), [3, 270, 86942]);
+        // The same repeated field unpacked.
+        let u = fields(&[0x20, 0x03, 0x20, 0x8e, 0x02]).unwrap();
+        let vals: Vec<Wire> = u.iter().map(|f| f.1).collect();
+        assert_eq!(varints(&vals).unwrap(), [3, 270]);
+    }
+
+    #[test]
+    fn truncated_and_malformed_messages_are_refused() {
+        for bad in [
+            &[0x08][..],
+            &[0x08, 0x96],
+            &[0x12, 0x07, b't'],
+            &[0x0b],
+            &[0x00, 0x01],
+            &[
+                0x08, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0xff, 0x01,
+            ],
+            &[0x0d, 1, 2],
+        ] {
+            assert!(fields(bad).unwrap_err().is_input(), "{bad:?}");
+        }
+    }
+}

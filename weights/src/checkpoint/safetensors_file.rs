@@ -1,0 +1,113 @@
+//! Safetensors files: reading one into a state dict, and the trainer's canonical file.
+
+use std::borrow::Cow;
+use std::collections::BTreeMap;
+
+use firmware::network::TENSOR_NAMES;
+use safetensors::tensor::{Dtype as StDtype, SafeTensors, TensorView};
+
+use super::state_dict::{Dtype, StateDict, Tensor};
+use crate::{Error, Result, Weights};
+
+/// Largest safetensors header read. The header is JSON listing every tensor; a few hundred
+/// bytes per tensor, so this allows thousands while bounding the memory a hostile file costs.
+pub const MAX_HEADER_BYTES: u64 = 1 << 20;
+
+/// The state dict in safetensors `bytes`, borrowing its data, and the header's
+/// `__metadata__` (the trainer writes its configuration there).
+pub fn read(bytes: &[u8]) -> Result<(StateDict<'_>, BTreeMap<String, String>)> {
+    let st = parse(bytes)?;
+    let metadata = SafeTensors::read_metadata(bytes)
+        .ok()
+        .and_then(|(_, m)| m.metadata().clone())
+        .map(|m| m.into_iter().collect())
+        .unwrap_or_default();
+    let dict = st
+        .tensors()
+        .into_iter()
+        .map(|(name, t)| {
+            let dtype = match t.dtype() {
+                StDtype::F32 => Ok(Dtype::F32),
+                StDtype::F64 => Ok(Dtype::F64),
+                StDtype::F16 => Ok(Dtype::F16),
+                StDtype::BF16 => Ok(Dtype::BF16),
+                other => Err(format!("{other:?}")),
+            };
+            let tensor = Tensor {
+                dtype,
+                shape: t.shape().to_vec(),
+                data: Cow::Borrowed(t.data()),
+            };
+            (name, tensor)
+        })
+        .collect();
+    Ok((dict, metadata))
+}
+
+/// Checks the header's size before the safetensors crate parses it.
+fn parse(bytes: &[u8]) -> Result<SafeTensors<'_>> {
+    let Some(len) = bytes.first_chunk::<8>().map(|b| u64::from_le_bytes(*b)) else {
+        return Err(Error::Input(format!(
+            "not a safetensors file: {} bytes, shorter than its 8-byte header length",
+            bytes.len()
+        )));
+    };
+    if len > MAX_HEADER_BYTES {
+        return Err(Error::Input(format!(
+            "not a policy checkpoint: its header declares {len} bytes, expected at most {MAX_HEADER_BYTES}"
+        )));
+    }
+    SafeTensors::deserialize(bytes)
+        .map_err(|e| Error::Input(format!("not a safetensors file: {e}")))
+}
+
+/// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in
+/// the header's `__metadata__`, header keys sorted so the same weights and metadata always
+/// give the same bytes.
+pub fn to_safetensors(w: &Weights, metadata: &BTreeMap<String, String>) -> Result<Vec<u8>> {
+    let shapes = firmware::network::shapes(w.width());
+    let bytes: Vec<Vec<u8>> = w
+        .tensors()
+        .iter()
+        .map(|t| t.iter().flat_map(|v| v.to_le_bytes()).collect())
+        .collect();
+    let views = TENSOR_NAMES
+        .iter()
+        .zip(shapes)
+        .zip(&bytes)
+        .map(|((name, shape), data)| {
+            TensorView::new(StDtype::F32, shape.dims().to_vec(), data)
+                .map(|v| (*name, v))
+                .map_err(|e| Error::Io(format!("tensor `{name}`: {e}")))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let meta = (!metadata.is_empty()).then(|| metadata.clone().into_iter().collect());
+    let raw = safetensors::serialize(views, meta)
+        .map_err(|e| Error::Io(format!("serialising safetensors: {e}")))?;
+    Ok(canonical_header(&raw))
+}
+
+/// `bytes` with its JSON header's keys sorted. The safetensors crate writes the metadata (and
+/// may write the tensor entries) in `HashMap` order, which differs from run to run. The
+/// header stays padded with spaces to a multiple of 8 bytes, as the format recommends; tensor
+/// offsets are relative to the data, so they do not change.
+fn canonical_header(bytes: &[u8]) -> Vec<u8> {
+    let len = u64::from_le_bytes(*bytes.first_chunk::<8>().expect("serialised header")) as usize;
+    let (header, data) = bytes[8..].split_at(len);
+    let mut fields: BTreeMap<String, serde_json::Value> =
+        serde_json::from_slice(header).expect("the safetensors crate writes JSON");
+    if let Some(serde_json::Value::Object(meta)) = fields.remove("__metadata__") {
+        let sorted: BTreeMap<String, serde_json::Value> = meta.into_iter().collect();
+        fields.insert(
+            "__metadata__".into(),
+            serde_json::to_value(sorted).expect("strings"),
+        );
+    }
+    let mut header = serde_json::to_vec(&fields).expect("JSON values serialise");
+    header.resize(header.len().next_multiple_of(8), b' ');
+    let mut out = Vec::with_capacity(8 + header.len() + data.len());
+    out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+    out.extend_from_slice(&header);
+    out.extend_from_slice(data);
+    out
+}
