@@ -34,8 +34,8 @@ struct Cli {
 enum Command {
     /// Train a Double DQN (or DQN) controller and write a run directory.
     Train(Box<TrainArgs>),
-    /// Write a policy (a run directory, or a safetensors state dict as PyTorch saves it) as a
-    /// Rust module of const arrays or a C header.
+    /// Write a policy (a run directory, or a checkpoint as PyTorch users save it) as a Rust
+    /// module of const arrays or a C header.
     Export(ExportArgs),
     /// Rerun the paper's Tables 1, 4, 5, 6, its initialisation and target-update choices,
     /// single changes to its preset, learning rewards and readings of its text, and the
@@ -59,7 +59,8 @@ enum Command {
 
 #[derive(Args)]
 struct ExportArgs {
-    /// A run directory (its policy.safetensors) or a .safetensors file: tensors named
+    /// A run directory (its policy.safetensors), a safetensors file, a torch.save zip (.pt,
+    /// .pth, .cleanrl_model), a Stable-Baselines3 model.zip or an ONNX model: tensors named
     /// fc1/fc2/fc3, nn.Sequential indices (0, 2, 4), or either under a prefix (network.,
     /// q_net.q_net., ...), found by their chain of shapes 4 -> H -> H -> 2.
     src: PathBuf,

@@ -88,8 +88,7 @@ impl Import {
     /// One line for a log: `fc1, fc2, fc3 under prefix network., width 64`.
     pub fn describe(&self) -> String {
         let mut s = format!(
-            "{}: layers {} under {}, hidden width {}",
-            self.format,
+            "layers {} under {}, hidden width {}",
             self.layers.join(", "),
             show_prefix(&self.prefix),
             self.weights.width()
@@ -99,6 +98,9 @@ impl Import {
         }
         if self.ignored > 0 {
             s += &format!(", {} other tensors ignored", self.ignored);
+        }
+        if self.format != Format::Safetensors {
+            s += &format!(", read from {}", self.format);
         }
         s
     }
@@ -167,7 +169,13 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         }
         return onnx::import(bytes);
     }
-    let (dict, metadata) = safetensors_file::read(bytes)?;
+    let (dict, metadata) = safetensors_file::read(bytes).map_err(|e| match e {
+        Error::Input(m) if bytes.get(8) != Some(&b'{') => Error::Input(format!(
+            "expected a safetensors file, a PyTorch zip (torch.save: .pt, .pth, \
+             .cleanrl_model), a Stable-Baselines3 model.zip or an ONNX model; {m}"
+        )),
+        other => other,
+    })?;
     from_dict(&dict, prefix, metadata, Format::Safetensors)
 }
 
