@@ -66,6 +66,8 @@ pub struct Lane {
     limits: Limits,
     predictor: Option<Predictor>,
     pins: Pins,
+    /// Periods an episode may last.
+    horizon: u32,
     /// What the policy is shown: the reading, advanced over the dead time if predicting.
     shown: [f32; 4],
     /// Whether the controller would reject this period's reading (and coast).
@@ -92,6 +94,7 @@ impl Lane {
             limits: board.limits,
             predictor,
             pins: pins(),
+            horizon,
             shown: [0.0; 4],
             rejected: false,
         };
@@ -124,7 +127,8 @@ impl Lane {
     }
 
     /// The second half of the period under the agent's `action` (Gymnasium's index: 1
-    /// right, 0 left), then the next period's reading.
+    /// right, 0 left), then the next period's reading. An episode reaching the horizon is
+    /// truncated even as it terminates, as Gymnasium's `TimeLimit` says.
     pub fn step(&mut self, action: Action) -> Transition {
         let command = if self.rejected {
             Command::Coast
@@ -139,7 +143,8 @@ impl Lane {
         debug_assert!(driven.is_ok());
         self.sensor.commanded(command);
         let d = duty(&self.pins);
-        let t = self.live.with_dependent_mut(|_, world| world.apply(d));
+        let mut t = self.live.with_dependent_mut(|_, world| world.apply(d));
+        t.truncated = self.live.borrow_dependent().steps() >= self.horizon;
         self.read();
         t
     }
