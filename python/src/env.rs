@@ -1,5 +1,5 @@
 //! The twin's worlds as Python sees them: one ([`Twin`]) or many stepped in one call
-//! ([`VecTwin`]); the Gymnasium classes around them are `cartpole_ddqn/env.py`.
+//! ([`VecTwin`]); the Gymnasium classes around them are `python/cartpole_ddqn/env.py`.
 
 use std::path::PathBuf;
 
@@ -266,7 +266,7 @@ impl VecTwin {
             .iter()
             .flat_map(|l| l.state().to_array())
             .collect();
-        Ok(PyArray1::from_vec(py, flat).reshape([self.lanes.len(), 4])?)
+        PyArray1::from_vec(py, flat).reshape([self.lanes.len(), 4])
     }
 }
 
@@ -298,5 +298,5 @@ impl VecTwin {
 
 /// Readings laid out `[n, 4]`.
 fn readings<'py>(py: Python<'py>, obs: &[f32]) -> PyResult<Bound<'py, PyArray2<f32>>> {
-    Ok(PyArray1::from_slice(py, obs).reshape([obs.len() / 4, 4])?)
+    PyArray1::from_slice(py, obs).reshape([obs.len() / 4, 4])
 }

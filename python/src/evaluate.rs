@@ -22,6 +22,8 @@ const MAX_ROWS: usize = 10_000;
 /// (the shipped one if `None`), `rig` the machine (the policy's if `None`).
 #[pyfunction]
 #[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None))]
+// One argument per keyword of the Python function (`cartpole_ddqn.evaluate`).
+#[allow(clippy::too_many_arguments)]
 pub fn evaluate_json(
     py: Python<'_>,
     policy: Option<&Policy>,

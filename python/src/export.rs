@@ -24,6 +24,7 @@ type Tensor = (String, Vec<usize>, Vec<u8>);
 /// file's name does. Returns the provenance's description of the network.
 #[pyfunction]
 #[pyo3(signature = (out, fmt, path=None, tensors=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None))]
+// One argument per keyword of the Python function (`cartpole_ddqn.export`).
 #[allow(clippy::too_many_arguments)]
 pub fn export(
     out: PathBuf,

@@ -1,7 +1,7 @@
 //! `cartpole_ddqn`'s native module: the twin's worlds as Gymnasium environments
 //! ([`env`], one world or many stepped in one call), policy files ([`policy`]), the
 //! exporter ([`export`]) and the evaluation ([`evaluate`]), each through the code the
-//! command-line tools run. The Python package around it (`cartpole_ddqn/`) registers the
+//! command-line tools run. The Python package around it (`python/cartpole_ddqn/`) registers the
 //! environments and turns arguments and results into Python's.
 
 use std::fmt::Display;

@@ -66,7 +66,7 @@ impl Policy {
             .flat_map(|o| self.net.forward(&o))
             .collect();
         let n = q.len() / 2;
-        Ok(PyArray1::from_vec(py, q).reshape([n, 2])?)
+        PyArray1::from_vec(py, q).reshape([n, 2])
     }
 
     /// The action the controller takes on each reading `[n, 4]` (1 right, 0 left; a tie
