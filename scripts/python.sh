@@ -6,6 +6,7 @@
 # bindings. VENV chooses where the environment goes (default: under the target directory).
 set -euo pipefail
 cd "$(dirname "$0")/.."
+scripts/setup.sh
 target=${CARGO_TARGET_DIR:-$PWD/target}
 venv=${VENV:-$target/python-venv}
 python3 -m venv "$venv"
