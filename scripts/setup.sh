@@ -49,6 +49,8 @@ command -v cc >/dev/null || missing="$missing gcc"
 command -v c++ >/dev/null || missing="$missing g++"
 # The C processor-in-the-loop application (scripts/c-app.sh) is built for the Cortex-M4F.
 command -v arm-none-eabi-gcc >/dev/null || missing="$missing gcc-arm-none-eabi"
+# The Python package's tests (scripts/python.sh) run in a virtual environment of their own.
+python3 -c 'import ensurepip, venv' 2>/dev/null || missing="$missing python3-venv"
 if [ -n "$missing" ] && command -v apt-get >/dev/null; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"

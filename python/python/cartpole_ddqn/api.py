@@ -1,0 +1,131 @@
+"""Policies, export and evaluation: the arguments Python users pass, turned into what the
+native module (the commands' own code) takes."""
+
+import json
+import os
+
+import numpy as np
+
+from . import _native
+
+# NumPy dtypes a state dict's tensors may have, by safetensors' name for them.
+_DTYPES = {np.dtype(np.float32): "F32", np.dtype(np.float64): "F64", np.dtype(np.float16): "F16"}
+
+
+class Policy:
+    """A Q-network: ``q_values(obs)`` for readings ``[..., 4]`` gives ``[..., 2]``;
+    ``act(obs)`` the controller's actions (1 right, 0 left)."""
+
+    def __init__(self, native):
+        self._native = native
+
+    def q_values(self, obs):
+        obs = _readings(obs)
+        return self._native.q_values(obs.reshape(-1, 4)).reshape(obs.shape[:-1] + (2,))
+
+    def act(self, obs):
+        obs = _readings(obs)
+        actions = self._native.act(obs.reshape(-1, 4)).reshape(obs.shape[:-1])
+        return int(actions) if actions.ndim == 0 else actions
+
+    def __repr__(self):
+        return f"Policy({self._native.describe})"
+
+
+def _readings(obs):
+    obs = np.ascontiguousarray(obs, dtype=np.float32)
+    if obs.ndim == 0 or obs.shape[-1] != 4:
+        raise ValueError(
+            f"expected readings shaped [..., 4] ([x, x_dot, theta, theta_dot]); found shape {obs.shape}"
+        )
+    return obs
+
+
+def load(path, prefix=None, rig=None):
+    """The network in a policy file or run directory (whatever formats the project reads),
+    ``prefix`` choosing among several networks in one file; ``rig`` a rig file for the
+    machine it runs on (without one, the rig the file records, or Gymnasium's)."""
+    return Policy(_native.load(os.fspath(path), prefix, _path(rig)))
+
+
+def shipped(rig=None):
+    """The policy compiled into the firmware."""
+    return Policy(_native.shipped(_path(rig)))
+
+
+def _path(p):
+    return None if p is None else os.fspath(p)
+
+
+def _tensors(source):
+    """A state dict's tensors as (safetensors dtype, shape, bytes); PyTorch tensors are
+    detached and copied to the CPU first, bfloat16 widened to float32 (exactly)."""
+    out = {}
+    for name, value in source.items():
+        if not isinstance(name, str):
+            raise ValueError(f"expected tensor names as str; found {type(name).__name__}")
+        if hasattr(value, "detach"):
+            value = value.detach().cpu()
+            if str(getattr(value, "dtype", "")) == "torch.bfloat16":
+                value = value.float()
+            value = value.numpy()
+        array = np.ascontiguousarray(value)
+        dtype = _DTYPES.get(array.dtype)
+        if dtype is None:
+            raise ValueError(
+                f"tensor {name!r}: expected float32, float64 or float16 values; found {array.dtype}"
+            )
+        out[name] = (dtype, list(array.shape), array.astype(array.dtype.newbyteorder("<")).tobytes())
+    return out
+
+
+def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None, granularity=None, label=None):
+    """Writes the network of ``source`` (a policy file or run directory's path, or a state
+    dict of NumPy arrays or PyTorch tensors) to ``out`` as ``policy-export export`` does:
+    Rust (``fmt="rust"``) or C (``"c"``) source, float or ``quant="int8"``, written
+    atomically. ``label`` names an in-memory source in the file's provenance comment (as a
+    file's name does; default ``state dict``). Returns ``out``."""
+    kwargs = dict(quant=quant, name=name, rig=_path(rig), prefix=prefix, granularity=granularity)
+    if isinstance(source, dict):
+        _native.export(os.fspath(out), fmt, tensors=_tensors(source), label=label, **kwargs)
+    elif isinstance(source, (str, os.PathLike)):
+        if label is not None:
+            raise ValueError("expected no label for a file source (its name is the label); found one")
+        _native.export(os.fspath(out), fmt, path=os.fspath(source), **kwargs)
+    else:
+        raise ValueError(
+            f"expected a policy file's path or a state dict as the source; found {type(source).__name__}"
+        )
+    return out
+
+
+def _list(value, what):
+    if isinstance(value, (str, int)):
+        return [value]
+    values = list(value)
+    if not values:
+        raise ValueError(f"expected at least one {what}; found none")
+    return values
+
+
+def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None):
+    """The rows ``host-sim eval --json`` prints for the same arguments, as dicts: success
+    rate with its Wilson interval, failures, RMS of angle and position and the rest.
+    ``policy`` is a loaded Policy (the shipped one by default); ``scenario``, ``horizon``
+    and ``controller`` may be lists (``controller`` among policy, policy-int, monitored,
+    monitored-int, lqr, lqr-predict, rule, random)."""
+    if policy is not None and not isinstance(policy, Policy):
+        raise ValueError(f"expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
+    for what, value in (("episodes", episodes), ("seed", seed)):
+        if not isinstance(value, (int, np.integer)) or value < 0:
+            raise ValueError(f"{what} must be a whole number of at least 0; found {value!r}")
+    rows = _native.evaluate_json(
+        None if policy is None else policy._native,
+        [str(s) for s in _list(scenario, "scenario")],
+        [str(c) for c in _list(controller, "controller")],
+        int(episodes),
+        [int(h) for h in _list(horizon, "horizon")],
+        int(seed),
+        _path(rig),
+    )
+    return json.loads(rows)

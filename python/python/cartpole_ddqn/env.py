@@ -1,0 +1,117 @@
+"""Gymnasium environments over the twin's worlds: one, and many stepped in one native call.
+
+The observation is what the board's controller decides on in the scenario (the exact state
+rounded to float32 on Gymnasium's machine; with noise, encoders or dead time, the reading
+its sensor gives and its predictor advances), the reward 1.0 per period, and an episode
+terminates where the true plant leaves the track or the angle limit.
+"""
+
+import numpy as np
+import gymnasium
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from . import _native
+
+# Gymnasium's CartPole bounds: twice the termination limits for the positions, the largest
+# float32 for the velocities.
+_HIGH_FACTOR = 2.0
+
+
+def _observation_space(x_threshold, theta_threshold):
+    big = np.finfo(np.float32).max
+    high = np.array(
+        [x_threshold * _HIGH_FACTOR, big, theta_threshold * _HIGH_FACTOR, big],
+        dtype=np.float32,
+    )
+    return spaces.Box(-high, high, dtype=np.float32)
+
+
+def _seed_from(rng):
+    """A 64-bit seed drawn from Gymnasium's generator, for an unseeded reset."""
+    return int(rng.integers(0, 2**63))
+
+
+class TwinEnv(gymnasium.Env):
+    """One world of a scenario (``scenario="noise+delay=2+push"``) or of a domain
+    (``domain="length=0.5..1.6"``), on Gymnasium's machine or a rig file's (``rig=``)."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True):
+        self._twin = _native.Twin(scenario, domain, rig, max_episode_steps, predict)
+        self._twin.reset(0)
+        name, self.tau, x_limit, theta_limit = self._twin.world
+        self.observation_space = _observation_space(x_limit, theta_limit)
+        self.action_space = spaces.Discrete(2)
+        self._seeded = False
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        if seed is None and not self._seeded:
+            seed = _seed_from(self.np_random)
+        self._seeded = True
+        obs = self._twin.reset(seed)
+        return obs, {}
+
+    def step(self, action):
+        obs, terminated, truncated = self._twin.step(int(action))
+        return obs, 1.0, terminated, truncated, {}
+
+    @property
+    def state(self):
+        """The plant's true state ``[x, x_dot, theta, theta_dot]`` (float64)."""
+        return np.array(self._twin.state)
+
+    @property
+    def rejected(self):
+        """Whether the controller rejects this period's reading: the cart coasts."""
+        return self._twin.rejected
+
+
+class TwinVectorEnv(VectorEnv):
+    """``num_envs`` worlds stepped together in native code, with Gymnasium's next-step
+    autoreset: the step after an episode ends returns the next episode's first reading,
+    reward 0, neither terminated nor truncated, and ignores that world's action."""
+
+    metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
+
+    def __init__(self, num_envs=1, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True):
+        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+            raise ValueError(f"num_envs must be a whole number of at least 1; found {num_envs!r}")
+        self.num_envs = int(num_envs)
+        self._twin = _native.VecTwin(scenario, domain, rig, max_episode_steps, predict)
+        probe = _native.Twin(scenario, domain, rig, None, predict)
+        probe.reset(0)
+        _, _, x_limit, theta_limit = probe.world
+        self.single_observation_space = _observation_space(x_limit, theta_limit)
+        self.single_action_space = spaces.Discrete(2)
+        self.observation_space = batch_space(self.single_observation_space, self.num_envs)
+        self.action_space = batch_space(self.single_action_space, self.num_envs)
+        self._seeded = False
+
+    def reset(self, *, seed=None, options=None):
+        """World ``i`` starts episode 0 of ``seed + i`` (``seed`` may be a list of one
+        seed per world)."""
+        super().reset(seed=seed)
+        if seed is None:
+            base = _seed_from(self.np_random)
+            seeds = [base + i for i in range(self.num_envs)]
+        elif isinstance(seed, (int, np.integer)):
+            seeds = [int(seed) + i for i in range(self.num_envs)]
+        else:
+            seeds = [int(s) for s in seed]
+            if len(seeds) != self.num_envs:
+                raise ValueError(f"expected {self.num_envs} seeds, one per world; found {len(seeds)}")
+        return self._twin.reset(seeds), {}
+
+    def step(self, actions):
+        actions = np.ascontiguousarray(actions, dtype=np.int64).reshape(-1)
+        obs, reward, terminated, truncated = self._twin.step(actions)
+        return obs, reward, terminated, truncated, {}
+
+    @property
+    def states(self):
+        """The plants' true states ``[num_envs, 4]`` (float64)."""
+        return self._twin.states()

@@ -1,0 +1,132 @@
+//! `host-sim eval` for Python: the same rows, built by the same functions from the same
+//! arguments (`host_sim::eval::evaluate` for each horizon, scenario and controller, in the
+//! command's order), returned as the JSON `eval --json` prints under `rows`.
+
+use std::path::PathBuf;
+
+use clap::ValueEnum;
+use host_sim::eval::{self, ControllerKind, Net};
+use pyo3::prelude::*;
+use twin::{Machine, Scenario};
+
+use crate::policy::Policy;
+use crate::value_error;
+
+/// `eval`'s bounds: most episodes per row, longest horizon, most rows.
+const MAX_EPISODES: u64 = 10_000_000;
+const MAX_HORIZON: u32 = 1_000_000;
+const MAX_ROWS: usize = 10_000;
+
+/// The rows of `controllers` on `scenarios` (specs, or the sets `all`, `hard`, `faults`,
+/// `hard-candidates`) at `horizons`, `episodes` each from `seed`; `policy` the network
+/// (the shipped one if `None`), `rig` the machine (the policy's if `None`).
+#[pyfunction]
+#[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None))]
+// One argument per keyword of the Python function (`cartpole_ddqn.evaluate`).
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate_json(
+    py: Python<'_>,
+    policy: Option<&Policy>,
+    scenarios: Vec<String>,
+    controllers: Vec<String>,
+    episodes: u64,
+    horizons: Vec<u32>,
+    seed: u64,
+    rig: Option<PathBuf>,
+) -> PyResult<String> {
+    if !(1..=MAX_EPISODES).contains(&episodes) {
+        return Err(value_error(format!(
+            "episodes must be in [1, {MAX_EPISODES}]; found {episodes}"
+        )));
+    }
+    if let Some(h) = horizons.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
+        return Err(value_error(format!(
+            "horizon must be in [1, {MAX_HORIZON}]; found {h}"
+        )));
+    }
+    let kinds = controllers
+        .iter()
+        .map(|c| kind(c))
+        .collect::<PyResult<Vec<_>>>()?;
+    let given = crate::given_machine(rig.as_deref())?;
+    let shipped;
+    let policy = match policy {
+        Some(p) => p,
+        None => {
+            shipped = crate::policy::shipped(None)?;
+            &shipped
+        }
+    };
+    let machine = given.unwrap_or(policy.machine);
+    let scenarios = parse_scenarios(&scenarios, &machine)?;
+    let rows = horizons.len() * scenarios.len() * kinds.len();
+    if rows > MAX_ROWS {
+        return Err(value_error(format!(
+            "horizons x scenarios x controllers must make at most {MAX_ROWS} rows; found {rows}"
+        )));
+    }
+    let rebuilt = network(policy, &kinds, &machine)?;
+    let net = rebuilt.as_ref().unwrap_or(&policy.net);
+    let rows = py.detach(|| {
+        let mut rows = Vec::with_capacity(rows);
+        for &h in &horizons {
+            for s in &scenarios {
+                for &k in &kinds {
+                    rows.push(eval::evaluate(k, net, s, h, seed, episodes));
+                }
+            }
+        }
+        rows
+    });
+    serde_json::to_string(&rows).map_err(value_error)
+}
+
+/// A controller by the name `host-sim eval --controller` takes.
+fn kind(name: &str) -> PyResult<ControllerKind> {
+    ControllerKind::from_str(name, false).map_err(|_| {
+        let names: Vec<String> = ControllerKind::value_variants()
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        value_error(format!(
+            "expected a controller among {}; found {name:?}",
+            names.join(", ")
+        ))
+    })
+}
+
+/// The network as `host-sim eval` builds it for `kinds`, where the loaded one will not do:
+/// a file's network with its integer version, quantised on `machine`. The monitored
+/// controllers need an envelope, which only the shipped policy has.
+fn network(policy: &Policy, kinds: &[ControllerKind], machine: &Machine) -> PyResult<Option<Net>> {
+    let Some(import) = &policy.import else {
+        return Ok(None);
+    };
+    if kinds.iter().any(|k| k.monitored()) {
+        return Err(value_error(
+            "expected controllers without the runtime monitor for a loaded policy (its \
+             envelope is measured for the shipped policy only); found monitored",
+        ));
+    }
+    if !kinds.iter().any(|k| k.int()) {
+        return Ok(None);
+    }
+    Net::from_weights(&import.weights, Some(machine))
+        .map(Some)
+        .map_err(|e| value_error(format!("{e:#}")))
+}
+
+/// The scenarios of `specs` on `machine`, the named sets expanded as `host-sim eval` does.
+fn parse_scenarios(specs: &[String], machine: &Machine) -> PyResult<Vec<Scenario>> {
+    let mut out = Vec::new();
+    for spec in specs {
+        match spec.as_str() {
+            "all" => out.extend(Scenario::default_set_on(machine)),
+            "hard" => out.extend(Scenario::hard_set_on(machine)),
+            "hard-candidates" => out.extend(Scenario::hard_candidates()),
+            "faults" => out.extend(Scenario::faults_set_on(machine)),
+            _ => out.push(Scenario::parse_on(spec, machine).map_err(value_error)?),
+        }
+    }
+    Ok(out)
+}

@@ -1,0 +1,172 @@
+//! `policy-export export` for Python: the same steps as the command, from a policy file or
+//! from tensors handed over in memory (a state dict's arrays, serialised as safetensors and
+//! read by the same `weights::checkpoint` code as a file), written atomically.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use pyo3::prelude::*;
+use safetensors::tensor::{Dtype, TensorView};
+use weights::checkpoint::{self, Import};
+use weights::files::{check_io, write_atomic};
+use weights::quant::{self, Granularity};
+use weights::source;
+
+use crate::value_error;
+
+/// One tensor handed over from Python: safetensors dtype name, shape, little-endian bytes.
+type Tensor = (String, Vec<usize>, Vec<u8>);
+
+/// Writes the network of `path` (a policy file or run directory) or of `tensors` to `out`
+/// as Rust (`fmt` `rust`) or C (`c`) source, int8-quantised with `quant` `int8`, under
+/// `name` (the command's defaults), for the rig file `rig` (without one, the rig the file
+/// records, or Gymnasium's). `label` names in-memory tensors in the provenance comment, as a
+/// file's name does. Returns the provenance's description of the network.
+#[pyfunction]
+#[pyo3(signature = (out, fmt, path=None, tensors=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None))]
+// One argument per keyword of the Python function (`cartpole_ddqn.export`).
+#[allow(clippy::too_many_arguments)]
+pub fn export(
+    out: PathBuf,
+    fmt: &str,
+    path: Option<PathBuf>,
+    tensors: Option<BTreeMap<String, Tensor>>,
+    label: Option<&str>,
+    quant: Option<&str>,
+    name: Option<String>,
+    rig: Option<PathBuf>,
+    prefix: Option<&str>,
+    granularity: Option<&str>,
+) -> PyResult<String> {
+    let c = match fmt {
+        "rust" => false,
+        "c" => true,
+        _ => {
+            return Err(value_error(format!(
+                "fmt must be \"rust\" or \"c\"; found {fmt:?}"
+            )));
+        }
+    };
+    let int = match quant {
+        None => false,
+        Some("int8") => true,
+        Some(q) => {
+            return Err(value_error(format!(
+                "quant must be None or \"int8\"; found {q:?}"
+            )));
+        }
+    };
+    let granularity = match granularity {
+        None => Granularity::default(),
+        Some("per-channel") => Granularity::PerChannel,
+        Some("per-tensor") => Granularity::PerTensor,
+        Some(g) => {
+            return Err(value_error(format!(
+                "granularity must be \"per-channel\" or \"per-tensor\"; found {g:?}"
+            )));
+        }
+    };
+    let name = name.unwrap_or_else(|| default_name(c, int).to_string());
+    if c {
+        source::check_c_name(&name).map_err(value_error)?;
+    } else {
+        source::check_rust_name(&name).map_err(value_error)?;
+    }
+    let (import, provenance) = match (path, tensors) {
+        (Some(p), None) => from_file(&p, rig.as_deref(), &out, prefix)?,
+        (None, Some(t)) => from_tensors(
+            &t,
+            prefix,
+            label.unwrap_or("state dict"),
+            rig.as_deref(),
+            &out,
+        )?,
+        _ => {
+            return Err(value_error(
+                "expected a policy file's path or a state dict as the source",
+            ));
+        }
+    };
+    let given = crate::given_machine(rig.as_deref())?;
+    let recorded = twin::rigfile::recorded(&import.metadata).map_err(value_error)?;
+    let machine = twin::rigfile::choose(given, recorded);
+    let r = &machine.rig;
+    let text = if int {
+        let q = twin::calibrate::quantise_policy(&import.weights, granularity, &machine)
+            .map_err(value_error)?;
+        if c {
+            quant::c_header(&q, &name, &provenance, r)
+        } else {
+            quant::rust_module(&q, &name, &provenance, r)
+        }
+    } else if c {
+        source::c_header(&import.weights, &name, &provenance, r)
+    } else {
+        source::rust_module(&import.weights, &name, &provenance, r)
+    }
+    .map_err(value_error)?;
+    write_atomic(&out, text.as_bytes()).map_err(value_error)?;
+    Ok(import.describe())
+}
+
+/// The command's default names, by format and quantisation.
+fn default_name(c: bool, int: bool) -> &'static str {
+    match (c, int) {
+        (false, false) => source::DEFAULT_RUST_NAME,
+        (true, false) => source::DEFAULT_C_NAME,
+        (false, true) => "POLICY_INT",
+        (true, true) => "cartpole_policy_int",
+    }
+}
+
+/// The network of a policy file and its provenance, the inputs and `out` checked first.
+fn from_file(
+    src: &Path,
+    rig: Option<&Path>,
+    out: &Path,
+    prefix: Option<&str>,
+) -> PyResult<(Import, Vec<String>)> {
+    let file = checkpoint::policy_file(src);
+    let mut inputs = vec![("source", file.as_path())];
+    inputs.extend(rig.map(|r| ("rig", r)));
+    check_io(&inputs, &[("out", out)]).map_err(value_error)?;
+    let import = checkpoint::load(src, prefix).map_err(value_error)?;
+    let provenance = policy_export::run::source_provenance(src, &import)
+        .map_err(|e| value_error(format!("{e:#}")))?;
+    Ok((import, provenance))
+}
+
+/// The network of in-memory tensors and its provenance, as a file named `label` would give.
+fn from_tensors(
+    tensors: &BTreeMap<String, Tensor>,
+    prefix: Option<&str>,
+    label: &str,
+    rig: Option<&Path>,
+    out: &Path,
+) -> PyResult<(Import, Vec<String>)> {
+    let inputs: Vec<(&str, &Path)> = rig.map(|r| ("rig", r)).into_iter().collect();
+    check_io(&inputs, &[("out", out)]).map_err(value_error)?;
+    let views = tensors
+        .iter()
+        .map(|(n, (dtype, shape, data))| {
+            let dtype = match dtype.as_str() {
+                "F32" => Dtype::F32,
+                "F64" => Dtype::F64,
+                "F16" => Dtype::F16,
+                "BF16" => Dtype::BF16,
+                d => {
+                    return Err(value_error(format!(
+                        "tensor {n:?}: expected a float dtype (F32, F64, F16, BF16); found {d}"
+                    )));
+                }
+            };
+            let view = TensorView::new(dtype, shape.clone(), data)
+                .map_err(|e| value_error(format!("tensor {n:?}: {e}")))?;
+            Ok((n.as_str(), view))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    let bytes = safetensors::tensor::serialize(views, None).map_err(value_error)?;
+    let import = checkpoint::import(&bytes, prefix).map_err(value_error)?;
+    let provenance = vec![format!("source: {label} ({})", import.describe())];
+    Ok((import, provenance))
+}

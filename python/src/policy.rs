@@ -1,0 +1,109 @@
+//! A policy file loaded for Python: `weights::checkpoint::load` finds the network, and the
+//! simulator's network (`host_sim::eval::Net`, the firmware's forward pass bit for bit)
+//! computes its Q-values, as `host-sim eval --policy` runs it.
+
+use std::path::PathBuf;
+
+use firmware::network::argmax;
+use host_sim::eval::Net;
+use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
+use pyo3::prelude::*;
+use twin::Machine;
+use weights::checkpoint::{self, Import};
+
+use crate::value_error;
+
+/// A Q-network and the machine it runs on.
+#[pyclass(module = "cartpole_ddqn._native", frozen)]
+pub struct Policy {
+    /// The file's network; `None` for the policy compiled into the firmware.
+    pub import: Option<Import>,
+    /// The rig given, or the one the file records, or Gymnasium's.
+    pub machine: Machine,
+    pub net: Net,
+}
+
+/// The network at `path` (a policy file or a run directory), `prefix` choosing among several
+/// in one file, on the machine of the rig file `rig` (without one, the rig the file records,
+/// or Gymnasium's).
+#[pyfunction]
+#[pyo3(signature = (path, prefix=None, rig=None))]
+pub fn load(path: PathBuf, prefix: Option<&str>, rig: Option<PathBuf>) -> PyResult<Policy> {
+    let given = crate::given_machine(rig.as_deref())?;
+    let import = checkpoint::load(&path, prefix).map_err(value_error)?;
+    let recorded = twin::rigfile::recorded(&import.metadata).map_err(value_error)?;
+    let machine = twin::rigfile::choose(given, recorded);
+    let net = Net::from_weights(&import.weights, None)
+        .map_err(|e| value_error(format!("policy {}: {e:#}", path.display())))?;
+    Ok(Policy {
+        import: Some(import),
+        machine,
+        net,
+    })
+}
+
+/// The policy compiled into the firmware, on Gymnasium's machine or `rig`'s.
+#[pyfunction]
+#[pyo3(signature = (rig=None))]
+pub fn shipped(rig: Option<PathBuf>) -> PyResult<Policy> {
+    Ok(Policy {
+        import: None,
+        machine: crate::machine(rig.as_deref())?,
+        net: Net::shipped(),
+    })
+}
+
+#[pymethods]
+impl Policy {
+    /// Q-values `[n, 2]` of readings `[n, 4]`.
+    fn q_values<'py>(
+        &self,
+        py: Python<'py>,
+        obs: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<Bound<'py, PyArray2<f32>>> {
+        let q: Vec<f32> = rows(&obs)?
+            .into_iter()
+            .flat_map(|o| self.net.forward(&o))
+            .collect();
+        let n = q.len() / 2;
+        PyArray1::from_vec(py, q).reshape([n, 2])
+    }
+
+    /// The action the controller takes on each reading `[n, 4]` (1 right, 0 left; a tie
+    /// is decided as the firmware decides it).
+    fn act<'py>(
+        &self,
+        py: Python<'py>,
+        obs: PyReadonlyArray2<'py, f32>,
+    ) -> PyResult<Bound<'py, PyArray1<i64>>> {
+        let a: Vec<i64> = rows(&obs)?
+            .into_iter()
+            .map(|o| argmax(&self.net.forward(&o)).index() as i64)
+            .collect();
+        Ok(PyArray1::from_vec(py, a))
+    }
+
+    /// Where the network was found: its layers, prefix and width.
+    #[getter]
+    fn describe(&self) -> String {
+        self.import.as_ref().map_or(
+            "the policy compiled into the firmware".into(),
+            Import::describe,
+        )
+    }
+}
+
+/// The rows of `obs`, which must be `[n, 4]`.
+fn rows(obs: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32; 4]>> {
+    let v = obs.as_array();
+    if v.ncols() != 4 {
+        return Err(value_error(format!(
+            "expected readings of 4 values [x, x_dot, theta, theta_dot]; found {}",
+            v.ncols()
+        )));
+    }
+    Ok(v.rows()
+        .into_iter()
+        .map(|r| [r[0], r[1], r[2], r[3]])
+        .collect())
+}

@@ -1,0 +1,85 @@
+"""Export: the files `policy-export export` writes, byte for byte, from a path and from
+in-memory state dicts; nothing written on a refusal."""
+
+import pytest
+
+import cartpole_ddqn
+
+from conftest import REPO, read_safetensors, run
+
+FIXTURES = REPO / "weights" / "tests" / "fixtures"
+CASES = [
+    ("rust", None, []),
+    ("c", None, ["--format", "c"]),
+    ("rust", "int8", ["--quant", "int8"]),
+    ("c", "int8", ["--format", "c", "--quant", "int8"]),
+]
+
+
+def cli_export(tools, tmp_path, src, flags):
+    out = tmp_path / "cli.out"
+    run(tools["policy-export"], "export", src, "--out", out, *flags)
+    return out.read_bytes()
+
+
+@pytest.mark.parametrize("fmt, quant, flags", CASES)
+def test_path_source_is_the_commands_output(tools, tmp_path, fmt, quant, flags):
+    src = REPO / "firmware" / "policy.safetensors"
+    out = tmp_path / "py.out"
+    assert cartpole_ddqn.export(src, out=out, fmt=fmt, quant=quant) == out
+    assert out.read_bytes() == cli_export(tools, tmp_path, src, flags)
+
+
+@pytest.mark.parametrize("fmt, quant, flags", CASES)
+@pytest.mark.parametrize("fixture", ["cleanrl.safetensors", "sequential.safetensors"])
+def test_dict_source_is_the_commands_output_for_its_file(tools, tmp_path, fixture, fmt, quant, flags):
+    src = FIXTURES / fixture
+    tensors = read_safetensors(src)
+    out = tmp_path / "py.out"
+    cartpole_ddqn.export(tensors, out=out, fmt=fmt, quant=quant, label=fixture)
+    assert out.read_bytes() == cli_export(tools, tmp_path, src, flags)
+
+
+def test_torch_like_tensors_are_detached_and_copied_to_the_cpu(tmp_path):
+    class Tensor:
+        def __init__(self, a):
+            self.a, self.dtype = a, "torch.float32"
+
+        def detach(self):
+            return self
+
+        def cpu(self):
+            return self
+
+        def numpy(self):
+            return self.a
+
+    tensors = read_safetensors(REPO / "firmware" / "policy.safetensors")
+    a, b = tmp_path / "a.rs", tmp_path / "b.rs"
+    cartpole_ddqn.export(tensors, out=a)
+    cartpole_ddqn.export({k: Tensor(v) for k, v in tensors.items()}, out=b)
+    assert a.read_bytes() == b.read_bytes()
+
+
+@pytest.mark.parametrize(
+    "kwargs, words",
+    [
+        (dict(fmt="go"), "fmt"),
+        (dict(quant="int4"), "quant"),
+        (dict(name="not an identifier"), "name"),
+        (dict(granularity="per-row", quant="int8"), "granularity"),
+    ],
+)
+def test_refusals_raise_value_error_and_write_nothing(tmp_path, kwargs, words):
+    out = tmp_path / "never.rs"
+    with pytest.raises(ValueError, match=words):
+        cartpole_ddqn.export(REPO / "firmware" / "policy.safetensors", out=out, **kwargs)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_a_dict_without_the_network_is_refused(tmp_path):
+    tensors = read_safetensors(REPO / "firmware" / "policy.safetensors")
+    del tensors["fc2.weight"]
+    with pytest.raises(ValueError):
+        cartpole_ddqn.export(tensors, out=tmp_path / "x.rs")
+    assert list(tmp_path.iterdir()) == []

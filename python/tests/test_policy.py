@@ -1,0 +1,62 @@
+"""Policies: the shipped policy's file against the policy compiled into the firmware, a
+NumPy forward pass and the simulator's command line."""
+
+import json
+
+import numpy as np
+import pytest
+
+import cartpole_ddqn
+
+from conftest import REPO, read_safetensors, run
+
+SHIPPED = REPO / "firmware" / "policy.safetensors"
+
+
+def numpy_q(tensors, obs):
+    """The 4-64-64-2 ReLU network in NumPy (float64): an independent reference."""
+    h = np.asarray(obs, dtype=np.float64)
+    for i in (1, 2, 3):
+        w, b = (tensors[f"fc{i}.{k}"].astype(np.float64) for k in ("weight", "bias"))
+        h = h @ w.T + b
+        if i < 3:
+            h = np.maximum(h, 0.0)
+    return h
+
+
+def states(n=2000, seed=0):
+    scale = np.array([2.4, 2.0, 0.21, 3.0])
+    return (np.random.default_rng(seed).uniform(-1, 1, size=(n, 4)) * scale).astype(np.float32)
+
+
+def test_shipped_file_is_the_compiled_policy():
+    obs = states()
+    assert np.array_equal(cartpole_ddqn.load(SHIPPED).q_values(obs), cartpole_ddqn.shipped().q_values(obs))
+
+
+def test_q_values_agree_with_numpy_and_act_takes_the_larger():
+    policy, obs = cartpole_ddqn.load(SHIPPED), states()
+    q = policy.q_values(obs)
+    assert q.dtype == np.float32 and q.shape == (len(obs), 2)
+    want = numpy_q(read_safetensors(SHIPPED), obs)
+    assert np.max(np.abs(q - want)) <= 1e-5 * max(1.0, np.max(np.abs(want)))
+    clear = np.abs(want[:, 1] - want[:, 0]) > 1e-3
+    assert np.array_equal(policy.act(obs)[clear], np.argmax(want, axis=1)[clear])
+    assert policy.q_values(obs.reshape(40, 50, 4)).shape == (40, 50, 2)
+    assert policy.act(obs[0]) in (0, 1)
+
+
+def test_loaded_policy_evaluates_as_the_command_line_does(tools):
+    args = ["--scenario", "noise+delay=2", "--controller", "policy", "--episodes", "40", "--horizon", "300"]
+    want = json.loads(run(tools["host-sim"], "eval", "--policy", SHIPPED, "--json", *args))["rows"]
+    got = cartpole_ddqn.evaluate(cartpole_ddqn.load(SHIPPED), "noise+delay=2", episodes=40, horizon=300)
+    assert got == want
+
+
+def test_refusals_raise_value_error():
+    with pytest.raises(ValueError, match="nonexistent"):
+        cartpole_ddqn.load(REPO / "nonexistent.safetensors")
+    with pytest.raises(ValueError, match="found shape"):
+        cartpole_ddqn.shipped().q_values(np.zeros((3, 5)))
+    with pytest.raises(ValueError):
+        cartpole_ddqn.load(REPO / "README.md")
