@@ -4,6 +4,7 @@
 //! - [`nn`]: batched forward, backward, clipping and Adam for the 4-H-H-2 network.
 //! - [`train`]: the Double DQN / DQN loop, replay buffer, learner and evaluation.
 //! - [`run`]: the run directory (metrics, summary, policy files).
+//! - [`export`]: a network as Rust or C source, float or int8, for its rig.
 //! - [`outdir`]: output directories written as a unit, replaced only if provably ours.
 //! - [`reproduce`]: the paper's ablations over many seeds, tables and figures.
 //!
@@ -17,6 +18,7 @@
 #![deny(clippy::print_stdout, clippy::print_stderr)]
 
 pub mod config;
+pub mod export;
 #[allow(unsafe_code)]
 pub mod nn;
 pub mod outdir;

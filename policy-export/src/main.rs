@@ -10,14 +10,14 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use indicatif::{MultiProgress, ProgressBar, ProgressStyle};
 use policy_export::config::{Config, ConfigError, KernelChoice};
+use policy_export::export::{self, Language};
 use policy_export::outdir::Staging;
 use policy_export::run::{self, Summary};
 use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
 use weights::checkpoint;
 use weights::files::{check_io, write_atomic};
-use weights::quant::{self, Granularity};
-use weights::source;
+use weights::quant::Granularity;
 
 mod overrides;
 
@@ -422,62 +422,36 @@ fn print_aggregate(summaries: &[Summary], staging: Option<&Staging>) -> Result<(
 }
 
 fn cmd_export(a: &ExportArgs) -> Result<()> {
-    let name = a.name.clone().unwrap_or_else(|| {
-        match (a.format, a.quant.is_some()) {
-            (Format::Rust, false) => source::DEFAULT_RUST_NAME,
-            (Format::C, false) => source::DEFAULT_C_NAME,
-            (Format::Rust, true) => "POLICY_INT",
-            (Format::C, true) => "cartpole_policy_int",
-        }
-        .to_string()
-    });
-    match a.format {
-        Format::Rust => source::check_rust_name(&name)?,
-        Format::C => source::check_c_name(&name)?,
-    }
+    let lang = match a.format {
+        Format::Rust => Language::Rust,
+        Format::C => Language::C,
+    };
+    let name = a
+        .name
+        .clone()
+        .unwrap_or_else(|| export::default_name(lang, a.quant.is_some()).to_string());
+    export::check_name(lang, &name)?;
     let src_file = checkpoint::policy_file(&a.src);
     let mut inputs = vec![("SRC", src_file.as_path())];
     inputs.extend(a.rig.as_deref().map(|r| ("--rig", r)));
     check_io(&inputs, &[("--out", &a.out)])?;
     let import = checkpoint::load(&a.src, a.prefix.as_deref())?;
-    let given = a.rig.as_deref().map(twin::rigfile::load).transpose()?;
-    let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
-    let rig = machine.rig;
     let prov = run::source_provenance(&a.src, &import)?;
-    let quantised = match a.quant {
-        None => None,
-        Some(Quant::Int8) => Some(twin::calibrate::quantise_policy(
-            &import.weights,
-            match a.granularity {
-                None => Granularity::default(),
-                Some(GranularityArg::PerChannel) => Granularity::PerChannel,
-                Some(GranularityArg::PerTensor) => Granularity::PerTensor,
-            },
-            &machine,
-        )?),
-    };
-    let text = match (a.format, &quantised) {
-        (Format::Rust, None) => source::rust_module(&import.weights, &name, &prov, &rig)?,
-        (Format::C, None) => source::c_header(&import.weights, &name, &prov, &rig)?,
-        (Format::Rust, Some(q)) => quant::rust_module(q, &name, &prov, &rig)?,
-        (Format::C, Some(q)) => quant::c_header(q, &name, &prov, &rig)?,
-    };
-    write_atomic(&a.out, text.as_bytes())?;
-    match &quantised {
-        None => host_common::errln!(
-            "wrote {}: {name}, {} parameters ({})",
-            a.out.display(),
-            import.weights.params(),
-            import.describe()
-        ),
-        Some(q) => host_common::errln!(
-            "wrote {}: {name}, {} parameters in {} bytes ({}; {})",
-            a.out.display(),
-            import.weights.params(),
-            q.flash_bytes(),
-            import.describe(),
-            q.describe()
-        ),
+    let granularity = a.quant.map(|Quant::Int8| match a.granularity {
+        None => Granularity::default(),
+        Some(GranularityArg::PerChannel) => Granularity::PerChannel,
+        Some(GranularityArg::PerTensor) => Granularity::PerTensor,
+    });
+    let r = export::render(&import, &prov, a.rig.as_deref(), lang, granularity, &name)?;
+    write_atomic(&a.out, r.text.as_bytes())?;
+    let (out, params, how) = (a.out.display(), import.weights.params(), import.describe());
+    match r.int8 {
+        None => host_common::errln!("wrote {out}: {name}, {params} parameters ({how})"),
+        Some((bytes, q)) => {
+            host_common::errln!(
+                "wrote {out}: {name}, {params} parameters in {bytes} bytes ({how}; {q})"
+            )
+        }
     }
     Ok(())
 }

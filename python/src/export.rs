@@ -5,12 +5,12 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use policy_export::export::{self as exporter, Language};
 use pyo3::prelude::*;
 use safetensors::tensor::{Dtype, TensorView};
 use weights::checkpoint::{self, Import};
 use weights::files::{check_io, write_atomic};
-use weights::quant::{self, Granularity};
-use weights::source;
+use weights::quant::Granularity;
 
 use crate::value_error;
 
@@ -38,9 +38,9 @@ pub fn export(
     prefix: Option<&str>,
     granularity: Option<&str>,
 ) -> PyResult<String> {
-    let c = match fmt {
-        "rust" => false,
-        "c" => true,
+    let lang = match fmt {
+        "rust" => Language::Rust,
+        "c" => Language::C,
         _ => {
             return Err(value_error(format!(
                 "fmt must be \"rust\" or \"c\"; found {fmt:?}"
@@ -66,12 +66,8 @@ pub fn export(
             )));
         }
     };
-    let name = name.unwrap_or_else(|| default_name(c, int).to_string());
-    if c {
-        source::check_c_name(&name).map_err(value_error)?;
-    } else {
-        source::check_rust_name(&name).map_err(value_error)?;
-    }
+    let name = name.unwrap_or_else(|| exporter::default_name(lang, int).to_string());
+    exporter::check_name(lang, &name).map_err(value_error)?;
     let (import, provenance) = match (path, tensors) {
         (Some(p), None) => from_file(&p, rig.as_deref(), &out, prefix)?,
         (None, Some(t)) => from_tensors(
@@ -87,36 +83,17 @@ pub fn export(
             ));
         }
     };
-    let given = crate::given_machine(rig.as_deref())?;
-    let recorded = twin::rigfile::recorded(&import.metadata).map_err(value_error)?;
-    let machine = twin::rigfile::choose(given, recorded);
-    let r = &machine.rig;
-    let text = if int {
-        let q = twin::calibrate::quantise_policy(&import.weights, granularity, &machine)
-            .map_err(value_error)?;
-        if c {
-            quant::c_header(&q, &name, &provenance, r)
-        } else {
-            quant::rust_module(&q, &name, &provenance, r)
-        }
-    } else if c {
-        source::c_header(&import.weights, &name, &provenance, r)
-    } else {
-        source::rust_module(&import.weights, &name, &provenance, r)
-    }
-    .map_err(value_error)?;
-    write_atomic(&out, text.as_bytes()).map_err(value_error)?;
+    let r = exporter::render(
+        &import,
+        &provenance,
+        rig.as_deref(),
+        lang,
+        int.then_some(granularity),
+        &name,
+    )
+    .map_err(|e| value_error(format!("{e:#}")))?;
+    write_atomic(&out, r.text.as_bytes()).map_err(value_error)?;
     Ok(import.describe())
-}
-
-/// The command's default names, by format and quantisation.
-fn default_name(c: bool, int: bool) -> &'static str {
-    match (c, int) {
-        (false, false) => source::DEFAULT_RUST_NAME,
-        (true, false) => source::DEFAULT_C_NAME,
-        (false, true) => "POLICY_INT",
-        (true, true) => "cartpole_policy_int",
-    }
 }
 
 /// The network of a policy file and its provenance, the inputs and `out` checked first.

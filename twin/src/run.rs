@@ -9,7 +9,9 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, State, Transition};
-use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Predictor};
+use firmware::controller::{
+    Assurance, Command, Controller, FaultFlags, Limits, Policy, Predictor, Sensed,
+};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
 use rand_core::Rng;
@@ -182,16 +184,34 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     /// The controller's period on this period's measurement: what it commands. A `reset`
     /// fault restarts the controller first; a `late` one counts an overrun after.
     pub fn decide(&mut self) -> Command {
+        let sensed = self.sense();
+        self.act(sensed)
+    }
+
+    /// The first half of [`Episode::decide`]: the board restarted if a fault says so, the
+    /// world measured, and the controller's reading of it (what its policy will be shown).
+    pub fn sense(&mut self) -> Sensed<[f32; 4]> {
         let scenario = self.world.scenario();
-        let k = self.world.steps();
-        if scenario.faults.resets(k) {
+        if scenario.faults.resets(self.world.steps()) {
             *self.controller.sensor_mut() = sensor(scenario, self.watch).expect(CHECKED);
             self.controller.restart();
         }
         let m = self.world.measure();
         self.controller.sensor_mut().set(m);
-        let command = self.controller.step();
-        if scenario.faults.late.is_some_and(|w| w.holds(k)) {
+        self.controller.sense()
+    }
+
+    /// The second half of [`Episode::decide`] on what [`Episode::sense`] found.
+    pub fn act(&mut self, sensed: Sensed<[f32; 4]>) -> Command {
+        let command = self.controller.act(sensed);
+        let k = self.world.steps();
+        if self
+            .world
+            .scenario()
+            .faults
+            .late
+            .is_some_and(|w| w.holds(k))
+        {
             self.controller.record_overruns(1);
         }
         command
@@ -261,7 +281,7 @@ impl Tally {
 }
 
 /// Episode `episode` of `seed` started: its start, noise and push streams.
-fn start_episode<'s, P: Policy>(
+pub fn start_episode<'s, P: Policy>(
     policy: P,
     scenario: &'s Scenario,
     horizon: u32,

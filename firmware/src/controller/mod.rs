@@ -121,6 +121,29 @@ pub trait StateSensor {
     }
 }
 
+/// A period's reading, sanitised and predicted: the first half of
+/// [`Controller::step`], which [`Controller::act`] completes.
+#[derive(Clone, Copy, Debug)]
+pub struct Sensed<O> {
+    obs: O,
+    seen: O,
+    flags: FaultFlags,
+    model_only: bool,
+}
+
+impl<O: Copy> Sensed<O> {
+    /// What the policy will be shown: the reading, advanced over the dead time when the
+    /// controller predicts; `None` when the reading is rejected (the motor coasts).
+    pub fn shown(&self) -> Option<O> {
+        (!self.flags.reading_rejected()).then_some(self.seen)
+    }
+
+    /// The reading as the sensor gave it (zero when the sensor failed).
+    pub fn reading(&self) -> O {
+        self.obs
+    }
+}
+
 /// Maps a sanitised reading to two scores, `[left, right]`; the controller pushes right only
 /// if the right score is strictly larger (ties and NaN push left, see
 /// [`Reading::decide`]). The Q-network's scores are its Q-values; a baseline's may be
@@ -286,6 +309,16 @@ where
     /// One control period: read, sanitise, decide, actuate, record, tell the sensor.
     #[inline]
     pub fn step(&mut self) -> Command {
+        let sensed = self.sense();
+        self.act(sensed)
+    }
+
+    /// The first half of a period ([`Controller::step`] is both): read the sensor, sanitise
+    /// the reading against the limits, and advance it over the dead time. A caller that
+    /// decides outside (an agent choosing the policy's answer) looks at
+    /// [`Sensed::shown`] before calling [`Controller::act`].
+    #[inline(always)]
+    pub fn sense(&mut self) -> Sensed<S::Reading> {
         let (obs, mut flags) = match self.sensor.read() {
             Ok(obs) => (obs, obs.flags(&self.limits)),
             Err(_) => (S::Reading::ZERO, FaultFlags::SENSOR_ERROR),
@@ -295,6 +328,28 @@ where
             self.faults.model_only = self.faults.model_only.saturating_add(1);
             flags = flags.with(FaultFlags::MODEL_ONLY);
         }
+        let seen = match &self.predictor {
+            Some(p) if !flags.reading_rejected() => obs.predicted(p),
+            _ => obs,
+        };
+        Sensed {
+            obs,
+            seen,
+            flags,
+            model_only,
+        }
+    }
+
+    /// The second half of a period on what [`Controller::sense`] found: decide (the policy,
+    /// or the monitor's choice), actuate, record, tell the sensor.
+    #[inline(always)]
+    pub fn act(&mut self, sensed: Sensed<S::Reading>) -> Command {
+        let Sensed {
+            obs,
+            seen,
+            mut flags,
+            model_only,
+        } = sensed;
         let (q, command) = if flags.reading_rejected() {
             self.faults.count_rejected(flags);
             if let Some(m) = &mut self.monitor {
@@ -302,10 +357,6 @@ where
             }
             (S::Reading::UNSCORED, Command::Coast)
         } else {
-            let seen = match &self.predictor {
-                Some(p) => obs.predicted(p),
-                None => obs,
-            };
             match &mut self.monitor {
                 Some(m) => {
                     let (q, command, who) =
