@@ -1,0 +1,143 @@
+"""Stable-Baselines3's DQN trained on the twin, deployed the project's way.
+
+Trains SB3's DQN (a 4-64-64-2 Q-network, the controller's shape) on the twin's randomised
+worlds, the domain the shipped policy was trained on (`policy-export train --preset deploy`),
+saves SB3's own model.zip, exports it as the firmware's Rust module and the C header, and
+evaluates it with `host-sim eval` beside the shipped policy. Writes into --out:
+model.zip, policy.rs, policy.h, eval-sb3.json, eval-shipped.json and report.md (the table).
+
+Needs the package and Stable-Baselines3 (with PyTorch) in one environment:
+
+    pip install ./python stable-baselines3
+    python examples/sb3_dqn.py --steps 100000
+
+Run from the repository; the command-line tools are built with cargo if needed.
+"""
+
+import argparse
+import json
+import os
+import platform
+import subprocess
+import sys
+import time
+import tomllib
+
+import gymnasium as gym
+import torch
+from stable_baselines3 import DQN
+from stable_baselines3.common.callbacks import BaseCallback
+
+import cartpole_ddqn  # noqa: F401  (registers cartpole_ddqn/Twin-v0)
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+# SB3 names its online network's layers q_net.q_net.{0,2,4} in policy.pth.
+PREFIX = "q_net.q_net."
+
+
+def tool(name, *args, capture=True):
+    """Runs a project tool (built in release by cargo on first use)."""
+    cmd = ["cargo", "run", "--release", "-q", "-p", name, "--", *args]
+    done = subprocess.run(cmd, cwd=ROOT, check=True, text=True,
+                          stdout=subprocess.PIPE if capture else None)
+    return done.stdout
+
+
+def deploy_domain():
+    """The randomised worlds the shipped policy trained on, from the preset itself."""
+    cfg = tomllib.loads(tool("policy-export", "train", "--preset", "deploy", "--print-config"))
+    return cfg["domain"]
+
+
+class Progress(BaseCallback):
+    """One line per tenth of the budget: steps, episodes' mean length, rate, ETA."""
+
+    def __init__(self, total):
+        super().__init__()
+        self.total, self.start, self.next = total, time.monotonic(), total // 10
+
+    def _on_step(self):
+        if self.num_timesteps >= self.next:
+            self.next += self.total // 10
+            spent = time.monotonic() - self.start
+            rate = self.num_timesteps / spent
+            lengths = [e["l"] for e in self.model.ep_info_buffer]
+            mean = sum(lengths) / len(lengths) if lengths else 0.0
+            print(f"  {self.num_timesteps:>8} env steps, mean episode {mean:6.1f}, "
+                  f"{rate:6.0f} steps/s, ETA {(self.total - self.num_timesteps) / rate:5.0f} s",
+                  flush=True)
+        return True
+
+
+def train(args, domain):
+    env = gym.make("cartpole_ddqn/Twin-v0", domain=domain, max_episode_steps=500)
+    # RL Baselines3 Zoo's tuned DQN for CartPole-v1, with the controller's 64-64 layers.
+    model = DQN("MlpPolicy", env, learning_rate=2.3e-3, batch_size=64, buffer_size=100_000,
+                learning_starts=1000, gamma=0.99, target_update_interval=10,
+                train_freq=256, gradient_steps=128, exploration_fraction=0.16,
+                exploration_final_eps=0.04, policy_kwargs=dict(net_arch=[64, 64]),
+                seed=args.seed, device="cpu", verbose=0)
+    start = time.monotonic()
+    model.learn(total_timesteps=args.steps, callback=Progress(args.steps))
+    seconds = time.monotonic() - start
+    model.save(os.path.join(args.out, "model.zip"))
+    env.close()
+    return seconds
+
+
+def evaluate(args, policy):
+    """`host-sim eval`'s rows for the default and hard sets, as JSON."""
+    out = os.path.join(args.out, f"eval-{'sb3' if policy else 'shipped'}.json")
+    extra = ["--policy", policy, "--prefix", PREFIX] if policy else []
+    text = tool("host-sim", "eval", "--scenario", "all,hard", "--controller", "policy",
+                "--episodes", str(args.episodes), "--horizon", str(args.horizon),
+                "--json", *extra)
+    with open(out, "w") as f:
+        f.write(text)
+    return {r["scenario"]: r for r in json.loads(text)["rows"]}
+
+
+def report(args, seconds, sb3, shipped):
+    lines = [
+        f"SB3 DQN: {args.steps} env steps in {seconds:.0f} s (seed {args.seed}, one thread; "
+        f"{platform.processor() or platform.machine()}, torch {torch.__version__}); "
+        f"{args.episodes} episodes of {args.horizon} periods a row (`host-sim eval`).",
+        "",
+        "| scenario | shipped policy | SB3 DQN on the twin |",
+        "| --- | ---: | ---: |",
+    ]
+    for name, row in shipped.items():
+        def cell(r):
+            lo, hi = r["success_ci95"]
+            return f"{100 * r['success_rate']:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+        lines.append(f"| `{name}` | {cell(row)} | {cell(sb3[name])} |")
+    text = "\n".join(lines) + "\n"
+    with open(os.path.join(args.out, "report.md"), "w") as f:
+        f.write(text)
+    print(text)
+
+
+def main():
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--steps", type=int, default=100_000, help="SB3 training budget")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--episodes", type=int, default=1000, help="evaluation episodes a row")
+    p.add_argument("--horizon", type=int, default=500, help="periods an evaluation episode")
+    p.add_argument("--out", default=os.path.join(ROOT, "runs", "sb3-dqn"))
+    args = p.parse_args()
+    if args.steps < 10 or args.episodes < 1 or args.horizon < 1:
+        sys.exit("sb3_dqn: --steps must be at least 10, --episodes and --horizon at least 1")
+    torch.set_num_threads(1)
+    os.makedirs(args.out, exist_ok=True)
+    domain = deploy_domain()
+    print(f"training SB3 DQN for {args.steps} env steps on {domain}", flush=True)
+    seconds = train(args, domain)
+    model = os.path.join(args.out, "model.zip")
+    for fmt, name in (("rust", "policy.rs"), ("c", "policy.h")):
+        cartpole_ddqn.export(model, out=os.path.join(args.out, name), fmt=fmt, prefix=PREFIX)
+    print(f"exported {model} as policy.rs and policy.h; evaluating", flush=True)
+    report(args, seconds, evaluate(args, model), evaluate(args, None))
+
+
+if __name__ == "__main__":
+    main()
