@@ -2,7 +2,7 @@
 
 Trains SB3's DQN (a 4-64-64-2 Q-network, the controller's shape) on the twin's randomised
 worlds, the domain the shipped policy was trained on (`policy-export train --preset deploy`),
-saves SB3's own model.zip, exports it as the firmware's Rust module and the C header, and
+or on one scenario (`--world nominal`: Gymnasium's CartPole-v1), saves SB3's own model.zip, exports it as the firmware's Rust module and the C header, and
 evaluates it with `host-sim eval` beside the shipped policy. Writes into --out:
 model.zip, policy.rs, policy.h, eval-sb3.json, eval-shipped.json and report.md (the table).
 
@@ -69,8 +69,8 @@ class Progress(BaseCallback):
         return True
 
 
-def train(args, domain):
-    env = gym.make("cartpole_ddqn/Twin-v0", domain=domain, max_episode_steps=500)
+def train(args, world):
+    env = gym.make("cartpole_ddqn/Twin-v0", **world, max_episode_steps=500)
     # RL Baselines3 Zoo's tuned DQN for CartPole-v1, with the controller's 64-64 layers.
     model = DQN("MlpPolicy", env, learning_rate=2.3e-3, batch_size=64, buffer_size=100_000,
                 learning_starts=1000, gamma=0.99, target_update_interval=10,
@@ -97,9 +97,11 @@ def evaluate(args, policy):
     return {r["scenario"]: r for r in json.loads(text)["rows"]}
 
 
-def report(args, seconds, sb3, shipped):
+def report(args, world, seconds, sb3, shipped):
+    (kind, spec), = world.items()
     lines = [
-        f"SB3 DQN: {args.steps} env steps in {seconds:.0f} s (seed {args.seed}, one thread; "
+        f"SB3 DQN trained on the {kind} `{spec}`: "
+        f"{args.steps} env steps in {seconds:.0f} s (seed {args.seed}, one thread; "
         f"{platform.processor() or platform.machine()}, torch {torch.__version__}); "
         f"{args.episodes} episodes of {args.horizon} periods a row (`host-sim eval`).",
         "",
@@ -123,20 +125,22 @@ def main():
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--episodes", type=int, default=1000, help="evaluation episodes a row")
     p.add_argument("--horizon", type=int, default=500, help="periods an evaluation episode")
+    p.add_argument("--world", default="deploy",
+                   help="`deploy` (the shipped policy's training domain) or a scenario")
     p.add_argument("--out", default=os.path.join(ROOT, "runs", "sb3-dqn"))
     args = p.parse_args()
     if args.steps < 10 or args.episodes < 1 or args.horizon < 1:
         sys.exit("sb3_dqn: --steps must be at least 10, --episodes and --horizon at least 1")
     torch.set_num_threads(1)
     os.makedirs(args.out, exist_ok=True)
-    domain = deploy_domain()
-    print(f"training SB3 DQN for {args.steps} env steps on {domain}", flush=True)
-    seconds = train(args, domain)
+    world = {"domain": deploy_domain()} if args.world == "deploy" else {"scenario": args.world}
+    print(f"training SB3 DQN for {args.steps} env steps on {world}", flush=True)
+    seconds = train(args, world)
     model = os.path.join(args.out, "model.zip")
     for fmt, name in (("rust", "policy.rs"), ("c", "policy.h")):
         cartpole_ddqn.export(model, out=os.path.join(args.out, name), fmt=fmt, prefix=PREFIX)
     print(f"exported {model} as policy.rs and policy.h; evaluating", flush=True)
-    report(args, seconds, evaluate(args, model), evaluate(args, None))
+    report(args, world, seconds, evaluate(args, model), evaluate(args, None))
 
 
 if __name__ == "__main__":

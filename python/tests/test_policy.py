@@ -60,3 +60,33 @@ def test_refusals_raise_value_error():
         cartpole_ddqn.shipped().q_values(np.zeros((3, 5)))
     with pytest.raises(ValueError):
         cartpole_ddqn.load(REPO / "README.md")
+
+
+FIXTURES = REPO / "weights" / "tests" / "fixtures"
+
+
+@pytest.mark.parametrize(
+    "name, prefix",
+    [
+        ("sequential64.pth", None),
+        ("sequential64_protocol4.pth", None),
+        ("cleanrl.cleanrl_model", None),
+        ("fc_strided.pth", None),
+        ("sb3_dqn.zip", "q_net.q_net."),
+        ("sb3_dqn.zip", "q_net_target.q_net."),
+        ("sequential64_gemm.onnx", None),
+        ("sequential64_matmul.onnx", None),
+    ],
+)
+def test_every_checkpoint_format_gives_pytorchs_q_values(name, prefix):
+    expected = json.loads((FIXTURES / "expected.json").read_text())
+    obs = np.array(expected["observations"], dtype=np.float32)
+    want = np.array(expected["files"][name][prefix or next(iter(expected["files"][name]))])
+    q = cartpole_ddqn.load(FIXTURES / name, prefix=prefix).q_values(obs)
+    assert np.abs(q.astype(np.float64) - want).max() <= 1e-6
+
+
+@pytest.mark.parametrize("name, says", [("evil.pth", "posix.system"), ("tanh.onnx", "Tanh")])
+def test_a_hostile_or_foreign_checkpoint_is_refused_by_name(name, says):
+    with pytest.raises(ValueError, match=says):
+        cartpole_ddqn.load(FIXTURES / name)
