@@ -42,26 +42,8 @@ pub(super) fn walk<'a>(g: &Graph<'a>) -> Result<Vec<Linear<'a>>> {
         match n.op {
             "Gemm" => layers.push(gemm(g, n, cur)?),
             "MatMul" => {
-                let weight = operand(g, n, cur, 2)?;
-                let add = consumer(g, &used, out)?;
-                used[add] = true;
-                let a = &g.nodes[add];
-                if a.op != "Add" {
-                    return refuse(format!("{} follows a MatMul; expected an Add", a.shown()));
-                }
-                let bias = operand(g, a, out, 2)?;
-                let [next] = a.outputs[..] else {
-                    return refuse(format!(
-                        "{} has {} outputs, expected one",
-                        a.shown(),
-                        a.outputs.len()
-                    ));
-                };
-                layers.push(Linear {
-                    weight,
-                    bias,
-                    transposed: true,
-                });
+                let (layer, next) = matmul(g, &mut used, n, cur, out)?;
+                layers.push(layer);
                 cur = next;
                 continue;
             }
@@ -92,6 +74,38 @@ pub(super) fn walk<'a>(g: &Graph<'a>) -> Result<Vec<Linear<'a>>> {
         ));
     }
     Ok(layers)
+}
+
+/// `MatMul(data, W)` then the `Add` of a bias to its output `out`: the layer, and the
+/// value after it.
+fn matmul<'a>(
+    g: &Graph<'a>,
+    used: &mut [bool],
+    n: &Node<'a>,
+    data: &str,
+    out: &'a str,
+) -> Result<(Linear<'a>, &'a str)> {
+    let weight = operand(g, n, data, 2)?;
+    let add = consumer(g, used, out)?;
+    used[add] = true;
+    let a = &g.nodes[add];
+    if a.op != "Add" {
+        return refuse(format!("{} follows a MatMul; expected an Add", a.shown()));
+    }
+    let bias = operand(g, a, out, 2)?;
+    let [next] = a.outputs[..] else {
+        return refuse(format!(
+            "{} has {} outputs, expected one",
+            a.shown(),
+            a.outputs.len()
+        ));
+    };
+    let layer = Linear {
+        weight,
+        bias,
+        transposed: true,
+    };
+    Ok((layer, next))
 }
 
 /// The one node not yet visited that reads `value`.

@@ -1,3 +1,4 @@
+use super::machine::{Machine, Ops, long1};
 use super::*;
 
 /// The pickle of `{"w": tensor}` as `torch.save` (protocol 2) writes it, for a float
