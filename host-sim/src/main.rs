@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
-use host_sim::eval::{self, ControllerKind, Net, Row};
+use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net, Row};
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
@@ -19,13 +19,6 @@ mod render_cmd;
 mod soak_cmd;
 mod tables_cmd;
 
-/// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
-/// 480 MB at the limit.
-const MAX_EPISODES: u64 = 10_000_000;
-/// Longest episode `eval` runs, in periods (about 5.6 hours of control).
-const MAX_HORIZON: u32 = 1_000_000;
-/// Most rows of one `eval`.
-const MAX_ROWS: usize = 10_000;
 /// Most states `agree` compares: a hundred million take minutes.
 const MAX_AGREE_STATES: u64 = 100_000_000;
 
@@ -283,17 +276,7 @@ fn check_io(inputs: &[(&str, PathBuf)], outputs: &[(&str, &Path)]) -> Result<()>
 }
 
 fn parse_scenarios(specs: &[String], machine: &Machine) -> Result<Vec<Scenario>> {
-    let mut out = Vec::new();
-    for spec in specs {
-        match spec.as_str() {
-            "all" => out.extend(Scenario::default_set_on(machine)),
-            "hard" => out.extend(Scenario::hard_set_on(machine)),
-            "hard-candidates" => out.extend(Scenario::hard_candidates()),
-            "faults" => out.extend(Scenario::faults_set_on(machine)),
-            _ => out.push(Scenario::parse_on(spec, machine).map_err(anyhow::Error::msg)?),
-        }
-    }
-    Ok(out)
+    Scenario::words_on(specs, machine).map_err(anyhow::Error::msg)
 }
 
 fn run_agree(a: &AgreeArgs) -> Result<()> {

@@ -5,17 +5,12 @@
 use std::path::PathBuf;
 
 use clap::ValueEnum;
-use host_sim::eval::{self, ControllerKind, Net};
+use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net};
 use pyo3::prelude::*;
 use twin::{Machine, Scenario};
 
 use crate::policy::Policy;
 use crate::value_error;
-
-/// `eval`'s bounds: most episodes per row, longest horizon, most rows.
-const MAX_EPISODES: u64 = 10_000_000;
-const MAX_HORIZON: u32 = 1_000_000;
-const MAX_ROWS: usize = 10_000;
 
 /// The rows of `controllers` on `scenarios` (specs, or the sets `all`, `hard`, `faults`,
 /// `hard-candidates`) at `horizons`, `episodes` each from `seed`; `policy` the network
@@ -58,7 +53,7 @@ pub fn evaluate_json(
         }
     };
     let machine = given.unwrap_or(policy.machine);
-    let scenarios = parse_scenarios(&scenarios, &machine)?;
+    let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
     if rows > MAX_ROWS {
         return Err(value_error(format!(
@@ -114,19 +109,4 @@ fn network(policy: &Policy, kinds: &[ControllerKind], machine: &Machine) -> PyRe
     Net::from_weights(&import.weights, Some(machine))
         .map(Some)
         .map_err(|e| value_error(format!("{e:#}")))
-}
-
-/// The scenarios of `specs` on `machine`, the named sets expanded as `host-sim eval` does.
-fn parse_scenarios(specs: &[String], machine: &Machine) -> PyResult<Vec<Scenario>> {
-    let mut out = Vec::new();
-    for spec in specs {
-        match spec.as_str() {
-            "all" => out.extend(Scenario::default_set_on(machine)),
-            "hard" => out.extend(Scenario::hard_set_on(machine)),
-            "hard-candidates" => out.extend(Scenario::hard_candidates()),
-            "faults" => out.extend(Scenario::faults_set_on(machine)),
-            _ => out.push(Scenario::parse_on(spec, machine).map_err(value_error)?),
-        }
-    }
-    Ok(out)
 }

@@ -233,6 +233,22 @@ impl Scenario {
     pub fn hard_candidates() -> Vec<Scenario> {
         parse_all(&Machine::GYMNASIUM, HARD_CANDIDATES)
     }
+
+    /// What the tools' `--scenario` words name on `machine`: a named set (`all`, `hard`,
+    /// `hard-candidates`, `faults`) or one spec each, in order.
+    pub fn words_on(words: &[String], machine: &Machine) -> Result<Vec<Scenario>, String> {
+        let mut out = Vec::new();
+        for word in words {
+            match word.as_str() {
+                "all" => out.extend(Scenario::default_set_on(machine)),
+                "hard" => out.extend(Scenario::hard_set_on(machine)),
+                "hard-candidates" => out.extend(Scenario::hard_candidates()),
+                "faults" => out.extend(Scenario::faults_set_on(machine)),
+                _ => out.push(Scenario::parse_on(word, machine)?),
+            }
+        }
+        Ok(out)
+    }
 }
 
 /// The specs of [`Scenario::hard_set`]: the [`HARD_CANDIDATES`] under which bang-bang LQR

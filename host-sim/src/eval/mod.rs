@@ -169,6 +169,14 @@ fn monitored(net: &Net) -> Aids {
 }
 
 /// Why a monitored run may take the network's envelope as given.
+/// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
+/// 480 MB at the limit.
+pub const MAX_EPISODES: u64 = 10_000_000;
+/// Longest episode `eval` runs, in periods (about 5.6 hours of control).
+pub const MAX_HORIZON: u32 = 1_000_000;
+/// Most rows of one `eval`.
+pub const MAX_ROWS: usize = 10_000;
+
 const NO_ENVELOPE: &str = "the caller refused `monitored` for a network without an envelope";
 
 /// Episodes a thread runs side by side, enough to keep the lanes full as episodes end.
