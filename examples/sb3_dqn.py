@@ -3,8 +3,11 @@
 Trains SB3's DQN (a 4-64-64-2 Q-network, the controller's shape) on the twin's randomised
 worlds, the domain the shipped policy was trained on (`policy-export train --preset deploy`),
 or on one scenario (`--world nominal`: Gymnasium's CartPole-v1), saves SB3's own model.zip, exports it as the firmware's Rust module and the C header, and
-evaluates it with `host-sim eval` beside the shipped policy. Writes into --out:
-model.zip, policy.rs, policy.h, eval-sb3.json, eval-shipped.json and report.md (the table).
+evaluates it with `host-sim eval` beside the shipped policy. DQN's greedy policy comes and
+goes as it trains, so, as SB3's own examples do, it is evaluated twenty times on 20
+episodes of the training worlds and the best of those is the one deployed (its evaluation
+steps are not counted as training). Writes into --out: model.zip (the last), best_model.zip
+(the deployed), policy.rs, policy.h, eval-sb3.json, eval-shipped.json and report.md.
 
 Needs the package and Stable-Baselines3 (with PyTorch) in one environment:
 
@@ -26,7 +29,8 @@ import tomllib
 import gymnasium as gym
 import torch
 from stable_baselines3 import DQN
-from stable_baselines3.common.callbacks import BaseCallback
+from stable_baselines3.common.callbacks import BaseCallback, EvalCallback
+from stable_baselines3.common.monitor import Monitor
 
 import cartpole_ddqn  # noqa: F401  (registers cartpole_ddqn/Twin-v0)
 
@@ -77,12 +81,16 @@ def train(args, world):
                 train_freq=256, gradient_steps=128, exploration_fraction=0.16,
                 exploration_final_eps=0.04, policy_kwargs=dict(net_arch=[64, 64]),
                 seed=args.seed, device="cpu", verbose=0)
+    judge_env = Monitor(gym.make("cartpole_ddqn/Twin-v0", **world, max_episode_steps=500))
+    judge = EvalCallback(judge_env,
+                         n_eval_episodes=20, eval_freq=max(args.steps // 20, 1),
+                         best_model_save_path=args.out, deterministic=True, verbose=0)
     start = time.monotonic()
-    model.learn(total_timesteps=args.steps, callback=Progress(args.steps))
+    model.learn(total_timesteps=args.steps, callback=[Progress(args.steps), judge])
     seconds = time.monotonic() - start
     model.save(os.path.join(args.out, "model.zip"))
     env.close()
-    return seconds
+    return seconds, judge.best_mean_reward
 
 
 def evaluate(args, policy):
@@ -94,25 +102,49 @@ def evaluate(args, policy):
                 "--json", *extra)
     with open(out, "w") as f:
         f.write(text)
-    return {r["scenario"]: r for r in json.loads(text)["rows"]}
+    return json.loads(text)
 
 
-def report(args, world, seconds, sb3, shipped):
+def merge(args, sb3, shipped):
+    """Both evaluations into --results, `host-sim eval --json`'s format: the SB3 rows under
+    the controller name --label, replacing that label's and the shipped policy's rows, so
+    that runs of several trainings share one file (`host-sim tables` renders it)."""
+    doc = {"rows": [], "seed": shipped["seed"]}
+    if os.path.exists(args.results):
+        with open(args.results) as f:
+            doc = json.load(f)
+    rows = [r for r in doc["rows"] if r["controller"] not in ("policy", args.label)]
+    rows += shipped["rows"] + [dict(r, controller=args.label) for r in sb3["rows"]]
+    order = {r["scenario"]: i for i, r in enumerate(shipped["rows"])}
+    doc["rows"] = sorted(rows, key=lambda r: order.get(r["scenario"], len(order)))
+    tmp = args.results + ".tmp"
+    with open(tmp, "w") as f:
+        json.dump(doc, f, indent=1)
+        f.write("\n")
+    os.replace(tmp, args.results)
+
+
+def cell(row):
+    lo, hi = row["success_ci95"]
+    return f"{100 * row['success_rate']:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
+
+
+def report(args, world, trained, sb3, shipped):
     (kind, spec), = world.items()
+    seconds, best = trained
     lines = [
         f"SB3 DQN trained on the {kind} `{spec}`: "
-        f"{args.steps} env steps in {seconds:.0f} s (seed {args.seed}, one thread; "
+        f"{args.steps} env steps in {seconds:.0f} s, best evaluation {best:.1f} of 500 "
+        f"(seed {args.seed}, one thread; "
         f"{platform.processor() or platform.machine()}, torch {torch.__version__}); "
         f"{args.episodes} episodes of {args.horizon} periods a row (`host-sim eval`).",
         "",
         "| scenario | shipped policy | SB3 DQN on the twin |",
         "| --- | ---: | ---: |",
     ]
-    for name, row in shipped.items():
-        def cell(r):
-            lo, hi = r["success_ci95"]
-            return f"{100 * r['success_rate']:.1f}% [{100 * lo:.1f}, {100 * hi:.1f}]"
-        lines.append(f"| `{name}` | {cell(row)} | {cell(sb3[name])} |")
+    sb3 = {r["scenario"]: r for r in sb3["rows"]}
+    for row in shipped["rows"]:
+        lines.append(f"| `{row['scenario']}` | {cell(row)} | {cell(sb3[row['scenario']])} |")
     text = "\n".join(lines) + "\n"
     with open(os.path.join(args.out, "report.md"), "w") as f:
         f.write(text)
@@ -128,6 +160,8 @@ def main():
     p.add_argument("--world", default="deploy",
                    help="`deploy` (the shipped policy's training domain) or a scenario")
     p.add_argument("--out", default=os.path.join(ROOT, "runs", "sb3-dqn"))
+    p.add_argument("--results", help="a results file to merge both evaluations into")
+    p.add_argument("--label", default="sb3-dqn", help="the SB3 rows' controller name there")
     args = p.parse_args()
     if args.steps < 10 or args.episodes < 1 or args.horizon < 1:
         sys.exit("sb3_dqn: --steps must be at least 10, --episodes and --horizon at least 1")
@@ -135,12 +169,15 @@ def main():
     os.makedirs(args.out, exist_ok=True)
     world = {"domain": deploy_domain()} if args.world == "deploy" else {"scenario": args.world}
     print(f"training SB3 DQN for {args.steps} env steps on {world}", flush=True)
-    seconds = train(args, world)
-    model = os.path.join(args.out, "model.zip")
+    trained = train(args, world)
+    model = os.path.join(args.out, "best_model.zip")
     for fmt, name in (("rust", "policy.rs"), ("c", "policy.h")):
         cartpole_ddqn.export(model, out=os.path.join(args.out, name), fmt=fmt, prefix=PREFIX)
     print(f"exported {model} as policy.rs and policy.h; evaluating", flush=True)
-    report(args, world, seconds, evaluate(args, model), evaluate(args, None))
+    sb3, shipped = evaluate(args, model), evaluate(args, None)
+    report(args, world, trained, sb3, shipped)
+    if args.results:
+        merge(args, sb3, shipped)
 
 
 if __name__ == "__main__":
