@@ -97,6 +97,15 @@ pub fn import(bytes: &[u8]) -> Result<Import> {
     if let Some(why) = unchained(dims) {
         return refuse(why);
     }
+    // The names go into the exported source's provenance; PyTorch's are short.
+    if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
+        return refuse(format!(
+            "initializer names must be at most {} bytes, found one of {}: {}",
+            crate::QUOTE_MAX,
+            long.len(),
+            quote(long)
+        ));
+    }
     Ok(Import {
         weights: checked_weights(tensors, &names)?,
         prefix: String::new(),
