@@ -50,12 +50,39 @@ fn action(a: i64) -> PyResult<Action> {
     }
 }
 
-/// One world of the twin, stepped as a Gymnasium environment.
-#[pyclass(module = "cartpole_ddqn._native")]
-pub struct Twin {
+/// What both environments are made of: their worlds, the periods an episode may last,
+/// and whether the policy is shown the predicted state.
+struct Setup {
     worlds: Worlds,
     horizon: u32,
     predict: bool,
+}
+
+impl Setup {
+    fn new(
+        scenario: Option<&str>,
+        domain: Option<&str>,
+        rig: Option<PathBuf>,
+        max_episode_steps: Option<i64>,
+        predict: bool,
+    ) -> PyResult<Setup> {
+        Ok(Setup {
+            worlds: worlds(scenario, domain, rig)?,
+            horizon: horizon(max_episode_steps)?,
+            predict,
+        })
+    }
+
+    /// Episode `episode` of `seed`.
+    fn start(&self, seed: u64, episode: u64) -> Lane {
+        Lane::start(&self.worlds, self.horizon, seed, episode, self.predict)
+    }
+}
+
+/// One world of the twin, stepped as a Gymnasium environment.
+#[pyclass(module = "cartpole_ddqn._native")]
+pub struct Twin {
+    setup: Setup,
     seed: u64,
     episode: u64,
     lane: Option<Lane>,
@@ -73,9 +100,7 @@ impl Twin {
         predict: bool,
     ) -> PyResult<Twin> {
         Ok(Twin {
-            worlds: worlds(scenario, domain, rig)?,
-            horizon: horizon(max_episode_steps)?,
-            predict,
+            setup: Setup::new(scenario, domain, rig, max_episode_steps, predict)?,
             seed: 0,
             episode: 0,
             lane: None,
@@ -90,13 +115,7 @@ impl Twin {
             Some(s) => (self.seed, self.episode) = (s, 0),
             None => self.episode += 1,
         }
-        let lane = Lane::start(
-            &self.worlds,
-            self.horizon,
-            self.seed,
-            self.episode,
-            self.predict,
-        );
+        let lane = self.setup.start(self.seed, self.episode);
         let obs = PyArray1::from_slice(py, &lane.obs());
         self.lane = Some(lane);
         obs
@@ -164,9 +183,7 @@ fn not_reset() -> PyErr {
 /// world's action, with reward 0 and neither terminated nor truncated.
 #[pyclass(module = "cartpole_ddqn._native")]
 pub struct VecTwin {
-    worlds: Worlds,
-    horizon: u32,
-    predict: bool,
+    setup: Setup,
     lanes: Vec<Lane>,
     seeds: Vec<u64>,
     episodes: Vec<u64>,
@@ -197,9 +214,7 @@ impl VecTwin {
         predict: bool,
     ) -> PyResult<VecTwin> {
         Ok(VecTwin {
-            worlds: worlds(scenario, domain, rig)?,
-            horizon: horizon(max_episode_steps)?,
-            predict,
+            setup: Setup::new(scenario, domain, rig, max_episode_steps, predict)?,
             lanes: Vec::new(),
             seeds: Vec::new(),
             episodes: Vec::new(),
@@ -218,10 +233,7 @@ impl VecTwin {
         seeds: Vec<u64>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let n = seeds.len();
-        self.lanes = seeds
-            .iter()
-            .map(|&s| Lane::start(&self.worlds, self.horizon, s, 0, self.predict))
-            .collect();
+        self.lanes = seeds.iter().map(|&s| self.setup.start(s, 0)).collect();
         self.seeds = seeds;
         self.episodes = vec![0; n];
         self.ended = vec![false; n];
@@ -277,7 +289,7 @@ impl VecTwin {
             let t = if self.ended[i] {
                 self.episodes[i] += 1;
                 let (s, e) = (self.seeds[i], self.episodes[i]);
-                *lane = Lane::start(&self.worlds, self.horizon, s, e, self.predict);
+                *lane = self.setup.start(s, e);
                 Transition {
                     obs: [0.0; 4],
                     reward: 0.0,
