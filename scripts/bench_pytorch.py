@@ -3,7 +3,7 @@
 reference (`scripts/pytorch_reference.py`), one thread each, measured in one run.
 
     cargo build --release -p policy-export
-    .venv/bin/python scripts/bench_pytorch.py [--seeds 3] [--episodes K]
+    .venv/bin/python scripts/bench_pytorch.py [--seeds 3] [--episodes K] [--kernel avx2]
 
 Both sides get the same configuration (the one `train --preset paper --print-config`
 prints), the same seeds and the same episode count, and each is timed over its training
@@ -125,6 +125,8 @@ def main():
     ap.add_argument("--seeds", type=int, default=3, help="seeds 0..S (default 3)")
     ap.add_argument("--episodes", type=int, help="episodes per run, both sides "
                     "(default: the preset's)")
+    ap.add_argument("--kernel", default="auto",
+                    help="the Rust side's kernel (default auto: the CPU's widest)")
     args = ap.parse_args()
     if args.seeds < 1 or (args.episodes is not None and args.episodes < 1):
         fail("--seeds and --episodes must be at least 1")
@@ -137,7 +139,7 @@ def main():
         Path(cfg).write_text(run([BIN, "train", "--preset", "paper", "--print-config"]))
         episodes = args.episodes or int(re.search(r"^episodes = (\d+)$",
                                                   Path(cfg).read_text(), re.M)[1])
-        extra = ["--episodes", str(episodes)]
+        extra = ["--episodes", str(episodes), "--kernel", args.kernel]
         rows = []
         for seed in range(args.seeds):
             r = rust(cfg, seed, extra, os.path.join(tmp, f"rust-{seed}"))
