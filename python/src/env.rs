@@ -1,14 +1,16 @@
 //! The twin's worlds as Python sees them: one ([`Twin`]) or many stepped in one call
 //! ([`VecTwin`]); the Gymnasium classes around them are `python/cartpole_ddqn/env.py`.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use firmware::cartpole::{Action, Transition};
+use firmware::controller::Limits;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
 
 use crate::lane::{Lane, Worlds};
 use crate::value_error;
+use twin::run::Aids;
 
 /// The worlds of a scenario or a domain (not both) on the machine of `rig` (Gymnasium's
 /// without one), and the horizon in periods.
@@ -50,32 +52,48 @@ fn action(a: i64) -> PyResult<Action> {
     }
 }
 
-/// What both environments are made of: their worlds, the periods an episode may last,
-/// and whether the policy is shown the predicted state.
+/// The runtime monitor's envelope: none, the shipped policy's (`"shipped"`), or the file
+/// `host-sim envelope --json` wrote for another policy.
+fn envelope(path: Option<PathBuf>) -> PyResult<Option<Limits>> {
+    match path {
+        None => Ok(None),
+        Some(p) if p == Path::new(SHIPPED) => Ok(Some(firmware::envelope::ENVELOPE)),
+        Some(p) => host_sim::envelope::read(&p).map(Some).map_err(value_error),
+    }
+}
+
+/// The name that asks for the shipped policy's envelope (a file of that name: `./shipped`).
+const SHIPPED: &str = "shipped";
+
+/// What both environments are made of: their worlds, the periods an episode may last, and
+/// what the board knows (whether the policy is shown the predicted state, the monitor's
+/// envelope).
 struct Setup {
     worlds: Worlds,
     horizon: u32,
-    predict: bool,
+    aids: Aids,
 }
 
 impl Setup {
     fn new(
-        scenario: Option<&str>,
-        domain: Option<&str>,
-        rig: Option<PathBuf>,
+        (scenario, domain, rig): (Option<&str>, Option<&str>, Option<PathBuf>),
         max_episode_steps: Option<i64>,
         predict: bool,
+        envelope: Option<PathBuf>,
     ) -> PyResult<Setup> {
         Ok(Setup {
             worlds: worlds(scenario, domain, rig)?,
             horizon: horizon(max_episode_steps)?,
-            predict,
+            aids: Aids {
+                predict,
+                envelope: self::envelope(envelope)?,
+            },
         })
     }
 
     /// Episode `episode` of `seed`.
     fn start(&self, seed: u64, episode: u64) -> Lane {
-        Lane::start(&self.worlds, self.horizon, seed, episode, self.predict)
+        Lane::start(&self.worlds, self.horizon, (seed, episode), self.aids)
     }
 }
 
@@ -91,16 +109,18 @@ pub struct Twin {
 #[pymethods]
 impl Twin {
     #[new]
-    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true))]
+    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None))]
     fn new(
         scenario: Option<&str>,
         domain: Option<&str>,
         rig: Option<PathBuf>,
         max_episode_steps: Option<i64>,
         predict: bool,
+        envelope: Option<PathBuf>,
     ) -> PyResult<Twin> {
+        let world = (scenario, domain, rig);
         Ok(Twin {
-            setup: Setup::new(scenario, domain, rig, max_episode_steps, predict)?,
+            setup: Setup::new(world, max_episode_steps, predict, envelope)?,
             seed: 0,
             episode: 0,
             lane: None,
@@ -147,6 +167,18 @@ impl Twin {
     #[getter]
     fn rejected(&self) -> PyResult<bool> {
         Ok(self.lane()?.rejected())
+    }
+
+    /// Whether the runtime monitor's fallback, not the agent, decided the last period.
+    #[getter]
+    fn fallback(&self) -> PyResult<bool> {
+        Ok(self.lane()?.fallback())
+    }
+
+    /// Whether the runtime monitor has latched a safe stop (the motor off for good).
+    #[getter]
+    fn stopped(&self) -> PyResult<bool> {
+        Ok(self.lane()?.stopped())
     }
 
     /// The episode's scenario: its spec, control period (s), and the true plant's track
@@ -205,16 +237,18 @@ type VecStep<'py> = (
 #[pymethods]
 impl VecTwin {
     #[new]
-    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true))]
+    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None))]
     fn new(
         scenario: Option<&str>,
         domain: Option<&str>,
         rig: Option<PathBuf>,
         max_episode_steps: Option<i64>,
         predict: bool,
+        envelope: Option<PathBuf>,
     ) -> PyResult<VecTwin> {
+        let world = (scenario, domain, rig);
         Ok(VecTwin {
-            setup: Setup::new(scenario, domain, rig, max_episode_steps, predict)?,
+            setup: Setup::new(world, max_episode_steps, predict, envelope)?,
             lanes: Vec::new(),
             seeds: Vec::new(),
             episodes: Vec::new(),
@@ -269,6 +303,13 @@ impl VecTwin {
             PyArray1::from_slice(py, &self.terminated),
             PyArray1::from_slice(py, &self.truncated),
         ))
+    }
+
+    /// Per world, whether the runtime monitor's fallback decided its last period (false
+    /// for a world that has just started an episode).
+    fn fallbacks<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
+        let f: Vec<bool> = self.lanes.iter().map(Lane::fallback).collect();
+        PyArray1::from_vec(py, f)
     }
 
     /// The plants' true states `[n, 4]` (f64).

@@ -6,10 +6,11 @@
 //! episode. Gymnasium wants the observation before the action, so the lane runs the
 //! period in its two halves (`Episode::sense`, `Episode::act`) and the agent's action is
 //! the policy's answer in between. A rejected reading coasts whatever the agent chose, as
-//! the controller does.
+//! the controller does. Under the runtime monitor, its fallback overrides the agent's action
+//! outside the envelope, as it overrides the policy on a board.
 
 use firmware::cartpole::{Action, State, Transition};
-use firmware::controller::{Policy, Sensed};
+use firmware::controller::{FaultFlags, Policy, Sensed};
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
 use twin::run::{Aids, Episode, start_episode};
@@ -73,19 +74,12 @@ pub struct Lane {
 
 impl Lane {
     /// Episode `episode` of `seed`, with the start, noise and push streams `host-sim eval`
-    /// gives the same episode; with `predict`, the policy is shown the predicted state when
-    /// the scenario has dead time, as eval's policy is.
-    pub fn start(worlds: &Worlds, horizon: u32, seed: u64, episode: u64, predict: bool) -> Lane {
+    /// gives the same episode, and the board's `aids` as eval gives them: the predicted
+    /// state shown where the scenario has dead time, the runtime monitor with its envelope.
+    pub fn start(worlds: &Worlds, horizon: u32, (seed, episode): (u64, u64), aids: Aids) -> Lane {
         let scenario = worlds.scenario(seed, episode);
         let mut live = Live::new(scenario, |s| {
-            start_episode(
-                Agent(Action::Left),
-                s,
-                horizon,
-                seed,
-                episode,
-                Aids::from(predict),
-            )
+            start_episode(Agent(Action::Left), s, horizon, seed, episode, aids)
         });
         let sensed = live.with_dependent_mut(|_, e| e.sense());
         Lane {
@@ -119,6 +113,19 @@ impl Lane {
     /// Whether the controller rejects this period's reading (the cart coasts).
     pub fn rejected(&self) -> bool {
         self.sensed.shown().is_none()
+    }
+
+    /// Whether the runtime monitor's fallback, not the agent, decided the last period.
+    pub fn fallback(&self) -> bool {
+        self.live.borrow_dependent().fallback()
+    }
+
+    /// Whether the runtime monitor has stopped the motor for good (a latched safe stop).
+    pub fn stopped(&self) -> bool {
+        let controller = self.live.borrow_dependent().controller();
+        controller
+            .last()
+            .is_some_and(|r| r.faults.contains(FaultFlags::STOPPED))
     }
 
     /// The plant's true state.

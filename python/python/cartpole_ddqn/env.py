@@ -6,6 +6,8 @@ its sensor gives and its predictor advances), the reward 1.0 per period, and an 
 terminates where the true plant leaves the track or the angle limit.
 """
 
+import os
+
 import numpy as np
 import gymnasium
 from gymnasium import spaces
@@ -33,14 +35,33 @@ def _seed_from(rng):
     return int(rng.integers(0, 2**63))
 
 
+def _envelope(envelope):
+    """The envelope argument as the native module takes it: None, or a path (``"shipped"``
+    naming the shipped policy's)."""
+    if envelope is None or isinstance(envelope, (str, os.PathLike)):
+        return envelope
+    raise ValueError(
+        f'envelope must be None, "shipped" or the path of a `host-sim envelope --json` file; '
+        f"found {envelope!r}"
+    )
+
+
 class TwinEnv(gymnasium.Env):
     """One world of a scenario (``scenario="noise+delay=2+push"``) or of a domain
-    (``domain="length=0.5..1.6"``), on Gymnasium's machine or a rig file's (``rig=``)."""
+    (``domain="length=0.5..1.6"``), on Gymnasium's machine or a rig file's (``rig=``).
+
+    With ``envelope=`` (``"shipped"``, or the file ``host-sim envelope --json`` wrote) the
+    board's runtime monitor runs: outside the envelope, or on faulty readings, its LQR
+    fallback decides instead of the agent, and ``info["fallback"]`` says so; a latched safe
+    stop (``info["stopped"]``) turns the motor off for the rest of the episode."""
 
     metadata = {"render_modes": []}
 
-    def __init__(self, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True):
-        self._twin = _native.Twin(scenario, domain, rig, max_episode_steps, predict)
+    def __init__(self, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
+                 envelope=None):
+        self._twin = _native.Twin(scenario, domain, rig, max_episode_steps, predict,
+                                  _envelope(envelope))
+        self._monitored = envelope is not None
         self._twin.reset(0)
         name, self.tau, x_limit, theta_limit = self._twin.world
         self.observation_space = _observation_space(x_limit, theta_limit)
@@ -57,7 +78,8 @@ class TwinEnv(gymnasium.Env):
 
     def step(self, action):
         obs, terminated, truncated = self._twin.step(int(action))
-        return obs, 1.0, terminated, truncated, {}
+        info = {"fallback": self._twin.fallback, "stopped": self._twin.stopped} if self._monitored else {}
+        return obs, 1.0, terminated, truncated, info
 
     @property
     def state(self):
@@ -73,15 +95,20 @@ class TwinEnv(gymnasium.Env):
 class TwinVectorEnv(VectorEnv):
     """``num_envs`` worlds stepped together in native code, with Gymnasium's next-step
     autoreset: the step after an episode ends returns the next episode's first reading,
-    reward 0, neither terminated nor truncated, and ignores that world's action."""
+    reward 0, neither terminated nor truncated, and ignores that world's action. With
+    ``envelope=``, as for ``TwinEnv``, ``info["fallback"]`` says per world whether the
+    monitor's fallback decided."""
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
-    def __init__(self, num_envs=1, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True):
+    def __init__(self, num_envs=1, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
+                 envelope=None):
         if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
             raise ValueError(f"num_envs must be a whole number of at least 1; found {num_envs!r}")
         self.num_envs = int(num_envs)
-        self._twin = _native.VecTwin(scenario, domain, rig, max_episode_steps, predict)
+        self._twin = _native.VecTwin(scenario, domain, rig, max_episode_steps, predict,
+                                     _envelope(envelope))
+        self._monitored = envelope is not None
         probe = _native.Twin(scenario, domain, rig, None, predict)
         probe.reset(0)
         _, _, x_limit, theta_limit = probe.world
@@ -109,7 +136,10 @@ class TwinVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.ascontiguousarray(actions, dtype=np.int64).reshape(-1)
         obs, reward, terminated, truncated = self._twin.step(actions)
-        return obs, reward, terminated, truncated, {}
+        info = {}
+        if self._monitored:
+            info = {"fallback": self._twin.fallbacks(), "_fallback": np.ones(self.num_envs, dtype=bool)}
+        return obs, reward, terminated, truncated, info
 
     @property
     def states(self):
