@@ -142,8 +142,13 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     struct Envelope {
         envelope: [f32; 4],
     }
-    let bytes = weights::files::read_capped(path, MAX_ENVELOPE_BYTES)?;
-    let bad = |why: String| weights::Error::Input(format!("--envelope {}: {why}", path.display()));
+    // Every message names the file as an envelope's: the command line and the Python
+    // package both read it, and a bare path says nothing of which argument it was.
+    let bytes = weights::files::read_capped(path, MAX_ENVELOPE_BYTES).map_err(|e| match e {
+        weights::Error::Input(m) => weights::Error::Input(format!("envelope {m}")),
+        io => io,
+    })?;
+    let bad = |why: String| weights::Error::Input(format!("envelope {}: {why}", path.display()));
     let e: Envelope = serde_json::from_slice(&bytes).map_err(|e| {
         bad(format!(
             "expected the JSON `host-sim envelope --json` prints, {e}"

@@ -87,7 +87,8 @@ def test_the_vector_env_reports_each_worlds_fallback():
 @pytest.mark.parametrize(
     "envelope, words",
     [
-        ("/nonexistent/envelope.json", "envelope.json"),
+        ("/nonexistent/envelope.json", "^envelope /nonexistent/envelope.json"),
+        ("/", "^envelope /: expected a regular file"),
         (3, "envelope must be None"),
     ],
 )
