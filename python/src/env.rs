@@ -175,12 +175,6 @@ impl Twin {
         Ok(self.lane()?.fallback())
     }
 
-    /// Whether the runtime monitor has latched a safe stop (the motor off for good).
-    #[getter]
-    fn stopped(&self) -> PyResult<bool> {
-        Ok(self.lane()?.stopped())
-    }
-
     /// The episode's scenario: its spec, control period (s), and the true plant's track
     /// and angle thresholds.
     #[getter]

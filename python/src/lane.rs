@@ -10,7 +10,7 @@
 //! outside the envelope, as it overrides the policy on a board.
 
 use firmware::cartpole::{Action, State, Transition};
-use firmware::controller::{FaultFlags, Policy, Sensed};
+use firmware::controller::{Policy, Sensed};
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
 use twin::run::{Aids, Episode, start_episode};
@@ -118,14 +118,6 @@ impl Lane {
     /// Whether the runtime monitor's fallback, not the agent, decided the last period.
     pub fn fallback(&self) -> bool {
         self.live.borrow_dependent().fallback()
-    }
-
-    /// Whether the runtime monitor has stopped the motor for good (a latched safe stop).
-    pub fn stopped(&self) -> bool {
-        let controller = self.live.borrow_dependent().controller();
-        controller
-            .last()
-            .is_some_and(|r| r.faults.contains(FaultFlags::STOPPED))
     }
 
     /// The plant's true state.

@@ -52,8 +52,7 @@ class TwinEnv(gymnasium.Env):
 
     With ``envelope=`` (``"shipped"``, or the file ``host-sim envelope --json`` wrote) the
     board's runtime monitor runs: outside the envelope, or on faulty readings, its LQR
-    fallback decides instead of the agent, and ``info["fallback"]`` says so; a latched safe
-    stop (``info["stopped"]``) turns the motor off for the rest of the episode."""
+    fallback decides instead of the agent, and ``info["fallback"]`` says so."""
 
     metadata = {"render_modes": []}
 
@@ -78,7 +77,7 @@ class TwinEnv(gymnasium.Env):
 
     def step(self, action):
         obs, terminated, truncated = self._twin.step(int(action))
-        info = {"fallback": self._twin.fallback, "stopped": self._twin.stopped} if self._monitored else {}
+        info = {"fallback": self._twin.fallback} if self._monitored else {}
         return obs, 1.0, terminated, truncated, info
 
     @property
