@@ -10,10 +10,73 @@ use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 use proptest::prelude::*;
 
-/// Periods after a one-period glitch of any size (fewer than 2^31 counts) on either encoder
-/// within which the observer's estimate is back within one count (and one count a period)
-/// of the estimate without the glitch, on the shipped rig; `docs/CONTROL.md` states it.
-const RECOVERY_PERIODS: usize = 14;
+/// Periods after a one-period glitch within which the observer's estimate is back within
+/// one count (and one count a period) of the estimate without the glitch, on the shipped
+/// rig: the worst of [`glitches`]' sweep for each kind; `docs/CONTROL.md` states them. A pole
+/// glitch of any size is taken as the smaller move within a revolution, so its size hardly
+/// matters; a cart glitch decays at the observer's rate, so larger ones take longer.
+const POLE_RECOVERY: usize = 6;
+/// See [`POLE_RECOVERY`]: a cart glitch of fewer than [`SMALL`] counts.
+const CART_RECOVERY_SMALL: usize = 9;
+/// A bound for a cart glitch of any size (fewer than 2^31 counts): one second. Not the
+/// worst measured, which grows the more glitches a sweep tries in [`SMALL`] to 2^24 counts
+/// (22 periods in [`glitches`]' sweep, 29 in one of 160,000; `docs/CONTROL.md`), so the
+/// test holds such glitches to a round bound with room instead.
+const CART_RECOVERY: usize = 50;
+/// 2^20 counts: 51 m of the shipped rig's track, beyond any real glitch's size.
+const SMALL: u32 = 1 << 20;
+
+/// The bounds [`recovery`] must meet, indexed by [`kind`].
+const BOUNDS: [usize; 3] = [POLE_RECOVERY, CART_RECOVERY_SMALL, CART_RECOVERY];
+
+/// Which of [`BOUNDS`] a glitch of `size` counts on the pole's encoder or the cart's falls
+/// under.
+fn kind(pole: bool, size: i32) -> usize {
+    match (pole, size.unsigned_abs() < SMALL) {
+        (true, _) => 0,
+        (false, true) => 1,
+        (false, false) => 2,
+    }
+}
+
+/// Glitches `(at, pole, size)` of the sweep, on either encoder and of either sign: every
+/// power of two below 2^31, 2^31 - 1 and sizes near half a pole revolution at five points of
+/// the recorded run; and per power of two 400 sizes log-uniform below the next, at points
+/// drawn from a fixed stream (the same every run).
+fn glitches() -> impl Iterator<Item = (usize, bool, i32)> {
+    let mut x: u64 = 0x9E37_79B9_7F4A_7C15;
+    let mut next = move || {
+        x ^= x << 13;
+        x ^= x >> 7;
+        x ^= x << 17;
+        x
+    };
+    let fixed = (0..31)
+        .map(|b| 1i64 << b)
+        .chain([i64::from(i32::MAX), 2_047, 1_024, 3_000]);
+    let mut sizes: Vec<(usize, i64)> = [20, 97, 150, 233, 301]
+        .into_iter()
+        .flat_map(|at| fixed.clone().map(move |m| (at, m)))
+        .collect();
+    for b in 0..31 {
+        for _ in 0..400 {
+            let r = next();
+            sizes.push((
+                20 + (r % 280) as usize,
+                (1i64 << b) | ((r >> 8) as i64 & ((1 << b) - 1)),
+            ));
+        }
+    }
+    sizes.into_iter().flat_map(|(at, m)| {
+        let m = m as i32;
+        [
+            (at, false, m),
+            (at, false, -m),
+            (at, true, m),
+            (at, true, -m),
+        ]
+    })
+}
 
 /// A counter's readings: mostly small steps, some jumps of any size, some wrapping through
 /// the ends of `i32`.
@@ -145,15 +208,29 @@ proptest! {
         }
     }
 
+}
+
+proptest! {
+    // A fixed seed: the bounds are the worst of a sweep, not proven, and a glitch the sweep
+    // missed must fail this test when it is written, not some later run.
+    #![proptest_config(ProptestConfig {
+        rng_seed: prop::test_runner::RngSeed::Fixed(20_261_203),
+        ..ProptestConfig::default()
+    })]
+
     #[test]
     fn a_single_glitch_is_forgotten_within_the_bound(
         at in 20usize..300,
         pole in any::<bool>(),
-        size in prop_oneof![-100i32..100, (i32::MIN + 1)..i32::MAX],
+        bits in 0u32..31,
+        low in any::<u32>(),
+        negative in any::<bool>(),
     ) {
-        prop_assume!(size != 0);
+        // Sizes log-uniform, so that every order of magnitude is tried as often.
+        let m = ((1u32 << bits) | (low & ((1 << bits) - 1))) as i32;
+        let size = if negative { -m } else { m };
         let periods = recovery(recorded(), at, pole, size);
-        prop_assert!(periods <= RECOVERY_PERIODS, "{} periods", periods);
+        prop_assert!(periods <= BOUNDS[kind(pole, size)], "{} periods", periods);
     }
 }
 
@@ -219,24 +296,21 @@ fn recovery(run: &[((i32, i32), f32)], at: usize, pole: bool, size: i32) -> usiz
 }
 
 #[test]
-fn the_recovery_bound_is_the_worst_glitch_measured() {
+fn the_recovery_bounds_are_the_worst_glitches_measured() {
     let run = recorded();
-    let sizes = (0..31).flat_map(|b| [1i32 << b, -(1i32 << b)]).chain([
-        i32::MAX,
-        -i32::MAX,
-        2_048,
-        2_047,
-        -2_047,
-        1_024,
-        3_000,
-    ]);
-    let mut worst = 0;
-    for at in [20, 97, 150, 233, 301] {
-        for size in sizes.clone() {
-            for pole in [false, true] {
-                worst = worst.max(recovery(run, at, pole, size));
-            }
-        }
+    let mut worst = [0; 3];
+    for (at, pole, size) in glitches() {
+        let k = kind(pole, size);
+        worst[k] = worst[k].max(recovery(run, at, pole, size));
     }
-    assert_eq!(worst, RECOVERY_PERIODS, "the measured worst");
+    assert_eq!(
+        worst[..2],
+        BOUNDS[..2],
+        "the measured worst: pole, cart under 2^20"
+    );
+    assert!(
+        (CART_RECOVERY_SMALL..=CART_RECOVERY).contains(&worst[2]),
+        "a cart glitch of 2^20 counts or more: {} periods",
+        worst[2]
+    );
 }
