@@ -19,9 +19,9 @@ const POLE_RECOVERY: usize = 6;
 /// See [`POLE_RECOVERY`]: a cart glitch of fewer than [`SMALL`] counts.
 const CART_RECOVERY_SMALL: usize = 9;
 /// A bound for a cart glitch of any size (fewer than 2^31 counts): one second. Not the
-/// worst measured, which grows the more glitches a sweep tries in [`SMALL`] to 2^24 counts
-/// (22 periods in [`glitches`]' sweep, 29 in one of 160,000; `docs/CONTROL.md`), so the
-/// test holds such glitches to a round bound with room instead.
+/// worst measured, which grows the more glitches a sweep tries between [`SMALL`] and 2^24
+/// counts (`docs/CONTROL.md` gives the figures), so the test holds such glitches to a round
+/// bound with room instead.
 const CART_RECOVERY: usize = 50;
 /// 2^20 counts: 51 m of the shipped rig's track, beyond any real glitch's size.
 const SMALL: u32 = 1 << 20;
