@@ -4,13 +4,13 @@
 //! A lane is `twin::run::Episode`, the world with the firmware's controller closed around
 //! it as `host-sim eval` runs them, started with eval's streams for the same seed and
 //! episode. Gymnasium wants the observation before the action, so the lane runs the
-//! period in its two halves (`Episode::sense`, `Episode::act`) and the agent's action is
-//! the policy's answer in between. A rejected reading coasts whatever the agent chose, as
+//! period in its two halves (`Episode::sense`, `Episode::act_with`) and the agent's action
+//! is the answer the controller asks for in between. A rejected reading coasts whatever the agent chose, as
 //! the controller does. Under the runtime monitor, its fallback overrides the agent's action
 //! outside the envelope, as it overrides the policy on a board.
 
 use firmware::cartpole::{Action, State, Transition};
-use firmware::controller::{Policy, Sensed};
+use firmware::controller::Sensed;
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
 use twin::run::{Aids, Episode, start_episode};
@@ -40,19 +40,8 @@ impl Worlds {
     }
 }
 
-/// The policy of a lane: whatever the agent chose for this period.
-struct Agent(Action);
-
-impl Policy for Agent {
-    fn scores(&mut self, _: &[f32; 4]) -> [f32; 2] {
-        match self.0 {
-            Action::Left => [1.0, 0.0],
-            Action::Right => [0.0, 1.0],
-        }
-    }
-}
-
-type Running<'s> = Episode<'s, Agent, Pcg64Mcg>;
+/// The lane's episode: its controller asks the agent, not a policy of its own.
+type Running<'s> = Episode<'s, (), Pcg64Mcg>;
 
 self_cell!(
     /// A scenario and the episode running in it.
@@ -79,7 +68,7 @@ impl Lane {
     pub fn start(worlds: &Worlds, horizon: u32, (seed, episode): (u64, u64), aids: Aids) -> Lane {
         let scenario = worlds.scenario(seed, episode);
         let mut live = Live::new(scenario, |s| {
-            start_episode(Agent(Action::Left), s, horizon, seed, episode, aids)
+            start_episode((), s, horizon, seed, episode, aids)
         });
         let sensed = live.with_dependent_mut(|_, e| e.sense());
         Lane {
@@ -95,8 +84,7 @@ impl Lane {
     pub fn step(&mut self, action: Action) -> Transition {
         let sensed = self.sensed;
         let (mut t, next) = self.live.with_dependent_mut(|_, e| {
-            e.policy_mut().0 = action;
-            e.act(sensed);
+            e.act_with(sensed, |_| action);
             let t = e.apply();
             (t, e.sense())
         });

@@ -8,7 +8,7 @@
 //! randomness. So every controller meets the same starts, noise and pushes.
 
 use firmware::ConfigError;
-use firmware::cartpole::{CartPole, State, Transition};
+use firmware::cartpole::{Action, CartPole, State, Transition};
 use firmware::controller::{
     Assurance, Command, Controller, FaultFlags, Limits, Policy, Predictor, Sensed,
 };
@@ -151,7 +151,7 @@ pub struct Episode<'s, P, R> {
     watch: bool,
 }
 
-impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
+impl<'s, P, R: Rng> Episode<'s, P, R> {
     /// Starts `policy` on a world of `scenario` (see [`World::start`]), with the board's
     /// `aids` (a `bool` says whether it is told its dead time).
     pub fn start(
@@ -181,13 +181,6 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         }
     }
 
-    /// The controller's period on this period's measurement: what it commands. A `reset`
-    /// fault restarts the controller first; a `late` one counts an overrun after.
-    pub fn decide(&mut self) -> Command {
-        let sensed = self.sense();
-        self.act(sensed)
-    }
-
     /// The first half of [`Episode::decide`]: the board restarted if a fault says so, the
     /// world measured, and the controller's reading of it (what its policy will be shown).
     pub fn sense(&mut self) -> Sensed<[f32; 4]> {
@@ -201,9 +194,21 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         self.controller.sense()
     }
 
-    /// The second half of [`Episode::decide`] on what [`Episode::sense`] found.
-    pub fn act(&mut self, sensed: Sensed<[f32; 4]>) -> Command {
-        let command = self.controller.act(sensed);
+    /// The second half of the period with the action decided outside the controller (a
+    /// learner exploring, an agent): `decide` is asked only where the policy would drive
+    /// ([`Controller::act_with`]).
+    pub fn act_with(
+        &mut self,
+        sensed: Sensed<[f32; 4]>,
+        decide: impl FnOnce(&[f32; 4]) -> Action,
+    ) -> Command {
+        let command = self.controller.act_with(sensed, decide);
+        self.overran();
+        command
+    }
+
+    /// A `late` fault's overrun, counted after the period's command.
+    fn overran(&mut self) {
         let k = self.world.steps();
         if self
             .world
@@ -214,7 +219,6 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         {
             self.controller.record_overruns(1);
         }
-        command
     }
 
     /// The world's period under what the controller drives.
@@ -238,10 +242,21 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     pub fn controller(&self) -> &Controller<P, TwinSensor, Pins, 1> {
         &self.controller
     }
+}
 
-    /// The policy, to change its state between periods.
-    pub fn policy_mut(&mut self) -> &mut P {
-        self.controller.policy_mut()
+impl<P: Policy, R: Rng> Episode<'_, P, R> {
+    /// The controller's period on this period's measurement: what it commands. A `reset`
+    /// fault restarts the controller first; a `late` one counts an overrun after.
+    pub fn decide(&mut self) -> Command {
+        let sensed = self.sense();
+        self.act(sensed)
+    }
+
+    /// The second half of [`Episode::decide`] on what [`Episode::sense`] found.
+    pub fn act(&mut self, sensed: Sensed<[f32; 4]>) -> Command {
+        let command = self.controller.act(sensed);
+        self.overran();
+        command
     }
 }
 
@@ -281,7 +296,7 @@ impl Tally {
 }
 
 /// Episode `episode` of `seed` started: its start, noise and push streams.
-pub fn start_episode<'s, P: Policy>(
+pub fn start_episode<'s, P>(
     policy: P,
     scenario: &'s Scenario,
     horizon: u32,

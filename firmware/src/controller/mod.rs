@@ -253,7 +253,6 @@ pub struct Controller<P, S: StateSensor, A, const N: usize = DEFAULT_HISTORY> {
 
 impl<P, S, A> Controller<P, S, A>
 where
-    P: Policy<S::Reading>,
     S: StateSensor,
     A: Actuator,
 {
@@ -266,7 +265,6 @@ where
 
 impl<P, S, A, const N: usize> Controller<P, S, A, N>
 where
-    P: Policy<S::Reading>,
     S: StateSensor,
     A: Actuator,
 {
@@ -306,13 +304,6 @@ where
         self.monitor = Some(Monitor::new(assurance));
     }
 
-    /// One control period: read, sanitise, decide, actuate, record, tell the sensor.
-    #[inline]
-    pub fn step(&mut self) -> Command {
-        let sensed = self.sense();
-        self.act(sensed)
-    }
-
     /// The first half of a period ([`Controller::step`] is both): read the sensor, sanitise
     /// the reading against the limits, and advance it over the dead time. A caller that
     /// decides outside (an agent choosing the policy's answer) looks at
@@ -340,16 +331,36 @@ where
         }
     }
 
-    /// The second half of a period on what [`Controller::sense`] found: decide (the policy,
-    /// or the monitor's choice), actuate, record, tell the sensor.
+    /// The second half of a period on what [`Controller::sense`] found, with the action
+    /// decided outside the controller (a learner exploring, an agent): `decide` is asked,
+    /// on the reading the policy would be shown, only where the policy would drive (a
+    /// rejected reading coasts, a monitor's fallback keeps its own command); then actuate,
+    /// record, tell the sensor. The record's scores are [`Reading::UNSCORED`]: the
+    /// controller saw none.
     #[inline(always)]
-    pub fn act(&mut self, sensed: Sensed<S::Reading>) -> Command {
+    pub fn act_with(
+        &mut self,
+        sensed: Sensed<S::Reading>,
+        decide: impl FnOnce(&S::Reading) -> Action,
+    ) -> Command {
+        self.act_by(sensed, |_, seen| (S::Reading::UNSCORED, Some(decide(seen))))
+    }
+
+    /// The second half of a period: `decide` asked for the scores and the action (`None`
+    /// when the scores are not finite) where the policy drives, then the bridge driven.
+    #[inline(always)]
+    fn act_by(
+        &mut self,
+        sensed: Sensed<S::Reading>,
+        decide: impl FnOnce(&mut P, &S::Reading) -> Answer<S::Reading>,
+    ) -> Command {
         let Sensed {
             obs,
             seen,
             mut flags,
             model_only,
         } = sensed;
+        let policy = &mut self.policy;
         let (q, command) = if flags.reading_rejected() {
             self.faults.count_rejected(flags);
             if let Some(m) = &mut self.monitor {
@@ -359,14 +370,16 @@ where
         } else {
             match &mut self.monitor {
                 Some(m) => {
+                    let decide = |seen: &S::Reading| decide(policy, seen);
                     let (q, command, who) =
-                        m.decide(&obs, &seen, model_only, &mut self.policy, &mut self.faults);
+                        m.decide(&obs, &seen, model_only, decide, &mut self.faults);
                     flags = flags.with(who);
                     (q, command)
                 }
                 None => {
-                    let q = self.policy.scores(&seen);
-                    (q, Command::Push(S::Reading::decide(&q)))
+                    let (q, action) = decide(policy, &seen);
+                    let action = action.unwrap_or_else(|| S::Reading::decide(&q));
+                    (q, Command::Push(action))
                 }
             }
         };
@@ -436,11 +449,6 @@ where
         &self.policy
     }
 
-    /// The policy, to change its state between periods (a learner's exploration).
-    pub fn policy_mut(&mut self) -> &mut P {
-        &mut self.policy
-    }
-
     /// The sensor.
     pub fn sensor(&self) -> &S {
         &self.sensor
@@ -461,6 +469,39 @@ where
     pub fn release(self) -> (P, S, A) {
         (self.policy, self.sensor, self.actuator)
     }
+}
+
+impl<P, S, A, const N: usize> Controller<P, S, A, N>
+where
+    P: Policy<S::Reading>,
+    S: StateSensor,
+    A: Actuator,
+{
+    /// One control period: read, sanitise, decide, actuate, record, tell the sensor.
+    #[inline]
+    pub fn step(&mut self) -> Command {
+        let sensed = self.sense();
+        self.act(sensed)
+    }
+
+    /// The second half of a period on what [`Controller::sense`] found: decide (the policy,
+    /// or the monitor's choice), actuate, record, tell the sensor.
+    #[inline(always)]
+    pub fn act(&mut self, sensed: Sensed<S::Reading>) -> Command {
+        self.act_by(sensed, |policy, seen| answer(policy, seen))
+    }
+}
+
+/// A decision: the scores to record, and the action (`None` when the scores are not finite
+/// and no action may rest on them).
+type Answer<O> = (<O as Reading>::Scores, Option<Action>);
+
+/// The policy's answer on `seen`: its scores, and the action they choose where they are
+/// finite.
+#[inline(always)]
+pub(crate) fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<O> {
+    let q = policy.scores(seen);
+    (q, O::finite(&q).then(|| O::decide(&q)))
 }
 
 #[cfg(test)]

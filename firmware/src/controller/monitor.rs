@@ -30,7 +30,8 @@
 //! allocation-free, and runs on the reading's own format: the envelope checks of an integer
 //! reading are integer compares.
 
-use super::{Command, FaultCounters, FaultFlags, Limits, Policy, Reading};
+use super::{Command, FaultCounters, FaultFlags, Limits, Reading};
+use crate::cartpole::Action;
 use crate::config::{ConfigError, check};
 use crate::rig::Rig;
 
@@ -157,14 +158,16 @@ impl Monitor {
     }
 
     /// A period with reading `obs`, `seen` the state the command will meet (`obs` itself
-    /// without a predictor), `model_only` when the reading came from the model alone: the
-    /// scores recorded, the command, and the flags of who decided.
-    pub fn decide<O: Reading, P: Policy<O>>(
+    /// without a predictor), `model_only` when the reading came from the model alone:
+    /// `decide` asked for the policy's scores and decision where the policy drives (its
+    /// decision `None` when its scores are not finite), then the scores recorded, the
+    /// command, and the flags of who decided.
+    pub fn decide<O: Reading>(
         &mut self,
         obs: &O,
         seen: &O,
         model_only: bool,
-        policy: &mut P,
+        decide: impl FnOnce(&O) -> (O::Scores, Option<Action>),
         counters: &mut FaultCounters,
     ) -> (O::Scores, Command, FaultFlags) {
         let beyond = !obs.flags(&self.assurance.recoverable).is_empty();
@@ -190,9 +193,10 @@ impl Monitor {
         }
         let mut q = O::UNSCORED;
         if self.mode == Mode::Policy {
-            q = policy.scores(seen);
-            if O::finite(&q) {
-                return (q, Command::Push(O::decide(&q)), FaultFlags::default());
+            let action;
+            (q, action) = decide(seen);
+            if let Some(a) = action {
+                return (q, Command::Push(a), FaultFlags::default());
             }
             counters.non_finite_scores = counters.non_finite_scores.saturating_add(1);
             self.fall_back(counters);

@@ -9,15 +9,13 @@
 //! from the run's seed, so the same seed and configuration give the same weights and
 //! metrics, bit for bit, on every machine.
 //!
-//! - `explore`: one training episode, the epsilon-greedy policy behind the controller.
+//! - `dqn`: the training loop, top to bottom.
 //! - `select`: the snapshots evaluated, the finalists' trial, the final evaluation.
 //! - `replay`: the FIFO replay buffer.
 //! - `learner`: the two networks, TD targets and one gradient step.
 //! - `evaluate`: greedy evaluation and the solved-episode measures.
 
-use std::time::Instant;
-
-use anyhow::{Result, bail};
+use anyhow::Result;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 use twin::Domain;
@@ -27,8 +25,8 @@ use weights::width::{ForWidth, by_width};
 use crate::config::Config;
 use crate::nn::Kernel;
 
+mod dqn;
 mod evaluate;
-mod explore;
 mod learner;
 mod replay;
 mod reward;
@@ -201,7 +199,7 @@ fn run(
 impl ForWidth for Training<'_> {
     type Output = Result<RunResult>;
     fn run<const H: usize>(self) -> Result<RunResult> {
-        train_width::<H>(self)
+        dqn::run::<H>(self)
     }
 }
 
@@ -224,97 +222,6 @@ fn domains(cfg: &Config) -> Result<Domains> {
         },
         eval,
     })
-}
-
-fn train_width<const H: usize>(t: Training<'_>) -> Result<RunResult> {
-    let (cfg, seed) = (t.cfg, t.seed);
-    let start = Instant::now();
-    let mut learner = Learner::<H>::new(cfg, t.kernel, seed);
-    let mut buf = ReplayBuffer::new(cfg.buffer_size);
-    let mut streams = explore::Streams {
-        env: rng(seed, Stream::Env),
-        explore: rng(seed, Stream::Explore),
-        sample: rng(seed, Stream::Sample),
-        noise: rng(seed, Stream::Noise),
-        pushes: rng(seed, Stream::Pushes),
-    };
-    let mut domain_rng = rng(seed, Stream::Domain);
-    let d = domains(cfg)?;
-    let reward = Reward::parse(&cfg.reward).map_err(anyhow::Error::msg)?;
-    let mut records = Vec::with_capacity(cfg.episodes);
-    let mut selection = select::Selection::new(cfg, seed, &d);
-    let (mut env_steps, mut rewards) = (0u64, Vec::with_capacity(cfg.max_steps as usize));
-    for ep in 0..cfg.episodes {
-        let scenario = d.train.sample(&mut domain_rng);
-        let mut run = explore::Run {
-            cfg,
-            learner: &mut learner,
-            buf: &mut buf,
-            reward: &reward,
-            streams: &mut streams,
-            env_steps: &mut env_steps,
-            rewards: &mut rewards,
-        };
-        let (mut rec, spent) = run.episode(ep, &scenario)?;
-        rec.wall_s = start.elapsed().as_secs_f64();
-        (t.on_episode)(&rec);
-        records.push(rec);
-        // The weights the budget stops at are a candidate too.
-        let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
-        if due && selection.periodic(&learner, ep + 1) && cfg.stop_when_perfect {
-            break;
-        }
-        if spent {
-            break;
-        }
-    }
-    let wall_s = start.elapsed().as_secs_f64();
-    let chosen = selection.choose(&learner, &records, t.evaluate_policy);
-    Ok(RunResult {
-        episodes: records,
-        policy: Weights::from_mlp(&chosen.policy).map_err(|e| {
-            anyhow::anyhow!("the trained weights are unusable ({e}); try a smaller lr or grad_clip")
-        })?,
-        policy_episode: chosen.episode,
-        policy_env_steps: chosen.env_steps,
-        selection_episodes: chosen.selection_episodes,
-        selection_steps: chosen.selection_steps,
-        evals: chosen.evals,
-        trial: chosen.trial,
-        final_eval: chosen.final_eval,
-        env_steps,
-        grad_steps: learner.steps(),
-        wall_s,
-        kernel: t.kernel,
-    })
-}
-
-/// Takes `cfg.updates_per_train` gradient steps; returns the sum of their losses and their
-/// number. `at` (episode index, step within it for per-step training, env steps) places a
-/// non-finite loss in the error.
-pub(super) fn learn<const H: usize>(
-    learner: &mut Learner<H>,
-    cfg: &Config,
-    buf: &ReplayBuffer,
-    rng: &mut Pcg64Mcg,
-    at: (usize, Option<usize>, u64),
-) -> Result<(f64, u32)> {
-    let mut sum = 0.0f64;
-    for _ in 0..cfg.updates_per_train {
-        let loss = learner.update(cfg, buf, rng);
-        if !loss.is_finite() {
-            let (ep, step, env) = at;
-            let when = match step {
-                Some(s) => format!("at episode {}, step {s}", ep + 1),
-                None => format!("at the end of episode {}", ep + 1),
-            };
-            bail!(
-                "non-finite loss ({loss}) {when} (env step {env}); try a smaller lr or grad_clip"
-            );
-        }
-        sum += f64::from(loss);
-    }
-    Ok((sum, cfg.updates_per_train as u32))
 }
 
 #[cfg(test)]

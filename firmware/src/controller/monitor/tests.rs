@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::cartpole::Action;
+use crate::controller::{Policy, answer};
 use crate::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 use crate::fixed;
 
@@ -31,7 +32,7 @@ fn assurance() -> Assurance {
 }
 
 fn decide(m: &mut Monitor, obs: [f32; 4], c: &mut FaultCounters) -> (Command, FaultFlags) {
-    let (_, command, flags) = m.decide(&obs, &obs, false, &mut Lean, c);
+    let (_, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Lean, s), c);
     (command, flags)
 }
 
@@ -40,7 +41,7 @@ fn inside_the_envelope_the_policy_decides_alone() {
     let mut m = Monitor::new(assurance());
     let mut c = FaultCounters::default();
     let obs = [0.5, -0.5, 0.05, 0.5];
-    let (q, command, flags) = m.decide(&obs, &obs, false, &mut Lean, &mut c);
+    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Lean, s), &mut c);
     assert_eq!(
         (q, command, flags),
         (
@@ -109,7 +110,7 @@ fn a_run_of_faulty_readings_hands_over_and_a_sound_one_breaks_the_run() {
     // Readings from the model alone count as faulty too.
     let mut m = Monitor::new(assurance());
     for k in 1..=Assurance::FAULT_RUN {
-        let (_, _, flags) = m.decide(&[0.0; 4], &[0.0; 4], true, &mut Lean, &mut c);
+        let (_, _, flags) = m.decide(&[0.0; 4], &[0.0; 4], true, |s| answer(&mut Lean, s), &mut c);
         assert_eq!(
             flags == FaultFlags::FALLBACK,
             k == Assurance::FAULT_RUN,
@@ -123,7 +124,7 @@ fn scores_that_are_no_numbers_go_to_the_fallback_and_are_counted() {
     let mut m = Monitor::new(assurance());
     let mut c = FaultCounters::default();
     let obs = [0.0, 0.0, 0.05, 0.0];
-    let (q, command, flags) = m.decide(&obs, &obs, false, &mut Broken, &mut c);
+    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Broken, s), &mut c);
     assert!(q[0].is_nan());
     // u = -(10 * 0.05) < 0: left.
     assert_eq!(
@@ -171,7 +172,13 @@ fn an_integer_reading_meets_the_same_decisions_in_q3_12() {
     for s in states {
         let q = fixed::from_state(&s);
         let mut int_policy = |o: &[i16; 4]| [0, i32::from(o[2])];
-        let (_, ci, fi) = mi.decide(&q, &q, false, &mut FnPolicy(&mut int_policy), &mut c);
+        let (_, ci, fi) = mi.decide(
+            &q,
+            &q,
+            false,
+            |s| answer(&mut FnPolicy(&mut int_policy), s),
+            &mut c,
+        );
         assert_eq!((ci, fi), decide(&mut mf, s, &mut c), "{s:?}");
     }
 }
