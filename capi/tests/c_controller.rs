@@ -32,7 +32,7 @@ use firmware::envelope::ENVELOPE;
 use firmware::estimator::ObserverSensor;
 use firmware::fixed;
 use firmware::loopback::{self, Latest, MAX_DUTY, Pins};
-use firmware::rig::Rig;
+use firmware::rig::{Options, Rig};
 use firmware::{policy, policy_int};
 use steps::Scores;
 
@@ -89,13 +89,13 @@ fn board<P: Policy<S::Reading>, S: StateSensor>(
     policy: P,
     sensor: S,
     rig: &Rig,
-) -> Controller<P, S, Pins, 1> {
-    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits().unwrap());
-    if rig.dead_time > 0 {
-        c.with_predictor(rig.predictor().unwrap())
-    } else {
-        c
-    }
+) -> Controller<P, S, Pins> {
+    let options = Options {
+        predict: true,
+        monitor: None,
+    };
+    rig.controller(policy, sensor, loopback::pins(), options)
+        .unwrap()
 }
 
 /// The calls for the C program and what it must print for them.
@@ -113,7 +113,7 @@ impl Script {
 }
 
 /// The line the program prints for a step that ran.
-fn step_line<P, S>(c: &Controller<P, S, Pins, 1>) -> String
+fn step_line<P, S>(c: &Controller<P, S, Pins>) -> String
 where
     P: Policy<S::Reading>,
     S: StateSensor,
@@ -137,11 +137,11 @@ fn shove(k: usize) -> f64 {
 /// pushed both ways and coasted, and that period `k` raised `flag` for each of `faults`: the
 /// comparison with the C program means something only then.
 fn closed_loop<P, S>(
-    mut c: Controller<P, S, Pins, 1>,
+    mut c: Controller<P, S, Pins>,
     (rig, faults): (&Rig, &[(usize, FaultFlags)]),
     script: &mut Script,
     mut hand: impl FnMut(&mut S, &State, usize) -> String,
-) -> Controller<P, S, Pins, 1>
+) -> Controller<P, S, Pins>
 where
     P: Policy<S::Reading>,
     S: StateSensor,
@@ -197,7 +197,7 @@ fn measured(s: &State, k: usize) -> [f32; 4] {
 
 /// The calls after a closed loop: the other input refused, overruns, totals, the period.
 fn epilogue<P: Policy<S::Reading>, S: StateSensor>(
-    mut c: Controller<P, S, Pins, 1>,
+    mut c: Controller<P, S, Pins>,
     rig: &Rig,
     other: &str,
     script: &mut Script,

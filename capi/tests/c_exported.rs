@@ -30,7 +30,7 @@ use firmware::loopback::{self, Latest, Pins};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, shapes};
 use firmware::policy::POLICY;
-use firmware::rig::Rig;
+use firmware::rig::{Options, Rig};
 use steps::Scores;
 use weights::Weights;
 use weights::quant::{self, Granularity, Quantised};
@@ -211,17 +211,17 @@ fn exported_headers_carry_their_rig_bit_for_bit_in_c_and_cpp() {
 /// Periods of each closed loop.
 const PERIODS: usize = 400;
 
-type Board<P, O> = Controller<P, ObserverSensor<Latest, O>, Pins, 1>;
+type Board<P, O> = Controller<P, ObserverSensor<Latest, O>, Pins>;
 
 /// A controller of `policy` as a Rust board builds one from `rig`.
 fn board<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
     let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
-    let c = Controller::with_history(policy, sensor, loopback::pins(), rig.limits().unwrap());
-    if rig.dead_time > 0 {
-        c.with_predictor(rig.predictor().unwrap())
-    } else {
-        c
-    }
+    let options = Options {
+        predict: true,
+        monitor: None,
+    };
+    rig.controller(policy, sensor, loopback::pins(), options)
+        .unwrap()
 }
 
 /// The line `exported_controller script` prints for the step `c` has just run.

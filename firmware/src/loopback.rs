@@ -157,7 +157,7 @@ fn run_with<P: Policy<S::Reading>, S: StateSensor>(
     set: impl Fn(&mut S, State),
     mut wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let mut c: Controller<_, _, _, 1> = Controller::with_history(policy, sensor, pins(), limits);
+    let mut c = Controller::new(policy, sensor, pins(), limits);
     loop {
         let late = wait();
         c.record_overruns(late);

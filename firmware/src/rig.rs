@@ -1,12 +1,11 @@
 //! The machine a controller runs on, as one description: the plant's physics, the encoders,
 //! the dead time, the track's end stops and the observer's tuning. A board gives it once and
 //! takes from it everything that must agree with the machine: the observer
-//! ([`Rig::observer`]), the dead-time predictor ([`Rig::predictor`]) and the limits
-//! ([`Rig::limits`]). A policy file exported for a rig carries its `RIG` beside the weights,
+//! ([`Rig::observer`]), the dead-time predictor ([`Rig::predictor`]), the limits
+//! ([`Rig::limits`]), and the controller built from them ([`Rig::controller`]). A policy file exported for a rig carries its `RIG` beside the weights,
 //! so a board runs the model of the machine its policy was trained for.
 //!
 //! ```
-//! use firmware::controller::Controller;
 //! use firmware::rig::Rig;
 //! let rig = Rig::GYMNASIUM;
 //! assert_eq!(rig.params.tau, 0.02);
@@ -24,18 +23,18 @@
 //! ```
 //! use core::cell::Cell;
 //! use firmware::cartpole::{CartPole, State};
-//! use firmware::controller::Controller;
 //! use firmware::estimator::ObserverSensor;
 //! use firmware::loopback::{duty, pins};
 //! use firmware::policy_int::{POLICY_INT, RIG};
+//! use firmware::rig::Options;
 //!
 //! let mut plant = CartPole::new(RIG.params, 500);
 //! plant.reset_to(State::from_array([0.02, 0.0, 0.03, 0.0]));
 //! let counts = |s: State| RIG.encoders.counts(s.x, s.theta);
 //! let latest = Cell::new(counts(plant.state()));
 //! let sensor = ObserverSensor::<_, [i16; 4]>::new(RIG.observer()?, || latest.get());
-//! let mut controller =
-//!     Controller::new(&POLICY_INT, sensor, pins(), RIG.limits()?).with_predictor(RIG.predictor()?);
+//! let options = Options { predict: true, monitor: None };
+//! let mut controller = RIG.controller(&POLICY_INT, sensor, pins(), options)?;
 //! // One pass per control period: on a board, `RIG.params.tau` apart on a timer.
 //! for period in 0..500 {
 //!     controller.step();
@@ -50,7 +49,7 @@
 
 use crate::cartpole::{GYMNASIUM, Params};
 use crate::config::{self, ConfigError, check};
-use crate::controller::{Limits, Predictor};
+use crate::controller::{Actuator, Assurance, Controller, Limits, Predictor, StateSensor};
 use crate::estimator::{Encoders, Observer, Tuning};
 
 /// A cart-pole machine as its board sees it.
@@ -120,6 +119,44 @@ impl Rig {
     /// margin ([`Limits::track`], which refuses a margin that leaves no track).
     pub const fn limits(&self) -> Result<Limits, ConfigError> {
         Limits::track(self.params.x_threshold as f32, self.end_stop_margin as f32)
+    }
+}
+
+/// What a controller runs beside its policy, beyond the rig's limits.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Options {
+    /// Decide on the state the command will meet after the rig's dead time
+    /// ([`crate::controller::predict`]); nothing to predict on a rig without one.
+    pub predict: bool,
+    /// Run under the runtime monitor ([`crate::controller::monitor`]) with this assurance.
+    pub monitor: Option<Assurance>,
+}
+
+impl Rig {
+    /// The controller a board runs on this machine: `policy` on `sensor` driving
+    /// `actuator`, accepting the rig's limits, with the rig's predictor and a monitor as
+    /// `options` ask. The one recipe every caller builds its controller by: the twin, the
+    /// link's target, the C API and the boards. Refused as the rig's limits or predictor
+    /// are refused.
+    pub fn controller<P, S, A>(
+        &self,
+        policy: P,
+        sensor: S,
+        actuator: A,
+        options: Options,
+    ) -> Result<Controller<P, S, A>, ConfigError>
+    where
+        S: StateSensor,
+        A: Actuator,
+    {
+        let mut c = Controller::new(policy, sensor, actuator, self.limits()?);
+        if options.predict && self.dead_time > 0 {
+            c = c.with_predictor(self.predictor()?);
+        }
+        if let Some(a) = options.monitor {
+            c = c.with_monitor(a);
+        }
+        Ok(c)
     }
 }
 

@@ -8,7 +8,7 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params};
-use firmware::controller::{FaultCounters, Limits, Monitor, Policy};
+use firmware::controller::{FaultCounters, Limits, Monitor, Policy, answer};
 use firmware::envelope::ASSURANCE;
 use firmware::estimator::Estimate;
 use firmware::loopback::{Outcome, run, run_with_encoders};
@@ -53,7 +53,8 @@ pub extern "C" fn selftest_monitored_int(obs: Option<&[i16; 4]>, q: Option<&mut 
         let mut monitor = Monitor::new(ASSURANCE);
         let mut counters = FaultCounters::default();
         let mut policy = &firmware::policy_int::POLICY_INT;
-        (*q, _, _) = monitor.decide(obs, obs, false, &mut policy, &mut counters);
+        let decide = |s: &[i16; 4]| answer(&mut policy, s);
+        (*q, _, _) = monitor.decide(obs, obs, false, decide, &mut counters);
     }
 }
 

@@ -9,11 +9,10 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{Action, CartPole, State, Transition};
-use firmware::controller::{
-    Assurance, Command, Controller, FaultFlags, Limits, Policy, Predictor, Sensed,
-};
+use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Sensed};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
+use firmware::rig::Options;
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 
@@ -121,32 +120,21 @@ impl From<bool> for Aids {
 /// from a rig file or a spec, each checked against the firmware when it is read.
 const CHECKED: &str = "a scenario's board is checked as its rig file and spec are read";
 
-/// What a scenario's board builds from its rig, each part checked by the firmware.
-pub struct Board {
-    /// Its encoders' estimator, or the exact state.
-    pub sensor: TwinSensor,
-    /// The readings its controller accepts.
-    pub limits: Limits,
-    /// Its dead-time predictor.
-    pub predictor: Predictor,
-}
-
 impl Scenario {
-    /// The board's parts, or why the firmware refuses to build them; with `watch`, its
-    /// observer watches for frozen encoders.
-    pub fn board(&self, watch: bool) -> Result<Board, ConfigError> {
-        Ok(Board {
-            sensor: sensor(self, watch)?,
-            limits: self.rig.limits()?,
-            predictor: self.rig.predictor()?,
-        })
+    /// Whether the firmware builds this scenario's board: its sensor (the observer or
+    /// filter of its encoders), its limits and its predictor.
+    pub fn check_board(&self) -> Result<(), ConfigError> {
+        sensor(self, false)?;
+        self.rig.limits()?;
+        self.rig.predictor()?;
+        Ok(())
     }
 }
 
 /// An episode in progress: a world and the firmware's controller closed around it.
 pub struct Episode<'s, P, R> {
     pub(crate) world: World<'s, R>,
-    pub(crate) controller: Controller<P, TwinSensor, Pins, 1>,
+    pub(crate) controller: Controller<P, TwinSensor, Pins>,
     /// Whether the observer watches for frozen encoders (kept across a `reset` fault).
     watch: bool,
 }
@@ -165,15 +153,17 @@ impl<'s, P, R: Rng> Episode<'s, P, R> {
         let aids = aids.into();
         let world = World::start(scenario, horizon, start, streams.0, streams.1);
         let watch = aids.envelope.is_some();
-        let board = scenario.board(watch).expect(CHECKED);
-        let mut controller = Controller::with_history(policy, board.sensor, pins(), board.limits);
-        if aids.predict && scenario.delay() > 0 {
-            controller = controller.with_predictor(board.predictor);
-        }
-        if let Some(envelope) = aids.envelope {
-            let assurance = Assurance::for_rig(envelope, &scenario.rig).expect(CHECKED);
-            controller = controller.with_monitor(assurance);
-        }
+        let rig = &scenario.rig;
+        let options = Options {
+            predict: aids.predict,
+            monitor: aids
+                .envelope
+                .map(|e| Assurance::for_rig(e, rig).expect(CHECKED)),
+        };
+        let sensor = sensor(scenario, watch).expect(CHECKED);
+        let controller = rig
+            .controller(policy, sensor, pins(), options)
+            .expect(CHECKED);
         Episode {
             world,
             controller,
@@ -239,7 +229,7 @@ impl<'s, P, R: Rng> Episode<'s, P, R> {
     }
 
     /// The controller.
-    pub fn controller(&self) -> &Controller<P, TwinSensor, Pins, 1> {
+    pub fn controller(&self) -> &Controller<P, TwinSensor, Pins> {
         &self.controller
     }
 }

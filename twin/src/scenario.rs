@@ -131,7 +131,7 @@ impl Scenario {
             s.apply(&part, &values);
         }
         check_factors(&s.params, &rig.params).map_err(|e| format!("scenario {shown}: {e}"))?;
-        s.board(false)
+        s.check_board()
             .map_err(|e| format!("scenario {shown}: the board refuses it: {e}"))?;
         Ok(s)
     }

@@ -14,14 +14,6 @@ use embassy_rp::pwm::{self, Pwm};
 use firmware::controller::Bridge;
 use firmware::policy_int::RIG;
 
-/// The readings the controller accepts: the track less the end-stop margin, a rig that
-/// leaves no track failing the build.
-#[cfg(not(feature = "identify"))]
-const LIMITS: firmware::controller::Limits = match RIG.limits() {
-    Ok(limits) => limits,
-    Err(_) => panic!("RIG's end-stop margin leaves no track"),
-};
-
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
 const PWM_TOP: u16 = 6_249;
 
@@ -103,9 +95,9 @@ pub async fn on_the_machine(spawner: Spawner, p: embassy_rp::Peripherals) {
 async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     use defmt::{info, warn};
     use embassy_time::{Duration, Instant, Ticker};
-    use firmware::controller::Controller;
     use firmware::estimator::ObserverSensor;
     use firmware::policy_int::POLICY_INT;
+    use firmware::rig::Options;
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
     // The observer's gain is solved once, now. The PIO program counts one step per quadrature
@@ -117,9 +109,11 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // is configured as the firmware compiles (`firmware::envelope::ASSURANCE`).
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, counts);
-    let mut controller = Controller::new(&POLICY_INT, sensor, bridge, LIMITS)
-        .with_predictor(defmt::unwrap!(RIG.predictor()))
-        .with_monitor(firmware::envelope::ASSURANCE);
+    let options = Options {
+        predict: true,
+        monitor: Some(firmware::envelope::ASSURANCE),
+    };
+    let mut controller = defmt::unwrap!(RIG.controller(&POLICY_INT, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-rp2040: integer policy, {} Hz", per_second);

@@ -10,16 +10,10 @@ use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
 use embassy_stm32::timer::simple_pwm::{PwmPin, SimplePwm};
 use embassy_stm32::timer::{GeneralInstance4Channel, low_level::CountingMode};
 use embassy_time::{Duration, Instant, Ticker};
-use firmware::controller::{Bridge, Controller, Limits};
+use firmware::controller::Bridge;
 use firmware::estimator::ObserverSensor;
 use firmware::policy::{POLICY, RIG};
-
-/// The readings the controller accepts: the track less the end-stop margin, a rig that
-/// leaves no track failing the build.
-const LIMITS: Limits = match RIG.limits() {
-    Ok(limits) => limits,
-    Err(_) => panic!("RIG's end-stop margin leaves no track"),
-};
+use firmware::rig::Options;
 
 /// A timer's 16-bit count carried into 32 bits: each period adds what it moved since the
 /// last, which a 20 ms period keeps far below half the counter's range.
@@ -76,9 +70,11 @@ pub async fn balance(p: Peripherals) -> ! {
     let counts = move || (cart.read(), pole.read());
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, counts);
-    let mut controller = Controller::new(&POLICY, sensor, bridge, LIMITS)
-        .with_predictor(defmt::unwrap!(RIG.predictor()))
-        .with_monitor(firmware::envelope::ASSURANCE);
+    let options = Options {
+        predict: true,
+        monitor: Some(firmware::envelope::ASSURANCE),
+    };
+    let mut controller = defmt::unwrap!(RIG.controller(&POLICY, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-stm32f446: f32 policy, {} Hz", per_second);

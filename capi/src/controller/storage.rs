@@ -12,7 +12,7 @@ use firmware::estimator::ObserverSensor;
 use firmware::loopback::{self, Latest, Pins};
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
-use firmware::rig::Rig;
+use firmware::rig::{Options, Rig};
 
 use super::input::{Format, Input};
 
@@ -73,7 +73,7 @@ impl<const H: usize> Kind for Int<H> {
 }
 
 /// The controller C runs: one telemetry record, the period's own, is all C reads back.
-pub(crate) type Running<K> = Controller<<K as Kind>::Policy, Input<<K as Kind>::Reading>, Pins, 1>;
+pub(crate) type Running<K> = Controller<<K as Kind>::Policy, Input<<K as Kind>::Reading>, Pins>;
 
 /// What an initialised `cartpole_controller_t` holds; `magic` first, where [`magic`] reads
 /// it whichever kind wrote it.
@@ -101,17 +101,11 @@ impl<K: Kind> Slot<K> {
     /// refuses the rig's observer, limits or predictor.
     pub(crate) fn new(policy: K::Policy, rig: &Rig) -> Result<Self, ConfigError> {
         let encoders = ObserverSensor::new(rig.observer()?, Latest::default());
-        let controller = Controller::with_history(
-            policy,
-            Input::new(encoders),
-            loopback::pins(),
-            rig.limits()?,
-        );
-        let controller = if rig.dead_time > 0 {
-            controller.with_predictor(rig.predictor()?)
-        } else {
-            controller
+        let options = Options {
+            predict: true,
+            monitor: None,
         };
+        let controller = rig.controller(policy, Input::new(encoders), loopback::pins(), options)?;
         Ok(Slot {
             magic: K::MAGIC,
             // `as` saturates: a nonsense period reads as 0 or the largest, never wraps.

@@ -88,9 +88,6 @@ pub use monitor::{Assurance, Mode, Monitor};
 pub use predict::Predictor;
 pub use reading::Reading;
 
-/// Telemetry records a [`Controller::new`] keeps.
-pub const DEFAULT_HISTORY: usize = 8;
-
 /// Where the controller gets the plant's state, once per period: encoders through an
 /// estimator on a board, the simulated plant in the twin. Units as in Gymnasium: m, m/s, rad,
 /// rad/s, in the format of [`StateSensor::Reading`].
@@ -238,8 +235,10 @@ where
 }
 
 /// The balance controller: owns its policy, its sensor, its actuator and a ring of the last
-/// `N` [`Record`]s. Everything is fixed-size; [`Controller::step`] cannot panic.
-pub struct Controller<P, S: StateSensor, A, const N: usize = DEFAULT_HISTORY> {
+/// `N` [`Record`]s (the last one unless a board keeps more to log). Everything is
+/// fixed-size; [`Controller::step`] cannot panic. A board builds it from its rig
+/// ([`Rig::controller`](crate::rig::Rig::controller)).
+pub struct Controller<P, S: StateSensor, A, const N: usize = 1> {
     policy: P,
     sensor: S,
     actuator: A,
@@ -256,8 +255,8 @@ where
     S: StateSensor,
     A: Actuator,
 {
-    /// A controller keeping the last [`DEFAULT_HISTORY`] periods, that has not yet driven the
-    /// motor: its first command sends the whole pin sequence.
+    /// A controller keeping the last period's record, that has not yet driven the motor:
+    /// its first command sends the whole pin sequence.
     pub fn new(policy: P, sensor: S, actuator: A, limits: Limits) -> Self {
         Controller::with_history(policy, sensor, actuator, limits)
     }
@@ -493,13 +492,14 @@ where
 }
 
 /// A decision: the scores to record, and the action (`None` when the scores are not finite
-/// and no action may rest on them).
-type Answer<O> = (<O as Reading>::Scores, Option<Action>);
+/// and no action may rest on them): what [`Monitor::decide`] asks for.
+pub type Answer<O> = (<O as Reading>::Scores, Option<Action>);
 
 /// The policy's answer on `seen`: its scores, and the action they choose where they are
-/// finite.
+/// finite. What [`Controller::act`] asks of its policy, and a caller of [`Monitor::decide`]
+/// hands it.
 #[inline(always)]
-pub(crate) fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<O> {
+pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<O> {
     let q = policy.scores(seen);
     (q, O::finite(&q).then(|| O::decide(&q)))
 }

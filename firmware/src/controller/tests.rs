@@ -47,7 +47,8 @@ fn run(
     let mut en = PwmMock::new(pwm);
     let sensor = Script { readings, next: 0 };
     let bridge = Bridge::new(dir.clone(), en.clone());
-    let mut c = Controller::new(SignOfTheta, sensor, bridge, limits());
+    let mut c: Controller<_, _, _, 8> =
+        Controller::with_history(SignOfTheta, sensor, bridge, limits());
     let commands = (0..readings.len()).map(|_| c.step()).collect();
     let records = c.telemetry().copied().collect();
     let faults = c.faults();

@@ -5,13 +5,13 @@
 //! same code.
 
 use crate::config::ConfigError;
-use crate::controller::{Assurance, Controller, FaultFlags, Limits, Predictor, StateSensor};
+use crate::controller::{Assurance, Controller, FaultFlags, StateSensor};
 use crate::envelope::ENVELOPE;
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
 use crate::network::Mlp;
 use crate::network::int::QMlp;
-use crate::rig::Rig;
+use crate::rig::{Options, Rig};
 
 use super::frame::{self, FrameReader, MAX_FRAME};
 use super::message::{Format, Info, Message, Packet, Reason, Reply, Scores, Start};
@@ -44,8 +44,8 @@ pub fn period_ns(rig: &Rig) -> u32 {
     libm::round(rig.params.tau * 1e9) as u32
 }
 
-type Float<'p, const H: usize> = Controller<&'p Mlp<H>, LinkSensor<[f32; 4]>, Pins, 1>;
-type Int<'p, const H: usize> = Controller<&'p QMlp<H>, LinkSensor<[i16; 4]>, Pins, 1>;
+type Float<'p, const H: usize> = Controller<&'p Mlp<H>, LinkSensor<[f32; 4]>, Pins>;
+type Int<'p, const H: usize> = Controller<&'p QMlp<H>, LinkSensor<[i16; 4]>, Pins>;
 
 /// The episode's controller, in the format Hello asked for.
 enum Running<'p, const H: usize> {
@@ -141,11 +141,6 @@ impl<'p, const H: usize> Target<'p, H> {
             ..self.rig
         }
         .check()?;
-        let limits = rig.limits()?;
-        let predictor = match start.predict && rig.dead_time > 0 {
-            true => Some(rig.predictor()?),
-            false => None,
-        };
         let monitor = match (start.monitor, self.assurance) {
             (false, _) => None,
             (true, Some(a)) => Some(a),
@@ -163,18 +158,23 @@ impl<'p, const H: usize> Target<'p, H> {
             };
             Ok(if start.monitor { o.watching() } else { o })
         };
-        let aids = (limits, predictor, monitor);
+        let options = Options {
+            predict: start.predict,
+            monitor,
+        };
         Ok(match self.format {
-            Format::F32 => Running::F32(controller(
+            Format::F32 => Running::F32(rig.controller(
                 self.policy,
                 LinkSensor::new(start.sensing, &rig, observer)?,
-                aids,
-            )),
-            Format::Int8 => Running::Int8(controller(
+                pins(),
+                options,
+            )?),
+            Format::Int8 => Running::Int8(rig.controller(
                 self.policy_int,
                 LinkSensor::new(start.sensing, &rig, observer)?,
-                aids,
-            )),
+                pins(),
+                options,
+            )?),
         })
     }
 
@@ -197,28 +197,8 @@ impl<'p, const H: usize> Target<'p, H> {
     }
 }
 
-/// A controller of `policy` on `sensor` with its limits, and its predictor and monitor if
-/// the episode runs them.
-fn controller<P, O: Estimate>(
-    policy: P,
-    sensor: LinkSensor<O>,
-    (limits, predictor, monitor): (Limits, Option<Predictor>, Option<Assurance>),
-) -> Controller<P, LinkSensor<O>, Pins, 1>
-where
-    P: crate::controller::Policy<O>,
-{
-    let mut c = Controller::with_history(policy, sensor, pins(), limits);
-    if let Some(p) = predictor {
-        c = c.with_predictor(p);
-    }
-    if let Some(a) = monitor {
-        c.set_monitor(a);
-    }
-    c
-}
-
 fn step<P, O: Estimate>(
-    c: &mut Controller<P, LinkSensor<O>, Pins, 1>,
+    c: &mut Controller<P, LinkSensor<O>, Pins>,
     m: Measurement,
     scores: impl Fn(O::Scores) -> Scores,
 ) -> Reply

@@ -1,9 +1,13 @@
-//! Gradients of the batch's mean TD loss, layer by layer from the output back.
+//! Gradients of the batch's mean TD loss, in two kinds of work: what each row needs alone
+//! (its loss's gradient, and its error at each layer's units), and the sums over the
+//! batch's rows that make the weight gradients. Rows may be split any way for the first;
+//! each sum runs over every row in batch order, whoever computes it, so a gradient's bits
+//! do not depend on how the work was shared.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
+use super::Loss;
 use super::kernels::{Render, all_rows, rows_times};
-use super::{Loss, Scratch};
 
 /// Zeroes the gradient of every unit whose ReLU output was 0 (its derivative there).
 #[inline(always)]
@@ -17,134 +21,210 @@ fn relu_backward<const H: usize>(grad: &mut [[f32; H]], activation: &[[f32; H]])
     }
 }
 
-/// `s.dq[b] = scale * dL/dQ` for the first `n` rows, non-zero only at the taken action;
-/// returns the summed loss.
+/// `dq[b] = scale * dL/dQ` for each row, non-zero only at the taken action, and the row's
+/// loss in `loss[b]`.
 #[inline(always)]
-fn loss_grad<const H: usize>(
-    s: &mut Scratch<H>,
-    n: usize,
+fn loss_grad(
+    q: &[[f32; N_ACTIONS]],
     actions: &[u8],
     targets: &[f32],
     (loss, scale): (Loss, f32),
-) -> f64 {
-    let mut total = 0.0f64;
-    for b in 0..n {
+    dq: &mut [[f32; N_ACTIONS]],
+    losses: &mut [f32],
+) {
+    for b in 0..q.len() {
         let a = usize::from(actions[b].min(1));
-        let d = s.q[b][a] - targets[b];
+        let d = q[b][a] - targets[b];
         let (l, g) = match loss {
             Loss::Mse => (d * d, 2.0 * d),
             Loss::Huber if d.abs() < 1.0 => (0.5 * d * d, d),
             Loss::Huber => (d.abs() - 0.5, d.signum()),
         };
-        total += f64::from(l);
-        s.dq[b] = [0.0; N_ACTIONS];
-        s.dq[b][a] = g * scale;
+        losses[b] = l;
+        dq[b] = [0.0; N_ACTIONS];
+        dq[b][a] = g * scale;
     }
-    total
 }
 
-/// The output layer's gradients (2 x H, small): direct sums over the first `n` rows.
+/// What the row work reads and writes, one entry per row: the forward pass's activations
+/// `a1`, `a2` and Q-values `q` in; the loss's gradient `dq`, each hidden layer's errors
+/// `d2`, `d1` and each row's loss out.
+pub struct RowGrads<'a, const H: usize> {
+    /// First hidden layer's activations.
+    pub a1: &'a [[f32; H]],
+    /// Second hidden layer's activations.
+    pub a2: &'a [[f32; H]],
+    /// Q-values.
+    pub q: &'a [[f32; N_ACTIONS]],
+    /// Scaled `dL/dQ`.
+    pub dq: &'a mut [[f32; N_ACTIONS]],
+    /// Errors at the second hidden layer's units.
+    pub d2: &'a mut [[f32; H]],
+    /// Errors at the first hidden layer's units.
+    pub d1: &'a mut [[f32; H]],
+    /// Each row's loss.
+    pub loss: &'a mut [f32],
+}
+
+/// The row work of the backward pass: each row's loss gradient and its errors at the hidden
+/// units, `d2 = (dq W3)` and `d1 = (d2 W2)`, each masked by its layer's ReLU'.
 #[inline(always)]
-fn output_layer<const H: usize>(s: &Scratch<H>, n: usize, grad: &mut Mlp<H>) {
-    grad.fc3_weight = [[0.0; H]; N_ACTIONS];
-    grad.fc3_bias = [0.0; N_ACTIONS];
-    for b in 0..n {
-        for o in 0..N_ACTIONS {
-            let g = s.dq[b][o];
-            for (gw, a) in grad.fc3_weight[o].iter_mut().zip(&s.a2[b]) {
-                *gw = g.mul_add(*a, *gw);
+pub(super) fn rows_impl<const H: usize, F: Render, const R: usize>(
+    net: &Mlp<H>,
+    actions: &[u8],
+    targets: &[f32],
+    loss: (Loss, f32),
+    r: RowGrads<'_, H>,
+) {
+    let n = r.q.len();
+    loss_grad(r.q, actions, targets, loss, r.dq, r.loss);
+    all_rows::<H, N_ACTIONS, F, R>(r.dq, &net.fc3_weight, None, false, r.d2);
+    relu_backward(&mut r.d2[..n], r.a2);
+    all_rows::<H, H, F, R>(r.d2, &net.fc2_weight, None, false, r.d1);
+    relu_backward(&mut r.d1[..n], r.a1);
+}
+
+/// What the weight gradients are summed from: every row of the batch, in order.
+#[derive(Clone, Copy)]
+pub struct BatchGrads<'a, const H: usize> {
+    /// Observations.
+    pub x: &'a [[f32; OBS_DIM]],
+    /// First hidden layer's activations.
+    pub a1: &'a [[f32; H]],
+    /// Second hidden layer's activations.
+    pub a2: &'a [[f32; H]],
+    /// Scaled `dL/dQ`.
+    pub dq: &'a [[f32; N_ACTIONS]],
+    /// Errors at the second hidden layer's units.
+    pub d2: &'a [[f32; H]],
+    /// Errors at the first hidden layer's units.
+    pub d1: &'a [[f32; H]],
+}
+
+/// A network's gradient in two shares of about equal work: the first half of the second
+/// layer's weight rows, and everything else.
+pub enum Share<'a, const H: usize> {
+    /// Rows `0..H/2` of `fc2.weight`.
+    First(&'a mut [[f32; H]]),
+    /// Rows `H/2..H` of `fc2.weight`, and every other tensor.
+    Second(SecondShare<'a, H>),
+}
+
+/// The tensors of [`Share::Second`].
+pub struct SecondShare<'a, const H: usize> {
+    /// Rows `H/2..H` of `fc2.weight`.
+    pub fc2_weight: &'a mut [[f32; H]],
+    /// `fc1.weight`.
+    pub fc1_weight: &'a mut [[f32; OBS_DIM]; H],
+    /// `fc1.bias`.
+    pub fc1_bias: &'a mut [f32; H],
+    /// `fc2.bias`.
+    pub fc2_bias: &'a mut [f32; H],
+    /// `fc3.weight`.
+    pub fc3_weight: &'a mut [[f32; H]; N_ACTIONS],
+    /// `fc3.bias`.
+    pub fc3_bias: &'a mut [f32; N_ACTIONS],
+}
+
+/// `grad` in its two [`Share`]s.
+pub fn shares<const H: usize>(grad: &mut Mlp<H>) -> [Share<'_, H>; 2] {
+    let (first, second) = grad.fc2_weight.split_at_mut(H / 2);
+    [
+        Share::First(first),
+        Share::Second(SecondShare {
+            fc2_weight: second,
+            fc1_weight: &mut grad.fc1_weight,
+            fc1_bias: &mut grad.fc1_bias,
+            fc2_bias: &mut grad.fc2_bias,
+            fc3_weight: &mut grad.fc3_weight,
+            fc3_bias: &mut grad.fc3_bias,
+        }),
+    ]
+}
+
+/// One share of the weight gradients, each a sum over every row of `g` in order.
+#[inline(always)]
+pub(super) fn share_impl<const H: usize, F: Render, const R: usize>(
+    g: BatchGrads<'_, H>,
+    share: Share<'_, H>,
+) {
+    match share {
+        Share::First(rows) => second_layer::<H, F, R>(g, rows, 0),
+        Share::Second(s) => {
+            second_layer::<H, F, R>(g, s.fc2_weight, H / 2);
+            // Summed row after row, vectorised across units; each unit still adds its
+            // column in batch order starting from -0.0, exactly as `Iterator::sum` over the
+            // column would.
+            *s.fc2_bias = [-0.0; H];
+            for d in g.d2 {
+                for (b, d) in s.fc2_bias.iter_mut().zip(d) {
+                    *b += d;
+                }
             }
-            grad.fc3_bias[o] += g;
+            first_layer::<H, F>(g, s.fc1_weight, s.fc1_bias);
+            output_layer(g, s.fc3_weight, s.fc3_bias);
         }
     }
 }
 
-/// The second layer's gradients from its units' `d2` and its inputs `a1`.
+/// Rows `first..` of the second layer's weight gradient: `dW2[o] = sum_b d2[b][o] *
+/// a1[b]`, rows over `o`, terms over `b`, reading `d2` down its columns, `R` units at a time.
 #[inline(always)]
 fn second_layer<const H: usize, F: Render, const R: usize>(
-    d2: &[[f32; H]],
-    a1: &[[f32; H]],
-    grad: &mut Mlp<H>,
+    g: BatchGrads<'_, H>,
+    rows: &mut [[f32; H]],
+    first: usize,
 ) {
-    // dW2[o] = sum_b d2[b][o] * a1[b], rows over o, terms over b, reading d2 down its
-    // columns, R units at a time.
-    for (k, g) in grad
-        .fc2_weight
-        .as_chunks_mut::<R>()
-        .0
-        .iter_mut()
-        .enumerate()
-    {
+    for (k, out) in rows.as_chunks_mut::<R>().0.iter_mut().enumerate() {
+        let k = first / R + k;
         rows_times::<H, R, F>(
-            |b| d2[b].as_chunks::<R>().0[k],
-            a1,
+            |b| g.d2[b].as_chunks::<R>().0[k],
+            g.a1,
             None,
             false,
-            g.each_mut(),
+            out.each_mut(),
         );
-    }
-    // Summed row after row, vectorised across units; each unit still adds its column in
-    // batch order starting from -0.0, exactly as `Iterator::sum` over the column would.
-    grad.fc2_bias = [-0.0; H];
-    for d in d2 {
-        for (g, d) in grad.fc2_bias.iter_mut().zip(d) {
-            *g += d;
-        }
     }
 }
 
 /// The first layer's gradients from its units' `d1` and the observations `x`.
 #[inline(always)]
 fn first_layer<const H: usize, F: Render>(
-    x: &[[f32; OBS_DIM]],
-    d1: &[[f32; H]],
-    grad: &mut Mlp<H>,
+    g: BatchGrads<'_, H>,
+    weight: &mut [[f32; OBS_DIM]; H],
+    bias: &mut [f32; H],
 ) {
     // Accumulated transposed (contiguous over outputs), then stored [out][in].
     let mut gw1t = [[0.0f32; H]; OBS_DIM];
-    rows_times::<H, OBS_DIM, F>(|b| x[b], d1, None, false, gw1t.each_mut());
-    for (o, row) in grad.fc1_weight.iter_mut().enumerate() {
+    rows_times::<H, OBS_DIM, F>(|b| g.x[b], g.d1, None, false, gw1t.each_mut());
+    for (o, row) in weight.iter_mut().enumerate() {
         for (i, w) in row.iter_mut().enumerate() {
             *w = gw1t[i][o];
         }
     }
-    grad.fc1_bias = [0.0; H];
-    for row in d1 {
-        for (g, d) in grad.fc1_bias.iter_mut().zip(row) {
-            *g += d;
+    *bias = [0.0; H];
+    for row in g.d1 {
+        for (b, d) in bias.iter_mut().zip(row) {
+            *b += d;
         }
     }
 }
 
+/// The output layer's gradients (2 x H, small): direct sums over the rows.
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
-pub(super) fn backward_impl<const H: usize, F: Render, const R: usize>(
-    net: &Mlp<H>,
-    x: &[[f32; OBS_DIM]],
-    actions: &[u8],
-    targets: &[f32],
-    loss: (Loss, f32),
-    s: &mut Scratch<H>,
-    grad: &mut Mlp<H>,
-) -> f64 {
-    const {
-        assert!(
-            H.is_multiple_of(R),
-            "hidden width must be a multiple of the rows per block"
-        )
-    };
-    let n = x.len();
-    let total = loss_grad(s, n, actions, targets, loss);
-    output_layer(s, n, grad);
-    // Into the second hidden layer: d2 = (dq W3) masked by ReLU'.
-    all_rows::<H, N_ACTIONS, F, R>(&s.dq[..n], &net.fc3_weight, None, false, &mut s.d2);
-    relu_backward(&mut s.d2[..n], &s.a2[..n]);
-    let d2 = &s.d2[..n];
-    let a1 = &s.a1[..n];
-    second_layer::<H, F, R>(d2, a1, grad);
-    // Into the first hidden layer: d1 = (d2 W2) masked by ReLU'.
-    all_rows::<H, H, F, R>(d2, &net.fc2_weight, None, false, &mut s.d1);
-    relu_backward(&mut s.d1[..n], a1);
-    first_layer::<H, F>(x, &s.d1[..n], grad);
-    total
+fn output_layer<const H: usize>(
+    g: BatchGrads<'_, H>,
+    weight: &mut [[f32; H]; N_ACTIONS],
+    bias: &mut [f32; N_ACTIONS],
+) {
+    *weight = [[0.0; H]; N_ACTIONS];
+    *bias = [0.0; N_ACTIONS];
+    for (dq, a2) in g.dq.iter().zip(g.a2) {
+        for o in 0..N_ACTIONS {
+            for (w, a) in weight[o].iter_mut().zip(a2) {
+                *w = dq[o].mul_add(*a, *w);
+            }
+            bias[o] += dq[o];
+        }
+    }
 }

@@ -3,9 +3,9 @@
 //! (`f32::mul_add`, one rounding), in increasing `i`. That is the training arithmetic's
 //! definition; every build renders exactly it (software `fmaf` where the CPU has no FMA).
 
-use firmware::network::{Mlp, OBS_DIM};
+use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
-use super::{Packed, Scratch};
+use super::Packed;
 
 /// Which rendering of the one arithmetic a build runs: [`rows_times`]'s generic code, or
 /// its 4-row blocks in AVX-512 intrinsics ([`avx512::rows4`]). Both compute the same fused
@@ -188,23 +188,27 @@ pub(super) fn all_rows<const H: usize, const N: usize, F: Render, const R: usize
     }
 }
 
+/// A forward pass's activations and Q-values, one entry per row of its input.
+pub struct Activations<'a, const H: usize> {
+    /// First hidden layer.
+    pub a1: &'a mut [[f32; H]],
+    /// Second hidden layer.
+    pub a2: &'a mut [[f32; H]],
+    /// Q-values.
+    pub q: &'a mut [[f32; N_ACTIONS]],
+}
+
 #[inline(always)]
 pub(super) fn forward_impl<const H: usize, F: Render, const R: usize>(
     net: &Mlp<H>,
     packed: &Packed<H>,
     x: &[[f32; OBS_DIM]],
-    s: &mut Scratch<H>,
+    out: Activations<'_, H>,
 ) {
     let n = x.len();
-    all_rows::<H, OBS_DIM, F, R>(x, &packed.w1t, Some(&net.fc1_bias), true, &mut s.a1);
-    all_rows::<H, H, F, R>(
-        &s.a1[..n],
-        &packed.w2t,
-        Some(&net.fc2_bias),
-        true,
-        &mut s.a2,
-    );
-    for (a2, q) in s.a2[..n].iter().zip(s.q[..n].iter_mut()) {
+    all_rows::<H, OBS_DIM, F, R>(x, &packed.w1t, Some(&net.fc1_bias), true, out.a1);
+    all_rows::<H, H, F, R>(&out.a1[..n], &packed.w2t, Some(&net.fc2_bias), true, out.a2);
+    for (a2, q) in out.a2[..n].iter().zip(out.q[..n].iter_mut()) {
         for ((q, w), bias) in q.iter_mut().zip(&net.fc3_weight).zip(&net.fc3_bias) {
             // `dot`'s order in SSE registers: inlined here, LLVM compiles `dot` itself to
             // scalar code, which cost 8% of a training step.

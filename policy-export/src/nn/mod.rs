@@ -2,8 +2,11 @@
 //! global-norm clipping and Adam, written by hand for this one network shape.
 //!
 //! - `kernels`: the batched forward pass and the building block every matrix product uses.
-//! - `backprop`: gradients of the TD loss.
+//! - `backprop`: gradients of the TD loss: each row's own work, then the weight gradients'
+//!   sums over every row in two shares of the parameters.
 //! - `optim`: Adam, gradient clipping, soft target updates.
+//! - `ops`: each build's operations in a table ([`Ops`]), chosen once per run.
+//! - `reference` (tests): the definition in plain loops.
 //!
 //! The parameters live in the firmware's own [`Mlp`] type, so the policy the trainer acts
 //! with is the policy that ships; acting goes through `host_common::wide`, the firmware's
@@ -19,9 +22,11 @@
 //! fused multiply-adds are what fast hardware does: the same generic kernels are compiled
 //! for AVX-512F + AVX-512VL + FMA (whose 4-row blocks run in intrinsics), for AVX2 + FMA,
 //! and for the target's baseline, which on aarch64 is NEON's `fmla` and elsewhere a software
-//! `fmaf`, picked at run time ([`Kernel::detect`]). All of them give the same bits (tested
-//! against a plain-loop rendering of the definition), so a run's weights do not depend on
-//! the machine it ran on.
+//! `fmaf`, picked at run time ([`Kernel::detect`]) and handed out as a table of operations
+//! ([`Ops::new`]). All of them give the same bits (tested against a plain-loop rendering of
+//! the definition), so a run's weights do not depend on the machine it ran on. Every sum
+//! over a batch's rows runs over all of them in order, so how the work is shared between
+//! cores is no part of the definition either.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 pub use host_common::kernel::Kernel;
@@ -30,12 +35,12 @@ mod backprop;
 mod kernels;
 mod optim;
 
-use backprop::backward_impl;
-#[cfg(target_arch = "x86_64")]
-use kernels::Avx512;
-use kernels::{Generic, ROWS, forward_impl};
+mod ops;
+
+pub use backprop::{BatchGrads, RowGrads, SecondShare, Share, shares};
+pub use kernels::Activations;
+pub use ops::{Ops, Part};
 pub use optim::{AdamParams, AdamStep, clip_grad_norm, soft_update};
-use optim::{adam_elements, adam_impl};
 
 /// The regression loss on the TD error `d = Q(s, a) - y`, averaged over the batch.
 #[derive(
@@ -49,14 +54,16 @@ pub enum Loss {
     Huber,
 }
 
-/// Per-batch activations and gradients, allocated once.
+/// A whole batch's activations and gradients, allocated once: what [`Ops::forward_batch`]
+/// and [`Ops::backward`] work in.
 pub struct Scratch<const H: usize> {
     a1: Vec<[f32; H]>,
     a2: Vec<[f32; H]>,
     d1: Vec<[f32; H]>,
     d2: Vec<[f32; H]>,
     dq: Vec<[f32; N_ACTIONS]>,
-    /// Q-values of the last [`forward_batch`].
+    loss: Vec<f32>,
+    /// Q-values of the last [`Ops::forward_batch`].
     pub q: Vec<[f32; N_ACTIONS]>,
 }
 
@@ -159,6 +166,7 @@ impl<const H: usize> Scratch<H> {
             d1: vec![[0.0; H]; batch],
             d2: vec![[0.0; H]; batch],
             dq: vec![[0.0; N_ACTIONS]; batch],
+            loss: vec![0.0; batch],
             q: vec![[0.0; N_ACTIONS]; batch],
         }
     }
@@ -167,121 +175,6 @@ impl<const H: usize> Scratch<H> {
 /// A zeroed network on the heap (`Mlp<128>` is 70 KB: too big to move around on stacks).
 pub fn boxed_zero<const H: usize>() -> Box<Mlp<H>> {
     Box::new(Mlp::zeroed())
-}
-
-/// Generates a public entry point per kernel: it runs `$imp` compiled for the chosen
-/// kernel's instruction set (with the AVX-512 blocks where that kernel has them). A kernel
-/// this CPU lacks falls back to the baseline build (the command line refuses such a choice
-/// up front); every build computes the same bits.
-macro_rules! kernel_entry {
-    ($(#[$doc:meta])* fn $name:ident($($arg:ident: $ty:ty),*) -> $ret:ty
-        => $imp:ident $([$($render:tt)*])?) => {
-        $(#[$doc])*
-        #[allow(clippy::too_many_arguments)]
-        pub fn $name<const H: usize>(kernel: Kernel, $($arg: $ty),*) -> $ret {
-            #[cfg(target_arch = "x86_64")]
-            {
-                #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-                #[allow(clippy::too_many_arguments)]
-                fn avx512<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H $($(, $render)* , Avx512, ROWS)?>($($arg),*)
-                }
-                #[target_feature(enable = "avx2,fma")]
-                #[allow(clippy::too_many_arguments)]
-                fn avx2<const H: usize>($($arg: $ty),*) -> $ret {
-                    $imp::<H $($(, $render)* , Generic, ROWS)?>($($arg),*)
-                }
-                match kernel {
-                    // SAFETY: the CPU was just checked for every feature the function enables.
-                    Kernel::Avx512 if Kernel::Avx512.supported() => {
-                        return unsafe { avx512::<H>($($arg),*) };
-                    }
-                    // SAFETY: as above.
-                    Kernel::Avx2 if Kernel::Avx2.supported() => {
-                        return unsafe { avx2::<H>($($arg),*) };
-                    }
-                    _ => {}
-                }
-            }
-            let _ = kernel;
-            $imp::<H $($(, $render)* , Generic, ROWS)?>($($arg),*)
-        }
-    };
-}
-
-kernel_entry! {
-    /// Forward pass of `x` (one row per sample) through `net` (with `packed` its current
-    /// transposes), keeping the activations for [`backward`]; Q-values land in
-    /// `s.q[..x.len()]`.
-    fn forward_batch(
-        net: &Mlp<H>,
-        packed: &Packed<H>,
-        x: &[[f32; OBS_DIM]],
-        s: &mut Scratch<H>
-    ) -> ()
-        => forward_impl []
-}
-
-kernel_entry! {
-    /// Gradients of `scale` times the summed loss over the rows of the last
-    /// [`forward_batch`] of `net` on `x`, where row `b` regresses `Q(x_b, actions[b])`
-    /// towards `targets[b]` (`scale` is one over the whole batch's size, of which `x` may be a
-    /// part). Overwrites `grad`; returns the summed loss.
-    fn backward(
-        net: &Mlp<H>,
-        x: &[[f32; OBS_DIM]],
-        actions: &[u8],
-        targets: &[f32],
-        loss: (Loss, f32),
-        s: &mut Scratch<H>,
-        grad: &mut Mlp<H>
-    ) -> f64 => backward_impl []
-}
-
-kernel_entry! {
-    /// One Adam step (`t` counts from 1) of `params` along `grad`, updating the moments.
-    fn adam_step(
-        hp: &AdamParams,
-        t: u64,
-        params: &mut Mlp<H>,
-        grad: &Mlp<H>,
-        m: &mut Mlp<H>,
-        v: &mut Mlp<H>
-    ) -> () => adam_impl
-}
-
-/// One run of parameters with its gradients and moments: `(p, g, m, v)`.
-pub type Part<'a> = (&'a mut [f32], &'a [f32], &'a mut [f32], &'a mut [f32]);
-
-/// [`adam_step`] on runs of parameters, gradients and moments: a share of a network's
-/// parameters, elementwise the same arithmetic.
-pub fn adam_parts(kernel: Kernel, a: &AdamStep, parts: &mut [Part<'_>]) {
-    #[inline(always)]
-    fn each(a: &AdamStep, parts: &mut [Part<'_>]) {
-        for (p, g, m, v) in parts.iter_mut() {
-            adam_elements(a, p, g, m, v);
-        }
-    }
-    #[cfg(target_arch = "x86_64")]
-    {
-        #[target_feature(enable = "avx512f,avx512vl,avx2,fma")]
-        fn avx512(a: &AdamStep, parts: &mut [Part<'_>]) {
-            each(a, parts)
-        }
-        #[target_feature(enable = "avx2,fma")]
-        fn avx2(a: &AdamStep, parts: &mut [Part<'_>]) {
-            each(a, parts)
-        }
-        match kernel {
-            // SAFETY: the CPU was just checked for every feature the function enables.
-            Kernel::Avx512 if Kernel::Avx512.supported() => return unsafe { avx512(a, parts) },
-            // SAFETY: as above.
-            Kernel::Avx2 if Kernel::Avx2.supported() => return unsafe { avx2(a, parts) },
-            _ => {}
-        }
-    }
-    let _ = kernel;
-    each(a, parts)
 }
 
 #[cfg(test)]

@@ -119,24 +119,3 @@ pub(super) fn adam_elements(a: &AdamStep, p: &mut [f32], g: &[f32], m: &mut [f32
         *p -= a.step * *m / (v.sqrt() * a.inv_sqrt_bc2 + a.eps);
     }
 }
-
-#[inline(always)]
-pub(super) fn adam_impl<const H: usize>(
-    hp: &AdamParams,
-    t: u64,
-    params: &mut Mlp<H>,
-    grad: &Mlp<H>,
-    m: &mut Mlp<H>,
-    v: &mut Mlp<H>,
-) {
-    let a = hp.at(t);
-    let moments = m.tensors_mut().into_iter().zip(v.tensors_mut());
-    for ((p, g), (m, v)) in params
-        .tensors_mut()
-        .into_iter()
-        .zip(grad.tensors())
-        .zip(moments)
-    {
-        adam_elements(&a, p, g, m, v);
-    }
-}

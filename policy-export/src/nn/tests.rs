@@ -3,6 +3,52 @@ use crate::config::Init;
 use crate::train::{Stream, init_weights, rng};
 use rand_core::Rng;
 
+/// [`Ops::forward_batch`] with `kernel`'s table.
+fn forward_batch<const H: usize>(
+    kernel: Kernel,
+    net: &Mlp<H>,
+    packed: &Packed<H>,
+    x: &[[f32; OBS_DIM]],
+    s: &mut Scratch<H>,
+) {
+    Ops::<H>::new(kernel).forward_batch(net, packed, x, s)
+}
+
+/// [`Ops::backward`] with `kernel`'s table.
+#[allow(clippy::too_many_arguments)]
+fn backward<const H: usize>(
+    kernel: Kernel,
+    net: &Mlp<H>,
+    x: &[[f32; OBS_DIM]],
+    actions: &[u8],
+    targets: &[f32],
+    loss: (Loss, f32),
+    s: &mut Scratch<H>,
+    grad: &mut Mlp<H>,
+) -> f64 {
+    Ops::<H>::new(kernel).backward(net, x, actions, targets, loss, s, grad)
+}
+
+/// [`Ops::adam`] with `kernel`'s table on every parameter of `p`.
+fn adam_step<const H: usize>(
+    kernel: Kernel,
+    hp: &AdamParams,
+    t: u64,
+    p: &mut Mlp<H>,
+    g: &Mlp<H>,
+    m: &mut Mlp<H>,
+    v: &mut Mlp<H>,
+) {
+    let (p, m, v) = (p.tensors_mut(), m.tensors_mut(), v.tensors_mut());
+    let mut parts: Vec<Part<'_>> = p
+        .into_iter()
+        .zip(g.tensors())
+        .zip(m.into_iter().zip(v))
+        .map(|((p, g), (m, v))| (p, g, m, v))
+        .collect();
+    Ops::<H>::new(kernel).adam(&hp.at(t), &mut parts);
+}
+
 fn kernels() -> Vec<Kernel> {
     Kernel::available()
 }
@@ -161,8 +207,8 @@ fn adam_steps_match_hand_computed_values() {
         eps: 1e-8,
     };
     for kernel in kernels() {
-        let mut p = boxed_zero::<8>();
-        let (mut m, mut v, mut g) = (boxed_zero::<8>(), boxed_zero::<8>(), boxed_zero::<8>());
+        let mut p = boxed_zero::<16>();
+        let (mut m, mut v, mut g) = (boxed_zero::<16>(), boxed_zero::<16>(), boxed_zero::<16>());
         p.fc2_weight[3][4] = 1.0;
         g.fc2_weight[3][4] = 0.5;
         adam_step(kernel, &hp, 1, &mut p, &g, &mut m, &mut v);
@@ -200,10 +246,10 @@ fn dead_units_moments_are_flushed_not_subnormal() {
         eps: 1e-8,
     };
     let (mut p, mut m, mut v, mut g) = (
-        boxed_zero::<8>(),
-        boxed_zero::<8>(),
-        boxed_zero::<8>(),
-        boxed_zero::<8>(),
+        boxed_zero::<16>(),
+        boxed_zero::<16>(),
+        boxed_zero::<16>(),
+        boxed_zero::<16>(),
     );
     g.fc1_bias[0] = 1e-3;
     adam_step(Kernel::Portable, &hp, 1, &mut p, &g, &mut m, &mut v);
@@ -218,7 +264,7 @@ fn dead_units_moments_are_flushed_not_subnormal() {
 
 #[test]
 fn clipping_rescales_to_the_threshold() {
-    let mut g = boxed_zero::<8>();
+    let mut g = boxed_zero::<16>();
     g.fc1_weight[0][0] = 12.0;
     g.fc3_bias[1] = -16.0; // norm 20
     assert!(clip_grad_norm(&mut g, 10.0));
@@ -234,7 +280,7 @@ fn clipping_rescales_to_the_threshold() {
         (g.fc1_weight[0][0] / g.fc3_bias[1] + 0.75).abs() < 1e-7,
         "direction kept"
     );
-    let mut small = boxed_zero::<8>();
+    let mut small = boxed_zero::<16>();
     small.fc2_bias[2] = 3.0;
     assert!(!clip_grad_norm(&mut small, 10.0));
     assert_eq!(small.fc2_bias[2], 3.0);
@@ -270,7 +316,7 @@ fn the_clip_follows_the_definition_on_both_sides_of_the_threshold() {
 
 #[test]
 fn soft_update_interpolates() {
-    let (mut t, mut o) = (boxed_zero::<8>(), boxed_zero::<8>());
+    let (mut t, mut o) = (boxed_zero::<16>(), boxed_zero::<16>());
     t.fc2_weight[1][2] = 1.0;
     o.fc2_weight[1][2] = 3.0;
     soft_update(&mut t, &o, 0.25);

@@ -1,26 +1,30 @@
 //! One gradient step's state and work: the online and target networks, Adam's moments, the
 //! TD targets of a sampled batch, and the target network's cached Q-values.
 //!
-//! A batch is learnt from in two halves (the first `ceil(n / 2)` sampled rows and the rest,
-//! [`half`]): each half's TD targets, forward and backward pass are computed on their own,
-//! the two halves run on two cores where there are two, and the gradient is the first half's
-//! plus the second's. That split is part of the arithmetic's definition, so one thread or two
-//! give the same bits.
+//! A step is the definition `reference` writes in plain loops: the batch's TD targets, the
+//! gradient of its mean loss summed over its rows in order, clipped, one Adam step. Where
+//! the run has a second core, each step's work is shared without changing a bit: the rows'
+//! own work (three forward passes, the backward pass to the hidden units) in two parts of
+//! the batch, then the weight gradients' sums in two shares of the parameters, each over
+//! every row, then Adam in two shares of the parameters. The target net's Q-values of a
+//! replay slot are cached while neither changes. `tests` hold this learner to `reference`
+//! bit for bit.
 
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
-use host_common::wide;
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use super::replay::ReplayBuffer;
 use super::{Stream, rng};
 use crate::config::{Algo, Config, Init, TargetUpdate};
-use crate::nn::{self, AdamParams, Kernel, Packed, Part};
+use crate::nn::{self, AdamParams, Kernel, Ops, Packed, Part};
 
-mod half;
+mod batch;
 mod pair;
+#[cfg(test)]
+pub(crate) mod reference;
 
-use half::{CachedQ, Half, Nets};
+use batch::{Batch, CachedQ, Nets};
 use pair::Pair;
 
 /// TD targets for a batch: `r + gamma * (1 - terminated) * Q_target(s', a')`, where `a'` is
@@ -57,11 +61,12 @@ pub struct Learner<const H: usize> {
     target_packed: Box<Packed<H>>,
     m: Box<Mlp<H>>,
     v: Box<Mlp<H>>,
+    grad: Box<Mlp<H>>,
     steps: u64,
-    kernel: Kernel,
+    ops: &'static Ops<H>,
     adam: AdamParams,
     idx: Vec<usize>,
-    halves: [Half<H>; 2],
+    batch: Batch<H>,
     /// Per replay slot, its target Q-values, where the target net is copied now and then
     /// (`TargetUpdate::Hard`): it then stays fixed for thousands of updates while each slot
     /// is drawn many times, so scoring a slot once per target version saves most of the
@@ -71,16 +76,16 @@ pub struct Learner<const H: usize> {
     target_q: Vec<CachedQ>,
     /// Bumped whenever the target net changes; 0 marks a never-filled cache entry.
     target_version: u64,
-    /// The core that takes the second half, where the run has one to itself.
+    /// The core that takes a share of each step, where the run has one to itself.
     pair: Option<Pair>,
 }
 
 impl<const H: usize> Learner<H> {
-    /// Fresh networks initialised per `cfg.init` from the run's init stream.
+    /// Fresh networks initialised per `cfg.init` from the run's init stream, learning with
+    /// `kernel`'s build of the arithmetic.
     pub fn new(cfg: &Config, kernel: Kernel, seed: u64) -> Self {
         let mut online = nn::boxed_zero::<H>();
         init_weights(&mut online, cfg.init, &mut rng(seed, Stream::Init));
-        let b = cfg.batch_size;
         let cached = cfg.target_update == TargetUpdate::Hard;
         Learner {
             target: online.clone(),
@@ -89,16 +94,17 @@ impl<const H: usize> Learner<H> {
             online,
             m: nn::boxed_zero(),
             v: nn::boxed_zero(),
+            grad: nn::boxed_zero(),
             steps: 0,
-            kernel,
+            ops: Ops::new(kernel),
             adam: AdamParams {
                 lr: cfg.lr,
                 beta1: cfg.adam_beta1,
                 beta2: cfg.adam_beta2,
                 eps: cfg.adam_eps,
             },
-            idx: Vec::with_capacity(b),
-            halves: [Half::new(b.div_ceil(2)), Half::new(b / 2)],
+            idx: Vec::with_capacity(cfg.batch_size),
+            batch: Batch::new(cfg.batch_size),
             target_q: vec![CachedQ::default(); if cached { cfg.buffer_size } else { 0 }],
             target_version: 1,
             pair: spare_core().then(Pair::new),
@@ -108,39 +114,36 @@ impl<const H: usize> Learner<H> {
     /// Samples a minibatch and takes one clipped Adam step on the TD loss; returns the loss.
     pub fn update<R: Rng>(&mut self, cfg: &Config, buf: &ReplayBuffer, rng: &mut R) -> f32 {
         buf.sample_indices(rng, cfg.batch_size, &mut self.idx);
-        let first = self.idx.len().div_ceil(2);
-        let (a, b) = self.idx.split_at(first);
-        let [h0, h1] = &mut self.halves;
+        let n = self.idx.len();
+        let (cache, version) = (&mut self.target_q, self.target_version);
+        self.batch.gather(buf, &self.idx, cache, version);
         let nets = Nets {
-            kernel: self.kernel,
+            ops: self.ops,
             online: &self.online,
             online_packed: &self.online_packed,
             target: &self.target,
             target_packed: &self.target_packed,
-            scale: 1.0 / self.idx.len() as f32,
+            scale: 1.0 / n as f32,
         };
-        let (cache, version) = (&self.target_q, self.target_version);
-        let (l0, l1) = both(
-            self.pair.as_ref(),
-            || h0.learn(cfg, &nets, buf, a, (cache, version)),
-            || h1.learn(cfg, &nets, buf, b, (cache, version)),
-        );
-        for h in [&*h0, &*h1] {
-            h.cache(&mut self.target_q, self.target_version, buf);
-        }
-        let grad = h0.add_gradient(h1);
+        let [r0, r1] = self.batch.halves();
+        let pair = self.pair.as_ref();
+        both(pair, || r0.work(cfg, &nets), || r1.work(cfg, &nets));
+        self.batch.cache(&self.idx, cache, version, buf);
+        let [s0, s1] = nn::shares(&mut self.grad);
+        let g = self.batch.grads();
+        both(pair, || self.ops.share(g, s0), || self.ops.share(g, s1));
         if cfg.grad_clip > 0.0 {
-            nn::clip_grad_norm(grad, cfg.grad_clip as f32);
+            nn::clip_grad_norm(&mut self.grad, cfg.grad_clip as f32);
         }
         self.steps += 1;
         let step = self.adam.at(self.steps);
         let [mut first, mut second] =
-            split_parameters(&mut self.online, grad, &mut self.m, &mut self.v);
-        let k = self.kernel;
+            split_parameters(&mut self.online, &self.grad, &mut self.m, &mut self.v);
+        let ops = self.ops;
         both(
-            self.pair.as_ref(),
-            || nn::adam_parts(k, &step, &mut first),
-            || nn::adam_parts(k, &step, &mut second),
+            pair,
+            || ops.adam(&step, &mut first),
+            || ops.adam(&step, &mut second),
         );
         self.online_packed.pack(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
@@ -150,12 +153,12 @@ impl<const H: usize> Learner<H> {
             self.target_packed.soft_update(&self.online_packed, tau);
             self.target_version += 1;
         }
-        ((l0 + l1) / self.idx.len() as f64) as f32
+        (self.batch.loss() / n as f64) as f32
     }
 
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
     pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        wide::forward_unpacked(&self.online, obs, self.kernel)
+        self.ops.q_values(&self.online, obs)
     }
 
     /// The network being trained.

@@ -1,5 +1,6 @@
+use super::reference::ReferenceLearner;
 use super::*;
-use crate::nn::{Loss, Scratch, reference};
+use crate::nn::{Loss, reference};
 use firmware::cartpole::{Action, unit_f64};
 use rand_pcg::Pcg64Mcg;
 
@@ -46,7 +47,6 @@ fn cached_target_q_values_equal_a_fresh_forward_pass() {
     let mut learner = Learner::<64>::new(&cfg, kernel, 7);
     let mut buf = ReplayBuffer::new(cfg.buffer_size);
     let mut sample = rng(7, Stream::Sample);
-    let mut fresh = Scratch::<64>::new(cfg.batch_size);
     let (mut rows, mut misses) = (0, 0);
     for step in 0..400u64 {
         let more = filled(1, 1, step);
@@ -57,20 +57,15 @@ fn cached_target_q_values_equal_a_fresh_forward_pass() {
         }
         let target = learner.target.clone();
         learner.update(&cfg, &buf, &mut sample);
-        for h in &learner.halves {
-            nn::forward_batch(
-                kernel,
-                &target,
-                &Packed::new(&target),
-                h.x_next(),
-                &mut fresh,
-            );
-            let bits = |q: &[[f32; 2]]| q.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
-            let n = h.x_next().len();
-            assert_eq!(bits(h.q_target()), bits(&fresh.q[..n]), "step {step}");
-            rows += n;
-            misses += h.misses();
-        }
+        let (q_target, x_next, missed) = learner.batch.targets_seen();
+        let bits = |q: &[[f32; 2]]| q.iter().flatten().map(|v| v.to_bits()).collect::<Vec<_>>();
+        let fresh: Vec<[f32; 2]> = x_next
+            .iter()
+            .map(|s| reference::forward(&target, s).2)
+            .collect();
+        assert_eq!(bits(q_target), bits(&fresh), "step {step}");
+        rows += x_next.len();
+        misses += missed;
         if step % 100 == 99 {
             learner.sync_target();
         }
@@ -79,78 +74,86 @@ fn cached_target_q_values_equal_a_fresh_forward_pass() {
     assert!(misses > 0 && misses * 4 < rows, "{misses} of {rows}");
 }
 
-/// One update, recomputed from the definition: the same sampled rows in two halves, each
-/// half's gradient by the plain-loop rendering of the arithmetic, summed, clipped as defined,
-/// one Adam step. The learner must give its bits on one thread and on two.
-#[test]
-fn an_update_is_the_sum_of_its_halves_gradients_on_any_number_of_threads() {
-    let cfg = Config {
-        batch_size: 13,
-        grad_clip: 0.05,
-        loss: Loss::Huber,
-        ..Config::paper()
-    };
-    let buf = filled(100, 100, 3);
-    let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap();
-        let mut learner = Learner::<16>::new(&cfg, Kernel::detect(), 5);
-        let mut sample = Pcg64Mcg::new(9);
-        pool.install(|| learner.update(&cfg, &buf, &mut sample));
-        learner
-    };
-    let (one, two) = (run(1), run(2));
-    let bits = |m: &Mlp<16>| {
-        m.tensors()
-            .iter()
-            .flat_map(|t| t.iter().map(|v| v.to_bits()))
-            .collect::<Vec<_>>()
-    };
-    assert_eq!(bits(&one.online), bits(&two.online));
+fn bits<const H: usize>(m: &Mlp<H>) -> Vec<u32> {
+    m.tensors()
+        .iter()
+        .flat_map(|t| t.iter().map(|v| v.to_bits()))
+        .collect()
+}
 
-    let start = Learner::<16>::new(&cfg, Kernel::detect(), 5);
-    let net = &start.online;
-    let mut idx = Vec::new();
-    buf.sample_indices(&mut Pcg64Mcg::new(9), cfg.batch_size, &mut idx);
-    let scale = 1.0 / idx.len() as f32;
-    let mut grad = Mlp::<16>::zeroed();
-    for rows in [&idx[..7], &idx[7..]] {
-        let t: Vec<_> = rows.iter().map(|&i| buf.get(i)).collect();
-        let x: Vec<[f32; 4]> = t.iter().map(|t| t.0).collect();
-        let actions: Vec<u8> = t.iter().map(|t| t.1).collect();
-        let targets: Vec<f32> = t
-            .iter()
-            .map(|&(_, _, r, s2, done)| {
-                let (qo, qt) = (
-                    reference::forward(net, &s2).2,
-                    reference::forward(net, &s2).2,
-                );
-                let next = qt[argmax(&qo).index()];
-                r + if done { 0.0 } else { cfg.gamma as f32 * next }
-            })
-            .collect();
-        let (g, _) = reference::backward(net, &x, &actions, &targets, (cfg.loss, scale));
-        for (a, b) in grad.tensors_mut().into_iter().zip(g.tensors()) {
-            for (a, b) in a.iter_mut().zip(b) {
-                *a += b;
+/// Runs `updates` steps of the fast learner (on one core or two, with every kernel this
+/// CPU runs) and of the reference learner from the same start, on the same batches, with
+/// the target copied every 7 steps where it is copied; every step's weights and loss
+/// must agree bit for bit.
+fn fast_equals_reference<const H: usize>(cfg: &Config, updates: u64, two_cores: bool) {
+    let buf = filled(300, 300, 11);
+    for kernel in Kernel::available() {
+        let mut fast = Learner::<H>::new(cfg, kernel, 5);
+        fast.pair = two_cores.then(Pair::new);
+        let mut plain = ReferenceLearner::<H>::new(cfg, &fast.online);
+        let (mut r1, mut r2) = (Pcg64Mcg::new(9), Pcg64Mcg::new(9));
+        for step in 1..=updates {
+            let l1 = fast.update(cfg, &buf, &mut r1);
+            let l2 = plain.update(cfg, &buf, &mut r2);
+            let at = format!("{kernel:?}, two cores {two_cores}, step {step}, width {H}");
+            assert_eq!(l1.to_bits(), l2.to_bits(), "loss: {at}");
+            assert_eq!(bits(&fast.online), bits(&plain.online), "weights: {at}");
+            assert_eq!(bits(&fast.target), bits(&plain.target), "target: {at}");
+            if cfg.target_update == TargetUpdate::Hard && step % 7 == 0 {
+                fast.sync_target();
+                plain.sync_target();
             }
         }
     }
-    let norm = reference::sum_of_squares(&grad).sqrt() as f32;
-    assert!(
-        norm > 0.05,
-        "the clip must act for the test to see it: {norm}"
-    );
-    let k = 0.05 / (norm + 1e-6);
-    grad.tensors_mut()
-        .into_iter()
-        .for_each(|t| t.iter_mut().for_each(|g| *g *= k));
-    let mut want = net.clone();
-    let (mut m, mut v) = (Mlp::<16>::zeroed(), Mlp::<16>::zeroed());
-    reference::adam(&start.adam, 1, &mut want, &grad, &mut m, &mut v);
-    assert_eq!(bits(&one.online), bits(&want));
+}
+
+/// The fast learner is the reference learner: parts of the batch, shares of the
+/// parameters, the second core and the target cache change no bit, for Double DQN and DQN,
+/// hard and soft targets, both losses, with and without the clip, batches the parts split
+/// evenly and not.
+#[test]
+fn the_fast_learner_equals_the_reference_learner_bit_for_bit() {
+    let paper = Config {
+        grad_clip: 0.05,
+        ..Config::paper()
+    };
+    let odd = Config {
+        batch_size: 13,
+        algo: Algo::Dqn,
+        loss: Loss::Mse,
+        ..Config::paper()
+    };
+    let soft = Config {
+        batch_size: 64,
+        ..Config::robust()
+    };
+    for two_cores in [false, true] {
+        fast_equals_reference::<64>(&paper, 40, two_cores);
+        fast_equals_reference::<16>(&odd, 30, two_cores);
+        fast_equals_reference::<32>(&soft, 30, two_cores);
+    }
+}
+
+/// The clip must act in the test above for it to test the clip: the first step clipped
+/// differs from the same step unclipped.
+#[test]
+fn the_clip_acts_in_the_equality_test() {
+    let clipped = Config {
+        grad_clip: 0.05,
+        ..Config::paper()
+    };
+    let free = Config {
+        grad_clip: 0.0,
+        ..Config::paper()
+    };
+    let buf = filled(300, 300, 11);
+    let start = Learner::<64>::new(&clipped, Kernel::detect(), 5);
+    let step = |cfg: &Config| {
+        let mut r = ReferenceLearner::<64>::new(cfg, &start.online);
+        r.update(cfg, &buf, &mut Pcg64Mcg::new(9));
+        bits(&r.online)
+    };
+    assert_ne!(step(&clipped), step(&free));
 }
 
 /// Soft updates move the target's packing elementwise: it stays the packing of the target,
