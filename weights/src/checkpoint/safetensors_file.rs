@@ -6,8 +6,8 @@ use std::collections::BTreeMap;
 use firmware::network::TENSOR_NAMES;
 use safetensors::tensor::{Dtype as StDtype, SafeTensors, TensorView};
 
-use super::state_dict::{Dtype, StateDict, Tensor};
-use crate::{Error, Result, Weights};
+use super::state_dict::{Data, Dtype, StateDict, Tensor};
+use crate::{Error, Result, Weights, excerpt};
 
 /// Largest safetensors header read. The header is JSON listing every tensor; a few hundred
 /// bytes per tensor, so this allows thousands while bounding the memory a hostile file costs.
@@ -35,10 +35,10 @@ pub fn read(bytes: &[u8]) -> Result<(StateDict<'_>, BTreeMap<String, String>)> {
             };
             let tensor = Tensor {
                 dtype,
-                shape: t.shape().to_vec(),
-                data: Cow::Borrowed(t.data()),
+                shape: t.shape().into(),
+                data: Data::Dense(Cow::Borrowed(t.data())),
             };
-            (name, tensor)
+            (Cow::Owned(name), tensor)
         })
         .collect();
     Ok((dict, metadata))
@@ -57,8 +57,12 @@ fn parse(bytes: &[u8]) -> Result<SafeTensors<'_>> {
             "not a policy checkpoint: its header declares {len} bytes, expected at most {MAX_HEADER_BYTES}"
         )));
     }
-    SafeTensors::deserialize(bytes)
-        .map_err(|e| Error::Input(format!("not a safetensors file: {e}")))
+    SafeTensors::deserialize(bytes).map_err(|e| {
+        Error::Input(format!(
+            "not a safetensors file: {}",
+            excerpt(&e.to_string())
+        ))
+    })
 }
 
 /// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in
