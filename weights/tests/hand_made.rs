@@ -98,7 +98,10 @@ fn hostile_node_names_are_escaped_and_cut() {
         .map(|i| onnx_node("Relu", &format!("{name}{i}"), &["z"], &format!("y{i}"), &[]))
         .collect();
     let m = refusal(&graph(|g| g, &nodes));
-    assert!(m.contains("\\u{1b}[31m") && m.contains("and 997 more off the path"), "{m}");
+    assert!(
+        m.contains("\\u{1b}[31m") && m.contains("and 997 more off the path"),
+        "{m}"
+    );
 }
 
 fn valid_zip() -> Vec<u8> {
@@ -112,10 +115,16 @@ fn valid_zip() -> Vec<u8> {
 fn a_hand_made_torch_zip_imports_and_damaged_ones_are_refused() {
     let good = valid_zip();
     let want: Vec<Vec<f32>> = network().into_iter().map(|t| t.0).collect();
-    assert_eq!(import(&good, None).unwrap().weights.tensors().to_vec(), want);
+    assert_eq!(
+        import(&good, None).unwrap().weights.tensors().to_vec(),
+        want
+    );
     // A storage's byte changed: its CRC-32 no longer matches.
     let mut corrupt = good.clone();
-    let at = good.windows(4).position(|w| w == 1.001f32.to_le_bytes()).unwrap();
+    let at = good
+        .windows(4)
+        .position(|w| w == 1.001f32.to_le_bytes())
+        .unwrap();
     corrupt[at] ^= 1;
     assert!(refusal(&corrupt).contains("zip entry \"archive/data/n0\" does not match its CRC-32"));
     // Method 8 (deflate) in the first entry's central record.
@@ -123,7 +132,10 @@ fn a_hand_made_torch_zip_imports_and_damaged_ones_are_refused() {
     let central = good.len() - 22 - central_size(&good);
     deflated[central + 10] = 8;
     let m = refusal(&deflated);
-    assert!(m.contains("\"archive/data.pkl\" is compressed or encrypted (method 8)"), "{m}");
+    assert!(
+        m.contains("\"archive/data.pkl\" is compressed or encrypted (method 8)"),
+        "{m}"
+    );
     // The first record's local header offset past the directory.
     let mut outside = good.clone();
     outside[central + 42..central + 46].copy_from_slice(&u32::MAX.to_le_bytes());

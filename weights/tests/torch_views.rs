@@ -22,10 +22,16 @@ fn with_views(
     let mut p = Pickle::new();
     p.dict();
     p.str("fc1.weight").tensor(|p| {
-        p.storage("w", w.0.len()).int(w.1 as i32).ints(&w.2).ints(&w.3);
+        p.storage("w", w.0.len())
+            .int(w.1 as i32)
+            .ints(&w.2)
+            .ints(&w.3);
     });
     p.str("fc1.bias").tensor(|p| {
-        p.storage("b", b.0.len()).int(b.1 as i32).ints(&[b.2]).ints(&[b.3]);
+        p.storage("b", b.0.len())
+            .int(b.1 as i32)
+            .ints(&[b.2])
+            .ints(&[b.3]);
     });
     let mut storages = vec![
         ("archive/data/w".to_string(), bytes(w.0)),
@@ -34,7 +40,11 @@ fn with_views(
     for (k, (v, data, dims)) in network().into_iter().enumerate().skip(2) {
         let name = format!("fc{}.{}", k / 2 + 1, ["weight", "bias"][k % 2]);
         let key = format!("n{k}");
-        let stride: Vec<usize> = if dims.len() == 2 { vec![dims[1], 1] } else { vec![1] };
+        let stride: Vec<usize> = if dims.len() == 2 {
+            vec![dims[1], 1]
+        } else {
+            vec![1]
+        };
         p.str(&name).tensor(|p| {
             p.storage(&key, v.len()).int(0).ints(&dims).ints(&stride);
         });
@@ -77,9 +87,12 @@ fn a_column_expanded_and_an_offset_view_read_through_their_strides() {
 fn a_view_reaching_past_its_storage_is_refused() {
     // The last row of an expanded column starts at element 3 + 15 = 18 of 18 elements.
     let col = [1.0f32; 18];
-    let e = import(&with_views((&col, 3, [16, 4], [1, 0]), (&[0.0], 0, 16, 0)), None)
-        .unwrap_err()
-        .to_string();
+    let e = import(
+        &with_views((&col, 3, [16, 4], [1, 0]), (&[0.0], 0, 16, 0)),
+        None,
+    )
+    .unwrap_err()
+    .to_string();
     assert!(
         e.contains("tensor \"fc1.weight\": offset 3 and strides [1, 0] reach past its storage of 18 elements"),
         "{e}"
