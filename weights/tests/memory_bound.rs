@@ -11,7 +11,7 @@
 mod counting;
 mod support;
 
-use counting::{SLACK, alone, bounded, bounded_within};
+use counting::{SLACK, alone, bounded, bounded_within, loaded};
 use support::build::*;
 use weights::checkpoint::MAX_HEADER_BYTES;
 
@@ -98,6 +98,26 @@ fn a_shared_shape_and_a_shared_storage_are_viewed_not_copied() {
         refused.contains("4000 tensors are not part of the network"),
         "{refused}"
     );
+}
+
+#[test]
+fn loading_a_file_costs_its_size_once_more() {
+    let _alone = alone();
+    // `load` reads the file (its size, once) and imports it: the 17 MB file of the test
+    // above, from disk.
+    let numel = 4 << 20;
+    let (pkl, mut storages) = torch(1, |p, _| {
+        p.str("x.0.weight").tensor(|p| {
+            p.storage("big", numel).int(0).ints(&[numel]).ints(&[1]);
+        });
+    });
+    storages.push(("archive/data/big".into(), vec![0; numel * 4]));
+    let bytes = torch_zip(&pkl, &storages);
+    let path = std::env::temp_dir().join(format!("memory-bound-{}.pth", std::process::id()));
+    std::fs::write(&path, &bytes).unwrap();
+    let said = loaded("load", &path, bytes.len(), Some("net."));
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(said, "ok");
 }
 
 #[test]

@@ -71,6 +71,24 @@ pub fn bounded(what: &str, bytes: &[u8], prefix: Option<&str>) -> String {
     bounded_within(what, bytes, prefix, SLACK)
 }
 
+/// [`bounded`] for `weights::checkpoint::load` of the file at `path` (of `len` bytes),
+/// which holds the file's bytes besides what the import holds.
+pub fn loaded(what: &str, path: &std::path::Path, len: usize, prefix: Option<&str>) -> String {
+    let base = LIVE.load(SeqCst);
+    PEAK.store(base, SeqCst);
+    let said = match weights::checkpoint::load(path, prefix) {
+        Ok(_) => "ok".to_string(),
+        Err(e) => e.to_string(),
+    };
+    let peak = PEAK.load(SeqCst) - base;
+    eprintln!("{what}: {len} bytes, peak {peak} bytes: {said}");
+    assert!(
+        peak <= (FACTOR + 1) * len + SLACK,
+        "{what}: peak {peak} bytes for a file of {len}"
+    );
+    said
+}
+
 /// [`bounded`] with another constant than [`SLACK`].
 pub fn bounded_within(what: &str, bytes: &[u8], prefix: Option<&str>, slack: usize) -> String {
     let base = LIVE.load(SeqCst);

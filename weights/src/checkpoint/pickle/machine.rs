@@ -160,7 +160,7 @@ pub(super) fn run(bytes: &[u8]) -> Result<Rc<Value<'_>>> {
 
 /// One opcode other than STOP.
 fn step<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<()> {
-    if literal(op, ops, m)? {
+    if literal(op, ops, m)? || memo(op, ops, m)? || named(op, ops, m)? {
         return Ok(());
     }
     match op {
@@ -204,24 +204,6 @@ fn step<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<()> {
             let items = m.pop_mark()?;
             m.set_items(items)?;
         }
-        b'q' => m.memo_put(u64::from(ops.u8()?))?,
-        b'r' => m.memo_put(u64::from(ops.u32()?))?,
-        0x94 => m.memo_put(m.memo.len() as u64)?,
-        b'h' => m.memo_get(u64::from(ops.u8()?))?,
-        b'j' => m.memo_get(u64::from(ops.u32()?))?,
-        b'c' => {
-            let module = ops.line()?;
-            let name = ops.line()?;
-            m.push(Value::Global(global(module, name)?));
-        }
-        0x93 => {
-            let name = m.pop()?;
-            let module = m.pop()?;
-            let (Value::Str(module), Value::Str(name)) = (&*module, &*name) else {
-                return refuse("STACK_GLOBAL needs two strings".into());
-            };
-            m.push(Value::Global(global(module, name)?));
-        }
         b'Q' => {
             let pid = m.pop()?;
             m.push(persistent(&pid)?);
@@ -247,6 +229,39 @@ fn step<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Puts the top of the stack in the memo, or pushes a memo entry, if `op` says so; says
+/// whether it did.
+fn memo<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<bool> {
+    match op {
+        b'q' => m.memo_put(u64::from(ops.u8()?))?,
+        b'r' => m.memo_put(u64::from(ops.u32()?))?,
+        0x94 => m.memo_put(m.memo.len() as u64)?,
+        b'h' => m.memo_get(u64::from(ops.u8()?))?,
+        b'j' => m.memo_get(u64::from(ops.u32()?))?,
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// Pushes the global that GLOBAL or STACK_GLOBAL names, if `op` is one; says whether it
+/// was.
+fn named<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<bool> {
+    let (module, name) = match op {
+        b'c' => (ops.line()?, ops.line()?),
+        0x93 => {
+            let name = m.pop()?;
+            let module = m.pop()?;
+            let (&Value::Str(module), &Value::Str(name)) = (&*module, &*name) else {
+                return refuse("STACK_GLOBAL needs two strings".into());
+            };
+            (module, name)
+        }
+        _ => return Ok(false),
+    };
+    m.push(Value::Global(global(module, name)?));
+    Ok(true)
 }
 
 /// Pushes a literal (a mark, None, a bool, an int, a string, an empty container) if `op`
