@@ -50,11 +50,14 @@ fn pickle_dir<'a>(zip: &Zip<'a>) -> Result<Option<&'a str>> {
         .filter(|d| d.is_empty() || d.ends_with(b"/"));
     match (dirs.next(), dirs.count()) {
         (None, _) => Ok(None),
+        // Every storage's name starts with the folder's: a short one keeps each lookup short.
         (Some(one), 0) => match std::str::from_utf8(one) {
-            Ok(dir) => Ok(Some(dir)),
-            Err(_) => {
-                refuse("a PyTorch zip whose data.pkl is in a folder not named in UTF-8".into())
-            }
+            Ok(dir) if dir.len() <= QUOTE_MAX => Ok(Some(dir)),
+            _ => refuse(format!(
+                "a PyTorch zip whose data.pkl is in a folder of {} bytes, expected a UTF-8 name \
+                 of at most {QUOTE_MAX}",
+                one.len()
+            )),
         },
         (Some(_), more) => refuse(format!(
             "a PyTorch zip with {} data.pkl files, expected one",
