@@ -152,6 +152,10 @@ pub fn import(bytes: &[u8]) -> Result<Import> {
 
 impl<'a> Graph<'a> {
     fn read(bytes: &'a [u8]) -> Result<Graph<'a>> {
+        // Offsets into it are kept in 32 bits (a policy file is at most 64 MiB).
+        if u32::try_from(bytes.len()).is_err() {
+            return refuse(format!("a graph of {} bytes", bytes.len()));
+        }
         if last(bytes, 15)?.is_some() {
             return refuse("sparse initializers are not read; export dense weights".into());
         }
