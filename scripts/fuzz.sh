@@ -5,7 +5,9 @@
 # text into exported source (names, comments) and the link's frame reader (what a target
 # reads from its serial port), SECONDS each (default 60), seeded with the repository's own
 # valid inputs. Prints each target's executions and
-# coverage; exits 1 on a crash (the input is kept in fuzz/artifacts/TARGET/).
+# coverage, and for the checkpoint readers the largest peak memory an input cost them
+# (they abort past 4 bytes per input byte plus 8 MiB: fuzz/fuzz_targets/bound.rs); exits 1
+# on a crash (the input is kept in fuzz/artifacts/TARGET/).
 #
 # The targets (`fuzz/`, a workspace of its own) build with the pinned stable toolchain:
 # libfuzzer-sys brings libFuzzer, and the flags below are the coverage instrumentation
@@ -89,4 +91,6 @@ for t in "${targets[@]}"; do
     exit 1
   fi
   grep -E 'DONE|^stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb)' "$log"
+  # The readers' targets print their largest peak of live bytes as it grows (bound.rs).
+  grep '^bound:' "$log" | tail -n 1 || true
 done

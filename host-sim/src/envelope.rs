@@ -151,7 +151,8 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     let bad = |why: String| weights::Error::Input(format!("envelope {}: {why}", path.display()));
     let e: Envelope = serde_json::from_slice(&bytes).map_err(|e| {
         bad(format!(
-            "expected the JSON `host-sim envelope --json` prints, {e}"
+            "expected the JSON `host-sim envelope --json` prints, {}",
+            weights::excerpt(&e.to_string())
         ))
     })?;
     Limits::new(e.envelope).map_err(|e| bad(e.to_string()))
@@ -259,5 +260,16 @@ mod tests {
         assert_eq!(v.quantile(1.0)[0], edge(1.2));
         assert_eq!(v.quantile(0.5)[1], 20.0 / 4096.0);
         assert_eq!(v.envelope(0.999, 10.0)[0], 2.4);
+    }
+
+    #[test]
+    fn a_hostile_envelope_file_is_quoted_escaped_and_short() {
+        let path = std::env::temp_dir().join(format!("envelope-{}.json", std::process::id()));
+        let junk = "\\u001b[2J\\u0007".repeat(3_000);
+        std::fs::write(&path, format!("{{\"envelope\": \"{junk}\"}}")).unwrap();
+        let e = read(&path).unwrap_err().to_string();
+        std::fs::remove_file(&path).unwrap();
+        assert!(e.contains("expected the JSON"), "{e}");
+        assert!(e.len() < 600 && !e.chars().any(char::is_control), "{e}");
     }
 }

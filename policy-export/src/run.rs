@@ -175,8 +175,9 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
     let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
         weights::Error::Input(format!(
-            "{}: not a run summary: {e}",
-            summary_path.display()
+            "{}: not a run summary: {}",
+            summary_path.display(),
+            weights::excerpt(&e.to_string())
         ))
     })?;
     Ok(provenance(&s))

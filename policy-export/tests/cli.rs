@@ -230,7 +230,7 @@ fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
         "{text}"
     );
     assert!(
-        text.contains("layers 0, 2, 4 under prefix `network.`"),
+        text.contains("layers 0, 2, 4 under prefix \"network.\""),
         "{text}"
     );
 
@@ -336,7 +336,7 @@ fn exporting_a_broken_policy_names_the_tensor() {
         .arg(&out)
         .output()
         .unwrap();
-    assert_refused(&o, "layer `fc3` lacks its bias");
+    assert_refused(&o, "layer \"fc3\" lacks its bias");
     assert!(!Path::new(&out).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -133,16 +133,24 @@ fn from_tensors(
                 "BF16" => Dtype::BF16,
                 d => {
                     return Err(value_error(format!(
-                        "tensor {n:?}: expected a float dtype (F32, F64, F16, BF16); found {d}"
+                        "tensor {}: expected a float dtype (F32, F64, F16, BF16); found {}",
+                        weights::quote(n),
+                        weights::quote(d)
                     )));
                 }
             };
-            let view = TensorView::new(dtype, shape.clone(), data)
-                .map_err(|e| value_error(format!("tensor {n:?}: {e}")))?;
+            let view = TensorView::new(dtype, shape.clone(), data).map_err(|e| {
+                value_error(format!(
+                    "tensor {}: {}",
+                    weights::quote(n),
+                    weights::excerpt(&e.to_string())
+                ))
+            })?;
             Ok((n.as_str(), view))
         })
         .collect::<PyResult<Vec<_>>>()?;
-    let bytes = safetensors::tensor::serialize(views, None).map_err(value_error)?;
+    let bytes = safetensors::tensor::serialize(views, None)
+        .map_err(|e| value_error(weights::excerpt(&e.to_string())))?;
     let import = checkpoint::import(&bytes, prefix).map_err(value_error)?;
     let provenance = vec![format!("source: {label} ({})", import.describe())];
     Ok((import, provenance))

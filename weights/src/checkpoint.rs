@@ -27,6 +27,7 @@ mod protobuf;
 mod safetensors_file;
 pub mod state_dict;
 mod torch;
+mod zip;
 
 use std::cmp::Ordering;
 use std::collections::BTreeMap;
@@ -35,10 +36,10 @@ use std::path::Path;
 use firmware::network::{N_ACTIONS, OBS_DIM, TENSOR_NAMES};
 
 pub use safetensors_file::{MAX_HEADER_BYTES, to_safetensors};
-use state_dict::{StateDict, to_f32};
+use state_dict::{StateDict, shape_text, to_f32};
 
 use crate::files::{MAX_POLICY_BYTES, read_capped};
-use crate::{Error, Result, Weights, quote};
+use crate::{Error, Result, Weights, check_width, few, quote};
 
 /// The kind of file a network was read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -110,7 +111,7 @@ fn show_prefix(p: &str) -> String {
     if p.is_empty() {
         "no prefix".into()
     } else {
-        format!("prefix `{p}`")
+        format!("prefix {}", quote(p))
     }
 }
 
@@ -186,7 +187,7 @@ fn from_dict(
     metadata: BTreeMap<String, String>,
     format: Format,
 ) -> Result<Import> {
-    let names: Vec<&str> = dict.keys().map(String::as_str).collect();
+    let names: Vec<&str> = dict.keys().map(|k| k.as_ref()).collect();
     // Messages quote names; PyTorch's are short (`q_net_target.q_net.4.weight` is 27 bytes).
     if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
         return Err(Error::Input(format!(
@@ -209,6 +210,12 @@ fn from_dict(
         .flatten()
         .collect();
     let outside: Vec<&str> = names.iter().copied().filter(|n| !own.contains(n)).collect();
+    // The chain's first layer is [H, 4]: a width no network has is refused before any
+    // tensor is converted, so no view is materialised beyond the largest network's.
+    check_width(dict[own[0]].shape[0]).map_err(|e| match e {
+        Error::Input(m) => Error::Input(format!("{}: {m}", show_prefix(pre))),
+        other => other,
+    })?;
     if prefix.is_none() && !outside.is_empty() {
         return Err(Error::Input(format!(
             "{} tensors are not part of the network under {} (e.g. {}); pass --prefix {} to \
@@ -277,14 +284,11 @@ fn select<'a>(
 ) -> Result<(&'a str, [&'a str; 3])> {
     if let Some(p) = prefix {
         return match checked.iter().find(|(q, _)| *q == p) {
-            None => {
-                let found: Vec<String> = checked.iter().map(|(p, _)| shell_word(p)).collect();
-                Err(Error::Input(format!(
-                    "no tensors under prefix {} (prefixes found: {})",
-                    quote(p),
-                    found.join(", ")
-                )))
-            }
+            None => Err(Error::Input(format!(
+                "no tensors under prefix {} (prefixes found: {})",
+                quote(p),
+                few(checked.iter().map(|(p, _)| shell_word(p)), 8)
+            ))),
             Some((_, Err(why))) => Err(Error::Input(format!("{}: {why}", show_prefix(p)))),
             Some((p, Ok(layers))) => Ok((*p, *layers)),
         };
@@ -307,16 +311,13 @@ fn select<'a>(
                 why.join("; ")
             )))
         }
-        ref many => {
-            let list: Vec<String> = many.iter().map(|(p, _)| shell_word(p)).collect();
-            Err(Error::Input(format!(
-                "{} networks found, under the prefixes {}; choose one with --prefix (e.g. \
-                 --prefix {})",
-                many.len(),
-                list.join(", "),
-                list[0]
-            )))
-        }
+        ref many => Err(Error::Input(format!(
+            "{} networks found, under the prefixes {}; choose one with --prefix (e.g. \
+             --prefix {})",
+            many.len(),
+            few(many.iter().map(|(p, _)| shell_word(p)), 8),
+            shell_word(many[0].0)
+        ))),
     }
 }
 
@@ -333,7 +334,7 @@ fn shell_word(p: &str) -> String {
 fn rename(msg: &str, own: &[&str]) -> String {
     let mut m = msg.to_string();
     for (canonical, name) in TENSOR_NAMES.iter().zip(own) {
-        m = m.replace(&format!("`{canonical}`"), &format!("`{name}`"));
+        m = m.replace(&format!("`{canonical}`"), &quote(name));
     }
     m
 }
@@ -347,32 +348,40 @@ fn chain<'a>(
 ) -> std::result::Result<[&'a str; 3], String> {
     let mut order: Vec<&str> = layers.keys().copied().collect();
     order.sort_by(|a, b| natural(a, b));
-    let shown = order.iter().take(6).copied().collect::<Vec<_>>().join(", ");
     let [a, b, c] = order[..] else {
         return Err(format!(
-            "{} layers ({shown}{}), expected 3 linear layers",
+            "{} layers ({}), expected 3 linear layers",
             order.len(),
-            if order.len() > 6 { ", ..." } else { "" }
+            few(order.iter().map(|l| quote(l)), 6)
         ));
     };
     let mut dims = BTreeMap::new();
     for key in [a, b, c] {
         let l = &layers[key];
         if let Some(o) = l.other.first() {
-            return Err(format!("`{o}` is not a linear layer's weight or bias"));
+            return Err(format!(
+                "{} is not a linear layer's weight or bias",
+                quote(o)
+            ));
         }
         let (Some(w), Some(bias)) = (l.weight, l.bias) else {
             let missing = if l.weight.is_none() { "weight" } else { "bias" };
-            return Err(format!("layer `{key}` lacks its {missing}"));
+            return Err(format!("layer {} lacks its {missing}", quote(key)));
         };
-        let shape = |n: &str| dict.get(n).map(|t| t.shape.clone()).unwrap_or_default();
-        let (ws, bs) = (shape(w), shape(bias));
+        let (ws, bs) = (&dict[w].shape, &dict[bias].shape);
         let [out, inp] = ws[..] else {
-            return Err(format!("`{w}` has shape {ws:?}, expected [out, in]"));
-        };
-        if bs != [out] {
             return Err(format!(
-                "`{bias}` has shape {bs:?}, expected [{out}] to match `{w}`"
+                "{} has shape {}, expected [out, in]",
+                quote(w),
+                shape_text(ws)
+            ));
+        };
+        if bs[..] != [out] {
+            return Err(format!(
+                "{} has shape {}, expected [{out}] to match {}",
+                quote(bias),
+                shape_text(bs),
+                quote(w)
             ));
         }
         dims.insert(key, (w, out, inp));
@@ -396,14 +405,14 @@ fn chain<'a>(
 /// network, if they are not.
 fn unchained(layers: [(&str, usize, usize); 3]) -> Option<String> {
     let [(w1, h1, i1), (w2, h2, i2), (w3, o3, i3)] = layers;
+    let (w1, w2, w3) = (quote(w1), quote(w2), quote(w3));
     if i1 != OBS_DIM {
         Some(format!(
-            "`{w1}` is [{h1}, {i1}]: the first layer takes the {OBS_DIM} observations"
+            "{w1} is [{h1}, {i1}]: the first layer takes the {OBS_DIM} observations"
         ))
     } else if i2 != h1 || i3 != h2 {
         Some(format!(
-            "the layers do not chain: `{w1}` [{h1}, {i1}], `{w2}` [{h2}, {i2}], `{w3}` \
-             [{o3}, {i3}]"
+            "the layers do not chain: {w1} [{h1}, {i1}], {w2} [{h2}, {i2}], {w3} [{o3}, {i3}]"
         ))
     } else if h1 != h2 {
         Some(format!(
@@ -412,7 +421,7 @@ fn unchained(layers: [(&str, usize, usize); 3]) -> Option<String> {
         ))
     } else if o3 != N_ACTIONS {
         Some(format!(
-            "`{w3}` is [{o3}, {i3}]: the output layer has {N_ACTIONS} outputs (left, right)"
+            "{w3} is [{o3}, {i3}]: the output layer has {N_ACTIONS} outputs (left, right)"
         ))
     } else {
         None

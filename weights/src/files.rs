@@ -52,7 +52,10 @@ fn open_regular(path: &Path) -> Result<File> {
 /// The bytes of the regular file `path`, refusing files larger than `max` bytes.
 pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
     let file = open_regular(path)?;
-    let mut bytes = Vec::new();
+    // Room for the whole file and the byte that shows it ends, so that reading never
+    // doubles the buffer: a file costs its size in memory, not twice or three times it.
+    let size = file.metadata().map_or(0, |m| m.len()).min(max);
+    let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0).saturating_add(1));
     file.take(max + 1)
         .read_to_end(&mut bytes)
         .map_err(|e| Error::Input(format!("reading {}: {e}", path.display())))?;

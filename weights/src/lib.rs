@@ -48,26 +48,69 @@ impl Error {
 /// Shorthand for this crate's results.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
 
-/// Input strings quoted in messages are cut to this many characters: enough to recognise,
-/// short enough that a hostile input cannot flood the terminal.
+/// Input text in a message is cut to this many characters (after escaping): enough to
+/// recognise, short enough that a hostile input cannot flood the terminal.
 pub const QUOTE_MAX: usize = 200;
 
-/// `s` for an error message: debug-quoted, cut at [`QUOTE_MAX`] characters.
+/// `s` for an error message, in double quotes: at most [`QUOTE_MAX`] characters of it, then
+/// `...` after the closing quote; every character that is not printable (control characters,
+/// line and paragraph separators, bidirectional and other format characters) and the quote
+/// and backslash escaped as Rust writes them (`\u{1b}`, `\n`, `\"`). One line, whatever `s` is.
 pub fn quote(s: &str) -> String {
-    let mut q: String = format!("{s:?}");
-    if q.chars().count() > QUOTE_MAX {
-        q = q.chars().take(QUOTE_MAX).collect::<String>() + "...";
-    }
-    q
+    let (text, cut) = escaped(s, true);
+    format!("\"{text}\"{}", if cut { "..." } else { "" })
 }
 
 /// Another component's message about an input (a parser's, which may quote the input at
-/// length), cut at [`QUOTE_MAX`] characters.
+/// length and with its control characters): [`quote`]'s escaping and cut, without the quotes
+/// (the message's own quotes stay as they are).
 pub fn excerpt(s: &str) -> String {
-    if s.chars().count() <= QUOTE_MAX {
-        return s.to_string();
+    let (text, cut) = escaped(s, false);
+    if cut { text + "..." } else { text }
+}
+
+/// The escaped beginning of `s`, at most [`QUOTE_MAX`] characters, and whether it was cut.
+/// An escape is never split, and only what is shown is read: a 64 MiB name costs as much as a
+/// short one.
+fn escaped(s: &str, quotes: bool) -> (String, bool) {
+    let mut out = String::new();
+    let mut shown = 0;
+    for c in s.chars() {
+        let plain = matches!(c, '\'' | ' ') || (!quotes && matches!(c, '"' | '\\'));
+        let esc = c.escape_debug();
+        let len = if plain { 1 } else { esc.len() };
+        if shown + len > QUOTE_MAX {
+            return (out, true);
+        }
+        shown += len;
+        if plain {
+            out.push(c);
+        } else {
+            out.extend(esc);
+        }
     }
-    s.chars().take(QUOTE_MAX).collect::<String>() + "..."
+    (out, false)
+}
+
+/// The first `max` of `items` joined by commas, then `and N more` if there are more: a list
+/// from an input (tensors, prefixes, nodes) stays a few lines long however long it is.
+pub fn few(items: impl IntoIterator<Item = String>, max: usize) -> String {
+    let mut items = items.into_iter();
+    let shown: Vec<String> = items.by_ref().take(max).collect();
+    match items.count() {
+        0 => shown.join(", "),
+        more => format!("{} and {more} more", shown.join(", ")),
+    }
+}
+
+/// Refuses a hidden width the tools are not built for.
+pub fn check_width(width: usize) -> Result<()> {
+    if SUPPORTED_WIDTHS.contains(&width) {
+        return Ok(());
+    }
+    Err(Error::Input(format!(
+        "hidden width {width} is not supported: the tools are built for {SUPPORTED_WIDTHS:?}"
+    )))
 }
 
 /// The parameters of a 4-H-H-2 network as flat row-major tensors in [`TENSOR_NAMES`] order.
@@ -82,11 +125,7 @@ pub struct Weights {
 impl Weights {
     /// Checked weights: a supported width, six tensors of its shapes, every value finite.
     pub fn new(width: usize, tensors: [Vec<f32>; 6]) -> Result<Weights> {
-        if !SUPPORTED_WIDTHS.contains(&width) {
-            return Err(Error::Input(format!(
-                "hidden width {width} is not supported: the tools are built for {SUPPORTED_WIDTHS:?}"
-            )));
-        }
+        check_width(width)?;
         for ((name, shape), t) in TENSOR_NAMES.iter().zip(shapes(width)).zip(&tensors) {
             if t.len() != shape.len() {
                 return Err(Error::Input(format!(
@@ -223,9 +262,45 @@ mod tests {
     }
 
     #[test]
-    fn quotes_are_cut() {
+    fn quotes_are_cut_and_escaped() {
         assert_eq!(quote("ab"), "\"ab\"");
+        assert_eq!(quote("a\"b\\c 'd'"), r#""a\"b\\c 'd'""#);
+        assert_eq!(excerpt("a\"b\\c"), "a\"b\\c");
+        // ESC, BEL, a newline, DEL, a C1 control, the bidirectional override and the line
+        // separator: each an escape, none raw.
+        let hostile = "\u{1b}[2J\u{7}x\n\u{7f}\u{85}\u{202e}\u{2028}";
+        let want = r"\u{1b}[2J\u{7}x\n\u{7f}\u{85}\u{202e}\u{2028}";
+        assert_eq!(quote(hostile), format!("\"{want}\""));
+        assert_eq!(excerpt(hostile), want);
         let long = "x".repeat(10_000);
-        assert_eq!(quote(&long).chars().count(), QUOTE_MAX + 3);
+        assert_eq!(quote(&long), format!("\"{}\"...", "x".repeat(QUOTE_MAX)));
+        assert_eq!(excerpt(&long), "x".repeat(QUOTE_MAX) + "...");
+        // Multi-byte characters are cut between characters, counted as characters.
+        let wide = "é€😀".repeat(100);
+        let q = excerpt(&wide);
+        assert_eq!(q.chars().count(), QUOTE_MAX + 3);
+        assert!(wide.starts_with(q.trim_end_matches("...")), "{q}");
+        // An escape is kept whole or left out: 199 characters, then ESC (6 as an escape).
+        let edge = "y".repeat(QUOTE_MAX - 1) + "\u{1b}";
+        assert_eq!(excerpt(&edge), "y".repeat(QUOTE_MAX - 1) + "...");
+        let fits = "y".repeat(QUOTE_MAX - 6) + "\u{1b}";
+        assert_eq!(excerpt(&fits), "y".repeat(QUOTE_MAX - 6) + r"\u{1b}");
+        // Every output is one line of printable characters.
+        for s in [hostile, &long, &wide, "\0\r\t"] {
+            assert!(!quote(s).chars().any(|c| c.is_control()), "{s:?}");
+        }
+    }
+
+    #[test]
+    fn lists_name_a_few_and_count_the_rest() {
+        let items = |n: usize| {
+            (0..n)
+                .map(|i| i.to_string())
+                .collect::<Vec<_>>()
+                .into_iter()
+        };
+        assert_eq!(few(items(0), 3), "");
+        assert_eq!(few(items(3), 3), "0, 1, 2");
+        assert_eq!(few(items(250_000), 3), "0, 1, 2 and 249997 more");
     }
 }

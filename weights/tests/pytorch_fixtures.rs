@@ -99,7 +99,7 @@ fn cleanrls_default_widths_are_refused_with_the_reason() {
     let msg = e.to_string();
     assert!(
         msg.contains("cleanrl_default.safetensors")
-            && msg.contains("prefix `network.`: hidden widths 120 and 84 differ"),
+            && msg.contains("prefix \"network.\": hidden widths 120 and 84 differ"),
         "{msg}"
     );
 }

@@ -162,6 +162,15 @@ fn toml_overlays_known_keys_and_rejects_unknown_ones() {
     let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
     let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
     assert!(e.0.len() < 600, "{}", e.0.len());
+    // Control characters the parser quotes arrive escaped: a terminal sees no ESC or BEL.
+    let hostile = format!(
+        "gamma = \"{}\"\nlr = \u{1b}[2J\u{7}\n",
+        "\u{1b}]0;x\u{7}".repeat(5_000)
+    );
+    let e = Config::paper()
+        .overlay_toml(&hostile, "t.toml")
+        .unwrap_err();
+    assert!(e.0.len() < 600 && !e.0.chars().any(char::is_control), "{e}");
 }
 
 fn paper_table() -> toml::Table {

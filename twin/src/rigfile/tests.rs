@@ -178,4 +178,8 @@ fn bad_rigs_are_refused_naming_the_field() {
         assert!(e.to_string().contains(needle), "{to}: {e}");
         assert!(e.to_string().len() < 600, "{}", e.to_string().len());
     }
+    // A line of control characters, as the parser quotes it: escaped and cut.
+    let text = format!("{}\u{1b}[2J\u{7} = 1\n", "\u{7}".repeat(10_000));
+    let e = parse(&text, "rig hostile").unwrap_err().to_string();
+    assert!(e.len() < 600 && !e.chars().any(char::is_control), "{e}");
 }

@@ -7,35 +7,40 @@
 //! runs nothing: it knows the opcodes a state dict uses (protocols 2 to 5) and three globals,
 //! `collections.OrderedDict`, `torch._utils._rebuild_tensor_v2` and the float storage
 //! classes, and refuses every other opcode and global by name before reading further.
-//! Values are shared (`Rc`), never copied, so memo references cannot make memory grow
-//! faster than the file.
+//!
+//! Nothing the file names more than once is copied more than once: values are shared (`Rc`),
+//! strings are borrowed from the pickle's bytes, and a tuple of integers (a shape) is
+//! converted once however many tensors use it. With at most [`MAX_OPS`] opcodes, each
+//! pushing one value of a fixed size, the machine's memory is bounded by a constant, and so
+//! is its work: no opcode takes time beyond what it pushes or pops, but for marks (which
+//! scan what they then pop).
 
 mod machine;
 
-use std::cell::RefCell;
+use std::cell::{OnceCell, RefCell};
 use std::rc::Rc;
 
 use super::state_dict::Dtype;
 use crate::{Error, Result, quote};
 
 /// Opcodes read before the pickle must have ended: a state dict of six tensors takes ~150.
-const MAX_OPS: usize = 1 << 16;
+pub const MAX_OPS: usize = 1 << 16;
 
 /// A tensor as the pickle describes it: which storage, and where in it.
 #[derive(Clone, Debug, PartialEq)]
-pub struct TensorRef {
+pub struct TensorRef<'a> {
     /// The storage's key: its file is `data/<key>` in the zip.
-    pub key: String,
+    pub key: &'a str,
     /// The storage's element type.
     pub dtype: Dtype,
     /// Elements in the storage.
     pub numel: u64,
     /// First element of the tensor in the storage.
     pub offset: u64,
-    /// The tensor's shape.
-    pub shape: Vec<u64>,
-    /// Elements to step per index, per dimension.
-    pub stride: Vec<u64>,
+    /// The tensor's shape, shared with every tensor of the same shape tuple.
+    pub shape: Rc<[usize]>,
+    /// Elements to step per index, per dimension, shared likewise.
+    pub stride: Rc<[usize]>,
 }
 
 /// The callables a state dict's pickle may name.
@@ -47,24 +52,31 @@ enum Global {
 }
 
 #[derive(Debug)]
-enum Value {
+enum Value<'a> {
     None,
     Bool,
     Int(i64),
-    Str(String),
-    Tuple(Vec<Rc<Value>>),
+    Str(&'a str),
+    // Its items as non-negative integers, converted the first time a tensor asks.
+    Tuple(Vec<Rc<Value<'a>>>, OnceCell<Option<Rc<[usize]>>>),
     // Mutable in place, as in Python: the memo shares a dict with the stack while SETITEMS
     // fills it.
-    List(RefCell<Vec<Rc<Value>>>),
-    Dict(RefCell<Vec<(Rc<Value>, Rc<Value>)>>),
+    List(RefCell<Vec<Rc<Value<'a>>>>),
+    Dict(RefCell<Vec<(Rc<Value<'a>>, Rc<Value<'a>>)>>),
     Global(Global),
     Storage {
-        key: String,
+        key: &'a str,
         dtype: Dtype,
         numel: u64,
     },
-    Tensor(TensorRef),
+    Tensor(Box<TensorRef<'a>>),
     Mark,
+}
+
+impl<'a> Value<'a> {
+    fn tuple(items: Vec<Rc<Value<'a>>>) -> Value<'a> {
+        Value::Tuple(items, OnceCell::new())
+    }
 }
 
 fn refuse<T>(why: String) -> Result<T> {
@@ -95,7 +107,7 @@ fn global(module: &str, name: &str) -> Result<Global> {
 fn dismantle(mut work: Vec<Rc<Value>>) {
     while let Some(v) = work.pop() {
         match Rc::try_unwrap(v) {
-            Ok(Value::Tuple(items)) => work.extend(items),
+            Ok(Value::Tuple(items, _)) => work.extend(items),
             Ok(Value::List(items)) => work.extend(items.into_inner()),
             Ok(Value::Dict(entries)) => {
                 work.extend(entries.into_inner().into_iter().flat_map(|(k, v)| [k, v]));
@@ -107,15 +119,15 @@ fn dismantle(mut work: Vec<Rc<Value>>) {
 }
 
 /// Reads `bytes` as a state dict's pickle: tensor names in the file's order, each with the
-/// storage it views.
-pub fn state_dict(bytes: &[u8]) -> Result<Vec<(String, TensorRef)>> {
+/// storage it views; names and keys are borrowed from `bytes`.
+pub fn state_dict(bytes: &[u8]) -> Result<Vec<(&str, TensorRef<'_>)>> {
     let top = machine::run(bytes)?;
     let found = tensors(&top);
     dismantle(vec![top]);
     found
 }
 
-fn tensors(top: &Value) -> Result<Vec<(String, TensorRef)>> {
+fn tensors<'a>(top: &Value<'a>) -> Result<Vec<(&'a str, TensorRef<'a>)>> {
     let Value::Dict(entries) = top else {
         return refuse(format!(
             "expected a state dict (a dict of names to tensors), found {}",
@@ -126,7 +138,7 @@ fn tensors(top: &Value) -> Result<Vec<(String, TensorRef)>> {
         .borrow()
         .iter()
         .map(|(k, v)| match (&**k, &**v) {
-            (Value::Str(k), Value::Tensor(t)) => Ok((k.clone(), t.clone())),
+            (Value::Str(k), Value::Tensor(t)) => Ok((*k, (**t).clone())),
             (Value::Str(k), other) => refuse(format!(
                 "expected a state dict of tensors, found {} under key {} (a training \
                  checkpoint? save the module's state_dict() alone)",
@@ -147,7 +159,7 @@ fn kind(v: &Value) -> &'static str {
         Value::Bool => "a bool",
         Value::Int(_) => "an int",
         Value::Str(_) => "a string",
-        Value::Tuple(_) => "a tuple",
+        Value::Tuple(..) => "a tuple",
         Value::List(_) => "a list",
         Value::Dict(_) => "a dict",
         Value::Global(_) => "a class",
@@ -158,8 +170,8 @@ fn kind(v: &Value) -> &'static str {
 }
 
 /// A persistent id: `('storage', StorageClass, key, location, numel)`.
-fn persistent(pid: &Value) -> Result<Value> {
-    let Value::Tuple(t) = pid else {
+fn persistent<'a>(pid: &Value<'a>) -> Result<Value<'a>> {
+    let Value::Tuple(t, _) = pid else {
         return refuse(format!(
             "a persistent id is {}, expected a tuple",
             kind(pid)
@@ -172,8 +184,8 @@ fn persistent(pid: &Value) -> Result<Value> {
             Value::Str(key),
             Value::Str(_),
             &Value::Int(numel),
-        ] if tag == "storage" && numel >= 0 => Ok(Value::Storage {
-            key: key.clone(),
+        ] if *tag == "storage" && numel >= 0 => Ok(Value::Storage {
+            key,
             dtype: *dtype,
             numel: numel as u64,
         }),
@@ -184,8 +196,8 @@ fn persistent(pid: &Value) -> Result<Value> {
 }
 
 /// Calls one of the known globals: no code runs, the result is built here.
-fn reduce(f: &Value, args: &Value) -> Result<Value> {
-    let Value::Tuple(args) = args else {
+fn reduce<'a>(f: &Value<'a>, args: &Value<'a>) -> Result<Value<'a>> {
+    let Value::Tuple(args, _) = args else {
         return refuse(format!(
             "REDUCE's arguments are {}, expected a tuple",
             kind(args)
@@ -205,17 +217,26 @@ fn reduce(f: &Value, args: &Value) -> Result<Value> {
     }
 }
 
-/// `_rebuild_tensor_v2(storage, offset, size, stride, requires_grad, hooks[, metadata])`.
-fn rebuild_tensor(args: &[Rc<Value>]) -> Result<Value> {
-    let ints = |v: &Value| -> Option<Vec<u64>> {
-        let Value::Tuple(t) = v else { return None };
-        t.iter()
+/// A tuple's items as non-negative integers (a shape, strides), shared: converted once
+/// however many tensors the file rebuilds with it.
+fn ints(v: &Value) -> Option<Rc<[usize]>> {
+    let Value::Tuple(items, ints) = v else {
+        return None;
+    };
+    ints.get_or_init(|| {
+        items
+            .iter()
             .map(|x| match **x {
-                Value::Int(i) => u64::try_from(i).ok(),
+                Value::Int(i) => usize::try_from(i).ok(),
                 _ => None,
             })
             .collect()
-    };
+    })
+    .clone()
+}
+
+/// `_rebuild_tensor_v2(storage, offset, size, stride, requires_grad, hooks[, metadata])`.
+fn rebuild_tensor<'a>(args: &[Rc<Value<'a>>]) -> Result<Value<'a>> {
     let Some([storage, offset, size, stride, _grad, _hooks]) = args.get(..6) else {
         return refuse(format!(
             "_rebuild_tensor_v2 with {} arguments, expected 6 or 7",
@@ -232,14 +253,14 @@ fn rebuild_tensor(args: &[Rc<Value>]) -> Result<Value> {
     if shape.len() != stride.len() || offset < 0 || args.len() > 7 {
         return refuse("_rebuild_tensor_v2's sizes, strides or offset do not fit together".into());
     }
-    Ok(Value::Tensor(TensorRef {
-        key: key.clone(),
+    Ok(Value::Tensor(Box::new(TensorRef {
+        key,
         dtype: *dtype,
         numel: *numel,
         offset: offset as u64,
         shape,
         stride,
-    }))
+    })))
 }
 
 #[cfg(test)]

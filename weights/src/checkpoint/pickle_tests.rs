@@ -20,17 +20,19 @@ const FLOAT: &[u8] = b"ctorch\nFloatStorage\n";
 
 #[test]
 fn a_state_dicts_pickle_reads_as_its_tensors() {
-    let got = state_dict(&one_tensor(FLOAT, 6, 1, 3, 2)).unwrap();
+    let bytes = one_tensor(FLOAT, 6, 1, 3, 2);
+    let got = state_dict(&bytes).unwrap();
     let want = TensorRef {
-        key: "0".into(),
+        key: "0",
         dtype: Dtype::F32,
         numel: 6,
         offset: 1,
-        shape: vec![3],
-        stride: vec![2],
+        shape: [3].into(),
+        stride: [2].into(),
     };
-    assert_eq!(got, [("w".to_string(), want)]);
-    let half = state_dict(&one_tensor(b"ctorch\nHalfStorage\n", 3, 0, 3, 1)).unwrap();
+    assert_eq!(got, [("w", want)]);
+    let bytes = one_tensor(b"ctorch\nHalfStorage\n", 3, 0, 3, 1);
+    let half = state_dict(&bytes).unwrap();
     assert_eq!(half[0].1.dtype, Dtype::F16);
 }
 

@@ -1,6 +1,11 @@
 //! Protocol Buffers' wire format, as far as reading an ONNX model needs: fields of a
 //! message, each a number and a varint, a fixed 32- or 64-bit value, or length-delimited
 //! bytes (a string, a nested message, a packed array).
+//!
+//! Fields are read as they are needed, one at a time, never gathered into a list: a field
+//! can be two bytes and its decoded form is larger, so a list of them would grow faster
+//! than the file. A message is scanned again for each field asked of it; the readers ask a
+//! fixed number of questions per message, so their work stays linear in the file.
 
 use crate::{Error, Result};
 
@@ -87,32 +92,66 @@ impl<'a> Fields<'a> {
     }
 }
 
-/// Every field of `bytes` in order.
-pub fn fields(bytes: &[u8]) -> Result<Vec<(u64, Wire<'_>)>> {
-    let mut f = Fields::new(bytes);
-    let mut out = Vec::new();
-    while let Some(x) = f.next_field()? {
-        out.push(x);
+impl<'a> Iterator for Fields<'a> {
+    type Item = Result<(u64, Wire<'a>)>;
+
+    fn next(&mut self) -> Option<Self::Item> {
+        let next = self.next_field().transpose();
+        if next.as_ref().is_some_and(|r| r.is_err()) {
+            // After a malformed field nothing more can be read.
+            self.pos = self.bytes.len();
+        }
+        next
     }
-    Ok(out)
 }
 
-/// The varints of a repeated integer field, packed (one length-delimited run) or not.
-pub fn varints(values: &[Wire]) -> Result<Vec<u64>> {
+/// The last value of field `n` in `bytes` (protobuf's rule for a singular field written
+/// more than once).
+pub fn last(bytes: &[u8], n: u64) -> Result<Option<Wire<'_>>> {
+    let mut found = None;
+    for f in Fields::new(bytes) {
+        let (k, w) = f?;
+        if k == n {
+            found = Some(w);
+        }
+    }
+    Ok(found)
+}
+
+/// How many times field `n` occurs in `bytes`.
+pub fn count(bytes: &[u8], n: u64) -> Result<usize> {
+    let mut count = 0;
+    for f in Fields::new(bytes) {
+        count += usize::from(f?.0 == n);
+    }
+    Ok(count)
+}
+
+/// Up to `max` varints of the repeated integer field `n` of `bytes`, packed (one
+/// length-delimited run) or not, and how many there are in all.
+pub fn varints(bytes: &[u8], n: u64, max: usize) -> Result<(Vec<u64>, usize)> {
     let mut out = Vec::new();
-    for v in values {
-        match *v {
-            Wire::Varint(x) => out.push(x),
-            Wire::Bytes(b) => {
+    let mut all = 0;
+    let mut keep = |x: u64| {
+        all += 1;
+        if out.len() < max {
+            out.push(x);
+        }
+    };
+    for f in Fields::new(bytes) {
+        match f? {
+            (k, _) if k != n => {}
+            (_, Wire::Varint(x)) => keep(x),
+            (_, Wire::Bytes(b)) => {
                 let mut f = Fields::new(b);
                 while f.pos < b.len() {
-                    out.push(f.varint()?);
+                    keep(f.varint()?);
                 }
             }
             _ => return refuse("an integer field of another wire type", 0),
         }
     }
-    Ok(out)
+    Ok((out, all))
 }
 
 /// Length-delimited bytes as UTF-8 text.
@@ -132,6 +171,10 @@ mod tests {
     /// The examples of the Protocol Buffers encoding guide: field 1 = 150 is `08 96 01`,
     /// field 2 = "testing" is `12 07 74 65 73 74 69 6e 67`, a packed field 4 = [3, 270,
     /// 86942] is `22 06 03 8e 02 9e a7 05`.
+    fn fields(bytes: &[u8]) -> Result<Vec<(u64, Wire<'_>)>> {
+        Fields::new(bytes).collect()
+    }
+
     #[test]
     fn the_encoding_guides_examples_read_as_the_guide_says() {
         assert_eq!(
@@ -140,12 +183,16 @@ mod tests {
         );
         let t = fields(b"\x12\x07testing").unwrap();
         assert_eq!((t[0].0, text(&t[0].1).unwrap()), (2, "testing"));
-        let p = fields(&[0x22, 0x06, 0x03, 0x8e, 0x02, 0x9e, 0xa7, 0x05]).unwrap();
-        assert_eq!(varints(&[p[0].1]).unwrap(), [3, 270, 86942]);
-        // The same repeated field unpacked.
-        let u = fields(&[0x20, 0x03, 0x20, 0x8e, 0x02]).unwrap();
-        let vals: Vec<Wire> = u.iter().map(|f| f.1).collect();
-        assert_eq!(varints(&vals).unwrap(), [3, 270]);
+        let packed = [0x22, 0x06, 0x03, 0x8e, 0x02, 0x9e, 0xa7, 0x05];
+        assert_eq!(varints(&packed, 4, 8).unwrap(), (vec![3, 270, 86942], 3));
+        // Counted in full, kept up to the limit.
+        assert_eq!(varints(&packed, 4, 2).unwrap(), (vec![3, 270], 3));
+        // The same repeated field unpacked, between other fields.
+        let u = [0x20, 0x03, 0x08, 0x01, 0x20, 0x8e, 0x02];
+        assert_eq!(varints(&u, 4, 8).unwrap(), (vec![3, 270], 2));
+        assert_eq!((count(&u, 4).unwrap(), count(&u, 1).unwrap()), (2, 1));
+        assert_eq!(last(&u, 4).unwrap(), Some(Wire::Varint(270)));
+        assert_eq!(last(&u, 5).unwrap(), None);
     }
 
     #[test]
@@ -162,6 +209,7 @@ mod tests {
             &[0x0d, 1, 2],
         ] {
             assert!(fields(bad).unwrap_err().is_input(), "{bad:?}");
+            assert!(count(bad, 1).unwrap_err().is_input(), "{bad:?}");
         }
     }
 }

@@ -4,29 +4,32 @@ use std::borrow::Cow;
 use std::collections::BTreeMap;
 
 use firmware::network::TENSOR_NAMES;
-use safetensors::tensor::{Dtype as StDtype, SafeTensors, TensorView};
+use safetensors::tensor::{Dtype as StDtype, Metadata, SafeTensors, TensorView};
 
-use super::state_dict::{Dtype, StateDict, Tensor};
-use crate::{Error, Result, Weights};
+use super::state_dict::{Data, Dtype, StateDict, Tensor};
+use crate::{Error, Result, Weights, excerpt};
 
 /// Largest safetensors header read. The header is JSON listing every tensor; a few hundred
 /// bytes per tensor, so this allows thousands while bounding the memory a hostile file costs.
 pub const MAX_HEADER_BYTES: u64 = 1 << 20;
 
 /// The state dict in safetensors `bytes`, borrowing its data, and the header's
-/// `__metadata__` (the trainer writes its configuration there).
+/// `__metadata__` (the trainer writes its configuration there). The header is parsed once:
+/// the safetensors crate's parse holds about 16 bytes per header byte while it runs, which
+/// [`MAX_HEADER_BYTES`] bounds.
 pub fn read(bytes: &[u8]) -> Result<(StateDict<'_>, BTreeMap<String, String>)> {
-    let st = parse(bytes)?;
-    let metadata = SafeTensors::read_metadata(bytes)
-        .ok()
-        .and_then(|(_, m)| m.metadata().clone())
-        .map(|m| m.into_iter().collect())
+    let (n, header) = parse(bytes)?;
+    let data = &bytes[8 + n..];
+    let metadata = header
+        .metadata()
+        .as_ref()
+        .map(|m| m.iter().map(|(k, v)| (k.clone(), v.clone())).collect())
         .unwrap_or_default();
-    let dict = st
+    let dict = header
         .tensors()
         .into_iter()
         .map(|(name, t)| {
-            let dtype = match t.dtype() {
+            let dtype = match t.dtype {
                 StDtype::F32 => Ok(Dtype::F32),
                 StDtype::F64 => Ok(Dtype::F64),
                 StDtype::F16 => Ok(Dtype::F16),
@@ -35,17 +38,18 @@ pub fn read(bytes: &[u8]) -> Result<(StateDict<'_>, BTreeMap<String, String>)> {
             };
             let tensor = Tensor {
                 dtype,
-                shape: t.shape().to_vec(),
-                data: Cow::Borrowed(t.data()),
+                shape: t.shape.as_slice().into(),
+                data: Data::Dense(Cow::Borrowed(&data[t.data_offsets.0..t.data_offsets.1])),
             };
-            (name, tensor)
+            (Cow::Owned(name), tensor)
         })
         .collect();
     Ok((dict, metadata))
 }
 
-/// Checks the header's size before the safetensors crate parses it.
-fn parse(bytes: &[u8]) -> Result<SafeTensors<'_>> {
+/// Checks the header's size before the safetensors crate parses it (and checks that the
+/// tensors' offsets tile the data).
+fn parse(bytes: &[u8]) -> Result<(usize, Metadata)> {
     let Some(len) = bytes.first_chunk::<8>().map(|b| u64::from_le_bytes(*b)) else {
         return Err(Error::Input(format!(
             "not a safetensors file: {} bytes, shorter than its 8-byte header length",
@@ -57,8 +61,12 @@ fn parse(bytes: &[u8]) -> Result<SafeTensors<'_>> {
             "not a policy checkpoint: its header declares {len} bytes, expected at most {MAX_HEADER_BYTES}"
         )));
     }
-    SafeTensors::deserialize(bytes)
-        .map_err(|e| Error::Input(format!("not a safetensors file: {e}")))
+    SafeTensors::read_metadata(bytes).map_err(|e| {
+        Error::Input(format!(
+            "not a safetensors file: {}",
+            excerpt(&e.to_string())
+        ))
+    })
 }
 
 /// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in

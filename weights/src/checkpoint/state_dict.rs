@@ -3,8 +3,11 @@
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
+use std::rc::Rc;
 
-use crate::{Error, Result};
+use firmware::network::{SUPPORTED_WIDTHS, shapes};
+
+use crate::{Error, Result, quote};
 
 /// The float element types a network's tensors may be stored in.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,26 +39,69 @@ pub struct Tensor<'a> {
     /// Its element type, or the name of one the importer does not read (an integer
     /// tensor is refused only if the network needs it).
     pub dtype: std::result::Result<Dtype, String>,
-    /// Its shape.
-    pub shape: Vec<usize>,
-    /// Its elements, row-major, little-endian.
-    pub data: Cow<'a, [u8]>,
+    /// Its shape, shared by every tensor the file gave the same one.
+    pub shape: Rc<[usize]>,
+    /// Its elements.
+    pub data: Data<'a>,
 }
 
-/// Tensor names to tensors, sorted by name.
-pub type StateDict<'a> = BTreeMap<String, Tensor<'a>>;
+/// Where a tensor's elements are: nothing is copied until the network's six are converted.
+#[derive(Clone, Debug)]
+pub enum Data<'a> {
+    /// Row-major, little-endian, exactly the shape's elements.
+    Dense(Cow<'a, [u8]>),
+    /// A view of a storage (PyTorch's): the element at `index` is element
+    /// `offset + sum(index[k] * stride[k])` of `storage`. A stride of 0 repeats a dimension
+    /// (`expand`); a transposed view has its strides swapped.
+    View {
+        /// The storage's little-endian elements.
+        storage: &'a [u8],
+        /// The view's first element.
+        offset: usize,
+        /// Elements to step per index, per dimension.
+        stride: Rc<[usize]>,
+    },
+}
+
+/// Tensor names to tensors, sorted by name; names are borrowed from the file where it
+/// holds them as they are.
+pub type StateDict<'a> = BTreeMap<Cow<'a, str>, Tensor<'a>>;
+
+/// The most elements a tensor of the network has (the widest hidden layer's `[H, H]`): no
+/// tensor is converted beyond it, whatever its view repeats.
+pub fn largest_tensor() -> usize {
+    SUPPORTED_WIDTHS
+        .iter()
+        .flat_map(|&w| shapes(w))
+        .map(|s| s.len())
+        .max()
+        .unwrap_or(0)
+}
+
+/// A shape for a message: its first dimensions, and how many there are when they are many.
+pub fn shape_text(shape: &[usize]) -> String {
+    const SHOWN: usize = 4;
+    let dims: Vec<String> = shape.iter().take(SHOWN).map(usize::to_string).collect();
+    match shape.len() {
+        n if n > SHOWN => format!("[{}, ... ({n} dimensions)]", dims.join(", ")),
+        _ => format!("[{}]", dims.join(", ")),
+    }
+}
 
 /// The tensor's values as f32, and the dtype they were converted from, if not F32.
 pub fn to_f32(name: &str, t: &Tensor) -> Result<(Vec<f32>, Option<String>)> {
-    let d = &t.data[..];
+    let refuse = |why: String| Error::Input(format!("tensor {}: {why}", quote(name)));
     let dtype = match &t.dtype {
         Ok(d) => *d,
         Err(other) => {
-            return Err(Error::Input(format!(
-                "tensor `{name}`: expected dtype F32 (or F64, F16, BF16), found {other}"
+            return Err(refuse(format!(
+                "expected dtype F32 (or F64, F16, BF16), found {}",
+                quote(other)
             )));
         }
     };
+    let bytes = elements(t, dtype).map_err(refuse)?;
+    let d = &bytes[..];
     let v: Vec<f32> = match dtype {
         Dtype::F32 => d
             .chunks_exact(4)
@@ -76,6 +122,75 @@ pub fn to_f32(name: &str, t: &Tensor) -> Result<(Vec<f32>, Option<String>)> {
     };
     let from = (dtype != Dtype::F32).then(|| format!("{dtype:?}"));
     Ok((v, from))
+}
+
+/// The tensor's elements in row-major order: a dense tensor's bytes as they are, a view's
+/// read through its offset and strides, every index checked against the storage. At most
+/// [`largest_tensor`] elements, so a view that repeats a small storage cannot make a large
+/// tensor.
+fn elements<'t>(t: &'t Tensor, dtype: Dtype) -> std::result::Result<Cow<'t, [u8]>, String> {
+    let size = dtype.size();
+    let count = t
+        .shape
+        .iter()
+        .try_fold(1usize, |n, &d| n.checked_mul(d))
+        .filter(|&n| n <= largest_tensor());
+    let Some(count) = count else {
+        return Err(format!(
+            "shape {} has more than the {} elements of the network's largest tensor",
+            shape_text(&t.shape),
+            largest_tensor()
+        ));
+    };
+    let (storage, offset, stride) = match &t.data {
+        Data::Dense(bytes) if bytes.len() == count * size => return Ok(Cow::Borrowed(bytes)),
+        Data::Dense(bytes) => {
+            return Err(format!(
+                "{} bytes for shape {}, expected {}",
+                bytes.len(),
+                shape_text(&t.shape),
+                count * size
+            ));
+        }
+        Data::View {
+            storage,
+            offset,
+            stride,
+        } => (*storage, *offset, stride),
+    };
+    let numel = storage.len() / size;
+    // The farthest element the view reaches, checked once: every index lies below it.
+    let last = t
+        .shape
+        .iter()
+        .zip(stride.iter())
+        .try_fold(offset, |a, (&d, &s)| {
+            a.checked_add(d.saturating_sub(1).checked_mul(s)?)
+        });
+    if t.shape.len() != stride.len() || (count > 0 && last.is_none_or(|l| l >= numel)) {
+        return Err(format!(
+            "offset {offset} and strides {} reach past its storage of {numel} elements",
+            shape_text(stride)
+        ));
+    }
+    let mut data = Vec::with_capacity(count * size);
+    let mut index = vec![0usize; t.shape.len()];
+    for _ in 0..count {
+        let at = index
+            .iter()
+            .zip(stride.iter())
+            .fold(offset, |a, (&i, &s)| a + i * s);
+        data.extend_from_slice(&storage[at * size..(at + 1) * size]);
+        // The next row-major index: the last dimension fastest.
+        for (i, &d) in index.iter_mut().zip(t.shape.iter()).rev() {
+            *i += 1;
+            if *i < d {
+                break;
+            }
+            *i = 0;
+        }
+    }
+    Ok(Cow::Owned(data))
 }
 
 /// IEEE binary16 to binary32, exactly (every f16 is an f32).

@@ -44,14 +44,14 @@ impl<'a> Ops<'a> {
             self.take(8)?.try_into().expect("8 bytes"),
         ))
     }
-    fn text(&mut self, n: u64) -> Result<String> {
+    fn text(&mut self, n: u64) -> Result<&'a str> {
         let n = usize::try_from(n).unwrap_or(usize::MAX);
         let at = self.pos;
-        String::from_utf8(self.take(n)?.to_vec())
+        std::str::from_utf8(self.take(n)?)
             .or_else(|_| refuse(format!("a string at byte {at} is not UTF-8")))
     }
     /// A text line (GLOBAL's module and name), without its newline.
-    fn line(&mut self) -> Result<String> {
+    fn line(&mut self) -> Result<&'a str> {
         let rest = &self.bytes[self.pos..];
         let Some(end) = rest.iter().position(|&b| b == b'\n') else {
             return refuse("a GLOBAL's name has no end of line".into());
@@ -64,26 +64,26 @@ impl<'a> Ops<'a> {
 
 /// The machine: a stack, marks on it, and the memo.
 #[derive(Default)]
-pub(super) struct Machine {
-    stack: Vec<Rc<Value>>,
-    memo: BTreeMap<u64, Rc<Value>>,
+pub(super) struct Machine<'a> {
+    stack: Vec<Rc<Value<'a>>>,
+    memo: BTreeMap<u64, Rc<Value<'a>>>,
 }
 
-impl Machine {
-    pub(super) fn pop(&mut self) -> Result<Rc<Value>> {
+impl<'a> Machine<'a> {
+    pub(super) fn pop(&mut self) -> Result<Rc<Value<'a>>> {
         match self.stack.pop() {
             Some(v) if !matches!(*v, Value::Mark) => Ok(v),
             _ => refuse("an opcode needs a value the stack does not have".into()),
         }
     }
-    fn top(&self) -> Result<&Rc<Value>> {
+    fn top(&self) -> Result<&Rc<Value<'a>>> {
         match self.stack.last() {
             Some(v) if !matches!(**v, Value::Mark) => Ok(v),
             _ => refuse("an opcode needs a value the stack does not have".into()),
         }
     }
     /// The values above the topmost mark, which is removed.
-    fn pop_mark(&mut self) -> Result<Vec<Rc<Value>>> {
+    fn pop_mark(&mut self) -> Result<Vec<Rc<Value<'a>>>> {
         let Some(m) = self.stack.iter().rposition(|v| matches!(**v, Value::Mark)) else {
             return refuse("an opcode needs a MARK the stack does not have".into());
         };
@@ -91,7 +91,7 @@ impl Machine {
         self.stack.pop();
         Ok(items)
     }
-    fn push(&mut self, v: Value) {
+    fn push(&mut self, v: Value<'a>) {
         self.stack.push(Rc::new(v));
     }
     fn memo_get(&mut self, k: u64) -> Result<()> {
@@ -109,7 +109,7 @@ impl Machine {
         Ok(())
     }
     /// Adds key-value pairs to the dict below them (SETITEM, SETITEMS).
-    fn set_items(&mut self, items: Vec<Rc<Value>>) -> Result<()> {
+    fn set_items(&mut self, items: Vec<Rc<Value<'a>>>) -> Result<()> {
         if !items.len().is_multiple_of(2) {
             return refuse("SETITEMS has a key without a value".into());
         }
@@ -125,7 +125,7 @@ impl Machine {
     }
 }
 
-impl Drop for Machine {
+impl Drop for Machine<'_> {
     fn drop(&mut self) {
         let mut all = std::mem::take(&mut self.stack);
         all.extend(std::mem::take(&mut self.memo).into_values());
@@ -134,7 +134,7 @@ impl Drop for Machine {
 }
 
 /// Runs the opcodes up to STOP and returns what is left on the stack.
-pub(super) fn run(bytes: &[u8]) -> Result<Rc<Value>> {
+pub(super) fn run(bytes: &[u8]) -> Result<Rc<Value<'_>>> {
     let mut ops = Ops { bytes, pos: 0 };
     let mut m = Machine::default();
     for _ in 0..MAX_OPS {
@@ -159,8 +159,8 @@ pub(super) fn run(bytes: &[u8]) -> Result<Rc<Value>> {
 }
 
 /// One opcode other than STOP.
-fn step(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<()> {
-    if literal(op, ops, m)? {
+fn step<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<()> {
+    if literal(op, ops, m)? || memo(op, ops, m)? || named(op, ops, m)? {
         return Ok(());
     }
     match op {
@@ -171,7 +171,7 @@ fn step(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<()> {
         0x95 => drop(ops.u64()?), // FRAME: a length hint
         b't' => {
             let items = m.pop_mark()?;
-            m.push(Value::Tuple(items));
+            m.push(Value::tuple(items));
         }
         0x85..=0x87 => {
             let n = usize::from(op - 0x84);
@@ -182,7 +182,7 @@ fn step(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<()> {
                 }
                 _ => return refuse("TUPLE1-3 without enough values".into()),
             };
-            m.push(Value::Tuple(items));
+            m.push(Value::tuple(items));
         }
         b'a' | b'e' => {
             let items = if op == b'a' {
@@ -203,24 +203,6 @@ fn step(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<()> {
         b'u' => {
             let items = m.pop_mark()?;
             m.set_items(items)?;
-        }
-        b'q' => m.memo_put(u64::from(ops.u8()?))?,
-        b'r' => m.memo_put(u64::from(ops.u32()?))?,
-        0x94 => m.memo_put(m.memo.len() as u64)?,
-        b'h' => m.memo_get(u64::from(ops.u8()?))?,
-        b'j' => m.memo_get(u64::from(ops.u32()?))?,
-        b'c' => {
-            let module = ops.line()?;
-            let name = ops.line()?;
-            m.push(Value::Global(global(&module, &name)?));
-        }
-        0x93 => {
-            let name = m.pop()?;
-            let module = m.pop()?;
-            let (Value::Str(module), Value::Str(name)) = (&*module, &*name) else {
-                return refuse("STACK_GLOBAL needs two strings".into());
-            };
-            m.push(Value::Global(global(module, name)?));
         }
         b'Q' => {
             let pid = m.pop()?;
@@ -249,9 +231,42 @@ fn step(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<()> {
     Ok(())
 }
 
+/// Puts the top of the stack in the memo, or pushes a memo entry, if `op` says so; says
+/// whether it did.
+fn memo<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<bool> {
+    match op {
+        b'q' => m.memo_put(u64::from(ops.u8()?))?,
+        b'r' => m.memo_put(u64::from(ops.u32()?))?,
+        0x94 => m.memo_put(m.memo.len() as u64)?,
+        b'h' => m.memo_get(u64::from(ops.u8()?))?,
+        b'j' => m.memo_get(u64::from(ops.u32()?))?,
+        _ => return Ok(false),
+    }
+    Ok(true)
+}
+
+/// Pushes the global that GLOBAL or STACK_GLOBAL names, if `op` is one; says whether it
+/// was.
+fn named<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<bool> {
+    let (module, name) = match op {
+        b'c' => (ops.line()?, ops.line()?),
+        0x93 => {
+            let name = m.pop()?;
+            let module = m.pop()?;
+            let (&Value::Str(module), &Value::Str(name)) = (&*module, &*name) else {
+                return refuse("STACK_GLOBAL needs two strings".into());
+            };
+            (module, name)
+        }
+        _ => return Ok(false),
+    };
+    m.push(Value::Global(global(module, name)?));
+    Ok(true)
+}
+
 /// Pushes a literal (a mark, None, a bool, an int, a string, an empty container) if `op`
 /// is one; says whether it was.
-fn literal(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<bool> {
+fn literal<'a>(op: u8, ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<bool> {
     match op {
         b'(' => m.push(Value::Mark),
         b'N' => m.push(Value::None),
@@ -270,7 +285,7 @@ fn literal(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<bool> {
             let s = ops.text(u64::from(n))?;
             m.push(Value::Str(s));
         }
-        b')' => m.push(Value::Tuple(vec![])),
+        b')' => m.push(Value::tuple(vec![])),
         b']' => m.push(Value::List(RefCell::default())),
         b'}' => m.push(Value::Dict(RefCell::default())),
         _ => return Ok(false),
@@ -278,7 +293,7 @@ fn literal(op: u8, ops: &mut Ops, m: &mut Machine) -> Result<bool> {
     Ok(true)
 }
 
-pub(super) fn long1(ops: &mut Ops, m: &mut Machine) -> Result<()> {
+pub(super) fn long1<'a>(ops: &mut Ops<'a>, m: &mut Machine<'a>) -> Result<()> {
     let n = usize::from(ops.u8()?);
     let b = ops.take(n)?;
     if n > 8 {
