@@ -90,10 +90,6 @@ void cartpole_policy_forward_int(const int16_t obs[4], int32_t q[2]);
 #define CARTPOLE_MLP16_DEFINED
 CARTPOLE_DECLARE_MLP(16);
 #endif
-#ifndef CARTPOLE_MLP32_DEFINED
-#define CARTPOLE_MLP32_DEFINED
-CARTPOLE_DECLARE_MLP(32);
-#endif
 #ifndef CARTPOLE_MLP64_DEFINED
 #define CARTPOLE_MLP64_DEFINED
 CARTPOLE_DECLARE_MLP(64);
@@ -101,10 +97,6 @@ CARTPOLE_DECLARE_MLP(64);
 #ifndef CARTPOLE_MLP128_DEFINED
 #define CARTPOLE_MLP128_DEFINED
 CARTPOLE_DECLARE_MLP(128);
-#endif
-#ifndef CARTPOLE_MLP256_DEFINED
-#define CARTPOLE_MLP256_DEFINED
-CARTPOLE_DECLARE_MLP(256);
 #endif
 
 #ifndef CARTPOLE_REQUANT_DEFINED
@@ -123,10 +115,6 @@ struct cartpole_requant {
 #define CARTPOLE_QMLP16_DEFINED
 CARTPOLE_DECLARE_QMLP(16);
 #endif
-#ifndef CARTPOLE_QMLP32_DEFINED
-#define CARTPOLE_QMLP32_DEFINED
-CARTPOLE_DECLARE_QMLP(32);
-#endif
 #ifndef CARTPOLE_QMLP64_DEFINED
 #define CARTPOLE_QMLP64_DEFINED
 CARTPOLE_DECLARE_QMLP(64);
@@ -134,10 +122,6 @@ CARTPOLE_DECLARE_QMLP(64);
 #ifndef CARTPOLE_QMLP128_DEFINED
 #define CARTPOLE_QMLP128_DEFINED
 CARTPOLE_DECLARE_QMLP(128);
-#endif
-#ifndef CARTPOLE_QMLP256_DEFINED
-#define CARTPOLE_QMLP256_DEFINED
-CARTPOLE_DECLARE_QMLP(256);
 #endif
 
 #ifndef CARTPOLE_RIG_DEFINED
@@ -323,25 +307,16 @@ int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
  * each within its range, overflow it). */
 int cartpole_controller_init_mlp16(cartpole_controller_t *c, const struct cartpole_mlp16 *w,
                                    const struct cartpole_rig *rig);
-int cartpole_controller_init_mlp32(cartpole_controller_t *c, const struct cartpole_mlp32 *w,
-                                   const struct cartpole_rig *rig);
 int cartpole_controller_init_mlp64(cartpole_controller_t *c, const struct cartpole_mlp64 *w,
                                    const struct cartpole_rig *rig);
 int cartpole_controller_init_mlp128(cartpole_controller_t *c, const struct cartpole_mlp128 *w,
                                     const struct cartpole_rig *rig);
-int cartpole_controller_init_mlp256(cartpole_controller_t *c, const struct cartpole_mlp256 *w,
-                                    const struct cartpole_rig *rig);
 int cartpole_controller_init_qmlp16(cartpole_controller_t *c, const struct cartpole_qmlp16 *w,
-                                    const struct cartpole_rig *rig);
-int cartpole_controller_init_qmlp32(cartpole_controller_t *c, const struct cartpole_qmlp32 *w,
                                     const struct cartpole_rig *rig);
 int cartpole_controller_init_qmlp64(cartpole_controller_t *c, const struct cartpole_qmlp64 *w,
                                     const struct cartpole_rig *rig);
 int cartpole_controller_init_qmlp128(cartpole_controller_t *c,
                                      const struct cartpole_qmlp128 *w,
-                                     const struct cartpole_rig *rig);
-int cartpole_controller_init_qmlp256(cartpole_controller_t *c,
-                                     const struct cartpole_qmlp256 *w,
                                      const struct cartpole_rig *rig);
 
 /* One control period on this period's encoder counts (cart: counts per metre of travel,

@@ -34,7 +34,7 @@ use firmware::policy_int::POLICY_INT;
 
 /// `q` = the network's outputs for `obs` in either format (the float network's or the
 /// integer one's, as [`Policy`] scores them); a NULL argument (`None`) makes it write nothing.
-fn forward<O: Reading, P: Policy<O>>(w: Option<P>, obs: Option<&O>, q: Option<&mut O::Scores>) {
+fn forward<O: Reading, P: Policy<O>>(w: Option<P>, obs: Option<&O>, q: Option<&mut P::Scores>) {
     if let (Some(mut w), Some(obs), Some(q)) = (w, obs, q) {
         *q = w.scores(obs);
     }

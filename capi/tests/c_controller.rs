@@ -23,7 +23,6 @@ use cartpole_policy::{
     CARTPOLE_POLICY_INT, CONTROLLER_SIZE, CartpoleCommand, CartpoleController, CartpoleCounters,
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
-use firmware::Action;
 use firmware::cartpole::{State, advance};
 use firmware::controller::{
     Assurance, Command, Controller, FaultFlags, Policy, Reading, StateSensor,
@@ -115,7 +114,7 @@ impl Script {
 /// The line the program prints for a step that ran.
 fn step_line<P, S>(c: &Controller<P, S, Pins>) -> String
 where
-    P: Policy<S::Reading>,
+    P: Policy<S::Reading, Scores = <S::Reading as Scores>::Scores>,
     S: StateSensor,
     S::Reading: Format,
 {
@@ -143,7 +142,7 @@ fn closed_loop<P, S>(
     mut hand: impl FnMut(&mut S, &State, usize) -> String,
 ) -> Controller<P, S, Pins>
 where
-    P: Policy<S::Reading>,
+    P: Policy<S::Reading, Scores = <S::Reading as Scores>::Scores>,
     S: StateSensor,
     S::Reading: Format,
 {
@@ -157,7 +156,11 @@ where
         script.call(&call, &step_line(&c));
         s = advance(&rig.params, &s, loopback::duty(c.actuator()), shove(k));
     }
-    let every = [Action::Left, Action::Right].map(Command::Push);
+    let every = [
+        firmware::controller::Duty::LEFT,
+        firmware::controller::Duty::RIGHT,
+    ]
+    .map(Command::Drive);
     assert!(
         every
             .iter()
@@ -228,7 +231,7 @@ fn epilogue<P: Policy<S::Reading>, S: StateSensor>(
 }
 
 /// Both inputs for one shipped policy, each on a freshly initialised instance.
-fn policy_script<O: Format, P: Policy<O> + Copy>(
+fn policy_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Copy>(
     policy: P,
     rig: &Rig,
     kind: i32,
@@ -273,7 +276,7 @@ fn policy_script<O: Format, P: Policy<O> + Copy>(
 /// Under the runtime monitor with the shipped envelope, the encoders frozen for half a
 /// second: the observer predicts through the freeze (flagged), the fallback takes over, and
 /// the shove that topples the pole ends in coasting.
-fn monitored_script<O: Format, P: Policy<O> + Copy>(
+fn monitored_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Copy>(
     policy: P,
     rig: &Rig,
     kind: i32,

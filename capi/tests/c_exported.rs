@@ -22,7 +22,6 @@ use cartpole_policy::{
     CARTPOLE_ERR_NULL, CARTPOLE_ERR_RIG, CARTPOLE_ERR_UNINITIALISED, CARTPOLE_OK, CartpoleRig,
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
-use firmware::Action;
 use firmware::cartpole::{Params, State, advance};
 use firmware::controller::{Command, Controller, Policy};
 use firmware::estimator::{Encoders, ObserverSensor, Tuning};
@@ -75,7 +74,7 @@ fn shipped_quantised() -> Quantised {
         [-0.1, 0.3, -0.05, 0.2],
         [0.2, -0.4, 0.1, -0.5],
     ];
-    let w = Weights::from_mlp(&POLICY).unwrap();
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     quant::quantise(&w, &states, Granularity::PerChannel).unwrap()
 }
 
@@ -128,7 +127,11 @@ fn c_lays_out_struct_cartpole_rig_as_rust_lays_out_cartpole_rig() {
         write!(want, " {o}").unwrap();
     }
     want.push('\n');
-    let header = float_header(&Weights::from_mlp(&POLICY).unwrap(), &desk(), "layout");
+    let header = float_header(
+        &Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap(),
+        &desk(),
+        "layout",
+    );
     for compiler in EVERY {
         assert_eq!(
             run(&header, compiler, &["layout".into()]),
@@ -192,7 +195,7 @@ fn rig_lines(rig: &Rig) -> String {
 
 #[test]
 fn exported_headers_carry_their_rig_bit_for_bit_in_c_and_cpp() {
-    let w = Weights::from_mlp(&POLICY).unwrap();
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     let q = shipped_quantised();
     for (rig, what) in [(desk(), "desk"), (awkward_rig(), "awkward")] {
         let want = rig_lines(&rig);
@@ -225,7 +228,7 @@ fn board<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> Board<P, O> {
 }
 
 /// The line `exported_controller script` prints for the step `c` has just run.
-fn step_line<O: Scores, P: Policy<O>>(c: &Board<P, O>) -> String {
+fn step_line<O: Scores, P: Policy<O, Scores = <O as Scores>::Scores>>(c: &Board<P, O>) -> String {
     steps::step_line(CARTPOLE_OK, c.last().unwrap(), c.actuator()) + "\n"
 }
 
@@ -242,7 +245,10 @@ fn shove(k: usize) -> f64 {
 /// A closed loop of `policy` on `rig`'s plant: the counts script for the C program and what
 /// it must print. Asserts that the periods pushed both ways and coasted, so that the
 /// comparison means something.
-fn closed_loop<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> (String, String) {
+fn closed_loop<O: Scores, P: Policy<O, Scores = <O as Scores>::Scores>>(
+    policy: P,
+    rig: &Rig,
+) -> (String, String) {
     let mut c = board::<O, P>(policy, rig);
     let mut s = State::from_array([0.02, 0.0, 0.03, 0.0]);
     let (mut calls, mut want) = (String::new(), format!("init {CARTPOLE_OK}\n"));
@@ -259,10 +265,13 @@ fn closed_loop<O: Scores, P: Policy<O>>(policy: P, rig: &Rig) -> (String, String
         want.push_str(&step_line(&c));
         s = advance(&rig.params, &s, loopback::duty(c.actuator()), shove(k));
     }
-    for command in [Action::Left, Action::Right]
-        .map(Command::Push)
-        .iter()
-        .chain([&Command::Coast])
+    for command in [
+        firmware::controller::Duty::LEFT,
+        firmware::controller::Duty::RIGHT,
+    ]
+    .map(Command::Drive)
+    .iter()
+    .chain([&Command::Coast])
     {
         assert!(commands.contains(command), "no {command:?} in the loop");
     }
@@ -308,7 +317,11 @@ fn an_exported_float_policy_runs_through_the_c_controller_period_for_period() {
         rig.dead_time > 0,
         "the desk rig has dead time: the predictor runs"
     );
-    let header = float_header(&Weights::from_mlp(&POLICY).unwrap(), &rig, "loop-f32");
+    let header = float_header(
+        &Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap(),
+        &rig,
+        "loop-f32",
+    );
     compare(&header, closed_loop::<[f32; 4], _>(&POLICY, &rig));
 }
 
@@ -325,7 +338,11 @@ fn an_exported_integer_policy_runs_through_the_c_controller_period_for_period() 
 fn refused_inits_return_their_codes_and_write_nothing() {
     let rig = desk();
     let headers = [
-        float_header(&Weights::from_mlp(&POLICY).unwrap(), &rig, "refusals-f32"),
+        float_header(
+            &Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap(),
+            &rig,
+            "refusals-f32",
+        ),
         int_header(&shipped_quantised(), &rig, "refusals-int"),
     ];
     let (null, bad) = (CARTPOLE_ERR_NULL, CARTPOLE_ERR_RIG);
@@ -348,7 +365,7 @@ fn refused_inits_return_their_codes_and_write_nothing() {
 fn linear_16() -> Weights {
     let gain = [0.5, 1.0, 20.0, 3.0];
     let [mut fc1_w, fc1_b, mut fc2_w, fc2_b, mut fc3_w, fc3_b] =
-        shapes(16).map(|s| vec![0.0f32; s.len()]);
+        shapes(16, 2).map(|s| vec![0.0f32; s.len()]);
     for i in 0..4 {
         fc1_w[i * 4 + i] = 1.0;
         fc1_w[(i + 4) * 4 + i] = -1.0;
@@ -359,7 +376,12 @@ fn linear_16() -> Weights {
         fc3_w[u] = -g;
         fc3_w[16 + u] = g;
     }
-    Weights::new(16, [fc1_w, fc1_b, fc2_w, fc2_b, fc3_w, fc3_b]).unwrap()
+    Weights::new(
+        16,
+        weights::BANG_BANG.to_vec(),
+        [fc1_w, fc1_b, fc2_w, fc2_b, fc3_w, fc3_b],
+    )
+    .unwrap()
 }
 
 #[test]

@@ -221,7 +221,7 @@ fn awkward(width: usize) -> Weights {
         1.175_494_2e-38,
         f32::from_bits(0x8000_0005),
     ];
-    let tensors = shapes(width).map(|s| {
+    let tensors = shapes(width, 2).map(|s| {
         (0..s.len())
             .map(|i| {
                 special
@@ -231,7 +231,7 @@ fn awkward(width: usize) -> Weights {
             })
             .collect()
     });
-    Weights::new(width, tensors).unwrap()
+    Weights::new(width, weights::BANG_BANG.to_vec(), tensors).unwrap()
 }
 
 fn exported_header_case<const H: usize>() {
@@ -298,7 +298,7 @@ fn exported_header_case<const H: usize>() {
 fn exported_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() {
     exported_header_case::<16>();
     exported_header_case::<64>();
-    exported_header_case::<256>();
+    exported_header_case::<128>();
 }
 
 /// The integer probes as arguments.
@@ -400,11 +400,13 @@ fn exported_int_header_case<const H: usize>(w: &Weights) {
 
 #[test]
 fn exported_integer_headers_compile_and_run_the_rust_forward_pass_bit_for_bit() {
-    exported_int_header_case::<64>(&Weights::from_mlp(&POLICY).unwrap());
-    let smooth = shapes(16).map(|s| {
+    exported_int_header_case::<64>(
+        &Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap(),
+    );
+    let smooth = shapes(16, 2).map(|s| {
         (0..s.len())
             .map(|i| ((i * 7919) % 1000) as f32 * 0.002 - 1.0)
             .collect()
     });
-    exported_int_header_case::<16>(&Weights::new(16, smooth).unwrap());
+    exported_int_header_case::<16>(&Weights::new(16, weights::BANG_BANG.to_vec(), smooth).unwrap());
 }

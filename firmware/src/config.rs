@@ -31,6 +31,12 @@ pub enum ConfigError {
     /// Each value is finite, but the observer's Kalman gain is not (the plant and tuning
     /// overflow f64 in its Riccati iteration).
     GainNotFinite,
+    /// Outside the range the value is a fraction of (a duty level beyond `[-1, 1]`).
+    OutOfRange(&'static str),
+    /// Fewer than the least that has a meaning (a policy choosing among one level).
+    TooFew(&'static str),
+    /// A list that must be strictly increasing is not (duty levels).
+    NotIncreasing(&'static str),
 }
 
 impl fmt::Display for ConfigError {
@@ -45,6 +51,11 @@ impl fmt::Display for ConfigError {
             }
             ConfigError::GainNotFinite => {
                 f.write_str("observer: the Kalman gain is not finite for this plant and tuning")
+            }
+            ConfigError::OutOfRange(field) => write!(f, "{field}: expected within [-1, 1]"),
+            ConfigError::TooFew(field) => write!(f, "{field}: expected at least two"),
+            ConfigError::NotIncreasing(field) => {
+                write!(f, "{field}: expected strictly increasing")
             }
         }
     }

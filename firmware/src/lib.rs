@@ -59,23 +59,44 @@ pub mod rig;
 pub use cartpole::Action;
 pub use config::ConfigError;
 
-/// Calls `$m!` with every hidden width the trainer, the simulator and the C API are built
-/// for, each beside the names of its C entry points (float / integer network): the project's
-/// one list of supported widths.
+/// Calls `$m!` with every hidden width of the paper's two-output network, each beside the
+/// names of its C entry points (float / integer network): the widths the C API is built for.
 ///
 /// ```
 /// macro_rules! count { ($($h:literal => $c:ident / $qc:ident,)*) => { [$($h),*].len() } }
-/// assert_eq!(firmware::for_each_width!(count), firmware::network::SUPPORTED_WIDTHS.len());
+/// assert_eq!(firmware::for_each_width!(count), 3);
 /// ```
 #[macro_export]
 macro_rules! for_each_width {
     ($m:ident) => {
         $m! {
             16 => cartpole_mlp16_forward / cartpole_qmlp16_forward,
-            32 => cartpole_mlp32_forward / cartpole_qmlp32_forward,
             64 => cartpole_mlp64_forward / cartpole_qmlp64_forward,
             128 => cartpole_mlp128_forward / cartpole_qmlp128_forward,
-            256 => cartpole_mlp256_forward / cartpole_qmlp256_forward,
+        }
+    };
+}
+
+/// Calls `$m!` with every network shape the trainer and the simulator are built for, as
+/// `width x outputs`: the paper's two outputs at every width of [`for_each_width!`], and the
+/// duty levels of a gentler policy at the shipped width. The project's one list of shapes
+/// ([`network::SUPPORTED_SHAPES`]).
+///
+/// ```
+/// macro_rules! count { ($($h:literal x $a:literal,)*) => { [$($h),*].len() } }
+/// assert_eq!(firmware::for_each_shape!(count), firmware::network::SUPPORTED_SHAPES.len());
+/// ```
+#[macro_export]
+macro_rules! for_each_shape {
+    ($m:ident) => {
+        $m! {
+            16 x 2,
+            64 x 2,
+            128 x 2,
+            64 x 3,
+            64 x 5,
+            64 x 7,
+            64 x 9,
         }
     };
 }

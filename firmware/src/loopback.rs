@@ -178,7 +178,7 @@ fn run_with<P: Policy<S::Reading>, S: StateSensor>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::cartpole::Params;
+    use crate::cartpole::{Action, Params};
     use crate::policy::POLICY;
 
     fn limits() -> Limits {
@@ -194,7 +194,7 @@ mod tests {
         let mut reference = CartPole::new(Params::default(), 300);
         let mut obs = reference.reset_to(start);
         loop {
-            let t = reference.step(POLICY.greedy_action(&obs));
+            let t = reference.step(Action::from_index(POLICY.greedy(&obs)));
             obs = t.obs;
             if t.terminated || t.truncated {
                 break;

@@ -49,7 +49,7 @@
 
 use crate::cartpole::{GYMNASIUM, Params};
 use crate::config::{self, ConfigError, check};
-use crate::controller::{Actuator, Assurance, Controller, Limits, Predictor, StateSensor};
+use crate::controller::{Actuator, Assurance, Controller, Limits, Policy, Predictor, StateSensor};
 use crate::estimator::{Encoders, Observer, Tuning};
 
 /// A cart-pole machine as its board sees it.
@@ -146,6 +146,7 @@ impl Rig {
         options: Options,
     ) -> Result<Controller<P, S, A>, ConfigError>
     where
+        P: Policy<S::Reading>,
         S: StateSensor,
         A: Actuator,
     {

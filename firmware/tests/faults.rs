@@ -117,7 +117,7 @@ where
         } else {
             assert!(obs.iter().all(|v| v.is_finite()), "{obs:?}");
             assert!(obs.iter().zip(limits).all(|(v, m)| v.abs() <= m), "{obs:?}");
-            assert!(matches!(command, Command::Push(_)));
+            assert!(matches!(command, Command::Drive(_)));
         }
     }
     assert_eq!(c.faults().rejected_readings, rejected);

@@ -8,8 +8,8 @@
 //! every output of the block, and input `i` adds `weight[block][i] * x[i]` to register
 //! `i % 8`. Every output therefore gets exactly the multiplies, adds and tree of
 //! [`firmware::network::dot`], in the same order, with no horizontal sums and partial-sum
-//! chains only `H / 8` adds long. The output layer's two dot products run with lane `k` of
-//! one register as partial sum `k`. No multiply and add is fused: FMA would round differently
+//! chains only `H / 8` adds long. The output layer's dot products run with lane `k` of one
+//! register as partial sum `k`. No multiply and add is fused: FMA would round differently
 //! from the firmware. The Q-values are the firmware's bit for bit (tested below on random
 //! networks and inputs, NaNs included).
 //!
@@ -17,17 +17,20 @@
 //! sequential stream (a plain transpose reads them with a stride of `4 H` bytes, measured
 //! slower). Without AVX2 (chosen at run time) it runs the firmware's own forward pass.
 
-use firmware::controller::Policy;
+use firmware::controller::{Duty, Levels, Policy};
 #[cfg(target_arch = "x86_64")]
 use firmware::network::LANES;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 
 use crate::kernel::Kernel;
 
-/// A 4-H-H-2 network laid out for one [`Kernel`]; `H` must be a multiple of 16.
+/// A 4-H-H-A network laid out for one [`Kernel`], with the duty level of each output: the
+/// greedy policy [`firmware::controller::Greedy`] is on the firmware. `H` must be a multiple
+/// of 16.
 #[derive(Clone, Debug)]
-pub struct WideMlp<const H: usize> {
-    net: Mlp<H>,
+pub struct WideMlp<const H: usize, const A: usize = N_ACTIONS> {
+    net: Mlp<H, A>,
+    levels: Levels<A>,
     kernel: Kernel,
     /// `fc1.weight` in blocks of the kernel's width `W`: element `(b * 4 + i) * W + j` is
     /// `fc1_weight[b * W + j][i]`. Only the x86 kernels read it (elsewhere it is empty).
@@ -68,18 +71,19 @@ impl Clone for Aligned {
     }
 }
 
-impl<const H: usize> WideMlp<H> {
+impl<const H: usize, const A: usize> WideMlp<H, A> {
     const WIDTH_IS_BLOCKED: () =
         assert!(H.is_multiple_of(16) && H > 0, "H must be a multiple of 16");
 
-    /// `net` for the fastest kernel this CPU runs.
-    pub fn new(net: &Mlp<H>) -> Box<Self> {
+    /// `net` on its `levels` for the fastest kernel this CPU runs.
+    pub fn new(net: &Mlp<H, A>, levels: Levels<A>) -> Box<Self> {
         let kernel = Kernel::detect();
-        Self::with_kernel(net, kernel).unwrap_or_else(|| unreachable!("{kernel:?} was detected"))
+        Self::with_kernel(net, levels, kernel)
+            .unwrap_or_else(|| unreachable!("{kernel:?} was detected"))
     }
 
-    /// `net` for `kernel`, or `None` if this CPU cannot run it.
-    pub fn with_kernel(net: &Mlp<H>, kernel: Kernel) -> Option<Box<Self>> {
+    /// `net` on its `levels` for `kernel`, or `None` if this CPU cannot run it.
+    pub fn with_kernel(net: &Mlp<H, A>, levels: Levels<A>, kernel: Kernel) -> Option<Box<Self>> {
         let () = Self::WIDTH_IS_BLOCKED;
         if !kernel.supported() {
             return None;
@@ -87,6 +91,7 @@ impl<const H: usize> WideMlp<H> {
         let width = block(kernel);
         Some(Box::new(WideMlp {
             net: net.clone(),
+            levels,
             kernel,
             fc1: Aligned::new(&pack(&net.fc1_weight, width)),
             fc2: Aligned::new(&pack(&net.fc2_weight, width)),
@@ -98,9 +103,9 @@ impl<const H: usize> WideMlp<H> {
         self.kernel
     }
 
-    /// Q-values `[left, right]`, bit-identical to [`Mlp::forward`].
+    /// Q-values, one per output, bit-identical to [`Mlp::forward`].
     #[inline]
-    pub fn forward(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    pub fn forward(&self, obs: &[f32; OBS_DIM]) -> [f32; A] {
         match self.kernel {
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx2 => x86::avx2(self, obs),
@@ -145,11 +150,11 @@ fn pack_blocks<const I: usize, const O: usize, const W: usize>(w: &[[f32; I]; O]
 /// where [`WideMlp`]'s repacking costs more than its wider blocks save. `kernel` says which
 /// instructions the CPU has (the firmware's own pass without AVX); the same bits as
 /// [`Mlp::forward`] either way. `H` must be a multiple of 8.
-pub fn forward_unpacked<const H: usize>(
-    net: &Mlp<H>,
+pub fn forward_unpacked<const H: usize, const A: usize>(
+    net: &Mlp<H, A>,
     obs: &[f32; OBS_DIM],
     kernel: Kernel,
-) -> [f32; N_ACTIONS] {
+) -> [f32; A] {
     match kernel {
         // SAFETY: both kernels are chosen only on CPUs with AVX2, hence AVX
         // (`Kernel::supported`).
@@ -160,10 +165,14 @@ pub fn forward_unpacked<const H: usize>(
     }
 }
 
-impl<const H: usize> Policy for &WideMlp<H> {
+impl<const H: usize, const A: usize> Policy for &WideMlp<H, A> {
+    type Scores = [f32; A];
     #[inline]
-    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; A] {
         self.forward(obs)
+    }
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.levels.duty(i)
     }
 }
 
@@ -194,12 +203,15 @@ mod x86 {
          $vec:ty, $load:ident, $store:ident, $set1:ident, $add:ident, $mul:ident, $max:ident,
          $zero:ident) => {
             /// The forward pass with `$width` outputs per register.
-            pub(super) fn $entry<const H: usize>(
-                net: &WideMlp<H>,
+            pub(super) fn $entry<const H: usize, const A: usize>(
+                net: &WideMlp<H, A>,
                 obs: &[f32; OBS_DIM],
-            ) -> [f32; N_ACTIONS] {
+            ) -> [f32; A] {
                 #[target_feature(enable = $feature)]
-                fn imp<const H: usize>(net: &WideMlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+                fn imp<const H: usize, const A: usize>(
+                    net: &WideMlp<H, A>,
+                    obs: &[f32; OBS_DIM],
+                ) -> [f32; A] {
                     let mut h1 = [0.0; H];
                     $name(&mut h1, net.fc1.get().as_chunks().0, &net.net.fc1_bias, obs);
                     let mut h2 = [0.0; H];
@@ -313,7 +325,10 @@ mod x86 {
     /// [`super::forward_unpacked`] on a CPU with AVX: the first layer's four-term dot
     /// products in plain Rust, the others in one AVX register each.
     #[target_feature(enable = "avx")]
-    pub(super) fn unpacked<const H: usize>(net: &Mlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    pub(super) fn unpacked<const H: usize, const A: usize>(
+        net: &Mlp<H, A>,
+        obs: &[f32; OBS_DIM],
+    ) -> [f32; A] {
         const { assert!(H.is_multiple_of(LANES), "whole chunks of eight") };
         let relu = |v: f32| if v > 0.0 { v } else { 0.0 };
         let h1: [f32; H] = core::array::from_fn(|o| {
@@ -329,7 +344,7 @@ mod x86 {
     /// tested bit-identical to `dot`), then the bias.
     #[inline]
     #[target_feature(enable = "avx2")]
-    fn output<const H: usize>(net: &WideMlp<H>, h: &[f32; H]) -> [f32; N_ACTIONS] {
+    fn output<const H: usize, const A: usize>(net: &WideMlp<H, A>, h: &[f32; H]) -> [f32; A] {
         let (w, b) = (&net.net.fc3_weight, &net.net.fc3_bias);
         core::array::from_fn(|a| crate::dot_x86::dot_avx(&w[a], h) + b[a])
     }
@@ -346,7 +361,7 @@ mod tests {
         ((rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0) * scale
     }
 
-    fn same(a: [f32; 2], b: [f32; 2]) -> bool {
+    fn same<const A: usize>(a: [f32; A], b: [f32; A]) -> bool {
         a.iter()
             .zip(&b)
             .all(|(a, b)| a.to_bits() == b.to_bits() || (a.is_nan() && b.is_nan()))
@@ -365,11 +380,13 @@ mod tests {
 
     /// Every kernel this CPU runs against the firmware's forward pass, packed and unpacked;
     /// not the packed portable kernel, whose forward pass is the firmware's own.
-    fn check<const H: usize>(net: &Mlp<H>, rng: &mut Pcg64Mcg) {
+    fn check<const H: usize, const A: usize>(net: &Mlp<H, A>, rng: &mut Pcg64Mcg) {
+        let levels: [f32; A] = core::array::from_fn(|i| i as f32 / A as f32);
+        let levels = Levels::new(levels).unwrap();
         let wides: Vec<_> = Kernel::ALL
             .iter()
             .filter(|&&k| k != Kernel::Portable)
-            .filter_map(|&k| WideMlp::with_kernel(net, k))
+            .filter_map(|&k| WideMlp::with_kernel(net, levels, k))
             .collect();
         for obs in observations(rng, 600) {
             let want = net.forward(&obs);
@@ -391,8 +408,8 @@ mod tests {
         }
     }
 
-    fn random_net<const H: usize>(rng: &mut Pcg64Mcg) -> Box<Mlp<H>> {
-        let mut net = Box::new(Mlp::<H>::zeroed());
+    fn random_net<const H: usize, const A: usize>(rng: &mut Pcg64Mcg) -> Box<Mlp<H, A>> {
+        let mut net = Box::new(Mlp::<H, A>::zeroed());
         for t in net.tensors_mut() {
             for v in t {
                 *v = uniform(rng, 0.5);
@@ -406,10 +423,12 @@ mod tests {
         let mut rng = Pcg64Mcg::seed_from_u64(7);
         check(&POLICY, &mut rng);
         for _ in 0..5 {
-            check(&*random_net::<16>(&mut rng), &mut rng);
-            check(&*random_net::<32>(&mut rng), &mut rng);
-            check(&*random_net::<64>(&mut rng), &mut rng);
-            check(&*random_net::<128>(&mut rng), &mut rng);
+            check(&*random_net::<16, 2>(&mut rng), &mut rng);
+            check(&*random_net::<32, 2>(&mut rng), &mut rng);
+            check(&*random_net::<64, 2>(&mut rng), &mut rng);
+            check(&*random_net::<128, 2>(&mut rng), &mut rng);
+            check(&*random_net::<64, 5>(&mut rng), &mut rng);
+            check(&*random_net::<16, 9>(&mut rng), &mut rng);
         }
     }
 
@@ -427,7 +446,7 @@ mod tests {
         w[12] = 0.25;
         net.fc3_weight[1][3] = 1.0;
         for kernel in Kernel::ALL {
-            if let Some(wide) = WideMlp::with_kernel(&net, kernel) {
+            if let Some(wide) = WideMlp::with_kernel(&net, Levels::BANG_BANG, kernel) {
                 assert_eq!(wide.forward(&[0.0; 4]), [0.0, 1.75], "{kernel:?}");
                 assert_eq!(forward_unpacked(&net, &[0.0; 4], kernel), [0.0, 1.75]);
             }

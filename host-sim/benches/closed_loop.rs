@@ -65,7 +65,9 @@ fn main() {
     // What a CPU without this one's best vector unit gets.
     let nominal = Scenario::nominal();
     for kernel in Kernel::ALL {
-        if let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) {
+        if let Some(wide) =
+            WideMlp::with_kernel(&POLICY, firmware::controller::Levels::BANG_BANG, kernel)
+        {
             let steps = best_of(5, || {
                 (0..EPISODES)
                     .map(|i| {
@@ -88,7 +90,9 @@ fn main() {
         }),
     );
     for kernel in Kernel::ALL {
-        let Some(wide) = WideMlp::with_kernel(&POLICY, kernel) else {
+        let Some(wide) =
+            WideMlp::with_kernel(&POLICY, firmware::controller::Levels::BANG_BANG, kernel)
+        else {
             continue;
         };
         line(

@@ -10,6 +10,7 @@
 
 use anyhow::{Result, bail};
 use firmware::fixed::from_state as fixed_obs;
+use firmware::network::argmax;
 use rayon::prelude::*;
 use serde::Serialize;
 use twin::Scenario;
@@ -76,14 +77,19 @@ fn empty_bins() -> Vec<Bin> {
         .collect()
 }
 
-/// The float network's margin `|Q[1] - Q[0]|` and whether the two networks choose
-/// differently. A non-finite Q-value decides nothing: a disagreement, in the widest bin.
-fn compare(q: [f32; 2], qi: [i32; 2]) -> (f64, bool) {
-    if !q.iter().all(|v| v.is_finite()) {
+/// The float network's margin (its best Q-value less the next best: `|Q[1] - Q[0]|` with
+/// two outputs) and whether the two networks choose differently. A non-finite Q-value
+/// decides nothing: a disagreement, in the widest bin.
+fn compare(q: &[f32], qi: &[i32]) -> (f64, bool) {
+    let Some(best) = q.iter().all(|v| v.is_finite()).then(|| argmax(q)) else {
         return (f64::MAX, true);
-    }
-    let margin = (f64::from(q[1]) - f64::from(q[0])).abs();
-    (margin, (q[1] > q[0]) != (qi[1] > qi[0]))
+    };
+    let next = (0..q.len())
+        .filter(|&i| i != best)
+        .map(|i| f64::from(q[i]))
+        .fold(f64::NEG_INFINITY, f64::max);
+    let margin = f64::from(q[best]) - next;
+    (margin, best != argmax(qi))
 }
 
 /// Compares the two networks on `per_row` states of scenario `s`, from episodes of `seed`.
@@ -109,8 +115,10 @@ fn count_row(net: &Net, s: &Scenario, per_row: u64, seed: u64) -> RowCount {
         episode += 1;
         for obs in one.iter().take((per_row - count.states) as usize) {
             let q = net.forward(obs);
-            let qi = net.forward_int(&fixed_obs(obs)).unwrap_or_default();
-            let (margin, differ) = compare(q, qi);
+            let qi = net
+                .forward_int(&fixed_obs(obs))
+                .expect("checked by the caller");
+            let (margin, differ) = compare(q.values(), qi.values());
             count.states += 1;
             let bin = bins.iter_mut().find(|b| margin < b.margin_below);
             if let Some(b) = bin {
@@ -230,11 +238,11 @@ mod tests {
 
     #[test]
     fn a_nan_or_infinite_q_value_is_a_disagreement_not_a_zero_margin() {
-        assert_eq!(compare([1.0, 3.0], [0, 5]), (2.0, false));
-        assert_eq!(compare([1.0, 3.0], [5, 0]), (2.0, true));
+        assert_eq!(compare(&[1.0, 3.0], &[0, 5]), (2.0, false));
+        assert_eq!(compare(&[1.0, 3.0], &[5, 0]), (2.0, true));
         for bad in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-            assert_eq!(compare([bad, 0.0], [0, 5]), (f64::MAX, true));
-            assert_eq!(compare([0.0, bad], [5, 0]), (f64::MAX, true));
+            assert_eq!(compare(&[bad, 0.0], &[0, 5]), (f64::MAX, true));
+            assert_eq!(compare(&[0.0, bad], &[5, 0]), (f64::MAX, true));
         }
         // The widest bin takes it.
         assert!(f64::MAX < *MARGIN_BINS.last().unwrap());

@@ -11,7 +11,7 @@
 use std::cell::RefCell;
 
 use firmware::cartpole::{Params, unit_f64};
-use firmware::controller::Policy;
+use firmware::controller::{Duty, Levels, Policy};
 use firmware::linear::{Vec4, balance_gain, dot};
 use firmware::rig::Rig;
 use rand_pcg::Pcg64Mcg;
@@ -46,6 +46,10 @@ impl Lqr {
 }
 
 impl Policy for Lqr {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
         let s = obs.map(f64::from);
         [0.0, -dot(&self.k, &s) as f32]
@@ -57,6 +61,10 @@ impl Policy for Lqr {
 pub struct AngleRule;
 
 impl Policy for AngleRule {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
         [0.0, obs[2] + 0.5 * obs[3]]
     }
@@ -67,6 +75,10 @@ impl Policy for AngleRule {
 pub struct Random(pub Pcg64Mcg);
 
 impl Policy for Random {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, _obs: &[f32; 4]) -> [f32; 2] {
         [0.5, unit_f64(&mut self.0) as f32]
     }

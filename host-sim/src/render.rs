@@ -4,8 +4,7 @@
 use std::path::Path;
 
 use anyhow::{Context, Result, anyhow};
-use firmware::cartpole::{Action, Params};
-use firmware::controller::Command;
+use firmware::cartpole::Params;
 use host_common::plot::{FONT, ensure_font};
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -63,10 +62,10 @@ pub fn gif(
             .map_err(err)?;
         }
         // Cart, coloured by the push it is given, and the pole.
-        let colour = match f.command {
-            Command::Push(Action::Right) => RGBColor(40, 110, 200),
-            Command::Push(Action::Left) => RGBColor(230, 130, 30),
-            Command::Coast => RGBColor(128, 128, 128),
+        let colour = match f.command.level() {
+            d if d > 0.0 => RGBColor(40, 110, 200),
+            d if d < 0.0 => RGBColor(230, 130, 30),
+            _ => RGBColor(128, 128, 128),
         };
         root.draw(&Rectangle::new(
             [to_px(x - 0.25, 0.12), to_px(x + 0.25, -0.08)],
@@ -129,11 +128,7 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
         &series(&|f| f.state.theta.to_degrees()),
         th_lim,
     )?;
-    let command = series(&|f| match f.command {
-        Command::Push(Action::Right) => 1.0,
-        Command::Push(Action::Left) => -1.0,
-        Command::Coast => 0.0,
-    });
+    let command = series(&|f| f64::from(f.command.level()));
     let mut chart = ChartBuilder::on(&panels[2])
         .margin(8)
         .x_label_area_size(36)

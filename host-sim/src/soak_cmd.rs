@@ -85,7 +85,7 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
         }
         let worst = hours.last_mut().expect("pushed at the hour's first period");
         // The reading estimates the state at the period's start: the last period's end.
-        if let (Some(t), Command::Push(_)) = (truth, f.command) {
+        if let (Some(t), Command::Drive(_)) = (truth, f.command) {
             let t: [f64; 4] = t.to_array();
             for ((w, r), t) in worst.iter_mut().zip(f.reading).zip(t) {
                 *w = w.max((f64::from(r) - t).abs());

@@ -74,7 +74,11 @@ fn run_dir(dir: &Path, rig_toml: &str) -> PathBuf {
         twin::rigfile::METADATA_KEY.to_string(),
         rig_toml.to_string(),
     )]);
-    let bytes = to_safetensors(&Weights::from_mlp(&POLICY).unwrap(), &meta).unwrap();
+    let bytes = to_safetensors(
+        &Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap(),
+        &meta,
+    )
+    .unwrap();
     std::fs::write(run.join("policy.safetensors"), bytes).unwrap();
     run
 }

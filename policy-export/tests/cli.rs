@@ -226,7 +226,7 @@ fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
     assert!(o.status.success(), "{}", stderr(&o));
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
-        text.contains("pub static POLICY: ::firmware::network::Mlp<16>"),
+        text.contains("pub static POLICY: ::firmware::network::Mlp<16, 2>"),
         "{text}"
     );
     assert!(
@@ -313,7 +313,7 @@ fn exporting_a_broken_policy_names_the_tensor() {
     let dir = scratch("broken");
     let path = dir.join("short.safetensors");
     // A width-16 policy missing its output bias.
-    let shapes = firmware::network::shapes(16);
+    let shapes = firmware::network::shapes(16, 2);
     let data: Vec<Vec<u8>> = shapes.iter().map(|s| vec![0u8; 4 * s.len()]).collect();
     let views: Vec<_> = firmware::network::TENSOR_NAMES[..5]
         .iter()

@@ -10,7 +10,7 @@
 //! outside the envelope, as it overrides the policy on a board.
 
 use firmware::cartpole::{Action, State, Transition};
-use firmware::controller::Sensed;
+use firmware::controller::{Levels, Sensed};
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
 use twin::run::{Aids, Episode, start_episode};
@@ -40,8 +40,8 @@ impl Worlds {
     }
 }
 
-/// The lane's episode: its controller asks the agent, not a policy of its own.
-type Running<'s> = Episode<'s, (), Pcg64Mcg>;
+/// The lane's episode: its controller asks the agent which of its levels drives.
+type Running<'s> = Episode<'s, Levels<2>, Pcg64Mcg>;
 
 self_cell!(
     /// A scenario and the episode running in it.
@@ -68,7 +68,7 @@ impl Lane {
     pub fn start(worlds: &Worlds, horizon: u32, (seed, episode): (u64, u64), aids: Aids) -> Lane {
         let scenario = worlds.scenario(seed, episode);
         let mut live = Live::new(scenario, |s| {
-            start_episode((), s, horizon, seed, episode, aids)
+            start_episode(Levels::BANG_BANG, s, horizon, seed, episode, aids)
         });
         let sensed = live.with_dependent_mut(|_, e| e.sense());
         Lane {
@@ -84,7 +84,7 @@ impl Lane {
     pub fn step(&mut self, action: Action) -> Transition {
         let sensed = self.sensed;
         let (mut t, next) = self.live.with_dependent_mut(|_, e| {
-            e.act_with(sensed, |_| action);
+            e.act_with(sensed, |_| action.index());
             let t = e.apply();
             (t, e.sense())
         });

@@ -55,22 +55,23 @@ pub fn shipped(rig: Option<PathBuf>) -> PyResult<Policy> {
 
 #[pymethods]
 impl Policy {
-    /// Q-values `[n, 2]` of readings `[n, 4]`.
+    /// Q-values `[n, A]` of readings `[n, 4]`, one column per duty level.
     fn q_values<'py>(
         &self,
         py: Python<'py>,
         obs: PyReadonlyArray2<'py, f32>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let q: Vec<f32> = rows(&obs)?
+        let rows = rows(&obs)?;
+        let (n, a) = (rows.len(), self.net.levels().len());
+        let q: Vec<f32> = rows
             .into_iter()
-            .flat_map(|o| self.net.forward(&o))
+            .flat_map(|o| self.net.forward(&o).values().to_vec())
             .collect();
-        let n = q.len() / 2;
-        PyArray1::from_vec(py, q).reshape([n, 2])
+        PyArray1::from_vec(py, q).reshape([n, a])
     }
 
-    /// The action the controller takes on each reading `[n, 4]` (1 right, 0 left; a tie
-    /// is decided as the firmware decides it).
+    /// The output the controller takes on each reading `[n, 4]` (with two levels, 1 right
+    /// and 0 left; a tie is decided as the firmware decides it).
     fn act<'py>(
         &self,
         py: Python<'py>,
@@ -78,7 +79,7 @@ impl Policy {
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
         let a: Vec<i64> = rows(&obs)?
             .into_iter()
-            .map(|o| argmax(&self.net.forward(&o)).index() as i64)
+            .map(|o| argmax(self.net.forward(&o).values()) as i64)
             .collect();
         Ok(PyArray1::from_vec(py, a))
     }

@@ -27,7 +27,7 @@ fn bits(tensors: &[Vec<f32>; 6]) -> Vec<u32> {
 #[test]
 fn compiled_constants_equal_the_committed_safetensors_bit_for_bit() {
     let w = weights::checkpoint::load(&repo().join("firmware/policy.safetensors"), None).unwrap();
-    let compiled = Weights::from_mlp(&POLICY).unwrap();
+    let compiled = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     assert_eq!(bits(w.weights.tensors()), bits(compiled.tensors()));
 }
 
@@ -37,7 +37,11 @@ fn the_shipped_policy_regenerates_bit_identically() {
     let result = train::train(&cfg, SHIPPED_SEED, &mut |_| {}).unwrap();
     assert_eq!(
         bits(result.policy.tensors()),
-        bits(Weights::from_mlp(&POLICY).unwrap().tensors()),
+        bits(
+            Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG)
+                .unwrap()
+                .tensors()
+        ),
         "retraining the recipe no longer gives the shipped weights: \
          regenerate firmware/src/policy.rs as the README says, or find what changed"
     );

@@ -72,7 +72,7 @@ fn awkward() -> Weights {
         -3.402_823_5e38,
         1.175_494_2e-38,
     ];
-    let tensors = shapes(16).map(|s| {
+    let tensors = shapes(16, 2).map(|s| {
         (0..s.len())
             .map(|i| {
                 special
@@ -82,7 +82,7 @@ fn awkward() -> Weights {
             })
             .collect()
     });
-    Weights::new(16, tensors).unwrap()
+    Weights::new(16, weights::BANG_BANG.to_vec(), tensors).unwrap()
 }
 
 fn write(path: &Path, text: &str) {

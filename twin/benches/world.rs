@@ -72,6 +72,10 @@ fn side_by_side(machine: &Machine) -> f64 {
 /// Pushes towards `theta + 0.2 theta_dot`, as [`duty`].
 struct Rule;
 impl Policy for Rule {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<firmware::controller::Duty> {
+        firmware::controller::Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, o: &[f32; 4]) -> [f32; 2] {
         [0.0, o[2] + 0.2 * o[3]]
     }

@@ -9,11 +9,11 @@
 
 use std::ops::Range;
 
-use firmware::controller::Policy;
+use firmware::controller::{Duty, Greedy, Policy};
 use firmware::network::{Mlp, OBS_DIM};
 use weights::Weights;
 use weights::quant::{Granularity, Quantised, quantise};
-use weights::width::{ForWidth, by_width};
+use weights::shape::{ForShape, by_shape};
 
 use crate::machine::Machine;
 use crate::run::run_episode;
@@ -33,9 +33,13 @@ struct Recording<'a, P> {
 }
 
 impl<P: Policy> Policy for Recording<'_, P> {
-    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; 2] {
+    type Scores = P::Scores;
+    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> P::Scores {
         self.seen.push(*obs);
         self.inner.scores(obs)
+    }
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.inner.duty(i)
     }
 }
 
@@ -64,12 +68,13 @@ pub fn visited<P: Policy + Copy>(
 /// The calibration set of the float policy `w` on `machine` (see [the module](self)).
 pub fn calibration_states(w: &Weights, machine: &Machine) -> weights::Result<Vec<[f32; OBS_DIM]>> {
     struct States<'a>(&'a Weights, &'a Machine);
-    impl ForWidth for States<'_> {
+    impl ForShape for States<'_> {
         type Output = weights::Result<Vec<[f32; OBS_DIM]>>;
-        fn run<const H: usize>(self) -> Self::Output {
-            let net: Box<Mlp<H>> = self.0.to_mlp()?;
+        fn run<const H: usize, const A: usize>(self) -> Self::Output {
+            let net: Box<Mlp<H, A>> = self.0.to_mlp()?;
+            let levels = self.0.to_levels()?;
             Ok(visited(
-                &*net,
+                Greedy { net: &*net, levels },
                 &Scenario::default_set_on(self.1),
                 0..CALIBRATION_EPISODES,
                 CALIBRATION_HORIZON,
@@ -77,7 +82,7 @@ pub fn calibration_states(w: &Weights, machine: &Machine) -> weights::Result<Vec
             ))
         }
     }
-    by_width(w.width(), States(w, machine))?
+    by_shape(w.width(), w.outputs(), States(w, machine))?
 }
 
 /// `w` quantised on its calibration set on `machine`: what `policy-export export --quant

@@ -8,7 +8,7 @@
 //! randomness. So every controller meets the same starts, noise and pushes.
 
 use firmware::ConfigError;
-use firmware::cartpole::{Action, CartPole, State, Transition};
+use firmware::cartpole::{CartPole, State, Transition};
 use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Sensed};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
@@ -132,14 +132,14 @@ impl Scenario {
 }
 
 /// An episode in progress: a world and the firmware's controller closed around it.
-pub struct Episode<'s, P, R> {
+pub struct Episode<'s, P: Policy, R> {
     pub(crate) world: World<'s, R>,
     pub(crate) controller: Controller<P, TwinSensor, Pins>,
     /// Whether the observer watches for frozen encoders (kept across a `reset` fault).
     watch: bool,
 }
 
-impl<'s, P, R: Rng> Episode<'s, P, R> {
+impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     /// Starts `policy` on a world of `scenario` (see [`World::start`]), with the board's
     /// `aids` (a `bool` says whether it is told its dead time).
     pub fn start(
@@ -190,7 +190,7 @@ impl<'s, P, R: Rng> Episode<'s, P, R> {
     pub fn act_with(
         &mut self,
         sensed: Sensed<[f32; 4]>,
-        decide: impl FnOnce(&[f32; 4]) -> Action,
+        decide: impl FnOnce(&[f32; 4]) -> usize,
     ) -> Command {
         let command = self.controller.act_with(sensed, decide);
         self.overran();
@@ -286,7 +286,7 @@ impl Tally {
 }
 
 /// Episode `episode` of `seed` started: its start, noise and push streams.
-pub fn start_episode<'s, P>(
+pub fn start_episode<'s, P: Policy>(
     policy: P,
     scenario: &'s Scenario,
     horizon: u32,

@@ -33,13 +33,13 @@ use std::cmp::Ordering;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use firmware::network::{N_ACTIONS, OBS_DIM, TENSOR_NAMES};
+use firmware::network::{OBS_DIM, TENSOR_NAMES};
 
 pub use safetensors_file::{MAX_HEADER_BYTES, to_safetensors};
 use state_dict::{StateDict, shape_text, to_f32};
 
 use crate::files::{MAX_POLICY_BYTES, read_capped};
-use crate::{Error, Result, Weights, check_width, few, quote};
+use crate::{Error, Result, Weights, check_shape, few, quote};
 
 /// The kind of file a network was read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -212,7 +212,8 @@ fn from_dict(
     let outside: Vec<&str> = names.iter().copied().filter(|n| !own.contains(n)).collect();
     // The chain's first layer is [H, 4]: a width no network has is refused before any
     // tensor is converted, so no view is materialised beyond the largest network's.
-    check_width(dict[own[0]].shape[0]).map_err(|e| match e {
+    let (width, outputs) = (dict[own[0]].shape[0], dict[own[4]].shape[0]);
+    check_shape(width, outputs).map_err(|e| match e {
         Error::Input(m) => Error::Input(format!("{}: {m}", show_prefix(pre))),
         other => other,
     })?;
@@ -233,7 +234,8 @@ fn from_dict(
         converted_from = converted_from.or(from);
         *t = values;
     }
-    let weights = checked_weights(tensors, &own)?;
+    let levels = levels_of(&metadata, outputs)?;
+    let weights = checked_weights(tensors, levels, &own)?;
     Ok(Import {
         weights,
         prefix: pre.to_string(),
@@ -245,11 +247,41 @@ fn from_dict(
     })
 }
 
-/// The network of `tensors` (canonical order, named `names` in the file), with finite
-/// Q-values.
-fn checked_weights(tensors: [Vec<f32>; 6], names: &[&str]) -> Result<Weights> {
+/// The duty levels of a network of `outputs` outputs: as its file's metadata records them
+/// ([`safetensors_file::LEVELS_KEY`]), the paper's two for a two-output network that records
+/// none; a network of more outputs without levels is refused, never guessed at.
+pub(crate) fn levels_of(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Vec<f32>> {
+    let Some(text) = metadata.get(safetensors_file::LEVELS_KEY) else {
+        if outputs == 2 {
+            return Ok(crate::BANG_BANG.to_vec());
+        }
+        return Err(Error::Input(format!(
+            "the network has {outputs} outputs and its file records no duty levels: \
+             expected a `{}` entry in its metadata listing {outputs} levels",
+            safetensors_file::LEVELS_KEY
+        )));
+    };
+    let levels: Vec<f32> = serde_json::from_str(text).map_err(|e| {
+        Error::Input(format!(
+            "the file's duty levels {}: expected a list of numbers ({})",
+            quote(text),
+            crate::excerpt(&e.to_string())
+        ))
+    })?;
+    if levels.len() != outputs {
+        return Err(Error::Input(format!(
+            "the file records {} duty levels for a network of {outputs} outputs",
+            levels.len()
+        )));
+    }
+    Ok(levels)
+}
+
+/// The network of `tensors` (canonical order, named `names` in the file) on `levels`, with
+/// finite Q-values.
+fn checked_weights(tensors: [Vec<f32>; 6], levels: Vec<f32>, names: &[&str]) -> Result<Weights> {
     let width = tensors[1].len();
-    let weights = Weights::new(width, tensors).map_err(|e| match e {
+    let weights = Weights::new(width, levels, tensors).map_err(|e| match e {
         Error::Input(m) => Error::Input(rename(&m, names)),
         other => other,
     })?;
@@ -306,8 +338,8 @@ fn select<'a>(
                 .take(8)
                 .collect();
             Err(Error::Input(format!(
-                "no 4-H-H-2 network found (three linear layers [H, {OBS_DIM}] -> [H, H] -> \
-                 [{N_ACTIONS}, H]); {}",
+                "no 4-H-H-A network found (three linear layers [H, {OBS_DIM}] -> [H, H] -> \
+                 [A, H], A one output per duty level); {}",
                 why.join("; ")
             )))
         }
@@ -419,9 +451,9 @@ fn unchained(layers: [(&str, usize, usize); 3]) -> Option<String> {
             "hidden widths {h1} and {h2} differ; the network has two hidden layers of one \
              width"
         ))
-    } else if o3 != N_ACTIONS {
+    } else if o3 < 2 {
         Some(format!(
-            "{w3} is [{o3}, {i3}]: the output layer has {N_ACTIONS} outputs (left, right)"
+            "{w3} is [{o3}, {i3}]: the output layer has one output per duty level, at least two"
         ))
     } else {
         None

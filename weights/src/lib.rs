@@ -1,6 +1,7 @@
 //! Policy files: how a trained 4-H-H-2 Q-network travels from a trainer to a board.
 //!
-//! - [`Weights`]: the six tensors of a network of any supported width, in PyTorch's layout.
+//! - [`Weights`]: the six tensors of a network of any supported shape, in PyTorch's layout,
+//!   and the duty level each output drives.
 //! - [`checkpoint`]: safetensors state dicts as PyTorch users save them (`fc1`/`fc2`/`fc3`,
 //!   `nn.Sequential` indices, prefixes such as CleanRL's `network.` or Stable-Baselines3's
 //!   `q_net.q_net.`), recognised by their chain of shapes; and the canonical file the trainer
@@ -10,7 +11,7 @@
 //! - [`source`]: Rust modules and C headers that compile the weights into flash, bit for bit.
 //! - [`files`]: reading only regular files, with a size cap, and writing outputs atomically
 //!   without replacing anything that is not a regular file.
-//! - [`width`]: code for a network whose width is known only at run time.
+//! - [`shape`]: code for a network whose shape is known only at run time.
 //!
 //! Both host tools use this crate: the trainer (`policy-export`) writes and exports policies,
 //! the simulator (`host-sim`) loads them. It depends on `firmware` for the network's shape
@@ -21,10 +22,11 @@
 pub mod checkpoint;
 pub mod files;
 pub mod quant;
+pub mod shape;
 pub mod source;
-pub mod width;
 
-use firmware::network::{Mlp, SUPPORTED_WIDTHS, TENSOR_NAMES, shapes};
+use firmware::controller::{Levels, check_levels};
+use firmware::network::{Mlp, SUPPORTED_SHAPES, TENSOR_NAMES, shapes};
 
 /// What went wrong with a policy file or an output path.
 #[derive(Debug, thiserror::Error)]
@@ -103,30 +105,42 @@ pub fn few(items: impl IntoIterator<Item = String>, max: usize) -> String {
     }
 }
 
-/// Refuses a hidden width the tools are not built for.
-pub fn check_width(width: usize) -> Result<()> {
-    if SUPPORTED_WIDTHS.contains(&width) {
+/// Refuses a shape (hidden width, outputs) the tools are not built for.
+pub fn check_shape(width: usize, outputs: usize) -> Result<()> {
+    if SUPPORTED_SHAPES.contains(&(width, outputs)) {
         return Ok(());
     }
-    Err(Error::Input(format!(
-        "hidden width {width} is not supported: the tools are built for {SUPPORTED_WIDTHS:?}"
-    )))
+    Err(shape::unsupported(width, outputs))
 }
 
-/// The parameters of a 4-H-H-2 network as flat row-major tensors in [`TENSOR_NAMES`] order.
+/// The paper's two levels, full push left and right: what a two-output network's outputs
+/// mean unless its file says otherwise.
+pub const BANG_BANG: [f32; 2] = [-1.0, 1.0];
+
+/// The parameters of a 4-H-H-A network as flat row-major tensors in [`TENSOR_NAMES`] order,
+/// and the duty level each of its `A` outputs drives.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Weights {
-    /// Hidden width H, one of [`SUPPORTED_WIDTHS`].
+    /// Hidden width H.
     width: usize,
+    /// Each output's duty level, a fraction of the full push ([`check_levels`]).
+    levels: Vec<f32>,
     /// `fc1.weight`, `fc1.bias`, `fc2.weight`, `fc2.bias`, `fc3.weight`, `fc3.bias`.
     tensors: [Vec<f32>; 6],
 }
 
 impl Weights {
-    /// Checked weights: a supported width, six tensors of its shapes, every value finite.
-    pub fn new(width: usize, tensors: [Vec<f32>; 6]) -> Result<Weights> {
-        check_width(width)?;
-        for ((name, shape), t) in TENSOR_NAMES.iter().zip(shapes(width)).zip(&tensors) {
+    /// Checked weights: a supported shape (width, one output per level), levels a policy
+    /// may choose among, six tensors of the shape's sizes, every value finite.
+    pub fn new(width: usize, levels: Vec<f32>, tensors: [Vec<f32>; 6]) -> Result<Weights> {
+        check_levels(&levels)
+            .map_err(|e| Error::Input(format!("the policy's duty levels {levels:?}: {e}")))?;
+        check_shape(width, levels.len())?;
+        for ((name, shape), t) in TENSOR_NAMES
+            .iter()
+            .zip(shapes(width, levels.len()))
+            .zip(&tensors)
+        {
             if t.len() != shape.len() {
                 return Err(Error::Input(format!(
                     "tensor `{name}`: expected {} values for shape {:?}, found {}",
@@ -142,32 +156,67 @@ impl Weights {
                 )));
             }
         }
-        Ok(Weights { width, tensors })
+        Ok(Weights {
+            width,
+            levels,
+            tensors,
+        })
     }
 
-    /// Copies a network's parameters (checked like [`Weights::new`]).
-    pub fn from_mlp<const H: usize>(net: &Mlp<H>) -> Result<Weights> {
-        Weights::new(H, net.tensors().map(<[f32]>::to_vec))
+    /// Copies a network's parameters and its levels (checked like [`Weights::new`]).
+    pub fn from_mlp<const H: usize, const A: usize>(
+        net: &Mlp<H, A>,
+        levels: &Levels<A>,
+    ) -> Result<Weights> {
+        let tensors = net.tensors().map(<[f32]>::to_vec);
+        Weights::new(H, levels.fractions().to_vec(), tensors)
     }
 
-    /// The network, if the width is `H`; on the heap (`Mlp<256>` is 270 KB).
-    pub fn to_mlp<const H: usize>(&self) -> Result<Box<Mlp<H>>> {
-        if self.width != H {
-            return Err(Error::Input(format!(
-                "policy has hidden width {}, expected {H}",
-                self.width
-            )));
-        }
-        let mut net = Box::new(Mlp::<H>::zeroed());
+    /// The network, if its shape is `H` x `A`; on the heap (an `Mlp<128>` is 70 KB).
+    pub fn to_mlp<const H: usize, const A: usize>(&self) -> Result<Box<Mlp<H, A>>> {
+        self.expect_shape(H, A)?;
+        let mut net = Box::new(Mlp::<H, A>::zeroed());
         for (dst, src) in net.tensors_mut().into_iter().zip(&self.tensors) {
             dst.copy_from_slice(src);
         }
         Ok(net)
     }
 
+    /// The network's levels, if it has `A` outputs.
+    pub fn to_levels<const A: usize>(&self) -> Result<Levels<A>> {
+        self.expect_shape(self.width, A)?;
+        let fractions: [f32; A] = core::array::from_fn(|i| self.levels[i]);
+        Levels::new(fractions).map_err(|e| Error::Input(e.to_string()))
+    }
+
+    /// Refuses a policy of another shape than `width` x `outputs`: a file with seven
+    /// outputs is never read as a two-level policy.
+    pub fn expect_shape(&self, width: usize, outputs: usize) -> Result<()> {
+        if (self.width, self.outputs()) == (width, outputs) {
+            return Ok(());
+        }
+        Err(Error::Input(format!(
+            "the policy is a network of hidden width {} with {} outputs (levels {:?}), \
+             expected width {width} with {outputs}",
+            self.width,
+            self.outputs(),
+            self.levels
+        )))
+    }
+
     /// Hidden width H.
     pub fn width(&self) -> usize {
         self.width
+    }
+
+    /// Outputs A: one per duty level.
+    pub fn outputs(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Each output's duty level, a fraction of the full push.
+    pub fn levels(&self) -> &[f32] {
+        &self.levels
     }
 
     /// The six tensors, flat and row-major, in [`TENSOR_NAMES`] order.
@@ -177,7 +226,7 @@ impl Weights {
 
     /// Number of parameters.
     pub fn params(&self) -> usize {
-        firmware::network::params(self.width)
+        firmware::network::params(self.width, self.outputs())
     }
 
     /// Checks that the network's Q-values are finite on [`probe_states`]: finite weights can
@@ -185,10 +234,10 @@ impl Weights {
     /// is infinite or NaN decides nothing.
     pub fn check_outputs(&self) -> Result<()> {
         struct Probe<'a>(&'a Weights);
-        impl width::ForWidth for Probe<'_> {
+        impl shape::ForShape for Probe<'_> {
             type Output = Result<()>;
-            fn run<const H: usize>(self) -> Result<()> {
-                let net = self.0.to_mlp::<H>()?;
+            fn run<const H: usize, const A: usize>(self) -> Result<()> {
+                let net = self.0.to_mlp::<H, A>()?;
                 for obs in probe_states() {
                     let q = net.forward(&obs);
                     if !q.iter().all(|v| v.is_finite()) {
@@ -201,7 +250,7 @@ impl Weights {
                 Ok(())
             }
         }
-        width::by_width(self.width, Probe(self))?
+        shape::by_shape(self.width, self.outputs(), Probe(self))?
     }
 }
 
@@ -226,24 +275,36 @@ mod tests {
 
     #[test]
     fn new_checks_width_lengths_and_values() {
-        let ok = shapes(16).map(|s| vec![0.5; s.len()]);
-        assert_eq!(Weights::new(16, ok.clone()).unwrap().params(), 386);
-        let e = Weights::new(24, ok.clone()).unwrap_err().to_string();
-        assert!(e.contains("hidden width 24 is not supported"), "{e}");
+        let ok = shapes(16, 2).map(|s| vec![0.5; s.len()]);
+        let two = || BANG_BANG.to_vec();
+        assert_eq!(Weights::new(16, two(), ok.clone()).unwrap().params(), 386);
+        let e = Weights::new(24, two(), ok.clone()).unwrap_err().to_string();
+        assert!(e.contains("hidden width 24 with 2 outputs"), "{e}");
+        let e = Weights::new(64, vec![-1.0, 0.0, 1.0], ok.clone()).unwrap_err();
+        assert!(
+            e.to_string()
+                .contains("expected 256 values for shape [64, 4]"),
+            "{e}"
+        );
+        let e = Weights::new(16, vec![1.0, -1.0], ok.clone()).unwrap_err();
+        assert!(
+            e.to_string().contains("expected strictly increasing"),
+            "{e}"
+        );
         let mut short = ok.clone();
         short[3].pop();
-        let e = Weights::new(16, short).unwrap_err().to_string();
+        let e = Weights::new(16, two(), short).unwrap_err().to_string();
         assert!(e.contains("`fc2.bias`: expected 16 values"), "{e}");
         let mut nan = ok;
         nan[4][7] = f32::NAN;
-        let e = Weights::new(16, nan).unwrap_err().to_string();
+        let e = Weights::new(16, two(), nan).unwrap_err().to_string();
         assert!(e.contains("`fc3.weight`: element 7 is NaN"), "{e}");
     }
 
     #[test]
     fn outputs_that_overflow_are_refused() {
-        let ok = shapes(16).map(|s| vec![0.5; s.len()]);
-        Weights::new(16, ok.clone())
+        let ok = shapes(16, 2).map(|s| vec![0.5; s.len()]);
+        Weights::new(16, BANG_BANG.to_vec(), ok.clone())
             .unwrap()
             .check_outputs()
             .unwrap();
@@ -252,7 +313,7 @@ mod tests {
         let mut huge = ok;
         huge[0].fill(1e38);
         huge[2].fill(1e38);
-        let w = Weights::new(16, huge).unwrap();
+        let w = Weights::new(16, BANG_BANG.to_vec(), huge).unwrap();
         let e = w.check_outputs().unwrap_err();
         assert!(
             e.is_input() && e.to_string().contains("expected finite Q-values"),

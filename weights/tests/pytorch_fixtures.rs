@@ -36,8 +36,8 @@ fn check_q_values(file: &str, got: &Import) {
     );
     let q = |o: &[f32; 4]| -> [f32; 2] {
         match got.weights.width() {
-            16 => got.weights.to_mlp::<16>().unwrap().forward(o),
-            64 => got.weights.to_mlp::<64>().unwrap().forward(o),
+            16 => got.weights.to_mlp::<16, 2>().unwrap().forward(o),
+            64 => got.weights.to_mlp::<64, 2>().unwrap().forward(o),
             w => panic!("no fixture has width {w}"),
         }
     };

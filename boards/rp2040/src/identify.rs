@@ -54,8 +54,8 @@ impl Write for Lines {
 
 fn drive<A: Actuator>(actuator: &mut A, duty: i8) {
     let command = match duty {
-        1 => Command::Push(Action::Right),
-        -1 => Command::Push(Action::Left),
+        1 => Command::Drive(Duty::RIGHT),
+        -1 => Command::Drive(Duty::LEFT),
         _ => Command::Coast,
     };
     if actuator.drive(command).is_err() {

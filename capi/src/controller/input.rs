@@ -4,7 +4,7 @@
 
 use core::convert::Infallible;
 
-use firmware::controller::{Command, StateSensor};
+use firmware::controller::{Command, Scores, StateSensor};
 use firmware::estimator::{Estimate, ObserverSensor};
 use firmware::loopback::Latest;
 use firmware::network::{N_ACTIONS, OBS_DIM};
@@ -29,18 +29,22 @@ enum Reads {
 
 /// A reading format of the controller, as C hands it in and reads its scores back.
 pub(crate) trait Format: Estimate {
+    /// A policy's scores on readings of this format.
+    type Scores: Scores;
     /// The scores as C's pair of float scores and pair of integer scores; the format that is
     /// not this one's reads zero.
     fn scores(q: Self::Scores) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]);
 }
 
 impl Format for [f32; OBS_DIM] {
+    type Scores = [f32; N_ACTIONS];
     fn scores(q: [f32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
         (q, [0; N_ACTIONS])
     }
 }
 
 impl Format for [i16; OBS_DIM] {
+    type Scores = [i32; N_ACTIONS];
     fn scores(q: [i32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
         ([0.0; N_ACTIONS], q)
     }

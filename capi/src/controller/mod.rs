@@ -33,7 +33,7 @@
 
 use core::ffi::c_int;
 
-use firmware::controller::{Assurance, FaultCounters, FaultFlags, Limits, Reading};
+use firmware::controller::{Assurance, FaultCounters, FaultFlags, Limits, Scores as _};
 use firmware::loopback::{Duty, Level};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
@@ -128,7 +128,7 @@ impl<K: Kind> Run for Slot<K> {
         let (step, q, faults) = c.last().map_or(
             (
                 c.steps(),
-                <K::Reading as Reading>::UNSCORED,
+                <K::Reading as Format>::Scores::UNSCORED,
                 FaultFlags::default(),
             ),
             |r| (r.step, r.q, r.faults),
@@ -322,13 +322,11 @@ macro_rules! exported_inits {
 }
 /// The widths `exported_inits!` is given, for the test that they are every supported one.
 #[cfg(test)]
-const INIT_WIDTHS: [usize; 5] = [16, 32, 64, 128, 256];
+const INIT_WIDTHS: [usize; 3] = [16, 64, 128];
 exported_inits! {
     16 => cartpole_controller_init_mlp16 / cartpole_controller_init_qmlp16,
-    32 => cartpole_controller_init_mlp32 / cartpole_controller_init_qmlp32,
     64 => cartpole_controller_init_mlp64 / cartpole_controller_init_qmlp64,
     128 => cartpole_controller_init_mlp128 / cartpole_controller_init_qmlp128,
-    256 => cartpole_controller_init_mlp256 / cartpole_controller_init_qmlp256,
 }
 
 /// One control period on this period's encoder counts, read through the rig's observer;

@@ -40,7 +40,7 @@ pub(crate) trait Kind: 'static {
     /// The reading format of its controller.
     type Reading: Format;
     /// The network, as the controller holds it.
-    type Policy: Policy<Self::Reading>;
+    type Policy: Policy<Self::Reading, Scores = <Self::Reading as Format>::Scores>;
     /// What the first word of an instance of this kind holds.
     const MAGIC: u32;
 }

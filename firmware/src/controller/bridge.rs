@@ -4,8 +4,7 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use super::Command;
-use crate::cartpole::Action;
+use super::{Command, Duty};
 
 /// A pin or duty-cycle write failed; the actuator's state is then unknown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -22,16 +21,17 @@ pub trait Actuator {
 enum Drive {
     Unknown,
     Off,
-    Pushing(Action),
+    Pushing(Duty),
 }
 
-/// An H-bridge: a direction pin (high pushes towards +x) and an enable whose full duty is
-/// the motor's full push.
+/// An H-bridge: a direction pin (high pushes towards +x) and an enable whose duty cycle is
+/// the command's duty (full duty the motor's full push).
 ///
-/// Changing direction is break-before-make: duty off, then the direction pin, then full
-/// duty, so the bridge never drives the old way with the new direction's half-bridge.
-/// Repeating the current command writes nothing. After a failed write the bridge's state is
-/// unknown, so the next command sends its whole sequence.
+/// Changing direction is break-before-make: duty off, then the direction pin, then the new
+/// duty, so the bridge never drives the old way with the new direction's half-bridge. A new
+/// duty the same way writes the duty alone; repeating the current command writes nothing.
+/// After a failed write the bridge's state is unknown, so the next command sends its whole
+/// sequence.
 pub struct Bridge<D, E> {
     direction: D,
     enable: E,
@@ -67,25 +67,35 @@ impl<D: OutputPin, E: SetDutyCycle> Bridge<D, E> {
     }
 
     fn sequence(&mut self, command: Command) -> Result<(), ActuatorError> {
-        match command {
-            Command::Coast if self.drive != Drive::Off => self.off(),
-            Command::Push(action) if self.drive != Drive::Pushing(action) => {
-                if self.drive != Drive::Off {
-                    self.off()?;
-                }
-                match action {
-                    Action::Right => self.direction.set_high(),
-                    Action::Left => self.direction.set_low(),
-                }
-                .map_err(|_| ActuatorError)?;
-                self.enable
-                    .set_duty_cycle_fully_on()
-                    .map_err(|_| ActuatorError)?;
-                self.drive = Drive::Pushing(action);
-                Ok(())
+        let duty = match command {
+            Command::Drive(d) if d != Duty::OFF => d,
+            _ if self.drive == Drive::Off => return Ok(()),
+            _ => return self.off(),
+        };
+        let (was, right) = match self.drive {
+            Drive::Pushing(was) if was == duty => return Ok(()),
+            Drive::Pushing(was) => (was.direction(), duty.direction()),
+            Drive::Off | Drive::Unknown => (None, duty.direction()),
+        };
+        if was != right {
+            if self.drive != Drive::Off {
+                self.off()?;
             }
-            _ => Ok(()),
+            match right {
+                Some(true) => self.direction.set_high(),
+                _ => self.direction.set_low(),
+            }
+            .map_err(|_| ActuatorError)?;
         }
+        let on = if duty.magnitude() == Duty::FULL as u16 {
+            self.enable.set_duty_cycle_fully_on()
+        } else {
+            self.enable
+                .set_duty_cycle_fraction(duty.magnitude(), Duty::FULL as u16)
+        };
+        on.map_err(|_| ActuatorError)?;
+        self.drive = Drive::Pushing(duty);
+        Ok(())
     }
 }
 

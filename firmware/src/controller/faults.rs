@@ -185,13 +185,20 @@ pub struct FaultCounters {
     pub recoveries: u32,
     /// Periods the fallback decided.
     pub fallback_periods: u32,
-    /// Periods whose policy scores were not finite (the fallback decided them).
+    /// Periods whose policy gave no decision a duty could rest on: scores that are not
+    /// finite, or an output beyond its levels (the monitor's fallback decided them, or
+    /// without a monitor the motor coasted).
     pub non_finite_scores: u32,
     /// Times the monitor stopped the controller (at most one per controller built).
     pub safe_stops: u32,
 }
 
 impl FaultCounters {
+    /// Counts one period without a decision ([`FaultCounters::non_finite_scores`]).
+    pub(super) fn count_undecided(&mut self) {
+        self.non_finite_scores = self.non_finite_scores.saturating_add(1);
+    }
+
     /// Counts one rejected reading with its flags.
     pub(super) fn count_rejected(&mut self, flags: FaultFlags) {
         self.rejected_readings = self.rejected_readings.saturating_add(1);

@@ -38,18 +38,18 @@
 //! use core::convert::Infallible;
 //! use embedded_hal::{digital::{ErrorType as PinErrorType, OutputPin},
 //!                    pwm::{ErrorType as PwmErrorType, SetDutyCycle}};
-//! use firmware::controller::{Bridge, Command, Controller, StateSensor};
-//! use firmware::{policy::{POLICY, RIG}, Action};
+//! use firmware::controller::{Bridge, Command, Controller, Duty, StateSensor};
+//! use firmware::policy::{POLICY, RIG};
 //!
-//! struct Level(bool);
-//! impl PinErrorType for Level { type Error = Infallible; }
-//! impl OutputPin for Level {
+//! struct Pin(bool);
+//! impl PinErrorType for Pin { type Error = Infallible; }
+//! impl OutputPin for Pin {
 //!     fn set_low(&mut self) -> Result<(), Infallible> { self.0 = false; Ok(()) }
 //!     fn set_high(&mut self) -> Result<(), Infallible> { self.0 = true; Ok(()) }
 //! }
-//! struct Duty(u16);
-//! impl PwmErrorType for Duty { type Error = Infallible; }
-//! impl SetDutyCycle for Duty {
+//! struct Pwm(u16);
+//! impl PwmErrorType for Pwm { type Error = Infallible; }
+//! impl SetDutyCycle for Pwm {
 //!     fn max_duty_cycle(&self) -> u16 { 1000 }
 //!     fn set_duty_cycle(&mut self, duty: u16) -> Result<(), Infallible> { self.0 = duty; Ok(()) }
 //! }
@@ -60,9 +60,9 @@
 //!     fn read(&mut self) -> Result<[f32; 4], ()> { Ok([0.0, 0.0, 0.05, 0.2]) }
 //! }
 //!
-//! let mut c = Controller::new(&POLICY, Tilted, Bridge::new(Level(false), Duty(0)), RIG.limits()?);
+//! let mut c = Controller::new(&POLICY, Tilted, Bridge::new(Pin(false), Pwm(0)), RIG.limits()?);
 //! // The pole leans towards +x, so the cart must move under it: a push to the right.
-//! assert_eq!(c.step(), Command::Push(Action::Right));
+//! assert_eq!(c.step(), Command::Drive(Duty::RIGHT));
 //! let (_, _, bridge) = c.release();
 //! let (dir, duty) = bridge.release();
 //! assert!(dir.0);
@@ -72,19 +72,21 @@
 
 use heapless::HistoryBuf;
 
-use crate::cartpole::Action;
-use crate::network::int::QMlp;
-use crate::network::{Mlp, N_ACTIONS, OBS_DIM};
+use crate::network::{N_ACTIONS, OBS_DIM};
 
 mod bridge;
 mod faults;
+mod levels;
 pub mod monitor;
+mod policy;
 pub mod predict;
 mod reading;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
+pub use levels::{Duty, Levels, check_levels};
 pub use monitor::{Assurance, Mode, Monitor};
+pub use policy::{Greedy, Policy, Scores};
 pub use predict::Predictor;
 pub use reading::Reading;
 
@@ -141,60 +143,24 @@ impl<O: Copy> Sensed<O> {
     }
 }
 
-/// Maps a sanitised reading to two scores, `[left, right]`; the controller pushes right only
-/// if the right score is strictly larger (ties and NaN push left, see
-/// [`Reading::decide`]). The Q-network's scores are its Q-values; a baseline's may be
-/// anything with that meaning.
-pub trait Policy<O: Reading = [f32; OBS_DIM]> {
-    /// Scores for `[Left, Right]`.
-    fn scores(&mut self, obs: &O) -> O::Scores;
-}
-
-impl<const H: usize> Policy for &Mlp<H> {
-    #[inline]
-    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        self.forward(obs)
-    }
-}
-
-/// The integer network on a fixed-point reading: integer arithmetic from the sensor to the
-/// decision.
-impl<const H: usize> Policy<[i16; OBS_DIM]> for &QMlp<H> {
-    #[inline]
-    fn scores(&mut self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
-        self.forward(obs)
-    }
-}
-
-/// The integer network behind a float sensor: the reading is rounded to Q3.12
-/// ([`crate::fixed::from_state`]), the forward pass is integer-only, and the scores are the
-/// integer outputs as f32, exact below 2^24 (which every exported network's outputs are, by
-/// construction), so the controller decides as `q[1] > q[0]` does.
-impl<const H: usize> Policy for &QMlp<H> {
-    #[inline]
-    fn scores(&mut self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
-        self.forward(&crate::fixed::from_state(obs))
-            .map(|q| q as f32)
-    }
-}
-
 /// What the controller asked of the motor in one period.
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Command {
-    /// Full duty in this direction: the motor's full push.
-    Push(Action),
-    /// Duty off: the fallback for a rejected reading.
+    /// Drive at this duty: a level the policy chose, or the monitor's fallback.
+    Drive(Duty),
+    /// Duty off, for want of a decision: a rejected reading, scores that are not numbers,
+    /// a stopped monitor.
     Coast,
 }
 
 impl Command {
     /// The motor duty of the command, the fraction of full force the model-based observer
-    /// and predictor apply ([`crate::cartpole::Plant::motor_force`]): `1` right, `-1` left,
-    /// `0` coasting.
+    /// and predictor apply ([`crate::cartpole::Plant::motor_force`]): `-1` to `1`, `0`
+    /// coasting.
     pub fn level(self) -> f32 {
         match self {
-            Command::Push(a) => a.level() as f32,
+            Command::Drive(d) => d.fraction(),
             Command::Coast => 0.0,
         }
     }
@@ -202,14 +168,13 @@ impl Command {
 
 /// One period, as the telemetry ring keeps it.
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Record<O: Reading = [f32; OBS_DIM]> {
+pub struct Record<O = [f32; OBS_DIM], Q = [f32; N_ACTIONS]> {
     /// Period number, from 0.
     pub step: u32,
     /// The reading as received (zeros if the sensor returned an error).
     pub obs: O,
-    /// The policy's scores; [`Reading::UNSCORED`] when the reading was rejected and the
-    /// policy did not run.
-    pub q: O::Scores,
+    /// The policy's scores; [`Scores::UNSCORED`] when the policy did not score the period.
+    pub q: Q,
     /// What the motor was asked to do.
     pub command: Command,
     /// What went wrong, if anything.
@@ -217,10 +182,7 @@ pub struct Record<O: Reading = [f32; OBS_DIM]> {
 }
 
 #[cfg(feature = "defmt")]
-impl<O: Reading + defmt::Format> defmt::Format for Record<O>
-where
-    O::Scores: defmt::Format,
-{
+impl<O: defmt::Format, Q: defmt::Format> defmt::Format for Record<O, Q> {
     fn format(&self, f: defmt::Formatter<'_>) {
         defmt::write!(
             f,
@@ -238,20 +200,25 @@ where
 /// `N` [`Record`]s (the last one unless a board keeps more to log). Everything is
 /// fixed-size; [`Controller::step`] cannot panic. A board builds it from its rig
 /// ([`Rig::controller`](crate::rig::Rig::controller)).
-pub struct Controller<P, S: StateSensor, A, const N: usize = 1> {
+pub struct Controller<P, S, A, const N: usize = 1>
+where
+    P: Policy<S::Reading>,
+    S: StateSensor,
+{
     policy: P,
     sensor: S,
     actuator: A,
     limits: Limits,
     steps: u32,
     faults: FaultCounters,
-    telemetry: HistoryBuf<Record<S::Reading>, N>,
+    telemetry: HistoryBuf<Record<S::Reading, P::Scores>, N>,
     predictor: Option<Predictor>,
     monitor: Option<Monitor>,
 }
 
 impl<P, S, A> Controller<P, S, A>
 where
+    P: Policy<S::Reading>,
     S: StateSensor,
     A: Actuator,
 {
@@ -264,6 +231,7 @@ where
 
 impl<P, S, A, const N: usize> Controller<P, S, A, N>
 where
+    P: Policy<S::Reading>,
     S: StateSensor,
     A: Actuator,
 {
@@ -330,28 +298,32 @@ where
         }
     }
 
-    /// The second half of a period on what [`Controller::sense`] found, with the action
+    /// The second half of a period on what [`Controller::sense`] found, with the output
     /// decided outside the controller (a learner exploring, an agent): `decide` is asked,
     /// on the reading the policy would be shown, only where the policy would drive (a
-    /// rejected reading coasts, a monitor's fallback keeps its own command); then actuate,
-    /// record, tell the sensor. The record's scores are [`Reading::UNSCORED`]: the
-    /// controller saw none.
+    /// rejected reading coasts, a monitor's fallback keeps its own command), and the
+    /// output's level drives; then actuate, record, tell the sensor. The record's scores
+    /// are [`Scores::UNSCORED`]: the controller saw none.
     #[inline(always)]
     pub fn act_with(
         &mut self,
         sensed: Sensed<S::Reading>,
-        decide: impl FnOnce(&S::Reading) -> Action,
+        decide: impl FnOnce(&S::Reading) -> usize,
     ) -> Command {
-        self.act_by(sensed, |_, seen| (S::Reading::UNSCORED, Some(decide(seen))))
+        self.act_by(sensed, |policy, seen| {
+            (P::Scores::UNSCORED, policy.duty(decide(seen)))
+        })
     }
 
-    /// The second half of a period: `decide` asked for the scores and the action (`None`
-    /// when the scores are not finite) where the policy drives, then the bridge driven.
+    /// The second half of a period: `decide` asked for the scores and the duty (`None`
+    /// when there is no decision a duty can rest on) where the policy drives, then the
+    /// bridge driven. Without a decision the motor coasts, counted (or, under a monitor,
+    /// its fallback drives).
     #[inline(always)]
     fn act_by(
         &mut self,
         sensed: Sensed<S::Reading>,
-        decide: impl FnOnce(&mut P, &S::Reading) -> Answer<S::Reading>,
+        decide: impl FnOnce(&mut P, &S::Reading) -> Answer<P::Scores>,
     ) -> Command {
         let Sensed {
             obs,
@@ -365,7 +337,7 @@ where
             if let Some(m) = &mut self.monitor {
                 m.rejected(flags, &mut self.faults);
             }
-            (S::Reading::UNSCORED, Command::Coast)
+            (P::Scores::UNSCORED, Command::Coast)
         } else {
             match &mut self.monitor {
                 Some(m) => {
@@ -375,11 +347,13 @@ where
                     flags = flags.with(who);
                     (q, command)
                 }
-                None => {
-                    let (q, action) = decide(policy, &seen);
-                    let action = action.unwrap_or_else(|| S::Reading::decide(&q));
-                    (q, Command::Push(action))
-                }
+                None => match decide(policy, &seen) {
+                    (q, Some(duty)) => (q, Command::Drive(duty)),
+                    (q, None) => {
+                        self.faults.count_undecided();
+                        (q, Command::Coast)
+                    }
+                },
             }
         };
         if let Some(p) = &mut self.predictor {
@@ -434,12 +408,12 @@ where
     }
 
     /// The last `N` periods, oldest first.
-    pub fn telemetry(&self) -> impl Iterator<Item = &Record<S::Reading>> {
+    pub fn telemetry(&self) -> impl Iterator<Item = &Record<S::Reading, P::Scores>> {
         self.telemetry.oldest_ordered()
     }
 
     /// The most recent period, if any.
-    pub fn last(&self) -> Option<&Record<S::Reading>> {
+    pub fn last(&self) -> Option<&Record<S::Reading, P::Scores>> {
         self.telemetry.recent()
     }
 
@@ -491,17 +465,17 @@ where
     }
 }
 
-/// A decision: the scores to record, and the action (`None` when the scores are not finite
-/// and no action may rest on them): what [`Monitor::decide`] asks for.
-pub type Answer<O> = (<O as Reading>::Scores, Option<Action>);
+/// A decision: the scores to record, and the duty they choose (`None` when no duty may
+/// rest on them): what [`Monitor::decide`] asks for.
+pub type Answer<Q> = (Q, Option<Duty>);
 
-/// The policy's answer on `seen`: its scores, and the action they choose where they are
-/// finite. What [`Controller::act`] asks of its policy, and a caller of [`Monitor::decide`]
-/// hands it.
+/// The policy's answer on `seen`: its scores, and the duty of the output they choose. What
+/// [`Controller::act`] asks of its policy, and a caller of [`Monitor::decide`] hands it.
 #[inline(always)]
-pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<O> {
+pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<P::Scores> {
     let q = policy.scores(seen);
-    (q, O::finite(&q).then(|| O::decide(&q)))
+    let duty = q.choice().and_then(|i| policy.duty(i));
+    (q, duty)
 }
 
 #[cfg(test)]

@@ -30,8 +30,7 @@
 //! allocation-free, and runs on the reading's own format: the envelope checks of an integer
 //! reading are integer compares.
 
-use super::{Command, FaultCounters, FaultFlags, Limits, Reading};
-use crate::cartpole::Action;
+use super::{Answer, Command, Duty, FaultCounters, FaultFlags, Limits, Reading, Scores};
 use crate::config::{ConfigError, check};
 use crate::rig::Rig;
 
@@ -162,18 +161,18 @@ impl Monitor {
     /// `decide` asked for the policy's scores and decision where the policy drives (its
     /// decision `None` when its scores are not finite), then the scores recorded, the
     /// command, and the flags of who decided.
-    pub fn decide<O: Reading>(
+    pub fn decide<O: Reading, Q: Scores>(
         &mut self,
         obs: &O,
         seen: &O,
         model_only: bool,
-        decide: impl FnOnce(&O) -> (O::Scores, Option<Action>),
+        decide: impl FnOnce(&O) -> Answer<Q>,
         counters: &mut FaultCounters,
-    ) -> (O::Scores, Command, FaultFlags) {
+    ) -> (Q, Command, FaultFlags) {
         let beyond = !obs.flags(&self.assurance.recoverable).is_empty();
         self.beyond(beyond, counters);
         if self.mode == Mode::Stopped {
-            return (O::UNSCORED, Command::Coast, FaultFlags::STOPPED);
+            return (Q::UNSCORED, Command::Coast, FaultFlags::STOPPED);
         }
         if model_only {
             self.fault(counters);
@@ -191,18 +190,23 @@ impl Monitor {
                 counters.recoveries = counters.recoveries.saturating_add(1);
             }
         }
-        let mut q = O::UNSCORED;
+        let mut q = Q::UNSCORED;
         if self.mode == Mode::Policy {
-            let action;
-            (q, action) = decide(seen);
-            if let Some(a) = action {
-                return (q, Command::Push(a), FaultFlags::default());
+            let duty;
+            (q, duty) = decide(seen);
+            if let Some(d) = duty {
+                return (q, Command::Drive(d), FaultFlags::default());
             }
-            counters.non_finite_scores = counters.non_finite_scores.saturating_add(1);
+            counters.count_undecided();
             self.fall_back(counters);
         }
         counters.fallback_periods = counters.fallback_periods.saturating_add(1);
-        let command = Command::Push(seen.bang_bang(&self.assurance.gain));
+        let push = if seen.lqr(&self.assurance.gain) > 0.0 {
+            Duty::RIGHT
+        } else {
+            Duty::LEFT
+        };
+        let command = Command::Drive(push);
         (q, command, FaultFlags::FALLBACK)
     }
 

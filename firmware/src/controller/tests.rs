@@ -24,6 +24,10 @@ impl StateSensor for Script<'_> {
 struct SignOfTheta;
 
 impl Policy for SignOfTheta {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
         [0.0, obs[2]]
     }
@@ -72,12 +76,12 @@ fn push(on: bool) -> Vec<PwmTx> {
 #[test]
 fn first_push_is_off_direction_on() {
     for (reading, level, action) in [
-        (LEAN_RIGHT, State::High, Action::Right),
-        (LEAN_LEFT, State::Low, Action::Left),
+        (LEAN_RIGHT, State::High, Duty::RIGHT),
+        (LEAN_LEFT, State::Low, Duty::LEFT),
     ] {
         let pwm = [push(false), push(true)].concat();
         let (cmds, _, faults) = run(&[Ok(reading)], &[PinTx::set(level)], &pwm);
-        assert_eq!(cmds, [Command::Push(action)]);
+        assert_eq!(cmds, [Command::Drive(action)]);
         assert_eq!(faults, FaultCounters::default());
     }
 }
@@ -108,10 +112,10 @@ fn repeated_push_writes_nothing_and_reversal_breaks_before_make() {
     assert_eq!(
         cmds,
         [
-            Command::Push(Action::Right),
-            Command::Push(Action::Right),
-            Command::Push(Action::Left),
-            Command::Push(Action::Right)
+            Command::Drive(Duty::RIGHT),
+            Command::Drive(Duty::RIGHT),
+            Command::Drive(Duty::LEFT),
+            Command::Drive(Duty::RIGHT)
         ]
     );
     assert_eq!(records.len(), 4);
@@ -239,7 +243,7 @@ fn actuator_error_is_counted_and_the_next_push_resends_everything() {
     ];
     let pwm = [push(false), push(false), push(true)].concat();
     let (cmds, records, faults) = run(&readings, &pin, &pwm);
-    assert_eq!(cmds, [Command::Push(Action::Right); 2]);
+    assert_eq!(cmds, [Command::Drive(Duty::RIGHT); 2]);
     assert_eq!(records[0].faults, FaultFlags::ACTUATOR_ERROR);
     assert!(!records[0].faults.reading_rejected());
     assert!(records[1].faults.is_empty());
@@ -314,9 +318,9 @@ fn the_sensor_is_told_each_command_after_its_reading() {
     assert_eq!(
         sent,
         [
-            Command::Push(Action::Right),
+            Command::Drive(Duty::RIGHT),
             Command::Coast,
-            Command::Push(Action::Left)
+            Command::Drive(Duty::LEFT)
         ]
     );
     let (_, sensor, _) = c.release();
@@ -337,4 +341,47 @@ fn fixed_point_bounds_are_the_conversions_of_the_float_ones() {
     }
     let half = Limits::new([0.5 / 4096.0, 1.5 / 4096.0, 2.5 / 4096.0, 1e30]).unwrap();
     assert_eq!(half.fixed(), [1, 2, 3, i16::MAX - 1]);
+}
+
+/// Partial duties: a duty the same way writes the duty alone, a reversal breaks before it
+/// makes, a zero duty is the motor off, and coasting when off writes nothing.
+#[test]
+fn levels_drive_their_duty_and_reversals_break_before_make() {
+    let duty = |t: i16| Command::Drive(Duty::from_fraction(f32::from(t) / 1000.0).unwrap());
+    let fraction = |t: u16| {
+        std::vec![
+            PwmTx::max_duty_cycle(MAX),
+            PwmTx::set_duty_cycle((u32::from(t) * u32::from(MAX) / 1000) as u16),
+        ]
+    };
+    let pin = [
+        PinTx::set(State::High),
+        PinTx::set(State::Low),
+        PinTx::set(State::High),
+    ];
+    let pwm = [
+        push(false),
+        fraction(200),
+        fraction(500),
+        push(false),
+        fraction(500),
+        push(false),
+        push(true),
+    ]
+    .concat();
+    let (mut dir, mut en) = (PinMock::new(&pin), PwmMock::new(&pwm));
+    let mut bridge = Bridge::new(dir.clone(), en.clone());
+    for c in [
+        duty(200),
+        duty(500),
+        duty(500),
+        duty(-500),
+        duty(0),
+        Command::Coast,
+        duty(1000),
+    ] {
+        bridge.drive(c).unwrap();
+    }
+    dir.done();
+    en.done();
 }

@@ -1,8 +1,7 @@
 //! The messages, and their bytes inside a frame's payload: a four-byte header (protocol
 //! version, kind, sequence number, little-endian) and a body whose length the kind fixes.
 
-use crate::Action;
-use crate::controller::{Command, FaultFlags};
+use crate::controller::{Command, Duty, FaultFlags};
 
 /// The protocol's version; a frame of another is refused ([`Reason::Version`]).
 pub const VERSION: u8 = 2;
@@ -339,8 +338,8 @@ fn format(b: u8) -> Option<Format> {
 
 fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
     let command = match r.u8()? as i8 {
-        -1 => Command::Push(Action::Left),
-        1 => Command::Push(Action::Right),
+        -1 => Command::Drive(Duty::LEFT),
+        1 => Command::Drive(Duty::RIGHT),
         0 => Command::Coast,
         _ => return None,
     };
@@ -358,10 +357,11 @@ fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
     })
 }
 
+/// The command's direction: a target runs a policy on the two full-duty levels, whose
+/// every command is one of the three.
 fn command_byte(c: Command) -> i8 {
     match c {
-        Command::Push(Action::Left) => -1,
-        Command::Push(Action::Right) => 1,
+        Command::Drive(d) => d.thousandths().signum() as i8,
         Command::Coast => 0,
     }
 }

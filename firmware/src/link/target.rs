@@ -5,7 +5,7 @@
 //! same code.
 
 use crate::config::ConfigError;
-use crate::controller::{Assurance, Controller, FaultFlags, StateSensor};
+use crate::controller::{Assurance, Controller, FaultFlags, Policy, Scores as _, StateSensor};
 use crate::envelope::ENVELOPE;
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
@@ -200,10 +200,10 @@ impl<'p, const H: usize> Target<'p, H> {
 fn step<P, O: Estimate>(
     c: &mut Controller<P, LinkSensor<O>, Pins>,
     m: Measurement,
-    scores: impl Fn(O::Scores) -> Scores,
+    scores: impl Fn(P::Scores) -> Scores,
 ) -> Reply
 where
-    P: crate::controller::Policy<O>,
+    P: Policy<O>,
     LinkSensor<O>: StateSensor<Reading = O>,
 {
     c.sensor_mut().set(m);
@@ -211,7 +211,7 @@ where
     let last = c.last();
     Reply {
         command,
-        scores: scores(last.map_or(O::UNSCORED, |r| r.q)),
+        scores: scores(last.map_or(P::Scores::UNSCORED, |r| r.q)),
         faults: last.map_or(FaultFlags::SENSOR_ERROR, |r| r.faults),
         ticks: 0,
     }

@@ -5,8 +5,7 @@ use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 
 use super::*;
-use crate::Action;
-use crate::controller::{Command, FaultFlags};
+use crate::controller::{Command, Duty, FaultFlags};
 
 /// The bit-at-a-time definition the nibble table must agree with.
 fn crc32_bitwise(data: &[u8]) -> u32 {
@@ -173,8 +172,8 @@ fn every_kind() -> Vec<Packet> {
             ..info
         }),
         Message::Started,
-        reply(Command::Push(Action::Left), Scores::F32([-1.5, f32::MAX])),
-        reply(Command::Push(Action::Right), Scores::I32([i32::MIN, 0])),
+        reply(Command::Drive(Duty::LEFT), Scores::F32([-1.5, f32::MAX])),
+        reply(Command::Drive(Duty::RIGHT), Scores::I32([i32::MIN, 0])),
         reply(Command::Coast, Scores::F32([f32::NEG_INFINITY; 2])),
         Message::Refused(Reason::Mode),
         Message::Refused(Reason::Version),

@@ -1,10 +1,12 @@
-//! The Q-network: 4 inputs, two hidden ReLU layers of width `H`, 2 linear outputs.
+//! The Q-network: 4 inputs, two hidden ReLU layers of width `H`, `A` linear outputs (one per
+//! duty level the policy chooses among: the paper's two, full push left and right, by
+//! default).
 //!
 //! This is the one definition of the inference forward pass. The trainer acts with it, the
 //! simulator balances with it and the microcontroller runs it, so a policy behaves the same
 //! everywhere, bit for bit. It is also the one definition of the network's shape: the
 //! parameter count ([`params`]), the tensors' names ([`TENSOR_NAMES`]) and shapes
-//! ([`shapes`]), and the widths the project's tools are built for ([`SUPPORTED_WIDTHS`]).
+//! ([`shapes`]), and the shapes the project's tools are built for ([`SUPPORTED_SHAPES`]).
 //!
 //! Weights are plain fixed-size arrays in PyTorch's `nn.Linear` layout (`weight[out][in]`),
 //! so a policy is a `static` in flash and [`Mlp::forward`] needs about `2 * H` floats of stack
@@ -34,15 +36,13 @@
 //! assert_eq!(Mlp::<64>::PARAMS, 4_610);
 //! ```
 
-use crate::cartpole::Action;
-
 pub mod int;
 #[cfg(all(target_arch = "arm", target_abi = "eabihf"))]
 pub mod vfp;
 
 /// Inputs: the plant's observation `[x, x_dot, theta, theta_dot]`.
 pub const OBS_DIM: usize = 4;
-/// Outputs: one Q-value per action (left, right).
+/// Outputs of the paper's network: one Q-value per action (left, right).
 pub const N_ACTIONS: usize = 2;
 /// Partial sums per dot product (see the module docs).
 pub const LANES: usize = 8;
@@ -52,18 +52,29 @@ pub const PAPER_WIDTH: usize = 64;
 /// The paper's network: 4-64-64-2.
 pub type PolicyNet = Mlp<PAPER_WIDTH>;
 
+macro_rules! supported_shapes {
+    ($($h:literal x $a:literal,)*) => {
+        /// `(width, outputs)` of every network the trainer and the simulator are built for
+        /// (any other `H` and `A` compile as [`Mlp<H, A>`] too). The list is
+        /// [`for_each_shape!`](crate::for_each_shape).
+        pub const SUPPORTED_SHAPES: &[(usize, usize)] = &[$(($h, $a)),*];
+    };
+}
+crate::for_each_shape!(supported_shapes);
+
 macro_rules! supported_widths {
     ($($h:literal => $c:ident / $qc:ident,)*) => {
-        /// Hidden widths the trainer, the simulator and the C API are built for (any other `H`
-        /// compiles as [`Mlp<H>`] too). The list is [`for_each_width!`](crate::for_each_width).
+        /// Hidden widths of the paper's two-output network (the C API's), the list of
+        /// [`for_each_width!`](crate::for_each_width).
         pub const SUPPORTED_WIDTHS: &[usize] = &[$($h),*];
     };
 }
 crate::for_each_width!(supported_widths);
 
-/// Parameters of a 4-h-h-2 network: `4h + h + h*h + h + 2h + 2` (4,610 for `h = 64`).
-pub const fn params(h: usize) -> usize {
-    OBS_DIM * h + h + h * h + h + N_ACTIONS * h + N_ACTIONS
+/// Parameters of a 4-h-h-a network: `4h + h + h*h + h + ah + a` (4,610 for the paper's
+/// `h = 64`, `a = 2`).
+pub const fn params(h: usize, a: usize) -> usize {
+    OBS_DIM * h + h + h * h + h + a * h + a
 }
 
 /// The six tensors' PyTorch names, in the order [`Mlp::tensors`] returns them.
@@ -113,8 +124,8 @@ impl Shape {
     }
 }
 
-/// The shapes of the six tensors of a 4-h-h-2 network, in [`TENSOR_NAMES`] order.
-pub const fn shapes(h: usize) -> [Shape; 6] {
+/// The shapes of the six tensors of a 4-h-h-a network, in [`TENSOR_NAMES`] order.
+pub const fn shapes(h: usize, a: usize) -> [Shape; 6] {
     const fn m(o: usize, i: usize) -> Shape {
         Shape {
             dims: [o, i],
@@ -127,23 +138,16 @@ pub const fn shapes(h: usize) -> [Shape; 6] {
             rank: 1,
         }
     }
-    [
-        m(h, OBS_DIM),
-        v(h),
-        m(h, h),
-        v(h),
-        m(N_ACTIONS, h),
-        v(N_ACTIONS),
-    ]
+    [m(h, OBS_DIM), v(h), m(h, h), v(h), m(a, h), v(a)]
 }
 
-/// A 4-H-H-2 multilayer perceptron with ReLU hidden layers. Field names follow the PyTorch
+/// A 4-H-H-A multilayer perceptron with ReLU hidden layers. Field names follow the PyTorch
 /// module `fc1`, `fc2`, `fc3` (as in its safetensors export); `weight[o][i]` connects input
 /// `i` to output `o`. The layout is C's (`repr(C)`): the C API's `struct cartpole_mlpH` is
 /// this type, field for field.
 #[derive(Clone, Debug, PartialEq)]
 #[repr(C)]
-pub struct Mlp<const H: usize> {
+pub struct Mlp<const H: usize, const A: usize = N_ACTIONS> {
     /// First layer weights, `[H][4]`.
     pub fc1_weight: [[f32; OBS_DIM]; H],
     /// First layer biases, `[H]`.
@@ -152,18 +156,18 @@ pub struct Mlp<const H: usize> {
     pub fc2_weight: [[f32; H]; H],
     /// Second layer biases, `[H]`.
     pub fc2_bias: [f32; H],
-    /// Output layer weights, `[2][H]`.
-    pub fc3_weight: [[f32; H]; N_ACTIONS],
-    /// Output layer biases, `[2]`.
-    pub fc3_bias: [f32; N_ACTIONS],
+    /// Output layer weights, `[A][H]`.
+    pub fc3_weight: [[f32; H]; A],
+    /// Output layer biases, `[A]`.
+    pub fc3_bias: [f32; A],
 }
 
-impl<const H: usize> Mlp<H> {
-    /// Number of parameters, [`params`]`(H)`.
-    pub const PARAMS: usize = params(H);
+impl<const H: usize, const A: usize> Mlp<H, A> {
+    /// Number of parameters, [`params`]`(H, A)`.
+    pub const PARAMS: usize = params(H, A);
 
-    /// Shapes of the six tensors, [`shapes`]`(H)`.
-    pub const SHAPES: [Shape; 6] = shapes(H);
+    /// Shapes of the six tensors, [`shapes`]`(H, A)`.
+    pub const SHAPES: [Shape; 6] = shapes(H, A);
 
     /// All parameters zero; usable in `const` and `static` items.
     pub const fn zeroed() -> Self {
@@ -172,8 +176,8 @@ impl<const H: usize> Mlp<H> {
             fc1_bias: [0.0; H],
             fc2_weight: [[0.0; H]; H],
             fc2_bias: [0.0; H],
-            fc3_weight: [[0.0; H]; N_ACTIONS],
-            fc3_bias: [0.0; N_ACTIONS],
+            fc3_weight: [[0.0; H]; A],
+            fc3_bias: [0.0; A],
         }
     }
 
@@ -201,36 +205,40 @@ impl<const H: usize> Mlp<H> {
         ]
     }
 
-    /// Q-values `[Q(obs, left), Q(obs, right)]`, in the summation order of the module docs.
+    /// Q-values, one per output (`[Q(obs, left), Q(obs, right)]` for the paper's network),
+    /// in the summation order of the module docs.
     #[inline]
-    pub fn forward(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    pub fn forward(&self, obs: &[f32; OBS_DIM]) -> [f32; A] {
         // Filled in place: returning the layers by value costs a copy of each whenever the
         // dot product is an out-of-line call (the Cortex-M4F's).
         let mut h1 = [0.0; H];
         linear(&mut h1, &self.fc1_weight, &self.fc1_bias, obs, true);
         let mut h2 = [0.0; H];
         linear(&mut h2, &self.fc2_weight, &self.fc2_bias, &h1, true);
-        let mut q = [0.0; N_ACTIONS];
+        let mut q = [0.0; A];
         linear(&mut q, &self.fc3_weight, &self.fc3_bias, &h2, false);
         q
     }
 
-    /// The action with the larger Q-value. A tie (or a NaN) picks `Left`, the lower index,
-    /// as `argmax` does in NumPy and PyTorch.
+    /// The output with the largest Q-value ([`argmax`]).
     #[inline]
-    pub fn greedy_action(&self, obs: &[f32; OBS_DIM]) -> Action {
+    pub fn greedy(&self, obs: &[f32; OBS_DIM]) -> usize {
         argmax(&self.forward(obs))
     }
 }
 
-/// `Right` only if its Q-value is strictly larger; ties and NaNs give `Left`.
+/// The index of the largest value; a tie picks the lower index, as `argmax` does in NumPy
+/// and PyTorch, and a NaN never wins (index 0 if the first value is NaN). With two outputs:
+/// `1` (right) only if its value is strictly larger.
 #[inline]
-pub fn argmax(q: &[f32; N_ACTIONS]) -> Action {
-    if q[1] > q[0] {
-        Action::Right
-    } else {
-        Action::Left
+pub fn argmax<T: PartialOrd>(q: &[T]) -> usize {
+    let mut best = 0;
+    for i in 1..q.len() {
+        if q[i] > q[best] {
+            best = i;
+        }
     }
+    best
 }
 
 /// `y[o] = dot(w[o], x) + b[o]`, then ReLU if asked (`max(v, 0)`, NaN and `-0.0` to `+0.0`).

@@ -78,19 +78,22 @@ fn forward_matches_f64_reference_at_every_width() {
 
 #[test]
 fn parameter_counts_and_shapes_are_the_true_ones() {
-    assert_eq!(params(16), 386);
+    assert_eq!(params(16, 2), 386);
     assert_eq!(Mlp::<64>::PARAMS, 4_610);
-    assert_eq!(params(128), 17_410);
+    assert_eq!(params(128, 2), 17_410);
+    // 4*64 + 64 + 64*64 + 64 + 7*64 + 7: five more output rows of 65.
+    assert_eq!(Mlp::<64, 7>::PARAMS, 4_610 + 5 * 65);
     assert_eq!(core::mem::size_of::<PolicyNet>(), 18_440);
     let net = PolicyNet::zeroed();
     let lens = net.tensors().map(<[f32]>::len);
     assert_eq!(lens, PolicyNet::SHAPES.map(|s| s.len()));
     assert_eq!(lens.iter().sum::<usize>(), 4_610);
-    let dims = shapes(16).map(|s| (s.dims().len(), s.dims()[0]));
+    let dims = shapes(16, 2).map(|s| (s.dims().len(), s.dims()[0]));
     assert_eq!(dims, [(2, 16), (1, 16), (2, 16), (1, 16), (2, 2), (1, 2)]);
-    assert_eq!(shapes(16)[2].matrix(), Some((16, 16)));
-    assert_eq!(shapes(16)[4].dims(), [2, 16]);
-    assert_eq!(shapes(16)[5].matrix(), None);
+    assert_eq!(shapes(16, 2)[2].matrix(), Some((16, 16)));
+    assert_eq!(shapes(16, 2)[4].dims(), [2, 16]);
+    assert_eq!(shapes(16, 5)[4].dims(), [5, 16]);
+    assert_eq!(shapes(16, 2)[5].matrix(), None);
 }
 
 #[test]
@@ -101,7 +104,7 @@ fn the_mlp_has_cs_layout() {
     let offsets = net.tensors().map(|t| t.as_ptr().addr() - base);
     let mut want = [0; 6];
     for i in 1..6 {
-        want[i] = want[i - 1] + 4 * shapes(16)[i - 1].len();
+        want[i] = want[i - 1] + 4 * shapes(16, 2)[i - 1].len();
     }
     assert_eq!(offsets, want);
 }
@@ -169,17 +172,17 @@ fn the_tree_is_the_documented_one() {
 }
 
 #[test]
-fn ties_and_nan_pick_left() {
-    assert_eq!(argmax(&[1.0, 1.0]), Action::Left);
-    assert_eq!(argmax(&[0.0, -0.0]), Action::Left);
-    assert_eq!(argmax(&[f32::NAN, 1.0]), Action::Left);
-    assert_eq!(argmax(&[1.0, f32::NAN]), Action::Left);
-    assert_eq!(argmax(&[1.0, 1.0 + f32::EPSILON]), Action::Right);
-    // An all-zero net outputs equal Q-values, so it always pushes left.
-    assert_eq!(
-        PolicyNet::zeroed().greedy_action(&[0.1, 0.0, -0.1, 0.0]),
-        Action::Left
-    );
+fn ties_and_nan_pick_the_lower_index() {
+    assert_eq!(argmax(&[1.0, 1.0]), 0);
+    assert_eq!(argmax(&[0.0, -0.0]), 0);
+    assert_eq!(argmax(&[f32::NAN, 1.0]), 0);
+    assert_eq!(argmax(&[1.0, f32::NAN]), 0);
+    assert_eq!(argmax(&[1.0, 1.0 + f32::EPSILON]), 1);
+    assert_eq!(argmax(&[1.0, 3.0, 2.0, 3.0, f32::NAN]), 1);
+    assert_eq!(argmax(&[-1, 5, 7, 7]), 2);
+    // An all-zero net outputs equal Q-values, so it always picks the first output.
+    assert_eq!(PolicyNet::zeroed().greedy(&[0.1, 0.0, -0.1, 0.0]), 0);
+    assert_eq!(Mlp::<16, 5>::zeroed().greedy(&[0.1, 0.0, -0.1, 0.0]), 0);
 }
 
 #[test]

@@ -1,70 +1,119 @@
-//! A Q-network of any supported width, loaded at run time, as the simulator runs it.
+//! A Q-network of any supported shape, loaded at run time, as the simulator runs it.
 
 use std::fmt;
 
 use anyhow::Result;
-use firmware::controller::{Limits, Policy};
+use firmware::controller::{Duty, Levels, Limits, Policy, Scores};
 use firmware::envelope::ENVELOPE;
-use firmware::network::Mlp;
 use firmware::network::int::QMlp;
+use firmware::network::{Mlp, SUPPORTED_SHAPES, argmax};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
 use host_common::wide::WideMlp;
 use weights::Weights;
 use weights::quant::Granularity;
-use weights::width::{ForWidth, by_width};
+use weights::shape::{ForShape, by_shape};
 
 /// A Q-network laid out for the host's vector units ([`WideMlp`]: the firmware's forward
 /// pass, bit for bit), with its integer version where one was asked for
-/// (`firmware::network::int`, as `policy-export export --quant int8` writes it).
+/// (`firmware::network::int`, as `policy-export export --quant int8` writes it), and the duty
+/// level of each output.
 #[derive(Debug)]
 pub struct Net {
     float: Box<dyn Forward>,
     int: Option<Box<dyn IntForward>>,
+    levels: Vec<Duty>,
     envelope: Option<Limits>,
 }
 
-/// A [`QMlp`] of some width, behind one type.
+/// The most outputs of any supported network.
+pub const MAX_OUTPUTS: usize = {
+    let mut max = 0;
+    let mut i = 0;
+    while i < SUPPORTED_SHAPES.len() {
+        if SUPPORTED_SHAPES[i].1 > max {
+            max = SUPPORTED_SHAPES[i].1;
+        }
+        i += 1;
+    }
+    max
+};
+
+/// The scores of a network whose output count is known only at run time: the first `n`
+/// of `q`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outputs<T> {
+    q: [T; MAX_OUTPUTS],
+    n: u8,
+}
+
+impl<T: Copy + Default> Outputs<T> {
+    fn of<const A: usize>(q: [T; A]) -> Outputs<T> {
+        let mut all = [T::default(); MAX_OUTPUTS];
+        all[..A].copy_from_slice(&q);
+        Outputs { q: all, n: A as u8 }
+    }
+
+    /// The scores, one per output.
+    pub fn values(&self) -> &[T] {
+        &self.q[..usize::from(self.n)]
+    }
+}
+
+impl Scores for Outputs<f32> {
+    const UNSCORED: Outputs<f32> = Outputs {
+        q: [f32::NAN; MAX_OUTPUTS],
+        n: 0,
+    };
+    fn choice(&self) -> Option<usize> {
+        let q = self.values();
+        (!q.is_empty() && q.iter().all(|v| v.is_finite())).then(|| argmax(q))
+    }
+}
+
+/// A [`QMlp`] of some shape, behind one type.
 trait IntForward: fmt::Debug + Send + Sync {
-    fn forward(&self, obs: &[i16; 4]) -> [i32; 2];
+    fn forward(&self, obs: &[i16; 4]) -> Outputs<i32>;
 }
 
-impl<const H: usize> IntForward for QMlp<H> {
+impl<const H: usize, const A: usize> IntForward for QMlp<H, A> {
     #[inline]
-    fn forward(&self, obs: &[i16; 4]) -> [i32; 2] {
-        QMlp::forward(self, obs)
+    fn forward(&self, obs: &[i16; 4]) -> Outputs<i32> {
+        Outputs::of(QMlp::forward(self, obs))
     }
 }
 
-/// A [`WideMlp`] of some width, behind one type.
+/// A [`WideMlp`] of some shape, behind one type.
 trait Forward: fmt::Debug + Send + Sync {
-    fn forward(&self, obs: &[f32; 4]) -> [f32; 2];
+    fn forward(&self, obs: &[f32; 4]) -> Outputs<f32>;
 }
 
-impl<const H: usize> Forward for WideMlp<H> {
+impl<const H: usize, const A: usize> Forward for WideMlp<H, A> {
     #[inline]
-    fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
-        WideMlp::forward(self, obs)
+    fn forward(&self, obs: &[f32; 4]) -> Outputs<f32> {
+        Outputs::of(WideMlp::forward(self, obs))
     }
 }
 
-/// Building a [`Net`] for the width of `weights`.
+/// Building a [`Net`] for the shape of `weights`.
 struct Build<'a> {
     weights: &'a Weights,
     int: Option<&'a weights::quant::Quantised>,
 }
 
-impl ForWidth for Build<'_> {
+impl ForShape for Build<'_> {
     type Output = weights::Result<Net>;
-    fn run<const H: usize>(self) -> weights::Result<Net> {
-        let mlp: Box<Mlp<H>> = self.weights.to_mlp()?;
+    fn run<const H: usize, const A: usize>(self) -> weights::Result<Net> {
+        let mlp: Box<Mlp<H, A>> = self.weights.to_mlp()?;
+        let levels: Levels<A> = self.weights.to_levels()?;
         let int: Option<Box<dyn IntForward>> = match self.int {
-            Some(q) => Some(q.to_qmlp::<H>()?),
+            Some(q) => Some(q.to_qmlp::<H, A>()?),
             None => None,
         };
         Ok(Net {
-            float: WideMlp::new(&mlp),
+            float: WideMlp::new(&mlp, levels),
             int,
+            levels: levels.duties().to_vec(),
             envelope: None,
         })
     }
@@ -75,8 +124,9 @@ impl Net {
     /// beside it.
     pub fn shipped() -> Net {
         Net {
-            float: WideMlp::new(&POLICY),
+            float: WideMlp::new(&POLICY, Levels::BANG_BANG),
             int: Some(Box::new(POLICY_INT.clone())),
+            levels: Levels::BANG_BANG.duties().to_vec(),
             envelope: Some(ENVELOPE),
         }
     }
@@ -95,8 +145,9 @@ impl Net {
         } else {
             None
         };
-        Ok(by_width(
+        Ok(by_shape(
             w.width(),
+            w.outputs(),
             Build {
                 weights: w,
                 int: q.as_ref(),
@@ -117,40 +168,55 @@ impl Net {
     }
 
     /// The float network's Q-values.
-    pub fn forward(&self, obs: &[f32; 4]) -> [f32; 2] {
+    pub fn forward(&self, obs: &[f32; 4]) -> Outputs<f32> {
         self.float.forward(obs)
     }
 
     /// The integer network's outputs for a fixed-point observation, if it has one.
-    pub fn forward_int(&self, obs: &[i16; 4]) -> Option<[i32; 2]> {
+    pub fn forward_int(&self, obs: &[i16; 4]) -> Option<Outputs<i32>> {
         self.int.as_ref().map(|n| n.forward(obs))
+    }
+
+    /// The duty level of each output.
+    pub fn levels(&self) -> &[Duty] {
+        &self.levels
     }
 }
 
 impl Policy for &Net {
+    type Scores = Outputs<f32>;
     #[inline]
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
+    fn scores(&mut self, obs: &[f32; 4]) -> Outputs<f32> {
         self.float.forward(obs)
+    }
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.levels.get(i).copied()
     }
 }
 
 /// The integer network of a [`Net`] as a controller's policy: the reading rounded to Q3.12,
 /// the scores the integer outputs (exact in f32, see `firmware::controller`).
 #[derive(Clone, Copy, Debug)]
-pub struct IntNet<'a>(&'a dyn IntForward);
+pub struct IntNet<'a>(&'a dyn IntForward, &'a [Duty]);
 
 impl<'a> IntNet<'a> {
     /// The integer version of `net`, if it was built with one.
     pub fn of(net: &'a Net) -> Option<IntNet<'a>> {
-        net.int.as_deref().map(IntNet)
+        net.int.as_deref().map(|int| IntNet(int, &net.levels))
     }
 }
 
 impl Policy for IntNet<'_> {
+    type Scores = Outputs<f32>;
     #[inline]
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        self.0
-            .forward(&firmware::fixed::from_state(obs))
-            .map(|q| q as f32)
+    fn scores(&mut self, obs: &[f32; 4]) -> Outputs<f32> {
+        let q = self.0.forward(&firmware::fixed::from_state(obs));
+        Outputs {
+            q: q.q.map(|v| v as f32),
+            n: q.n,
+        }
+    }
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.1.get(i).copied()
     }
 }

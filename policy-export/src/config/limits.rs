@@ -45,6 +45,8 @@ pub enum Limit {
     Reward,
     /// A rig file's text `twin::rigfile::parse` accepts, or nothing.
     Rig,
+    /// Duty levels ([`super::parse_levels`]), or nothing.
+    Levels,
 }
 
 /// A key's value as its [`Limit`] sees it.
@@ -158,6 +160,7 @@ impl Limit {
                     .map(drop)
                     .map_err(|e| e.to_string()),
             ),
+            (Limit::Levels, Value::Text(s)) => parsed(super::parse_levels(s).map(drop)),
             (limit, v) => Err(format!("{key}: a {limit:?} limit cannot judge {v:?}")),
         }
     }
@@ -191,6 +194,14 @@ impl Config {
                     self.buffer_size
                 ));
             }
+        }
+        if let Ok(levels) = super::parse_levels(&self.levels)
+            && !firmware::network::SUPPORTED_SHAPES.contains(&(self.width, levels.len()))
+        {
+            errs.push(
+                weights::shape::unsupported(self.width, levels.len()).to_string()
+                    + " (width and levels)",
+            );
         }
         if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
             errs.push(format!(

@@ -162,8 +162,13 @@ config_keys! {
     pub struct Config {
         /// TD target.
         algo: Algo = Algo::Ddqn;
-        /// Hidden width: 16, 32, 64, 128 or 256 (64 ships).
+        /// Hidden width: 16, 64 or 128 (64 ships; more levels than two at 64 only).
         width: usize = 64, limit Limit::OneOf(SUPPORTED_WIDTHS);
+        /// The duty level of each output, fractions of the full push in increasing order,
+        /// comma-separated (`-1,-0.2,0,0.2,1`): the network has one output per level;
+        /// empty: the paper's two, full push left and right.
+        #[serde(default)]
+        levels: String = String::new(), limit Limit::Levels;
         /// Adam learning rate.
         lr: f64 = 5e-4, limit Limit::PositiveInF32;
         /// Adam beta1.
@@ -273,7 +278,36 @@ config_keys! {
     }
 }
 
+/// The duty levels `spec` lists (comma-separated fractions of the full push), or the
+/// paper's two for an empty spec; refused as the firmware refuses them
+/// (`firmware::controller::check_levels`).
+pub fn parse_levels(spec: &str) -> Result<Vec<f32>, String> {
+    if spec.trim().is_empty() {
+        return Ok(weights::BANG_BANG.to_vec());
+    }
+    let levels = spec
+        .split(',')
+        .map(|v| {
+            v.trim().parse::<f32>().map_err(|_| {
+                format!(
+                    "levels {}: expected comma-separated numbers, found {}",
+                    weights::quote(spec),
+                    weights::quote(v)
+                )
+            })
+        })
+        .collect::<Result<Vec<f32>, String>>()?;
+    firmware::controller::check_levels(&levels)
+        .map_err(|e| format!("levels {}: {e}", weights::quote(spec)))?;
+    Ok(levels)
+}
+
 impl Config {
+    /// The duty level of each output (`validate` has checked them).
+    pub fn levels(&self) -> Result<Vec<f32>, ConfigError> {
+        parse_levels(&self.levels).map_err(ConfigError)
+    }
+
     /// The machine `rig` describes (`validate` has checked it).
     pub fn machine(&self) -> Result<twin::Machine, ConfigError> {
         if self.rig.is_empty() {

@@ -4,7 +4,7 @@
 //! each sum runs over every row in batch order, whoever computes it, so a gradient's bits
 //! do not depend on how the work was shared.
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, OBS_DIM};
 
 use super::Loss;
 use super::kernels::{Render, all_rows, rows_times};
@@ -24,16 +24,16 @@ fn relu_backward<const H: usize>(grad: &mut [[f32; H]], activation: &[[f32; H]])
 /// `dq[b] = scale * dL/dQ` for each row, non-zero only at the taken action, and the row's
 /// loss in `loss[b]`.
 #[inline(always)]
-fn loss_grad(
-    q: &[[f32; N_ACTIONS]],
+fn loss_grad<const A: usize>(
+    q: &[[f32; A]],
     actions: &[u8],
     targets: &[f32],
     (loss, scale): (Loss, f32),
-    dq: &mut [[f32; N_ACTIONS]],
+    dq: &mut [[f32; A]],
     losses: &mut [f32],
 ) {
     for b in 0..q.len() {
-        let a = usize::from(actions[b].min(1));
+        let a = usize::from(actions[b].min(A as u8 - 1));
         let d = q[b][a] - targets[b];
         let (l, g) = match loss {
             Loss::Mse => (d * d, 2.0 * d),
@@ -41,7 +41,7 @@ fn loss_grad(
             Loss::Huber => (d.abs() - 0.5, d.signum()),
         };
         losses[b] = l;
-        dq[b] = [0.0; N_ACTIONS];
+        dq[b] = [0.0; A];
         dq[b][a] = g * scale;
     }
 }
@@ -49,15 +49,15 @@ fn loss_grad(
 /// What the row work reads and writes, one entry per row: the forward pass's activations
 /// `a1`, `a2` and Q-values `q` in; the loss's gradient `dq`, each hidden layer's errors
 /// `d2`, `d1` and each row's loss out.
-pub struct RowGrads<'a, const H: usize> {
+pub struct RowGrads<'a, const H: usize, const A: usize> {
     /// First hidden layer's activations.
     pub a1: &'a [[f32; H]],
     /// Second hidden layer's activations.
     pub a2: &'a [[f32; H]],
     /// Q-values.
-    pub q: &'a [[f32; N_ACTIONS]],
+    pub q: &'a [[f32; A]],
     /// Scaled `dL/dQ`.
-    pub dq: &'a mut [[f32; N_ACTIONS]],
+    pub dq: &'a mut [[f32; A]],
     /// Errors at the second hidden layer's units.
     pub d2: &'a mut [[f32; H]],
     /// Errors at the first hidden layer's units.
@@ -69,16 +69,16 @@ pub struct RowGrads<'a, const H: usize> {
 /// The row work of the backward pass: each row's loss gradient and its errors at the hidden
 /// units, `d2 = (dq W3)` and `d1 = (d2 W2)`, each masked by its layer's ReLU'.
 #[inline(always)]
-pub(super) fn rows_impl<const H: usize, F: Render, const R: usize>(
-    net: &Mlp<H>,
+pub(super) fn rows_impl<const H: usize, const A: usize, F: Render, const R: usize>(
+    net: &Mlp<H, A>,
     actions: &[u8],
     targets: &[f32],
     loss: (Loss, f32),
-    r: RowGrads<'_, H>,
+    r: RowGrads<'_, H, A>,
 ) {
     let n = r.q.len();
     loss_grad(r.q, actions, targets, loss, r.dq, r.loss);
-    all_rows::<H, N_ACTIONS, F, R>(r.dq, &net.fc3_weight, None, false, r.d2);
+    all_rows::<H, A, F, R>(r.dq, &net.fc3_weight, None, false, r.d2);
     relu_backward(&mut r.d2[..n], r.a2);
     all_rows::<H, H, F, R>(r.d2, &net.fc2_weight, None, false, r.d1);
     relu_backward(&mut r.d1[..n], r.a1);
@@ -86,7 +86,7 @@ pub(super) fn rows_impl<const H: usize, F: Render, const R: usize>(
 
 /// What the weight gradients are summed from: every row of the batch, in order.
 #[derive(Clone, Copy)]
-pub struct BatchGrads<'a, const H: usize> {
+pub struct BatchGrads<'a, const H: usize, const A: usize> {
     /// Observations.
     pub x: &'a [[f32; OBS_DIM]],
     /// First hidden layer's activations.
@@ -94,7 +94,7 @@ pub struct BatchGrads<'a, const H: usize> {
     /// Second hidden layer's activations.
     pub a2: &'a [[f32; H]],
     /// Scaled `dL/dQ`.
-    pub dq: &'a [[f32; N_ACTIONS]],
+    pub dq: &'a [[f32; A]],
     /// Errors at the second hidden layer's units.
     pub d2: &'a [[f32; H]],
     /// Errors at the first hidden layer's units.
@@ -103,15 +103,15 @@ pub struct BatchGrads<'a, const H: usize> {
 
 /// A network's gradient in two shares of about equal work: the first half of the second
 /// layer's weight rows, and everything else.
-pub enum Share<'a, const H: usize> {
+pub enum Share<'a, const H: usize, const A: usize> {
     /// Rows `0..H/2` of `fc2.weight`.
     First(&'a mut [[f32; H]]),
     /// Rows `H/2..H` of `fc2.weight`, and every other tensor.
-    Second(SecondShare<'a, H>),
+    Second(SecondShare<'a, H, A>),
 }
 
 /// The tensors of [`Share::Second`].
-pub struct SecondShare<'a, const H: usize> {
+pub struct SecondShare<'a, const H: usize, const A: usize> {
     /// Rows `H/2..H` of `fc2.weight`.
     pub fc2_weight: &'a mut [[f32; H]],
     /// `fc1.weight`.
@@ -121,13 +121,13 @@ pub struct SecondShare<'a, const H: usize> {
     /// `fc2.bias`.
     pub fc2_bias: &'a mut [f32; H],
     /// `fc3.weight`.
-    pub fc3_weight: &'a mut [[f32; H]; N_ACTIONS],
+    pub fc3_weight: &'a mut [[f32; H]; A],
     /// `fc3.bias`.
-    pub fc3_bias: &'a mut [f32; N_ACTIONS],
+    pub fc3_bias: &'a mut [f32; A],
 }
 
 /// `grad` in its two [`Share`]s.
-pub fn shares<const H: usize>(grad: &mut Mlp<H>) -> [Share<'_, H>; 2] {
+pub fn shares<const H: usize, const A: usize>(grad: &mut Mlp<H, A>) -> [Share<'_, H, A>; 2] {
     let (first, second) = grad.fc2_weight.split_at_mut(H / 2);
     [
         Share::First(first),
@@ -144,14 +144,14 @@ pub fn shares<const H: usize>(grad: &mut Mlp<H>) -> [Share<'_, H>; 2] {
 
 /// One share of the weight gradients, each a sum over every row of `g` in order.
 #[inline(always)]
-pub(super) fn share_impl<const H: usize, F: Render, const R: usize>(
-    g: BatchGrads<'_, H>,
-    share: Share<'_, H>,
+pub(super) fn share_impl<const H: usize, const A: usize, F: Render, const R: usize>(
+    g: BatchGrads<'_, H, A>,
+    share: Share<'_, H, A>,
 ) {
     match share {
-        Share::First(rows) => second_layer::<H, F, R>(g, rows, 0),
+        Share::First(rows) => second_layer::<H, A, F, R>(g, rows, 0),
         Share::Second(s) => {
-            second_layer::<H, F, R>(g, s.fc2_weight, H / 2);
+            second_layer::<H, A, F, R>(g, s.fc2_weight, H / 2);
             // Summed row after row, vectorised across units; each unit still adds its
             // column in batch order starting from -0.0, exactly as `Iterator::sum` over the
             // column would.
@@ -161,7 +161,7 @@ pub(super) fn share_impl<const H: usize, F: Render, const R: usize>(
                     *b += d;
                 }
             }
-            first_layer::<H, F>(g, s.fc1_weight, s.fc1_bias);
+            first_layer::<H, A, F>(g, s.fc1_weight, s.fc1_bias);
             output_layer(g, s.fc3_weight, s.fc3_bias);
         }
     }
@@ -170,8 +170,8 @@ pub(super) fn share_impl<const H: usize, F: Render, const R: usize>(
 /// Rows `first..` of the second layer's weight gradient: `dW2[o] = sum_b d2[b][o] *
 /// a1[b]`, rows over `o`, terms over `b`, reading `d2` down its columns, `R` units at a time.
 #[inline(always)]
-fn second_layer<const H: usize, F: Render, const R: usize>(
-    g: BatchGrads<'_, H>,
+fn second_layer<const H: usize, const A: usize, F: Render, const R: usize>(
+    g: BatchGrads<'_, H, A>,
     rows: &mut [[f32; H]],
     first: usize,
 ) {
@@ -189,8 +189,8 @@ fn second_layer<const H: usize, F: Render, const R: usize>(
 
 /// The first layer's gradients from its units' `d1` and the observations `x`.
 #[inline(always)]
-fn first_layer<const H: usize, F: Render>(
-    g: BatchGrads<'_, H>,
+fn first_layer<const H: usize, const A: usize, F: Render>(
+    g: BatchGrads<'_, H, A>,
     weight: &mut [[f32; OBS_DIM]; H],
     bias: &mut [f32; H],
 ) {
@@ -212,15 +212,15 @@ fn first_layer<const H: usize, F: Render>(
 
 /// The output layer's gradients (2 x H, small): direct sums over the rows.
 #[inline(always)]
-fn output_layer<const H: usize>(
-    g: BatchGrads<'_, H>,
-    weight: &mut [[f32; H]; N_ACTIONS],
-    bias: &mut [f32; N_ACTIONS],
+fn output_layer<const H: usize, const A: usize>(
+    g: BatchGrads<'_, H, A>,
+    weight: &mut [[f32; H]; A],
+    bias: &mut [f32; A],
 ) {
-    *weight = [[0.0; H]; N_ACTIONS];
-    *bias = [0.0; N_ACTIONS];
+    *weight = [[0.0; H]; A];
+    *bias = [0.0; A];
     for (dq, a2) in g.dq.iter().zip(g.a2) {
-        for o in 0..N_ACTIONS {
+        for o in 0..A {
             for (w, a) in weight[o].iter_mut().zip(a2) {
                 *w = dq[o].mul_add(*a, *w);
             }

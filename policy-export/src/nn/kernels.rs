@@ -3,7 +3,7 @@
 //! (`f32::mul_add`, one rounding), in increasing `i`. That is the training arithmetic's
 //! definition; every build renders exactly it (software `fmaf` where the CPU has no FMA).
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, OBS_DIM};
 
 use super::Packed;
 
@@ -189,21 +189,21 @@ pub(super) fn all_rows<const H: usize, const N: usize, F: Render, const R: usize
 }
 
 /// A forward pass's activations and Q-values, one entry per row of its input.
-pub struct Activations<'a, const H: usize> {
+pub struct Activations<'a, const H: usize, const A: usize> {
     /// First hidden layer.
     pub a1: &'a mut [[f32; H]],
     /// Second hidden layer.
     pub a2: &'a mut [[f32; H]],
     /// Q-values.
-    pub q: &'a mut [[f32; N_ACTIONS]],
+    pub q: &'a mut [[f32; A]],
 }
 
 #[inline(always)]
-pub(super) fn forward_impl<const H: usize, F: Render, const R: usize>(
-    net: &Mlp<H>,
+pub(super) fn forward_impl<const H: usize, const A: usize, F: Render, const R: usize>(
+    net: &Mlp<H, A>,
     packed: &Packed<H>,
     x: &[[f32; OBS_DIM]],
-    out: Activations<'_, H>,
+    out: Activations<'_, H, A>,
 ) {
     let n = x.len();
     all_rows::<H, OBS_DIM, F, R>(x, &packed.w1t, Some(&net.fc1_bias), true, out.a1);

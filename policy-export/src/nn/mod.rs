@@ -28,7 +28,7 @@
 //! over a batch's rows runs over all of them in order, so how the work is shared between
 //! cores is no part of the definition either.
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, OBS_DIM};
 pub use host_common::kernel::Kernel;
 
 mod backprop;
@@ -56,15 +56,15 @@ pub enum Loss {
 
 /// A whole batch's activations and gradients, allocated once: what [`Ops::forward_batch`]
 /// and [`Ops::backward`] work in.
-pub struct Scratch<const H: usize> {
+pub struct Scratch<const H: usize, const A: usize> {
     a1: Vec<[f32; H]>,
     a2: Vec<[f32; H]>,
     d1: Vec<[f32; H]>,
     d2: Vec<[f32; H]>,
-    dq: Vec<[f32; N_ACTIONS]>,
+    dq: Vec<[f32; A]>,
     loss: Vec<f32>,
     /// Q-values of the last [`Ops::forward_batch`].
-    pub q: Vec<[f32; N_ACTIONS]>,
+    pub q: Vec<[f32; A]>,
 }
 
 /// A network's first two weight matrices transposed (`[in][out]`), so that the batched
@@ -76,7 +76,7 @@ pub struct Packed<const H: usize> {
 
 impl<const H: usize> Packed<H> {
     /// The transposes of `net`'s weights, on the heap.
-    pub fn new(net: &Mlp<H>) -> Box<Self> {
+    pub fn new<const A: usize>(net: &Mlp<H, A>) -> Box<Self> {
         let mut p = Box::new(Packed {
             w1t: [[0.0; H]; OBS_DIM],
             w2t: [[0.0; H]; H],
@@ -110,7 +110,7 @@ impl<const H: usize> Packed<H> {
     /// square matrix moves in 4 x 4 tiles: element by element, the stores run down columns
     /// `4 H` bytes apart, which at width 128 land in a few L1 sets and took a seventh of
     /// the step.
-    pub fn pack(&mut self, net: &Mlp<H>) {
+    pub fn pack<const A: usize>(&mut self, net: &Mlp<H, A>) {
         for (o, w1) in net.fc1_weight.iter().enumerate() {
             for (i, w) in w1.iter().enumerate() {
                 self.w1t[i][o] = *w;
@@ -157,7 +157,7 @@ fn transpose4(r: [[f32; 4]; 4]) -> [[f32; 4]; 4] {
     core::array::from_fn(|i| r.map(|row| row[i]))
 }
 
-impl<const H: usize> Scratch<H> {
+impl<const H: usize, const A: usize> Scratch<H, A> {
     /// Room for batches of up to `batch` samples.
     pub fn new(batch: usize) -> Self {
         Scratch {
@@ -165,15 +165,15 @@ impl<const H: usize> Scratch<H> {
             a2: vec![[0.0; H]; batch],
             d1: vec![[0.0; H]; batch],
             d2: vec![[0.0; H]; batch],
-            dq: vec![[0.0; N_ACTIONS]; batch],
+            dq: vec![[0.0; A]; batch],
             loss: vec![0.0; batch],
-            q: vec![[0.0; N_ACTIONS]; batch],
+            q: vec![[0.0; A]; batch],
         }
     }
 }
 
 /// A zeroed network on the heap (`Mlp<128>` is 70 KB: too big to move around on stacks).
-pub fn boxed_zero<const H: usize>() -> Box<Mlp<H>> {
+pub fn boxed_zero<const H: usize, const A: usize>() -> Box<Mlp<H, A>> {
     Box::new(Mlp::zeroed())
 }
 

@@ -7,7 +7,7 @@
 //! sound because a table is handed out only after the CPU was checked for every feature
 //! its build enables.
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, OBS_DIM};
 use host_common::kernel::Kernel;
 use host_common::wide;
 
@@ -22,16 +22,17 @@ use super::{AdamStep, Loss, Packed, Scratch};
 pub type Part<'a> = (&'a mut [f32], &'a [f32], &'a mut [f32], &'a mut [f32]);
 
 /// The row work's signature: the net, actions, targets, the loss and its scale, the rows.
-type RowsFn<const H: usize> = fn(&Mlp<H>, &[u8], &[f32], (Loss, f32), RowGrads<'_, H>);
+type RowsFn<const H: usize, const A: usize> =
+    fn(&Mlp<H, A>, &[u8], &[f32], (Loss, f32), RowGrads<'_, H, A>);
 
 /// One build's operations.
-pub struct Ops<const H: usize> {
+pub struct Ops<const H: usize, const A: usize> {
     kernel: Kernel,
-    forward: fn(&Mlp<H>, &Packed<H>, &[[f32; OBS_DIM]], Activations<'_, H>),
-    rows: RowsFn<H>,
-    share: fn(BatchGrads<'_, H>, Share<'_, H>),
+    forward: fn(&Mlp<H, A>, &Packed<H>, &[[f32; OBS_DIM]], Activations<'_, H, A>),
+    rows: RowsFn<H, A>,
+    share: fn(BatchGrads<'_, H, A>, Share<'_, H, A>),
     adam: fn(&AdamStep, &mut [Part<'_>]),
-    act: fn(&Mlp<H>, &[f32; OBS_DIM]) -> [f32; N_ACTIONS],
+    act: fn(&Mlp<H, A>, &[f32; OBS_DIM]) -> [f32; A],
 }
 
 /// Each operation's generic code, for one build: `$render` the 4-row blocks' rendering,
@@ -42,29 +43,29 @@ macro_rules! build {
             use super::*;
 
             $(#[target_feature(enable = $enable)])?
-            fn forward<const H: usize>(
-                net: &Mlp<H>,
+            fn forward<const H: usize, const A: usize>(
+                net: &Mlp<H, A>,
                 packed: &Packed<H>,
                 x: &[[f32; OBS_DIM]],
-                out: Activations<'_, H>,
+                out: Activations<'_, H, A>,
             ) {
-                forward_impl::<H, $render, ROWS>(net, packed, x, out)
+                forward_impl::<H, A, $render, ROWS>(net, packed, x, out)
             }
 
             $(#[target_feature(enable = $enable)])?
-            fn rows<const H: usize>(
-                net: &Mlp<H>,
+            fn rows<const H: usize, const A: usize>(
+                net: &Mlp<H, A>,
                 actions: &[u8],
                 targets: &[f32],
                 loss: (Loss, f32),
-                r: RowGrads<'_, H>,
+                r: RowGrads<'_, H, A>,
             ) {
-                rows_impl::<H, $render, ROWS>(net, actions, targets, loss, r)
+                rows_impl::<H, A, $render, ROWS>(net, actions, targets, loss, r)
             }
 
             $(#[target_feature(enable = $enable)])?
-            fn share<const H: usize>(g: BatchGrads<'_, H>, s: Share<'_, H>) {
-                share_impl::<H, $render, ROWS>(g, s)
+            fn share<const H: usize, const A: usize>(g: BatchGrads<'_, H, A>, s: Share<'_, H, A>) {
+                share_impl::<H, A, $render, ROWS>(g, s)
             }
 
             $(#[target_feature(enable = $enable)])?
@@ -74,22 +75,22 @@ macro_rules! build {
                 }
             }
 
-            fn act<const H: usize>(net: &Mlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+            fn act<const H: usize, const A: usize>(net: &Mlp<H, A>, obs: &[f32; OBS_DIM]) -> [f32; A] {
                 wide::forward_unpacked(net, obs, $kernel)
             }
 
             // The allow covers the baseline, whose functions need no `unsafe` to call.
             #[allow(unused_unsafe)]
-            pub(super) const fn ops<const H: usize>() -> Ops<H> {
+            pub(super) const fn ops<const H: usize, const A: usize>() -> Ops<H, A> {
                 // SAFETY: each function is called only through the table [`Ops::new`] hands
                 // out after checking that the CPU has every feature the build enables.
                 Ops {
                     kernel: $kernel,
-                    forward: |n, p, x, o| unsafe { forward::<H>(n, p, x, o) },
-                    rows: |n, a, t, l, r| unsafe { rows::<H>(n, a, t, l, r) },
-                    share: |g, s| unsafe { share::<H>(g, s) },
+                    forward: |n, p, x, o| unsafe { forward::<H, A>(n, p, x, o) },
+                    rows: |n, a, t, l, r| unsafe { rows::<H, A>(n, a, t, l, r) },
+                    share: |g, s| unsafe { share::<H, A>(g, s) },
                     adam: |a, p| unsafe { adam(a, p) },
-                    act: act::<H>,
+                    act: act::<H, A>,
                 }
             }
         }
@@ -102,16 +103,16 @@ build!(avx2, Generic, Kernel::Avx2, "avx2,fma");
 #[cfg(target_arch = "x86_64")]
 build!(avx512, Avx512, Kernel::Avx512, "avx512f,avx512vl,avx2,fma");
 
-impl<const H: usize> Ops<H> {
-    const PORTABLE: Ops<H> = portable::ops();
+impl<const H: usize, const A: usize> Ops<H, A> {
+    const PORTABLE: Ops<H, A> = portable::ops();
     #[cfg(target_arch = "x86_64")]
-    const AVX2: Ops<H> = avx2::ops();
+    const AVX2: Ops<H, A> = avx2::ops();
     #[cfg(target_arch = "x86_64")]
-    const AVX512: Ops<H> = avx512::ops();
+    const AVX512: Ops<H, A> = avx512::ops();
 
     /// `kernel`'s table; a kernel this CPU lacks gets the baseline's (the command line
     /// refuses such a choice up front). Every table computes the same bits.
-    pub fn new(kernel: Kernel) -> &'static Ops<H> {
+    pub fn new(kernel: Kernel) -> &'static Ops<H, A> {
         match kernel {
             #[cfg(target_arch = "x86_64")]
             Kernel::Avx512 if kernel.supported() => &Self::AVX512,
@@ -131,10 +132,10 @@ impl<const H: usize> Ops<H> {
     /// split of them gives the same bits.
     pub fn forward(
         &self,
-        net: &Mlp<H>,
+        net: &Mlp<H, A>,
         packed: &Packed<H>,
         x: &[[f32; OBS_DIM]],
-        out: Activations<'_, H>,
+        out: Activations<'_, H, A>,
     ) {
         (self.forward)(net, packed, x, out)
     }
@@ -143,17 +144,17 @@ impl<const H: usize> Ops<H> {
     /// towards `targets[b]`, its gradient scaled by `loss.1`. Rows are independent.
     pub fn rows(
         &self,
-        net: &Mlp<H>,
+        net: &Mlp<H, A>,
         actions: &[u8],
         targets: &[f32],
         loss: (Loss, f32),
-        r: RowGrads<'_, H>,
+        r: RowGrads<'_, H, A>,
     ) {
         (self.rows)(net, actions, targets, loss, r)
     }
 
     /// One [`Share`] of the weight gradients, each a sum over every row of `g` in order.
-    pub fn share(&self, g: BatchGrads<'_, H>, share: Share<'_, H>) {
+    pub fn share(&self, g: BatchGrads<'_, H, A>, share: Share<'_, H, A>) {
         (self.share)(g, share)
     }
 
@@ -165,17 +166,17 @@ impl<const H: usize> Ops<H> {
 
     /// The firmware's forward pass of one observation, bit for bit (`host_common::wide`):
     /// what acting uses.
-    pub fn q_values(&self, net: &Mlp<H>, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    pub fn q_values(&self, net: &Mlp<H, A>, obs: &[f32; OBS_DIM]) -> [f32; A] {
         (self.act)(net, obs)
     }
 
     /// [`Ops::forward`] of a whole batch into `s`; Q-values land in `s.q[..x.len()]`.
     pub fn forward_batch(
         &self,
-        net: &Mlp<H>,
+        net: &Mlp<H, A>,
         packed: &Packed<H>,
         x: &[[f32; OBS_DIM]],
-        s: &mut Scratch<H>,
+        s: &mut Scratch<H, A>,
     ) {
         let out = Activations {
             a1: &mut s.a1,
@@ -191,13 +192,13 @@ impl<const H: usize> Ops<H> {
     #[allow(clippy::too_many_arguments)]
     pub fn backward(
         &self,
-        net: &Mlp<H>,
+        net: &Mlp<H, A>,
         x: &[[f32; OBS_DIM]],
         actions: &[u8],
         targets: &[f32],
         loss: (Loss, f32),
-        s: &mut Scratch<H>,
-        grad: &mut Mlp<H>,
+        s: &mut Scratch<H, A>,
+        grad: &mut Mlp<H, A>,
     ) -> f64 {
         let n = x.len();
         let rows = RowGrads {

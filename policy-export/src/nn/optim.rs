@@ -31,7 +31,7 @@ const FLUSH: f32 = 1e-30;
 /// partial sums, tensor after tensor, then the partial sums in order ([`sum_of_squares`]):
 /// PyTorch's one sequential sum is a chain of 4,610 dependent additions, which this order
 /// breaks into eight that a vector unit runs side by side.
-pub fn clip_grad_norm<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) -> bool {
+pub fn clip_grad_norm<const H: usize, const A: usize>(grad: &mut Mlp<H, A>, max_norm: f32) -> bool {
     let norm = sum_of_squares(grad).sqrt() as f32;
     if norm > max_norm {
         let scale = max_norm / (norm + 1e-6);
@@ -45,7 +45,7 @@ pub fn clip_grad_norm<const H: usize>(grad: &mut Mlp<H>, max_norm: f32) -> bool 
 
 /// The sum of squares of every parameter, in f64, in eight interleaved partial sums over
 /// each tensor in turn, the partial sums then added in order; NaN if any parameter is NaN.
-pub fn sum_of_squares<const H: usize>(grad: &Mlp<H>) -> f64 {
+pub fn sum_of_squares<const H: usize, const A: usize>(grad: &Mlp<H, A>) -> f64 {
     let mut acc = [0.0f64; 8];
     for t in grad.tensors() {
         let (chunks, rest) = t.as_chunks::<8>();
@@ -62,7 +62,11 @@ pub fn sum_of_squares<const H: usize>(grad: &Mlp<H>) -> f64 {
 }
 
 /// `target <- tau * online + (1 - tau) * target`, elementwise.
-pub fn soft_update<const H: usize>(target: &mut Mlp<H>, online: &Mlp<H>, tau: f32) {
+pub fn soft_update<const H: usize, const A: usize>(
+    target: &mut Mlp<H, A>,
+    online: &Mlp<H, A>,
+    tau: f32,
+) {
     for (t, o) in target.tensors_mut().into_iter().zip(online.tensors()) {
         for (t, o) in t.iter_mut().zip(o) {
             *t = interpolate(tau, *o, *t);

@@ -5,7 +5,7 @@
 // Written as the formulas are, with explicit indices.
 #![allow(clippy::needless_range_loop)]
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, dot_portable};
+use firmware::network::{Mlp, OBS_DIM, dot_portable};
 
 use super::{AdamParams, Loss};
 
@@ -23,10 +23,10 @@ fn layer<const I: usize, const O: usize>(
 }
 
 /// The activations and Q-values of one observation.
-pub(crate) fn forward<const H: usize>(
-    net: &Mlp<H>,
+pub(crate) fn forward<const H: usize, const A: usize>(
+    net: &Mlp<H, A>,
     x: &[f32; OBS_DIM],
-) -> ([f32; H], [f32; H], [f32; 2]) {
+) -> ([f32; H], [f32; H], [f32; A]) {
     let a1 = layer(x, &net.fc1_weight, &net.fc1_bias);
     let a2 = layer(&a1, &net.fc2_weight, &net.fc2_bias);
     let q = core::array::from_fn(|a| dot_portable(&net.fc3_weight[a], &a2) + net.fc3_bias[a]);
@@ -34,19 +34,19 @@ pub(crate) fn forward<const H: usize>(
 }
 
 /// The gradient of `scale` times the rows' summed loss, and the summed loss.
-pub(crate) fn backward<const H: usize>(
-    net: &Mlp<H>,
+pub(crate) fn backward<const H: usize, const A: usize>(
+    net: &Mlp<H, A>,
     x: &[[f32; OBS_DIM]],
     actions: &[u8],
     targets: &[f32],
     (loss, scale): (Loss, f32),
-) -> (Mlp<H>, f64) {
+) -> (Mlp<H, A>, f64) {
     let n = x.len();
     let acts: Vec<_> = x.iter().map(|x| forward(net, x)).collect();
     let mut total = 0.0f64;
-    let mut dq = vec![[0.0f32; N_ACTIONS]; n];
+    let mut dq = vec![[0.0f32; A]; n];
     for b in 0..n {
-        let a = usize::from(actions[b].min(1));
+        let a = usize::from(actions[b].min(A as u8 - 1));
         let d = acts[b].2[a] - targets[b];
         let (l, g) = match loss {
             Loss::Mse => (d * d, 2.0 * d),
@@ -56,9 +56,9 @@ pub(crate) fn backward<const H: usize>(
         total += f64::from(l);
         dq[b][a] = g * scale;
     }
-    let mut g = Mlp::<H>::zeroed();
+    let mut g = Mlp::<H, A>::zeroed();
     for b in 0..n {
-        for o in 0..N_ACTIONS {
+        for o in 0..A {
             for i in 0..H {
                 g.fc3_weight[o][i] = dq[b][o].mul_add(acts[b].1[i], g.fc3_weight[o][i]);
             }
@@ -70,8 +70,7 @@ pub(crate) fn backward<const H: usize>(
     let d2: Vec<[f32; H]> = (0..n)
         .map(|b| {
             core::array::from_fn(|h| {
-                let v =
-                    (0..N_ACTIONS).fold(0.0, |acc, a| dq[b][a].mul_add(net.fc3_weight[a][h], acc));
+                let v = (0..A).fold(0.0, |acc, a| dq[b][a].mul_add(net.fc3_weight[a][h], acc));
                 mask(v, acts[b].1[h])
             })
         })
@@ -98,13 +97,13 @@ pub(crate) fn backward<const H: usize>(
 }
 
 /// One Adam step, parameter by parameter.
-pub(crate) fn adam<const H: usize>(
+pub(crate) fn adam<const H: usize, const A: usize>(
     hp: &AdamParams,
     t: u64,
-    p: &mut Mlp<H>,
-    g: &Mlp<H>,
-    m: &mut Mlp<H>,
-    v: &mut Mlp<H>,
+    p: &mut Mlp<H, A>,
+    g: &Mlp<H, A>,
+    m: &mut Mlp<H, A>,
+    v: &mut Mlp<H, A>,
 ) {
     let t = t.min(i32::MAX as u64) as i32;
     let step = (hp.lr / (1.0 - hp.beta1.powi(t))) as f32;
@@ -125,7 +124,7 @@ pub(crate) fn adam<const H: usize>(
 
 /// The sum of squares the gradient clip takes the norm of: element `j` of each tensor into
 /// partial sum `j % 8`, tensor after tensor, the eight then added in order.
-pub(crate) fn sum_of_squares<const H: usize>(g: &Mlp<H>) -> f64 {
+pub(crate) fn sum_of_squares<const H: usize, const A: usize>(g: &Mlp<H, A>) -> f64 {
     let mut lanes = [0.0f64; 8];
     for t in g.tensors() {
         for (j, &v) in t.iter().enumerate() {

@@ -9,9 +9,9 @@ fn forward_batch<const H: usize>(
     net: &Mlp<H>,
     packed: &Packed<H>,
     x: &[[f32; OBS_DIM]],
-    s: &mut Scratch<H>,
+    s: &mut Scratch<H, 2>,
 ) {
-    Ops::<H>::new(kernel).forward_batch(net, packed, x, s)
+    Ops::<H, 2>::new(kernel).forward_batch(net, packed, x, s)
 }
 
 /// [`Ops::backward`] with `kernel`'s table.
@@ -23,10 +23,10 @@ fn backward<const H: usize>(
     actions: &[u8],
     targets: &[f32],
     loss: (Loss, f32),
-    s: &mut Scratch<H>,
+    s: &mut Scratch<H, 2>,
     grad: &mut Mlp<H>,
 ) -> f64 {
-    Ops::<H>::new(kernel).backward(net, x, actions, targets, loss, s, grad)
+    Ops::<H, 2>::new(kernel).backward(net, x, actions, targets, loss, s, grad)
 }
 
 /// [`Ops::adam`] with `kernel`'s table on every parameter of `p`.
@@ -46,7 +46,7 @@ fn adam_step<const H: usize>(
         .zip(m.into_iter().zip(v))
         .map(|((p, g), (m, v))| (p, g, m, v))
         .collect();
-    Ops::<H>::new(kernel).adam(&hp.at(t), &mut parts);
+    Ops::<H, 2>::new(kernel).adam(&hp.at(t), &mut parts);
 }
 
 fn kernels() -> Vec<Kernel> {
@@ -58,7 +58,7 @@ fn uniform(r: &mut impl Rng, lo: f32, hi: f32) -> f32 {
 }
 
 fn random_net<const H: usize>(seed: u64) -> Box<Mlp<H>> {
-    let mut net = boxed_zero::<H>();
+    let mut net = boxed_zero::<H, 2>();
     init_weights(&mut net, Init::Xavier, &mut rng(seed, Stream::Init));
     // Non-trivial biases so that ReLU boundaries are exercised from both sides.
     let mut r = rng(seed, Stream::Sample);
@@ -132,8 +132,8 @@ fn check_gradients<const H: usize>(loss: Loss) {
         .tensors()
         .map(|t| t.iter().map(|&v| f64::from(v)).collect());
     for kernel in kernels() {
-        let mut s = Scratch::<H>::new(6);
-        let mut grad = boxed_zero::<H>();
+        let mut s = Scratch::<H, 2>::new(6);
+        let mut grad = boxed_zero::<H, 2>();
         forward_batch(kernel, &net, &Packed::new(&net), &x, &mut s);
         let scaled = (loss, 1.0 / x.len() as f32);
         let l = backward(
@@ -179,7 +179,7 @@ fn batched_forward_matches_the_firmware_forward() {
         let net = random_net::<64>(seed);
         let x = random_obs(&mut r, 32);
         for kernel in kernels() {
-            let mut s = Scratch::<64>::new(32);
+            let mut s = Scratch::<64, 2>::new(32);
             forward_batch(kernel, &net, &Packed::new(&net), &x, &mut s);
             for (xb, q) in x.iter().zip(&s.q) {
                 let want = net.forward(xb);
@@ -207,8 +207,12 @@ fn adam_steps_match_hand_computed_values() {
         eps: 1e-8,
     };
     for kernel in kernels() {
-        let mut p = boxed_zero::<16>();
-        let (mut m, mut v, mut g) = (boxed_zero::<16>(), boxed_zero::<16>(), boxed_zero::<16>());
+        let mut p = boxed_zero::<16, 2>();
+        let (mut m, mut v, mut g) = (
+            boxed_zero::<16, 2>(),
+            boxed_zero::<16, 2>(),
+            boxed_zero::<16, 2>(),
+        );
         p.fc2_weight[3][4] = 1.0;
         g.fc2_weight[3][4] = 0.5;
         adam_step(kernel, &hp, 1, &mut p, &g, &mut m, &mut v);
@@ -246,10 +250,10 @@ fn dead_units_moments_are_flushed_not_subnormal() {
         eps: 1e-8,
     };
     let (mut p, mut m, mut v, mut g) = (
-        boxed_zero::<16>(),
-        boxed_zero::<16>(),
-        boxed_zero::<16>(),
-        boxed_zero::<16>(),
+        boxed_zero::<16, 2>(),
+        boxed_zero::<16, 2>(),
+        boxed_zero::<16, 2>(),
+        boxed_zero::<16, 2>(),
     );
     g.fc1_bias[0] = 1e-3;
     adam_step(Kernel::Portable, &hp, 1, &mut p, &g, &mut m, &mut v);
@@ -264,7 +268,7 @@ fn dead_units_moments_are_flushed_not_subnormal() {
 
 #[test]
 fn clipping_rescales_to_the_threshold() {
-    let mut g = boxed_zero::<16>();
+    let mut g = boxed_zero::<16, 2>();
     g.fc1_weight[0][0] = 12.0;
     g.fc3_bias[1] = -16.0; // norm 20
     assert!(clip_grad_norm(&mut g, 10.0));
@@ -280,7 +284,7 @@ fn clipping_rescales_to_the_threshold() {
         (g.fc1_weight[0][0] / g.fc3_bias[1] + 0.75).abs() < 1e-7,
         "direction kept"
     );
-    let mut small = boxed_zero::<16>();
+    let mut small = boxed_zero::<16, 2>();
     small.fc2_bias[2] = 3.0;
     assert!(!clip_grad_norm(&mut small, 10.0));
     assert_eq!(small.fc2_bias[2], 3.0);
@@ -316,7 +320,7 @@ fn the_clip_follows_the_definition_on_both_sides_of_the_threshold() {
 
 #[test]
 fn soft_update_interpolates() {
-    let (mut t, mut o) = (boxed_zero::<16>(), boxed_zero::<16>());
+    let (mut t, mut o) = (boxed_zero::<16, 2>(), boxed_zero::<16, 2>());
     t.fc2_weight[1][2] = 1.0;
     o.fc2_weight[1][2] = 3.0;
     soft_update(&mut t, &o, 0.25);
@@ -344,8 +348,8 @@ fn every_kernel_renders_the_definition_bit_for_bit() {
                 .map(f32::to_bits)
                 .collect();
             for kernel in kernels() {
-                let mut s = Scratch::<H>::new(n);
-                let mut g = boxed_zero::<H>();
+                let mut s = Scratch::<H, 2>::new(n);
+                let mut g = boxed_zero::<H, 2>();
                 forward_batch(kernel, &net, &packed, &x, &mut s);
                 let q: Vec<u32> = s.q.iter().flatten().map(|v| v.to_bits()).collect();
                 assert_eq!(q, want_q, "{kernel:?}: forward, width {H}, batch {n}");
@@ -363,7 +367,7 @@ fn every_kernel_renders_the_definition_bit_for_bit() {
                     eps: 1e-8,
                 };
                 let (mut p1, mut p2) = (net.clone(), net.clone());
-                let [mut m1, mut v1, mut m2, mut v2] = [0; 4].map(|_| boxed_zero::<H>());
+                let [mut m1, mut v1, mut m2, mut v2] = [0; 4].map(|_| boxed_zero::<H, 2>());
                 for t in 1..4 {
                     adam_step(kernel, &hp, t, &mut p1, &g, &mut m1, &mut v1);
                     reference::adam(&hp, t, &mut p2, &want_g, &mut m2, &mut v2);
@@ -384,24 +388,17 @@ fn every_kernel_renders_the_definition_bit_for_bit() {
 fn the_learner_acts_with_the_firmwares_forward_pass() {
     use crate::config::Config;
     use crate::train::{Learner, ReplayBuffer};
-    use firmware::cartpole::Action;
     let cfg = Config {
         batch_size: 8,
         ..Config::paper()
     };
     for kernel in kernels() {
-        let mut learner = Learner::<64>::new(&cfg, kernel, 3);
+        let mut learner = Learner::<64, 2>::new(&cfg, kernel, 3);
         let mut buf = ReplayBuffer::new(64);
         let mut r = rng(4, Stream::Sample);
         let obs = random_obs(&mut r, 40);
         for (k, o) in obs.iter().enumerate() {
-            buf.push(
-                *o,
-                Action::from_index(k % 2),
-                1.0,
-                obs[(k + 1) % 40],
-                k % 9 == 0,
-            );
+            buf.push(*o, k % 2, 1.0, obs[(k + 1) % 40], k % 9 == 0);
         }
         for round in 0..3 {
             for o in &obs {

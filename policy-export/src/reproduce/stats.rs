@@ -116,7 +116,7 @@ pub fn row(v: &Variant, runs: &[RunStats]) -> Row {
     Row {
         study: v.study.to_string(),
         label: v.label.clone(),
-        params: firmware::network::params(v.cfg.width),
+        params: firmware::network::params(v.cfg.width, 2),
         seeds: runs.len(),
         solved_seeds: solved.len(),
         median_solved_episode: (!solved.is_empty()).then(|| median(&solved)),

@@ -17,7 +17,8 @@
 use std::time::Instant;
 
 use anyhow::{Result, bail};
-use firmware::cartpole::{Action, unit_f64};
+use firmware::cartpole::unit_f64;
+use firmware::controller::Levels;
 use firmware::network::{OBS_DIM, argmax};
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
@@ -34,13 +35,17 @@ use crate::config::{Config, TargetUpdate, Unit};
 /// One run: episodes in worlds drawn from the training domain until the episode count or
 /// the step budget is reached, the learner's weights evaluated every `eval_every` episodes,
 /// and the policy chosen among those snapshots.
-pub(super) fn run<const H: usize>(t: Training<'_>) -> Result<RunResult> {
+pub(super) fn run<const H: usize, const A: usize>(
+    t: Training<'_>,
+    levels: Levels<A>,
+) -> Result<RunResult> {
     let (cfg, seed) = (t.cfg, t.seed);
     let start = Instant::now();
     let d = domains(cfg)?;
     let mut r = Trainer {
         cfg,
-        learner: Learner::<H>::new(cfg, t.kernel, seed),
+        levels,
+        learner: Learner::<H, A>::new(cfg, t.kernel, seed),
         buf: ReplayBuffer::new(cfg.buffer_size),
         reward: Reward::parse(&cfg.reward).map_err(anyhow::Error::msg)?,
         explore: rng(seed, Stream::Explore),
@@ -53,7 +58,7 @@ pub(super) fn run<const H: usize>(t: Training<'_>) -> Result<RunResult> {
         pushes: rng(seed, Stream::Pushes),
     };
     let mut domain_rng = rng(seed, Stream::Domain);
-    let mut selection = Selection::new(cfg, seed, &d);
+    let mut selection = Selection::new(cfg, seed, &d, levels);
     let mut records = Vec::with_capacity(cfg.episodes);
     for ep in 0..cfg.episodes {
         let scenario = d.train.sample(&mut domain_rng);
@@ -74,7 +79,7 @@ pub(super) fn run<const H: usize>(t: Training<'_>) -> Result<RunResult> {
     let chosen = selection.choose(&r.learner, &records, t.evaluate_policy);
     Ok(RunResult {
         episodes: records,
-        policy: Weights::from_mlp(&chosen.policy).map_err(|e| {
+        policy: Weights::from_mlp(&chosen.policy, &levels).map_err(|e| {
             anyhow::anyhow!("the trained weights are unusable ({e}); try a smaller lr or grad_clip")
         })?,
         policy_episode: chosen.episode,
@@ -92,9 +97,11 @@ pub(super) fn run<const H: usize>(t: Training<'_>) -> Result<RunResult> {
 }
 
 /// A run's learning state, and the random streams the learner draws from ([`Stream`]).
-struct Trainer<'a, const H: usize> {
+struct Trainer<'a, const H: usize, const A: usize> {
     cfg: &'a Config,
-    learner: Learner<H>,
+    /// The duty level of each output: the policy the controller asks for an output.
+    levels: Levels<A>,
+    learner: Learner<H, A>,
     buf: ReplayBuffer,
     reward: Reward,
     explore: Pcg64Mcg,
@@ -109,6 +116,11 @@ struct Worlds {
     pushes: Pcg64Mcg,
 }
 
+/// The largest Q-value, in f64 (`max` folds NaN away as `f32::max` does).
+fn max_of<const A: usize>(q: &[f32; A]) -> f64 {
+    f64::from(q.iter().copied().fold(f32::NEG_INFINITY, f32::max))
+}
+
 /// What one episode's periods add up to, for its record.
 #[derive(Default)]
 struct Tally {
@@ -120,7 +132,7 @@ struct Tally {
     final_q: Option<f64>,
 }
 
-impl<const H: usize> Trainer<'_, H> {
+impl<const H: usize, const A: usize> Trainer<'_, H, A> {
     /// Episode `ep` (0-based) in `scenario`: its record (the wall time left for the caller),
     /// and whether the step budget is spent.
     fn episode(
@@ -132,8 +144,8 @@ impl<const H: usize> Trainer<'_, H> {
         let cfg = self.cfg;
         let streams = (&mut w.noise, &mut w.pushes);
         let horizon = cfg.max_steps;
-        let mut world =
-            Episode::start((), scenario, horizon, &mut w.start, streams, cfg.compensate);
+        let (levels, start) = (self.levels, &mut w.start);
+        let mut world = Episode::start(levels, scenario, horizon, start, streams, cfg.compensate);
         let mut tally = Tally::default();
         let mut sensed = world.sense();
         loop {
@@ -174,20 +186,20 @@ impl<const H: usize> Trainer<'_, H> {
         }
     }
 
-    /// Epsilon-greedy on the online network; its max-Q tallied.
-    fn choose(&mut self, s: &[f32; OBS_DIM], eps: f64, tally: &mut Tally) -> Action {
+    /// Epsilon-greedy on the online network (a random output uniformly, `next_u32() % A`);
+    /// its max-Q tallied.
+    fn choose(&mut self, s: &[f32; OBS_DIM], eps: f64, tally: &mut Tally) -> usize {
         let q = self.learner.q_values(s);
-        tally.maxq_sum += f64::from(q[0].max(q[1]));
+        tally.maxq_sum += max_of(&q);
         if unit_f64(&mut self.explore) < eps {
-            Action::from_index((self.explore.next_u32() & 1) as usize)
+            self.explore.next_u32() as usize % A
         } else {
             argmax(&q)
         }
     }
 
     fn max_q(&self, s: &[f32; OBS_DIM]) -> f64 {
-        let q = self.learner.q_values(s);
-        f64::from(q[0].max(q[1]))
+        max_of(&self.learner.q_values(s))
     }
 
     /// `updates_per_train` gradient steps when training counts in `unit` and `count` of

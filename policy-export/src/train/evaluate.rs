@@ -1,6 +1,7 @@
 //! How good a policy is: greedy episodes on fresh starts, and the paper's "solved" measure
 //! on a run's returns.
 
+use firmware::controller::Levels;
 use firmware::network::Mlp;
 use host_common::wide::WideMlp;
 use rand_pcg::Pcg64Mcg;
@@ -64,15 +65,15 @@ const CHUNK: usize = 32;
 /// each in a world of `domain`; with `compensate`, deciding on readings advanced over the
 /// world's dead time. Episodes run in parallel and are summed in order, so the result does
 /// not depend on the number of threads.
-pub fn evaluate<const H: usize>(
-    net: &Mlp<H>,
+pub fn evaluate<const H: usize, const A: usize>(
+    (net, levels): (&Mlp<H, A>, Levels<A>),
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
     compensate: bool,
     streams: EvalStreams,
 ) -> EvalResult {
-    let wide = WideMlp::new(net);
+    let wide = WideMlp::new(net, levels);
     let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(CHUNK))
         .into_par_iter()
         .flat_map_iter(|c| {

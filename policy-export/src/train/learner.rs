@@ -10,7 +10,7 @@
 //! replay slot are cached while neither changes. `tests` hold this learner to `reference`
 //! bit for bit.
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM, argmax};
+use firmware::network::{Mlp, OBS_DIM, argmax};
 use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
@@ -30,20 +30,20 @@ use pair::Pair;
 /// TD targets for a batch: `r + gamma * (1 - terminated) * Q_target(s', a')`, where `a'` is
 /// chosen by the online net (Double DQN) or by the target net itself (DQN). Truncated
 /// episodes keep their bootstrap: only termination zeroes it.
-pub fn td_targets(
+pub fn td_targets<const A: usize>(
     algo: Algo,
     gamma: f32,
     rewards: &[f32],
     terminated: &[bool],
-    q_target_next: &[[f32; N_ACTIONS]],
-    q_online_next: &[[f32; N_ACTIONS]],
+    q_target_next: &[[f32; A]],
+    q_online_next: &[[f32; A]],
     out: &mut [f32],
 ) {
     for (b, y) in out.iter_mut().enumerate() {
         let qt = q_target_next[b];
         let next = match algo {
-            Algo::Ddqn => qt[argmax(&q_online_next[b]).index()],
-            Algo::Dqn => qt[argmax(&qt).index()],
+            Algo::Ddqn => qt[argmax(&q_online_next[b])],
+            Algo::Dqn => qt[argmax(&qt)],
         };
         let bootstrap = if terminated[b] { 0.0 } else { gamma * next };
         *y = rewards[b] + bootstrap;
@@ -51,40 +51,40 @@ pub fn td_targets(
 }
 
 /// One gradient step's state: the two networks, Adam's moments and the two halves' buffers.
-pub struct Learner<const H: usize> {
+pub struct Learner<const H: usize, const A: usize> {
     /// The network being trained; acting uses it. Private, as `target` is: each is
     /// repacked whenever it changes, and a caller's write would leave the packing stale.
-    online: Box<Mlp<H>>,
+    online: Box<Mlp<H, A>>,
     /// The slowly-following network that scores TD targets.
-    target: Box<Mlp<H>>,
+    target: Box<Mlp<H, A>>,
     online_packed: Box<Packed<H>>,
     target_packed: Box<Packed<H>>,
-    m: Box<Mlp<H>>,
-    v: Box<Mlp<H>>,
-    grad: Box<Mlp<H>>,
+    m: Box<Mlp<H, A>>,
+    v: Box<Mlp<H, A>>,
+    grad: Box<Mlp<H, A>>,
     steps: u64,
-    ops: &'static Ops<H>,
+    ops: &'static Ops<H, A>,
     adam: AdamParams,
     idx: Vec<usize>,
-    batch: Batch<H>,
+    batch: Batch<H, A>,
     /// Per replay slot, its target Q-values, where the target net is copied now and then
     /// (`TargetUpdate::Hard`): it then stays fixed for thousands of updates while each slot
     /// is drawn many times, so scoring a slot once per target version saves most of the
     /// target forward passes. A row's Q-values do not depend on the rows batched with it, so
     /// the result is the same bit for bit. Empty with soft updates, which change the target
     /// every step.
-    target_q: Vec<CachedQ>,
+    target_q: Vec<CachedQ<A>>,
     /// Bumped whenever the target net changes; 0 marks a never-filled cache entry.
     target_version: u64,
     /// The core that takes a share of each step, where the run has one to itself.
     pair: Option<Pair>,
 }
 
-impl<const H: usize> Learner<H> {
+impl<const H: usize, const A: usize> Learner<H, A> {
     /// Fresh networks initialised per `cfg.init` from the run's init stream, learning with
     /// `kernel`'s build of the arithmetic.
     pub fn new(cfg: &Config, kernel: Kernel, seed: u64) -> Self {
-        let mut online = nn::boxed_zero::<H>();
+        let mut online = nn::boxed_zero::<H, A>();
         init_weights(&mut online, cfg.init, &mut rng(seed, Stream::Init));
         let cached = cfg.target_update == TargetUpdate::Hard;
         Learner {
@@ -105,7 +105,7 @@ impl<const H: usize> Learner<H> {
             },
             idx: Vec::with_capacity(cfg.batch_size),
             batch: Batch::new(cfg.batch_size),
-            target_q: vec![CachedQ::default(); if cached { cfg.buffer_size } else { 0 }],
+            target_q: vec![CachedQ::EMPTY; if cached { cfg.buffer_size } else { 0 }],
             target_version: 1,
             pair: spare_core().then(Pair::new),
         }
@@ -157,18 +157,18 @@ impl<const H: usize> Learner<H> {
     }
 
     /// The online net's Q-values of `obs`, bit for bit those of `firmware`'s forward pass.
-    pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; N_ACTIONS] {
+    pub fn q_values(&self, obs: &[f32; OBS_DIM]) -> [f32; A] {
         self.ops.q_values(&self.online, obs)
     }
 
     /// The network being trained.
-    pub fn online(&self) -> &Mlp<H> {
+    pub fn online(&self) -> &Mlp<H, A> {
         &self.online
     }
 
     /// A copy of the network being trained, boxed like the learner's own: at width 256 a
     /// network is 270 KB, a large share of a worker thread's stack.
-    pub fn snapshot(&self) -> Box<Mlp<H>> {
+    pub fn snapshot(&self) -> Box<Mlp<H, A>> {
         self.online.clone()
     }
 
@@ -199,11 +199,11 @@ fn both<A, B: Send>(
 
 /// A network's parameters, gradients and moments in two shares of about equal size: the
 /// first layer and the first half of the second layer's weights, and the rest.
-fn split_parameters<'a, const H: usize>(
-    p: &'a mut Mlp<H>,
-    g: &'a Mlp<H>,
-    m: &'a mut Mlp<H>,
-    v: &'a mut Mlp<H>,
+fn split_parameters<'a, const H: usize, const A: usize>(
+    p: &'a mut Mlp<H, A>,
+    g: &'a Mlp<H, A>,
+    m: &'a mut Mlp<H, A>,
+    v: &'a mut Mlp<H, A>,
 ) -> [Vec<Part<'a>>; 2] {
     let mut parts: Vec<Part<'a>> = p
         .tensors_mut()
@@ -241,7 +241,11 @@ fn spare_core() -> bool {
 
 /// Xavier-normal or N(0, 0.1^2) weights, biases 0.01, drawn tensor by tensor in PyTorch's
 /// parameter order.
-pub fn init_weights<const H: usize, R: Rng>(net: &mut Mlp<H>, init: Init, rng: &mut R) {
+pub fn init_weights<const H: usize, const A: usize, R: Rng>(
+    net: &mut Mlp<H, A>,
+    init: Init,
+    rng: &mut R,
+) {
     for (t, shape) in net.tensors_mut().into_iter().zip(Mlp::<H>::SHAPES) {
         let Some((fan_out, fan_in)) = shape.matrix() else {
             t.fill(0.01);

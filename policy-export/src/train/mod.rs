@@ -16,11 +16,12 @@
 //! - `evaluate`: greedy evaluation and the solved-episode measures.
 
 use anyhow::Result;
+use firmware::controller::Levels;
 use rand_pcg::Pcg64Mcg;
 use serde::Serialize;
 use twin::Domain;
 use weights::Weights;
-use weights::width::{ForWidth, by_width};
+use weights::shape::{ForShape, by_shape};
 
 use crate::config::Config;
 use crate::nn::Kernel;
@@ -168,10 +169,11 @@ pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
     Ok(run(cfg, seed, &mut |_| {}, false)?.episodes)
 }
 
-/// One run at the configured width; with `evaluate_policy` false, the finalists' trial and
+/// One run at the configured shape; with `evaluate_policy` false, the finalists' trial and
 /// the final evaluation are left out.
 struct Training<'a> {
     cfg: &'a Config,
+    levels: Vec<f32>,
     seed: u64,
     kernel: Kernel,
     on_episode: &'a mut dyn FnMut(&EpisodeRecord),
@@ -186,20 +188,25 @@ fn run(
 ) -> Result<RunResult> {
     cfg.validate()?;
     let kernel = cfg.kernel.resolve()?;
+    let levels = cfg.levels()?;
+    let outputs = levels.len();
     let training = Training {
         cfg,
+        levels,
         seed,
         kernel,
         on_episode,
         evaluate_policy,
     };
-    by_width(cfg.width, training)?
+    by_shape(cfg.width, outputs, training)?
 }
 
-impl ForWidth for Training<'_> {
+impl ForShape for Training<'_> {
     type Output = Result<RunResult>;
-    fn run<const H: usize>(self) -> Result<RunResult> {
-        dqn::run::<H>(self)
+    fn run<const H: usize, const A: usize>(self) -> Result<RunResult> {
+        let fractions: [f32; A] = core::array::from_fn(|i| self.levels[i]);
+        let levels = Levels::new(fractions).map_err(|e| anyhow::anyhow!("levels: {e}"))?;
+        dqn::run::<H, A>(self, levels)
     }
 }
 

@@ -1,7 +1,6 @@
 //! The experience buffer: fixed capacity, oldest transition out first, sampled uniformly
 //! without replacement.
 
-use firmware::cartpole::Action;
 use firmware::network::OBS_DIM;
 use rand_core::Rng;
 
@@ -50,13 +49,13 @@ impl ReplayBuffer {
     }
 
     /// Stores a transition, overwriting the oldest once full.
-    pub fn push(&mut self, obs: [f32; 4], action: Action, reward: f32, next: [f32; 4], term: bool) {
+    pub fn push(&mut self, obs: [f32; 4], action: usize, reward: f32, next: [f32; 4], term: bool) {
         self.pushes += 1;
         let slot = Slot {
             obs,
             next,
             reward,
-            action: action.index() as u8,
+            action: action as u8,
             terminated: term,
             write_id: self.pushes,
         };
@@ -102,13 +101,7 @@ mod tests {
     fn replay_buffer_wraps_around_oldest_first() {
         let mut b = ReplayBuffer::new(3);
         for i in 0..5 {
-            b.push(
-                [i as f32; 4],
-                Action::from_index(i % 2),
-                i as f32,
-                [0.0; 4],
-                i == 4,
-            );
+            b.push([i as f32; 4], i % 2, i as f32, [0.0; 4], i == 4);
         }
         assert_eq!(b.len(), 3);
         let rewards: Vec<f32> = (0..3).map(|i| b.get(i).2).collect();

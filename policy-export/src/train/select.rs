@@ -1,6 +1,7 @@
 //! Which weights a run ships: the best periodically evaluated snapshots, tried again in the
 //! finalists' longer trial, and the winner evaluated once more on fresh episodes.
 
+use firmware::controller::Levels;
 use firmware::network::Mlp;
 
 use super::{Domains, EpisodeRecord, EvalResult, EvalStreams, Learner, Stream, evaluate};
@@ -47,20 +48,21 @@ fn steps_of(res: &EvalResult) -> u64 {
 }
 
 /// The snapshots of a run and their evaluations so far.
-pub(super) struct Selection<'a, const H: usize> {
+pub(super) struct Selection<'a, const H: usize, const A: usize> {
+    levels: Levels<A>,
     cfg: &'a Config,
     seed: u64,
     domains: &'a Domains,
     /// The best periodic snapshots, best first; among equals the earlier stays ahead.
-    pool: Vec<(EvalResult, usize, Box<Mlp<H>>)>,
+    pool: Vec<(EvalResult, usize, Box<Mlp<H, A>>)>,
     evals: Vec<(usize, EvalResult)>,
     episodes: u64,
     steps: u64,
 }
 
 /// What a run ships, and how it was chosen.
-pub(super) struct Chosen<const H: usize> {
-    pub policy: Box<Mlp<H>>,
+pub(super) struct Chosen<const H: usize, const A: usize> {
+    pub policy: Box<Mlp<H, A>>,
     /// The episode after which it was taken.
     pub episode: usize,
     pub env_steps: u64,
@@ -71,9 +73,10 @@ pub(super) struct Chosen<const H: usize> {
     pub final_eval: EvalResult,
 }
 
-impl<'a, const H: usize> Selection<'a, H> {
-    pub fn new(cfg: &'a Config, seed: u64, domains: &'a Domains) -> Self {
+impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
+    pub fn new(cfg: &'a Config, seed: u64, domains: &'a Domains, levels: Levels<A>) -> Self {
         Selection {
+            levels,
             cfg,
             seed,
             domains,
@@ -84,7 +87,7 @@ impl<'a, const H: usize> Selection<'a, H> {
         }
     }
 
-    fn evaluate(&mut self, net: &Mlp<H>, which: Eval) -> EvalResult {
+    fn evaluate(&mut self, net: &Mlp<H, A>, which: Eval) -> EvalResult {
         let cfg = self.cfg;
         let (episodes, steps, domain) = match which {
             Eval::Periodic | Eval::Final => {
@@ -101,7 +104,8 @@ impl<'a, const H: usize> Selection<'a, H> {
             _ => episodes,
         };
         let streams = eval_streams(self.seed, which);
-        let res = evaluate(net, episodes, steps, domain, cfg.compensate, streams);
+        let policy = (net, self.levels);
+        let res = evaluate(policy, episodes, steps, domain, cfg.compensate, streams);
         if !matches!(which, Eval::Final) {
             self.episodes += episodes as u64;
             self.steps += steps_of(&res);
@@ -111,7 +115,7 @@ impl<'a, const H: usize> Selection<'a, H> {
 
     /// Evaluates the learner's weights after episode `episode` (1-based) and keeps them if
     /// they are among the best; whether every episode reached the limit.
-    pub fn periodic(&mut self, learner: &Learner<H>, episode: usize) -> bool {
+    pub fn periodic(&mut self, learner: &Learner<H, A>, episode: usize) -> bool {
         let res = self.evaluate(learner.online(), Eval::Periodic);
         let perfect = res.min >= f64::from(self.cfg.eval_max_steps);
         let rank = self.pool.partition_point(|(b, _, _)| !res.beats(b));
@@ -128,10 +132,10 @@ impl<'a, const H: usize> Selection<'a, H> {
     /// when nothing was evaluated); with `evaluate_policy`, scores it on fresh episodes.
     pub fn choose(
         mut self,
-        learner: &Learner<H>,
+        learner: &Learner<H, A>,
         records: &[EpisodeRecord],
         evaluate_policy: bool,
-    ) -> Chosen<H> {
+    ) -> Chosen<H, A> {
         let mut trial = Vec::new();
         if evaluate_policy && self.cfg.finalists > 0 {
             let pool = std::mem::take(&mut self.pool);

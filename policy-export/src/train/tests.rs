@@ -323,7 +323,10 @@ fn one_step(net: &Mlp<64>, seed: u64, starts: &mut Pcg64Mcg) -> ([f32; 2], [f32;
         other => panic!("exact sensing measures the state, not {other:?}"),
     };
     let q = net.forward(&reading(w.measure()));
-    assert!(w.apply(firmware::network::argmax(&q).level()).truncated);
+    assert!(
+        w.apply(firmware::Action::from_index(firmware::network::argmax(&q)).level())
+            .truncated
+    );
     (q, reading(w.measure()))
 }
 
@@ -346,7 +349,7 @@ fn a_cut_episodes_discounted_return_is_completed_by_the_online_nets_estimate() {
     };
     let seed = 9;
     let r = train(&cfg, seed, &mut |_| {}).unwrap();
-    let net = Learner::<64>::new(&cfg, Kernel::Portable, seed)
+    let net = Learner::<64, 2>::new(&cfg, Kernel::Portable, seed)
         .online()
         .clone();
     let mut starts = rng(seed, Stream::Env);
@@ -379,8 +382,8 @@ fn the_tail_is_the_online_nets_and_a_failed_episode_has_none() {
     let seed = 4;
     let r = train(&cfg, seed, &mut |_| {}).unwrap();
     assert!(r.grad_steps > 0);
-    let policy = r.policy.to_mlp::<64>().unwrap();
-    let target = Learner::<64>::new(&cfg, Kernel::Portable, seed)
+    let policy = r.policy.to_mlp::<64, 2>().unwrap();
+    let target = Learner::<64, 2>::new(&cfg, Kernel::Portable, seed)
         .online()
         .clone();
     let mut starts = rng(seed, Stream::Env);

@@ -1,10 +1,16 @@
 use super::*;
-use firmware::cartpole::{Params, advance, step};
+use firmware::Action;
+use firmware::cartpole::{Params, advance};
+use firmware::controller::{Duty, Levels};
 use firmware::policy::POLICY;
 
 /// Pushes towards `theta + 0.5 theta_dot`, never coasting.
 struct Rule;
 impl Policy for Rule {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, o: &[f32; 4]) -> [f32; 2] {
         [0.0, o[2] + 0.5 * o[3]]
     }
@@ -21,8 +27,9 @@ fn nominal_twin_is_the_plant_under_the_policy_bit_for_bit() {
         let mut obs = plant.reset(&mut episode_rng(7, episode, Stream::Start));
         assert_eq!(plant.state(), start_state(7, episode));
         for f in &frames {
-            let action = POLICY.greedy_action(&obs);
-            assert_eq!(f.command, Command::Push(action));
+            let action = Action::from_index(POLICY.greedy(&obs));
+            let duty = Levels::BANG_BANG.duty(action.index()).unwrap();
+            assert_eq!(f.command, Command::Drive(duty));
             obs = plant.step(action).obs;
             assert_eq!(plant.state(), f.state);
         }
@@ -41,10 +48,10 @@ fn delay_applies_the_previous_command() {
     s = advance(&p, &s, 0.0, 0.0);
     assert_eq!(frames[0].state, s);
     for w in frames.windows(2) {
-        let Command::Push(a) = w[0].command else {
+        let Command::Drive(d) = w[0].command else {
             panic!("exact sensors never coast")
         };
-        s = step(&p, &s, a);
+        s = advance(&p, &s, f64::from(d.fraction()), 0.0);
         assert_eq!(w[1].state, s);
     }
 }
@@ -84,6 +91,10 @@ fn pushes_topple_and_noise_is_seeded() {
 fn rule_episode(spec: &str, periods: usize) -> (Scenario, Vec<(State, [f32; 4], Command)>) {
     struct Truth;
     impl Policy for Truth {
+        type Scores = [f32; 2];
+        fn duty(&self, i: usize) -> Option<Duty> {
+            Levels::BANG_BANG.duty(i)
+        }
         fn scores(&mut self, o: &[f32; 4]) -> [f32; 2] {
             [0.0, o[2] + 0.5 * o[3]]
         }

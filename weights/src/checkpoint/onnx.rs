@@ -16,8 +16,8 @@ use std::collections::BTreeMap;
 
 use super::protobuf::{Fields, Wire, count, last, text, varints};
 use super::state_dict::{Data, Dtype, Tensor, shape_text, to_f32};
-use super::{Format, Import, checked_weights, unchained};
-use crate::{Error, Result, check_width, quote};
+use super::{Format, Import, checked_weights, levels_of, unchained};
+use crate::{Error, Result, check_shape, quote};
 
 fn refuse<T>(why: String) -> Result<T> {
     Err(Error::Input(format!("ONNX: {why}")))
@@ -117,7 +117,7 @@ pub fn import(bytes: &[u8]) -> Result<Import> {
         return refuse(why);
     }
     // Nothing is converted before the width is known to be one the tools are built for.
-    check_width(dims[0].1)?;
+    check_shape(dims[0].1, dims[2].1)?;
     // The names go into the exported source's provenance; PyTorch's are short.
     if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
         return refuse(format!(
@@ -139,8 +139,9 @@ pub fn import(bytes: &[u8]) -> Result<Import> {
         };
     }
     let names: [&str; 6] = names.try_into().expect("six names");
+    let levels = levels_of(&BTreeMap::new(), dims[2].1)?;
     Ok(Import {
-        weights: checked_weights(tensors, &names)?,
+        weights: checked_weights(tensors, levels, &names)?,
         prefix: String::new(),
         layers: [names[0], names[2], names[4]].map(str::to_string),
         ignored: 0,

@@ -69,11 +69,20 @@ fn parse(bytes: &[u8]) -> Result<(usize, Metadata)> {
     })
 }
 
+/// The `__metadata__` key of a policy's duty levels (a JSON list of fractions of the full
+/// push), written where they are not the paper's two ([`crate::BANG_BANG`]).
+pub const LEVELS_KEY: &str = "levels";
+
 /// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in
-/// the header's `__metadata__`, header keys sorted so the same weights and metadata always
-/// give the same bytes.
+/// the header's `__metadata__` with the levels under [`LEVELS_KEY`] where they are not the
+/// paper's, header keys sorted so the same weights and metadata always give the same bytes.
 pub fn to_safetensors(w: &Weights, metadata: &BTreeMap<String, String>) -> Result<Vec<u8>> {
-    let shapes = firmware::network::shapes(w.width());
+    let shapes = firmware::network::shapes(w.width(), w.outputs());
+    let mut metadata = metadata.clone();
+    if w.levels() != crate::BANG_BANG {
+        let levels = serde_json::to_string(w.levels()).expect("finite floats");
+        metadata.insert(LEVELS_KEY.into(), levels);
+    }
     let bytes: Vec<Vec<u8>> = w
         .tensors()
         .iter()
@@ -89,7 +98,7 @@ pub fn to_safetensors(w: &Weights, metadata: &BTreeMap<String, String>) -> Resul
                 .map_err(|e| Error::Io(format!("tensor `{name}`: {e}")))
         })
         .collect::<Result<Vec<_>>>()?;
-    let meta = (!metadata.is_empty()).then(|| metadata.clone().into_iter().collect());
+    let meta = (!metadata.is_empty()).then(|| metadata.into_iter().collect());
     let raw = safetensors::serialize(views, meta)
         .map_err(|e| Error::Io(format!("serialising safetensors: {e}")))?;
     Ok(canonical_header(&raw))

@@ -5,7 +5,7 @@ use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::rc::Rc;
 
-use firmware::network::{SUPPORTED_WIDTHS, shapes};
+use firmware::network::{SUPPORTED_SHAPES, shapes};
 
 use crate::{Error, Result, quote};
 
@@ -70,9 +70,9 @@ pub type StateDict<'a> = BTreeMap<Cow<'a, str>, Tensor<'a>>;
 /// The most elements a tensor of the network has (the widest hidden layer's `[H, H]`): no
 /// tensor is converted beyond it, whatever its view repeats.
 pub fn largest_tensor() -> usize {
-    SUPPORTED_WIDTHS
+    SUPPORTED_SHAPES
         .iter()
-        .flat_map(|&w| shapes(w))
+        .flat_map(|&(h, a)| shapes(h, a))
         .map(|s| s.len())
         .max()
         .unwrap_or(0)

@@ -7,7 +7,7 @@ use state_dict::f16_to_f32;
 /// `t + i / 1000`.
 fn values() -> [Vec<f32>; 6] {
     let mut t = 0;
-    shapes(16).map(|s| {
+    shapes(16, 2).map(|s| {
         t += 1;
         (0..s.len()).map(|i| t as f32 + i as f32 / 1000.0).collect()
     })
@@ -24,7 +24,7 @@ fn file(names: [&str; 6], extra: &[&str]) -> Vec<u8> {
     let three = [0u8; 12];
     let mut views: Vec<(String, TensorView)> = names
         .iter()
-        .zip(shapes(16))
+        .zip(shapes(16, 2))
         .zip(&bytes)
         .map(|((n, s), b)| {
             (
@@ -101,7 +101,7 @@ fn two_networks_are_refused_with_both_prefixes_unless_one_is_chosen() {
         .collect();
     let views: Vec<_> = a
         .iter()
-        .zip(shapes(16).iter().chain(&shapes(16)))
+        .zip(shapes(16, 2).iter().chain(&shapes(16, 2)))
         .zip(&bytes)
         .map(|((n, s), b)| {
             (
@@ -149,7 +149,7 @@ fn shapes_that_do_not_make_the_network_say_why() {
     let v = values();
     let mut tensors: Vec<(String, Vec<usize>, Vec<u8>)> = n[..6]
         .iter()
-        .zip(shapes(16))
+        .zip(shapes(16, 2))
         .zip(&v)
         .map(|((n, s), t)| {
             (
@@ -244,7 +244,7 @@ fn other_float_types_are_converted_and_said() {
             .collect();
         let views: Vec<_> = names
             .iter()
-            .zip(shapes(16))
+            .zip(shapes(16, 2))
             .zip(&bytes)
             .map(|((n, s), b)| {
                 (
@@ -299,7 +299,7 @@ fn headers_and_garbage_are_refused_before_parsing() {
 
 #[test]
 fn the_canonical_file_round_trips_and_is_byte_deterministic() {
-    let w = Weights::new(16, values()).unwrap();
+    let w = Weights::new(16, crate::BANG_BANG.to_vec(), values()).unwrap();
     let meta: BTreeMap<String, String> =
         (0..12).map(|i| (format!("k{i}"), format!("{i}"))).collect();
     let first = to_safetensors(&w, &meta).unwrap();

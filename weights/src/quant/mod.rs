@@ -112,14 +112,15 @@ impl Quantised {
     }
 
     /// The network as the firmware runs it, if its width is `H`; on the heap.
-    pub fn to_qmlp<const H: usize>(&self) -> Result<Box<QMlp<H>>> {
-        if self.width != H {
+    pub fn to_qmlp<const H: usize, const A: usize>(&self) -> Result<Box<QMlp<H, A>>> {
+        if self.width != H || self.fc3_bias.len() != A {
             return Err(Error::Input(format!(
-                "quantised policy has hidden width {}, expected {H}",
-                self.width
+                "quantised policy has hidden width {} and {} outputs, expected {H} and {A}",
+                self.width,
+                self.fc3_bias.len()
             )));
         }
-        let mut q = Box::new(QMlp::<H>::zeroed());
+        let mut q = Box::new(QMlp::<H, A>::zeroed());
         q.fc1_weight
             .as_flattened_mut()
             .copy_from_slice(&self.fc1_weight);
@@ -139,7 +140,7 @@ impl Quantised {
 
     /// Bytes of flash the network occupies.
     pub fn flash_bytes(&self) -> usize {
-        firmware::network::int::flash_bytes(self.width)
+        firmware::network::int::flash_bytes(self.width, firmware::network::N_ACTIONS)
     }
 
     /// What the provenance lines of an export say about the quantisation.

@@ -247,6 +247,13 @@ pub fn quantise(
             "quantisation needs at least one calibration state, found none".into(),
         ));
     }
+    if w.outputs() != 2 {
+        return Err(Error::Input(format!(
+            "int8 quantisation is built for the paper's two-output network; this policy has \
+             {} duty levels",
+            w.outputs()
+        )));
+    }
     let h = w.width();
     let [w1, b1, w2, b2, w3, b3] = w.tensors();
     let st = stats(w, states);

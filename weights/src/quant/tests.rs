@@ -79,7 +79,7 @@ fn adaptive_rounding_lowers_the_output_error_and_stays_beside_nearest() {
 
 #[test]
 fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
-    let w = Weights::from_mlp(&POLICY).unwrap();
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     // A calibration set of its own: states along a swinging, drifting trajectory.
     let states: Vec<[f32; 4]> = (0..4000)
         .map(|i| {
@@ -94,7 +94,7 @@ fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
         .collect();
     for g in [Granularity::PerChannel, Granularity::PerTensor] {
         let q = quantise(&w, &states, g).unwrap();
-        let net = q.to_qmlp::<64>().unwrap();
+        let net = q.to_qmlp::<64, 2>().unwrap();
         let (mut big, mut kept, mut err, mut size) = (0, 0, 0.0f64, 0.0f64);
         for s in &states {
             let f = POLICY.forward(s);
@@ -123,7 +123,7 @@ fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
 
 #[test]
 fn what_cannot_be_represented_is_refused() {
-    let w = Weights::from_mlp(&POLICY).unwrap();
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     let e = quantise(&w, &[], Granularity::PerChannel).unwrap_err();
     assert!(e.is_input() && e.to_string().contains("calibration"), "{e}");
     // A unit with tiny weights and a large bias: its bias does not fit its accumulator.
@@ -132,14 +132,14 @@ fn what_cannot_be_represented_is_refused() {
         *v = 1e-30;
     }
     t[1][0] = 5.0;
-    let odd = Weights::new(64, t).unwrap();
+    let odd = Weights::new(64, crate::BANG_BANG.to_vec(), t).unwrap();
     let e = quantise(&odd, &[[0.0; 4]], Granularity::PerChannel).unwrap_err();
     assert!(e.to_string().contains("`fc1.bias`"), "{e}");
 }
 
 #[test]
 fn sources_name_their_scale_and_size() {
-    let w = Weights::from_mlp(&POLICY).unwrap();
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     let q = quantise(&w, &[[0.01, 0.0, 0.02, 0.0]], Granularity::PerTensor).unwrap();
     let rust = rust_module(&q, "P_INT", &["source: a test".into()], &Rig::GYMNASIUM).unwrap();
     assert!(rust.contains("pub static P_INT: ::firmware::network::int::QMlp<64>"));

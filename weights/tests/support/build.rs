@@ -115,7 +115,7 @@ impl Pickle {
 /// A width-16 network's six tensors with recognisable values (tensor `t`, element `i` is
 /// `t + i / 1000`): the values, as little-endian bytes, and the shapes.
 pub fn network() -> Vec<(Vec<f32>, Vec<u8>, Vec<usize>)> {
-    shapes(16)
+    shapes(16, 2)
         .iter()
         .enumerate()
         .map(|(t, s)| {

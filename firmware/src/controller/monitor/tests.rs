@@ -1,8 +1,7 @@
 //! The monitor's switches against hand-built envelopes and hand-computed LQR signs.
 
 use super::*;
-use crate::cartpole::Action;
-use crate::controller::{Policy, answer};
+use crate::controller::{Levels, Policy, answer};
 use crate::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 use crate::fixed;
 
@@ -10,6 +9,10 @@ use crate::fixed;
 struct Lean;
 
 impl Policy for Lean {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
         [0.0, obs[2]]
     }
@@ -19,6 +22,10 @@ impl Policy for Lean {
 struct Broken;
 
 impl Policy for Broken {
+    type Scores = [f32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, _: &[f32; 4]) -> [f32; 2] {
         [f32::NAN, 1.0]
     }
@@ -46,7 +53,7 @@ fn inside_the_envelope_the_policy_decides_alone() {
         (q, command, flags),
         (
             [0.0, 0.05],
-            Command::Push(Action::Right),
+            Command::Drive(Duty::RIGHT),
             FaultFlags::default()
         )
     );
@@ -62,11 +69,11 @@ fn beyond_the_envelope_the_fallback_pushes_by_the_sign_of_minus_k_s() {
     let (command, flags) = decide(&mut m, [0.0, 1.5, 0.05, 0.0], &mut c);
     assert_eq!(
         (command, flags),
-        (Command::Push(Action::Left), FaultFlags::FALLBACK)
+        (Command::Drive(Duty::LEFT), FaultFlags::FALLBACK)
     );
     // u = -(0 - 1.5 + 0.5) = +1: right.
     let (command, _) = decide(&mut m, [0.0, -1.5, 0.05, 0.0], &mut c);
-    assert_eq!(command, Command::Push(Action::Right));
+    assert_eq!(command, Command::Drive(Duty::RIGHT));
     assert_eq!(
         (c.fallbacks, c.fallback_periods, m.mode()),
         (1, 2, Mode::Fallback)
@@ -129,7 +136,7 @@ fn scores_that_are_no_numbers_go_to_the_fallback_and_are_counted() {
     // u = -(10 * 0.05) < 0: left.
     assert_eq!(
         (command, flags),
-        (Command::Push(Action::Left), FaultFlags::FALLBACK)
+        (Command::Drive(Duty::LEFT), FaultFlags::FALLBACK)
     );
     assert_eq!((c.non_finite_scores, c.fallbacks), (1, 1));
 }
@@ -187,6 +194,10 @@ fn an_integer_reading_meets_the_same_decisions_in_q3_12() {
 struct FnPolicy<'a>(&'a mut dyn FnMut(&[i16; 4]) -> [i32; 2]);
 
 impl Policy<[i16; 4]> for FnPolicy<'_> {
+    type Scores = [i32; 2];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::BANG_BANG.duty(i)
+    }
     fn scores(&mut self, obs: &[i16; 4]) -> [i32; 2] {
         (self.0)(obs)
     }

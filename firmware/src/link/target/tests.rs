@@ -162,7 +162,7 @@ fn a_refusal_stops_the_motor_until_the_next_start() {
     assert_eq!(send(&mut t, 6, Message::Start(exact)), Message::Started);
     assert_eq!(
         reply(send(&mut t, 7, state)).command,
-        Command::Push(crate::Action::Right)
+        Command::Drive(crate::controller::Duty::RIGHT)
     );
     // A missed reading coasts, counted as the sensor's error.
     let missed = reply(send(&mut t, 8, Message::Missed));

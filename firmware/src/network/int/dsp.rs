@@ -19,7 +19,7 @@
 use core::mem::MaybeUninit;
 
 use super::Requant;
-use crate::network::{N_ACTIONS, OBS_DIM};
+use crate::network::OBS_DIM;
 
 /// Activations as the kernels read them: per group of four `[x0, x2, x1, x3]`, so that each
 /// pair of halfwords is one word `x0 | x2 << 16`, then `x1 | x3 << 16`. Aligned for `ldrd`.
@@ -110,29 +110,36 @@ pub fn hidden<const H: usize>(
     }
 }
 
-/// The output layer: `[wl . x + bl, wr . x + br]`; `H` a non-zero multiple of 8.
+/// The output layer: `w[o] . x + b[o]` per output, two rows a pass (an odd last row with
+/// itself); `H` a non-zero multiple of 8.
 #[inline]
-pub fn output<const H: usize>(
-    w: &[[i8; H]; N_ACTIONS],
-    b: &[i32; N_ACTIONS],
+pub fn output<const H: usize, const A: usize>(
+    w: &[[i8; H]; A],
+    b: &[i32; A],
     x: &[u8; H],
-) -> [i32; N_ACTIONS] {
+) -> [i32; A] {
     const { assert!(H > 0 && H.is_multiple_of(8) && H < 1 << 24) };
     let mut buf = Pairs::uninit();
     let pairs = buf.unpack(x);
-    let mut acc = [0i32; N_ACTIONS];
-    // SAFETY: the routine reads `H` bytes from each row and `H` halfwords from `pairs`
-    // (8-byte aligned), writes the two words of `acc`, and follows the AAPCS.
-    unsafe {
-        cartpole_ddqn_smlad_rows2(
-            w[0].as_ptr(),
-            w[1].as_ptr(),
-            H,
-            pairs.0.as_ptr(),
-            acc.as_mut_ptr(),
-        );
+    let mut q = [0i32; A];
+    for k in (0..A).step_by(2) {
+        let next = (k + 1).min(A - 1);
+        let mut acc = [0i32; 2];
+        // SAFETY: the routine reads `H` bytes from each row and `H` halfwords from `pairs`
+        // (8-byte aligned), writes the two words of `acc`, and follows the AAPCS.
+        unsafe {
+            cartpole_ddqn_smlad_rows2(
+                w[k].as_ptr(),
+                w[next].as_ptr(),
+                H,
+                pairs.0.as_ptr(),
+                acc.as_mut_ptr(),
+            );
+        }
+        q[k] = acc[0].wrapping_add(b[k]);
+        q[next] = acc[usize::from(next != k)].wrapping_add(b[next]);
     }
-    [acc[0].wrapping_add(b[0]), acc[1].wrapping_add(b[1])]
+    q
 }
 
 unsafe extern "C" {

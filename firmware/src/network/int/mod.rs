@@ -43,19 +43,17 @@
 //! assert_eq!(net.forward(&[0; 4]), [0, 0]);
 //! ```
 
-use crate::cartpole::Action;
-
-use super::{N_ACTIONS, OBS_DIM};
+use super::{N_ACTIONS, OBS_DIM, argmax};
 
 #[cfg(cartpole_dsp)]
 pub mod dsp;
 #[cfg(all(target_arch = "arm", not(cartpole_dsp)))]
 pub mod thumb;
 
-/// The bytes of flash a 4-H-H-2 [`QMlp`] occupies, as `size_of` gives it:
+/// The bytes of flash a 4-H-H-A [`QMlp`] occupies, as `size_of` gives it:
 /// int8 weights, int32 biases and one [`Requant`] per hidden unit.
-pub const fn flash_bytes(h: usize) -> usize {
-    (OBS_DIM * h + h * h + N_ACTIONS * h) + 4 * (2 * h + N_ACTIONS) + 4 * 2 * h
+pub const fn flash_bytes(h: usize, a: usize) -> usize {
+    (OBS_DIM * h + h * h + a * h) + 4 * (2 * h + a) + 4 * 2 * h
 }
 
 /// How one hidden unit's int32 accumulator becomes its `u8` activation (ReLU included):
@@ -101,19 +99,19 @@ impl Requant {
     }
 }
 
-/// A 4-H-H-2 Q-network with integer weights, the integer counterpart of
+/// A 4-H-H-A Q-network with integer weights, the integer counterpart of
 /// [`Mlp`](super::Mlp): `weight[o][i]` connects input `i` to output `o`, as in PyTorch. The
 /// layout is C's (`repr(C)`), field for field the C API's `struct cartpole_qmlpH`; the
 /// 32-bit fields come first so that it has no padding.
 #[derive(Clone, Debug, PartialEq, Eq)]
 #[repr(C)]
-pub struct QMlp<const H: usize> {
+pub struct QMlp<const H: usize, const A: usize = N_ACTIONS> {
     /// First layer biases, in the scale of its accumulator (weight scale / 4096).
     pub fc1_bias: [i32; H],
     /// Second layer biases, in the scale of its accumulator.
     pub fc2_bias: [i32; H],
     /// Output biases, in the scale of the output.
-    pub fc3_bias: [i32; N_ACTIONS],
+    pub fc3_bias: [i32; A],
     /// First layer requantisation, per unit.
     pub fc1_requant: [Requant; H],
     /// Second layer requantisation, per unit.
@@ -122,36 +120,34 @@ pub struct QMlp<const H: usize> {
     pub fc1_weight: [[i8; OBS_DIM]; H],
     /// Second layer weights, `[H][H]`.
     pub fc2_weight: [[i8; H]; H],
-    /// Output weights, `[2][H]`, one scale for both rows (as exported: the advantage row
-    /// negated, then the advantage row).
-    pub fc3_weight: [[i8; H]; N_ACTIONS],
+    /// Output weights, `[A][H]`, one scale for every row.
+    pub fc3_weight: [[i8; H]; A],
 }
 
-impl<const H: usize> QMlp<H> {
+impl<const H: usize, const A: usize> QMlp<H, A> {
     /// Everything zero; usable in `const` and `static` items.
     pub const fn zeroed() -> Self {
         QMlp {
             fc1_bias: [0; H],
             fc2_bias: [0; H],
-            fc3_bias: [0; N_ACTIONS],
+            fc3_bias: [0; A],
             fc1_requant: [Requant::new(0, 0, 0); H],
             fc2_requant: [Requant::new(0, 0, 0); H],
             fc1_weight: [[0; OBS_DIM]; H],
             fc2_weight: [[0; H]; H],
-            fc3_weight: [[0; H]; N_ACTIONS],
+            fc3_weight: [[0; H]; A],
         }
     }
 
-    /// The two outputs `q` (as exported: the advantages of left and right) in the output's
-    /// integer scale for a fixed-point observation (see [the module](self)); push right iff
-    /// `q[1] > q[0]`. By the target's fastest kernels: the DSP extension's on ARMv7E-M cores
+    /// The outputs `q` in the output's integer scale for a fixed-point observation (see [the
+    /// module](self)); the greedy output is their [`argmax`]. By the target's fastest kernels: the DSP extension's on ARMv7E-M cores
     /// (Cortex-M4, M7: `dsp`), hand-written ARMv6-M code on other Arm cores (`thumb`),
     /// [`QMlp::forward_portable`] elsewhere. All give the same bits.
     ///
     /// Only `q` leaves: returning the hidden activations too would put them in every
     /// caller's frame, beside this pass's own.
     #[inline]
-    pub fn forward(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
+    pub fn forward(&self, obs: &[i16; OBS_DIM]) -> [i32; A] {
         #[cfg(cartpole_dsp)]
         if H > 0 && H.is_multiple_of(8) {
             let h1 = dsp::input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
@@ -174,12 +170,15 @@ impl<const H: usize> QMlp<H> {
                     *y = r.apply(acc.wrapping_add(*b));
                 }
             }
-            let [wl, wr] = &self.fc3_weight;
-            let [l, r] = thumb::dot2(wl, wr, &h2);
-            return [
-                l.wrapping_add(self.fc3_bias[0]),
-                r.wrapping_add(self.fc3_bias[1]),
-            ];
+            let mut q = [0i32; A];
+            for k in (0..A).step_by(2) {
+                // An odd last row is paired with itself, its second sum dropped.
+                let next = (k + 1).min(A - 1);
+                let acc = thumb::dot2(&self.fc3_weight[k], &self.fc3_weight[next], &h2);
+                q[k] = acc[0].wrapping_add(self.fc3_bias[k]);
+                q[next] = acc[usize::from(next != k)].wrapping_add(self.fc3_bias[next]);
+            }
+            return q;
         }
         self.forward_portable(obs)
     }
@@ -187,7 +186,7 @@ impl<const H: usize> QMlp<H> {
     /// [`QMlp::forward`] in plain Rust: the definition of the integer forward pass, which the
     /// kernels are tested against (on the device, by the self-test).
     #[inline]
-    pub fn forward_portable(&self, obs: &[i16; OBS_DIM]) -> [i32; N_ACTIONS] {
+    pub fn forward_portable(&self, obs: &[i16; OBS_DIM]) -> [i32; A] {
         let h1 = input(&self.fc1_weight, &self.fc1_bias, &self.fc1_requant, obs);
         let mut h2 = [0u8; H];
         for (((y, w), b), r) in h2
@@ -198,23 +197,18 @@ impl<const H: usize> QMlp<H> {
         {
             *y = r.apply(dot_u8(w, &h1).wrapping_add(*b));
         }
-        let mut q = [0i32; N_ACTIONS];
+        let mut q = [0i32; A];
         for ((q, w), b) in q.iter_mut().zip(&self.fc3_weight).zip(&self.fc3_bias) {
             *q = dot_u8(w, &h2).wrapping_add(*b);
         }
         q
     }
 
-    /// `Right` iff `q[1] > q[0]`; a tie pushes `Left`, as the float network's
-    /// [`argmax`](super::argmax).
+    /// The output with the largest value; a tie picks the lower index, as the float
+    /// network's [`argmax`].
     #[inline]
-    pub fn greedy_action(&self, obs: &[i16; OBS_DIM]) -> Action {
-        let q = self.forward(obs);
-        if q[1] > q[0] {
-            Action::Right
-        } else {
-            Action::Left
-        }
+    pub fn greedy(&self, obs: &[i16; OBS_DIM]) -> usize {
+        argmax(&self.forward(obs))
     }
 }
 

@@ -160,6 +160,7 @@ fn float_readings_round_to_q3_12_and_saturate() {
         crate::fixed::from_state(&[f32::NAN, f32::INFINITY, -0.0, 0.1]),
         [0, 32_767, 0, 410]
     );
-    assert_eq!(flash_bytes(64), core::mem::size_of::<QMlp<64>>());
-    assert_eq!(flash_bytes(16), core::mem::size_of::<QMlp<16>>());
+    assert_eq!(flash_bytes(64, 2), core::mem::size_of::<QMlp<64>>());
+    assert_eq!(flash_bytes(64, 7), core::mem::size_of::<QMlp<64, 7>>());
+    assert_eq!(flash_bytes(16, 2), core::mem::size_of::<QMlp<16>>());
 }

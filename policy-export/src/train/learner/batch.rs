@@ -5,7 +5,7 @@
 //! as in one; the sums over rows that make the weight gradients come after, over the whole
 //! batch in order (`crate::nn::Share`).
 
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{Mlp, OBS_DIM};
 
 use super::td_targets;
 use crate::config::{Algo, Config};
@@ -14,25 +14,34 @@ use crate::train::ReplayBuffer;
 
 /// `Q_target(s')` of one replay slot, valid while the target net and the slot are the ones
 /// it was computed for.
-#[derive(Clone, Copy, Default)]
-pub(super) struct CachedQ {
-    q: [f32; N_ACTIONS],
+#[derive(Clone, Copy)]
+pub(super) struct CachedQ<const A: usize> {
+    q: [f32; A],
     target_version: u64,
     write_id: u64,
 }
 
+impl<const A: usize> CachedQ<A> {
+    /// A never-filled entry: target version 0 is never current.
+    pub const EMPTY: CachedQ<A> = CachedQ {
+        q: [0.0; A],
+        target_version: 0,
+        write_id: 0,
+    };
+}
+
 /// The networks the rows read, and the loss's scale (one over the batch's size).
-pub(super) struct Nets<'a, const H: usize> {
-    pub ops: &'static Ops<H>,
-    pub online: &'a Mlp<H>,
+pub(super) struct Nets<'a, const H: usize, const A: usize> {
+    pub ops: &'static Ops<H, A>,
+    pub online: &'a Mlp<H, A>,
     pub online_packed: &'a Packed<H>,
-    pub target: &'a Mlp<H>,
+    pub target: &'a Mlp<H, A>,
     pub target_packed: &'a Packed<H>,
     pub scale: f32,
 }
 
 /// Every per-row array of a batch, allocated once for the largest batch.
-pub(super) struct Batch<const H: usize> {
+pub(super) struct Batch<const H: usize, const A: usize> {
     x: Vec<[f32; OBS_DIM]>,
     x_next: Vec<[f32; OBS_DIM]>,
     actions: Vec<u8>,
@@ -40,58 +49,58 @@ pub(super) struct Batch<const H: usize> {
     terminated: Vec<bool>,
     /// Whether the row's target Q-values must be computed (the cache had none).
     miss: Vec<bool>,
-    q_target: Vec<[f32; N_ACTIONS]>,
-    q_online: Vec<[f32; N_ACTIONS]>,
+    q_target: Vec<[f32; A]>,
+    q_online: Vec<[f32; A]>,
     targets: Vec<f32>,
     a1: Vec<[f32; H]>,
     a2: Vec<[f32; H]>,
-    q: Vec<[f32; N_ACTIONS]>,
-    dq: Vec<[f32; N_ACTIONS]>,
+    q: Vec<[f32; A]>,
+    dq: Vec<[f32; A]>,
     d2: Vec<[f32; H]>,
     d1: Vec<[f32; H]>,
     loss: Vec<f32>,
     /// Each part's room for the next states' forward passes.
-    spare: [Spare<H>; 2],
+    spare: [Spare<H, A>; 2],
 }
 
 /// One part's buffers for the forward passes whose activations are not kept.
-struct Spare<const H: usize> {
+struct Spare<const H: usize, const A: usize> {
     a1: Vec<[f32; H]>,
     a2: Vec<[f32; H]>,
-    q: Vec<[f32; N_ACTIONS]>,
+    q: Vec<[f32; A]>,
     x_miss: Vec<[f32; OBS_DIM]>,
 }
 
-impl<const H: usize> Spare<H> {
+impl<const H: usize, const A: usize> Spare<H, A> {
     fn new(rows: usize) -> Self {
         Spare {
             a1: vec![[0.0; H]; rows],
             a2: vec![[0.0; H]; rows],
-            q: vec![[0.0; N_ACTIONS]; rows],
+            q: vec![[0.0; A]; rows],
             x_miss: Vec::with_capacity(rows),
         }
     }
 }
 
 /// One part's rows of a [`Batch`].
-pub(super) struct Rows<'a, const H: usize> {
+pub(super) struct Rows<'a, const H: usize, const A: usize> {
     x: &'a [[f32; OBS_DIM]],
     x_next: &'a [[f32; OBS_DIM]],
     actions: &'a [u8],
     rewards: &'a [f32],
     terminated: &'a [bool],
     miss: &'a [bool],
-    q_target: &'a mut [[f32; N_ACTIONS]],
-    q_online: &'a mut [[f32; N_ACTIONS]],
+    q_target: &'a mut [[f32; A]],
+    q_online: &'a mut [[f32; A]],
     targets: &'a mut [f32],
     a1: &'a mut [[f32; H]],
     a2: &'a mut [[f32; H]],
-    q: &'a mut [[f32; N_ACTIONS]],
-    dq: &'a mut [[f32; N_ACTIONS]],
+    q: &'a mut [[f32; A]],
+    dq: &'a mut [[f32; A]],
     d2: &'a mut [[f32; H]],
     d1: &'a mut [[f32; H]],
     loss: &'a mut [f32],
-    spare: &'a mut Spare<H>,
+    spare: &'a mut Spare<H, A>,
 }
 
 /// `v[..n]` as its rows `..k` and `k..n`.
@@ -99,7 +108,7 @@ fn parts<T>(v: &mut [T], n: usize, k: usize) -> (&mut [T], &mut [T]) {
     v[..n].split_at_mut(k)
 }
 
-impl<const H: usize> Batch<H> {
+impl<const H: usize, const A: usize> Batch<H, A> {
     /// Room for `rows` rows.
     pub fn new(rows: usize) -> Self {
         Batch {
@@ -109,13 +118,13 @@ impl<const H: usize> Batch<H> {
             rewards: Vec::with_capacity(rows),
             terminated: Vec::with_capacity(rows),
             miss: Vec::with_capacity(rows),
-            q_target: vec![[0.0; N_ACTIONS]; rows],
-            q_online: vec![[0.0; N_ACTIONS]; rows],
+            q_target: vec![[0.0; A]; rows],
+            q_online: vec![[0.0; A]; rows],
             targets: vec![0.0; rows],
             a1: vec![[0.0; H]; rows],
             a2: vec![[0.0; H]; rows],
-            q: vec![[0.0; N_ACTIONS]; rows],
-            dq: vec![[0.0; N_ACTIONS]; rows],
+            q: vec![[0.0; A]; rows],
+            dq: vec![[0.0; A]; rows],
             d2: vec![[0.0; H]; rows],
             d1: vec![[0.0; H]; rows],
             loss: vec![0.0; rows],
@@ -125,7 +134,13 @@ impl<const H: usize> Batch<H> {
 
     /// Takes slots `idx` of `buf`, and the target Q-values `cache` holds for them at target
     /// version `version` (an empty cache holds none).
-    pub fn gather(&mut self, buf: &ReplayBuffer, idx: &[usize], cache: &[CachedQ], version: u64) {
+    pub fn gather(
+        &mut self,
+        buf: &ReplayBuffer,
+        idx: &[usize],
+        cache: &[CachedQ<A>],
+        version: u64,
+    ) {
         self.x.clear();
         self.x_next.clear();
         self.actions.clear();
@@ -150,7 +165,7 @@ impl<const H: usize> Batch<H> {
     }
 
     /// The gathered rows in two parts: the first `ceil(n / 2)` and the rest.
-    pub fn halves(&mut self) -> [Rows<'_, H>; 2] {
+    pub fn halves(&mut self) -> [Rows<'_, H, A>; 2] {
         let n = self.x.len();
         let k = n.div_ceil(2);
         let [s0, s1] = &mut self.spare;
@@ -215,7 +230,7 @@ impl<const H: usize> Batch<H> {
     }
 
     /// What the weight gradients are summed from, every gathered row in order.
-    pub fn grads(&self) -> BatchGrads<'_, H> {
+    pub fn grads(&self) -> BatchGrads<'_, H, A> {
         let n = self.x.len();
         BatchGrads {
             x: &self.x,
@@ -235,7 +250,7 @@ impl<const H: usize> Batch<H> {
 
     /// Writes the target Q-values computed for the rows of slots `idx` into the cache
     /// (where there is one).
-    pub fn cache(&self, idx: &[usize], cache: &mut [CachedQ], version: u64, buf: &ReplayBuffer) {
+    pub fn cache(&self, idx: &[usize], cache: &mut [CachedQ<A>], version: u64, buf: &ReplayBuffer) {
         if cache.is_empty() {
             return;
         }
@@ -250,18 +265,18 @@ impl<const H: usize> Batch<H> {
 
     /// The rows' target Q-values and next states, and how many missed the cache, for tests.
     #[cfg(test)]
-    pub fn targets_seen(&self) -> (&[[f32; N_ACTIONS]], &[[f32; OBS_DIM]], usize) {
+    pub fn targets_seen(&self) -> (&[[f32; A]], &[[f32; OBS_DIM]], usize) {
         let n = self.x.len();
         let misses = self.miss.iter().filter(|m| **m).count();
         (&self.q_target[..n], &self.x_next, misses)
     }
 }
 
-impl<const H: usize> Rows<'_, H> {
+impl<const H: usize, const A: usize> Rows<'_, H, A> {
     /// The rows' work: the target net on the next states the cache lacks, the online net
     /// on the next states (Double DQN), the TD targets, the online net on the states, and
     /// the backward pass's row work.
-    pub fn work(self, cfg: &Config, nets: &Nets<'_, H>) {
+    pub fn work(self, cfg: &Config, nets: &Nets<'_, H, A>) {
         let ops = nets.ops;
         let s = self.spare;
         s.x_miss.clear();

@@ -1,11 +1,14 @@
-//! A second core for the halves of each update: a helper thread that takes one half while
+//! A second core for the shares of each update: a helper thread that takes one share while
 //! the learner computes the other.
 //!
-//! An update's halves take tens of microseconds each and come one update after another, a
+//! An update's shares take tens of microseconds each and come one update after another, a
 //! few microseconds apart: waking a sleeping thread for each (a thread pool's `join`) costs
-//! more than the half saves. The helper spins for its next half instead, and parks once none
-//! has come for a while (an evaluation, the end of an episode), so an idle helper costs
-//! nothing.
+//! more than the share saves. The helper spins for its next share instead, and parks once
+//! none has come for a while (an evaluation, the end of an episode), so an idle helper costs
+//! nothing. A share the helper has not yet taken when the learner finishes its own is taken
+//! back and run by the learner: on a machine busy with other work the helper may wait
+//! milliseconds for a core, and the update must not wait with it. No share's arithmetic
+//! depends on which thread runs it.
 #![allow(unsafe_code)]
 
 use std::panic::{AssertUnwindSafe, catch_unwind, resume_unwind};
@@ -21,6 +24,8 @@ const IDLE: u8 = 0;
 const POSTED: u8 = 1;
 const DONE: u8 = 2;
 const EXIT: u8 = 3;
+/// The helper has taken the posted job and is running it.
+const TAKEN: u8 = 4;
 
 type Job = Box<dyn FnOnce() + Send + 'static>;
 
@@ -61,10 +66,11 @@ impl Pair {
         let mut out: Option<B> = None;
         let slot = &mut out;
         let job: Box<dyn FnOnce() + Send + '_> = Box::new(move || *slot = Some(b()));
-        // SAFETY: the job borrows from this call's frame (`b`'s captures and `out`). The
-        // helper runs it and sets DONE before anything else; this function does not return,
-        // even by unwinding from `a`, until it has seen DONE, so every borrow outlives the
-        // job's use of it.
+        // SAFETY: the job borrows from this call's frame (`b`'s captures and `out`). Either
+        // this thread takes it back before the helper takes it and runs it here, or the
+        // helper runs it and sets DONE before anything else; in that case this function does
+        // not return, even by unwinding from `a`, until it has seen DONE. Either way every
+        // borrow outlives the job's use of it.
         let job: Job = unsafe { std::mem::transmute::<Box<dyn FnOnce() + Send + '_>, Job>(job) };
         *self
             .shared
@@ -76,11 +82,25 @@ impl Pair {
             t.thread().unpark();
         }
         let ra = catch_unwind(AssertUnwindSafe(a));
-        let mut spins = 0u32;
-        while self.shared.state.load(Ordering::Acquire) != DONE {
-            pause(&mut spins);
+        let reclaimed = self
+            .shared
+            .state
+            .compare_exchange(POSTED, IDLE, Ordering::AcqRel, Ordering::Acquire)
+            .is_ok();
+        if reclaimed {
+            let job = self.shared.job.lock().expect("not poisoned").take();
+            if let Some(job) = job
+                && let Err(p) = catch_unwind(AssertUnwindSafe(job))
+            {
+                *self.shared.panic.lock().expect("not poisoned") = Some(p);
+            }
+        } else {
+            let mut spins = 0u32;
+            while self.shared.state.load(Ordering::Acquire) != DONE {
+                pause(&mut spins);
+            }
+            self.shared.state.store(IDLE, Ordering::Relaxed);
         }
-        self.shared.state.store(IDLE, Ordering::Relaxed);
         let panicked = self.shared.panic.lock().expect("not poisoned").take();
         if let Some(p) = panicked {
             resume_unwind(p);
@@ -122,7 +142,17 @@ fn serve(s: &Shared) {
         let mut spins = 0u32;
         loop {
             match s.state.load(Ordering::Acquire) {
-                POSTED => break,
+                POSTED => {
+                    let take = (s.state).compare_exchange(
+                        POSTED,
+                        TAKEN,
+                        Ordering::AcqRel,
+                        Ordering::Acquire,
+                    );
+                    if take.is_ok() {
+                        break;
+                    }
+                }
                 EXIT => return,
                 _ => {
                     // The clock is read now and then: reading it is slower than a spin.
@@ -159,6 +189,27 @@ mod tests {
             );
             assert_eq!((a, b), (124_750 + k, 374_750 * k));
         }
+    }
+
+    /// A helper that never takes its job (a core it waits for, here no thread at all): the
+    /// caller takes the job back and runs it itself.
+    #[test]
+    fn a_job_the_helper_has_not_taken_is_taken_back() {
+        let idle = Pair {
+            shared: Arc::new(Shared {
+                state: AtomicU8::new(IDLE),
+                job: Mutex::new(None),
+                panic: Mutex::new(None),
+            }),
+            thread: None,
+        };
+        let me = thread::current().id();
+        for k in 0..20u64 {
+            let (a, (b, on)) = idle.join(|| k, || (k * 2, thread::current().id()));
+            assert_eq!((a, b, on), (k, 2 * k, me));
+        }
+        let r = catch_unwind(AssertUnwindSafe(|| idle.join(|| 1, || panic!("share"))));
+        assert!(r.is_err());
     }
 
     #[test]

@@ -14,18 +14,18 @@ use crate::nn::{AdamParams, reference};
 use crate::train::ReplayBuffer;
 
 /// The two networks and Adam's moments, each step computed from the definition.
-pub(crate) struct ReferenceLearner<const H: usize> {
-    pub online: Box<Mlp<H>>,
-    pub target: Box<Mlp<H>>,
-    m: Box<Mlp<H>>,
-    v: Box<Mlp<H>>,
+pub(crate) struct ReferenceLearner<const H: usize, const A: usize> {
+    pub online: Box<Mlp<H, A>>,
+    pub target: Box<Mlp<H, A>>,
+    m: Box<Mlp<H, A>>,
+    v: Box<Mlp<H, A>>,
     steps: u64,
     adam: AdamParams,
 }
 
-impl<const H: usize> ReferenceLearner<H> {
+impl<const H: usize, const A: usize> ReferenceLearner<H, A> {
     /// Starts from `online` (the target a copy of it), with fresh moments.
-    pub fn new(cfg: &Config, online: &Mlp<H>) -> Self {
+    pub fn new(cfg: &Config, online: &Mlp<H, A>) -> Self {
         ReferenceLearner {
             online: Box::new(online.clone()),
             target: Box::new(online.clone()),
@@ -50,7 +50,7 @@ impl<const H: usize> ReferenceLearner<H> {
         let actions: Vec<u8> = rows.iter().map(|r| r.1).collect();
         let rewards: Vec<f32> = rows.iter().map(|r| r.2).collect();
         let terminated: Vec<bool> = rows.iter().map(|r| r.4).collect();
-        let q = |net: &Mlp<H>| -> Vec<[f32; 2]> {
+        let q = |net: &Mlp<H, A>| -> Vec<[f32; A]> {
             rows.iter()
                 .map(|r| reference::forward(net, &r.3).2)
                 .collect()
@@ -99,7 +99,7 @@ impl<const H: usize> ReferenceLearner<H> {
 
 /// PyTorch's `clip_grad_norm_`: scaled by `max / (norm + 1e-6)` where the norm exceeds
 /// `max`, the norm taken in the definition's order.
-fn clip<const H: usize>(g: &mut Mlp<H>, max: f32) {
+fn clip<const H: usize, const A: usize>(g: &mut Mlp<H, A>, max: f32) {
     let norm = reference::sum_of_squares(g).sqrt() as f32;
     if norm > max {
         let scale = max / (norm + 1e-6);

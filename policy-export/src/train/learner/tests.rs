@@ -1,7 +1,7 @@
 use super::reference::ReferenceLearner;
 use super::*;
 use crate::nn::{Loss, reference};
-use firmware::cartpole::{Action, unit_f64};
+use firmware::cartpole::unit_f64;
 use rand_pcg::Pcg64Mcg;
 
 #[test]
@@ -18,8 +18,8 @@ fn ddqn_and_dqn_targets_differ_where_they_should() {
     assert_eq!(y, [1.0 + 0.5 * 3.0, 1.0]);
 }
 
-/// A buffer of random transitions.
-fn filled(capacity: usize, n: usize, seed: u64) -> ReplayBuffer {
+/// A buffer of random transitions over `actions` outputs.
+fn filled(capacity: usize, n: usize, seed: u64, actions: usize) -> ReplayBuffer {
     let mut r = rng(seed, Stream::Env);
     let mut state = || [0; OBS_DIM].map(|_| (unit_f64(&mut r) as f32 - 0.5) * 4.0);
     let mut buf = ReplayBuffer::new(capacity);
@@ -27,7 +27,7 @@ fn filled(capacity: usize, n: usize, seed: u64) -> ReplayBuffer {
         let (s, s2) = (state(), state());
         buf.push(
             s,
-            Action::from_index(step % 2),
+            step % actions,
             1.0 - (step % 3) as f32,
             s2,
             step % 7 == 0,
@@ -44,14 +44,14 @@ fn cached_target_q_values_equal_a_fresh_forward_pass() {
         buffer_size: 48,
         ..Config::paper()
     };
-    let mut learner = Learner::<64>::new(&cfg, kernel, 7);
+    let mut learner = Learner::<64, 2>::new(&cfg, kernel, 7);
     let mut buf = ReplayBuffer::new(cfg.buffer_size);
     let mut sample = rng(7, Stream::Sample);
     let (mut rows, mut misses) = (0, 0);
     for step in 0..400u64 {
-        let more = filled(1, 1, step);
+        let more = filled(1, 1, step, 2);
         let (s, a, r, s2, t) = more.get(0);
-        buf.push(s, Action::from_index(usize::from(a)), r, s2, t);
+        buf.push(s, usize::from(a), r, s2, t);
         if buf.len() < cfg.batch_size {
             continue;
         }
@@ -74,7 +74,7 @@ fn cached_target_q_values_equal_a_fresh_forward_pass() {
     assert!(misses > 0 && misses * 4 < rows, "{misses} of {rows}");
 }
 
-fn bits<const H: usize>(m: &Mlp<H>) -> Vec<u32> {
+fn bits<const H: usize, const A: usize>(m: &Mlp<H, A>) -> Vec<u32> {
     m.tensors()
         .iter()
         .flat_map(|t| t.iter().map(|v| v.to_bits()))
@@ -85,12 +85,16 @@ fn bits<const H: usize>(m: &Mlp<H>) -> Vec<u32> {
 /// CPU runs) and of the reference learner from the same start, on the same batches, with
 /// the target copied every 7 steps where it is copied; every step's weights and loss
 /// must agree bit for bit.
-fn fast_equals_reference<const H: usize>(cfg: &Config, updates: u64, two_cores: bool) {
-    let buf = filled(300, 300, 11);
+fn fast_equals_reference<const H: usize, const A: usize>(
+    cfg: &Config,
+    updates: u64,
+    two_cores: bool,
+) {
+    let buf = filled(300, 300, 11, A);
     for kernel in Kernel::available() {
-        let mut fast = Learner::<H>::new(cfg, kernel, 5);
+        let mut fast = Learner::<H, A>::new(cfg, kernel, 5);
         fast.pair = two_cores.then(Pair::new);
-        let mut plain = ReferenceLearner::<H>::new(cfg, &fast.online);
+        let mut plain = ReferenceLearner::<H, A>::new(cfg, &fast.online);
         let (mut r1, mut r2) = (Pcg64Mcg::new(9), Pcg64Mcg::new(9));
         for step in 1..=updates {
             let l1 = fast.update(cfg, &buf, &mut r1);
@@ -110,7 +114,7 @@ fn fast_equals_reference<const H: usize>(cfg: &Config, updates: u64, two_cores: 
 /// The fast learner is the reference learner: parts of the batch, shares of the
 /// parameters, the second core and the target cache change no bit, for Double DQN and DQN,
 /// hard and soft targets, both losses, with and without the clip, batches the parts split
-/// evenly and not.
+/// evenly and not, two outputs and more.
 #[test]
 fn the_fast_learner_equals_the_reference_learner_bit_for_bit() {
     let paper = Config {
@@ -128,9 +132,11 @@ fn the_fast_learner_equals_the_reference_learner_bit_for_bit() {
         ..Config::robust()
     };
     for two_cores in [false, true] {
-        fast_equals_reference::<64>(&paper, 40, two_cores);
-        fast_equals_reference::<16>(&odd, 30, two_cores);
-        fast_equals_reference::<32>(&soft, 30, two_cores);
+        fast_equals_reference::<64, 2>(&paper, 40, two_cores);
+        fast_equals_reference::<16, 2>(&odd, 30, two_cores);
+        fast_equals_reference::<32, 2>(&soft, 30, two_cores);
+        fast_equals_reference::<64, 5>(&paper, 30, two_cores);
+        fast_equals_reference::<32, 7>(&soft, 30, two_cores);
     }
 }
 
@@ -146,10 +152,10 @@ fn the_clip_acts_in_the_equality_test() {
         grad_clip: 0.0,
         ..Config::paper()
     };
-    let buf = filled(300, 300, 11);
-    let start = Learner::<64>::new(&clipped, Kernel::detect(), 5);
+    let buf = filled(300, 300, 11, 2);
+    let start = Learner::<64, 2>::new(&clipped, Kernel::detect(), 5);
     let step = |cfg: &Config| {
-        let mut r = ReferenceLearner::<64>::new(cfg, &start.online);
+        let mut r = ReferenceLearner::<64, 2>::new(cfg, &start.online);
         r.update(cfg, &buf, &mut Pcg64Mcg::new(9));
         bits(&r.online)
     };
@@ -161,8 +167,8 @@ fn the_clip_acts_in_the_equality_test() {
 #[test]
 fn the_soft_updated_targets_packing_is_its_transposes() {
     let cfg = Config::robust();
-    let buf = filled(500, 500, 8);
-    let mut learner = Learner::<32>::new(&cfg, Kernel::detect(), 2);
+    let buf = filled(500, 500, 8, 2);
+    let mut learner = Learner::<32, 2>::new(&cfg, Kernel::detect(), 2);
     let mut sample = Pcg64Mcg::new(1);
     for _ in 0..20 {
         learner.update(&cfg, &buf, &mut sample);

@@ -26,7 +26,7 @@ fn a_pole_turned_once_reads_upright_and_the_controller_pushes_again() {
     let last = *c.last().unwrap();
     assert!(last.obs[2].abs() < 0.01, "{:?}", last.obs);
     assert!(last.faults.is_empty(), "{last:?}");
-    assert!(matches!(last.command, Command::Push(_)));
+    assert!(matches!(last.command, Command::Drive(_)));
     // It coasted while the pole was down, and only then.
     assert!(c.faults().rejected_readings < 100, "{:?}", c.faults());
     assert_eq!(last.faults, FaultFlags::default());

@@ -1,0 +1,199 @@
+//! What a policy's outputs ask of the motor: each output is a duty level, a signed fraction
+//! of the motor's full push. The paper's network has two, full push left and right
+//! ([`Levels::BANG_BANG`]); a gentler policy may have more (say `{-1, -0.5, -0.2, 0, 0.2,
+//! 0.5, 1}`), so that it can hold the pole with a fraction of the effort.
+
+use crate::config::ConfigError;
+
+/// A signed motor duty in thousandths of the full push (`+` towards +x): what the bridge's
+/// PWM drives and what the plant's motor model takes. A thousandth is finer than any duty
+/// step a policy chooses, and exact for the levels one writes (`0.2` is `200`).
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Duty(i16);
+
+impl Duty {
+    /// Thousandths in a full push.
+    pub const FULL: i16 = 1000;
+    /// The motor off.
+    pub const OFF: Duty = Duty(0);
+    /// Full push towards -x.
+    pub const LEFT: Duty = Duty(-Duty::FULL);
+    /// Full push towards +x.
+    pub const RIGHT: Duty = Duty(Duty::FULL);
+
+    /// `fraction` of the full push, to the nearest thousandth; refused: not finite, or
+    /// beyond `[-1, 1]`.
+    pub const fn from_fraction(fraction: f32) -> Result<Duty, ConfigError> {
+        if !fraction.is_finite() {
+            return Err(ConfigError::NotFinite("levels"));
+        }
+        if fraction < -1.0 || fraction > 1.0 {
+            return Err(ConfigError::OutOfRange("levels"));
+        }
+        let t = fraction * Duty::FULL as f32;
+        // Round half away from zero, in a `const fn` (no `f32::round` in core).
+        let r = if t < 0.0 { t - 0.5 } else { t + 0.5 };
+        Ok(Duty(r as i16))
+    }
+
+    /// Thousandths of the full push, `-1000..=1000`.
+    pub const fn thousandths(self) -> i16 {
+        self.0
+    }
+
+    /// The duty as a fraction of the full push, `-1..=1`: what the plant's motor model and
+    /// the observer's and predictor's models take.
+    pub fn fraction(self) -> f32 {
+        f32::from(self.0) / f32::from(Duty::FULL)
+    }
+
+    /// Whether the duty pushes towards +x (`Some(true)`), -x, or not at all (`None`).
+    pub const fn direction(self) -> Option<bool> {
+        match self.0 {
+            0 => None,
+            d => Some(d > 0),
+        }
+    }
+
+    /// The duty's size, `0..=1000` thousandths.
+    pub const fn magnitude(self) -> u16 {
+        self.0.unsigned_abs()
+    }
+}
+
+/// The duty of each of a policy's `A` outputs, in increasing order: output `i` drives
+/// `duty(i)`. Built once ([`Levels::new`] is a `const fn`, so a board's levels are checked as
+/// it is compiled).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Levels<const A: usize>([Duty; A]);
+
+impl Levels<2> {
+    /// The paper's two actions: full push left (output 0), full push right (output 1).
+    pub const BANG_BANG: Levels<2> = Levels([Duty::LEFT, Duty::RIGHT]);
+}
+
+/// Whether `fractions` are duty levels a policy may choose among: at least two, each
+/// finite and within `[-1, 1]`, strictly increasing once rounded to thousandths. The one
+/// check of [`Levels::new`], for a list whose length is known only at run time (a policy
+/// file's).
+pub const fn check_levels(fractions: &[f32]) -> Result<(), ConfigError> {
+    if fractions.len() < 2 {
+        return Err(ConfigError::TooFew("levels"));
+    }
+    let mut last = i16::MIN;
+    let mut i = 0;
+    while i < fractions.len() {
+        let d = match Duty::from_fraction(fractions[i]) {
+            Ok(d) => d.0,
+            Err(e) => return Err(e),
+        };
+        if i > 0 && d <= last {
+            return Err(ConfigError::NotIncreasing("levels"));
+        }
+        last = d;
+        i += 1;
+    }
+    Ok(())
+}
+
+impl<const A: usize> Levels<A> {
+    /// The levels `fractions` (each a fraction of the full push); refused as
+    /// [`check_levels`] refuses.
+    pub const fn new(fractions: [f32; A]) -> Result<Levels<A>, ConfigError> {
+        if let Err(e) = check_levels(&fractions) {
+            return Err(e);
+        }
+        let mut duty = [Duty::OFF; A];
+        let mut i = 0;
+        while i < A {
+            duty[i] = match Duty::from_fraction(fractions[i]) {
+                Ok(d) => d,
+                Err(e) => return Err(e),
+            };
+            i += 1;
+        }
+        Ok(Levels(duty))
+    }
+
+    /// Each level as a fraction of the full push, in output order.
+    pub fn fractions(&self) -> [f32; A] {
+        self.0.map(Duty::fraction)
+    }
+
+    /// The duty of output `i`; `None` for an index beyond the outputs.
+    #[inline]
+    pub const fn duty(&self, i: usize) -> Option<Duty> {
+        if i < A { Some(self.0[i]) } else { None }
+    }
+
+    /// Every level, in output order.
+    pub const fn duties(&self) -> &[Duty; A] {
+        &self.0
+    }
+
+    /// The output whose duty is nearest `fraction` (the lower one of two equally near): how
+    /// a linear controller's command becomes one of the levels.
+    pub fn nearest(&self, fraction: f32) -> usize {
+        let mut best = 0;
+        for i in 1..A {
+            let d = |k: usize| (self.0[k].fraction() - fraction).abs();
+            if d(i) < d(best) {
+                best = i;
+            }
+        }
+        best
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn levels_are_checked_and_rounded_to_thousandths() {
+        let seven = Levels::new([-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0]).unwrap();
+        let t: [i16; 7] = seven.duties().map(Duty::thousandths);
+        assert_eq!(t, [-1000, -500, -200, 0, 200, 500, 1000]);
+        assert_eq!(seven.duty(7), None);
+        assert_eq!(Levels::new([0.5]), Err(ConfigError::TooFew("levels")));
+        assert_eq!(
+            Levels::new([0.5, 0.2]),
+            Err(ConfigError::NotIncreasing("levels"))
+        );
+        // Two levels a rounding apart are one level.
+        assert_eq!(
+            Levels::new([0.2, 0.2004]),
+            Err(ConfigError::NotIncreasing("levels"))
+        );
+        assert_eq!(
+            Levels::new([-1.5, 1.0]),
+            Err(ConfigError::OutOfRange("levels"))
+        );
+        assert_eq!(
+            Levels::new([f32::NAN, 1.0]),
+            Err(ConfigError::NotFinite("levels"))
+        );
+        assert_eq!(Levels::new([-1.0, 1.0]), Ok(Levels::BANG_BANG));
+    }
+
+    #[test]
+    fn the_nearest_level_of_a_linear_command() {
+        let five = Levels::new([-1.0, -0.3, 0.0, 0.3, 1.0]).unwrap();
+        let got = [-2.0, -0.7, -0.16, 0.1, 0.2, 0.64, 0.7].map(|u| five.nearest(u));
+        assert_eq!(got, [0, 0, 1, 2, 3, 3, 4]);
+    }
+
+    #[test]
+    fn a_duty_is_its_thousandths() {
+        assert_eq!(Duty::from_fraction(0.2).unwrap().thousandths(), 200);
+        assert_eq!(Duty::from_fraction(-0.0005).unwrap().thousandths(), -1);
+        assert_eq!(Duty::from_fraction(1.0).unwrap(), Duty::RIGHT);
+        assert_eq!(Duty::LEFT.fraction(), -1.0);
+        assert_eq!(
+            (Duty::LEFT.direction(), Duty::OFF.direction()),
+            (Some(false), None)
+        );
+        assert_eq!(Duty::LEFT.magnitude(), 1000);
+    }
+}
