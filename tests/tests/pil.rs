@@ -17,7 +17,7 @@ use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Local, Remote, Session};
-use host_sim::pil::{MACHINES, Place, handshake, run_row};
+use host_sim::pil::{ICOUNT, MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
 use twin::Scenario;
 
@@ -33,6 +33,7 @@ fn scenarios() -> Vec<Scenario> {
         .into()
 }
 
+/// The same machines, and the same virtual time.
 #[test]
 fn the_pil_machines_are_the_self_tests_machines() {
     let runners = runners();
@@ -52,6 +53,11 @@ fn the_pil_machines_are_the_self_tests_machines() {
                 m.target
             );
         }
+        assert!(
+            words.windows(2).any(|w| w == ["-icount", ICOUNT]),
+            "{}: its runner `{runner}` does not give `-icount {ICOUNT}`",
+            m.target
+        );
     }
 }
 
