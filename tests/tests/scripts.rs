@@ -1,14 +1,19 @@
 //! The Python scripts (`scripts/gymnasium_check.py`, `scripts/count_insns.py`) against
-//! hostile input: each refusal exits 2 within seconds with one line naming what was expected,
-//! and no traceback. Every check here comes before the scripts import NumPy, Gymnasium or
-//! Unicorn, so it runs with python3 alone; skipped only where python3 is absent. The
-//! emulator's instruction cap is checked too where Unicorn is installed.
+//! hostile input: each refusal exits 2 within seconds of processor time with one line naming
+//! what was expected, and no traceback. Every check here comes before the scripts import
+//! NumPy, Gymnasium or Unicorn (the test makes those imports fail), so it runs with python3
+//! alone; skipped only where python3 is absent. The emulator's instruction cap is checked
+//! too where Unicorn is installed.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use e2e::repo;
+
+// The shared harness's runner of refusals.
+#[allow(dead_code)]
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
 
 fn python() -> Option<&'static str> {
     let ok = Command::new("python3")
@@ -26,40 +31,44 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// Runs `script` with `args`, killed after 20 s; its exit status and standard error.
-fn run(py: &str, script: &str, args: &[&str], cwd: &Path) -> (Option<i32>, String, Duration) {
-    let err = cwd.join(".stderr");
-    let started = Instant::now();
-    let mut child = Command::new(py)
-        .arg(repo().join("scripts").join(script))
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&err).unwrap())
-        .spawn()
-        .unwrap();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s.code();
-        }
-        if started.elapsed() > Duration::from_secs(20) {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let said = std::fs::read_to_string(&err).unwrap_or_default();
-    (status, said, started.elapsed())
+/// The modules the scripts import only once their input is checked. A refusal runs with a
+/// directory first on `PYTHONPATH` where each of them ends the script saying it was
+/// imported, so a check that came after the work fails, whatever the host has installed.
+const LATE_IMPORTS: [&str; 5] = ["numpy", "gymnasium", "unicorn", "capstone", "elftools"];
+
+fn poisoned_imports(dir: &Path) -> PathBuf {
+    let poison = dir.join("late-imports");
+    std::fs::create_dir_all(&poison).unwrap();
+    for m in LATE_IMPORTS {
+        let body = format!("import sys\nsys.exit('imported {m} before the check')\n");
+        std::fs::write(poison.join(format!("{m}.py")), body).unwrap();
+    }
+    poison
 }
 
-/// Exit 2 within seconds, one line with `want`, no traceback.
+/// Exit 2 before any of the late imports, within the refusals' processor time, one line
+/// with `want`, no traceback.
 fn refused(py: &str, script: &str, args: &[&str], cwd: &Path, want: &str) {
-    let (code, err, took) = run(py, script, args, cwd);
-    let seen = format!("{script} {args:?}: exit {code:?} after {took:?}: {err}");
+    refused_as(py, script, args, cwd, want, true);
+}
+
+/// As [`refused`], the late imports poisoned or not.
+fn refused_as(py: &str, script: &str, args: &[&str], cwd: &Path, want: &str, poison: bool) {
+    let mut c = Command::new(py);
+    c.arg(repo().join("scripts").join(script))
+        .args(args)
+        .current_dir(cwd);
+    if poison {
+        c.env("PYTHONPATH", poisoned_imports(cwd));
+    }
+    let ran = hostile::run_counted(&mut c);
+    let (code, err) = (ran.code, &ran.stderr);
+    let seen = format!(
+        "{script} {args:?}: exit {code:?} after {:?} of processor time: {err}",
+        ran.cpu
+    );
     assert_eq!(code, Some(2), "{seen}");
-    assert!(took < Duration::from_secs(10), "{seen}");
+    assert!(ran.late().is_none(), "{seen}");
     assert!(err.contains(want) && !err.contains("Traceback"), "{seen}");
     assert_eq!(err.trim_end().lines().count(), 1, "{seen}");
 }
@@ -212,12 +221,13 @@ fn count_insns_stops_a_function_that_never_returns() {
     std::fs::write(&elf, looping_elf()).unwrap();
     let (e, cap) = (elf.to_str().unwrap(), "5000");
     let want = "spin: expected it to return within --max-insns 5000 instructions";
-    refused(
+    refused_as(
         py,
         "count_insns.py",
         &[e, "spin", "--max-insns", cap],
         &dir,
         want,
+        false,
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
