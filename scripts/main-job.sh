@@ -7,7 +7,13 @@
 #   scripts/main-job.sh [RUN_DIR]      (default runs/shipped)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-scripts/setup.sh
+scripts/setup.sh --host
+. scripts/targets.sh
+# The toolchain by name: rustup then leaves rust-toolchain.toml's components and
+# microcontroller targets alone, where it would otherwise fetch them on demand for a job
+# that builds for the host only (docs/PERFORMANCE.md).
+RUSTUP_TOOLCHAIN=$(rust_channel)
+export RUSTUP_TOOLCHAIN
 out=${1:-runs/shipped}
 cargo build -q --release -p policy-export -p host-sim
 pe() { target/release/policy-export "$@"; }

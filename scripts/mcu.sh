@@ -5,9 +5,10 @@
 #   scripts/mcu.sh thumbv7em-none-eabihf
 #
 # TARGET is one of rust-toolchain.toml's `targets` (scripts/targets.sh prints them); the
-# machine each runs on is its runner in .cargo/config.toml. The runners use `-icount shift=6`:
-# a 15.625 MHz core at one instruction per cycle, so the paced lines' overruns follow the
-# code's instruction count.
+# machine each runs on is its runner in .cargo/config.toml. The runners use `-icount
+# shift=6,sleep=off`: a 15.625 MHz core at one instruction per cycle whose sleeps end at the
+# next timer in virtual time, so the paced lines' overruns follow the code's instruction count
+# and nothing else: not the host's speed, not its load.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/targets.sh

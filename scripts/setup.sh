@@ -2,9 +2,18 @@
 # Installs the toolchain parts rust-toolchain.toml names (rustup does not install them on
 # demand on machines with RUSTUP_AUTO_INSTALL=0) and, on Debian/Ubuntu, qemu-system-arm and
 # qemu-system-misc (RISC-V) for the firmware tests. Every entry point runs this first.
+#   scripts/setup.sh          everything: the tests, CI, the microcontroller scripts
+#   scripts/setup.sh --host   the toolchain alone in rustup's minimal profile (rustc, cargo,
+#                             the host's standard library): the main job, which builds and
+#                             runs the host tools and nothing else
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/targets.sh
+case ${1:-} in
+  --host) host_only=1 ;;
+  "") host_only=0 ;;
+  *) echo "usage: scripts/setup.sh [--host] (found: '$1')" >&2; exit 2 ;;
+esac
 
 # The addresses this machine's apt already fetches bookworm itself from, first choice first:
 # deb822 `URIs:` of a stanza whose `Suites:` name `bookworm`, then one-line `deb` entries.
@@ -35,9 +44,10 @@ bookworm_uris() {
   done
 }
 
-toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
-targets=$(mcu_targets)
+toolchain=$(rust_channel)
 rustup toolchain install "$toolchain" --profile minimal >/dev/null
+[ "$host_only" = 0 ] || exit 0
+targets=$(mcu_targets)
 rustup component add --toolchain "$toolchain" clippy rustfmt llvm-tools >/dev/null
 # shellcheck disable=SC2086 # one word per target
 rustup target add --toolchain "$toolchain" $targets >/dev/null

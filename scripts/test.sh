@@ -6,5 +6,11 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
-cargo test --workspace --profile quick
+# The scripts' own Python modules (the instruction counter's Unicorn, Capstone and
+# pyelftools) in an environment of their own, for tests/tests/scripts.rs, which fails
+# without them.
+venv=${CARGO_TARGET_DIR:-$PWD/target}/scripts-venv
+python3 -m venv "$venv"
+"$venv/bin/pip" install --quiet -r scripts/requirements-dev.txt
+CARTPOLE_PYTHON="$venv/bin/python" cargo test --workspace --profile quick
 scripts/python.sh

@@ -12,7 +12,7 @@ use firmware::policy::RIG;
 use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{ControllerKind, Row};
 use host_sim::pil::link::{Local, Session};
-use host_sim::pil::{Check, NS_PER_INSTRUCTION, Place, handshake, run_row};
+use host_sim::pil::{Check, ICOUNT, NS_PER_INSTRUCTION, Place, handshake, run_row};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
 use twin::Scenario;
@@ -181,7 +181,7 @@ fn print(a: &EvalArgs, rows: &[Row], checks: &[PilRow<'_>]) -> Result<()> {
     }
     host_common::outln!(
         "\nIn QEMU the time is virtual: {NS_PER_INSTRUCTION} ns per instruction (-icount \
-         shift=6), so it counts the instructions of the period."
+         {ICOUNT}), so it counts the instructions of the period."
     );
     Ok(())
 }

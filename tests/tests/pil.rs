@@ -17,9 +17,14 @@ use firmware::policy::{POLICY, RIG};
 use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Local, Remote, Session};
-use host_sim::pil::{MACHINES, Place, handshake, run_row};
+use host_sim::pil::{ICOUNT, MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
 use twin::Scenario;
+
+/// How long the host waits for one answer: a watchdog against a target that hangs, far
+/// beyond the milliseconds an answer takes (QEMU's start-up included) on a busy host, and no
+/// verdict on speed.
+const WATCHDOG: Duration = Duration::from_secs(120);
 
 fn reference() -> Session<Local<64>> {
     Session::new(Local::new(&POLICY, &POLICY_INT, RIG))
@@ -33,6 +38,7 @@ fn scenarios() -> Vec<Scenario> {
         .into()
 }
 
+/// The same machines, and the same virtual time.
 #[test]
 fn the_pil_machines_are_the_self_tests_machines() {
     let runners = runners();
@@ -52,6 +58,11 @@ fn the_pil_machines_are_the_self_tests_machines() {
                 m.target
             );
         }
+        assert!(
+            words.windows(2).any(|w| w == ["-icount", ICOUNT]),
+            "{}: its runner `{runner}` does not give `-icount {ICOUNT}`",
+            m.target
+        );
     }
 }
 
@@ -64,7 +75,7 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     for target in mcu_targets() {
         let elf = build_app("pil", Some(&target));
         let place = Place::parse(&format!("qemu:{target}"), Some(&elf)).unwrap();
-        let mut remote = Session::new(place.start(Duration::from_secs(60)).unwrap());
+        let mut remote = Session::new(place.start(WATCHDOG).unwrap());
         let mut here = reference();
         for format in [Format::F32, Format::Int8] {
             let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
@@ -142,7 +153,7 @@ fn the_c_application_answers_as_the_rust_one() {
     );
     let elf = out.join("c-pil.elf");
     let place = Place::parse("qemu:thumbv7em-none-eabihf", Some(&elf)).unwrap();
-    let mut remote = Session::new(place.start(Duration::from_secs(60)).unwrap());
+    let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let scenarios = ["encoder+noise+push", "noise+delay+push"].map(|s| Scenario::parse(s).unwrap());
     for format in [Format::F32, Format::Int8] {
@@ -162,7 +173,7 @@ fn the_c_application_answers_as_the_rust_one() {
 fn the_host_build_of_the_pil_application_gives_evals_rows() {
     let exe = build_app("pil", None);
     let place = Place::parse(&format!("exec:{}", exe.display()), None).unwrap();
-    let mut remote = Session::new(place.start(Duration::from_secs(10)).unwrap());
+    let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let mut scenarios = scenarios();
     scenarios.push(Scenario::parse("encoder+glitch+stuck+late+weak=0.5").unwrap());
@@ -217,7 +228,7 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
     let path = host.name().expect("the host's end of the pair has a name");
     let _board = std::thread::spawn(move || board_on(board));
     let place = Place::parse(&format!("serial:{path}"), None).unwrap();
-    let mut remote = Session::new(place.start(Duration::from_secs(10)).unwrap());
+    let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let s = Scenario::parse("encoder+drop=40+reset=150+noise+push").unwrap();
     let info = handshake(

@@ -1,13 +1,17 @@
 //! The self-test application on every microcontroller target rust-toolchain.toml lists, each
 //! on the QEMU machine its runner in `.cargo/config.toml` names: its self-test must pass, its
-//! Q-values (float and integer) must equal the host's bit for bit, and its paced loops must
-//! report their overruns under QEMU's instruction-counting clock.
+//! Q-values (float and integer) must equal the host's bit for bit, its paced loops must
+//! report their overruns under QEMU's instruction-counting clock, and two runs of the image
+//! at once must print the same report byte for byte, overruns included, whatever the load.
 //!
 //! Needs `qemu-system-arm` and `qemu-system-riscv32` (Debian: `apt-get install qemu-system-arm
 //! qemu-system-misc`) and the targets (`scripts/setup.sh`). `CARTPOLE_SKIP_QEMU=1` skips it,
 //! loudly, on machines without QEMU; CI installs QEMU and runs it.
 
-use std::process::Command;
+use std::path::Path;
+use std::process::{Command, Output};
+
+use e2e::{build_app, runners};
 
 /// The self-test's probe lines as the host computes them: the same application, built for
 /// the host, prints the same report.
@@ -25,13 +29,28 @@ fn probe_lines(stdout: &str) -> impl Iterator<Item = &str> {
         .filter(|l| l.starts_with("probe ") || l.starts_with("probe-int "))
 }
 
-fn cargo(args: &[&str]) -> std::process::Output {
+fn cargo(args: &[&str]) -> Output {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     Command::new(cargo)
         .args(args)
         .current_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/.."))
         .output()
         .expect("running cargo")
+}
+
+/// `elf` run by `target`'s runner in `.cargo/config.toml`, as `cargo run` would.
+fn run_image(target: &str, elf: &Path) -> Output {
+    let (_, runner) = runners()
+        .into_iter()
+        .find(|(t, _)| t == target)
+        .unwrap_or_else(|| panic!("{target}: no runner in .cargo/config.toml"));
+    let mut words = runner.split_whitespace();
+    let program = words.next().expect("an empty runner");
+    Command::new(program)
+        .args(words)
+        .arg(elf)
+        .output()
+        .unwrap_or_else(|e| panic!("{target}: running {program}: {e}"))
 }
 
 /// The overruns a `paced <format>:` line reports.
@@ -62,21 +81,31 @@ fn run_on(target: &str) -> Option<String> {
         "{qemu} not found: install it (apt-get install {package}) or set \
          CARTPOLE_SKIP_QEMU=1"
     );
-    let out = cargo(&[
-        "run",
-        "-q",
-        "--release",
-        "-p",
-        "selftest-app",
-        "--target",
-        target,
-    ]);
+    let elf = build_app("selftest-app", Some(target));
+    // The image twice at once, beside the other targets' runs: virtual time counts
+    // instructions and nothing else, so the load the runs put on the host (and any other)
+    // must not change a byte of the report.
+    let (out, again) = std::thread::scope(|s| {
+        let again = s.spawn(|| run_image(target, &elf));
+        (run_image(target, &elf), again.join().unwrap())
+    });
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(
         out.status.success(),
         "{target}: exit {:?}\n{stdout}\n{}",
         out.status,
         String::from_utf8_lossy(&out.stderr)
+    );
+    let again = String::from_utf8_lossy(&again.stdout);
+    let differ: Vec<(&str, &str)> = stdout
+        .lines()
+        .zip(again.lines())
+        .filter(|(a, b)| a != b)
+        .collect();
+    assert!(
+        stdout == again,
+        "{target}: two runs of one image differ, so the host's time reached the target's \
+         clock (is `sleep=off` in its runner's -icount?): {differ:?}"
     );
     let probes: Vec<&str> = probe_lines(&stdout).collect();
     assert_eq!(

@@ -1,22 +1,54 @@
 //! The Python scripts (`scripts/gymnasium_check.py`, `scripts/count_insns.py`) against
-//! hostile input: each refusal exits 2 within seconds with one line naming what was expected,
-//! and no traceback. Every check here comes before the scripts import NumPy, Gymnasium or
-//! Unicorn, so it runs with python3 alone; skipped only where python3 is absent. The
-//! emulator's instruction cap is checked too where Unicorn is installed.
+//! hostile input: each refusal exits 2 within seconds of processor time with one line naming
+//! what was expected, and no traceback. Every check here comes before the scripts import
+//! NumPy, Gymnasium or Unicorn (the test makes those imports fail), so it runs with Python
+//! alone. The emulator's instruction cap needs Unicorn, Capstone and pyelftools
+//! (scripts/requirements-dev.txt).
+//!
+//! The Python is `CARTPOLE_PYTHON`, else `python3`; scripts/test.sh makes an environment with
+//! the requirements and names it. A missing Python or module fails, naming what to install;
+//! `CARTPOLE_SKIP_PYTHON=1` skips every test here and `CARTPOLE_SKIP_UNICORN=1` the cap's,
+//! loudly.
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
 
 use e2e::repo;
 
-fn python() -> Option<&'static str> {
-    let ok = Command::new("python3")
+// The shared harness's runner of refusals.
+#[allow(dead_code)]
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
+
+/// The Python the scripts run on: `CARTPOLE_PYTHON` (scripts/test.sh sets it to an
+/// environment with scripts/requirements-dev.txt), else `python3`. `None` only where
+/// `CARTPOLE_SKIP_PYTHON=1` says to skip, which it says loudly; a Python that is missing
+/// fails, naming what to install.
+fn python() -> Option<String> {
+    if skip("CARTPOLE_SKIP_PYTHON", "the Python scripts' tests") {
+        return None;
+    }
+    let py = std::env::var("CARTPOLE_PYTHON").unwrap_or_else(|_| "python3".into());
+    let found = Command::new(&py)
         .arg("--version")
         .stdout(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    ok.then_some("python3")
+    assert!(
+        found,
+        "{py} not found: install Python 3 (apt-get install python3) or name one in \
+         CARTPOLE_PYTHON; CARTPOLE_SKIP_PYTHON=1 skips these tests"
+    );
+    Some(py)
+}
+
+/// Whether `var=1` asks to skip `what`; said on standard error when it does.
+fn skip(var: &str, what: &str) -> bool {
+    let skip = std::env::var_os(var).is_some_and(|v| v == "1");
+    if skip {
+        eprintln!("SKIPPED: {var}=1, {what} not run");
+    }
+    skip
 }
 
 fn scratch(name: &str) -> PathBuf {
@@ -26,40 +58,44 @@ fn scratch(name: &str) -> PathBuf {
     d
 }
 
-/// Runs `script` with `args`, killed after 20 s; its exit status and standard error.
-fn run(py: &str, script: &str, args: &[&str], cwd: &Path) -> (Option<i32>, String, Duration) {
-    let err = cwd.join(".stderr");
-    let started = Instant::now();
-    let mut child = Command::new(py)
-        .arg(repo().join("scripts").join(script))
-        .args(args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(std::fs::File::create(&err).unwrap())
-        .spawn()
-        .unwrap();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s.code();
-        }
-        if started.elapsed() > Duration::from_secs(20) {
-            let _ = child.kill();
-            let _ = child.wait();
-            break None;
-        }
-        std::thread::sleep(Duration::from_millis(5));
-    };
-    let said = std::fs::read_to_string(&err).unwrap_or_default();
-    (status, said, started.elapsed())
+/// The modules the scripts import only once their input is checked. A refusal runs with a
+/// directory first on `PYTHONPATH` where each of them ends the script saying it was
+/// imported, so a check that came after the work fails, whatever the host has installed.
+const LATE_IMPORTS: [&str; 5] = ["numpy", "gymnasium", "unicorn", "capstone", "elftools"];
+
+fn poisoned_imports(dir: &Path) -> PathBuf {
+    let poison = dir.join("late-imports");
+    std::fs::create_dir_all(&poison).unwrap();
+    for m in LATE_IMPORTS {
+        let body = format!("import sys\nsys.exit('imported {m} before the check')\n");
+        std::fs::write(poison.join(format!("{m}.py")), body).unwrap();
+    }
+    poison
 }
 
-/// Exit 2 within seconds, one line with `want`, no traceback.
+/// Exit 2 before any of the late imports, within the refusals' processor time, one line
+/// with `want`, no traceback.
 fn refused(py: &str, script: &str, args: &[&str], cwd: &Path, want: &str) {
-    let (code, err, took) = run(py, script, args, cwd);
-    let seen = format!("{script} {args:?}: exit {code:?} after {took:?}: {err}");
+    refused_as(py, script, args, cwd, want, true);
+}
+
+/// As [`refused`], the late imports poisoned or not.
+fn refused_as(py: &str, script: &str, args: &[&str], cwd: &Path, want: &str, poison: bool) {
+    let mut c = Command::new(py);
+    c.arg(repo().join("scripts").join(script))
+        .args(args)
+        .current_dir(cwd);
+    if poison {
+        c.env("PYTHONPATH", poisoned_imports(cwd));
+    }
+    let ran = hostile::run_counted(&mut c);
+    let (code, err) = (ran.code, &ran.stderr);
+    let seen = format!(
+        "{script} {args:?}: exit {code:?} after {:?} of processor time: {err}",
+        ran.cpu
+    );
     assert_eq!(code, Some(2), "{seen}");
-    assert!(took < Duration::from_secs(10), "{seen}");
+    assert!(ran.late().is_none(), "{seen}");
     assert!(err.contains(want) && !err.contains("Traceback"), "{seen}");
     assert_eq!(err.trim_end().lines().count(), 1, "{seen}");
 }
@@ -92,13 +128,12 @@ fn bad_files(dir: &Path) -> [(String, &'static str); 4] {
 #[test]
 fn gymnasium_check_refuses_bad_files_counts_and_headers() {
     let Some(py) = python() else {
-        eprintln!("skipped: no python3");
         return;
     };
     let dir = scratch("gym");
     let script = "gymnasium_check.py";
     for (path, want) in bad_files(&dir) {
-        refused(py, script, &["--policy", &path], &dir, want);
+        refused(&py, script, &["--policy", &path], &dir, want);
     }
     let counts: [(&[&str], &str); 6] = [
         (
@@ -115,7 +150,7 @@ fn gymnasium_check_refuses_bad_files_counts_and_headers() {
         (&["--bogus"], "unrecognized arguments"),
     ];
     for (args, want) in counts {
-        refused(py, script, args, &dir, want);
+        refused(&py, script, args, &dir, want);
     }
     // Headers whose values are of the wrong type raised TypeError with a traceback.
     let headers = [
@@ -133,7 +168,7 @@ fn gymnasium_check_refuses_bad_files_counts_and_headers() {
         bytes.extend_from_slice(header.as_bytes());
         std::fs::write(&path, bytes).unwrap();
         refused(
-            py,
+            &py,
             script,
             &["--policy", path.to_str().unwrap()],
             &dir,
@@ -144,7 +179,7 @@ fn gymnasium_check_refuses_bad_files_counts_and_headers() {
     std::fs::write(&short, (1u64 << 40).to_le_bytes()).unwrap();
     let want = "expected a safetensors header of at most 0 bytes";
     refused(
-        py,
+        &py,
         script,
         &["--policy", short.to_str().unwrap()],
         &dir,
@@ -156,13 +191,12 @@ fn gymnasium_check_refuses_bad_files_counts_and_headers() {
 #[test]
 fn count_insns_refuses_bad_files_counts_and_non_arm_elves() {
     let Some(py) = python() else {
-        eprintln!("skipped: no python3");
         return;
     };
     let dir = scratch("insns");
     let script = "count_insns.py";
     for (path, want) in bad_files(&dir) {
-        refused(py, script, &[&path], &dir, want);
+        refused(&py, script, &[&path], &dir, want);
     }
     let garbage = dir.join("garbage");
     std::fs::write(&garbage, b"\x7fELF\x01").unwrap();
@@ -186,7 +220,7 @@ fn count_insns_refuses_bad_files_counts_and_non_arm_elves() {
         ),
     ];
     for (args, want) in cases {
-        refused(py, script, args, &dir, want);
+        refused(&py, script, args, &dir, want);
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
@@ -195,29 +229,35 @@ fn count_insns_refuses_bad_files_counts_and_non_arm_elves() {
 #[test]
 fn count_insns_stops_a_function_that_never_returns() {
     let Some(py) = python() else {
-        eprintln!("skipped: no python3");
         return;
     };
-    let has_unicorn = Command::new(py)
+    if skip("CARTPOLE_SKIP_UNICORN", "the instruction counter's cap") {
+        return;
+    }
+    let has_unicorn = Command::new(&py)
         .args(["-c", "import unicorn, capstone, elftools"])
         .stderr(Stdio::null())
         .status()
         .is_ok_and(|s| s.success());
-    if !has_unicorn {
-        eprintln!("skipped: Unicorn, Capstone or pyelftools not installed");
-        return;
-    }
+    assert!(
+        has_unicorn,
+        "{py} cannot import Unicorn, Capstone and pyelftools: install \
+         scripts/requirements-dev.txt (`python3 -m venv .venv && .venv/bin/pip install -r \
+         scripts/requirements-dev.txt`, then CARTPOLE_PYTHON=.venv/bin/python; scripts/test.sh \
+         does so), or set CARTPOLE_SKIP_UNICORN=1 to skip this test"
+    );
     let dir = scratch("loop");
     let elf = dir.join("loop.elf");
     std::fs::write(&elf, looping_elf()).unwrap();
     let (e, cap) = (elf.to_str().unwrap(), "5000");
     let want = "spin: expected it to return within --max-insns 5000 instructions";
-    refused(
-        py,
+    refused_as(
+        &py,
         "count_insns.py",
         &[e, "spin", "--max-insns", cap],
         &dir,
         want,
+        false,
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -3,18 +3,107 @@
 //! this file): bad files of every kind, and a runner that holds each refusal to the rules of
 //! `docs/HOSTILE_INPUT.md`: exit status 2, a short message that says what was expected (or,
 //! for a path that does not exist, that it does not), no panic, nothing on standard output,
-//! no file created, changed or removed, and no waiting.
+//! no file created, changed or removed, and no waiting. The other refusal tests (the tools'
+//! CLI tests, the Python scripts') run their commands through [`run_counted`] too.
 
 use std::collections::BTreeMap;
 use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::{Child, Command, Stdio};
+use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{Duration, Instant};
 
-/// Longest a refusal may take: it must come before any work.
-const SLOW: Duration = Duration::from_secs(3);
-/// When a case that has not ended is killed.
-const DEADLINE: Duration = Duration::from_secs(20);
+/// Most processor time a refusal may use: it must come before any work. The child's own
+/// processor time, not the clock's, so that what else the host runs does not count.
+pub const SLOW: Duration = Duration::from_secs(3);
+/// When a case that has not ended is killed. A child that waits (on a FIFO's writer, say)
+/// uses no processor time, so only the clock can show it; far beyond any refusal, this is a
+/// watchdog against a hang, not a measure of speed.
+const WATCHDOG: Duration = Duration::from_secs(60);
+
+/// How a command ran.
+pub struct Ran {
+    /// Its exit status; `None` if killed by a signal or at the watchdog.
+    pub code: Option<i32>,
+    /// Whether it was still running at the watchdog.
+    pub hung: bool,
+    /// The processor time it used, user and system.
+    pub cpu: Duration,
+    pub stdout: Vec<u8>,
+    pub stderr: String,
+}
+
+impl Ran {
+    /// Why it broke the rules every refusal keeps (it ended, with exit status 2, within
+    /// [`SLOW`] of processor time), if it did.
+    pub fn late(&self) -> Option<String> {
+        if self.hung {
+            Some(format!("still running after {WATCHDOG:?}"))
+        } else if self.cpu > SLOW {
+            Some(format!(
+                "used {:?} of processor time: work before the check",
+                self.cpu
+            ))
+        } else {
+            None
+        }
+    }
+}
+
+/// Runs `command` to its end (killed at the watchdog) with no standard input, its output
+/// caught in files of its own.
+pub fn run_counted(command: &mut Command) -> Ran {
+    static RUNS: AtomicUsize = AtomicUsize::new(0);
+    let logs = Scratch::new(&format!("run-{}", RUNS.fetch_add(1, Ordering::Relaxed)));
+    let (out, err) = (logs.join("stdout"), logs.join("stderr"));
+    let child = command
+        .stdin(Stdio::null())
+        .stdout(std::fs::File::create(&out).unwrap())
+        .stderr(std::fs::File::create(&err).unwrap())
+        .spawn()
+        .unwrap();
+    let ended = finish(child);
+    Ran {
+        code: ended.and_then(|(code, _)| code),
+        hung: ended.is_none(),
+        cpu: ended.map_or(Duration::ZERO, |(_, cpu)| cpu),
+        stdout: std::fs::read(&out).unwrap(),
+        stderr: String::from_utf8_lossy(&std::fs::read(&err).unwrap()).into_owned(),
+    }
+}
+
+/// Waits for `child`: its exit status and processor time, or `None` if it was still running
+/// at the watchdog (then killed).
+fn finish(mut child: Child) -> Option<(Option<i32>, Duration)> {
+    let started = Instant::now();
+    let stat = format!("/proc/{}/stat", child.id());
+    loop {
+        // An ended child that is not yet reaped still shows its times; reaping removes them.
+        if let Some(cpu) = cpu_of_ended(&stat) {
+            return Some((child.wait().unwrap().code(), cpu));
+        }
+        if started.elapsed() > WATCHDOG {
+            let _ = child.kill();
+            let _ = child.wait();
+            return None;
+        }
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// The processor time of the process whose `/proc/PID/stat` is `stat`, once it has ended
+/// (a zombie); `None` while it runs.
+fn cpu_of_ended(stat: &str) -> Option<Duration> {
+    let text = std::fs::read_to_string(stat).ok()?;
+    // After the command name's closing parenthesis: the state first, then utime and stime
+    // as the 12th and 13th fields, in ticks of Linux's USER_HZ, fixed at 100.
+    let fields: Vec<&str> = text.rsplit_once(')')?.1.split_whitespace().collect();
+    if fields.first() != Some(&"Z") {
+        return None;
+    }
+    let ticks: u64 = fields.get(11)?.parse::<u64>().ok()? + fields.get(12)?.parse::<u64>().ok()?;
+    Some(Duration::from_millis(ticks * 10))
+}
 
 /// A directory of the suite's own, removed when dropped.
 pub struct Scratch(pub PathBuf);
@@ -212,50 +301,21 @@ impl Case {
 }
 
 /// Runs `exe` with the case's arguments in `cwd`; why it broke a rule, if it did.
-fn judge(exe: &Path, cwd: &Path, logs: &Path, case: &Case) -> Result<(), String> {
+fn judge(exe: &Path, cwd: &Path, case: &Case) -> Result<(), String> {
     let before = snapshot(cwd);
-    let (out, err) = (logs.join("stdout"), logs.join("stderr"));
-    let started = Instant::now();
-    let mut child = Command::new(exe)
-        .args(&case.args)
-        .current_dir(cwd)
-        .stdin(Stdio::null())
-        .stdout(std::fs::File::create(&out).unwrap())
-        .stderr(std::fs::File::create(&err).unwrap())
-        .spawn()
-        .unwrap();
-    let status = loop {
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if started.elapsed() > DEADLINE {
-            let _ = child.kill();
-            let _ = child.wait();
-            return Err(format!("still running after {DEADLINE:?}"));
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    };
-    let (stdout, stderr) = (
-        std::fs::read(&out).unwrap(),
-        String::from_utf8_lossy(&std::fs::read(&err).unwrap()).into_owned(),
-    );
+    let ran = run_counted(Command::new(exe).args(&case.args).current_dir(cwd));
     let mut broken = Vec::new();
-    if started.elapsed() > SLOW {
-        broken.push(format!(
-            "took {:?}: work before the check",
-            started.elapsed()
-        ));
+    broken.extend(ran.late());
+    if ran.code != Some(2) {
+        broken.push(format!("exit {:?}", ran.code));
     }
-    if status.code() != Some(2) {
-        broken.push(format!("exit {status}"));
-    }
-    if !case.expect.iter().any(|w| stderr.contains(w)) {
+    if !case.expect.iter().any(|w| ran.stderr.contains(w)) {
         broken.push(format!("no word of {:?}", case.expect));
     }
-    if stderr.contains("panicked") || stderr.len() > 1_000 || !stdout.is_empty() {
+    if ran.stderr.contains("panicked") || ran.stderr.len() > 1_000 || !ran.stdout.is_empty() {
         broken.push(format!(
             "{} bytes on stdout, a long or panicking message",
-            stdout.len()
+            ran.stdout.len()
         ));
     }
     if snapshot(cwd) != before {
@@ -264,18 +324,17 @@ fn judge(exe: &Path, cwd: &Path, logs: &Path, case: &Case) -> Result<(), String>
     if broken.is_empty() {
         Ok(())
     } else {
-        let said: String = stderr.trim().chars().take(300).collect();
+        let said: String = ran.stderr.trim().chars().take(300).collect();
         Err(format!("{}; stderr: {said}", broken.join(", ")))
     }
 }
 
 /// Runs every case and fails naming each one that broke a rule; returns how many ran.
 pub fn run_all(exe: &Path, cwd: &Path, cases: &[Case]) -> usize {
-    let logs = Scratch::new("logs");
     let failures: Vec<String> = cases
         .iter()
         .filter_map(|c| {
-            judge(exe, cwd, &logs.0, c)
+            judge(exe, cwd, c)
                 .err()
                 .map(|e| format!("{}: {e}", c.label))
         })

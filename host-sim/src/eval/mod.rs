@@ -206,16 +206,29 @@ pub fn evaluate(
 mod tests {
     use super::*;
 
+    /// Several chunks, on a pool of one thread and on one of four, give the same row bit for
+    /// bit (its floats by their shortest exact representations, its worst episodes by
+    /// index): episodes are gathered in order, whichever thread ran a chunk and whenever it
+    /// ended. Pushes make some episodes fail, so the row's worst list has entries to order.
     #[test]
     fn results_do_not_depend_on_threads() {
         let net = Net::shipped();
-        let s = Scenario::parse("noise").unwrap();
-        let one = rayon::ThreadPoolBuilder::new()
-            .num_threads(1)
-            .build()
-            .unwrap();
-        let a = one.install(|| evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64));
-        let b = evaluate(ControllerKind::Policy, &net, &s, 200, 3, 64);
-        assert_eq!(a, b);
+        let s = Scenario::parse("noise+push=2").unwrap();
+        // Four full chunks and part of a fifth.
+        let episodes = 4 * CHUNK + 17;
+        let run = |threads| {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            pool.install(|| {
+                assert_eq!(rayon::current_num_threads(), threads);
+                evaluate(ControllerKind::Policy, &net, &s, 200, 3, episodes)
+            })
+        };
+        let (one, four) = (run(1), run(4));
+        assert_eq!(one.episodes, episodes as usize);
+        assert!(one.success_rate < 1.0, "no episode failed: {one:?}");
+        assert_eq!(format!("{one:?}"), format!("{four:?}"));
     }
 }
