@@ -9,6 +9,7 @@ use firmware::identify::Experiment;
 use twin::machine::{self, Integration};
 
 use super::held;
+use super::lm;
 use super::log::{self, Log};
 
 /// The shared unknowns, in the parameter vector's order.
@@ -274,6 +275,32 @@ impl<'a> Setup<'a> {
                     SWING_NUISANCE
                 }
         })
+    }
+
+    /// The blocks as the least-squares problem sees them: a cart piece depends on every
+    /// shared unknown fitted, a swing on the pole's alone, each on its own nuisance
+    /// parameters.
+    pub fn blocks(&self) -> Vec<lm::Block> {
+        let all: Vec<usize> = (0..self.free.len()).collect();
+        let pole: Vec<usize> = all
+            .iter()
+            .copied()
+            .filter(|&k| matches!(self.free[k], POLE_FRICTION | LENGTH))
+            .collect();
+        self.blocks
+            .iter()
+            .map(|b| {
+                let (shared, own) = match b.source {
+                    Source::Cart { .. } => (all.clone(), CART_NUISANCE),
+                    Source::Swing { .. } => (pole.clone(), SWING_NUISANCE),
+                };
+                lm::Block {
+                    rows: b.rows.clone(),
+                    shared,
+                    own: b.nuisance..b.nuisance + own,
+                }
+            })
+            .collect()
     }
 
     /// Each block's rows.

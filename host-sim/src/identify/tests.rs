@@ -200,3 +200,94 @@ fn the_intervals_cover_the_truth() {
     assert!(report.contains("actuator.stall_force_n"), "{report}");
     assert!(report.contains("dead_time_periods"), "{report}");
 }
+
+/// Temporary: the block fit against the dense one on the tests' synthetic logs.
+#[test]
+fn compare_dense_tmp() {
+    let mut cases: Vec<(String, Machine, Machine, Vec<Log>)> = Vec::new();
+    let mut rng = Pcg64Mcg::new(11);
+    for i in 0..6u32 {
+        let tau = if i % 2 == 0 { 0.02 } else { 0.01 };
+        let (mut truth, measured) = random_rig(&mut rng, tau, 1.0);
+        truth.rig.dead_time = [0, 3, 1, 2, 3, 0][i as usize];
+        let reading = random_reading(&mut rng, 0.5);
+        let l = logs(&truth, &measured, i, reading);
+        cases.push((format!("random {i}"), truth, measured, l));
+    }
+    let mut rng = Pcg64Mcg::new(3);
+    let (truth, measured) = random_rig(&mut rng, 0.02, 1.0);
+    let reading = random_reading(&mut rng, 0.0);
+    cases.push((
+        "intervals".into(),
+        truth,
+        measured,
+        logs(&truth, &measured, 7, reading),
+    ));
+    let truth = Machine::GYMNASIUM;
+    let mut measured = truth;
+    let p = &mut measured.rig.params;
+    p.force_mag *= 0.5;
+    p.motor_damping = 1.0;
+    p.length *= 1.1;
+    measured.rig.dead_time = 2;
+    let reading = Reading {
+        zero: Zero {
+            cart: 0.3,
+            pole: 0.7,
+        },
+        ..Reading::default()
+    };
+    cases.push((
+        "gymnasium".into(),
+        truth,
+        measured,
+        logs(&truth, &measured, 1, reading),
+    ));
+    let mut rng = Pcg64Mcg::new(99);
+    for i in 0..8u32 {
+        let tau = if i % 2 == 0 { 0.02 } else { 0.01 };
+        let (truth, measured) = random_rig(&mut rng, tau, 1.0);
+        let reading = random_reading(&mut rng, 0.5);
+        let l = logs(&truth, &measured, i, reading);
+        cases.push((format!("extra {i}"), truth, measured, l));
+    }
+    let mut worst = [0.0f64; 7];
+    for (name, _truth, measured, l) in &cases {
+        fit::DENSE.set(true);
+        let t = std::time::Instant::now();
+        let old = identify(l, measured).unwrap();
+        let t_old = t.elapsed().as_secs_f64();
+        fit::DENSE.set(false);
+        let t = std::time::Instant::now();
+        let new = identify(l, measured).unwrap();
+        let t_new = t.elapsed().as_secs_f64();
+        assert_eq!(old.dead_time, new.dead_time, "{name}");
+        let mut row = Vec::new();
+        for i in 0..model::SHARED {
+            let (a, b) = (old.estimates[i], new.estimates[i]);
+            let rel = (a.value - b.value).abs() / a.value.abs().max(1e-12);
+            let hw = match (a.half_width, b.half_width) {
+                (Some(x), Some(y)) => (x - y).abs() / x,
+                (None, None) => 0.0,
+                _ => f64::INFINITY,
+            };
+            // Difference in units of the old half-width.
+            let sig = a.half_width.map_or(0.0, |h| (a.value - b.value).abs() / h);
+            worst[i] = worst[i].max(rel);
+            worst[5] = worst[5].max(hw);
+            worst[6] = worst[6].max(sig);
+            row.push(format!("{rel:.1e}/{hw:.1e}/{sig:.1e}"));
+        }
+        println!(
+            "{name:12} dead {} old {t_old:.2}s new {t_new:.2}s  {}",
+            new.dead_time,
+            row.join(" ")
+        );
+    }
+    println!(
+        "worst relative per unknown {:?}; half-widths {:.2e}; in half-widths {:.2e}",
+        &worst[..5],
+        worst[5],
+        worst[6]
+    );
+}
