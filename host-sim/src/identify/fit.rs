@@ -112,28 +112,9 @@ fn problem<'s>(setup: &'s Setup, eval: Residuals<'s>) -> Problem<'s> {
     }
 }
 
-thread_local! {
-    /// Temporary: the dense path, for the comparison.
-    pub static DENSE: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
-}
-
 fn solve(setup: &Setup, x0: &[f64], iterations: usize) -> Solution {
     let eval = |x: &[f64], b: usize, out: &mut [f64]| setup.eval(x, b, out, false);
-    let p = problem(setup, &eval);
-    if DENSE.get() {
-        let bounds = setup.bounds();
-        let dense = super::lm_dense::Problem {
-            eval: &eval,
-            rows: setup.rows(),
-            enters: setup.enters(),
-            lower: bounds.iter().map(|b| b.0).collect(),
-            upper: bounds.iter().map(|b| b.1).collect(),
-            scale: bounds.iter().map(|b| b.2).collect(),
-        };
-        let s = dense.solve(x0, iterations);
-        return p.solve(&s.x, 0);
-    }
-    p.solve(x0, iterations)
+    problem(setup, &eval).solve(x0, iterations)
 }
 
 /// Stage 1: the pole's length and friction, and each swing's nuisance parameters.
@@ -232,11 +213,7 @@ pub fn fit(logs: &[Log], machine: &Machine) -> Fit {
     x0.extend(&swing_nuisance);
     joint.weights = inverse(&joint.scatter(&x0));
     let solution = solve(&joint, &x0, ITERATIONS);
-    let estimates = if DENSE.get() {
-        dense_intervals(&joint, &solution)
-    } else {
-        intervals(&joint, &solution)
-    };
+    let estimates = intervals(&joint, &solution);
     Fit {
         params: joint.params(&solution.x),
         dead_time: dead as u32,
@@ -260,39 +237,6 @@ fn intervals(setup: &Setup, s: &Solution) -> [Estimate; SHARED] {
     let fitted = free.len() + n - SHARED;
     let variance = s.sse / (m.saturating_sub(fitted).max(1)) as f64;
     let inverse = s.normal.shared_inverse(&free);
-    core::array::from_fn(|i| {
-        let half_width = free.iter().position(|&j| j == i).and_then(|k| {
-            let v = inverse.as_ref()?[k * free.len() + k] * variance;
-            (v.is_finite() && v >= 0.0).then(|| Z95 * v.sqrt())
-        });
-        Estimate {
-            value: s.x[i],
-            half_width,
-        }
-    })
-}
-
-/// Temporary: the old intervals, from the dense Jacobian.
-fn dense_intervals(setup: &Setup, s: &Solution) -> [Estimate; SHARED] {
-    let (m, n) = (setup.m(), setup.n());
-    let bounds = setup.bounds();
-    let eval = |x: &[f64], b: usize, out: &mut [f64]| setup.eval(x, b, out, false);
-    let dense = super::lm_dense::Problem {
-        eval: &eval,
-        rows: setup.rows(),
-        enters: setup.enters(),
-        lower: bounds.iter().map(|b| b.0).collect(),
-        upper: bounds.iter().map(|b| b.1).collect(),
-        scale: bounds.iter().map(|b| b.2).collect(),
-    };
-    let mut r = vec![0.0; m];
-    dense.residuals(&s.x, &mut r);
-    let jacobian = dense.jacobian(&s.x, &r);
-    let free: Vec<usize> = (0..n)
-        .filter(|&j| j >= SHARED || (s.x[j] > bounds[j].0 && s.x[j] < bounds[j].1))
-        .collect();
-    let variance = s.sse / (m.saturating_sub(free.len()).max(1)) as f64;
-    let inverse = super::lm_dense::inverse_normal(&jacobian, m, n, &free);
     core::array::from_fn(|i| {
         let half_width = free.iter().position(|&j| j == i).and_then(|k| {
             let v = inverse.as_ref()?[k * free.len() + k] * variance;

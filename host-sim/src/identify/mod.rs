@@ -23,7 +23,6 @@
 
 pub mod fit;
 pub mod lm;
-pub mod lm_dense;
 pub mod log;
 pub mod model;
 pub mod report;

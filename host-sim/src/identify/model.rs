@@ -303,31 +303,6 @@ impl<'a> Setup<'a> {
             .collect()
     }
 
-    /// Each block's rows.
-    pub fn rows(&self) -> Vec<Range<usize>> {
-        self.blocks.iter().map(|b| b.rows.clone()).collect()
-    }
-
-    /// The blocks each parameter enters: a cart piece depends on every shared unknown, a
-    /// swing on the pole's alone, each on its own nuisance parameters.
-    pub fn enters(&self) -> Vec<Vec<usize>> {
-        let shared = self.free.iter().map(|&i| {
-            let pole = i == POLE_FRICTION || i == LENGTH;
-            (0..self.blocks.len())
-                .filter(|&b| pole || matches!(self.blocks[b].source, Source::Cart { .. }))
-                .collect()
-        });
-        let nuisance = (self.free.len()..self.n()).map(|j| {
-            vec![
-                self.blocks
-                    .iter()
-                    .rposition(|b| b.nuisance <= j)
-                    .unwrap_or(0),
-            ]
-        });
-        shared.chain(nuisance).collect()
-    }
-
     /// The plant's parameters at `x`.
     pub fn params(&self, x: &[f64]) -> Params {
         let mut p = self.base;
