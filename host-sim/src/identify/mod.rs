@@ -56,8 +56,19 @@ pub fn held(p: &Params) -> Params {
 /// Checks `logs` against `machine` (the rig they were recorded on) and that they hold at
 /// least one experiment of each kind.
 pub fn check(logs: &[Log], machine: &Machine) -> Result<()> {
+    let mut seconds = 0.0;
     for log in logs {
         log.check(machine)?;
+        seconds += log.duty.len() as f64 * log.period_s;
+        if seconds > log::MAX_TOTAL_SECONDS {
+            return Err(Error::Input(format!(
+                "{}:{}: expected at most {} s of logs in all, found {seconds:.0} s up to this \
+                 log's end",
+                log.origin,
+                log.line,
+                log::MAX_TOTAL_SECONDS
+            )));
+        }
     }
     for e in [Experiment::Cart, Experiment::Swing] {
         if !logs.iter().any(|l| l.experiment == e) {
