@@ -11,13 +11,16 @@
 //!    inverse of its own scatter in the stages before (a pole count and a cart count are
 //!    not the same error), from where stages 1 and 2 ended.
 
+use std::cell::Cell;
+use std::ops::Range;
+
 use firmware::cartpole::Params;
 use twin::Machine;
 
 use super::lm::{Problem, Residuals, Solution};
 use super::log::Log;
 use super::model::{self, CartData, SHARED, Setup, SwingData, Weights};
-use super::start;
+use super::{pieces, start};
 
 /// The longest dead time searched, periods.
 pub const MAX_DEAD_TIME: usize = 8;
@@ -98,6 +101,9 @@ pub struct Fit {
     pub dead_time_sse: Vec<f64>,
     /// Each log's measured and simulated counts.
     pub traces: Vec<Trace>,
+    /// How many residuals the minimisations evaluated, each a period simulated: the fit's
+    /// work.
+    pub evaluated: u64,
 }
 
 fn problem<'s>(setup: &'s Setup, eval: Residuals<'s>) -> Problem<'s> {
@@ -112,13 +118,21 @@ fn problem<'s>(setup: &'s Setup, eval: Residuals<'s>) -> Problem<'s> {
     }
 }
 
-fn solve(setup: &Setup, x0: &[f64], iterations: usize) -> Solution {
+/// Minimises `setup`'s sum of squares from `x0`, adding the residuals evaluated to `work`.
+fn solve(setup: &Setup, x0: &[f64], iterations: usize, work: &Cell<u64>) -> Solution {
     let eval = |x: &[f64], b: usize, out: &mut [f64]| setup.eval(x, b, out, false);
-    problem(setup, &eval).solve(x0, iterations)
+    let s = problem(setup, &eval).solve(x0, iterations);
+    work.set(work.get() + s.evaluated);
+    s
 }
 
 /// Stage 1: the pole's length and friction, and each swing's nuisance parameters.
-fn swings(base: &Params, machine: &Machine, swings: &[SwingData]) -> (Params, Vec<f64>) {
+fn swings(
+    base: &Params,
+    machine: &Machine,
+    swings: &[SwingData],
+    work: &Cell<u64>,
+) -> (Params, Vec<f64>) {
     let free = vec![model::POLE_FRICTION, model::LENGTH];
     let setup = Setup::new(*base, machine.integration, (&[], swings), 0, free);
     let (length, friction) = swings
@@ -129,7 +143,7 @@ fn swings(base: &Params, machine: &Machine, swings: &[SwingData]) -> (Params, Ve
         .into_iter()
         .chain(setup.nuisance_start())
         .collect();
-    let s = solve(&setup, &x0, ITERATIONS);
+    let s = solve(&setup, &x0, ITERATIONS, work);
     (setup.params(&s.x), s.x[2..].to_vec())
 }
 
@@ -141,6 +155,7 @@ fn carts(
     carts: &[CartData],
     dead: usize,
     (from, iterations): (Option<&[f64]>, usize),
+    work: &Cell<u64>,
 ) -> (Vec<f64>, f64) {
     let free = vec![model::FORCE, model::DAMPING, model::CART_FRICTION];
     let setup = Setup::new(*base, machine.integration, (carts, &[]), dead, free);
@@ -157,7 +172,7 @@ fn carts(
                 .collect()
         }
     };
-    let s = solve(&setup, &x0, iterations);
+    let s = solve(&setup, &x0, iterations, work);
     (s.x, s.sse)
 }
 
@@ -170,31 +185,87 @@ fn inverse(spread: &Weights) -> Weights {
     }
 }
 
-/// Identifies `machine`'s unknowns from checked `logs`, at least one of each experiment.
-pub fn fit(logs: &[Log], machine: &Machine) -> Fit {
-    let (cart_data, swing_data) = model::split(logs);
-    let base = machine.rig.params;
-    let (pole, swing_nuisance) = swings(&base, machine, &swing_data);
+/// Stage 2's dead time on `carts`: every one from 0 to [`MAX_DEAD_TIME`] fitted for
+/// [`SCREENING`] iterations, the best [`FINALISTS`] to convergence, the one of least sum of
+/// squares chosen; with each dead time's fitted vector and sum of squares.
+fn dead_time(
+    pole: &Params,
+    machine: &Machine,
+    carts: &[CartData],
+    work: &Cell<u64>,
+) -> (usize, Vec<(Vec<f64>, f64)>) {
+    let fit =
+        |d: usize, from: (Option<&[f64]>, usize)| self::carts(pole, machine, carts, d, from, work);
     let mut runs: Vec<(Vec<f64>, f64)> = (0..=MAX_DEAD_TIME)
-        .map(|d| carts(&pole, machine, &cart_data, d, (None, SCREENING)))
+        .map(|d| fit(d, (None, SCREENING)))
         .collect();
     let mut order: Vec<usize> = (0..runs.len()).collect();
     order.sort_by(|&a, &b| runs[a].1.total_cmp(&runs[b].1));
     for &d in &order[..FINALISTS] {
-        runs[d] = carts(
-            &pole,
-            machine,
-            &cart_data,
-            d,
-            (Some(&runs[d].0), ITERATIONS),
-        );
+        runs[d] = fit(d, (Some(&runs[d].0), ITERATIONS));
     }
     let dead = order[..FINALISTS]
         .iter()
         .copied()
         .min_by(|&a, &b| runs[a].1.total_cmp(&runs[b].1))
         .unwrap_or(0);
-    let cart_x = &runs[dead].0;
+    (dead, runs)
+}
+
+/// Stage 2 on every piece of `carts` at dead time `dead`, from the fit `x` on their first
+/// pieces `screened`; then each lost piece cut in two and the fit repeated
+/// ([`pieces::cut_lost`]), [`pieces::CUTS`] times at most. The fitted vector.
+fn all_carts(
+    pole: &Params,
+    machine: &Machine,
+    (carts, dead): (&mut [CartData], usize),
+    (screened, x): (&[CartData], &[f64]),
+    work: &Cell<u64>,
+) -> Vec<f64> {
+    let free = || vec![model::FORCE, model::DAMPING, model::CART_FRICTION];
+    let pieces_of = |c: &[CartData]| -> Vec<Vec<Range<usize>>> {
+        c.iter().map(|c| c.segments.clone()).collect()
+    };
+    let refit = |carts: &[CartData], from: &[Vec<Range<usize>>], x: &[f64]| {
+        let setup = Setup::new(*pole, machine.integration, (carts, &[]), dead, free());
+        let x0 = pieces::carry((from, x), carts, setup.free.len(), &setup.nuisance_start());
+        solve(&setup, &x0, ITERATIONS, work).x
+    };
+    let mut x = x.to_vec();
+    if pieces_of(screened) != pieces_of(carts) {
+        x = refit(carts, &pieces_of(screened), &x);
+    }
+    let shortest = (model::SEGMENT_S / f64::from(1 << pieces::CUTS) / pole.tau).round() as usize;
+    for _ in 0..pieces::CUTS {
+        let setup = Setup::new(*pole, machine.integration, (carts, &[]), dead, free());
+        let Some(cut) = pieces::cut_lost(&setup, &x, shortest.max(1)) else {
+            break;
+        };
+        let from = pieces_of(carts);
+        for (c, s) in carts.iter_mut().zip(cut) {
+            c.segments = s;
+        }
+        x = refit(carts, &from, &x);
+    }
+    x
+}
+
+/// Identifies `machine`'s unknowns from checked `logs`, at least one of each experiment.
+pub fn fit(logs: &[Log], machine: &Machine) -> Fit {
+    let work = Cell::new(0);
+    let (mut cart_data, swing_data) = model::split(logs);
+    let base = machine.rig.params;
+    let (pole, swing_nuisance) = swings(&base, machine, &swing_data, &work);
+    let screen = (pieces::SCREEN_S / base.tau).round() as usize;
+    let screened = pieces::prefix(&cart_data, screen);
+    let (dead, runs) = dead_time(&pole, machine, &screened, &work);
+    let cart_x = all_carts(
+        &pole,
+        machine,
+        (&mut cart_data, dead),
+        (&screened, &runs[dead].0),
+        &work,
+    );
     let mut joint = Setup::new(
         base,
         machine.integration,
@@ -212,7 +283,7 @@ pub fn fit(logs: &[Log], machine: &Machine) -> Fit {
     x0.extend(&cart_x[3..]);
     x0.extend(&swing_nuisance);
     joint.weights = inverse(&joint.scatter(&x0));
-    let solution = solve(&joint, &x0, ITERATIONS);
+    let solution = solve(&joint, &x0, ITERATIONS, &work);
     let estimates = intervals(&joint, &solution);
     Fit {
         params: joint.params(&solution.x),
@@ -220,6 +291,7 @@ pub fn fit(logs: &[Log], machine: &Machine) -> Fit {
         estimates,
         dead_time_sse: runs.iter().map(|r| r.1).collect(),
         traces: traces(logs, &joint, &solution.x),
+        evaluated: work.get(),
     }
 }
 

@@ -93,6 +93,13 @@ pub struct Solution {
 /// far below what separates two fits statistically (a sum of `m` squared residuals of unit
 /// variance scatters by `sqrt(2 m)`), and above the finite differences' noise.
 const TOLERANCE: f64 = 1e-6;
+/// The largest step of every shared parameter, in standard errors, and the largest
+/// relative decrease of the sum of squares, at which the iteration has converged however
+/// much a block's own parameters still move. A block whose simulation is all but chaotic
+/// (a pole passing the upright slowly) lies in a long, narrow valley its own parameters
+/// creep along, lowering the sum of squares a little each iteration long after the shared
+/// parameters have stopped moving.
+const SHARED_TOLERANCE: (f64, f64) = (1e-2, 1e-3);
 /// The finite differences' step relative to a parameter's size: about the cube root of
 /// f64's epsilon, a compromise between the truncation of a one-sided difference and the
 /// rounding of a simulation's residuals.
@@ -237,7 +244,9 @@ impl Problem<'_> {
                 lambda *= 4.0;
             }
             let Some((next, s)) = improved else { break };
-            let converged = sse - s <= TOLERANCE * sse;
+            let converged = sse - s <= TOLERANCE * sse
+                || (sse - s <= SHARED_TOLERANCE.1 * sse
+                    && normal.settled(&x, &next, s / (r.len() as f64 - x.len() as f64).max(1.0)));
             x = next;
             sse = s;
             std::mem::swap(&mut r, &mut trial);
@@ -335,6 +344,19 @@ impl Normal {
             delta.extend(solve_factored(l, &b, k));
         }
         Some(delta)
+    }
+
+    /// Whether the step from `x` to `next` moves every shared parameter by at most
+    /// [`SHARED_TOLERANCE`] of its standard error, the residuals' variance `variance`.
+    fn settled(&self, x: &[f64], next: &[f64], variance: f64) -> bool {
+        let all: Vec<usize> = (0..self.shared).collect();
+        let Some(inverse) = self.shared_inverse(&all) else {
+            return false;
+        };
+        all.iter().all(|&i| {
+            let sd = (inverse[i * self.shared + i] * variance).sqrt();
+            (next[i] - x[i]).abs() <= SHARED_TOLERANCE.0 * sd
+        })
     }
 
     /// The block of `(J'J)^-1` over the shared parameters `free` selects (ascending; the

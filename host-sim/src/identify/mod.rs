@@ -25,6 +25,7 @@ pub mod fit;
 pub mod lm;
 pub mod log;
 pub mod model;
+mod pieces;
 pub mod report;
 mod start;
 pub mod synthetic;

@@ -184,7 +184,7 @@ pub struct Setup<'a> {
 }
 
 /// Nuisance parameters per cart piece.
-const CART_NUISANCE: usize = 4;
+pub const CART_NUISANCE: usize = 4;
 /// Nuisance parameters per swing log.
 const SWING_NUISANCE: usize = 3;
 
