@@ -37,7 +37,7 @@ fn prefixes_are_whole_pieces_in_the_order_given() {
     assert_eq!(all[0].segments, carts[0].segments);
     assert_eq!(all[1].duty, carts[1].duty);
     // Less than a piece: the first piece.
-    assert_eq!(prefix(&carts, 30)[0].segments, [0..100]);
+    assert_eq!(prefix(&carts, 30)[0].segments, vec![0..100]);
 }
 
 #[test]
@@ -81,7 +81,7 @@ fn only_a_lost_piece_is_cut() {
         .chain(setup.nuisance_start())
         .collect();
     let [cart, pole] = setup.simulated(&x).0.remove(0);
-    let wobble = |k: usize| if k % 2 == 0 { 0.3 } else { -0.3 };
+    let wobble = |k: usize| if k.is_multiple_of(2) { 0.3 } else { -0.3 };
     carts[0].counts = cart
         .iter()
         .enumerate()
