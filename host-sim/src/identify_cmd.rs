@@ -87,8 +87,9 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         fit::MAX_DEAD_TIME
     ));
     bar.enable_steady_tick(Duration::from_millis(100));
-    let found = fit::fit(&logs, &machine);
+    let found = identify::fitted(&logs, &machine);
     bar.finish_and_clear();
+    let found = found?;
     let identified = identify::identified(&machine, &found);
     let text = report::rig_file(&identified, &found, &logs);
     // What is written must be a rig file every tool reads back.
@@ -100,6 +101,9 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     }
     write_atomic(&a.out, text.as_bytes())?;
     host_common::out!("{}", report::format(&found, &logs));
+    for w in report::warnings(&found, &logs) {
+        host_common::errln!("warning: {w}");
+    }
     host_common::errln!("{}", a.out.display());
     Ok(())
 }

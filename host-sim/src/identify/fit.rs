@@ -19,6 +19,7 @@ use twin::Machine;
 
 use super::lm::{Problem, Residuals, Solution};
 use super::log::Log;
+use super::misfit::{Channel, ROUNDING_SD, WINDOW_S};
 use super::model::{self, CartData, SHARED, Setup, SwingData, Weights};
 use super::{pieces, start};
 
@@ -31,9 +32,6 @@ const ITERATIONS: usize = 60;
 const SCREENING: usize = 8;
 /// How many dead times are fitted to convergence.
 const FINALISTS: usize = 2;
-/// The standard deviation of an encoder's rounding to a count, counts: the least scatter a
-/// log's residuals are credited with.
-const ROUNDING_SD: f64 = 0.288_675_134_594_812_9;
 /// The two-sided 95% point of the normal distribution.
 const Z95: f64 = 1.959_963_984_540_054;
 
@@ -45,36 +43,6 @@ pub struct Estimate {
     /// Half the width of its 95% confidence interval; `None` where the value is at a bound
     /// (the interval is then not the Jacobian's) or the fit cannot tell the unknowns apart.
     pub half_width: Option<f64>,
-}
-
-/// One encoder's measured and simulated counts in a log.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Channel {
-    /// Which encoder: `cart` or `pole`.
-    pub name: &'static str,
-    /// The measured counts (each count's midpoint; the pole's from hanging).
-    pub measured: Vec<f64>,
-    /// The simulated counts.
-    pub simulated: Vec<f64>,
-    /// The RMS of their difference, counts.
-    pub rms: f64,
-}
-
-impl Channel {
-    fn new(name: &'static str, measured: Vec<f64>, simulated: Vec<f64>) -> Channel {
-        let n = measured.len().max(1) as f64;
-        let sum: f64 = measured
-            .iter()
-            .zip(&simulated)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum();
-        Channel {
-            name,
-            measured,
-            simulated,
-            rms: (sum / n).sqrt(),
-        }
-    }
 }
 
 /// A log's measured and simulated counts at the estimate.
@@ -324,6 +292,7 @@ fn intervals(setup: &Setup, s: &Solution) -> [Estimate; SHARED] {
 /// Each log's measured and simulated counts at `x`, in the order the logs were given.
 fn traces(logs: &[Log], setup: &Setup, x: &[f64]) -> Vec<Trace> {
     let (mut carts, mut swings) = setup.simulated(x);
+    let window = (WINDOW_S / setup.base.tau).round() as usize;
     let (mut c, mut s) = (0, 0);
     logs.iter()
         .enumerate()
@@ -333,14 +302,14 @@ fn traces(logs: &[Log], setup: &Setup, x: &[f64]) -> Vec<Trace> {
                 let data = &setup.carts[c];
                 c += 1;
                 vec![
-                    Channel::new("cart", data.counts.clone(), cart),
-                    Channel::new("pole", data.pole.clone(), pole),
+                    Channel::new("cart", data.counts.clone(), cart, window),
+                    Channel::new("pole", data.pole.clone(), pole, window),
                 ]
             } else {
                 let data = &setup.swings[s];
                 let sim = std::mem::take(&mut swings[s]);
                 s += 1;
-                vec![Channel::new("pole", data.counts.clone(), sim)]
+                vec![Channel::new("pole", data.counts.clone(), sim, window)]
             };
             let start = if l.experiment == firmware::identify::Experiment::Cart {
                 0

@@ -24,6 +24,7 @@
 pub mod fit;
 pub mod lm;
 pub mod log;
+pub mod misfit;
 pub mod model;
 mod pieces;
 pub mod report;
@@ -106,10 +107,29 @@ pub fn identified(machine: &Machine, fit: &Fit) -> Machine {
     m
 }
 
-/// Checks `logs` and fits `machine`'s unknowns to them.
+/// Checks `logs` and fits `machine`'s unknowns to them ([`fitted`]).
 pub fn identify(logs: &[Log], machine: &Machine) -> Result<Fit> {
     check(logs, machine)?;
-    Ok(fit::fit(logs, machine))
+    fitted(logs, machine)
+}
+
+/// Fits `machine`'s unknowns to checked `logs`; refused if a cart log does not fit
+/// ([`misfit`]) and fits [`misfit::INVERTED_RATIO`] times better with the pole's counts
+/// negated: the pole's encoder is wired the other way round.
+pub fn fitted(logs: &[Log], machine: &Machine) -> Result<Fit> {
+    let found = fit::fit(logs, machine);
+    let cart_misfit = misfit::findings(&found)
+        .iter()
+        .any(|(t, _)| logs[t.log].experiment == Experiment::Cart);
+    if cart_misfit {
+        let flipped = fit::fit(&misfit::inverted(logs), machine);
+        if misfit::worst_cart(&flipped, logs) * misfit::INVERTED_RATIO
+            <= misfit::worst_cart(&found, logs)
+        {
+            return Err(misfit::inverted_refusal(logs, &found, &flipped));
+        }
+    }
+    Ok(found)
 }
 
 #[cfg(test)]
