@@ -59,7 +59,11 @@ fn per_period(logs: &[Log], machine: &twin::Machine) -> [f64; 3] {
     let peak = PEAK.load(Ordering::Relaxed) - before;
     let allocated = TOTAL.load(Ordering::Relaxed) - total;
     let n = periods as f64;
-    [peak as f64 / n, allocated as f64 / n, fit.evaluated as f64 / n]
+    [
+        peak as f64 / n,
+        allocated as f64 / n,
+        fit.evaluated as f64 / n,
+    ]
 }
 
 /// The desk rig's cart experiment of 30, 60 and 120 s (beside the same 20 s swing): the
@@ -90,7 +94,10 @@ fn memory_and_work_grow_in_proportion_to_the_logs() {
         );
         rows.push(row);
     }
-    for (i, what) in ["peak memory", "allocations", "work"].into_iter().enumerate() {
+    for (i, what) in ["peak memory", "allocations", "work"]
+        .into_iter()
+        .enumerate()
+    {
         let (first, last) = (rows[0][i], rows[rows.len() - 1][i]);
         assert!(
             last <= 1.5 * first,

@@ -117,3 +117,116 @@ fn machines_inside_the_model_are_not_misfits() {
     let text = report::rig_file(&identified(&board, &fit), &fit, &logs);
     assert_eq!(twin::rigfile::misfit(&text, "identified").unwrap(), None);
 }
+
+/// The sweep the limits were chosen from (`docs/RIGS.md`), too slow for every run: 24 of the
+/// twin's random rigs (both periods, 10 to 60 s of cart log, a jitter of 0 to a count on
+/// every reading), none warned of; and nine machines outside the model (motors lagging 2 to
+/// 20 ms, poles of 20% less to 10% more inertia than a uniform rod's with their centre of
+/// mass, readings jittering by 0.5 and 1 ms), two logs each, each with its cart encoder
+/// warned of.
+#[test]
+#[ignore = "the limits' sweep: minutes"]
+fn the_limits_separate_machines_inside_the_model_from_those_outside() {
+    let mut rng = Pcg64Mcg::new(77);
+    let (mut largest, mut slowest) = (0.0f64, 0.0f64);
+    for i in 0..24u32 {
+        let tau = if i % 2 == 0 { 0.02 } else { 0.01 };
+        let jitter = [0.0, 0.1, 0.25, 0.5, 1.0][(i / 2 % 5) as usize];
+        let cart_s = [10.0, 30.0, 60.0][(i % 3) as usize];
+        let (truth, m) = random_rig(&mut rng, tau, 1.0);
+        let reading = random_reading(&mut rng, jitter);
+        let texts = synthetic::experiments_lasting(&truth, &m.rig, (i, reading), [cart_s, 20.0]);
+        let logs: Vec<Log> = texts
+            .iter()
+            .flat_map(|t| log::parse(t, "twin").unwrap())
+            .collect();
+        let fit = identify(&logs, &m).unwrap();
+        stats(&format!("twin {i}, {jitter} counts"), &fit);
+        for c in fit.traces.iter().flat_map(|t| &t.channels) {
+            largest = largest.max(c.rms);
+            slowest = slowest.max(c.slow());
+        }
+        assert!(misfit::findings(&fit).is_empty(), "rig {i}");
+    }
+    let board = measured();
+    let outside = [
+        (
+            "lag 2 ms",
+            Bench {
+                lag_s: 0.002,
+                ..desk()
+            },
+        ),
+        (
+            "lag 5 ms",
+            Bench {
+                lag_s: 0.005,
+                ..desk()
+            },
+        ),
+        (
+            "lag 10 ms",
+            Bench {
+                lag_s: 0.01,
+                ..desk()
+            },
+        ),
+        (
+            "lag 20 ms",
+            Bench {
+                lag_s: 0.02,
+                ..desk()
+            },
+        ),
+        (
+            "inertia 0.8",
+            Bench {
+                inertia: 0.8 * desk().inertia,
+                ..desk()
+            },
+        ),
+        (
+            "inertia 0.9",
+            Bench {
+                inertia: 0.9 * desk().inertia,
+                ..desk()
+            },
+        ),
+        (
+            "inertia 1.1",
+            Bench {
+                inertia: 1.1 * desk().inertia,
+                ..desk()
+            },
+        ),
+        (
+            "timing 0.5 ms",
+            Bench {
+                timing_sd_s: 5e-4,
+                ..desk()
+            },
+        ),
+        (
+            "timing 1 ms",
+            Bench {
+                timing_sd_s: 1e-3,
+                ..desk()
+            },
+        ),
+    ];
+    for (name, bench) in outside {
+        for seed in [1, 2] {
+            let logs = bench_logs(&bench, &board.rig, 10.0, seed);
+            let fit = identify(&logs, &board).unwrap();
+            stats(&format!("{name}, seed {seed}"), &fit);
+            let cart = &fit.traces[0].channels[0];
+            assert!(!cart.fits(), "{name}, seed {seed}: {cart:?}");
+        }
+    }
+    stats_line(largest, slowest);
+}
+
+#[allow(clippy::print_stdout)]
+fn stats_line(largest: f64, slowest: f64) {
+    println!("inside the model: largest RMS {largest:.3} counts, largest slow part {slowest:.3}");
+}
