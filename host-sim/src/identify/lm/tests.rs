@@ -49,6 +49,28 @@ fn moments(t: &[f64]) -> [f64; 3] {
     ]
 }
 
+/// The least-squares intercept and slopes of lines `a + b_k t` through the blocks' points
+/// `t[k]` at heights `y(k, t, i)`: with each slope at its best for a given intercept,
+/// `b_k = (S_ty - a S1) / S2`, the intercept solves the reduced equation
+/// `a sum_k (n - S1^2 / S2) = sum_k (S_y - S1 S_ty / S2)`.
+fn by_hand(t: &[Vec<f64>], y: impl Fn(usize, f64, usize) -> f64) -> (f64, Vec<f64>) {
+    let (mut num, mut den, mut sums) = (0.0, 0.0, Vec::new());
+    for (k, t) in t.iter().enumerate() {
+        let [n, s1, s2] = moments(t);
+        let ys: Vec<f64> = t.iter().enumerate().map(|(i, &t)| y(k, t, i)).collect();
+        let (sy, sty): (f64, f64) = (ys.iter().sum(), t.iter().zip(&ys).map(|(t, y)| t * y).sum());
+        num += sy - s1 * sty / s2;
+        den += n - s1 * s1 / s2;
+        sums.push((sty, s1, s2));
+    }
+    let intercept = num / den;
+    let slopes = sums
+        .into_iter()
+        .map(|(sty, s1, s2)| (sty - intercept * s1) / s2)
+        .collect();
+    (intercept, slopes)
+}
+
 /// Straight lines `a + b_k t` through two blocks of points, the intercept `a` shared, each
 /// block's slope `b_k` its own: the least-squares answer found exactly, and the shared
 /// intercept's inverse normal element against the one written out by hand. For a line
@@ -100,31 +122,14 @@ fn own_parameters_are_eliminated_exactly() {
         "{inv:?} against {}",
         1.0 / reduced
     );
-    // The normal equations' solution by hand: with each slope at its best for a given
-    // intercept, b_k = (S_ty - a S1) / S2, the intercept solves the reduced equation.
-    let targets: Vec<Vec<f64>> = (0..2)
-        .map(|k| {
-            t[k].iter()
-                .zip(noise)
-                .map(|(t, e)| a + b[k] * t + e)
-                .collect()
-        })
-        .collect();
-    let (mut num, mut slopes) = (0.0, Vec::new());
-    for (t, y) in t.iter().zip(&targets) {
-        let [_, s1, s2] = moments(t);
-        let (sy, sty): (f64, f64) = (y.iter().sum(), t.iter().zip(y).map(|(t, y)| t * y).sum());
-        num += sy - s1 * sty / s2;
-        slopes.push((sty, s1, s2));
-    }
-    let intercept = num / reduced;
+    // The normal equations' solution by hand.
+    let (intercept, slopes) = by_hand(&t, |k, t, i| a + b[k] * t + noise[i]);
     assert!(
         (s.x[0] - intercept).abs() < 1e-6,
         "{:?} against {intercept}",
         s.x
     );
-    for (k, (sty, s1, s2)) in slopes.into_iter().enumerate() {
-        let slope = (sty - intercept * s1) / s2;
+    for (k, slope) in slopes.into_iter().enumerate() {
         assert!(
             (s.x[1 + k] - slope).abs() < 1e-6,
             "{:?}: slope {k} {slope}",

@@ -95,9 +95,8 @@ fn machines_outside_the_model_are_reported_as_misfits() {
 #[test]
 fn machines_inside_the_model_are_not_misfits() {
     let mut rng = Pcg64Mcg::new(21);
-    for i in 0..4u32 {
-        let tau = if i % 2 == 0 { 0.02 } else { 0.01 };
-        let jitter = [0.0, 1.0][(i / 2) as usize];
+    for (i, (tau, jitter)) in [(0.02, 0.0), (0.01, 1.0)].into_iter().enumerate() {
+        let i = i as u32;
         let (truth, m) = random_rig(&mut rng, tau, 1.0);
         let reading = random_reading(&mut rng, jitter);
         let fit = identify(&logs(&truth, &m, i, reading), &m).unwrap();
@@ -127,6 +126,13 @@ fn machines_inside_the_model_are_not_misfits() {
 #[test]
 #[ignore = "the limits' sweep: minutes"]
 fn the_limits_separate_machines_inside_the_model_from_those_outside() {
+    let (largest, slowest) = inside_sweep();
+    outside_sweep();
+    stats_line(largest, slowest);
+}
+
+/// The sweep's machines inside the model: their largest RMS residual and slow part.
+fn inside_sweep() -> (f64, f64) {
     let mut rng = Pcg64Mcg::new(77);
     let (mut largest, mut slowest) = (0.0f64, 0.0f64);
     for i in 0..24u32 {
@@ -148,6 +154,11 @@ fn the_limits_separate_machines_inside_the_model_from_those_outside() {
         }
         assert!(misfit::findings(&fit).is_empty(), "rig {i}");
     }
+    (largest, slowest)
+}
+
+/// The sweep's machines outside the model.
+fn outside_sweep() {
     let board = measured();
     let outside = [
         (
@@ -223,7 +234,6 @@ fn the_limits_separate_machines_inside_the_model_from_those_outside() {
             assert!(!cart.fits(), "{name}, seed {seed}: {cart:?}");
         }
     }
-    stats_line(largest, slowest);
 }
 
 #[allow(clippy::print_stdout)]
