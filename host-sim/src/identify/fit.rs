@@ -3,13 +3,17 @@
 //!
 //! 1. the swing logs alone: the pole's effective length and the pivot's friction (a held
 //!    cart's pendulum depends on nothing else), from the length the swing's period gives;
-//! 2. the cart logs alone at each dead time from 0 to [`MAX_DEAD_TIME`], the pole as stage 1
-//!    found it: the stall force, the damping and the cart's friction, from an
-//!    equation-error regression; the dead time is the one whose fit leaves the least sum of
-//!    squares;
+//! 2. the cart logs alone, the pole as stage 1 found it: the stall force, the damping and
+//!    the cart's friction, from an equation-error regression. First on the cart logs' first
+//!    [`pieces::SCREEN_S`] at each dead time from 0 to [`MAX_DEAD_TIME`], the dead time the
+//!    one whose fit leaves the least sum of squares; then on every piece at that dead time,
+//!    the pieces whose simulation fell the other way cut ([`pieces`]);
 //! 3. every log at that dead time, every unknown free, each log's residuals weighted by the
 //!    inverse of its own scatter in the stages before (a pole count and a cart count are
 //!    not the same error), from where stages 1 and 2 ended.
+//!
+//! Each stage's work and memory grow in proportion to its logs ([`super::lm`]); the dead
+//! time's search costs the same however long they are.
 
 use std::cell::Cell;
 use std::ops::Range;
@@ -65,7 +69,8 @@ pub struct Fit {
     pub dead_time: u32,
     /// Each shared unknown's estimate, in [`model`]'s order.
     pub estimates: [Estimate; SHARED],
-    /// Stage 2's sum of squares at each dead time from 0.
+    /// Stage 2's sum of squares at each dead time from 0, on the cart logs' first
+    /// [`pieces::SCREEN_S`].
     pub dead_time_sse: Vec<f64>,
     /// Each log's measured and simulated counts.
     pub traces: Vec<Trace>,

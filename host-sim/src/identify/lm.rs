@@ -64,7 +64,7 @@ struct Part {
 }
 
 /// The normal equations `J'J` and `J'r` of a block problem, in its structure: the shared
-/// parameters' square and each block's [`Part`].
+/// parameters' square and each block's part.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Normal {
     shared: usize,

@@ -17,7 +17,8 @@
 //! billion kilograms ([`held`]): one set of equations for both experiments.
 //!
 //! - [`log`]: the logs read and checked.
-//! - [`model`]: the experiments as the fit simulates them.
+//! - [`model`]: the experiments as the fit simulates them; [`pieces`], the cart logs' pieces.
+//! - [`misfit`]: whether the fit can be trusted, and the logs of a pole read inverted.
 //! - [`synthetic`]: the board's experiments run against a simulated machine.
 //! - [`report`]: the estimates printed, the identified rig file, the plots.
 
@@ -26,7 +27,7 @@ pub mod lm;
 pub mod log;
 pub mod misfit;
 pub mod model;
-mod pieces;
+pub mod pieces;
 pub mod report;
 mod start;
 pub mod synthetic;

@@ -20,10 +20,10 @@ pub const CUTS: usize = 3;
 /// How many times the median piece's RMS residual a piece's must be for it to be cut.
 /// In-class pieces scatter by tens of percent about the median; a piece whose simulation
 /// has fallen the other way is hundreds of times off.
-const LOST: f64 = 10.0;
+pub const LOST: f64 = 10.0;
 /// The least RMS residual of a piece cut, counts: a few times an encoder's rounding, so
 /// that logs of exact counts never cut a piece for the rounding's own scatter.
-const LOST_COUNTS: f64 = 3.0;
+pub const LOST_COUNTS: f64 = 3.0;
 
 /// `carts`' first pieces, `periods` of them in all at most but at least one piece, whole
 /// pieces in the order given: each log whole if it is no longer.
