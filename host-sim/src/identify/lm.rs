@@ -93,9 +93,9 @@ pub struct Solution {
 /// far below what separates two fits statistically (a sum of `m` squared residuals of unit
 /// variance scatters by `sqrt(2 m)`), and above the finite differences' noise.
 const TOLERANCE: f64 = 1e-6;
-/// The largest step of every shared parameter, in standard errors, and the largest
-/// relative decrease of the sum of squares, at which the iteration has converged however
-/// much a block's own parameters still move. A block whose simulation is all but chaotic
+/// The largest Gauss-Newton step of every shared parameter, in standard errors, and the
+/// largest relative decrease of the sum of squares, at which the iteration has converged
+/// however much a block's own parameters still move. A block whose simulation is all but chaotic
 /// (a pole passing the upright slowly) lies in a long, narrow valley its own parameters
 /// creep along, lowering the sum of squares a little each iteration long after the shared
 /// parameters have stopped moving.
@@ -215,6 +215,22 @@ impl Problem<'_> {
         }
     }
 
+    /// Whether the Gauss-Newton step from `x`, whose normal equations are `normal`, clipped
+    /// to the bounds, moves every shared parameter by at most [`SHARED_TOLERANCE`] of its
+    /// standard error, the residuals' variance `variance`: how far the shared parameters
+    /// still are from the local model's minimum, whatever the damping of the last step.
+    fn settled(&self, normal: &Normal, x: &[f64], variance: f64) -> bool {
+        let all: Vec<usize> = (0..self.shared).collect();
+        let (Some(step), Some(inverse)) = (normal.step(0.0), normal.shared_inverse(&all)) else {
+            return false;
+        };
+        all.iter().all(|&i| {
+            let sd = (inverse[i * self.shared + i] * variance).sqrt();
+            let moved = (x[i] + step[i]).clamp(self.lower[i], self.upper[i]) - x[i];
+            moved.abs() <= SHARED_TOLERANCE.0 * sd
+        })
+    }
+
     /// Minimises the sum of squares from `x0` (clipped to the bounds), in at most
     /// `iterations` Jacobians.
     pub fn solve(&self, x0: &[f64], iterations: usize) -> Solution {
@@ -244,14 +260,15 @@ impl Problem<'_> {
                 lambda *= 4.0;
             }
             let Some((next, s)) = improved else { break };
-            let converged = sse - s <= TOLERANCE * sse
-                || (sse - s <= SHARED_TOLERANCE.1 * sse
-                    && normal.settled(&x, &next, s / (r.len() as f64 - x.len() as f64).max(1.0)));
+            let decrease = (sse - s) / sse;
             x = next;
             sse = s;
             std::mem::swap(&mut r, &mut trial);
             normal = self.normal(&x, &r, &mut evaluated);
-            if converged {
+            let variance = sse / (r.len() as f64 - x.len() as f64).max(1.0);
+            if decrease <= TOLERANCE
+                || (decrease <= SHARED_TOLERANCE.1 && self.settled(&normal, &x, variance))
+            {
                 break;
             }
         }
@@ -344,19 +361,6 @@ impl Normal {
             delta.extend(solve_factored(l, &b, k));
         }
         Some(delta)
-    }
-
-    /// Whether the step from `x` to `next` moves every shared parameter by at most
-    /// [`SHARED_TOLERANCE`] of its standard error, the residuals' variance `variance`.
-    fn settled(&self, x: &[f64], next: &[f64], variance: f64) -> bool {
-        let all: Vec<usize> = (0..self.shared).collect();
-        let Some(inverse) = self.shared_inverse(&all) else {
-            return false;
-        };
-        all.iter().all(|&i| {
-            let sd = (inverse[i * self.shared + i] * variance).sqrt();
-            (next[i] - x[i]).abs() <= SHARED_TOLERANCE.0 * sd
-        })
     }
 
     /// The block of `(J'J)^-1` over the shared parameters `free` selects (ascending; the
