@@ -208,7 +208,7 @@ fn all_carts(
     if pieces_of(screened) != pieces_of(carts) {
         x = refit(carts, &pieces_of(screened), &x);
     }
-    let shortest = (model::SEGMENT_S / f64::from(1 << pieces::CUTS) / pole.tau).round() as usize;
+    let shortest = (model::SEGMENT_S / f64::from(1 << pieces::CUTS) / pole.tau).floor() as usize;
     for _ in 0..pieces::CUTS {
         let setup = Setup::new(*pole, machine.integration, (carts, &[]), dead, free());
         let Some(cut) = pieces::cut_lost(&setup, &x, shortest.max(1)) else {

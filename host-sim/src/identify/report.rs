@@ -111,7 +111,11 @@ pub fn rig_file(machine: &Machine, fit: &Fit, logs: &[Log]) -> String {
     let _ = writeln!(s, "# {ASSUMPTION}.");
     let found = warnings(fit, logs);
     for w in &found {
-        let _ = writeln!(s, "# Misfit: {}", w.replace('\n', " "));
+        let line: String = w
+            .chars()
+            .map(|c| if c.is_control() { ' ' } else { c })
+            .collect();
+        let _ = writeln!(s, "# Misfit: {line}");
     }
     s += &twin::rigfile::to_toml(machine);
     if let Some(m) = misfit::record(fit) {
