@@ -42,14 +42,24 @@
 //!
 //! Comment lines (`#`) first: `experiment` (`cart` or `swing`), `period_s` (the control
 //! period, s), the two encoders' resolutions, and `pole_zero: hanging` (pole count 0 is the
-//! pole hanging straight down, where it was at power-on; counts grow as the pole turns
-//! towards +x and are not wrapped, so a pole that went over the top hangs again at a
-//! multiple of the revolution). Other comment lines are free text. Then the header row
-//! [`COLUMNS`] and one row per period, numbered from 0 without gaps: the counts read at the
-//! start of the period and the duty commanded on them (`1` full towards +x, `-1` full
-//! towards -x, `0` off); the motor applies it after the rig's dead time. Several logs may
-//! follow each other in one stream, each with its own comment lines. Everything here is
-//! integer arithmetic on the counts and never panics, whatever they are.
+//! pole hanging straight down, where it was at power-on). Other comment lines are free
+//! text. Then the header row [`COLUMNS`] and one row per period, numbered from 0 without
+//! gaps: the counts read at the start of the period and the duty commanded on them (`1`
+//! full towards +x, `-1` full towards -x, `0` off); the motor applies it after the rig's
+//! dead time. Several logs may follow each other in one stream, each with its own comment
+//! lines. Everything here is integer arithmetic on the counts and never panics, whatever
+//! they are.
+//!
+//! # Signs
+//!
+//! The counts are the balance controller's, wired the same way: the cart's grow as the
+//! cart moves towards +x (the way a duty of `1` pushes it), and the pole's grow with the
+//! plant's angle `theta` ([`crate::cartpole`]), as the pole turns the way that tips an
+//! upright pole towards +x. That way carries a hanging pole's tip towards **-x**: with +x to
+//! the right, the pole's counts grow as it turns clockwise, upright or hanging. So in the
+//! cart experiment a push towards +x first leaves the hanging pole's tip behind, towards
+//! -x, and its counts grow. The pole's counts are not wrapped: a pole that went over the
+//! top hangs again at a multiple of the revolution.
 
 use core::fmt::{self, Display, Write};
 

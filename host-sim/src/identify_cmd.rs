@@ -33,12 +33,23 @@ pub struct IdentifyArgs {
     plots: Option<PathBuf>,
 }
 
-/// The logs in `paths`, each read whole (up to [`log::MAX_LOG_BYTES`]) and parsed.
+/// The logs in `paths`, each read whole (up to [`log::MAX_LOG_BYTES`], and
+/// [`log::MAX_TOTAL_LOG_BYTES`] all together) and parsed.
 fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
     let mut logs = Vec::new();
+    let mut total = 0;
     for path in paths {
         let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
         let origin = path.display().to_string();
+        total += bytes.len() as u64;
+        if total > log::MAX_TOTAL_LOG_BYTES {
+            return Err(weights::Error::Input(format!(
+                "LOG {origin}: expected at most {} bytes of logs in all, found {total} up to \
+                 this file's end",
+                log::MAX_TOTAL_LOG_BYTES
+            ))
+            .into());
+        }
         let text = std::str::from_utf8(&bytes)
             .map_err(|e| weights::Error::Input(format!("{origin}: expected UTF-8 text, {e}")))?;
         logs.extend(log::parse(text, &origin)?);
@@ -49,6 +60,14 @@ fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
 /// Fits the rig `a` asks for; every input is checked, and every output's place, before the
 /// fit starts.
 pub fn run(a: &IdentifyArgs) -> Result<()> {
+    if a.logs.len() > log::MAX_LOG_FILES {
+        return Err(weights::Error::Input(format!(
+            "LOG: expected at most {} log files, found {}",
+            log::MAX_LOG_FILES,
+            a.logs.len()
+        ))
+        .into());
+    }
     let mut labelled: Vec<(&str, PathBuf)> = a.logs.iter().map(|l| ("LOG", l.clone())).collect();
     labelled.push(("--rig", a.rig.clone()));
     crate::check_io(&labelled, &[("--out", &a.out)])?;
@@ -68,8 +87,9 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
         fit::MAX_DEAD_TIME
     ));
     bar.enable_steady_tick(Duration::from_millis(100));
-    let found = fit::fit(&logs, &machine);
+    let found = identify::fitted(&logs, &machine);
     bar.finish_and_clear();
+    let found = found?;
     let identified = identify::identified(&machine, &found);
     let text = report::rig_file(&identified, &found, &logs);
     // What is written must be a rig file every tool reads back.
@@ -81,9 +101,15 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     }
     write_atomic(&a.out, text.as_bytes())?;
     host_common::out!("{}", report::format(&found, &logs));
+    for w in report::warnings(&found, &logs) {
+        host_common::errln!("warning: {w}");
+    }
     host_common::errln!("{}", a.out.display());
     Ok(())
 }
+
+/// The longest experiment `simulate-logs` runs, s: as long as the fit takes in all.
+const MAX_SIMULATED_S: f64 = log::MAX_TOTAL_SECONDS;
 
 #[derive(Args)]
 pub struct SimulateLogsArgs {
@@ -101,6 +127,12 @@ pub struct SimulateLogsArgs {
     /// The standard deviation of a vibration or an edge's jitter on each reading, counts.
     #[arg(long, default_value_t = 0.5)]
     jitter: f64,
+    /// How long the cart experiment runs, s.
+    #[arg(long, default_value_t = identify::synthetic::CART_S)]
+    cart_s: f64,
+    /// How long the swing is logged after the release, s.
+    #[arg(long, default_value_t = identify::synthetic::SWING_S)]
+    swing_s: f64,
     /// Where the two logs (cart, then swing) are written, as the board streams them.
     #[arg(long)]
     out: PathBuf,
@@ -131,12 +163,26 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
         ))
         .into());
     }
+    for (flag, seconds) in [("--cart-s", a.cart_s), ("--swing-s", a.swing_s)] {
+        if !(log::MIN_SECONDS..=MAX_SIMULATED_S).contains(&seconds) {
+            return Err(weights::Error::Input(format!(
+                "{flag}: expected seconds in [{}, {MAX_SIMULATED_S}], found {seconds}",
+                log::MIN_SECONDS
+            ))
+            .into());
+        }
+    }
     let reading = identify::synthetic::Reading {
         jitter_counts: a.jitter,
         seed: u64::from(a.seed),
         ..Default::default()
     };
-    let logs = identify::synthetic::experiments(&truth, &board.rig, a.seed, reading);
+    let logs = identify::synthetic::experiments_lasting(
+        &truth,
+        &board.rig,
+        (a.seed, reading),
+        [a.cart_s, a.swing_s],
+    );
     write_atomic(&a.out, logs.concat().as_bytes())?;
     host_common::errln!("{}", a.out.display());
     Ok(())

@@ -93,6 +93,7 @@ fn identify_writes_a_rig_near_the_truth_and_draws_the_fit() {
         String::from_utf8_lossy(&o.stderr),
     );
     assert!(o.status.success(), "{stderr}");
+    assert!(!stderr.contains("warning"), "{stderr}");
     for field in [
         "actuator.stall_force_n",
         "pole_com_m",
@@ -118,8 +119,12 @@ fn identify_writes_a_rig_near_the_truth_and_draws_the_fit() {
     assert_eq!(
         entries(&plots),
         [
+            "identify-1-cart-residuals.png",
+            "identify-1-cart-residuals.svg",
             "identify-1-cart.png",
             "identify-1-cart.svg",
+            "identify-2-swing-residuals.png",
+            "identify-2-swing-residuals.svg",
             "identify-2-swing.png",
             "identify-2-swing.svg"
         ]
@@ -183,6 +188,76 @@ fn malformed_rows_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &
     std::fs::remove_file(&bad).unwrap();
 }
 
+/// The pole's counts of `cart` and `swing` as an encoder wired the other way reads them;
+/// then more log files than the fit takes, and more bytes of them.
+fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &Path) {
+    let (rig_flag, out_flag) = (PathBuf::from("--rig"), PathBuf::from("--out"));
+    // Each pole count c as -c - 1.
+    let flipped = |path: &Path, name: &str| {
+        let text: String = std::fs::read_to_string(path)
+            .unwrap()
+            .lines()
+            .map(|l| match l.split(',').collect::<Vec<_>>()[..] {
+                [k, d, c, p] if k.parse::<u32>().is_ok() => {
+                    format!("{k},{d},{c},{}\n", -p.parse::<i32>().unwrap() - 1)
+                }
+                _ => format!("{l}\n"),
+            })
+            .collect();
+        let to = dir.join(name);
+        std::fs::write(&to, text).unwrap();
+        to
+    };
+    let (cart_flipped, swing_flipped) = (
+        flipped(cart, "cart-inverted.log"),
+        flipped(swing, "swing-inverted.log"),
+    );
+    refused(
+        dir,
+        &[
+            &cart_flipped,
+            &swing_flipped,
+            &rig_flag,
+            rig,
+            &out_flag,
+            out,
+        ],
+        &[
+            "cart-inverted.log: the pole's counts appear inverted",
+            "swap the pole encoder's A and B",
+        ],
+    );
+    // More log files than the fit takes, and more bytes of them: the third of three logs
+    // of 22 MiB each (comments, then a whole log) passes 64 MiB in all.
+    let many: Vec<&Path> = std::iter::repeat_n(cart, 65)
+        .chain([rig_flag.as_path(), rig, out_flag.as_path(), out])
+        .collect();
+    refused(
+        dir,
+        &many,
+        &["LOG: expected at most 64 log files, found 65"],
+    );
+    let big = format!(
+        "# {}\n{}",
+        "x".repeat(22 << 20),
+        std::fs::read_to_string(cart).unwrap()
+    );
+    let bigs = ["big1.log", "big2.log", "big3.log"].map(|n| dir.join(n));
+    for b in &bigs {
+        std::fs::write(b, &big).unwrap();
+    }
+    refused(
+        dir,
+        &[
+            &bigs[0], &bigs[1], &bigs[2], swing, &rig_flag, rig, &out_flag, out,
+        ],
+        &["big3.log: expected at most 67108864 bytes of logs in all, found 692"],
+    );
+    for b in &bigs {
+        std::fs::remove_file(b).unwrap();
+    }
+}
+
 #[test]
 fn bad_logs_and_rigs_are_refused_and_nothing_is_written() {
     let dir = scratch("bad");
@@ -214,6 +289,7 @@ fn bad_logs_and_rigs_are_refused_and_nothing_is_written() {
         &[&cart, &swing, &rig_flag, &fast, &out_flag, &out],
         &["period_s: expected the rig's period_s 0.01, found 0.02"],
     );
+    inverted_and_too_many_logs_are_refused(&dir, [&cart, &swing, &rig], &out);
     // Only one experiment, and an output that is an input.
     refused(
         &dir,

@@ -29,8 +29,9 @@
 //! observer's `force_sd` and `accel_sd` (`firmware::estimator::Tuning`), and an
 //! `[identified]` table that `host-sim identify` writes: how far each fitted value may be off
 //! (`stall_force`, `damping`, `pole_com`: the half-width of its 95% interval relative to the
-//! value, [`crate::machine::Uncertainty`]). Every value is checked: a rig that is not
-//! physical is refused, naming the field.
+//! value, [`crate::machine::Uncertainty`]), and, where the fit did not explain the logs,
+//! an `[identified.misfit]` table ([`Misfit`], read by [`misfit`]). Every value is checked:
+//! a rig that is not physical is refused, naming the field.
 
 use std::fmt::Write;
 use std::path::Path;
@@ -116,6 +117,8 @@ struct Identified {
     damping: f64,
     #[serde(default)]
     pole_com: f64,
+    #[serde(default)]
+    misfit: Option<Misfit>,
 }
 
 #[derive(Deserialize)]
@@ -326,10 +329,13 @@ impl Fields<'_> {
     }
 
     /// The `[identified]` half-widths: relative, so a value off by more than itself (1) is
-    /// not an identification.
+    /// not an identification. And its misfit's, if any.
     fn uncertainty(self, i: &Identified) -> Result<Uncertainty> {
         let c =
             |field: &str, v: f64| self.check(&format!("identified.{field}"), v, (0.0, 1.0), false);
+        if let Some(m) = &i.misfit {
+            m.check(self)?;
+        }
         Ok(Uncertainty {
             stall_force: c("stall_force", i.stall_force)?,
             damping: c("damping", i.damping)?,
@@ -467,6 +473,9 @@ pub fn to_toml(machine: &Machine) -> String {
     }
     s
 }
+
+mod misfit;
+pub use misfit::{Misfit, misfit};
 
 #[cfg(test)]
 mod tests;

@@ -14,6 +14,13 @@ use weights::{Error, Result, quote};
 pub const MAX_LOG_BYTES: u64 = 32 << 20;
 /// Most rows one log may have.
 pub const MAX_ROWS: usize = 1 << 20;
+/// Most log files one fit reads.
+pub const MAX_LOG_FILES: usize = 64;
+/// Most bytes of log files one fit reads, all together.
+pub const MAX_TOTAL_LOG_BYTES: u64 = 64 << 20;
+/// Most seconds of logs one fit takes, all together: the fit's time and memory grow in
+/// proportion to them.
+pub const MAX_TOTAL_SECONDS: f64 = 1800.0;
 /// The shortest log fitted (of a swing: after the release), s.
 pub const MIN_SECONDS: f64 = 3.0;
 /// The least travel between the cart's extreme counts that excites a cart log, m.

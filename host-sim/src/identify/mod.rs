@@ -17,14 +17,17 @@
 //! billion kilograms ([`held`]): one set of equations for both experiments.
 //!
 //! - [`log`]: the logs read and checked.
-//! - [`model`]: the experiments as the fit simulates them.
+//! - [`model`]: the experiments as the fit simulates them; [`pieces`], the cart logs' pieces.
+//! - [`misfit`]: whether the fit can be trusted, and the logs of a pole read inverted.
 //! - [`synthetic`]: the board's experiments run against a simulated machine.
 //! - [`report`]: the estimates printed, the identified rig file, the plots.
 
 pub mod fit;
 pub mod lm;
 pub mod log;
+pub mod misfit;
 pub mod model;
+pub mod pieces;
 pub mod report;
 mod start;
 pub mod synthetic;
@@ -56,8 +59,19 @@ pub fn held(p: &Params) -> Params {
 /// Checks `logs` against `machine` (the rig they were recorded on) and that they hold at
 /// least one experiment of each kind.
 pub fn check(logs: &[Log], machine: &Machine) -> Result<()> {
+    let mut seconds = 0.0;
     for log in logs {
         log.check(machine)?;
+        seconds += log.duty.len() as f64 * log.period_s;
+        if seconds > log::MAX_TOTAL_SECONDS {
+            return Err(Error::Input(format!(
+                "{}:{}: expected at most {} s of logs in all, found {seconds:.0} s up to this \
+                 log's end",
+                log.origin,
+                log.line,
+                log::MAX_TOTAL_SECONDS
+            )));
+        }
     }
     for e in [Experiment::Cart, Experiment::Swing] {
         if !logs.iter().any(|l| l.experiment == e) {
@@ -94,10 +108,29 @@ pub fn identified(machine: &Machine, fit: &Fit) -> Machine {
     m
 }
 
-/// Checks `logs` and fits `machine`'s unknowns to them.
+/// Checks `logs` and fits `machine`'s unknowns to them ([`fitted`]).
 pub fn identify(logs: &[Log], machine: &Machine) -> Result<Fit> {
     check(logs, machine)?;
-    Ok(fit::fit(logs, machine))
+    fitted(logs, machine)
+}
+
+/// Fits `machine`'s unknowns to checked `logs`; refused if a cart log does not fit
+/// ([`misfit`]) and fits [`misfit::INVERTED_RATIO`] times better with the pole's counts
+/// negated: the pole's encoder is wired the other way round.
+pub fn fitted(logs: &[Log], machine: &Machine) -> Result<Fit> {
+    let found = fit::fit(logs, machine);
+    let cart_misfit = misfit::findings(&found)
+        .iter()
+        .any(|(t, _)| logs[t.log].experiment == Experiment::Cart);
+    if cart_misfit {
+        let flipped = fit::fit(&misfit::inverted(logs), machine);
+        if misfit::worst_cart(&flipped, logs) * misfit::INVERTED_RATIO
+            <= misfit::worst_cart(&found, logs)
+        {
+            return Err(misfit::inverted_refusal(logs, &found, &flipped));
+        }
+    }
+    Ok(found)
 }
 
 #[cfg(test)]

@@ -9,6 +9,7 @@ use firmware::identify::Experiment;
 use twin::machine::{self, Integration};
 
 use super::held;
+use super::lm;
 use super::log::{self, Log};
 
 /// The shared unknowns, in the parameter vector's order.
@@ -183,7 +184,7 @@ pub struct Setup<'a> {
 }
 
 /// Nuisance parameters per cart piece.
-const CART_NUISANCE: usize = 4;
+pub const CART_NUISANCE: usize = 4;
 /// Nuisance parameters per swing log.
 const SWING_NUISANCE: usize = 3;
 
@@ -276,29 +277,30 @@ impl<'a> Setup<'a> {
         })
     }
 
-    /// Each block's rows.
-    pub fn rows(&self) -> Vec<Range<usize>> {
-        self.blocks.iter().map(|b| b.rows.clone()).collect()
-    }
-
-    /// The blocks each parameter enters: a cart piece depends on every shared unknown, a
-    /// swing on the pole's alone, each on its own nuisance parameters.
-    pub fn enters(&self) -> Vec<Vec<usize>> {
-        let shared = self.free.iter().map(|&i| {
-            let pole = i == POLE_FRICTION || i == LENGTH;
-            (0..self.blocks.len())
-                .filter(|&b| pole || matches!(self.blocks[b].source, Source::Cart { .. }))
-                .collect()
-        });
-        let nuisance = (self.free.len()..self.n()).map(|j| {
-            vec![
-                self.blocks
-                    .iter()
-                    .rposition(|b| b.nuisance <= j)
-                    .unwrap_or(0),
-            ]
-        });
-        shared.chain(nuisance).collect()
+    /// The blocks as the least-squares problem sees them: a cart piece depends on every
+    /// shared unknown fitted, a swing on the pole's alone, each on its own nuisance
+    /// parameters.
+    pub fn blocks(&self) -> Vec<lm::Block> {
+        let all: Vec<usize> = (0..self.free.len()).collect();
+        let pole: Vec<usize> = all
+            .iter()
+            .copied()
+            .filter(|&k| matches!(self.free[k], POLE_FRICTION | LENGTH))
+            .collect();
+        self.blocks
+            .iter()
+            .map(|b| {
+                let (shared, own) = match b.source {
+                    Source::Cart { .. } => (all.clone(), CART_NUISANCE),
+                    Source::Swing { .. } => (pole.clone(), SWING_NUISANCE),
+                };
+                lm::Block {
+                    rows: b.rows.clone(),
+                    shared,
+                    own: b.nuisance..b.nuisance + own,
+                }
+            })
+            .collect()
     }
 
     /// The plant's parameters at `x`.

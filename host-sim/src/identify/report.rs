@@ -11,6 +11,7 @@ use weights::files::{check_output, remove_stale};
 
 use super::fit::{Fit, MAX_DEAD_TIME};
 use super::log::Log;
+use super::misfit;
 
 /// Each shared unknown's rig-file field and unit, in the fit's order.
 pub const FIELDS: [(&str, &str); 5] = [
@@ -66,7 +67,12 @@ pub fn format(fit: &Fit, logs: &[Log]) -> String {
         let rms: Vec<String> = trace
             .channels
             .iter()
-            .map(|c| format!("{} {:.3}", c.name, c.rms))
+            .map(|c| {
+                format!(
+                    "{} {:.3} (lag-1 autocorrelation {:.2})",
+                    c.name, c.rms, c.autocorrelation
+                )
+            })
             .collect();
         let _ = writeln!(
             s,
@@ -82,6 +88,14 @@ pub fn format(fit: &Fit, logs: &[Log]) -> String {
     s
 }
 
+/// A warning for each encoder of a log the fit does not explain ([`misfit`]).
+pub fn warnings(fit: &Fit, logs: &[Log]) -> Vec<String> {
+    misfit::findings(fit)
+        .into_iter()
+        .map(|(trace, channel)| misfit::warning(&logs[trace.log], trace, channel))
+        .collect()
+}
+
 /// The identified rig as a rig file: the estimates and their intervals as comments, then
 /// the file [`twin::rigfile::to_toml`] writes.
 pub fn rig_file(machine: &Machine, fit: &Fit, logs: &[Log]) -> String {
@@ -95,14 +109,34 @@ pub fn rig_file(machine: &Machine, fit: &Fit, logs: &[Log]) -> String {
         let _ = writeln!(s, "# {l}");
     }
     let _ = writeln!(s, "# {ASSUMPTION}.");
-    s + &twin::rigfile::to_toml(machine)
+    let found = warnings(fit, logs);
+    for w in &found {
+        let line: String = w
+            .chars()
+            .map(|c| if c.is_control() { ' ' } else { c })
+            .collect();
+        let _ = writeln!(s, "# Misfit: {line}");
+    }
+    s += &twin::rigfile::to_toml(machine);
+    if let Some(m) = misfit::record(fit) {
+        s += &m.to_toml();
+    }
+    s
 }
 
-/// The plots' paths: `DIR/identify-N-EXPERIMENT.png` (and `.svg`) for the N-th log given.
-pub fn plot_paths(dir: &Path, logs: &[Log]) -> Vec<PathBuf> {
+/// The plots' paths, two a log: `DIR/identify-N-EXPERIMENT.png` (and `.svg`) for the N-th
+/// log given, its measured and simulated counts, and `identify-N-EXPERIMENT-residuals.png`,
+/// their differences.
+pub fn plot_paths(dir: &Path, logs: &[Log]) -> Vec<[PathBuf; 2]> {
     logs.iter()
         .enumerate()
-        .map(|(i, l)| dir.join(format!("identify-{}-{}.png", i + 1, l.experiment.name())))
+        .map(|(i, l)| {
+            let stem = format!("identify-{}-{}", i + 1, l.experiment.name());
+            [
+                dir.join(format!("{stem}.png")),
+                dir.join(format!("{stem}-residuals.png")),
+            ]
+        })
         .collect()
 }
 
@@ -118,29 +152,52 @@ pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Resul
             weights::files::kind(&m.file_type())
         )));
     }
-    for png in plot_paths(dir, logs) {
-        check_output(&png, inputs)?;
+    for png in plot_paths(dir, logs).iter().flatten() {
+        check_output(png, inputs)?;
         check_output(&png.with_extension("svg"), inputs)?;
     }
     Ok(())
 }
 
-/// Draws each log's measured and simulated counts into `dir`, each drawn under temporary
-/// names and renamed, so that a failure leaves no half-drawn picture.
+fn curve(label: String, mean: Vec<f64>, dashed: bool) -> Curve {
+    Curve {
+        label,
+        mean,
+        band: Vec::new(),
+        dashed,
+    }
+}
+
+/// Draws `curves` into `png` (and its `.svg`) under temporary names, renamed once both are
+/// drawn, so that a failure leaves no half-drawn picture.
+fn draw(png: &Path, title: &str, y_label: &str, curves: &[Curve]) -> anyhow::Result<()> {
+    remove_stale(png, &["png", "svg"]);
+    let tmp = weights::files::temp_path(png);
+    let drawn = line_chart(&tmp, title, "period", y_label, curves);
+    let renamed = drawn.and_then(|()| {
+        for ext in ["png", "svg"] {
+            let to = png.with_extension(ext);
+            std::fs::rename(tmp.with_extension(ext), &to)
+                .map_err(|e| weights::Error::Io(format!("writing {}: {e}", to.display())))?;
+        }
+        Ok(())
+    });
+    if renamed.is_err() {
+        for ext in ["png", "svg"] {
+            let _ = std::fs::remove_file(tmp.with_extension(ext));
+        }
+    }
+    renamed
+}
+
+/// Draws each log's measured and simulated counts into `dir`, and their differences beside
+/// the band a fit that holds stays in ([`misfit::MAX_RMS_COUNTS`]).
 pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)
         .map_err(|e| weights::Error::Io(format!("creating {}: {e}", dir.display())))?;
     let paths = plot_paths(dir, logs);
     for trace in &fit.traces {
-        let (log, png) = (&logs[trace.log], &paths[trace.log]);
-        remove_stale(png, &["png", "svg"]);
-        let tmp = weights::files::temp_path(png);
-        let curve = |label: &str, v: &[f64], dashed| Curve {
-            label: label.into(),
-            mean: v.to_vec(),
-            band: Vec::new(),
-            dashed,
-        };
+        let (log, [counts, residuals]) = (&logs[trace.log], &paths[trace.log]);
         let title = format!(
             "{} ({}), from period {}",
             log.origin,
@@ -152,26 +209,34 @@ pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>
             .iter()
             .flat_map(|c| {
                 [
-                    curve(&format!("{} measured", c.name), &c.measured, false),
-                    curve(&format!("{} simulated", c.name), &c.simulated, true),
+                    curve(format!("{} measured", c.name), c.measured.clone(), false),
+                    curve(format!("{} simulated", c.name), c.simulated.clone(), true),
                 ]
             })
             .collect();
-        let drawn = line_chart(&tmp, &title, "period", "counts", &curves);
-        let renamed = drawn.and_then(|()| {
-            for ext in ["png", "svg"] {
-                let to = png.with_extension(ext);
-                std::fs::rename(tmp.with_extension(ext), &to)
-                    .map_err(|e| weights::Error::Io(format!("writing {}: {e}", to.display())))?;
-            }
-            Ok(())
-        });
-        if let Err(e) = renamed {
-            for ext in ["png", "svg"] {
-                let _ = std::fs::remove_file(tmp.with_extension(ext));
-            }
-            return Err(e);
-        }
+        draw(counts, &title, "counts", &curves)?;
+        let n = trace.channels.first().map_or(0, |c| c.measured.len());
+        let limit = misfit::MAX_RMS_COUNTS;
+        let mut differences = vec![Curve {
+            label: format!("+-{limit} counts, the most RMS of a fit that holds"),
+            mean: vec![0.0; n],
+            band: vec![(-limit, limit); n],
+            dashed: true,
+        }];
+        differences.extend(trace.channels.iter().map(|c| {
+            let e = c.measured.iter().zip(&c.simulated).map(|(a, b)| a - b);
+            curve(
+                format!("{} measured - simulated", c.name),
+                e.collect(),
+                false,
+            )
+        }));
+        draw(
+            residuals,
+            &format!("{title}: residuals"),
+            "counts",
+            &differences,
+        )?;
     }
-    Ok(paths)
+    Ok(paths.into_iter().flatten().collect())
 }

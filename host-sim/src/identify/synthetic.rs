@@ -174,20 +174,30 @@ pub const RAISE_DEG: f64 = 20.0;
 /// seeded `seed`, and [`SWING_S`] of the swing) as the board running `board` logs them on
 /// `truth`.
 pub fn experiments(truth: &Machine, board: &Rig, seed: u32, reading: Reading) -> [String; 2] {
+    experiments_lasting(truth, board, (seed, reading), [CART_S, SWING_S])
+}
+
+/// [`experiments`] of `cart_s` of the sequence and `swing_s` of the swing.
+pub fn experiments_lasting(
+    truth: &Machine,
+    board: &Rig,
+    (seed, reading): (u32, Reading),
+    [cart_s, swing_s]: [f64; 2],
+) -> [String; 2] {
     let tau = board.params.tau;
     let periods = |s: f64| (s / tau).round().max(1.0) as u32;
     [
         cart_log(
             truth,
             board,
-            [periods(CART_S), periods(HOLD_S), seed],
+            [periods(cart_s), periods(HOLD_S), seed],
             reading,
         ),
         swing_log(
             truth,
             board,
             RAISE_DEG,
-            [periods(0.3), periods(0.5), periods(SWING_S)],
+            [periods(0.3), periods(0.5), periods(swing_s)],
             reading,
         ),
     ]

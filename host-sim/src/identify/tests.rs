@@ -10,6 +10,9 @@ use rand_pcg::Pcg64Mcg;
 use synthetic::{Reading, Zero};
 use twin::machine::Integration;
 
+mod conventions;
+mod independent;
+mod misfits;
 mod refusals;
 mod safety;
 
@@ -134,6 +137,7 @@ fn random_rigs_are_recovered_within_the_goals_tolerances() {
         let reading = random_reading(&mut rng, 0.5);
         let fit = identify(&logs(&truth, &measured, i, reading), &measured).unwrap();
         assert_recovered(&fit, &truth, &format!("rig {i}"));
+        assert!(misfit::findings(&fit).is_empty(), "rig {i}");
     }
 }
 

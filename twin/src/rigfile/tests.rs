@@ -75,6 +75,16 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
         "identified.pole_com: expected a number in [0, 1], found 1.5",
     ),
     (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.0\n[identified.misfit]\ncart_rms_counts = 9.0\npole_rms_counts = -1.0\nautocorrelation = 0.9",
+        "identified.misfit.pole_rms_counts: expected a number in [0, ",
+    ),
+    (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.0\n[identified.misfit]\ncart_rms_counts = 9.0\npole_rms_counts = 1.0\nautocorrelation = 1.5",
+        "identified.misfit.autocorrelation: expected a number in [-1, 1], found 1.5",
+    ),
+    (
         "pole_mass_kg = 0.08",
         "pole_mass_kg = 2000.0",
         "pole_mass_kg: expected a number in (0, 1000], found 2000",
@@ -182,4 +192,24 @@ fn bad_rigs_are_refused_naming_the_field() {
     let text = format!("{}\u{1b}[2J\u{7} = 1\n", "\u{7}".repeat(10_000));
     let e = parse(&text, "rig hostile").unwrap_err().to_string();
     assert!(e.len() < 600 && !e.chars().any(char::is_control), "{e}");
+}
+
+/// A misfit table written reads back as written, after the file's other tables and with or
+/// without an `[identified]` table of its own; a file without one has none.
+#[test]
+fn a_misfit_reads_back_as_written() {
+    let m = Misfit {
+        cart_rms_counts: 12.5,
+        pole_rms_counts: 0.3,
+        autocorrelation: 0.97,
+    };
+    let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
+    assert_eq!(misfit(&desk, "desk").unwrap(), None);
+    let mut identified = Machine::GYMNASIUM;
+    identified.uncertainty.stall_force = 0.1;
+    for machine in [Machine::GYMNASIUM, identified] {
+        let text = to_toml(&machine) + &m.to_toml();
+        assert_eq!(misfit(&text, "t").unwrap(), Some(m), "{text}");
+        assert_eq!(parse(&text, "t").unwrap(), machine);
+    }
 }

@@ -146,3 +146,23 @@ fn wrong_columns_gaps_and_jumps_are_refused_naming_the_line() {
     let header = cart.replace(firmware::identify::COLUMNS, "period,duty,cart,pole");
     assert_names(&refusal(&header, &machine), &["expected the header row"]);
 }
+
+/// More seconds of logs than the fit takes in all: refused naming the log that passes the
+/// limit, before any fitting.
+#[test]
+fn more_logs_than_the_fit_takes_are_refused() {
+    let (machine, [cart, swing]) = desk();
+    let one = log::parse(&cart, "cart").unwrap().remove(0);
+    let seconds = one.duty.len() as f64 * one.period_s;
+    let fits = (log::MAX_TOTAL_SECONDS / seconds) as usize;
+    let mut logs = vec![one; fits];
+    logs.extend(log::parse(&swing, "swing").unwrap());
+    let e = check(&logs, &machine).unwrap_err().to_string();
+    assert_names(
+        &e,
+        &["swing:1:", "expected at most 1800 s of logs in all, found"],
+    );
+    logs.truncate(fits - 3);
+    logs.extend(log::parse(&swing, "swing").unwrap());
+    assert!(check(&logs, &machine).is_ok());
+}
