@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
+use host_common::provenance::Provenance;
 use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net, Row};
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -373,7 +374,11 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
 /// Prints the rows; whether the policy met `--min-success` everywhere.
 fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
     if a.json {
-        let doc = serde_json::json!({ "seed": a.seed, "rows": rows });
+        let doc = serde_json::json!({
+            "seed": a.seed,
+            "rows": rows,
+            "provenance": Provenance::of_this_run("host-sim"),
+        });
         host_common::outln!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
         host_common::out!("{}", eval::format_table(rows));
