@@ -8,6 +8,8 @@
 //! - [`envelope`]: where a policy drives in the episodes it balances: the runtime
 //!   monitor's envelope.
 //! - [`eval`]: many seeded episodes per controller and scenario, statistics with 95% CIs.
+//! - [`manifest`]: how every generated and results file is made, in order.
+//! - [`moved`]: which rows of a results file moved beyond their intervals when measured again.
 //! - [`pil`]: processor-in-the-loop, the board's controller on a target driven over the
 //!   link, compared period by period with the same code run here.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
@@ -24,6 +26,8 @@ pub mod baselines;
 pub mod envelope;
 pub mod eval;
 pub mod identify;
+pub mod manifest;
+pub mod moved;
 pub mod pil;
 pub mod render;
 pub mod replay;

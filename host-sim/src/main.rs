@@ -17,6 +17,7 @@ mod envelope_cmd;
 mod identify_cmd;
 mod pil_cmd;
 mod render_cmd;
+mod results_cmd;
 mod soak_cmd;
 mod tables_cmd;
 
@@ -80,6 +81,10 @@ enum Command {
     /// on a malformed marker, a value that is not one row's or an unreadable file, naming the
     /// document and line.
     Tables(tables_cmd::TablesArgs),
+    /// The steps of docs/results/manifest.toml, how every generated and results file is made
+    /// (`steps`, for scripts/regenerate.sh), and which rows of a results file moved when it
+    /// was measured again (`moved OLD NEW`). Exits 2 on a malformed manifest or file.
+    Results(results_cmd::ResultsArgs),
 }
 
 /// Which policy runs, on which machine.
@@ -247,6 +252,7 @@ fn main() -> ExitCode {
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
         Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
         Command::Tables(a) => tables_cmd::run(&a),
+        Command::Results(a) => results_cmd::run(&a).map(|()| true),
         Command::Soak(a) => soak_cmd::run(&a),
         Command::Envelope(a) => envelope_cmd::run(&a).map(|()| true),
         Command::Parts => {

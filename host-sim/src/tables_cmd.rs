@@ -67,13 +67,13 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
 const MAX_TEXT_BYTES: u64 = 16 << 20;
 
 /// The UTF-8 text of the regular file `path` (not a FIFO, never past [`MAX_TEXT_BYTES`]).
-fn read_text(path: &Path) -> Result<String> {
+pub fn read_text(path: &Path) -> Result<String> {
     let bytes = weights::files::read_capped(path, MAX_TEXT_BYTES)?;
     String::from_utf8(bytes).map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", path.display()))
 }
 
 /// The nearest directory at or above `dir` with a Cargo.toml and the results directory.
-fn find_root(dir: &Path) -> Result<PathBuf> {
+pub fn find_root(dir: &Path) -> Result<PathBuf> {
     dir.ancestors()
         .find(|d| d.join("Cargo.toml").is_file() && d.join(RESULTS_DIR).is_dir())
         .map(Path::to_path_buf)
