@@ -13,7 +13,8 @@
 //! - [`pil`]: processor-in-the-loop, the board's controller on a target driven over the
 //!   link, compared period by period with the same code run here.
 //! - [`render`]: an animated GIF and a time-series PNG of one episode.
-//! - [`tables`]: the documents' results tables and figures, rendered from `eval --json` files.
+//! - [`tables`]: the documents' results tables and figures, and each results file's page,
+//!   rendered from the results files.
 //!
 //! Policies run through `host_common::wide`, the firmware's forward pass laid out for host
 //! SIMD, bit-identical.

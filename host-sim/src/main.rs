@@ -77,9 +77,10 @@ enum Command {
     /// Write the results tables and values of README.md and docs/*.md from the files of
     /// docs/results/: every block between a `<!-- results: docs/results/FILE.json OPTION...
     /// -->` line and a `<!-- /results -->` line, and every figure between `<!-- value: ...
-    /// -->` and `<!-- /value -->`. With --check, exit 1 listing the ones that differ. Exits 2
-    /// on a malformed marker, a value that is not one row's or an unreadable file, naming the
-    /// document and line.
+    /// -->` and `<!-- /value -->`; and each results file's page, docs/results/NAME.md (its
+    /// command, date and machine, and every row). With --check, exit 1 listing the ones that
+    /// differ. Exits 2 on a malformed marker, a value that is not one row's or an unreadable
+    /// file, naming the document and line.
     Tables(tables_cmd::TablesArgs),
     /// The steps of docs/results/manifest.toml, how every generated and results file is made
     /// (`steps`, for scripts/regenerate.sh), and which rows of a results file moved when it
