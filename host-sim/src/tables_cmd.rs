@@ -73,23 +73,34 @@ fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
         true => Some(Manifest::load(root)?),
         false => None,
     };
-    let mut out = Vec::new();
+    let mut files = Vec::new();
     for file in results_files(root)? {
         let name = format!("{RESULTS_DIR}{file}");
         let json = read_text(&root.join(&name)).with_context(|| format!("reading {name}"))?;
         let steps = manifest.as_ref().map_or(Vec::new(), |m| m.producing(&name));
-        let page = pages::page(&name, &json, &steps).map_err(anyhow::Error::msg)?;
-        let path = PathBuf::from(pages::path(&name));
-        let old = std::fs::read(root.join(&path)).unwrap_or_default();
-        let stale = if old == page.as_bytes() {
-            Vec::new()
-        } else {
-            let what = format!("the page differs from {name}");
-            vec![Stale { line: 1, what }]
-        };
-        out.push((path, page, stale));
+        files.push((name, json, steps));
     }
+    let mut out = Vec::new();
+    for (name, json, steps) in &files {
+        let page = pages::page(name, json, steps).map_err(anyhow::Error::msg)?;
+        let what = format!("the page differs from {name}");
+        out.push(generated(root, &pages::path(name), page, what));
+    }
+    let index = pages::index(&files).map_err(anyhow::Error::msg)?;
+    let what = format!("the list of results pages differs from {RESULTS_DIR}");
+    out.push(generated(root, pages::INDEX, index, what));
     Ok(out)
+}
+
+/// A generated file's new text, with a stale entry (`what`) if the file on disk differs.
+fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, String, Vec<Stale>) {
+    let old = std::fs::read(root.join(path)).unwrap_or_default();
+    let stale = if old == text.as_bytes() {
+        Vec::new()
+    } else {
+        vec![Stale { line: 1, what }]
+    };
+    (PathBuf::from(path), text, stale)
 }
 
 /// The names of the JSON files in docs/results/, sorted.

@@ -46,6 +46,45 @@ pub fn page(file: &str, json: &str, steps: &[&Step]) -> Result<String, String> {
     Ok(s + &body.map_err(|e| format!("{file}: {e}"))?)
 }
 
+/// Where the list of pages goes.
+pub const INDEX: &str = "docs/results/README.md";
+
+/// The list of pages, `docs/results/README.md`: per results file (its name, the JSON's text
+/// and the steps that make it), its page, what it measures and when it was measured.
+pub fn index(files: &[(String, String, Vec<&Step>)]) -> Result<String, String> {
+    let mut s = String::from(
+        "# Results\n\nEvery results file of the repository, with the page `host-sim tables` \
+         writes for it: the command that made it, when and where, and every row. Written by \
+         `host-sim tables`; do not edit. The commands are `docs/results/manifest.toml`'s; \
+         `scripts/regenerate.sh` runs them (`docs/DEVELOPMENT.md`). The paper's reproduction \
+         is [`docs/reproduction/tables.md`](../reproduction/tables.md) \
+         (`docs/REPRODUCTION.md`).\n\n| page | what it measures | measured |\n| --- | --- | --- |\n",
+    );
+    for (name, json, steps) in files {
+        let doc: Json =
+            serde_json::from_str(json).map_err(|e| format!("{name} is not JSON: {e}"))?;
+        let first = match doc.get("provenance") {
+            Some(Json::Array(runs)) => runs.first(),
+            other => other,
+        };
+        let when = first
+            .and_then(|p| p.get("date")?.as_str())
+            .map_or("before files recorded it".to_string(), |d| {
+                d.chars().take(10).collect()
+            });
+        let about = steps
+            .first()
+            .map_or(String::new(), |st| capitalised(&st.about));
+        let page = path(name);
+        let page = page.rsplit('/').next().unwrap_or(&page);
+        s += &format!(
+            "| [{}]({page}) | {about} | {when} |\n",
+            page.trim_end_matches(".md")
+        );
+    }
+    Ok(s)
+}
+
 fn capitalised(text: &str) -> String {
     let mut c = text.chars();
     c.next()
