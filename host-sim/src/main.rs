@@ -72,7 +72,7 @@ enum Command {
     /// any policy's as JSON for `eval --envelope` with --json. Exits 2 on bad input.
     Envelope(envelope_cmd::EnvelopeArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
-    /// defaults: the Markdown table the README and docs/CONTROL.md show.
+    /// defaults: the Markdown table docs/SCENARIOS.md shows.
     Parts,
     /// Write the results tables and values of README.md and docs/*.md from the files of
     /// docs/results/: every block between a `<!-- results: docs/results/FILE.json OPTION...
