@@ -105,10 +105,17 @@ def evaluate(args, policy):
     return json.loads(text)
 
 
+def label_of(provenance):
+    """The --label of the run a provenance records."""
+    argv = provenance["argv"]
+    return argv[argv.index("--label") + 1] if "--label" in argv[:-1] else "sb3-dqn"
+
+
 def merge(args, sb3, shipped):
     """Both evaluations into --results, `host-sim eval --json`'s format: the SB3 rows under
     the controller name --label, replacing that label's and the shipped policy's rows, so
-    that runs of several trainings share one file (`host-sim tables` renders it)."""
+    that runs of several trainings share one file (`host-sim tables` renders it). Its
+    `provenance` lists the run behind each label, this one last."""
     doc = {"rows": [], "seed": shipped["seed"]}
     if os.path.exists(args.results):
         with open(args.results) as f:
@@ -117,6 +124,10 @@ def merge(args, sb3, shipped):
     rows += shipped["rows"] + [dict(r, controller=args.label) for r in sb3["rows"]]
     order = {r["scenario"]: i for i, r in enumerate(shipped["rows"])}
     doc["rows"] = sorted(rows, key=lambda r: order.get(r["scenario"], len(order)))
+    runs = doc.get("provenance", [])
+    runs = [runs] if isinstance(runs, dict) else runs
+    ours = cartpole_ddqn.provenance("examples/sb3_dqn.py", sys.argv[1:])
+    doc["provenance"] = [p for p in runs if label_of(p) != args.label] + [ours]
     tmp = args.results + ".tmp"
     with open(tmp, "w") as f:
         json.dump(doc, f, indent=1)

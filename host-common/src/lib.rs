@@ -8,6 +8,7 @@
 //! - [`seed`]: the one mixer that turns a run's seed into independent random streams.
 //! - [`stats`]: the one confidence-interval convention of every table the project prints.
 //! - [`plot`]: the bundled font and the line charts every figure uses.
+//! - [`provenance`]: the command, date, revision and machine a results file records.
 //!
 //! Neither trainer nor simulator: of the networks it knows only how to run the firmware's
 //! forward pass fast, of plants and controllers nothing. Its `unsafe` is confined to the
@@ -21,6 +22,7 @@ pub mod cli;
 pub mod dot_x86;
 pub mod kernel;
 pub mod plot;
+pub mod provenance;
 pub mod seed;
 pub mod stats;
 pub mod wide;

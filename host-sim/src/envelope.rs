@@ -13,6 +13,7 @@ use std::path::Path;
 use firmware::controller::{Command, Limits};
 use firmware::linear::balance_gain;
 use firmware::rig::Rig;
+use host_common::provenance::Provenance;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use twin::Scenario;
@@ -181,6 +182,8 @@ pub struct Report {
     pub quantiles: [[f32; 4]; 4],
     /// The envelope, `[x, x_dot, theta, theta_dot]`.
     pub envelope: [f32; 4],
+    /// The command that measured it, when, where.
+    pub provenance: Provenance,
 }
 
 impl Report {
@@ -191,6 +194,7 @@ impl Report {
         run: (u64, u32),
         quantile: f64,
         margin: f32,
+        provenance: Provenance,
     ) -> Report {
         Report {
             scenarios: names,
@@ -203,6 +207,7 @@ impl Report {
             margin,
             quantiles: [0.99, 0.999, 0.9999, 1.0].map(|q| v.quantile(q)),
             envelope: v.envelope(quantile, margin),
+            provenance,
         }
     }
 }

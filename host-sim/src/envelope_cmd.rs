@@ -8,6 +8,7 @@ use anyhow::{Result, ensure};
 use clap::Args;
 use firmware::link::digest;
 use firmware::policy::{POLICY, RIG};
+use host_common::provenance::Provenance;
 use host_sim::envelope::{Report, rust_module, visited};
 use host_sim::eval::ControllerKind;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -86,7 +87,15 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         a.horizon
     );
     let names: Vec<String> = scenarios.iter().map(|s| s.name.clone()).collect();
-    let report = Report::of(&v, names, (a.episodes, a.horizon), a.quantile, a.margin);
+    let provenance = Provenance::of_this_run("host-sim");
+    let report = Report::of(
+        &v,
+        names,
+        (a.episodes, a.horizon),
+        a.quantile,
+        a.margin,
+        provenance,
+    );
     if let Some(out) = &a.out {
         let provenance = [
             format!(

@@ -7,6 +7,7 @@ use std::process::ExitCode;
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
+use host_common::provenance::Provenance;
 use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net, Row};
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -16,6 +17,7 @@ mod envelope_cmd;
 mod identify_cmd;
 mod pil_cmd;
 mod render_cmd;
+mod results_cmd;
 mod soak_cmd;
 mod tables_cmd;
 
@@ -70,15 +72,20 @@ enum Command {
     /// any policy's as JSON for `eval --envelope` with --json. Exits 2 on bad input.
     Envelope(envelope_cmd::EnvelopeArgs),
     /// Print the parts scenarios and domains are made of, with their values' bounds and
-    /// defaults: the Markdown table the README and docs/CONTROL.md show.
+    /// defaults: the Markdown table docs/SCENARIOS.md shows.
     Parts,
     /// Write the results tables and values of README.md and docs/*.md from the files of
     /// docs/results/: every block between a `<!-- results: docs/results/FILE.json OPTION...
     /// -->` line and a `<!-- /results -->` line, and every figure between `<!-- value: ...
-    /// -->` and `<!-- /value -->`. With --check, exit 1 listing the ones that differ. Exits 2
-    /// on a malformed marker, a value that is not one row's or an unreadable file, naming the
-    /// document and line.
+    /// -->` and `<!-- /value -->`; and each results file's page, docs/results/NAME.md (its
+    /// command, date and machine, and every row). With --check, exit 1 listing the ones that
+    /// differ. Exits 2 on a malformed marker, a value that is not one row's or an unreadable
+    /// file, naming the document and line.
     Tables(tables_cmd::TablesArgs),
+    /// The steps of docs/results/manifest.toml, how every generated and results file is made
+    /// (`steps`, for scripts/regenerate.sh), and which rows of a results file moved when it
+    /// was measured again (`moved OLD NEW`). Exits 2 on a malformed manifest or file.
+    Results(results_cmd::ResultsArgs),
 }
 
 /// Which policy runs, on which machine.
@@ -246,6 +253,7 @@ fn main() -> ExitCode {
         Command::Identify(a) => identify_cmd::run(&a).map(|()| true),
         Command::SimulateLogs(a) => identify_cmd::simulate(&a).map(|()| true),
         Command::Tables(a) => tables_cmd::run(&a),
+        Command::Results(a) => results_cmd::run(&a).map(|()| true),
         Command::Soak(a) => soak_cmd::run(&a),
         Command::Envelope(a) => envelope_cmd::run(&a).map(|()| true),
         Command::Parts => {
@@ -373,7 +381,11 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
 /// Prints the rows; whether the policy met `--min-success` everywhere.
 fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
     if a.json {
-        let doc = serde_json::json!({ "seed": a.seed, "rows": rows });
+        let doc = serde_json::json!({
+            "seed": a.seed,
+            "rows": rows,
+            "provenance": Provenance::of_this_run("host-sim"),
+        });
         host_common::outln!("{}", serde_json::to_string_pretty(&doc)?);
     } else {
         host_common::out!("{}", eval::format_table(rows));

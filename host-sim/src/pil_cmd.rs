@@ -10,6 +10,7 @@ use clap::Args;
 use firmware::link::Format;
 use firmware::policy::RIG;
 use firmware::policy_int::POLICY_INT;
+use host_common::provenance::Provenance;
 use host_sim::eval::{ControllerKind, Row};
 use host_sim::pil::link::{Local, Session};
 use host_sim::pil::{Check, ICOUNT, NS_PER_INSTRUCTION, Place, handshake, run_row};
@@ -136,7 +137,12 @@ pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)
 
 fn print(a: &EvalArgs, rows: &[Row], checks: &[PilRow<'_>]) -> Result<()> {
     if a.json {
-        let doc = serde_json::json!({ "seed": a.seed, "rows": rows, "pil": checks });
+        let doc = serde_json::json!({
+            "seed": a.seed,
+            "rows": rows,
+            "pil": checks,
+            "provenance": Provenance::of_this_run("host-sim"),
+        });
         host_common::outln!("{}", serde_json::to_string_pretty(&doc)?);
         return Ok(());
     }

@@ -13,7 +13,8 @@
 //! [`OPTIONS_HELP`] lists the options. A figure in running text is tied to one row the same
 //! way ([`values`]). [`update`] renders every block and value of a document from its file;
 //! `host-sim tables` writes the documents with it or, with `--check`, compares them. Markers
-//! inside fenced code are text, so a document can show the syntax.
+//! inside fenced code are text, so a document can show the syntax. Each results file has a
+//! page of its own, every row with where the file came from ([`pages`]).
 
 use std::ops::Range;
 
@@ -21,6 +22,7 @@ use serde::Deserialize;
 
 use crate::eval::group;
 
+pub mod pages;
 mod pil;
 pub mod values;
 

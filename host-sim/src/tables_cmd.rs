@@ -1,14 +1,16 @@
 //! `host-sim tables`: the results tables and values of README.md and docs/*.md rendered from
-//! the files of docs/results/ (`host_sim::tables`), written in place or, with `--check`,
+//! the files of docs/results/ (`host_sim::tables`), and each results file's page
+//! (`docs/results/NAME.md`, `host_sim::tables::pages`), written in place or, with `--check`,
 //! compared.
-//! Every document is read and rendered before any is written, so a refusal anywhere leaves
-//! all of them as they were.
+//! Every document and page is read and rendered before any is written, so a refusal anywhere
+//! leaves all of them as they were.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
-use host_sim::tables::{self, RESULTS_DIR, Stale, values};
+use host_sim::manifest::{self, Manifest};
+use host_sim::tables::{self, RESULTS_DIR, Stale, pages, values};
 use weights::files::write_atomic;
 
 #[derive(Args)]
@@ -39,6 +41,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
             .map_err(|r| anyhow!("{}:{}: {}", doc.display(), r.line, r.message))?;
         updates.push((doc, new, stale));
     }
+    updates.extend(results_pages(&root)?);
     let mut found = 0;
     for (doc, new, stale) in &updates {
         if a.check {
@@ -48,7 +51,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
         } else if !stale.is_empty() {
             write_atomic(&root.join(doc), new.as_bytes())?;
             host_common::outln!(
-                "{}: {} tables or values written",
+                "{}: {} tables, values or pages written",
                 doc.display(),
                 stale.len()
             );
@@ -57,23 +60,74 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     }
     if a.check && found > 0 {
         host_common::errln!(
-            "{found} tables or values differ from their results: `host-sim tables` rewrites them"
+            "{found} tables, values or pages differ from their results: `host-sim tables` rewrites them"
         );
     }
     Ok(!a.check || found == 0)
+}
+
+/// Each results file's page, rendered, with a stale entry if it differs from the page on disk
+/// (or there is none). The manifest titles the pages; a root without one gets untitled pages.
+fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
+    let manifest = match root.join(manifest::PATH).exists() {
+        true => Some(Manifest::load(root)?),
+        false => None,
+    };
+    let mut files = Vec::new();
+    for file in results_files(root)? {
+        let name = format!("{RESULTS_DIR}{file}");
+        let json = read_text(&root.join(&name)).with_context(|| format!("reading {name}"))?;
+        let steps = manifest.as_ref().map_or(Vec::new(), |m| m.producing(&name));
+        files.push((name, json, steps));
+    }
+    let mut out = Vec::new();
+    for (name, json, steps) in &files {
+        let page = pages::page(name, json, steps).map_err(anyhow::Error::msg)?;
+        let what = format!("the page differs from {name}");
+        out.push(generated(root, &pages::path(name), page, what));
+    }
+    let index = pages::index(&files).map_err(anyhow::Error::msg)?;
+    let what = format!("the list of results pages differs from {RESULTS_DIR}");
+    out.push(generated(root, pages::INDEX, index, what));
+    Ok(out)
+}
+
+/// A generated file's new text, with a stale entry (`what`) if the file on disk differs.
+fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, String, Vec<Stale>) {
+    let old = std::fs::read(root.join(path)).unwrap_or_default();
+    let stale = if old == text.as_bytes() {
+        Vec::new()
+    } else {
+        vec![Stale { line: 1, what }]
+    };
+    (PathBuf::from(path), text, stale)
+}
+
+/// The names of the JSON files in docs/results/, sorted.
+fn results_files(root: &Path) -> Result<Vec<String>> {
+    let dir = root.join(RESULTS_DIR);
+    let mut files: Vec<String> = std::fs::read_dir(&dir)
+        .with_context(|| format!("listing {}", dir.display()))?
+        .filter_map(|e| {
+            let name = e.ok()?.file_name().into_string().ok()?;
+            (name.ends_with(".json") && !name.starts_with('.')).then_some(name)
+        })
+        .collect();
+    files.sort();
+    Ok(files)
 }
 
 /// Largest document or results file read: the largest is a few hundred KB.
 const MAX_TEXT_BYTES: u64 = 16 << 20;
 
 /// The UTF-8 text of the regular file `path` (not a FIFO, never past [`MAX_TEXT_BYTES`]).
-fn read_text(path: &Path) -> Result<String> {
+pub fn read_text(path: &Path) -> Result<String> {
     let bytes = weights::files::read_capped(path, MAX_TEXT_BYTES)?;
     String::from_utf8(bytes).map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", path.display()))
 }
 
 /// The nearest directory at or above `dir` with a Cargo.toml and the results directory.
-fn find_root(dir: &Path) -> Result<PathBuf> {
+pub fn find_root(dir: &Path) -> Result<PathBuf> {
     dir.ancestors()
         .find(|d| d.join("Cargo.toml").is_file() && d.join(RESULTS_DIR).is_dir())
         .map(Path::to_path_buf)

@@ -73,6 +73,11 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
     let policy = || format("firmware/policy.safetensors", 64 << 20, words);
     let rig = || format("rigs/desk.toml", 64 << 10, &["expected", "missing field"]);
     let envelope = || format("docs/results/envelope.json", 64 << 10, &["expected"]);
+    let results = || format("docs/results/eval-int.json", 16 << 20, &["expected"]);
+    let int = repo("docs/results/eval-int.json");
+    let moved = |old: &dyn AsRef<std::ffi::OsStr>, new: &dyn AsRef<std::ffi::OsStr>| {
+        with_bad(os(&[&"results", &"moved", old, new]))
+    };
     let words = &["not a trajectory case", "expected", "no cases"];
     let replay = || format("tests/data/gym_traj_public.jsonl", 64 << 20, words);
     let log_format = Format {
@@ -140,6 +145,8 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
         ("identify-rig", rig(), identify(&log, &BAD_PATH)),
         ("simulate-world", rig(), simulate(&BAD_PATH, &measured)),
         ("simulate-rig", rig(), simulate(&desk, &BAD_PATH)),
+        ("moved-old", results(), moved(&BAD_PATH, &int)),
+        ("moved-new", results(), moved(&int, &BAD_PATH)),
     ]
 }
 

@@ -1,4 +1,4 @@
-//! The table of scenario parts in docs/CONTROL.md is what `host-sim parts`
+//! The table of scenario parts in docs/SCENARIOS.md is what `host-sim parts`
 //! prints, the grammar's one table: a part, bound or default changed in the code and not in
 //! the documents fails here.
 
@@ -38,7 +38,7 @@ fn the_documents_show_the_table_host_sim_parts_prints() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let printed = String::from_utf8(o.stdout).unwrap();
     assert_eq!(printed, twin::grammar::markdown_table());
-    let doc = "docs/CONTROL.md";
+    let doc = "docs/SCENARIOS.md";
     assert!(
         block(doc) == printed,
         "{doc}'s table of parts differs from the grammar's: replace it with the output of \

@@ -1,6 +1,7 @@
-//! Every results table and value in README.md and docs/*.md is what `host-sim tables` renders
-//! from its file in docs/results/: a table or figure edited by hand, or a results file
-//! measured again without its documents rewritten, fails here. The other tests run the
+//! Every results table and value in README.md and docs/*.md, and every results file's page
+//! (docs/results/NAME.md), is what `host-sim tables` renders from its file in docs/results/:
+//! a table, figure or page edited by hand, or a results file measured again without its
+//! documents rewritten, fails here. The other tests run the
 //! command on a scratch root, to show that the check fails and that writing repairs.
 
 use std::path::{Path, PathBuf};
@@ -68,12 +69,28 @@ fn a_stale_table_or_value_fails_the_check_and_writing_repairs_it() {
     );
     let value = "docs/A.md:6: the value `25` differs from docs/results/r.json's `250` (failures, no selector)\n";
     assert!(err.contains(value), "{err}");
-    assert!(!err.contains("README.md"), "{err}");
+    let page = "docs/results/r.md:1: the page differs from docs/results/r.json\n";
+    assert!(err.contains(page), "{err}");
+    assert!(
+        err.contains("docs/results/README.md:1: the list of results pages"),
+        "{err}"
+    );
+    assert!(!err.lines().any(|l| l.starts_with("README.md")), "{err}");
     let write = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
     assert!(write.status.success(), "{}", stderr(&write));
     assert_eq!(
         std::fs::read_to_string(root.join("docs/A.md")).unwrap(),
         fresh
+    );
+    // The file's page: every row, and the command it would have recorded unknown.
+    let page = std::fs::read_to_string(root.join("docs/results/r.md")).unwrap();
+    assert!(page.starts_with("# r\n\n"), "{page}");
+    assert!(page.contains("records no provenance"), "{page}");
+    assert!(
+        page.contains(
+            "| `noise` | policy | - | 75.0% [70.0, 80.0] | 250 | - | 0.500 | 0.100 | - | 30.0 | - |"
+        ),
+        "{page}"
     );
     assert!(tables(&["--check"], &root).status.success());
     let _ = std::fs::remove_dir_all(&root);

@@ -172,8 +172,8 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
     };
     let runs = reproduce::run(&variants, seeds, &tick)?;
     bar.finish_and_clear();
-    let command = std::env::args().collect::<Vec<_>>().join(" ");
-    let rows = reproduce::write(staging.path(), &variants, &runs, &command)?;
+    let provenance = host_common::provenance::Provenance::of_this_run("policy-export");
+    let rows = reproduce::write(staging.path(), &variants, &runs, &provenance)?;
     staging.commit()?;
     host_common::out!("{}", reproduce::tables_md(&rows));
     host_common::errln!(

@@ -358,8 +358,8 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     assert_eq!(
         std::fs::read_to_string(&out).unwrap(),
         std::fs::read_to_string(repo.join("firmware/src/policy_int.rs")).unwrap(),
-        "firmware/src/policy_int.rs is not what `export --quant int8` writes (README, \
-         \"Integer inference\", says how to regenerate it)"
+        "firmware/src/policy_int.rs is not what `export --quant int8` writes (docs/GUIDE.md, \
+         \"Export\", says how to regenerate it)"
     );
     // A C header, per channel this time, for the board --rig describes.
     let c = dir.join("policy_int.h");

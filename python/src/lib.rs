@@ -23,6 +23,15 @@ pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
 
+/// The record a results file keeps of the run that wrote it (`host_common::provenance`), as
+/// JSON: a run of `tool` (a script's path from the repository's root) with `argv`, now, here.
+/// The Python scripts' results carry the same record as the tools'.
+#[pyfunction]
+fn provenance_json(tool: &str, argv: Vec<String>) -> PyResult<String> {
+    let p = host_common::provenance::Provenance::new(tool, argv);
+    serde_json::to_string(&p).map_err(value_error)
+}
+
 /// The machine of the rig file at `rig`, if one is given.
 pub(crate) fn given_machine(rig: Option<&Path>) -> PyResult<Option<Machine>> {
     rig.map(twin::rigfile::load)
@@ -45,4 +54,6 @@ mod _native {
     use super::export::export;
     #[pymodule_export]
     use super::policy::{Policy, load, shipped};
+    #[pymodule_export]
+    use super::provenance_json;
 }

@@ -35,3 +35,17 @@ def test_refusals_raise_value_error():
         cartpole_ddqn.evaluate(episodes=0)
     with pytest.raises(ValueError, match="monitored"):
         cartpole_ddqn.evaluate(cartpole_ddqn.load(REPO / "firmware" / "policy.safetensors"), controller="monitored")
+
+
+def test_provenance_is_the_tools_record(tools):
+    """A script's results record the run as the tools' do: the same fields, the same
+    revision and machine, its own command."""
+    tool = json.loads(run(tools["host-sim"], "eval", "--json", "--episodes", "1", "--scenario", "nominal"))
+    theirs = tool["provenance"]
+    assert (theirs["tool"], theirs["argv"][:2]) == ("host-sim", ["eval", "--json"])
+    ours = cartpole_ddqn.provenance("examples/sb3_dqn.py", ["--steps", 10])
+    assert set(ours) == set(theirs)
+    assert (ours["tool"], ours["argv"]) == ("examples/sb3_dqn.py", ["--steps", "10"])
+    for key in ("revision", "dirty", "nproc", "cpu"):
+        assert ours[key] == theirs[key], key
+    assert ours["date"][:10] == theirs["date"][:10] or ours["date"] >= theirs["date"]

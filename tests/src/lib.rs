@@ -65,14 +65,43 @@ pub fn runners() -> Vec<(String, String)> {
 /// Builds `selftest-app`'s binary `bin` in release for `target` (the host without one); the
 /// executable's path, as cargo names it.
 pub fn build_app(bin: &str, target: Option<&str>) -> PathBuf {
+    build("selftest-app", bin, "release", target)
+}
+
+/// Builds a host tool (`host-sim`, `policy-export`) with the profile the tests were built
+/// with, so that it reuses their artefacts; the executable's path.
+pub fn build_tool(package: &str) -> PathBuf {
+    build(package, package, &test_profile(), None)
+}
+
+/// The cargo profile of this test binary: the name of the directory above its `deps/`
+/// (`debug` is the `dev` profile's).
+pub fn test_profile() -> String {
+    let exe = std::env::current_exe().expect("the test binary's path");
+    let dir = exe
+        .parent()
+        .and_then(Path::parent)
+        .and_then(Path::file_name)
+        .and_then(|n| n.to_str())
+        .expect("a test binary lies in PROFILE/deps/");
+    match dir {
+        "debug" => "dev".into(),
+        other => other.into(),
+    }
+}
+
+/// Builds binary `bin` of `package` with `profile` for `target` (the host without one); the
+/// executable's path, as cargo names it.
+pub fn build(package: &str, bin: &str, profile: &str, target: Option<&str>) -> PathBuf {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut c = Command::new(cargo);
     c.args([
         "build",
         "-q",
-        "--release",
+        "--profile",
+        profile,
         "-p",
-        "selftest-app",
+        package,
         "--bin",
         bin,
     ])

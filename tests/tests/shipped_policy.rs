@@ -13,8 +13,9 @@ fn repo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
-/// The one documented recipe of the shipped policy (README, "The shipped policy"), with the
-/// fastest kernel this CPU runs: every kernel trains the same bits.
+/// The one documented recipe of the shipped policy (docs/GUIDE.md, "The shipped policy";
+/// docs/results/manifest.toml's first steps), with the fastest kernel this CPU runs: every
+/// kernel trains the same bits.
 const SHIPPED_SEED: u64 = 5;
 fn shipped_config() -> Config {
     Config::deploy()
@@ -43,7 +44,7 @@ fn the_shipped_policy_regenerates_bit_identically() {
                 .tensors()
         ),
         "retraining the recipe no longer gives the shipped weights: \
-         regenerate firmware/src/policy.rs as the README says, or find what changed"
+         regenerate firmware/src/policy.rs as docs/GUIDE.md says, or find what changed"
     );
     // The files a user's `train` writes, through the same writer: the metadata too, so a
     // config that gains keys shows here rather than as a "differs" in the main job.
@@ -56,7 +57,7 @@ fn the_shipped_policy_regenerates_bit_identically() {
         assert!(
             std::fs::read(dir.join(written)).unwrap()
                 == std::fs::read(repo().join(committed)).unwrap(),
-            "{committed} is not what the recipe's run writes: regenerate it as the README says"
+            "{committed} is not what the recipe's run writes: regenerate it as docs/GUIDE.md says"
         );
     }
     std::fs::remove_dir_all(&dir).unwrap();

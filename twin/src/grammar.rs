@@ -2,8 +2,8 @@
 //! (`length=0.75..1.25+delay=0..4@0.5`) are written alike, and a scenario is a domain whose
 //! every value is a single point. [`PARTS`] is the one table of parts: their fields, bounds
 //! and defaults and what each means; the parser, the errors, the command-line help, the
-//! bounds a rig file's encoders and friction keep, and the table of parts in the README and
-//! `docs/CONTROL.md` (`host-sim parts`) are all made from it.
+//! bounds a rig file's encoders and friction keep, and the table of parts in
+//! `docs/SCENARIOS.md` (`host-sim parts`) are all made from it.
 //!
 //! A spec is `nominal`, or parts joined by `+`; a part is `KEY`, or `KEY=V[/V...]`, each value
 //! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
@@ -437,8 +437,8 @@ pub fn scenario_help() -> String {
     )
 }
 
-/// The table of parts in Markdown, as the README and `docs/CONTROL.md` show it (`host-sim
-/// parts` prints it; a test keeps the documents' copies equal to it).
+/// The table of parts in Markdown, as `docs/SCENARIOS.md` shows it (`host-sim parts` prints
+/// it; a test keeps the document's copy equal to it).
 pub fn markdown_table() -> String {
     let mut out = String::from("| part | values | what it does |\n| --- | --- | --- |\n");
     for p in PARTS {

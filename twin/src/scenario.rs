@@ -255,7 +255,7 @@ impl Scenario {
 /// with its nominal gain fails in part or whole over 10,000 steps, encoders read through the
 /// observer: long dead time, short poles with dead time, friction with dead time, coarse
 /// encoders with noise, strong pushes, with exact sensing or read through encoders
-/// (`docs/CONTROL.md` has every candidate's figure).
+/// (`docs/results/eval-hard-candidates.md` has every candidate's figures).
 pub const HARD: &[&str] = &[
     "delay=6",
     "delay=8",

@@ -17,6 +17,13 @@ pub struct Check {
     overruns: u64,
 }
 
+impl Check {
+    /// Its controller, scenario and horizon.
+    pub fn key(&self) -> (&str, &str, u32) {
+        (&self.controller, &self.scenario, self.horizon)
+    }
+}
+
 /// The columns' names, after the controller's.
 pub const COLUMNS: [&str; 5] = [
     "periods",

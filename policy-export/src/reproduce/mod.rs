@@ -18,7 +18,7 @@ mod report;
 mod stats;
 mod variants;
 
-pub use report::{tables_md, write};
+pub use report::{seed_json, tables_md, write};
 pub use stats::{Row, RunStats, max_drop, row};
 pub use variants::{STUDIES, Variant, variants};
 
@@ -83,6 +83,11 @@ pub fn distinct_runs(variants: &[Variant], seeds: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use host_common::provenance::Provenance;
+
+    fn provenance() -> Provenance {
+        Provenance::new("policy-export", vec!["reproduce".into()])
+    }
 
     #[test]
     fn a_short_study_writes_tables_json_and_figures() {
@@ -101,13 +106,18 @@ mod tests {
         let again = run(&vs, 2, &|| {}).unwrap();
         assert_eq!(runs[0][1].returns, again[0][1].returns);
         let dir = std::env::temp_dir().join(format!("reproduce-{}", std::process::id()));
-        let rows = write(&dir, &vs, &runs, "test").unwrap();
+        let rows = write(&dir, &vs, &runs, &provenance()).unwrap();
         assert_eq!(rows.len(), 2);
         let json: serde_json::Value =
             serde_json::from_slice(&std::fs::read(dir.join("results.json")).unwrap()).unwrap();
         assert_eq!(json["rows"][0]["label"], "DQN");
+        assert_eq!(json["provenance"]["argv"], serde_json::json!(["reproduce"]));
         let md = std::fs::read_to_string(dir.join("tables.md")).unwrap();
         assert!(md.contains("| DQN | 4610 | ") && md.contains("| Double DQN | 4610 | "));
+        assert!(
+            md.contains("- command: `policy-export reproduce`\n"),
+            "{md}"
+        );
         for f in [
             "table4.svg",
             "table4.png",
@@ -133,7 +143,7 @@ mod tests {
         assert_eq!((vs.len(), distinct_runs(&vs, 2)), (14, 28));
         let runs = run(&vs, 2, &|| {}).unwrap();
         let dir = std::env::temp_dir().join(format!("reproduce-shaping-{}", std::process::id()));
-        write(&dir, &vs, &runs, "test").unwrap();
+        write(&dir, &vs, &runs, &provenance()).unwrap();
         let svg = |f: &str| std::fs::read_to_string(dir.join(f)).unwrap();
         let (rewards, readings) = (svg("shaping.svg"), svg("shaping-readings.svg"));
         assert!(rewards.contains("paper preset") && readings.contains("paper preset"));

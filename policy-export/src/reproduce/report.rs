@@ -5,6 +5,7 @@ use std::path::Path;
 
 use anyhow::{Context, Result};
 use host_common::plot::{Curve, line_chart};
+use host_common::provenance::Provenance;
 use host_common::stats::{Estimate, mean};
 use weights::files::write_atomic;
 
@@ -47,12 +48,20 @@ fn curve(
 /// A row drawn in a figure: its variant and its runs.
 type Member<'a> = (&'a Variant, &'a Vec<RunStats>);
 
+/// One run's numbers as `results.json`'s `per_seed` lists them.
+pub fn seed_json(r: &RunStats) -> serde_json::Value {
+    serde_json::json!({
+        "seed": r.seed, "solved_195": r.solved_195, "final_mean100": r.final_mean100,
+        "sd_101_200": r.sd_101_200, "max_drop_after_150": r.max_drop_after_150,
+    })
+}
+
 /// Writes `results.json`, `tables.md` and the figures into `dir`.
 pub fn write(
     dir: &Path,
     variants: &[Variant],
     runs: &[Vec<RunStats>],
-    command: &str,
+    provenance: &Provenance,
 ) -> Result<Vec<Row>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let rows: Vec<Row> = variants.iter().zip(runs).map(|(v, r)| row(v, r)).collect();
@@ -62,19 +71,22 @@ pub fn write(
         .map(|(v, rs)| {
             serde_json::json!({
                 "study": v.study, "label": v.label, "config": v.cfg,
-                "runs": rs.iter().map(|r| serde_json::json!({
-                    "seed": r.seed, "solved_195": r.solved_195, "final_mean100": r.final_mean100,
-                    "sd_101_200": r.sd_101_200, "max_drop_after_150": r.max_drop_after_150,
-                })).collect::<Vec<_>>(),
+                "runs": rs.iter().map(seed_json).collect::<Vec<_>>(),
             })
         })
         .collect();
-    let json = serde_json::json!({ "command": command, "rows": rows, "per_seed": per_seed });
+    let json = serde_json::json!({ "provenance": provenance, "rows": rows, "per_seed": per_seed });
     write_atomic(
         &dir.join("results.json"),
         serde_json::to_string_pretty(&json)?.as_bytes(),
     )?;
-    write_atomic(&dir.join("tables.md"), tables_md(&rows).as_bytes())?;
+    let page = format!(
+        "# The reproduction's tables\n\nWritten by `policy-export reproduce` with `results.json` \
+         beside it; do not edit.\n\n{}{}",
+        provenance.markdown(),
+        tables_md(&rows)
+    );
+    write_atomic(&dir.join("tables.md"), page.as_bytes())?;
 
     let by = |study: &str| -> Vec<Member> {
         variants

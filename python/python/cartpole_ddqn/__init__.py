@@ -7,10 +7,19 @@ and ``gymnasium.make_vec``). ``load``, ``export`` and ``evaluate`` run the code 
 
 import gymnasium
 
-from .api import Policy, evaluate, export, load, shipped
+from .api import Policy, evaluate, export, load, provenance, shipped
 from .env import TwinEnv, TwinVectorEnv
 
-__all__ = ["Policy", "TwinEnv", "TwinVectorEnv", "evaluate", "export", "load", "shipped"]
+__all__ = [
+    "Policy",
+    "TwinEnv",
+    "TwinVectorEnv",
+    "evaluate",
+    "export",
+    "load",
+    "provenance",
+    "shipped",
+]
 
 ENV_ID = "cartpole_ddqn/Twin-v0"
 

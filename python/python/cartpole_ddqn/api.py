@@ -129,3 +129,10 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
         _path(rig),
     )
     return json.loads(rows)
+
+
+def provenance(tool, argv):
+    """The record a results file keeps of the run that wrote it, as the command-line tools
+    write it: ``tool`` (a script's path from the repository's root) and ``argv`` (its
+    arguments), the date, the git revision, ``nproc`` and the CPU model."""
+    return json.loads(_native.provenance_json(str(tool), [str(a) for a in argv]))

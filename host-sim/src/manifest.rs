@@ -1,0 +1,219 @@
+//! `docs/results/manifest.toml`: how every generated file and every results file is made, one
+//! step per file in the order they depend on each other. `scripts/regenerate.sh` runs the
+//! steps; `host-sim tables` titles each results file's page from its step; the end-to-end
+//! tests re-run a sample of each file's rows from its step's command. The file's header
+//! describes the fields.
+
+use std::path::Path;
+
+use serde::Deserialize;
+
+/// Where the manifest lives, from the repository's root.
+pub const PATH: &str = "docs/results/manifest.toml";
+
+/// The tools a step may need beyond cargo, as `scripts/regenerate.sh` checks them.
+pub const NEEDS: [&str; 3] = ["qemu", "arm-gcc", "sb3"];
+
+/// Largest manifest read.
+const MAX_BYTES: u64 = 1 << 20;
+
+/// Every step, in order.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    #[serde(rename = "step")]
+    pub steps: Vec<Step>,
+}
+
+/// One step: a command and what it writes.
+#[derive(Clone, Debug, Deserialize, PartialEq)]
+#[serde(deny_unknown_fields)]
+pub struct Step {
+    /// What `--only`, `--from` and `--skip` match.
+    pub name: String,
+    /// What the step makes.
+    pub about: String,
+    /// The command, run by bash from the repository's root.
+    pub run: String,
+    /// The file or directory it writes.
+    #[serde(default)]
+    pub output: Option<String>,
+    /// Whether the command prints the output rather than writing it.
+    #[serde(default)]
+    pub stdout: bool,
+    /// A command run first, building what `run` needs.
+    #[serde(default)]
+    pub prepare: Option<String>,
+    /// Tools beyond cargo, of [`NEEDS`].
+    #[serde(default)]
+    pub needs: Vec<String>,
+    /// Whether the tools must be built again after it.
+    #[serde(default)]
+    pub rebuild: bool,
+    /// Estimated CPU minutes.
+    pub cost: f64,
+}
+
+impl Step {
+    /// The command's words, if it is one plain command line: no shell syntax, each word
+    /// one argument (how the tests run a step's command without a shell).
+    pub fn words(&self) -> Option<Vec<&str>> {
+        let plain = |c: char| c.is_ascii_alphanumeric() || "-_=+/.,:".contains(c);
+        let words: Vec<&str> = self.run.split(' ').filter(|w| !w.is_empty()).collect();
+        words.iter().all(|w| w.chars().all(plain)).then_some(words)
+    }
+
+    /// Whether it writes a results file: one under `docs/results/` or a reproduction.
+    pub fn results(&self) -> Option<&str> {
+        let out = self.output.as_deref()?;
+        let json = out.starts_with(crate::tables::RESULTS_DIR) && out.ends_with(".json");
+        (json || out == "docs/reproduction").then_some(out)
+    }
+}
+
+impl Manifest {
+    /// The manifest of the repository at `root`.
+    pub fn load(root: &Path) -> anyhow::Result<Manifest> {
+        let path = root.join(PATH);
+        let bytes = weights::files::read_capped(&path, MAX_BYTES)?;
+        let text =
+            String::from_utf8(bytes).map_err(|_| anyhow::anyhow!("{PATH}: expected UTF-8 text"))?;
+        Manifest::parse(&text).map_err(|e| anyhow::anyhow!("{PATH}: {e}"))
+    }
+
+    /// The manifest in `text`, checked: names unique and plain, one line per command, a
+    /// printed output written by one step alone, known tools, a cost.
+    pub fn parse(text: &str) -> Result<Manifest, String> {
+        let m: Manifest = toml::from_str(text).map_err(|e| e.to_string())?;
+        for (i, s) in m.steps.iter().enumerate() {
+            let at = format!("step `{}`", s.name);
+            let named = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c);
+            if s.name.is_empty() || !s.name.chars().all(named) {
+                return Err(format!("{at}: expected a name of a-z, 0-9, `-` and `.`"));
+            }
+            if m.steps[..i].iter().any(|t| t.name == s.name) {
+                return Err(format!("{at}: a second step of that name"));
+            }
+            let lines = [Some(&s.run), s.prepare.as_ref(), Some(&s.about)];
+            if s.run.trim().is_empty() || lines.iter().flatten().any(|l| l.contains(['\n', '\t'])) {
+                return Err(format!(
+                    "{at}: expected a command, and no tab or line break in run, prepare or about"
+                ));
+            }
+            if s.stdout && s.output.is_none() {
+                return Err(format!("{at}: stdout = true names no output"));
+            }
+            let printed = |t: &Step| t.stdout && t.output == s.output;
+            if s.output.is_some()
+                && m.steps.iter().filter(|t| t.output == s.output).count() > 1
+                && m.steps.iter().any(printed)
+            {
+                return Err(format!(
+                    "{at}: its output is printed by one step and written by another"
+                ));
+            }
+            if let Some(n) = s.needs.iter().find(|n| !NEEDS.contains(&n.as_str())) {
+                return Err(format!(
+                    "{at}: needs `{n}`, expected one of {}",
+                    NEEDS.join(", ")
+                ));
+            }
+            if !(s.cost.is_finite() && s.cost >= 0.0) {
+                return Err(format!("{at}: expected a cost of 0 or more CPU minutes"));
+            }
+        }
+        Ok(m)
+    }
+
+    /// The steps that write `output`, in order.
+    pub fn producing(&self, output: &str) -> Vec<&Step> {
+        self.steps
+            .iter()
+            .filter(|s| s.output.as_deref() == Some(output))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TWO: &str = r#"
+[[step]]
+name = "eval-x"
+about = "x"
+run = "host-sim eval --scenario noise+delay=2 --json"
+output = "docs/results/eval-x.json"
+stdout = true
+cost = 1.5
+
+[[step]]
+name = "tables"
+about = "the documents"
+run = "host-sim tables && echo done"
+cost = 0
+"#;
+
+    #[test]
+    fn reads_steps_their_words_and_results() {
+        let m = Manifest::parse(TWO).unwrap();
+        assert_eq!(m.steps.len(), 2);
+        let words = m.steps[0].words().unwrap();
+        assert_eq!(
+            words,
+            ["host-sim", "eval", "--scenario", "noise+delay=2", "--json"]
+        );
+        assert_eq!(m.steps[0].results(), Some("docs/results/eval-x.json"));
+        assert_eq!(m.steps[1].words(), None, "`&&` is the shell's");
+        assert_eq!(m.steps[1].results(), None);
+        assert_eq!(m.producing("docs/results/eval-x.json")[0].name, "eval-x");
+    }
+
+    #[test]
+    fn refuses_what_the_script_could_not_run() {
+        let cases = [
+            (
+                TWO.replace("\"tables\"", "\"eval-x\""),
+                "a second step of that name",
+            ),
+            (
+                TWO.replace("\"tables\"", "\"Tables\""),
+                "expected a name of a-z",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = -1\n"),
+                "a cost of 0 or more",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"gpu\"]\n"),
+                "needs `gpu`",
+            ),
+            (
+                TWO.replace(
+                    "stdout = true\ncost = 1.5",
+                    "cost = 1.5\nstdout = true\nrebuilt = 1",
+                ),
+                "unknown field",
+            ),
+            (
+                TWO.replace("output = \"docs/results/eval-x.json\"\n", ""),
+                "names no output",
+            ),
+            (
+                TWO.replace("run = \"host-sim tables", "run = \"\\thost-sim tables"),
+                "no tab",
+            ),
+            (
+                TWO.replace(
+                    "cost = 0\n",
+                    "cost = 0\noutput = \"docs/results/eval-x.json\"\n",
+                ),
+                "printed by one step and written by another",
+            ),
+        ];
+        for (text, want) in cases {
+            let e = Manifest::parse(&text).unwrap_err();
+            assert!(e.contains(want), "{want}: {e}");
+        }
+    }
+}

@@ -1,0 +1,228 @@
+//! Which figures of a results file moved when it was measured again: row by row (an eval
+//! row by its controller, scenario and horizon; a reproduction's by its study and label; a
+//! processor-in-the-loop check likewise), each figure with a 95% interval compared against
+//! the old interval, the rest for equality. What `scripts/regenerate.sh` prints per file.
+
+use serde_json::{Map, Value as Json};
+
+/// How one file's rows compare with its earlier version's.
+#[derive(Debug, Default, PartialEq)]
+pub struct Moved {
+    /// Rows in the new file.
+    pub rows: usize,
+    /// Rows with a figure outside its earlier 95% interval: the row, and each such figure
+    /// as `field old -> new (interval)`.
+    pub moved: Vec<(String, Vec<String>)>,
+    /// Rows that changed, all within their intervals (or figures without one).
+    pub within: Vec<String>,
+    /// The fields that changed in any row, in the order first seen.
+    pub fields: Vec<String>,
+    /// Rows that are new, and rows that are gone.
+    pub new: Vec<String>,
+    pub gone: Vec<String>,
+}
+
+/// The comparison of `old` with `new`, two versions of one results file.
+pub fn compare(old: &Json, new: &Json) -> Moved {
+    let (old, new) = (entries(old), entries(new));
+    let mut m = Moved {
+        rows: new.len(),
+        ..Moved::default()
+    };
+    for (key, row) in &new {
+        match old.iter().find(|(k, _)| k == key) {
+            None => m.new.push(key.clone()),
+            Some((_, was)) => {
+                let (beyond, changed) = fields(was, row);
+                for f in &changed {
+                    if !m.fields.contains(f) {
+                        m.fields.push(f.clone());
+                    }
+                }
+                if !beyond.is_empty() {
+                    m.moved.push((key.clone(), beyond));
+                } else if !changed.is_empty() {
+                    m.within.push(key.clone());
+                }
+            }
+        }
+    }
+    m.gone = old
+        .iter()
+        .filter(|(k, _)| !new.iter().any(|(n, _)| n == k))
+        .map(|(k, _)| k.clone())
+        .collect();
+    m
+}
+
+/// The rows of a results file by name, or, for a file without rows (an envelope), the file
+/// as one entry; never its provenance.
+fn entries(doc: &Json) -> Vec<(String, &Json)> {
+    let mut out = Vec::new();
+    let Some(top) = doc.as_object() else {
+        return vec![("the file".into(), doc)];
+    };
+    for (list, prefix) in [("rows", ""), ("pil", "pil check: ")] {
+        for row in top.get(list).and_then(Json::as_array).into_iter().flatten() {
+            out.push((format!("{prefix}{}", name(row)), row));
+        }
+    }
+    if !top.contains_key("rows") {
+        out.push(("the file's figures".into(), doc));
+    }
+    out
+}
+
+/// `controller on scenario at horizon`, or `study: label`.
+fn name(row: &Json) -> String {
+    let s = |k: &str| row.get(k).and_then(Json::as_str).unwrap_or("?").to_string();
+    if row.get("study").is_some() {
+        return format!("{}: {}", s("study"), s("label"));
+    }
+    let h = row.get("horizon").and_then(Json::as_u64).unwrap_or(0);
+    format!("{} on {} at {h}", s("controller"), s("scenario"))
+}
+
+/// The figures of `new` outside `old`'s intervals, and the fields that differ at all (new
+/// and gone ones too).
+fn fields(old: &Json, new: &Json) -> (Vec<String>, Vec<String>) {
+    let (Some(o), Some(n)) = (old.as_object(), new.as_object()) else {
+        let changed = (old != new).then(|| "the value".to_string());
+        return (Vec::new(), changed.into_iter().collect());
+    };
+    let skip = |k: &str| ["provenance", "rows", "pil", "per_seed"].contains(&k);
+    let mut beyond = Vec::new();
+    let mut changed = Vec::new();
+    for (key, nv) in n.iter().filter(|(k, _)| !skip(k)) {
+        match o.get(key) {
+            Some(ov) if ov == nv => {}
+            Some(ov) => {
+                changed.push(key.clone());
+                beyond.extend(outside(key, ov, nv, o));
+            }
+            None => changed.push(format!("{key} (new)")),
+        }
+    }
+    let gone = o.keys().filter(|k| !skip(k) && !n.contains_key(*k));
+    changed.extend(gone.map(|k| format!("{k} (gone)")));
+    (beyond, changed)
+}
+
+/// `field old -> new (interval)` if `new` lies outside the old 95% interval of `key`: its
+/// own `{mean, ci95}`, or a sibling `KEY_ci95` (`STEM_ci95` for `STEM_rate`; a half-width,
+/// or `[low, high]`).
+fn outside(key: &str, old: &Json, new: &Json, row: &Map<String, Json>) -> Option<String> {
+    let num = |v: &Json, k: &str| v.get(k).and_then(Json::as_f64);
+    if let (Some(a), Some(h), Some(b)) = (num(old, "mean"), num(old, "ci95"), num(new, "mean")) {
+        return ((b - a).abs() > h).then(|| format!("{key} {a:.4} -> {b:.4} (+-{h:.4})"));
+    }
+    let (a, b) = (old.as_f64()?, new.as_f64()?);
+    // `eval`'s success rate keeps its interval as `success_ci95`.
+    let stem = key.strip_suffix("_rate").unwrap_or(key);
+    let interval = row
+        .get(&format!("{key}_ci95"))
+        .or_else(|| row.get(&format!("{stem}_ci95")))?;
+    match interval {
+        Json::Array(lh) => {
+            let (lo, hi) = (lh.first()?.as_f64()?, lh.get(1)?.as_f64()?);
+            (b < lo || b > hi).then(|| format!("{key} {a:.4} -> {b:.4} ([{lo:.4}, {hi:.4}])"))
+        }
+        h => {
+            let h = h.as_f64()?;
+            ((b - a).abs() > h).then(|| format!("{key} {a:.4} -> {b:.4} (+-{h:.4})"))
+        }
+    }
+}
+
+/// The comparison as lines: a summary, then each row that moved with its figures.
+pub fn report(file: &str, m: &Moved) -> String {
+    let mut s = format!(
+        "{file}: {} rows, {} moved beyond their 95% intervals, {} changed within them, {} new, {} gone\n",
+        m.rows,
+        m.moved.len(),
+        m.within.len(),
+        m.new.len(),
+        m.gone.len()
+    );
+    if !m.fields.is_empty() {
+        s += &format!("  fields that changed: {}\n", m.fields.join(", "));
+    }
+    for (row, figures) in &m.moved {
+        s += &format!("  moved: {row}: {}\n", figures.join("; "));
+    }
+    for row in &m.new {
+        s += &format!("  new: {row}\n");
+    }
+    for row in &m.gone {
+        s += &format!("  gone: {row}\n");
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use serde_json::json;
+
+    fn row(rate: f64, ci: [f64; 2], theta: f64, failures: u64) -> Json {
+        json!({"controller": "policy", "scenario": "noise", "horizon": 500, "success_rate": rate,
+               "success_ci95": ci, "failures": failures, "mean_steps": 480.0, "mean_steps_ci95": 5.0,
+               "rms_theta_deg": {"mean": theta, "ci95": 0.01}})
+    }
+
+    #[test]
+    fn a_figure_moves_only_beyond_its_old_interval() {
+        let old = json!({"seed": 0, "rows": [row(0.9, [0.88, 0.92], 0.50, 100)],
+                         "provenance": {"date": "then"}});
+        let same = json!({"seed": 0, "rows": [row(0.9, [0.88, 0.92], 0.50, 100)],
+                          "provenance": {"date": "now"}});
+        assert_eq!(
+            compare(&old, &same),
+            Moved {
+                rows: 1,
+                ..Moved::default()
+            }
+        );
+        // 0.91 lies in [0.88, 0.92] and 0.505 within 0.01 of 0.50: changed, not moved.
+        let near = json!({"rows": [row(0.91, [0.89, 0.93], 0.505, 90)], "seed": 0});
+        let m = compare(&old, &near);
+        assert_eq!((m.moved.len(), m.within.len()), (0, 1));
+        // 0.95 is above 0.92, and 0.52 is 0.02 from 0.50.
+        let mut far = json!({"rows": [row(0.95, [0.93, 0.97], 0.52, 50)], "seed": 0});
+        far["rows"][0]["fallback_share"] = json!(0.0);
+        let m = compare(&old, &far);
+        assert_eq!(m.moved.len(), 1);
+        let (name, figures) = &m.moved[0];
+        assert_eq!(name, "policy on noise at 500");
+        assert_eq!(
+            figures,
+            &[
+                "rms_theta_deg 0.5000 -> 0.5200 (+-0.0100)",
+                "success_rate 0.9000 -> 0.9500 ([0.8800, 0.9200])"
+            ]
+        );
+        let text = report("docs/results/x.json", &m);
+        let want = "docs/results/x.json: 1 rows, 1 moved beyond their 95% intervals, 0 changed \
+                    within them, 0 new, 0 gone\n  fields that changed: failures, \
+                    fallback_share (new), rms_theta_deg, success_ci95, success_rate\n  moved: \
+                    policy on noise at 500: ";
+        assert!(text.starts_with(want), "{text}");
+    }
+
+    #[test]
+    fn rows_are_matched_by_name_and_other_figures_by_equality() {
+        let old = json!({"rows": [{"study": "t4", "label": "DQN", "final_mean100": {"mean": 68.5, "ci95": 21.6}},
+                                  {"study": "t4", "label": "DDQN", "params": 4610}]});
+        let new = json!({"rows": [{"study": "t4", "label": "DQN", "final_mean100": {"mean": 91.0, "ci95": 20.0}},
+                                  {"study": "t5", "label": "lr", "params": 4610}]});
+        let m = compare(&old, &new);
+        assert_eq!(m.moved[0].0, "t4: DQN");
+        assert_eq!(
+            (m.new.clone(), m.gone.clone()),
+            (vec!["t5: lr".to_string()], vec!["t4: DDQN".to_string()])
+        );
+        let env = |e: f64| json!({"envelope": [2.4, e], "periods": 10, "provenance": {}});
+        assert_eq!(compare(&env(1.0), &env(1.0)).within.len(), 0);
+        assert_eq!(compare(&env(1.0), &env(1.5)).within, ["the file's figures"]);
+    }
+}

@@ -1,0 +1,73 @@
+//! A results file says where it came from: `eval --json` and `envelope --json` record the
+//! command line after the program's name (so that it runs again), the date, the revision
+//! `git` reports for the directory it ran in, the CPUs and the CPU's model.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value as Json;
+
+fn run(args: &[&str]) -> Json {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(args)
+        .current_dir(&root)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+/// `git rev-parse --short HEAD` at the root, or `unknown` where git cannot say.
+fn revision() -> String {
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let o = Command::new("git")
+        .args(["rev-parse", "--short", "HEAD"])
+        .current_dir(root)
+        .output();
+    match o {
+        Ok(o) if o.status.success() => String::from_utf8(o.stdout).unwrap().trim().to_string(),
+        _ => "unknown".into(),
+    }
+}
+
+#[test]
+fn eval_and_envelope_record_their_command_revision_and_machine() {
+    let eval = [
+        "eval",
+        "--json",
+        "--scenario",
+        "nominal",
+        "--episodes",
+        "3",
+        "--horizon",
+        "20",
+    ];
+    let envelope = [
+        "envelope",
+        "--json",
+        "--scenario",
+        "nominal",
+        "--episodes",
+        "2",
+        "--horizon",
+        "30",
+    ];
+    for args in [&eval[..], &envelope[..]] {
+        let doc = run(args);
+        let p = &doc["provenance"];
+        assert_eq!(p["tool"], "host-sim", "{p}");
+        assert_eq!(p["argv"], serde_json::json!(args), "{p}");
+        assert_eq!(p["revision"], revision().as_str(), "{p}");
+        assert!(p["dirty"].is_boolean(), "{p}");
+        let nproc = std::thread::available_parallelism().unwrap().get();
+        assert_eq!(p["nproc"], nproc, "{p}");
+        assert!(!p["cpu"].as_str().unwrap().is_empty(), "{p}");
+        // YYYY-MM-DDTHH:MM:SSZ, in this century.
+        let date = p["date"].as_str().unwrap();
+        assert!(
+            date.len() == 20 && date.starts_with("20") && date.ends_with('Z'),
+            "{p}"
+        );
+    }
+}
