@@ -8,7 +8,7 @@
 //! randomness. So every controller meets the same starts, noise and pushes.
 
 use firmware::ConfigError;
-use firmware::cartpole::{CartPole, State, Transition};
+use firmware::cartpole::{CartPole, Params, State, Transition};
 use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Sensed};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
@@ -35,6 +35,16 @@ pub struct EpisodeStats {
     pub sum_abs_x: f64,
     /// Periods whose command differs from the previous period's.
     pub switches: u32,
+    /// Reversals: periods that drive the motor the other way from the last period that drove
+    /// it (a coasting or zero-duty period between them does not count as a direction).
+    pub reversals: u32,
+    /// Sum of |duty| (fractions of the full push; 0 coasting).
+    pub sum_abs_duty: f64,
+    /// Sum of |duty - the previous period's duty|: the duty's total variation.
+    pub sum_duty_change: f64,
+    /// Sum of the motor's squared current as a share of its stall current
+    /// ([`firmware::cartpole::Params::current`]), at the cart's speed as the period starts.
+    pub sum_heat: f64,
     /// Periods that coasted on a rejected reading.
     pub faults: u32,
     /// Periods a runtime monitor's fallback decided.
@@ -255,12 +265,22 @@ impl<P: Policy, R: Rng> Episode<'_, P, R> {
 pub struct Tally {
     stats: EpisodeStats,
     previous: Option<Command>,
+    /// The direction the motor was last driven (`true` towards +x).
+    direction: Option<bool>,
+    /// The cart's speed as the next period starts (the state after the last one).
+    x_dot: Option<f64>,
 }
 
 impl Tally {
-    /// One period: what was commanded (with `fallback`, by a monitor's fallback), the state
-    /// after it, how it ended.
-    pub fn period(&mut self, command: Command, fallback: bool, s: &State, t: &Transition) {
+    /// One period on a plant of physics `p`: what was commanded (with `fallback`, by a
+    /// monitor's fallback), the state after it, how it ended.
+    pub fn period(
+        &mut self,
+        p: &Params,
+        (command, fallback): (Command, bool),
+        s: &State,
+        t: &Transition,
+    ) {
         let stats = &mut self.stats;
         stats.fallback += u32::from(fallback);
         if self.previous.is_some_and(|p| p != command) {
@@ -269,6 +289,19 @@ impl Tally {
         if command == Command::Coast {
             stats.faults += 1;
         }
+        let duty = f64::from(command.level());
+        let before = self.previous.map_or(0.0, |c| f64::from(c.level()));
+        stats.sum_abs_duty += duty.abs();
+        stats.sum_duty_change += (duty - before).abs();
+        let current = p.current(duty, self.x_dot.unwrap_or(s.x_dot));
+        stats.sum_heat += current * current;
+        if let Command::Drive(d) = command
+            && let Some(way) = d.direction()
+        {
+            stats.reversals += u32::from(self.direction.is_some_and(|w| w != way));
+            self.direction = Some(way);
+        }
+        self.x_dot = Some(s.x_dot);
         self.previous = Some(command);
         stats.steps += 1;
         stats.sum_theta2 += s.theta * s.theta;
@@ -327,7 +360,8 @@ pub fn run_episode<P: Policy>(
         },
         |_, ep, command, t| {
             let state = ep.world().state();
-            tally.period(command, ep.fallback(), &state, t);
+            let p = &ep.world().scenario().params;
+            tally.period(p, (command, ep.fallback()), &state, t);
             let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs);
             on_frame(Frame {
                 state,
@@ -360,7 +394,10 @@ pub fn run_episodes<P: Policy>(
             let e = first + i as u64;
             start_episode(policy(e), scenario, horizon, seed, e, aids)
         },
-        |i, ep, command, t| tallies[i].period(command, ep.fallback(), &ep.world().state(), t),
+        |i, ep, command, t| {
+            let (p, s) = (&ep.world().scenario().params, ep.world().state());
+            tallies[i].period(p, (command, ep.fallback()), &s, t)
+        },
     );
     tallies.into_iter().map(|t| t.stats()).collect()
 }

@@ -124,6 +124,14 @@ pub const PARAMS_LEN: usize = 11;
 const _: () = assert!(core::mem::size_of::<Params>() == PARAMS_LEN * 8);
 
 impl Params {
+    /// The motor's current at duty `duty` while the cart moves at `x_dot`, as a share of its
+    /// stall current: `duty - motor_damping * x_dot / force_mag`, the force the motor makes
+    /// ([`Plant::motor_force`]) over its stall force. Its square is the motor's heating
+    /// against a stall at full duty.
+    pub fn current(&self, duty: f64, x_dot: f64) -> f64 {
+        duty - self.motor_damping * x_dot / self.force_mag
+    }
+
     /// Every field, in the order of the declaration: what a dump or a digest of the machine
     /// takes.
     pub const fn values(&self) -> [f64; PARAMS_LEN] {

@@ -38,6 +38,15 @@ pub struct Row {
     pub mean_abs_x_m: Estimate,
     /// Command changes per second of balance.
     pub switches_per_s: Estimate,
+    /// Reversals of the motor's direction per second of balance.
+    pub reversals_per_s: Estimate,
+    /// Per-episode mean |duty|, a fraction of the full push.
+    pub mean_abs_duty: Estimate,
+    /// Per-episode total variation of the duty per second (full pushes per second).
+    pub duty_tv_per_s: Estimate,
+    /// Per-episode mean squared motor current as a share of a full-duty stall's: the motor's
+    /// heating.
+    pub heat: Estimate,
     /// Periods that coasted on a rejected reading, over all episodes.
     pub faults: u64,
     /// Share of the periods a runtime monitor's fallback decided (0 without a monitor).
@@ -95,6 +104,12 @@ impl Row {
             rms_x_m: Estimate::of(&per(&|e| (e.sum_x2 / steps(e)).sqrt())),
             mean_abs_x_m: Estimate::of(&per(&|e| e.sum_abs_x / steps(e))),
             switches_per_s: Estimate::of(&per(&|e| f64::from(e.switches) / (steps(e) * period_s))),
+            reversals_per_s: Estimate::of(&per(&|e| {
+                f64::from(e.reversals) / (steps(e) * period_s)
+            })),
+            mean_abs_duty: Estimate::of(&per(&|e| e.sum_abs_duty / steps(e))),
+            duty_tv_per_s: Estimate::of(&per(&|e| e.sum_duty_change / (steps(e) * period_s))),
+            heat: Estimate::of(&per(&|e| e.sum_heat / steps(e))),
             faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
             fallback_share: eps.iter().map(|e| f64::from(e.fallback)).sum::<f64>()
                 / eps.iter().map(|e| f64::from(e.steps)).sum::<f64>().max(1.0),
@@ -141,7 +156,7 @@ pub fn format_table(rows: &[Row]) -> String {
                 r.episodes
             );
             out += &format!(
-                "{:<sw$} {:<cw$} {:>22} {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+                "{:<sw$} {:<cw$} {:>22} {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>12} {:>8} {:>8} {:>7}\n",
                 "scenario",
                 "ctrl",
                 "success",
@@ -153,13 +168,16 @@ pub fn format_table(rows: &[Row]) -> String {
                 "RMS x m",
                 "mean |x| m",
                 "switch/s",
+                "reverse/s",
+                "|duty|",
+                "heat",
                 "faults"
             );
             last = Some(r.horizon);
         }
         let pm = |e: &Estimate, p: usize| format!("{:.p$} ± {:.p$}", e.mean, e.ci95);
         out += &format!(
-            "{:<sw$} {:<cw$} {:>6.1}% [{:>5.1}, {:>5.1}] {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>7}\n",
+            "{:<sw$} {:<cw$} {:>6.1}% [{:>5.1}, {:>5.1}] {:>9} {:>17} {:>6} {:>6} {:>13} {:>15} {:>15} {:>12} {:>12} {:>8.3} {:>8.4} {:>7}\n",
             r.scenario,
             r.controller,
             100.0 * r.success_rate,
@@ -179,6 +197,9 @@ pub fn format_table(rows: &[Row]) -> String {
             pm(&r.rms_x_m, 3),
             pm(&r.mean_abs_x_m, 3),
             pm(&r.switches_per_s, 1),
+            pm(&r.reversals_per_s, 1),
+            r.mean_abs_duty.mean,
+            r.heat.mean,
             r.faults
         );
     }
@@ -236,6 +257,10 @@ mod tests {
                 sum_x2: f64::from(s * 10) * 4.0,
                 sum_abs_x: f64::from(s * 10) * 2.0,
                 switches: s * 5,
+                reversals: s * 2,
+                sum_abs_duty: f64::from(s * 10) * 0.25,
+                sum_duty_change: f64::from(s * 10) * 0.1,
+                sum_heat: f64::from(s * 10) * 0.04,
                 faults: 1,
                 fallback: s,
             })
@@ -269,5 +294,10 @@ mod tests {
         assert!((r.rms_x_m.mean - 2.0).abs() < 1e-12 && r.rms_x_m.ci95 < 1e-12);
         assert!((r.mean_abs_x_m.mean - 2.0).abs() < 1e-12);
         assert!((r.switches_per_s.mean - 25.0).abs() < 1e-9);
+        // 2 s reversals in 10 s periods of 0.02 s: 10 a second; 0.1 per period is 5 a second.
+        assert!((r.reversals_per_s.mean - 10.0).abs() < 1e-9);
+        assert!((r.duty_tv_per_s.mean - 5.0).abs() < 1e-9);
+        assert!((r.mean_abs_duty.mean - 0.25).abs() < 1e-12);
+        assert!((r.heat.mean - 0.04).abs() < 1e-12);
     }
 }

@@ -153,7 +153,12 @@ pub fn run_row(
             times.push(u64::from(got.ticks) * 1_000_000_000 / u64::from(info.clock_hz));
             let t = world.apply(f64::from(got.command.level()));
             let fallback = got.faults.contains(FaultFlags::FALLBACK);
-            tally.period(got.command, fallback, &world.state(), &t);
+            tally.period(
+                &scenario.params,
+                (got.command, fallback),
+                &world.state(),
+                &t,
+            );
             if t.terminated || t.truncated {
                 break;
             }

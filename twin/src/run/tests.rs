@@ -178,3 +178,36 @@ fn episodes_side_by_side_are_the_episodes_alone() {
         );
     }
 }
+
+#[test]
+fn the_motor_tally_counts_reversals_duty_and_heat_by_hand() {
+    let p = Params {
+        motor_damping: 5.0,
+        ..Params::default()
+    };
+    let (right, left) = (Command::Drive(Duty::RIGHT), Command::Drive(Duty::LEFT));
+    let mut tally = Tally::default();
+    let t = Transition {
+        obs: [0.0; 4],
+        reward: 1.0,
+        terminated: false,
+        truncated: false,
+    };
+    // The cart moves at 1 m/s after every period.
+    let s = State {
+        x_dot: 1.0,
+        ..State::default()
+    };
+    for c in [right, left, Command::Coast, left, right] {
+        tally.period(&p, (c, false), &s, &t);
+    }
+    let e = tally.stats();
+    // right->left, then left (across the coast) ->right: two; the coast is no direction.
+    assert_eq!(e.reversals, 2);
+    assert_eq!(e.sum_abs_duty, 4.0);
+    // |1-0| + |-1-1| + |0+1| + |-1-0| + |1+1|
+    assert_eq!(e.sum_duty_change, 7.0);
+    // Current = duty - 5 * 1 / 10 = duty - 0.5; the first period's speed is the state's.
+    let heat: f64 = [0.5f64, -1.5, -0.5, -1.5, 0.5].iter().map(|c| c * c).sum();
+    assert!((e.sum_heat - heat).abs() < 1e-12, "{}", e.sum_heat);
+}
