@@ -25,6 +25,7 @@ use rand_pcg::Pcg64Mcg;
 use twin::{Episode, Scenario};
 use weights::Weights;
 
+use super::reward::Drive;
 use super::select::Selection;
 use super::{
     EpisodeRecord, Learner, ReplayBuffer, Reward, RunResult, Stream, Training, domains, epsilon,
@@ -148,6 +149,7 @@ impl<const H: usize, const A: usize> Trainer<'_, H, A> {
         let mut world = Episode::start(levels, scenario, horizon, start, streams, cfg.compensate);
         let mut tally = Tally::default();
         let mut sensed = world.sense();
+        let mut previous = 0.0;
         loop {
             let t = match cfg.eps_unit {
                 Unit::Steps => self.env_steps as f64,
@@ -160,10 +162,20 @@ impl<const H: usize, const A: usize> Trainer<'_, H, A> {
                 taken = Some((*s, a));
                 a
             });
+            let duty = taken.map_or(0.0, |(_, a)| f64::from(levels.fractions()[a]));
+            let x_dot = world.world().state().x_dot;
             let tr = world.apply();
             self.env_steps += 1;
             let state = world.world().state();
-            let reward = self.reward.of(&scenario.params, &state, tr.terminated);
+            let drive = Drive {
+                duty,
+                previous,
+                x_dot,
+            };
+            previous = duty;
+            let reward = self
+                .reward
+                .of(&scenario.params, &drive, &state, tr.terminated);
             tally.rewards.push(reward);
             sensed = world.sense();
             let next = sensed.shown();

@@ -9,10 +9,29 @@
 //!   `(x_max - |x|) / x_max - 0.8 + (theta_max - |theta|) / theta_max - 0.5`;
 //! - `upright=W`: minus `W * (theta / theta_max)^2`, for holding the pole straighter;
 //! - `centre=W`: minus `W * (x / x_max)^2`, for keeping the cart near the middle;
+//! - `effort=W`: minus `W * u^2` for the period's duty `u` (a fraction of the full push):
+//!   the motor's mean voltage squared, so small levels are preferred where they hold;
+//! - `smooth=W`: minus `W * |u - u_prev|`, the change from the previous period's duty: a
+//!   reversal at full duty costs `2 W`, the gearbox's full-torque jolt;
+//! - `heat=W`: minus `W * i^2`, the motor's current as a share of its stall current
+//!   (`Params::current`, at the cart's speed as the period starts): its I^2 R heating,
+//!   which back-EMF lowers as the cart moves with the push;
 //! - `fail-penalty=V`: the terminating step's reward is V instead;
 //! - `scale=K`: everything times K (minimalRL's 1/100 is `scale=0.01`).
 
 use firmware::cartpole::{Params, State};
+
+/// What the motor was told in a step, for the effort parts: the period's duty, the previous
+/// period's (0 before the first) and the cart's speed as the period started.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Drive {
+    /// This period's duty, a fraction of the full push.
+    pub duty: f64,
+    /// The previous period's duty.
+    pub previous: f64,
+    /// The cart's speed as the period started, m/s.
+    pub x_dot: f64,
+}
 
 /// A parsed learning reward; see [the module](self).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -20,6 +39,9 @@ pub struct Reward {
     morvan: bool,
     upright: f64,
     centre: f64,
+    effort: f64,
+    smooth: f64,
+    heat: f64,
     fail: Option<f64>,
     scale: f64,
 }
@@ -31,6 +53,9 @@ impl Reward {
             morvan: false,
             upright: 0.0,
             centre: 0.0,
+            effort: 0.0,
+            smooth: 0.0,
+            heat: 0.0,
             fail: None,
             scale: 1.0,
         };
@@ -56,12 +81,15 @@ impl Reward {
                 "morvan" if value.is_none() => r.morvan = true,
                 "upright" => r.upright = number()?,
                 "centre" => r.centre = number()?,
+                "effort" => r.effort = number()?,
+                "smooth" => r.smooth = number()?,
+                "heat" => r.heat = number()?,
                 "fail-penalty" => r.fail = Some(number()?),
                 "scale" => r.scale = number()?,
                 _ => {
                     return Err(format!(
                         "reward {shown}: unknown part {} (expected env, morvan, upright=W, \
-                         centre=W, fail-penalty=V, scale=K)",
+                         centre=W, effort=W, smooth=W, heat=W, fail-penalty=V, scale=K)",
                         weights::quote(part)
                     ));
                 }
@@ -75,9 +103,9 @@ impl Reward {
         *self == Reward::parse("").expect("the empty spec parses")
     }
 
-    /// The learning reward of a step that led to `next` (terminated or not), for a plant
-    /// with limits `p`.
-    pub fn of(&self, p: &Params, next: &State, terminated: bool) -> f32 {
+    /// The learning reward of a step that drove the motor as `drive` and led to `next`
+    /// (terminated or not), for a plant of physics `p`.
+    pub fn of(&self, p: &Params, drive: &Drive, next: &State, terminated: bool) -> f32 {
         if self.is_env() {
             return 1.0;
         }
@@ -91,6 +119,10 @@ impl Reward {
             1.0
         };
         r -= self.upright * tr * tr + self.centre * xr * xr;
+        let current = p.current(drive.duty, drive.x_dot);
+        r -= self.effort * drive.duty * drive.duty
+            + self.smooth * (drive.duty - drive.previous).abs()
+            + self.heat * current * current;
         if terminated && let Some(v) = self.fail {
             r = v;
         }
@@ -110,7 +142,8 @@ mod tests {
             theta: p.theta_threshold_radians / 2.0,
             ..State::default()
         };
-        let of = |spec: &str, term| Reward::parse(spec).unwrap().of(&p, &s, term);
+        let still = Drive::default();
+        let of = |spec: &str, term| Reward::parse(spec).unwrap().of(&p, &still, &s, term);
         assert_eq!(of("", false), 1.0);
         assert_eq!(of("env", true), 1.0);
         // Morvan: (1 - 0.5 - 0.8) + (1 - 0.5 - 0.5) = -0.3.
@@ -121,7 +154,33 @@ mod tests {
         assert_eq!(of("fail-penalty=-100", false), 1.0);
         assert_eq!(of("scale=0.01+fail-penalty=-10", true), -0.1);
         assert!(Reward::parse("env").unwrap().is_env());
+        assert!(!Reward::parse("effort=0.1").unwrap().is_env());
+
         assert!(!Reward::parse("scale=1.5").unwrap().is_env());
+    }
+
+    #[test]
+    fn the_effort_parts_price_the_duty_its_change_and_the_current() {
+        let p = Params {
+            motor_damping: 2.0,
+            ..Params::default()
+        };
+        let s = State::default();
+        // A reversal from full left to half right while the cart runs left at 1 m/s.
+        let drive = Drive {
+            duty: 0.5,
+            previous: -1.0,
+            x_dot: -1.0,
+        };
+        let of = |spec: &str| Reward::parse(spec).unwrap().of(&p, &drive, &s, false);
+        // 1 - 4 * 0.25
+        assert!((of("effort=4") - 0.0).abs() < 1e-6);
+        // 1 - 2 * 1.5
+        assert!((of("smooth=2") - -2.0).abs() < 1e-6);
+        // Current 0.5 - 2 * (-1) / 10 = 0.7: 1 - 10 * 0.49.
+        assert!((of("heat=10") - -3.9).abs() < 1e-5);
+        // Parts add: 1 - 1 - 3 - 4.9.
+        assert!((of("effort=4+smooth=2+heat=10") - -7.9).abs() < 1e-5);
     }
 
     #[test]
