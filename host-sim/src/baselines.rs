@@ -2,16 +2,17 @@
 //! angle rule and coin flips.
 //!
 //! Each is a [`Policy`], so it runs through the very same [`Controller`] (sanitising,
-//! pin sequence, telemetry) as the network; only the scores differ. The plant's actuator is
-//! bang-bang, so LQR acts by the sign of its continuous command `u = -K s`: push right when
-//! `u > 0`.
+//! pin sequence, telemetry) as the network; only the scores differ. [`Lqr`] acts by the
+//! sign of its continuous command `u = -K s` (push right when `u > 0`), as the paper's
+//! two-level actuator must; [`LinearLqr`] drives `u` itself, as a duty the bridge's PWM gives
+//! in thousandths: what a control engineer would run on the rig.
 //!
 //! [`Controller`]: firmware::controller::Controller
 
 use std::cell::RefCell;
 
 use firmware::cartpole::{Params, unit_f64};
-use firmware::controller::{Duty, Levels, Policy};
+use firmware::controller::{Duty, Levels, Policy, Scores};
 use firmware::linear::{Vec4, balance_gain, dot};
 use firmware::rig::Rig;
 use rand_pcg::Pcg64Mcg;
@@ -56,6 +57,57 @@ impl Policy for Lqr {
     }
 }
 
+/// Linear LQR: the duty `-K s / force_mag` (the gain of [`Lqr`], its force in newtons as a
+/// fraction of the motor's stall force), saturated at full duty and rounded to the
+/// thousandths the bridge's PWM gives.
+#[derive(Clone, Copy, Debug)]
+pub struct LinearLqr {
+    /// The gain, `F = -K s` in newtons.
+    pub k: Vec4,
+    /// The motor's stall force, N: what full duty pushes with.
+    pub force_mag: f64,
+}
+
+impl LinearLqr {
+    /// `Q = I`, `R = 1` on `rig`'s plant, as [`Lqr::of`].
+    pub fn of(rig: &Rig) -> LinearLqr {
+        LinearLqr {
+            k: Lqr::of(rig).k,
+            force_mag: rig.params.force_mag,
+        }
+    }
+}
+
+/// A linear controller's command, a fraction of the full push (any number; saturated when
+/// it becomes a duty).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Push(pub f32);
+
+/// Output `i` of a linear controller drives `i - 1000` thousandths of the full push.
+const CENTRE: usize = Duty::FULL as usize;
+
+impl Scores for Push {
+    const UNSCORED: Push = Push(f32::NAN);
+    fn choice(&self) -> Option<usize> {
+        let t = (self.0.clamp(-1.0, 1.0) * f32::from(Duty::FULL)).round();
+        self.0
+            .is_finite()
+            .then_some((t as i32 + CENTRE as i32) as usize)
+    }
+}
+
+impl Policy for LinearLqr {
+    type Scores = Push;
+    fn duty(&self, i: usize) -> Option<Duty> {
+        let t = (i <= 2 * CENTRE).then_some(i)? as f32 - CENTRE as f32;
+        Duty::from_fraction(t / f32::from(Duty::FULL)).ok()
+    }
+    fn scores(&mut self, obs: &[f32; 4]) -> Push {
+        let s = obs.map(f64::from);
+        Push((-dot(&self.k, &s) / self.force_mag) as f32)
+    }
+}
+
 /// The classic hand rule: push towards where the pole is falling, `theta + 0.5 theta_dot`.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct AngleRule;
@@ -94,6 +146,9 @@ mod tests {
         let lean_left = lean_right.map(|v: f32| -v);
         let mut lqr = Lqr::of(&Rig::GYMNASIUM);
         assert!(lqr.scores(&lean_right)[1] > 0.0);
+        let mut linear = LinearLqr::of(&Rig::GYMNASIUM);
+        assert!(linear.scores(&lean_right).0 > 0.0);
+        assert!(linear.scores(&lean_left).0 < 0.0);
         assert!(lqr.scores(&lean_left)[1] < 0.0);
         assert!(AngleRule.scores(&lean_right)[1] > 0.0);
         assert!(AngleRule.scores(&lean_left)[1] < 0.0);
@@ -101,5 +156,26 @@ mod tests {
             AngleRule.scores(&[0.0, 0.0, 0.1, -0.3])[1],
             0.1 + 0.5 * -0.3
         );
+    }
+
+    #[test]
+    fn the_linear_lqr_drives_its_command_in_thousandths_saturated() {
+        let lqr = LinearLqr {
+            k: [0.0, 0.0, -100.0, 0.0],
+            force_mag: 10.0,
+        };
+        // theta = 0.01: F = 1 N, a tenth of the stall force.
+        let duty = |theta: f32| {
+            let mut l = lqr;
+            let i = l.scores(&[0.0, 0.0, theta, 0.0]).choice().unwrap();
+            l.duty(i).unwrap().thousandths()
+        };
+        assert_eq!(duty(0.01), 100);
+        assert_eq!(duty(-0.0123), -123);
+        assert_eq!(duty(0.0), 0);
+        assert_eq!(duty(0.5), 1000);
+        assert_eq!(duty(-0.5), -1000);
+        assert_eq!(Push(f32::NAN).choice(), None);
+        assert_eq!(lqr.duty(2 * CENTRE + 1), None);
     }
 }

@@ -18,7 +18,7 @@ use std::ops::Range;
 use twin::run::{Aids, Stream, episode_rng, run_episode, run_episodes};
 use twin::{EpisodeStats, Frame, Scenario};
 
-use crate::baselines::{AngleRule, Lqr, Random};
+use crate::baselines::{AngleRule, LinearLqr, Lqr, Random};
 
 mod net;
 mod table;
@@ -44,6 +44,10 @@ pub enum ControllerKind {
     Lqr,
     /// The same LQR, told the dead time and deciding on the predicted state, as `policy`.
     LqrPredict,
+    /// Linear LQR: the same gain's command as a duty, continuous PWM saturated at full.
+    LqrLinear,
+    /// Linear LQR on the predicted state.
+    LqrLinearPredict,
     /// Push towards `theta + 0.5 theta_dot`.
     Rule,
     /// A fair coin every period.
@@ -82,6 +86,8 @@ impl fmt::Display for ControllerKind {
             ControllerKind::MonitoredInt => "monitored-int",
             ControllerKind::Lqr => "lqr",
             ControllerKind::LqrPredict => "lqr-predict",
+            ControllerKind::LqrLinear => "lqr-linear",
+            ControllerKind::LqrLinearPredict => "lqr-linear-predict",
             ControllerKind::Rule => "rule",
             ControllerKind::Random => "random",
         })
@@ -113,6 +119,18 @@ pub fn episode(
         ControllerKind::LqrPredict => {
             run_episode(Lqr::of(&s.rig), s, h, seed, episode, true, on_frame)
         }
+        ControllerKind::LqrLinear | ControllerKind::LqrLinearPredict => {
+            let predict = kind == ControllerKind::LqrLinearPredict;
+            run_episode(
+                LinearLqr::of(&s.rig),
+                s,
+                h,
+                seed,
+                episode,
+                predict,
+                on_frame,
+            )
+        }
         ControllerKind::Rule => run_episode(AngleRule, s, h, seed, episode, false, on_frame),
         ControllerKind::Random => run_episode(
             Random(episode_rng(seed, episode, Stream::Policy)),
@@ -143,6 +161,10 @@ pub fn episodes(
         ControllerKind::MonitoredInt => run_episodes(|_| int(net), s, h, seed, e, monitored(net)),
         ControllerKind::Lqr => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, false),
         ControllerKind::LqrPredict => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, true),
+        ControllerKind::LqrLinear | ControllerKind::LqrLinearPredict => {
+            let predict = kind == ControllerKind::LqrLinearPredict;
+            run_episodes(|_| LinearLqr::of(&s.rig), s, h, seed, e, predict)
+        }
         ControllerKind::Rule => run_episodes(|_| AngleRule, s, h, seed, e, false),
         ControllerKind::Random => run_episodes(
             |i| Random(episode_rng(seed, i, Stream::Policy)),
