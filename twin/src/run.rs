@@ -35,8 +35,9 @@ pub struct EpisodeStats {
     pub sum_abs_x: f64,
     /// Periods whose command differs from the previous period's.
     pub switches: u32,
-    /// Reversals: periods that drive the motor the other way from the last period that drove
-    /// it (a coasting or zero-duty period between them does not count as a direction).
+    /// Reversals: periods that push the motor the other way from the last period that pushed
+    /// it, a push being a duty of at least [`REVERSAL_DUTY`] (coasting and smaller duties
+    /// between them are no direction).
     pub reversals: u32,
     /// Sum of |duty| (fractions of the full push; 0 coasting).
     pub sum_abs_duty: f64,
@@ -260,6 +261,11 @@ impl<P: Policy, R: Rng> Episode<'_, P, R> {
     }
 }
 
+/// The smallest duty whose change of direction counts as a reversal: a linear controller's
+/// few-thousandths duty that flickers about zero with encoder noise turns no gearbox round,
+/// a tenth of the stall torque takes up its backlash.
+pub const REVERSAL_DUTY: f32 = 0.1;
+
 /// An episode's statistics as its periods come.
 #[derive(Default)]
 pub struct Tally {
@@ -296,6 +302,7 @@ impl Tally {
         let current = p.current(duty, self.x_dot.unwrap_or(s.x_dot));
         stats.sum_heat += current * current;
         if let Command::Drive(d) = command
+            && d.fraction().abs() >= REVERSAL_DUTY
             && let Some(way) = d.direction()
         {
             stats.reversals += u32::from(self.direction.is_some_and(|w| w != way));

@@ -130,6 +130,11 @@ fn num(row: &Json, key: &str) -> Option<f64> {
     v.as_f64().or_else(|| v.get("mean")?.as_f64())
 }
 
+/// An estimate's mean alone, as `format` writes it.
+fn mean(row: &Json, key: &str, format: Format) -> String {
+    num(row, key).map_or("-".into(), |m| show(m, format))
+}
+
 /// `mean ± ci95` of an estimate, with `d` decimals.
 fn estimate(row: &Json, key: &str, d: usize) -> String {
     match (
@@ -162,12 +167,19 @@ fn rows(doc: &Json) -> Result<String, String> {
     let fallback = rows
         .iter()
         .any(|r| num(r, "fallback_share").is_some_and(|f| f > 0.0));
+    let motor = rows.iter().any(|r| r.get("mean_abs_duty").is_some());
     let mut s = String::new();
     for h in horizons {
         s += &format!("## Horizon {} periods\n\n", group(h as usize));
         s += "| scenario | controller | episodes | success [95% CI] | failed | mean steps | RMS theta deg | RMS x m | mean abs x m | switches/s | faults |";
+        if motor {
+            s += " reversals/s | mean abs duty | duty variation /s | heat |";
+        }
         s += if fallback { " fallback |\n" } else { "\n" };
         s += "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |";
+        if motor {
+            s += " ---: | ---: | ---: | ---: |";
+        }
         s += if fallback { " ---: |\n" } else { "\n" };
         for r in rows
             .iter()
@@ -199,6 +211,12 @@ fn rows(doc: &Json) -> Result<String, String> {
                 estimate(r, "switches_per_s", 1),
                 count("faults"),
             ];
+            if motor {
+                cells.push(estimate(r, "reversals_per_s", 1));
+                cells.push(mean(r, "mean_abs_duty", Format::Percent(1)));
+                cells.push(estimate(r, "duty_tv_per_s", 2));
+                cells.push(mean(r, "heat", Format::Percent(2)));
+            }
             if fallback {
                 let f = num(r, "fallback_share").unwrap_or(0.0);
                 cells.push(show(f, Format::Percent(2)));
@@ -332,6 +350,30 @@ mod tests {
                 "The file records no provenance: it was measured before results \
                            files did. The manifest makes it with:\n\n- `host-sim eval --json`\n"
             ),
+            "{page}"
+        );
+    }
+
+    #[test]
+    fn a_row_with_the_motors_figures_shows_them() {
+        let json = r#"{"rows": [{"controller": "lqr-linear", "scenario": "encoder",
+           "horizon": 10000, "episodes": 10, "success_rate": 1.0, "success_ci95": [0.7, 1.0],
+           "failures": 0, "mean_steps": 10000.0, "switches_per_s": {"mean": 49.2, "ci95": 0.04},
+           "reversals_per_s": {"mean": 2.21, "ci95": 0.05}, "mean_abs_duty": {"mean": 0.0391},
+           "duty_tv_per_s": {"mean": 1.234, "ci95": 0.01}, "heat": {"mean": 0.00321},
+           "faults": 0}]}"#;
+        let step: Step =
+            toml::from_str("name = \"m\"\nabout = \"m\"\nrun = \"host-sim eval\"\ncost = 1")
+                .unwrap();
+        let page = page("docs/results/m.json", json, &[&step]).unwrap();
+        assert!(
+            page.contains(
+                "| switches/s | faults | reversals/s | mean abs duty | duty variation /s | heat |\n"
+            ),
+            "{page}"
+        );
+        assert!(
+            page.contains("| 49.2 ± 0.0 | 0 | 2.2 ± 0.1 | 3.9% | 1.23 ± 0.01 | 0.32% |\n"),
             "{page}"
         );
     }

@@ -39,6 +39,10 @@ FIELD and its default format:
   rms_theta_deg                 .2 (the mean over episodes, as every field below)
   rms_x_m, mean_abs_x_m         .3
   switches_per_s, mean_steps    .1
+  reversals_per_s               .1 (pushes of a tenth of full duty or more that reverse)
+  mean_abs_duty                 %1 (the motor's mean |duty|)
+  duty_tv_per_s                 .2 (the duty's total variation per second, in full pushes)
+  heat                          %2 (mean squared current as a share of a full stall's)
   fallback_share                %2 (the share of periods a monitor's fallback decided)
 
 FORMAT is `%N` (a percentage with N decimals), `.N` (N decimals) or `int` (rounded, with
@@ -56,7 +60,7 @@ pub enum Format {
 }
 
 /// Every field a value can show, with its default format.
-const FIELDS: [(&str, Format); 10] = [
+const FIELDS: [(&str, Format); 14] = [
     ("success_rate", Format::Percent(1)),
     ("failures", Format::Int),
     ("successes", Format::Int),
@@ -66,6 +70,10 @@ const FIELDS: [(&str, Format); 10] = [
     ("mean_abs_x_m", Format::Fixed(3)),
     ("switches_per_s", Format::Fixed(1)),
     ("mean_steps", Format::Fixed(1)),
+    ("reversals_per_s", Format::Fixed(1)),
+    ("mean_abs_duty", Format::Percent(1)),
+    ("duty_tv_per_s", Format::Fixed(2)),
+    ("heat", Format::Percent(2)),
     ("fallback_share", Format::Percent(2)),
 ];
 
