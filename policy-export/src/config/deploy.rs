@@ -34,14 +34,15 @@ pub fn deploy_domain(machine: &twin::Machine) -> String {
 }
 
 /// The worlds its snapshots are chosen on, like the default evaluation set's (with its push,
-/// in half of them).
+/// in half of them), read through the rig's own encoders and observer as its board reads
+/// them: a snapshot that holds only on the exact state is not the one to ship.
 pub fn deploy_eval_domain(machine: &twin::Machine) -> String {
-    physics(0.25, machine) + "+noise=0..1@0.5+delay=0..1"
+    physics(0.25, machine) + "+noise=0..1@0.5+delay=0..1+encoder"
 }
 
 /// The worlds its finalists are tried in for 10,000 steps: plants drawn like the default
 /// set's, half of them with its noise, all under pushes of (Gymnasium's) 1.1 N s every
-/// second.
+/// second, through the rig's encoders.
 pub fn deploy_finalist_domain(machine: &twin::Machine) -> String {
-    physics(0.2, machine) + "+noise=0..1@0.5"
+    physics(0.2, machine) + "+noise=0..1@0.5+encoder"
 }

@@ -23,9 +23,12 @@ pub struct EvalResult {
     pub mean: f64,
     /// Worst return.
     pub min: f64,
-    /// How far from upright and centred it held the plant: the mean over every step of
-    /// `(theta / theta_max)^2 + (x / x_max)^2`. Between snapshots of equal returns, the lower
-    /// is the better controller.
+    /// How far from upright and centred it held the plant, and how hard it drove the motor
+    /// doing so: the mean over every step of `(theta / theta_max)^2 + (x / x_max)^2 + u^2`
+    /// for the period's duty `u`. Between snapshots of equal returns, the lower is the better
+    /// controller: of two-level policies (`u^2 = 1` always) the one held closer; of policies
+    /// with smaller levels, mostly the gentler, since a duty's square outweighs the angles'
+    /// at balance.
     #[serde(default)]
     pub cost: f64,
 }
@@ -92,12 +95,13 @@ pub fn evaluate<const H: usize, const A: usize>(
                     let s = &scenarios[i];
                     Episode::start(&*wide, s, max_steps, &mut start, pair, compensate)
                 },
-                |i, ep, _, t| {
+                |i, ep, command, t| {
                     let (p, s) = (&scenarios[i].params, ep.world().state());
                     let (ret, cost, steps) = &mut sums[i];
                     *ret += f64::from(t.reward);
                     *cost += (s.theta / p.theta_threshold_radians).powi(2)
-                        + (s.x / p.x_threshold).powi(2);
+                        + (s.x / p.x_threshold).powi(2)
+                        + f64::from(command.level()).powi(2);
                     *steps += 1;
                 },
             );
