@@ -114,12 +114,13 @@ fn tokens(text: &str) -> Vec<String> {
 fn the_library_header_declares_every_width_as_exported_headers_do() {
     let blocks = SUPPORTED_WIDTHS
         .iter()
-        .map(|&h| (format!("block for width {h}"), c_struct(h)))
-        .chain(
-            SUPPORTED_WIDTHS
-                .iter()
-                .map(|&h| (format!("integer block for width {h}"), quant::c_struct(h))),
-        )
+        .map(|&h| (format!("block for width {h}"), c_struct(h, 2)))
+        .chain(SUPPORTED_WIDTHS.iter().map(|&h| {
+            (
+                format!("integer block for width {h}"),
+                quant::c_struct(h, 2),
+            )
+        }))
         .chain([("rig block".to_string(), c_rig_struct())]);
     for compiler in EVERY {
         let header = preprocessed(compiler, "#include \"cartpole_policy.h\"");

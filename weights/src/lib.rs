@@ -12,6 +12,8 @@
 //! - [`files`]: reading only regular files, with a size cap, and writing outputs atomically
 //!   without replacing anything that is not a regular file.
 //! - [`shape`]: code for a network whose shape is known only at run time.
+//! - [`feedback`]: a linear state feedback as a network of any shape, for testing the tools
+//!   end to end without a trained policy.
 //!
 //! Both host tools use this crate: the trainer (`policy-export`) writes and exports policies,
 //! the simulator (`host-sim`) loads them. It depends on `firmware` for the network's shape
@@ -20,6 +22,7 @@
 #![warn(missing_docs)]
 
 pub mod checkpoint;
+pub mod feedback;
 pub mod files;
 pub mod quant;
 pub mod shape;

@@ -14,6 +14,7 @@
 
 use std::fmt::Write;
 
+use firmware::controller::Duty;
 use firmware::network::{N_ACTIONS, TENSOR_NAMES, shapes};
 use firmware::rig::Rig;
 
@@ -93,7 +94,7 @@ pub fn rust_module(w: &Weights, name: &str, provenance: &[String], rig: &Rig) ->
 }
 
 /// `pub const LEVELS: ::firmware::controller::Levels<A>`, checked as the crate compiles.
-fn levels_item(levels: &[f32]) -> String {
+pub(crate) fn levels_item(levels: &[f32]) -> String {
     let mut list = String::new();
     push_list(&mut list, levels, "");
     format!(
@@ -153,22 +154,46 @@ pub fn rig_item(rig: &Rig) -> String {
     s
 }
 
-/// The guarded definition of `struct cartpole_mlpH` and the declaration of
-/// `cartpole_mlpH_forward`: what every header for width `h` shares with `cartpole_policy.h`.
-pub fn c_struct(h: usize) -> String {
+/// How the C API names a network of hidden width `h` with `a` outputs, the suffix of its
+/// structs and functions: `64` for the paper's two outputs (`struct cartpole_mlp64`,
+/// `cartpole_mlp64_forward`), `64x7` for seven (`struct cartpole_mlp64x7`).
+pub fn c_shape(h: usize, a: usize) -> String {
+    if a == N_ACTIONS {
+        h.to_string()
+    } else {
+        format!("{h}x{a}")
+    }
+}
+
+/// The guarded definition of `struct cartpole_mlpS` and, for the paper's two outputs, the
+/// declaration of `cartpole_mlpS_forward` (`S` the [`c_shape`] of `h` and `a`): what every
+/// header for that shape shares with `cartpole_policy.h`. `libcartpole_policy.a` runs
+/// two-output networks only, so a header of more outputs declares no forward pass.
+pub fn c_struct(h: usize, a: usize) -> String {
+    let c = c_shape(h, a);
+    let guard = c.to_uppercase();
     let mut s = String::new();
     let _ = writeln!(
         s,
-        "#ifndef CARTPOLE_MLP{h}_DEFINED\n#define CARTPOLE_MLP{h}_DEFINED"
+        "#ifndef CARTPOLE_MLP{guard}_DEFINED\n#define CARTPOLE_MLP{guard}_DEFINED"
     );
+    let rust = if a == N_ACTIONS {
+        format!("Mlp<{h}>")
+    } else {
+        format!("Mlp<{h}, {a}>")
+    };
     let _ = writeln!(
         s,
-        "/* A 4-{h}-{h}-2 Q-network in PyTorch's nn.Linear layout (weight[out][in]); the layout\n \
-         * of Rust's firmware::network::Mlp<{h}>. */\nstruct cartpole_mlp{h} {{"
+        "/* A 4-{h}-{h}-{a} Q-network in PyTorch's nn.Linear layout (weight[out][in]); the layout\n \
+         * of Rust's firmware::network::{rust}. */\nstruct cartpole_mlp{c} {{"
     );
-    for (tensor, shape) in TENSOR_NAMES.iter().zip(shapes(h, N_ACTIONS)) {
+    for (tensor, shape) in TENSOR_NAMES.iter().zip(shapes(h, a)) {
         let dims: String = shape.dims().iter().map(|d| format!("[{d}]")).collect();
         let _ = writeln!(s, "    float {}{dims};", tensor.replace('.', "_"));
+    }
+    if a != N_ACTIONS {
+        s.push_str("};\n#endif\n");
+        return s;
     }
     let _ = writeln!(
         s,
@@ -176,61 +201,110 @@ pub fn c_struct(h: usize) -> String {
          * (bit for bit); push right iff q[1] > q[0]. From libcartpole_policy.a. A NULL\n \
          * argument makes it write nothing. */\n\
          #ifdef __cplusplus\nextern \"C\"\n#endif\n\
-         void cartpole_mlp{h}_forward(const struct cartpole_mlp{h} *w, const float obs[4], float q[2]);\n\
+         void cartpole_mlp{c}_forward(const struct cartpole_mlp{c} *w, const float obs[4], float q[2]);\n\
          #endif"
     );
     s
 }
 
-/// The C header: `static const struct cartpole_mlpH NAME` and `static const struct
-/// cartpole_rig NAME_rig`, the machine it was trained for ([`c_rig_item`]), with a comment
-/// that says what they are, how to use them and where they came from.
-pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Result<String> {
-    check_c_name(name)?;
-    if w.outputs() != N_ACTIONS {
+/// Refuses what the C API cannot run: a policy of two outputs on other levels than the two
+/// full pushes (its two-output controllers drive those; a gentler policy has more outputs).
+pub(crate) fn check_c_levels(levels: &[f32]) -> Result<()> {
+    if levels.len() == N_ACTIONS && levels != crate::BANG_BANG {
         return Err(crate::Error::Input(format!(
-            "the C header is written for the paper's two-output network; this policy has {} \
-             duty levels",
-            w.outputs()
+            "the C API runs a two-output policy on the full pushes [-1, 1]; this policy's \
+             levels are {levels:?} (a policy of three or more outputs may have any levels)"
         )));
     }
-    let h = w.width();
-    let init = format!("cartpole_controller_init_mlp{h}");
-    let rig_item = c_rig_item(name, rig, &init)?;
+    Ok(())
+}
+
+/// What a header of more than two outputs adds: `static const int16_t NAME_levels[A]`, each
+/// output's duty in thousandths of the full push ([`Duty`]), and `NAME_duty(q)`, the duty
+/// that outputs `q` (of C type `q_type`) choose: the largest, the lowest index of equal ones
+/// ([`argmax`](firmware::network::argmax)). Empty for the paper's two outputs, whose
+/// controllers `libcartpole_policy.a` builds.
+pub(crate) fn c_levels_item(name: &str, levels: &[f32], q_type: &str) -> Result<String> {
+    if levels.len() == N_ACTIONS {
+        return Ok(String::new());
+    }
+    let a = levels.len();
+    let mut list = String::new();
+    for (i, l) in levels.iter().enumerate() {
+        let d = Duty::from_fraction(*l)
+            .map_err(|e| crate::Error::Input(format!("levels: {l} is no duty ({e:?})")))?;
+        let sep = if i > 0 { ", " } else { "" };
+        let _ = write!(list, "{sep}{}", d.thousandths());
+    }
+    Ok(format!(
+        "\n/* The duty output i of {name} drives, in thousandths of the full push (+ towards +x),\n \
+         * in increasing order. */\n\
+         static const int16_t {name}_levels[{a}] = {{{list}}};\n\
+         \n/* The duty that q, the outputs of {name}, choose: {name}_levels[i] of the largest q[i],\n \
+         * the lowest i of equal ones. */\n\
+         static inline int16_t {name}_duty(const {q_type} q[{a}]) {{\n    \
+         int best = 0;\n    int i;\n    for (i = 1; i < {a}; i++) {{\n        \
+         if (q[i] > q[best]) {{\n            best = i;\n        }}\n    }}\n    \
+         return {name}_levels[best];\n}}\n"
+    ))
+}
+
+/// The C header: `static const struct cartpole_mlpS NAME`, for more than two outputs their
+/// levels and `NAME_duty` ([`c_levels_item`]), and `static const struct cartpole_rig
+/// NAME_rig`, the machine it was trained for ([`c_rig_item`]), with a comment that says what
+/// they are, how to use them and where they came from.
+pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Result<String> {
+    check_c_name(name)?;
+    check_c_levels(w.levels())?;
+    let (h, a) = (w.width(), w.outputs());
+    let c = c_shape(h, a);
+    let levels_item = c_levels_item(name, w.levels(), "float")?;
     let guard = c_guard(name);
     let mut s = String::new();
-    let _ = writeln!(
-        s,
-        "/* {name}: a 4-{h}-{h}-2 cart-pole balance policy, a Q-network over\n \
-         * obs = {{x, x_dot, theta, theta_dot}} that pushes right iff Q[1] > Q[0], and\n \
-         * {name}_rig, the machine it was trained for.\n \
-         *\n \
-         * Generated by policy-export; do not edit. Linking libcartpole_policy.a, run the whole\n \
-         * control period, {init}(&ctl, &{name}, &{name}_rig) and\n \
-         * cartpole_controller_step (cartpole_policy.h), or the Rust forward pass alone, bit for\n \
-         * bit: cartpole_mlp{h}_forward(&{name}, obs, q). The arrays are plain data too:\n \
-         * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]."
-    );
+    let rig_item = if a == N_ACTIONS {
+        let init = format!("cartpole_controller_init_mlp{c}");
+        let _ = writeln!(
+            s,
+            "/* {name}: a 4-{h}-{h}-2 cart-pole balance policy, a Q-network over\n \
+             * obs = {{x, x_dot, theta, theta_dot}} that pushes right iff Q[1] > Q[0], and\n \
+             * {name}_rig, the machine it was trained for.\n \
+             *\n \
+             * Generated by policy-export; do not edit. Linking libcartpole_policy.a, run the whole\n \
+             * control period, {init}(&ctl, &{name}, &{name}_rig) and\n \
+             * cartpole_controller_step (cartpole_policy.h), or the Rust forward pass alone, bit for\n \
+             * bit: cartpole_mlp{c}_forward(&{name}, obs, q). The arrays are plain data too:\n \
+             * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]."
+        );
+        c_rig_item(name, rig, Some(&init))?
+    } else {
+        let _ = writeln!(
+            s,
+            "/* {name}: a 4-{h}-{h}-{a} cart-pole balance policy, a Q-network over\n \
+             * obs = {{x, x_dot, theta, theta_dot}} whose output i drives the duty {name}_levels[i],\n \
+             * and {name}_rig, the machine it was trained for.\n \
+             *\n \
+             * Generated by policy-export; do not edit. The arrays are plain data:\n \
+             * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]; {name}_duty(Q) is the duty\n \
+             * Q chooses. (libcartpole_policy.a runs two-output policies only.)"
+        );
+        c_rig_item(name, rig, None)?
+    };
     for line in provenance {
         let _ = writeln!(s, " * - {}", comment_text(line));
     }
     let _ = writeln!(s, " */\n#ifndef {guard}\n#define {guard}\n");
-    s.push_str(&c_struct(h));
+    s.push_str(&c_struct(h, a));
     s.push('\n');
     s.push_str(&c_rig_struct());
     let _ = writeln!(
         s,
-        "\n/* {} parameters, {} bytes. */\nstatic const struct cartpole_mlp{h} {name} = {{",
+        "\n/* {} parameters, {} bytes. */\nstatic const struct cartpole_mlp{c} {name} = {{",
         w.params(),
         4 * w.params()
     );
     // Positional, each field named in a comment: designated initialisers are not C++ before
     // C++20, and Arduino sketches include these headers as C++.
-    for ((tensor, shape), t) in TENSOR_NAMES
-        .iter()
-        .zip(shapes(h, N_ACTIONS))
-        .zip(w.tensors())
-    {
+    for ((tensor, shape), t) in TENSOR_NAMES.iter().zip(shapes(h, a)).zip(w.tensors()) {
         let _ = writeln!(s, "    /* {} */ {{", tensor.replace('.', "_"));
         let cols = shape.matrix().map_or(t.len(), |(_, c)| c);
         for row in t.chunks(cols.max(1)) {
@@ -249,6 +323,7 @@ pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Re
         s.push_str("    },\n");
     }
     s.push_str("};\n");
+    s.push_str(&levels_item);
     s.push_str(&rig_item);
     let _ = writeln!(s, "\n#endif /* {guard} */");
     Ok(s)
@@ -374,5 +449,35 @@ mod tests {
             String::from_utf8_lossy(&out.stderr)
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_header_of_seven_levels_names_its_shape_and_carries_its_levels() {
+        let levels = [-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0];
+        let w = crate::feedback::state_feedback(64, &levels, [-0.5, -1.0, -20.0, -3.0]).unwrap();
+        let c = c_header(&w, "gentle", &[], &Rig::GYMNASIUM).unwrap();
+        for want in [
+            "struct cartpole_mlp64x7 {",
+            "    float fc3_weight[7][64];\n    float fc3_bias[7];\n",
+            "static const struct cartpole_mlp64x7 gentle = {",
+            "static const int16_t gentle_levels[7] = {-1000, -500, -200, 0, 200, 500, 1000};",
+            "static inline int16_t gentle_duty(const float q[7]) {",
+            "/* The machine gentle was trained for:\n",
+        ] {
+            assert!(c.contains(want), "{want} not in\n{c}");
+        }
+        // The library runs no network of seven outputs: the header names none of its calls.
+        assert!(!c.contains("_forward") && !c.contains("cartpole_controller_init"));
+        assert_eq!(
+            (c_shape(64, 7), c_shape(128, 2)),
+            ("64x7".into(), "128".into())
+        );
+        let rust = rust_module(&w, "GENTLE", &[], &Rig::GYMNASIUM).unwrap();
+        assert!(rust.contains("pub static GENTLE: ::firmware::network::Mlp<64, 7>"));
+        assert!(rust.contains("Levels::new([-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0])"));
+        // Two outputs on other levels than the full pushes: no C controller drives them.
+        let two = crate::feedback::state_feedback(16, &[-0.5, 0.5], [-0.5, -1.0, -20.0, -3.0]);
+        let e = c_header(&two.unwrap(), "gentle", &[], &Rig::GYMNASIUM).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains("[-0.5, 0.5]"), "{e}");
     }
 }

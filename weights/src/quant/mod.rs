@@ -4,12 +4,13 @@
 //! - **Weights**: symmetric int8, `w_q = round(w / s_w)` with `s_w = max|w| / 127`, per
 //!   output unit (the [`Granularity`] the tools use by default) or per tensor
 //!   ([`Granularity::PerTensor`], `--granularity per-tensor`).
-//! - **Outputs**: the advantages `Q - mean(Q)`, that is `-A` and `+A` with
-//!   `A = (Q_right - Q_left) / 2`, in one scale, so they compare as integers and decide as
-//!   the Q-values do. The common part of the two Q-values decides nothing and is far larger
-//!   than their difference: int8 rows of Q-values resolve the common part and round the
-//!   difference away, so many more actions flip than with the advantage row alone
-//!   quantised (docs/QUANTISATION.md, "Why advantages, not Q-values").
+//! - **Outputs**: the advantages `Q_i - mean(Q)` of the `A` outputs, in one scale for every
+//!   row, so they compare as integers and decide as the Q-values do (with the paper's two
+//!   outputs, `-D` and `+D` with `D = (Q_right - Q_left) / 2`). The common part of the
+//!   Q-values decides nothing and is far larger than their differences: int8 rows of
+//!   Q-values resolve the common part and round the differences away, so many more actions
+//!   flip than with the advantage rows quantised (docs/QUANTISATION.md, "Why advantages,
+//!   not Q-values").
 //! - **Activations**: `u8` per hidden layer, `s_h = max h / 255` over the calibration set:
 //!   no observation the policy was seen to visit saturates a unit.
 //! - **Biases**: int32 in the accumulator's scale, `round(b / (s_w * s_in))`. (Correcting
@@ -65,11 +66,13 @@ impl Granularity {
     }
 }
 
-/// A quantised 4-H-H-2 network of run-time width: the integers of a [`QMlp`] plus the float
-/// scales they stand for.
+/// A quantised 4-H-H-A network of run-time shape: the integers of a [`QMlp`] plus the float
+/// scales they stand for, and the duty level of each output.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Quantised {
     width: usize,
+    /// Each output's duty level, a fraction of the full push (the float policy's).
+    levels: Vec<f32>,
     granularity: Granularity,
     fc1_weight: Vec<i8>,
     fc1_bias: Vec<i32>,
@@ -81,7 +84,7 @@ pub struct Quantised {
     fc3_bias: Vec<i32>,
     /// Activation scales of the two hidden layers (value per unit of `u8`).
     act_scales: [f64; 2],
-    /// Advantage (Q-value minus the mean of the two) per unit of the integer output.
+    /// Advantage (Q-value minus the mean of all outputs') per unit of the integer output.
     q_scale: f64,
     calibration_states: usize,
 }
@@ -96,7 +99,17 @@ impl Quantised {
         self.granularity
     }
 
-    /// Advantage (Q-value minus the mean of the two) per unit of the integer output.
+    /// Outputs A: one per duty level.
+    pub fn outputs(&self) -> usize {
+        self.levels.len()
+    }
+
+    /// Each output's duty level, a fraction of the full push.
+    pub fn levels(&self) -> &[f32] {
+        &self.levels
+    }
+
+    /// Advantage (Q-value minus the mean of all outputs') per unit of the integer output.
     pub fn q_scale(&self) -> f64 {
         self.q_scale
     }
@@ -111,13 +124,13 @@ impl Quantised {
         self.calibration_states
     }
 
-    /// The network as the firmware runs it, if its width is `H`; on the heap.
+    /// The network as the firmware runs it, if its shape is `H` x `A`; on the heap.
     pub fn to_qmlp<const H: usize, const A: usize>(&self) -> Result<Box<QMlp<H, A>>> {
-        if self.width != H || self.fc3_bias.len() != A {
+        if self.width != H || self.outputs() != A {
             return Err(Error::Input(format!(
                 "quantised policy has hidden width {} and {} outputs, expected {H} and {A}",
                 self.width,
-                self.fc3_bias.len()
+                self.outputs()
             )));
         }
         let mut q = Box::new(QMlp::<H, A>::zeroed());
@@ -140,7 +153,7 @@ impl Quantised {
 
     /// Bytes of flash the network occupies.
     pub fn flash_bytes(&self) -> usize {
-        firmware::network::int::flash_bytes(self.width, firmware::network::N_ACTIONS)
+        firmware::network::int::flash_bytes(self.width, self.outputs())
     }
 
     /// What the provenance lines of an export say about the quantisation.

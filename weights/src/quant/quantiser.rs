@@ -184,33 +184,64 @@ fn hidden(
     Ok((wq, bq, rq))
 }
 
-/// The output layer of width-`h` inputs `w3`, `b3` as the advantages `Q - mean(Q)`, `-A` and
-/// `+A` with `A = (Q_right - Q_left) / 2`: its int8 weights, int32 biases and the advantage
-/// per unit of the output, its input scale being `s_x`. The two Q-values share a common part
-/// far larger than their difference (see [the module](super)), which int8 weights of each row
-/// would resolve so coarsely that it drowns the difference that decides the action.
+/// Output `i`'s advantage over the mean of all `a` outputs, `x_i - mean(x)`, for the rows (or
+/// biases) `x` of `cols` values each: `sum_j (x_i - x_j) / a` in f64, rounded once to f32.
+/// With two outputs that is `(x_1 - x_0) / 2` and its negation, exactly.
+fn advantages(x: &[f32], cols: usize, a: usize) -> Vec<f32> {
+    let rows: Vec<&[f32]> = x.chunks(cols).collect();
+    rows.iter()
+        .flat_map(|xi| {
+            (0..cols).map(|k| {
+                let d: f64 = rows
+                    .iter()
+                    .map(|xj| f64::from(xi[k]) - f64::from(xj[k]))
+                    .sum();
+                (d / a as f64) as f32
+            })
+        })
+        .collect()
+}
+
+/// The output layer of width-`h` inputs `w3`, `b3` (`a` outputs) as the advantages
+/// `Q_i - mean(Q)`: its int8 weights, int32 biases and the advantage per unit of the output,
+/// its input scale being `s_x`. One scale serves every row, so the outputs compare as
+/// integers and choose as the float advantages, hence the Q-values, do. The Q-values share
+/// a common part far larger than their differences (see [the module](super)), which int8
+/// weights of each row would resolve so coarsely that it drowns the differences that decide.
+///
+/// Each row is rounded for the least output error on its own; with two outputs the rows are
+/// each other's negation, and the second is rounded and negated for the first, so that the
+/// integers are exactly opposite too and a tie between them is a tie.
 fn advantage(
     (w3, b3): (&[f32], &[f32]),
     h: usize,
     moments: &[f64],
     s_x: f64,
 ) -> Result<(Vec<i8>, Vec<i32>, f64)> {
-    let advantage: Vec<f32> = w3[h..]
-        .iter()
-        .zip(&w3[..h])
-        .map(|(r, l)| ((f64::from(*r) - f64::from(*l)) / 2.0) as f32)
-        .collect();
-    let s_w3 = symmetric(&advantage);
-    let half = adaptive_round(&advantage, s_w3, moments);
-    let fc3_weight: Vec<i8> = half
-        .iter()
-        .map(|v| -v)
-        .chain(half.iter().copied())
-        .collect();
+    let a = b3.len();
+    let rows = advantages(w3, h, a);
+    let s_w3 = symmetric(&rows);
     let q_scale = s_w3 * s_x;
-    let b_adv = (f64::from(b3[1]) - f64::from(b3[0])) / 2.0;
-    let b_half = quantise_bias("fc3.bias", b_adv as f32, q_scale)?;
-    Ok((fc3_weight, vec![-b_half, b_half], q_scale))
+    let biases = advantages(b3, 1, a);
+    if a == 2 {
+        let half = adaptive_round(&rows[h..], s_w3, moments);
+        let fc3_weight = half
+            .iter()
+            .map(|v| -v)
+            .chain(half.iter().copied())
+            .collect();
+        let b_half = quantise_bias("fc3.bias", biases[1], q_scale)?;
+        return Ok((fc3_weight, vec![-b_half, b_half], q_scale));
+    }
+    let fc3_weight = rows
+        .chunks(h)
+        .flat_map(|row| adaptive_round(row, s_w3, moments))
+        .collect();
+    let fc3_bias = biases
+        .iter()
+        .map(|b| quantise_bias("fc3.bias", *b, q_scale))
+        .collect::<Result<_>>()?;
+    Ok((fc3_weight, fc3_bias, q_scale))
 }
 
 /// Refuses layer `name` if a unit's accumulator can reach `limit` for some input whose
@@ -247,13 +278,6 @@ pub fn quantise(
             "quantisation needs at least one calibration state, found none".into(),
         ));
     }
-    if w.outputs() != 2 {
-        return Err(Error::Input(format!(
-            "int8 quantisation is built for the paper's two-output network; this policy has \
-             {} duty levels",
-            w.outputs()
-        )));
-    }
     let h = w.width();
     let [w1, b1, w2, b2, w3, b3] = w.tensors();
     let st = stats(w, states);
@@ -271,6 +295,7 @@ pub fn quantise(
     bound("fc3", (&fc3_weight, &fc3_bias), h, 255, OUTPUT_BOUND)?;
     Ok(Quantised {
         width: h,
+        levels: w.levels().to_vec(),
         granularity,
         fc1_weight,
         fc1_bias,

@@ -77,11 +77,9 @@ fn adaptive_rounding_lowers_the_output_error_and_stays_beside_nearest() {
     }
 }
 
-#[test]
-fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
-    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
-    // A calibration set of its own: states along a swinging, drifting trajectory.
-    let states: Vec<[f32; 4]> = (0..4000)
+/// A calibration set of the tests' own: states along a swinging, drifting trajectory.
+fn trajectory() -> Vec<[f32; 4]> {
+    (0..4000)
         .map(|i| {
             let t = i as f32 * 0.01;
             [
@@ -91,7 +89,13 @@ fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
                 0.4 * (1.3 * t).cos(),
             ]
         })
-        .collect();
+        .collect()
+}
+
+#[test]
+fn the_shipped_policy_keeps_its_decisions_where_they_matter() {
+    let w = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
+    let states = trajectory();
     for g in [Granularity::PerChannel, Granularity::PerTensor] {
         let q = quantise(&w, &states, g).unwrap();
         let net = q.to_qmlp::<64, 2>().unwrap();
@@ -144,8 +148,45 @@ fn sources_name_their_scale_and_size() {
     let rust = rust_module(&q, "P_INT", &["source: a test".into()], &Rig::GYMNASIUM).unwrap();
     assert!(rust.contains("pub static P_INT: ::firmware::network::int::QMlp<64>"));
     assert!(rust.contains("5512 bytes of flash") && rust.contains("per-tensor"));
+    assert!(
+        !rust.contains("LEVELS"),
+        "the paper's levels go without saying"
+    );
     let c = c_header(&q, "p_int", &[], &Rig::GYMNASIUM).unwrap();
     assert!(c.contains("static const struct cartpole_qmlp64 p_int = {"));
+    assert!(c.contains("cartpole_controller_init_qmlp64(&ctl, &p_int, &p_int_rig)"));
+    // Seven levels: the shape in every name, and the levels beside the weights.
+    let q = quantise(
+        &seven_levels(),
+        &[[0.01, 0.0, 0.02, 0.0]],
+        Granularity::PerChannel,
+    )
+    .unwrap();
+    let rust = rust_module(&q, "P_INT", &[], &Rig::GYMNASIUM).unwrap();
+    assert!(rust.contains("pub static P_INT: ::firmware::network::int::QMlp<64, 7>"));
+    assert!(rust.contains("pub const LEVELS: ::firmware::controller::Levels<7>"));
+    assert!(rust.contains("Levels::new([-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0])"));
+    // 4,800 bytes of weights, 540 of biases, 512 of requantisations.
+    assert!(rust.contains("5852 bytes of flash"));
+    let c = c_header(&q, "p_int", &[], &Rig::GYMNASIUM).unwrap();
+    assert!(c.contains("static const struct cartpole_qmlp64x7 p_int = {"));
+    assert!(c.contains(
+        "static const int16_t p_int_levels[7] = {-1000, -500, -200, 0, 200, 500, 1000};"
+    ));
+    assert!(c.contains("static inline int16_t p_int_duty(const int32_t q[7]) {"));
+    assert!(!c.contains("_forward") && !c.contains("cartpole_controller_init"));
+    // Two outputs on other levels than the full pushes: Rust says so, C cannot run them.
+    let gentle = crate::feedback::state_feedback(64, &[-0.5, 0.5], [-0.5, -1.0, -20.0, -3.0]);
+    let q = quantise(
+        &gentle.unwrap(),
+        &[[0.01, 0.0, 0.02, 0.0]],
+        Granularity::PerChannel,
+    )
+    .unwrap();
+    let rust = rust_module(&q, "P_INT", &[], &Rig::GYMNASIUM).unwrap();
+    assert!(rust.contains("QMlp<64> =") && rust.contains("Levels::new([-0.5, 0.5])"));
+    let e = c_header(&q, "p_int", &[], &Rig::GYMNASIUM).unwrap_err();
+    assert!(e.is_input() && e.to_string().contains("[-0.5, 0.5]"), "{e}");
     assert!(
         rust_module(&q, "lower", &[], &Rig::GYMNASIUM)
             .unwrap_err()
@@ -156,4 +197,133 @@ fn sources_name_their_scale_and_size() {
             .unwrap_err()
             .is_input()
     );
+}
+
+/// The paper's output layer as the quantiser made it before it took more outputs: the one
+/// advantage row `(right - left) / 2` rounded, its negation for the left row, and the
+/// biases alike. Written out here as a second implementation of the two-output case.
+fn two_output_rows(w: &Weights, moments: &[f64], s_x: f64) -> (Vec<i8>, Vec<i32>) {
+    let (w3, b3) = (&w.tensors()[4], &w.tensors()[5]);
+    let h = w.width();
+    let row: Vec<f32> = (0..h)
+        .map(|k| ((f64::from(w3[h + k]) - f64::from(w3[k])) / 2.0) as f32)
+        .collect();
+    let s = symmetric(&row);
+    let right = adaptive_round(&row, s, moments);
+    let bias = ((f64::from(b3[1]) - f64::from(b3[0])) / 2.0) as f32;
+    let b = (f64::from(bias) / (s * s_x)).round() as i32;
+    let left = right.iter().map(|v| -v);
+    (left.chain(right.iter().copied()).collect(), vec![-b, b])
+}
+
+/// The second hidden layer's activations of `w` on `states` as the quantiser sees them
+/// (through the Q3.12 input): their second moments, and the scale of their largest.
+fn h2_moments(w: &Weights, states: &[[f32; 4]]) -> (Vec<f64>, f64) {
+    let h = w.width();
+    let t = w.tensors();
+    let layer = |wt: &[f32], b: &[f32], x: &[f64]| -> Vec<f64> {
+        wt.chunks(x.len())
+            .zip(b)
+            .map(|(row, b)| {
+                let v: f64 = row.iter().zip(x).map(|(w, x)| f64::from(*w) * x).sum();
+                (v + f64::from(*b)).max(0.0)
+            })
+            .collect()
+    };
+    let (mut m, mut max) = (vec![0.0; h * h], 0.0f64);
+    for s in states {
+        let x = fixed_obs(s).map(|v| f64::from(v) / 4096.0);
+        let h2 = layer(&t[2], &t[3], &layer(&t[0], &t[1], &x));
+        max = h2.iter().fold(max, |m, v| m.max(*v));
+        for (i, a) in h2.iter().enumerate() {
+            for (j, b) in h2.iter().enumerate() {
+                m[i * h + j] += a * b;
+            }
+        }
+    }
+    for m in &mut m {
+        *m /= states.len() as f64;
+    }
+    (m, max / 255.0)
+}
+
+#[test]
+fn two_outputs_are_quantised_as_the_paper_s_advantage_row_was() {
+    let states = trajectory();
+    let shipped = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
+    let levels = [-0.6, 0.9];
+    let other = crate::feedback::state_feedback(16, &levels, [-0.5, -1.0, -20.0, -3.0]).unwrap();
+    for w in [shipped, other] {
+        let (moments, s_x) = h2_moments(&w, &states);
+        let want = two_output_rows(&w, &moments, s_x);
+        for g in [Granularity::PerChannel, Granularity::PerTensor] {
+            let q = quantise(&w, &states, g).unwrap();
+            assert_eq!((q.fc3_weight.clone(), q.fc3_bias.clone()), want, "{g:?}");
+            assert_eq!(q.activation_scales()[1], s_x);
+        }
+    }
+}
+
+/// The feedback network of seven levels with every weight moved a little, so that no row
+/// is exact in int8 and every unit counts.
+fn seven_levels() -> Weights {
+    let levels = [-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0];
+    let w = crate::feedback::state_feedback(64, &levels, [-0.5, -1.0, -20.0, -3.0]).unwrap();
+    let mut seed = 3u64;
+    let mut noise = || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1);
+        ((seed >> 40) as f32 / (1u64 << 24) as f32 - 0.5) * 0.04
+    };
+    let tensors = w
+        .tensors()
+        .clone()
+        .map(|t| t.iter().map(|v| v + noise()).collect());
+    Weights::new(64, levels.to_vec(), tensors).unwrap()
+}
+
+#[test]
+fn a_policy_of_seven_levels_keeps_its_decisions_and_its_advantages() {
+    let w = seven_levels();
+    let net = w.to_mlp::<64, 7>().unwrap();
+    let states = trajectory();
+    for g in [Granularity::PerChannel, Granularity::PerTensor] {
+        let q = quantise(&w, &states, g).unwrap();
+        assert_eq!((q.outputs(), q.levels()), (7, w.levels()));
+        let int = q.to_qmlp::<64, 7>().unwrap();
+        assert!(q.to_qmlp::<64, 2>().is_err() && q.to_qmlp::<16, 7>().is_err());
+        let (mut clear, mut kept, mut err, mut size) = (0, 0, 0.0f64, 0.0f64);
+        for s in &states {
+            let f = net.forward(s).map(f64::from);
+            let mean = f.iter().sum::<f64>() / 7.0;
+            let qi = int.forward(&fixed_obs(s));
+            for (qi, f) in qi.iter().zip(f) {
+                err += (f64::from(*qi) * q.q_scale() - (f - mean)).abs();
+                size += (f - mean).abs();
+            }
+            // The margin of the float choice over the runner-up.
+            let best = firmware::network::argmax(&f);
+            let margin = f
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| *i != best)
+                .fold(f64::INFINITY, |m, (_, v)| m.min(f[best] - v));
+            if margin >= 0.02 {
+                clear += 1;
+                kept += u32::from(firmware::network::argmax(&qi) == best);
+            }
+        }
+        assert!(
+            clear > 2000 && kept * 100 >= clear * 99,
+            "{g:?}: {kept} of {clear}"
+        );
+        // One scale per tensor resolves the first layer's small gains more coarsely.
+        let bound = match g {
+            Granularity::PerChannel => 0.01,
+            Granularity::PerTensor => 0.03,
+        };
+        assert!(
+            err < bound * size,
+            "{g:?}: advantage error {err} against {size}"
+        );
+    }
 }

@@ -154,8 +154,9 @@ const CXX_KEYWORDS: [&str; 58] = [
 
 /// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits and underscores, not
 /// starting with a digit, not a C or C++ keyword, not reserved (`_` followed by a capital or `_`,
-/// or ending in `_t`, POSIX's), not ending in `_rig` (so that no header's `NAME_rig` is
-/// another's `NAME`), and such that neither `NAME`, `NAME_rig` nor the include guard
+/// or ending in `_t`, POSIX's), not ending in `_rig`, `_levels` or `_duty` (so that no
+/// header's `NAME_rig`, `NAME_levels` or `NAME_duty` is another's `NAME`), and such that none
+/// of `NAME`, `NAME_rig`, `NAME_levels`, `NAME_duty` and the include guard
 /// ([`c_guard`]) is an identifier of the C API (`cartpole_policy.h`), which a board
 /// includes beside it.
 pub fn check_c_name(name: &str) -> Result<()> {
@@ -169,19 +170,25 @@ pub fn check_c_name(name: &str) -> Result<()> {
         && !C_KEYWORDS.contains(&name)
         && !CXX_KEYWORDS.contains(&name)
         && !name.ends_with("_t")
-        && !name.ends_with("_rig");
+        && !name.ends_with("_rig")
+        && !name.ends_with("_levels")
+        && !name.ends_with("_duty");
     if !ok {
         return Err(Error::Input(format!(
             "--name: expected a C identifier (letters, digits, `_`, e.g. cartpole_policy; not \
-             a C or C++ keyword, not ending in _t or _rig), found {}",
+             a C or C++ keyword, not ending in _t, _rig, _levels or _duty), found {}",
             quote(name)
         )));
     }
     let api = api_identifiers();
-    match [name.to_string(), format!("{name}_rig"), c_guard(name)]
-        .into_iter()
-        .find(|id| api.contains(&id.as_str()))
-    {
+    let items = [
+        name.to_string(),
+        format!("{name}_rig"),
+        format!("{name}_levels"),
+        format!("{name}_duty"),
+        c_guard(name),
+    ];
+    match items.into_iter().find(|id| api.contains(&id.as_str())) {
         None => Ok(()),
         Some(id) => Err(Error::Input(format!(
             "--name: expected a name whose header declares nothing of the C API's, found {} \
@@ -278,6 +285,8 @@ mod tests {
             "cartpole_mlp16",
             "cartpole",
             "balance_rig",
+            "balance_levels",
+            "balance_duty",
             "int32_t",
             "class",
             "new",
