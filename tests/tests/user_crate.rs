@@ -115,7 +115,7 @@ fn scratch_crate(name: &str, module: &str) -> PathBuf {
          /// What a board's C code would call: 1 pushes right.\n\
          #[unsafe(no_mangle)]\n\
          pub extern \"C\" fn user_action(obs: &[f32; 4]) -> u8 {\n    \
-             policy::BOARD_POLICY.greedy_action(obs) as u8\n}\n\n\
+             policy::BOARD_POLICY.greedy(obs) as u8\n}\n\n\
          #[cfg(target_os = \"none\")]\n\
          #[panic_handler]\n\
          fn panic(_: &core::panic::PanicInfo<'_>) -> ! {\n    loop {}\n}\n",
