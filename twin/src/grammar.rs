@@ -204,6 +204,14 @@ pub const PARTS: &[PartSpec] = &[
               the model-free alpha-beta filter of discount D",
     },
     PartSpec {
+        key: "jitter",
+        fields: &[field("share", Kind::Real, 0.0, 0.5, Fallback::Value(0.1))],
+        syntax: "jitter[=F]",
+        doc: "the encoders are read up to F of a period early or late (an interrupt's \
+              latency), uniformly: the positions move on over the offset at the state's \
+              velocities; only readings through encoders",
+    },
+    PartSpec {
         key: "push",
         fields: &[
             field("impulse", Kind::Real, 0.0, 1000.0, Fallback::Value(0.5)),

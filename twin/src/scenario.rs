@@ -55,6 +55,9 @@ pub struct Scenario {
     pub sensing: Sensing,
     /// Push disturbances.
     pub push: Option<Push>,
+    /// How far from the period's start the encoders are read, at most, as a share of the
+    /// period: each reading early or late by a uniform draw within it (0: on time).
+    pub jitter: f64,
     /// How the world advances the plant over a period.
     pub integration: Integration,
     /// What goes wrong in the loop.
@@ -77,6 +80,7 @@ impl Scenario {
             noise_std: [0.0; 4],
             sensing: Sensing::Exact,
             push: None,
+            jitter: 0.0,
             integration: machine.integration,
             faults: Faults::default(),
         }
@@ -172,6 +176,7 @@ impl Scenario {
                     None => Sensing::Observer,
                 };
             }
+            "jitter" => self.jitter = first,
             "push" => {
                 self.push = Some(Push {
                     impulse: first,

@@ -85,6 +85,13 @@ impl<'s, R: Rng> World<'s, R> {
         let noisy = sd != [0.0; 4];
         if self.scenario.sensing != Sensing::Exact {
             let (mut x, mut theta) = (s.x, s.theta);
+            if self.scenario.jitter > 0.0 {
+                // Within a few milliseconds the second-order term stays below one count.
+                let early_or_late = 2.0 * unit_f64(&mut self.noise) - 1.0;
+                let dt = self.scenario.jitter * self.scenario.params.tau * early_or_late;
+                x += dt * s.x_dot;
+                theta += dt * s.theta_dot;
+            }
             if noisy {
                 x += sd[0] * self.gauss();
                 theta += sd[2] * self.gauss();

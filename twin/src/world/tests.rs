@@ -88,3 +88,36 @@ fn a_push_adds_its_impulse_over_one_period() {
         assert_eq!(w.state(), state, "period {k}");
     }
 }
+
+#[test]
+fn jittered_encoders_count_the_positions_moved_on_over_the_draw() {
+    let s = Scenario::parse("encoder=8192/40960+jitter=0.1").unwrap();
+    let mut w = world(&s);
+    // The same noise stream: one uniform draw a reading, nothing else (no noise part).
+    let mut draws = Pcg64Mcg::new(2);
+    let tau = s.params.tau;
+    let (mut earliest, mut latest) = (0.0f64, 0.0f64);
+    for k in 0..200 {
+        let truth = w.state();
+        let dt = 0.1 * tau * (2.0 * unit_f64(&mut draws) - 1.0);
+        let want = s.rig.encoders.counts(
+            truth.x + dt * truth.x_dot,
+            truth.theta + dt * truth.theta_dot,
+        );
+        assert_eq!(
+            w.measure(),
+            Measurement::Counts(want.0, want.1),
+            "period {k}"
+        );
+        (earliest, latest) = (earliest.min(dt), latest.max(dt));
+        w.apply(if k % 4 < 2 { 1.0 } else { -1.0 });
+    }
+    // The draws fill the window on both sides.
+    assert!(
+        earliest < -0.09 * tau && latest > 0.09 * tau,
+        "{earliest} {latest}"
+    );
+    let on_time = Scenario::parse("encoder=8192/40960").unwrap();
+    assert_eq!(on_time.jitter, 0.0);
+    assert!(Scenario::parse("jitter=0.6").is_err());
+}
