@@ -1,5 +1,15 @@
 //! The deploy preset's worlds, on any machine: what it trains, selects and tries its
-//! finalists in.
+//! finalists in; and, for a rig, how it drives the motor.
+
+/// The duty levels the recipe trains for a rig: fine steps near zero, where a balanced pole
+/// needs only small corrections, and full duty kept for pushes. With two levels a policy
+/// can only balance by full pushes reversed every few periods (`docs/RIGS.md`).
+pub const RIG_LEVELS: &str = "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1";
+
+/// What the recipe's learner pays for driving a rig's motor: the duty squared and its
+/// change from the previous period (`train::Reward`), beside the pole's lean and the
+/// cart's distance.
+pub const RIG_EFFORT: &str = "effort=1+smooth=2";
 
 /// The plant's physics a deploy domain draws: the pole's length and mass, the cart's mass
 /// and the motor's stall force (and its damping, on a machine that has some) each within
@@ -30,7 +40,8 @@ fn physics(width: f64, machine: &twin::Machine) -> String {
 /// +-20%, noise 1 and one period; friction, and encoders read through the observer.
 pub fn deploy_domain(machine: &twin::Machine) -> String {
     physics(0.25, machine)
-        + "+friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+delay=0..4@0.5"
+        + "+friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+jitter=0..0.1@0.3\
+           +delay=0..4@0.5"
 }
 
 /// The worlds its snapshots are chosen on, like the default evaluation set's (with its push,

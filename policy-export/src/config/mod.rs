@@ -53,7 +53,9 @@ mod deploy;
 mod keys;
 mod limits;
 
-pub use deploy::{deploy_domain, deploy_eval_domain, deploy_finalist_domain};
+pub use deploy::{
+    RIG_EFFORT, RIG_LEVELS, deploy_domain, deploy_eval_domain, deploy_finalist_domain,
+};
 
 use keys::config_keys;
 pub use limits::{KeyLimit, Limit, MAX_CONFIG_BYTES, MAX_SEEDS, Value};
@@ -235,6 +237,10 @@ config_keys! {
         eval_max_steps: u32 = 500, limit Limit::Count(1..=1_000_000);
         /// Stop early once a periodic evaluation is perfect (every episode reaches the limit).
         stop_when_perfect: bool = false;
+        /// Stop early once this many periodic evaluations in a row found no better snapshot
+        /// than the best so far: the selection says the policy is done; 0 never stops so.
+        #[serde(default)]
+        patience: usize = 0, limit Limit::Count(0..=1_000_000);
         /// Fresh greedy episodes that score the exported policy at the end of a run.
         final_eval_episodes: usize = 100, limit Limit::Count(1..=100_000);
         /// How many of the best periodic snapshots a longer trial chooses the policy among, so
@@ -375,8 +381,9 @@ impl Config {
     /// The shipped recipe: per episode a world drawn from ranges wider than the evaluation's
     /// default set (physics, friction, noise, encoders, dead time, pushes), the policy told
     /// each world's dead time, a learning reward that costs leaning and wandering, and the
-    /// snapshot chosen on worlds like the default set's. Every choice and its evidence:
-    /// `docs/TRAINING.md`.
+    /// snapshot chosen on worlds like the default set's, read through encoders; the run
+    /// stops once 50 evaluations in a row (500 episodes) found no better snapshot. Every
+    /// choice and its evidence: `docs/TRAINING.md`.
     pub fn deploy() -> Config {
         Config::deploy_on(&twin::Machine::GYMNASIUM)
     }
@@ -385,7 +392,9 @@ impl Config {
     /// least as wide as its identification's intervals, and its motor's damping too), with
     /// the pushes scaled to its motor (a push that takes Gymnasium's motor five periods to
     /// answer takes this motor as long in seconds) and every count of periods to its control
-    /// rate (the same seconds of pushes and episodes); dead times stay in periods, a board's
+    /// rate (the same seconds of pushes and episodes); on a rig, nine duty levels and a
+    /// learner that pays for the motor's effort ([`RIG_LEVELS`], [`RIG_EFFORT`]), where
+    /// Gymnasium's machine keeps the paper's two; dead times stay in periods, a board's
     /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
     pub fn deploy_on(machine: &twin::Machine) -> Config {
         let (p, gym) = (&machine.rig.params, &twin::Machine::GYMNASIUM.rig.params);
@@ -400,6 +409,8 @@ impl Config {
                 format!("push={lo}..{hi}/{}", periods(every))
             }
         };
+        let rig = *machine != twin::Machine::GYMNASIUM;
+        let reward = "upright=20+centre=5";
         Config {
             domain: format!("{}+{}", deploy_domain(machine), push(0.8, 1.2, 50.0)),
             eval_domain: format!(
@@ -413,20 +424,30 @@ impl Config {
                 push(1.1, 1.1, 50.0)
             ),
             compensate: true,
-            reward: "upright=20+centre=5".into(),
+            reward: if rig {
+                format!("{reward}+{RIG_EFFORT}")
+            } else {
+                reward.into()
+            },
+            levels: if rig {
+                RIG_LEVELS.into()
+            } else {
+                String::new()
+            },
             episodes: 5000,
             max_steps: steps(500.0),
             eval_every: 10,
             eval_episodes: 50,
             eval_max_steps: steps(500.0),
             stop_when_perfect: false,
+            patience: 50,
             finalists: 20,
             finalist_episodes: 50,
             finalist_max_steps: steps(10_000.0),
-            rig: if *machine == twin::Machine::GYMNASIUM {
-                String::new()
-            } else {
+            rig: if rig {
                 twin::rigfile::to_toml(machine)
+            } else {
+                String::new()
             },
             ..Config::robust()
         }

@@ -327,14 +327,22 @@ fn the_deploy_recipe_is_made_for_its_machine() {
         g.domain
     );
     assert!(
-        g.eval_domain.ends_with("+delay=0..1+push=0.5/100@0.5"),
+        g.eval_domain
+            .ends_with("+delay=0..1+encoder+push=0.5/100@0.5"),
         "{}",
         g.eval_domain
     );
-    assert!(g.finalist_domain.ends_with("+noise=0..1@0.5+push=1.1/50"));
+    assert!(
+        g.finalist_domain
+            .ends_with("+noise=0..1@0.5+encoder+push=1.1/50")
+    );
     assert_eq!(
         (g.max_steps, g.finalist_max_steps, g.rig.as_str()),
         (500, 10_000, "")
+    );
+    assert_eq!(
+        (g.levels.as_str(), g.reward.as_str()),
+        ("", "upright=20+centre=5")
     );
     // A weaker motor at twice the rate: pushes half as strong, counts of periods doubled.
     let text = "cart_mass_kg = 0.6\npole_mass_kg = 0.08\npole_com_m = 0.22\n\
@@ -355,6 +363,9 @@ fn the_deploy_recipe_is_made_for_its_machine() {
         (1000, 1000, 20_000)
     );
     assert_eq!(d.machine().unwrap(), m);
+    // A rig's motor is driven gently: nine levels, effort paid for.
+    assert_eq!(d.levels, "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1");
+    assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=2");
     d.validate().unwrap();
 }
 
@@ -367,13 +378,13 @@ fn deploy_domains_widen_to_the_identifications_intervals() {
     assert_eq!(
         g.domain,
         "length=0.75..1.25+polemass=0.75..1.25+cartmass=0.75..1.25+force=0.75..1.25\
-         +friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+delay=0..4@0.5\
-         +push=0.8..1.2/50"
+         +friction=0..0.1/0..0.002@0.3+noise=0..1.2@0.3+encoder=256..8192@0.3+jitter=0..0.1@0.3\
+         +delay=0..4@0.5+push=0.8..1.2/50"
     );
     assert_eq!(
         g.finalist_domain,
         "length=0.8..1.2+polemass=0.8..1.2+cartmass=0.8..1.2+force=0.8..1.2+noise=0..1@0.5\
-         +push=1.1/50"
+         +encoder+push=1.1/50"
     );
     let mut m = twin::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
     m.uncertainty.stall_force = 0.4;

@@ -69,8 +69,12 @@ pub(super) fn run<const H: usize, const A: usize>(
         records.push(rec);
         // The weights the budget stops at are a candidate too.
         let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
-        if due && selection.periodic(&r.learner, ep + 1) && cfg.stop_when_perfect {
-            break;
+        if due {
+            let perfect = selection.periodic(&r.learner, ep + 1);
+            let done = cfg.patience > 0 && selection.stale() >= cfg.patience;
+            if (perfect && cfg.stop_when_perfect) || done {
+                break;
+            }
         }
         if spent {
             break;

@@ -58,6 +58,8 @@ pub(super) struct Selection<'a, const H: usize, const A: usize> {
     evals: Vec<(usize, EvalResult)>,
     episodes: u64,
     steps: u64,
+    /// Periodic evaluations since the best snapshot was last replaced.
+    stale: usize,
 }
 
 /// What a run ships, and how it was chosen.
@@ -84,6 +86,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
             evals: Vec::new(),
             episodes: 0,
             steps: 0,
+            stale: 0,
         }
     }
 
@@ -119,6 +122,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         let res = self.evaluate(learner.online(), Eval::Periodic);
         let perfect = res.min >= f64::from(self.cfg.eval_max_steps);
         let rank = self.pool.partition_point(|(b, _, _)| !res.beats(b));
+        self.stale = if rank == 0 { 0 } else { self.stale + 1 };
         if rank < self.cfg.finalists.max(1) {
             self.pool
                 .insert(rank, (res.clone(), episode, learner.snapshot()));
@@ -126,6 +130,11 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         }
         self.evals.push((episode, res));
         perfect
+    }
+
+    /// Periodic evaluations in a row that found no better snapshot than the best.
+    pub fn stale(&self) -> usize {
+        self.stale
     }
 
     /// Tries the finalists, if any, and picks the run's policy (the learner's last weights

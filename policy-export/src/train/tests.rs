@@ -184,8 +184,8 @@ fn the_shipped_recipe_cut_short_gives_the_recorded_bits() {
 }
 
 /// [`fingerprint`] of the cut-short recipe of seed 5.
-const RECORDED_RECIPE_LEARNED: u64 = 13_719_919_072_072_188_160;
-const RECORDED_RECIPE: u64 = 9_388_720_954_654_085_470;
+const RECORDED_RECIPE_LEARNED: u64 = 3_788_568_233_672_756_947;
+const RECORDED_RECIPE: u64 = 4_214_896_325_062_899_796;
 
 #[test]
 fn a_diverging_run_stops_with_the_episode_and_step() {
@@ -407,4 +407,36 @@ fn the_tail_is_the_online_nets_and_a_failed_episode_has_none() {
     for e in r.episodes.iter().filter(|e| e.length < 200) {
         assert_eq!(e.mean_discounted_return, (f64::from(e.length) + 1.0) / 2.0);
     }
+}
+
+#[test]
+fn patience_stops_the_run_when_the_evaluations_stop_finding_better() {
+    let cfg = Config {
+        eval_every: 1,
+        eval_episodes: 2,
+        eval_max_steps: 60,
+        patience: 3,
+        episodes: 200,
+        ..small(KernelChoice::Auto)
+    };
+    let run = train(&cfg, 5, &mut |_| {}).unwrap();
+    // Replayed from the recorded evaluations: the first one three after the last best.
+    let mut best: Option<&EvalResult> = None;
+    let mut stale = 0;
+    let mut stop = None;
+    for (i, (_, res)) in run.evals.iter().enumerate() {
+        if best.is_none_or(|b| res.beats(b)) {
+            (best, stale) = (Some(res), 0);
+        } else {
+            stale += 1;
+        }
+        if stale == 3 {
+            stop = Some(i);
+            break;
+        }
+    }
+    let stop = stop.expect("the evaluations went stale within the run");
+    assert_eq!(run.evals.len(), stop + 1);
+    assert_eq!(run.episodes.len(), run.evals[stop].0);
+    assert!(run.episodes.len() < 200);
 }
