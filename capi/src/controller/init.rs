@@ -99,7 +99,7 @@ fn levels<const A: usize>(levels: *const i16, n: u32) -> Option<Result<Levels<A>
 
 /// [`init_exported`] of the network `w` on the `n` levels at `levels`: refused as
 /// [`levels`] refuses, writing nothing.
-fn init_levelled<K: Kind, N, const A: usize>(
+fn init_levelled<K, N, const A: usize>(
     c: Option<&mut CartpoleController>,
     w: Option<N>,
     thousandths: *const i16,
