@@ -11,7 +11,8 @@
  *
  * cartpole_policy_forward runs the policy compiled into the library. cartpole_mlpH_forward
  * runs any weights of width H, such as the `static const struct cartpole_mlpH` that
- * `policy-export export --format c` writes; the structs and functions below are declared as
+ * `policy-export export --format c` writes, and cartpole_mlp64xA_forward those of a policy
+ * of A duty levels (q[A]); the structs and functions below are declared as
  * those headers declare them (guarded, so both can be included). Every function computes the
  * Rust firmware's forward pass, bit for bit. cartpole_policy_forward_int and
  * cartpole_qmlpH_forward are the integer network's (`export --quant int8` headers). The
@@ -212,7 +213,8 @@ struct cartpole_rig {
  * self-test and the Rust boards run, built from a policy and the rig it was trained for
  * (the observer's plant, encoders, dead time and tuning, the dead-time predictor, the
  * track's limits, the control period): the shipped policy and its RIG, or an exported
- * header's weights and struct cartpole_rig (cartpole_controller_init_mlpH). A board:
+ * header's weights and struct cartpole_rig (cartpole_controller_init_mlpH; for a policy of
+ * more outputs, its levels too: cartpole_controller_init_mlp64xA). A board:
  *
  *     static cartpole_controller_t ctl;
  *     uint32_t period_us;

@@ -156,7 +156,7 @@ fn a_cpp_program_links_every_function_of_the_header() {
     std::fs::create_dir_all(&dir).unwrap();
     // Without C linkage a call would name a mangled symbol the library lacks; with NULL
     // weights each call writes nothing, so the shipped policy's outputs stand, and each init
-    // refuses.
+    // refuses, for every shape.
     let calls: String = SUPPORTED_WIDTHS
         .iter()
         .map(|h| {
@@ -167,6 +167,14 @@ fn a_cpp_program_links_every_function_of_the_header() {
                  \x20       refused += cartpole_controller_init_qmlp{h}(nullptr, nullptr, nullptr);\n"
             )
         })
+        .chain(SUPPORTED_SHAPES.iter().filter(|&&(_, a)| a > 2).map(|&(h, a)| {
+            format!(
+                "        cartpole_mlp{h}x{a}_forward(nullptr, obs, nullptr);\n\
+                 \x20       cartpole_qmlp{h}x{a}_forward(nullptr, iobs, nullptr);\n\
+                 \x20       refused += cartpole_controller_init_mlp{h}x{a}(nullptr, nullptr, nullptr, {a}, nullptr);\n\
+                 \x20       refused += cartpole_controller_init_qmlp{h}x{a}(nullptr, nullptr, nullptr, {a}, nullptr);\n"
+            )
+        }))
         .collect();
     let main = format!(
         "#include <cstdio>\n#include <cstdlib>\n#include <cstring>\n\
@@ -198,7 +206,7 @@ fn a_cpp_program_links_every_function_of_the_header() {
     let int = int_line(POLICY_INT.forward(&[0; 4]));
     let refused = format!(
         "{}\n",
-        2 * SUPPORTED_WIDTHS.len() as i32 * CARTPOLE_ERR_NULL
+        2 * SUPPORTED_SHAPES.len() as i32 * CARTPOLE_ERR_NULL
     );
     let expected: String = PROBES
         .iter()
