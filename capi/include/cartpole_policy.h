@@ -11,7 +11,8 @@
  *
  * cartpole_policy_forward runs the policy compiled into the library. cartpole_mlpH_forward
  * runs any weights of width H, such as the `static const struct cartpole_mlpH` that
- * `policy-export export --format c` writes; the structs and functions below are declared as
+ * `policy-export export --format c` writes, and cartpole_mlp64xA_forward those of a policy
+ * of A duty levels (q[A]); the structs and functions below are declared as
  * those headers declare them (guarded, so both can be included). Every function computes the
  * Rust firmware's forward pass, bit for bit. cartpole_policy_forward_int and
  * cartpole_qmlpH_forward are the integer network's (`export --quant int8` headers). The
@@ -39,64 +40,82 @@ void cartpole_policy_forward_int(const int16_t obs[4], int32_t q[2]);
 }
 #endif
 
-/* One macro per network format declares a width's struct and function as every exported
- * header of that width does; each expansion sits under the exported headers' own guard, so
- * either header may come first. The macros are undefined at the end: they are not the
- * header's to export. */
+/* One macro per network format declares a shape's struct and function as every exported
+ * header of that shape does: S names the shape (the width H for the paper's two outputs,
+ * HxA for A outputs); each expansion sits under the exported headers' own guard, so either
+ * header may come first. The macros are undefined at the end: they are not the header's to
+ * export. */
 #ifdef __cplusplus
 #define CARTPOLE_EXTERN_C extern "C"
 #else
 #define CARTPOLE_EXTERN_C
 #endif
 
-/* A 4-H-H-2 Q-network in PyTorch's nn.Linear layout (weight[out][in]); the layout
- * of Rust's firmware::network::Mlp<H>.
- * q = [Q(obs, left), Q(obs, right)] of w, in the Rust firmware's summation order
- * (bit for bit); push right iff q[1] > q[0]. From libcartpole_policy.a. A NULL
- * argument makes it write nothing. */
-#define CARTPOLE_DECLARE_MLP(H)                                                         \
-    struct cartpole_mlp##H {                                                            \
-        float fc1_weight[H][4];                                                         \
-        float fc1_bias[H];                                                              \
-        float fc2_weight[H][H];                                                         \
-        float fc2_bias[H];                                                              \
-        float fc3_weight[2][H];                                                         \
-        float fc3_bias[2];                                                              \
-    };                                                                                  \
-    CARTPOLE_EXTERN_C void cartpole_mlp##H##_forward(const struct cartpole_mlp##H *w,   \
-                                                     const float obs[4], float q[2])
+/* A 4-H-H-A Q-network in PyTorch's nn.Linear layout (weight[out][in]); the layout
+ * of Rust's firmware::network::Mlp<H, A>.
+ * q = the A Q-values of w, one per duty level (two: [Q(obs, left), Q(obs, right)]), in
+ * the Rust firmware's summation order (bit for bit); the largest drives its level (two:
+ * push right iff q[1] > q[0]). From libcartpole_policy.a. A NULL argument makes it write
+ * nothing. */
+#define CARTPOLE_DECLARE_MLP(S, H, A)                                               \
+    struct cartpole_mlp##S {                                                        \
+        float fc1_weight[H][4];                                                     \
+        float fc1_bias[H];                                                          \
+        float fc2_weight[H][H];                                                     \
+        float fc2_bias[H];                                                          \
+        float fc3_weight[A][H];                                                     \
+        float fc3_bias[A];                                                          \
+    };                                                                              \
+    CARTPOLE_EXTERN_C void cartpole_mlp##S##_forward(const struct cartpole_mlp##S *w,\
+                                                     const float obs[4], float q[A])
 
-/* A 4-H-H-2 Q-network in integers (weight[out][in]); the layout of Rust's
- * firmware::network::int::QMlp<H>.
- * q = the two outputs of w (exported policies: the advantages Q - mean(Q)) in its
+/* A 4-H-H-A Q-network in integers (weight[out][in]); the layout of Rust's
+ * firmware::network::int::QMlp<H, A>.
+ * q = the A outputs of w (exported policies: the advantages Q - mean(Q)) in its
  * integer scale, obs = {x, x_dot, theta, theta_dot} in Q3.12 (SI units times 4096);
- * push right iff q[1] > q[0]. No floating point. From libcartpole_policy.a; a NULL
- * argument makes it write nothing. */
-#define CARTPOLE_DECLARE_QMLP(H)                                                        \
-    struct cartpole_qmlp##H {                                                           \
-        int32_t fc1_bias[H];                                                            \
-        int32_t fc2_bias[H];                                                            \
-        int32_t fc3_bias[2];                                                            \
-        struct cartpole_requant fc1_requant[H];                                         \
-        struct cartpole_requant fc2_requant[H];                                         \
-        int8_t fc1_weight[H][4];                                                        \
-        int8_t fc2_weight[H][H];                                                        \
-        int8_t fc3_weight[2][H];                                                        \
-    };                                                                                  \
-    CARTPOLE_EXTERN_C void cartpole_qmlp##H##_forward(const struct cartpole_qmlp##H *w, \
-                                                      const int16_t obs[4], int32_t q[2])
+ * the largest drives its level (two: push right iff q[1] > q[0]). No floating point.
+ * From libcartpole_policy.a; a NULL argument makes it write nothing. */
+#define CARTPOLE_DECLARE_QMLP(S, H, A)                                              \
+    struct cartpole_qmlp##S {                                                       \
+        int32_t fc1_bias[H];                                                        \
+        int32_t fc2_bias[H];                                                        \
+        int32_t fc3_bias[A];                                                        \
+        struct cartpole_requant fc1_requant[H];                                     \
+        struct cartpole_requant fc2_requant[H];                                     \
+        int8_t fc1_weight[H][4];                                                    \
+        int8_t fc2_weight[H][H];                                                    \
+        int8_t fc3_weight[A][H];                                                    \
+    };                                                                              \
+    CARTPOLE_EXTERN_C void cartpole_qmlp##S##_forward(const struct cartpole_qmlp##S *w,\
+                                                      const int16_t obs[4], int32_t q[A])
 
 #ifndef CARTPOLE_MLP16_DEFINED
 #define CARTPOLE_MLP16_DEFINED
-CARTPOLE_DECLARE_MLP(16);
+CARTPOLE_DECLARE_MLP(16, 16, 2);
 #endif
 #ifndef CARTPOLE_MLP64_DEFINED
 #define CARTPOLE_MLP64_DEFINED
-CARTPOLE_DECLARE_MLP(64);
+CARTPOLE_DECLARE_MLP(64, 64, 2);
 #endif
 #ifndef CARTPOLE_MLP128_DEFINED
 #define CARTPOLE_MLP128_DEFINED
-CARTPOLE_DECLARE_MLP(128);
+CARTPOLE_DECLARE_MLP(128, 128, 2);
+#endif
+#ifndef CARTPOLE_MLP64X3_DEFINED
+#define CARTPOLE_MLP64X3_DEFINED
+CARTPOLE_DECLARE_MLP(64x3, 64, 3);
+#endif
+#ifndef CARTPOLE_MLP64X5_DEFINED
+#define CARTPOLE_MLP64X5_DEFINED
+CARTPOLE_DECLARE_MLP(64x5, 64, 5);
+#endif
+#ifndef CARTPOLE_MLP64X7_DEFINED
+#define CARTPOLE_MLP64X7_DEFINED
+CARTPOLE_DECLARE_MLP(64x7, 64, 7);
+#endif
+#ifndef CARTPOLE_MLP64X9_DEFINED
+#define CARTPOLE_MLP64X9_DEFINED
+CARTPOLE_DECLARE_MLP(64x9, 64, 9);
 #endif
 
 #ifndef CARTPOLE_REQUANT_DEFINED
@@ -113,15 +132,31 @@ struct cartpole_requant {
 
 #ifndef CARTPOLE_QMLP16_DEFINED
 #define CARTPOLE_QMLP16_DEFINED
-CARTPOLE_DECLARE_QMLP(16);
+CARTPOLE_DECLARE_QMLP(16, 16, 2);
 #endif
 #ifndef CARTPOLE_QMLP64_DEFINED
 #define CARTPOLE_QMLP64_DEFINED
-CARTPOLE_DECLARE_QMLP(64);
+CARTPOLE_DECLARE_QMLP(64, 64, 2);
 #endif
 #ifndef CARTPOLE_QMLP128_DEFINED
 #define CARTPOLE_QMLP128_DEFINED
-CARTPOLE_DECLARE_QMLP(128);
+CARTPOLE_DECLARE_QMLP(128, 128, 2);
+#endif
+#ifndef CARTPOLE_QMLP64X3_DEFINED
+#define CARTPOLE_QMLP64X3_DEFINED
+CARTPOLE_DECLARE_QMLP(64x3, 64, 3);
+#endif
+#ifndef CARTPOLE_QMLP64X5_DEFINED
+#define CARTPOLE_QMLP64X5_DEFINED
+CARTPOLE_DECLARE_QMLP(64x5, 64, 5);
+#endif
+#ifndef CARTPOLE_QMLP64X7_DEFINED
+#define CARTPOLE_QMLP64X7_DEFINED
+CARTPOLE_DECLARE_QMLP(64x7, 64, 7);
+#endif
+#ifndef CARTPOLE_QMLP64X9_DEFINED
+#define CARTPOLE_QMLP64X9_DEFINED
+CARTPOLE_DECLARE_QMLP(64x9, 64, 9);
 #endif
 
 #ifndef CARTPOLE_RIG_DEFINED
@@ -178,7 +213,8 @@ struct cartpole_rig {
  * self-test and the Rust boards run, built from a policy and the rig it was trained for
  * (the observer's plant, encoders, dead time and tuning, the dead-time predictor, the
  * track's limits, the control period): the shipped policy and its RIG, or an exported
- * header's weights and struct cartpole_rig (cartpole_controller_init_mlpH). A board:
+ * header's weights and struct cartpole_rig (cartpole_controller_init_mlpH; for a policy of
+ * more outputs, its levels too: cartpole_controller_init_mlp64xA). A board:
  *
  *     static cartpole_controller_t ctl;
  *     uint32_t period_us;
@@ -189,6 +225,7 @@ struct cartpole_rig {
  *         cartpole_controller_step(&ctl, cart_counts(), pole_counts(), &cmd);
  *         if the direction pin changes: the enable's duty to 0 first (break before make)
  *         direction pin = cmd.direction; the enable's duty = cmd.duty of CARTPOLE_DUTY_MAX
+ *         (a partial duty for a policy of more levels than the full pushes)
  *
  * Every function returns CARTPOLE_OK (0) or a negative CARTPOLE_ERR_*, and a refused call
  * writes nothing and runs nothing. No heap, no global state: each cartpole_controller_t is
@@ -222,7 +259,9 @@ enum cartpole_status {
     CARTPOLE_ERR_RIG = -5,           /* a struct cartpole_rig field no machine has, or no
                                         finite observer gain for the rig; to
                                         cartpole_controller_monitor, another rig than c's */
-    CARTPOLE_ERR_ENVELOPE = -6       /* an envelope bound NaN, infinite or negative */
+    CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative */
+    CARTPOLE_ERR_LEVELS = -7         /* duty levels not one per output, beyond [-1000, 1000]
+                                        or not strictly increasing */
 };
 
 /* The shipped policies. */
@@ -252,13 +291,19 @@ typedef struct cartpole_controller {
 
 /* What one period decided and what its H-bridge pins are now. */
 typedef struct cartpole_command {
-    int32_t command;    /* CARTPOLE_PUSH_LEFT, CARTPOLE_COAST or CARTPOLE_PUSH_RIGHT */
+    int32_t command;    /* the commanded duty's sign: CARTPOLE_PUSH_LEFT, CARTPOLE_COAST (also a
+                           level of zero duty) or CARTPOLE_PUSH_RIGHT */
     uint32_t direction; /* direction pin: 1 high (pushes towards +x), 0 low; kept when coasting */
     uint32_t duty;      /* enable's duty: 0 (off) to CARTPOLE_DUTY_MAX (the full push) */
     uint32_t faults;    /* CARTPOLE_FAULT_* bits of this period's reading; 0 if accepted */
-    float q[2];         /* the float policy's [Q(left), Q(right)]; NaN if rejected; 0 for int */
-    int32_t q_int[2];   /* the integer policy's outputs; 0 if rejected; 0 for float */
+    float q[2];         /* the float policy's [Q(left), Q(right)]; NaN if rejected; 0 for int;
+                           0 for a policy of more than two outputs (see its _forward) */
+    int32_t q_int[2];   /* the integer policy's outputs; 0 if rejected; 0 for float; 0 for a
+                           policy of more than two outputs */
     uint32_t step;      /* the period's number, from 0 */
+    int32_t signed_duty; /* the commanded duty in thousandths of the full push, + towards +x:
+                            the chosen output's level (-1000 or 1000 of two outputs); 0 when
+                            coasting. The pins' direction and duty drive it. */
 } cartpole_command_t;
 
 /* Totals since cartpole_controller_init; they saturate rather than wrap. */
@@ -318,6 +363,27 @@ int cartpole_controller_init_qmlp64(cartpole_controller_t *c, const struct cartp
 int cartpole_controller_init_qmlp128(cartpole_controller_t *c,
                                      const struct cartpole_qmlp128 *w,
                                      const struct cartpole_rig *rig);
+
+/* The same for a policy of A > 2 outputs, each driving a duty level: NAME, NAME_levels and
+ * NAME_rig of an exported header, output i driving levels[i] thousandths of the full push
+ * (+ towards +x); levels points at n_levels int16_t, read during the call only. Refused,
+ * writing nothing: CARTPOLE_ERR_LEVELS unless n_levels is A and the levels lie in
+ * [-1000, 1000], strictly increasing; CARTPOLE_ERR_RIG as above. cartpole_controller_step
+ * then drives the chosen output's level: cmd.signed_duty, the pins' partial duty. */
+#define CARTPOLE_DECLARE_INIT(S)                                                        \
+    int cartpole_controller_init_mlp##S(cartpole_controller_t *c,                       \
+                                        const struct cartpole_mlp##S *w,                \
+                                        const int16_t *levels, uint32_t n_levels,       \
+                                        const struct cartpole_rig *rig);                \
+    int cartpole_controller_init_qmlp##S(cartpole_controller_t *c,                      \
+                                         const struct cartpole_qmlp##S *w,              \
+                                         const int16_t *levels, uint32_t n_levels,      \
+                                         const struct cartpole_rig *rig)
+CARTPOLE_DECLARE_INIT(64x3);
+CARTPOLE_DECLARE_INIT(64x5);
+CARTPOLE_DECLARE_INIT(64x7);
+CARTPOLE_DECLARE_INIT(64x9);
+#undef CARTPOLE_DECLARE_INIT
 
 /* One control period on this period's encoder counts (cart: counts per metre of travel,
  * pole: counts per revolution, zero upright, as the RIG's encoders; the first counts are

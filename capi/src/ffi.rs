@@ -15,10 +15,11 @@
 //!                              const int16_t obs[4], int32_t q[2]);
 //! ```
 //!
-//! and `cartpole_mlpH_forward`, `cartpole_qmlpH_forward` for every width of
-//! [`SUPPORTED_WIDTHS`](firmware::network::SUPPORTED_WIDTHS). `struct cartpole_mlpH` is
-//! [`Mlp<H>`] (`repr(C)`), as `policy-export export --format c` writes it, and
-//! `struct cartpole_qmlpH` is [`QMlp<H>`] (`--quant int8`). All of them run the one forward
+//! and `cartpole_mlpS_forward`, `cartpole_qmlpS_forward` for every shape of
+//! [`firmware::for_each_shape!`], `S` its C name: `64` for the paper's two outputs, `64x7`
+//! for seven (`q` then holds seven). `struct cartpole_mlpS` is [`Mlp<H, A>`] (`repr(C)`), as
+//! `policy-export export --format c` writes it, and `struct cartpole_qmlpS` is
+//! [`QMlp<H, A>`] (`--quant int8`). All of them run the one forward
 //! pass of their network ([`Mlp::forward`], [`QMlp::forward`]), so C gets the Rust values bit
 //! for bit.
 //!
@@ -26,17 +27,16 @@
 //! NULL argument makes the call write nothing instead of being undefined behaviour. Non-NULL
 //! pointers must be valid and aligned, as for any C function taking arrays.
 
-use firmware::controller::{Policy, Reading};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
 
-/// `q` = the network's outputs for `obs` in either format (the float network's or the
-/// integer one's, as [`Policy`] scores them); a NULL argument (`None`) makes it write nothing.
-fn forward<O: Reading, P: Policy<O>>(w: Option<P>, obs: Option<&O>, q: Option<&mut P::Scores>) {
-    if let (Some(mut w), Some(obs), Some(q)) = (w, obs, q) {
-        *q = w.scores(obs);
+/// `q` = the outputs `net` gives `obs` (a network's forward pass, in either format); a NULL
+/// argument (`None`) makes it write nothing.
+fn forward<O, Q>(net: Option<impl FnOnce(&O) -> Q>, obs: Option<&O>, q: Option<&mut Q>) {
+    if let (Some(net), Some(obs), Some(q)) = (net, obs, q) {
+        *q = net(obs);
     }
 }
 
@@ -50,7 +50,7 @@ pub extern "C" fn cartpole_policy_forward(
     obs: Option<&[f32; OBS_DIM]>,
     q: Option<&mut [f32; N_ACTIONS]>,
 ) {
-    forward(Some(&POLICY), obs, q);
+    forward(Some(|o: &_| POLICY.forward(o)), obs, q);
 }
 
 /// `q` = the advantages `Q - mean(Q)` of left and right by the shipped policy's integer
@@ -63,44 +63,45 @@ pub extern "C" fn cartpole_policy_forward_int(
     obs: Option<&[i16; OBS_DIM]>,
     q: Option<&mut [i32; N_ACTIONS]>,
 ) {
-    forward(Some(&POLICY_INT), obs, q);
+    forward(Some(|o: &_| POLICY_INT.forward(o)), obs, q);
 }
 
 macro_rules! c_forwards {
-    ($($h:literal => $name:ident / $qname:ident,)*) => { $(
+    ($($h:literal x $a:literal => $name:ident / $qname:ident / $i:ident / $qi:ident,)*) => { $(
         #[doc = concat!(
-            "`q = [Q(obs, left), Q(obs, right)]` of the 4-", stringify!($h), "-",
-            stringify!($h), "-2 network `w`; push right iff `q[1] > q[0]`."
+            "`q` = the ", stringify!($a), " Q-values of the 4-", stringify!($h), "-",
+            stringify!($h), "-", stringify!($a), " network `w`, one per duty level (two: \
+             left, right; push right iff `q[1] > q[0]`)."
         )]
         // SAFETY: as for `cartpole_policy_forward`: one definition per C name.
         #[allow(unsafe_code)]
         #[unsafe(no_mangle)]
         pub extern "C" fn $name(
-            w: Option<&Mlp<$h>>,
+            w: Option<&Mlp<$h, $a>>,
             obs: Option<&[f32; OBS_DIM]>,
-            q: Option<&mut [f32; N_ACTIONS]>,
+            q: Option<&mut [f32; $a]>,
         ) {
-            forward(w, obs, q);
+            forward(w.map(|w| move |o: &_| w.forward(o)), obs, q);
         }
 
         #[doc = concat!(
-            "`q` = the two outputs of the integer 4-", stringify!($h), "-",
-            stringify!($h), "-2 network `w` (as exported: the advantages), `obs` in Q3.12; \
-             push right iff `q[1] > q[0]`."
+            "`q` = the ", stringify!($a), " outputs of the integer 4-", stringify!($h), "-",
+            stringify!($h), "-", stringify!($a), " network `w` (as exported: the \
+             advantages), `obs` in Q3.12."
         )]
         // SAFETY: as for `cartpole_policy_forward`: one definition per C name.
         #[allow(unsafe_code)]
         #[unsafe(no_mangle)]
         pub extern "C" fn $qname(
-            w: Option<&QMlp<$h>>,
+            w: Option<&QMlp<$h, $a>>,
             obs: Option<&[i16; OBS_DIM]>,
-            q: Option<&mut [i32; N_ACTIONS]>,
+            q: Option<&mut [i32; $a]>,
         ) {
-            forward(w, obs, q);
+            forward(w.map(|w| move |o: &_| w.forward(o)), obs, q);
         }
     )* };
 }
-firmware::for_each_width!(c_forwards);
+firmware::for_each_shape!(c_forwards);
 
 #[cfg(test)]
 mod tests {

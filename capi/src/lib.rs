@@ -25,15 +25,17 @@
 //! A policy of one's own, exported by `policy-export export --format c` (`NAME` and
 //! `NAME_rig`, the [`CartpoleRig`] it was trained for), runs the same way once
 //! `cartpole_controller_init_mlpH(&ctl, &NAME, &NAME_rig)` (or `_qmlpH`, `--quant int8`) has
-//! built its controller.
+//! built its controller; a policy of `A > 2` outputs, each driving a duty level, through
+//! `cartpole_controller_init_mlp64xA(&ctl, &NAME, NAME_levels, A, &NAME_rig)`, whose steps
+//! drive the chosen level (`signed_duty`, a partial duty on the pins).
 //!
 //! The controller drives the loopback's in-memory pins ([`firmware::loopback::Pins`]), which
 //! the step reads back into the command: C drives its bridge from what Rust's `Bridge` would
 //! have driven.
 //!
 //! The forward passes wrap the very functions the Rust firmware runs:
-//! `cartpole_policy_forward` (the shipped policy) and `cartpole_mlpH_forward` for every
-//! supported width (any weights, such as a header `policy-export export --format c` wrote),
+//! `cartpole_policy_forward` (the shipped policy) and `cartpole_mlpS_forward` for every
+//! supported shape (`firmware::for_each_shape!`) (any weights, such as a header `policy-export export --format c` wrote),
 //! and their integer counterparts. On a microcontroller the crate supplies the panic handler
 //! a static library must have (none of its calls can panic).
 #![cfg_attr(target_os = "none", no_std)]

@@ -16,7 +16,7 @@ use cartpole_policy::CARTPOLE_ERR_NULL;
 use common::{C99, CXX11, Compiler, EVERY, compile_and_run, manifest};
 
 use firmware::network::int::QMlp;
-use firmware::network::{Mlp, SUPPORTED_WIDTHS, shapes};
+use firmware::network::{Mlp, SUPPORTED_SHAPES, SUPPORTED_WIDTHS, shapes};
 use firmware::policy::POLICY;
 use firmware::policy_int::POLICY_INT;
 use firmware::rig::Rig;
@@ -106,19 +106,19 @@ fn tokens(text: &str) -> Vec<String> {
     out
 }
 
-/// Every width's blocks of the exported headers, float then integer, then the rig's, each as
+/// Every shape's blocks of the exported headers, float then integer, then the rig's, each as
 /// it preprocesses after the ones before it (so the integer blocks after the first lose the shared struct to
 /// its guard, as they would in one translation unit), must stand in the library's header one
 /// after another, token for token, in C and in C++.
 #[test]
-fn the_library_header_declares_every_width_as_exported_headers_do() {
-    let blocks = SUPPORTED_WIDTHS
+fn the_library_header_declares_every_shape_as_exported_headers_do() {
+    let blocks = SUPPORTED_SHAPES
         .iter()
-        .map(|&h| (format!("block for width {h}"), c_struct(h, 2)))
-        .chain(SUPPORTED_WIDTHS.iter().map(|&h| {
+        .map(|&(h, a)| (format!("block for shape {h}x{a}"), c_struct(h, a)))
+        .chain(SUPPORTED_SHAPES.iter().map(|&(h, a)| {
             (
-                format!("integer block for width {h}"),
-                quant::c_struct(h, 2),
+                format!("integer block for shape {h}x{a}"),
+                quant::c_struct(h, a),
             )
         }))
         .chain([("rig block".to_string(), c_rig_struct())]);
@@ -156,7 +156,7 @@ fn a_cpp_program_links_every_function_of_the_header() {
     std::fs::create_dir_all(&dir).unwrap();
     // Without C linkage a call would name a mangled symbol the library lacks; with NULL
     // weights each call writes nothing, so the shipped policy's outputs stand, and each init
-    // refuses.
+    // refuses, for every shape.
     let calls: String = SUPPORTED_WIDTHS
         .iter()
         .map(|h| {
@@ -167,6 +167,14 @@ fn a_cpp_program_links_every_function_of_the_header() {
                  \x20       refused += cartpole_controller_init_qmlp{h}(nullptr, nullptr, nullptr);\n"
             )
         })
+        .chain(SUPPORTED_SHAPES.iter().filter(|&&(_, a)| a > 2).map(|&(h, a)| {
+            format!(
+                "        cartpole_mlp{h}x{a}_forward(nullptr, obs, nullptr);\n\
+                 \x20       cartpole_qmlp{h}x{a}_forward(nullptr, iobs, nullptr);\n\
+                 \x20       refused += cartpole_controller_init_mlp{h}x{a}(nullptr, nullptr, nullptr, {a}, nullptr);\n\
+                 \x20       refused += cartpole_controller_init_qmlp{h}x{a}(nullptr, nullptr, nullptr, {a}, nullptr);\n"
+            )
+        }))
         .collect();
     let main = format!(
         "#include <cstdio>\n#include <cstdlib>\n#include <cstring>\n\
@@ -198,7 +206,7 @@ fn a_cpp_program_links_every_function_of_the_header() {
     let int = int_line(POLICY_INT.forward(&[0; 4]));
     let refused = format!(
         "{}\n",
-        2 * SUPPORTED_WIDTHS.len() as i32 * CARTPOLE_ERR_NULL
+        2 * SUPPORTED_SHAPES.len() as i32 * CARTPOLE_ERR_NULL
     );
     let expected: String = PROBES
         .iter()

@@ -59,44 +59,36 @@ pub mod rig;
 pub use cartpole::Action;
 pub use config::ConfigError;
 
-/// Calls `$m!` with every hidden width of the paper's two-output network, each beside the
-/// names of its C entry points (float / integer network): the widths the C API is built for.
+/// Calls `$m!` with every network shape the trainer, the simulator and the C API are built
+/// for, as `width x outputs`, each beside the names of its C entry points: the float and the
+/// integer forward pass, then the float and the integer controller's init. The paper's two
+/// outputs at three widths, and the duty levels of a gentler policy at the shipped width. The
+/// project's one list of shapes ([`network::SUPPORTED_SHAPES`], [`network::SUPPORTED_WIDTHS`]).
 ///
 /// ```
-/// macro_rules! count { ($($h:literal => $c:ident / $qc:ident,)*) => { [$($h),*].len() } }
-/// assert_eq!(firmware::for_each_width!(count), 3);
-/// ```
-#[macro_export]
-macro_rules! for_each_width {
-    ($m:ident) => {
-        $m! {
-            16 => cartpole_mlp16_forward / cartpole_qmlp16_forward,
-            64 => cartpole_mlp64_forward / cartpole_qmlp64_forward,
-            128 => cartpole_mlp128_forward / cartpole_qmlp128_forward,
-        }
-    };
-}
-
-/// Calls `$m!` with every network shape the trainer and the simulator are built for, as
-/// `width x outputs`: the paper's two outputs at every width of [`for_each_width!`], and the
-/// duty levels of a gentler policy at the shipped width. The project's one list of shapes
-/// ([`network::SUPPORTED_SHAPES`]).
-///
-/// ```
-/// macro_rules! count { ($($h:literal x $a:literal,)*) => { [$($h),*].len() } }
+/// macro_rules! count {
+///     ($($h:literal x $a:literal => $($c:ident)/+,)*) => { [$($h),*].len() };
+/// }
 /// assert_eq!(firmware::for_each_shape!(count), firmware::network::SUPPORTED_SHAPES.len());
 /// ```
 #[macro_export]
 macro_rules! for_each_shape {
     ($m:ident) => {
         $m! {
-            16 x 2,
-            64 x 2,
-            128 x 2,
-            64 x 3,
-            64 x 5,
-            64 x 7,
-            64 x 9,
+            16 x 2 => cartpole_mlp16_forward / cartpole_qmlp16_forward
+                / cartpole_controller_init_mlp16 / cartpole_controller_init_qmlp16,
+            64 x 2 => cartpole_mlp64_forward / cartpole_qmlp64_forward
+                / cartpole_controller_init_mlp64 / cartpole_controller_init_qmlp64,
+            128 x 2 => cartpole_mlp128_forward / cartpole_qmlp128_forward
+                / cartpole_controller_init_mlp128 / cartpole_controller_init_qmlp128,
+            64 x 3 => cartpole_mlp64x3_forward / cartpole_qmlp64x3_forward
+                / cartpole_controller_init_mlp64x3 / cartpole_controller_init_qmlp64x3,
+            64 x 5 => cartpole_mlp64x5_forward / cartpole_qmlp64x5_forward
+                / cartpole_controller_init_mlp64x5 / cartpole_controller_init_qmlp64x5,
+            64 x 7 => cartpole_mlp64x7_forward / cartpole_qmlp64x7_forward
+                / cartpole_controller_init_mlp64x7 / cartpole_controller_init_qmlp64x7,
+            64 x 9 => cartpole_mlp64x9_forward / cartpole_qmlp64x9_forward
+                / cartpole_controller_init_mlp64x9 / cartpole_controller_init_qmlp64x9,
         }
     };
 }

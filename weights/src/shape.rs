@@ -19,7 +19,7 @@ pub trait ForShape {
 /// tools are built for.
 pub fn by_shape<W: ForShape>(width: usize, outputs: usize, work: W) -> Result<W::Output> {
     macro_rules! dispatch {
-        ($($h:literal x $a:literal,)*) => {
+        ($($h:literal x $a:literal => $($c:ident)/+,)*) => {
             match (width, outputs) {
                 $(($h, $a) => Ok(work.run::<$h, $a>()),)*
                 _ => Err(unsupported(width, outputs)),

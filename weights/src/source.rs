@@ -14,15 +14,17 @@
 
 use std::fmt::Write;
 
-use firmware::controller::Duty;
 use firmware::network::{N_ACTIONS, TENSOR_NAMES, shapes};
 use firmware::rig::Rig;
 
 use crate::{Result, Weights};
 
+mod c_levels;
 mod c_rig;
 mod comment;
 mod names;
+pub use c_levels::c_init_call;
+pub(crate) use c_levels::{c_levels_item, check_c_levels};
 pub use c_rig::{c_rig_item, c_rig_struct};
 pub use comment::{COMMENT_MAX, comment_text};
 pub use names::{MAX_NAME_CHARS, c_guard, check_c_name, check_rust_name};
@@ -165,10 +167,9 @@ pub fn c_shape(h: usize, a: usize) -> String {
     }
 }
 
-/// The guarded definition of `struct cartpole_mlpS` and, for the paper's two outputs, the
-/// declaration of `cartpole_mlpS_forward` (`S` the [`c_shape`] of `h` and `a`): what every
-/// header for that shape shares with `cartpole_policy.h`. `libcartpole_policy.a` runs
-/// two-output networks only, so a header of more outputs declares no forward pass.
+/// The guarded definition of `struct cartpole_mlpS` and the declaration of
+/// `cartpole_mlpS_forward` (`S` the [`c_shape`] of `h` and `a`): what every header for that
+/// shape shares with `cartpole_policy.h`.
 pub fn c_struct(h: usize, a: usize) -> String {
     let c = c_shape(h, a);
     let guard = c.to_uppercase();
@@ -191,62 +192,26 @@ pub fn c_struct(h: usize, a: usize) -> String {
         let dims: String = shape.dims().iter().map(|d| format!("[{d}]")).collect();
         let _ = writeln!(s, "    float {}{dims};", tensor.replace('.', "_"));
     }
-    if a != N_ACTIONS {
-        s.push_str("};\n#endif\n");
-        return s;
-    }
+    let q = if a == N_ACTIONS {
+        "q = [Q(obs, left), Q(obs, right)] of w".to_string()
+    } else {
+        format!("q = the {a} Q-values of w, q[i] that of the duty level i")
+    };
+    let choice = if a == N_ACTIONS {
+        "push right iff q[1] > q[0]"
+    } else {
+        "the largest drives its level"
+    };
     let _ = writeln!(
         s,
-        "}};\n/* q = [Q(obs, left), Q(obs, right)] of w, in the Rust firmware's summation order\n \
-         * (bit for bit); push right iff q[1] > q[0]. From libcartpole_policy.a. A NULL\n \
+        "}};\n/* {q}, in the Rust firmware's summation order\n \
+         * (bit for bit); {choice}. From libcartpole_policy.a. A NULL\n \
          * argument makes it write nothing. */\n\
          #ifdef __cplusplus\nextern \"C\"\n#endif\n\
-         void cartpole_mlp{c}_forward(const struct cartpole_mlp{c} *w, const float obs[4], float q[2]);\n\
+         void cartpole_mlp{c}_forward(const struct cartpole_mlp{c} *w, const float obs[4], float q[{a}]);\n\
          #endif"
     );
     s
-}
-
-/// Refuses what the C API cannot run: a policy of two outputs on other levels than the two
-/// full pushes (its two-output controllers drive those; a gentler policy has more outputs).
-pub(crate) fn check_c_levels(levels: &[f32]) -> Result<()> {
-    if levels.len() == N_ACTIONS && levels != crate::BANG_BANG {
-        return Err(crate::Error::Input(format!(
-            "the C API runs a two-output policy on the full pushes [-1, 1]; this policy's \
-             levels are {levels:?} (a policy of three or more outputs may have any levels)"
-        )));
-    }
-    Ok(())
-}
-
-/// What a header of more than two outputs adds: `static const int16_t NAME_levels[A]`, each
-/// output's duty in thousandths of the full push ([`Duty`]), and `NAME_duty(q)`, the duty
-/// that outputs `q` (of C type `q_type`) choose: the largest, the lowest index of equal ones
-/// ([`argmax`](firmware::network::argmax)). Empty for the paper's two outputs, whose
-/// controllers `libcartpole_policy.a` builds.
-pub(crate) fn c_levels_item(name: &str, levels: &[f32], q_type: &str) -> Result<String> {
-    if levels.len() == N_ACTIONS {
-        return Ok(String::new());
-    }
-    let a = levels.len();
-    let mut list = String::new();
-    for (i, l) in levels.iter().enumerate() {
-        let d = Duty::from_fraction(*l)
-            .map_err(|e| crate::Error::Input(format!("levels: {l} is no duty ({e:?})")))?;
-        let sep = if i > 0 { ", " } else { "" };
-        let _ = write!(list, "{sep}{}", d.thousandths());
-    }
-    Ok(format!(
-        "\n/* The duty output i of {name} drives, in thousandths of the full push (+ towards +x),\n \
-         * in increasing order. */\n\
-         static const int16_t {name}_levels[{a}] = {{{list}}};\n\
-         \n/* The duty that q, the outputs of {name}, choose: {name}_levels[i] of the largest q[i],\n \
-         * the lowest i of equal ones. */\n\
-         static inline int16_t {name}_duty(const {q_type} q[{a}]) {{\n    \
-         int best = 0;\n    int i;\n    for (i = 1; i < {a}; i++) {{\n        \
-         if (q[i] > q[best]) {{\n            best = i;\n        }}\n    }}\n    \
-         return {name}_levels[best];\n}}\n"
-    ))
 }
 
 /// The C header: `static const struct cartpole_mlpS NAME`, for more than two outputs their
@@ -261,34 +226,35 @@ pub fn c_header(w: &Weights, name: &str, provenance: &[String], rig: &Rig) -> Re
     let levels_item = c_levels_item(name, w.levels(), "float")?;
     let guard = c_guard(name);
     let mut s = String::new();
-    let rig_item = if a == N_ACTIONS {
-        let init = format!("cartpole_controller_init_mlp{c}");
+    let init = c_init_call("mlp", name, h, a);
+    if a == N_ACTIONS {
         let _ = writeln!(
             s,
             "/* {name}: a 4-{h}-{h}-2 cart-pole balance policy, a Q-network over\n \
              * obs = {{x, x_dot, theta, theta_dot}} that pushes right iff Q[1] > Q[0], and\n \
-             * {name}_rig, the machine it was trained for.\n \
-             *\n \
-             * Generated by policy-export; do not edit. Linking libcartpole_policy.a, run the whole\n \
-             * control period, {init}(&ctl, &{name}, &{name}_rig) and\n \
-             * cartpole_controller_step (cartpole_policy.h), or the Rust forward pass alone, bit for\n \
-             * bit: cartpole_mlp{c}_forward(&{name}, obs, q). The arrays are plain data too:\n \
-             * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]."
+             * {name}_rig, the machine it was trained for."
         );
-        c_rig_item(name, rig, Some(&init))?
     } else {
         let _ = writeln!(
             s,
             "/* {name}: a 4-{h}-{h}-{a} cart-pole balance policy, a Q-network over\n \
              * obs = {{x, x_dot, theta, theta_dot}} whose output i drives the duty {name}_levels[i],\n \
-             * and {name}_rig, the machine it was trained for.\n \
-             *\n \
-             * Generated by policy-export; do not edit. The arrays are plain data:\n \
-             * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]; {name}_duty(Q) is the duty\n \
-             * Q chooses. (libcartpole_policy.a runs two-output policies only.)"
+             * and {name}_rig, the machine it was trained for."
         );
-        c_rig_item(name, rig, None)?
-    };
+    }
+    let _ = writeln!(
+        s,
+        " *\n \
+         * Generated by policy-export; do not edit. Linking libcartpole_policy.a, run the whole\n \
+         * control period, {init} and\n \
+         * cartpole_controller_step (cartpole_policy.h), or the Rust forward pass alone, bit for\n \
+         * bit: cartpole_mlp{c}_forward(&{name}, obs, q). The arrays are plain data too:\n \
+         * Q = fc3(relu(fc2(relu(fc1(obs))))), weight[out][in]."
+    );
+    if a != N_ACTIONS {
+        let _ = writeln!(s, " * {name}_duty(Q) is the duty Q chooses.");
+    }
+    let rig_item = c_rig_item(name, rig, &init)?;
     for line in provenance {
         let _ = writeln!(s, " * - {}", comment_text(line));
     }
@@ -462,12 +428,12 @@ mod tests {
             "static const struct cartpole_mlp64x7 gentle = {",
             "static const int16_t gentle_levels[7] = {-1000, -500, -200, 0, 200, 500, 1000};",
             "static inline int16_t gentle_duty(const float q[7]) {",
-            "/* The machine gentle was trained for:\n",
+            "void cartpole_mlp64x7_forward(const struct cartpole_mlp64x7 *w, const float obs[4], float q[7]);",
+            "cartpole_controller_init_mlp64x7(&ctl, &gentle, gentle_levels, 7, &gentle_rig)",
+            "/* The machine gentle was trained for, on which\n",
         ] {
             assert!(c.contains(want), "{want} not in\n{c}");
         }
-        // The library runs no network of seven outputs: the header names none of its calls.
-        assert!(!c.contains("_forward") && !c.contains("cartpole_controller_init"));
         assert_eq!(
             (c_shape(64, 7), c_shape(128, 2)),
             ("64x7".into(), "128".into())

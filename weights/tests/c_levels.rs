@@ -217,14 +217,16 @@ fn five_levels_in_c_choose_the_duty_the_f64_network_chooses() {
 }
 
 #[test]
-fn a_five_level_header_carries_its_duties_and_declares_no_library_function() {
+fn a_five_level_header_carries_its_duties_and_names_the_library_functions() {
     let w = weights::feedback::state_feedback(64, &LEVELS, GAIN).unwrap();
     let h = weights::source::c_header(&w, "gentle", &[], &Rig::GYMNASIUM).unwrap();
     assert!(h.contains("static const int16_t gentle_levels[5] = {-1000, -400, 0, 300, 1000};"));
     assert!(h.contains("static inline int16_t gentle_duty(const float q[5]) {"));
-    assert!(h.contains("struct cartpole_mlp64x5 {") && !h.contains("_forward"));
-    assert!(
-        !h.contains("cartpole_controller_init"),
-        "no controller runs it"
-    );
+    assert!(h.contains("struct cartpole_mlp64x5 {"));
+    assert!(h.contains(
+        "void cartpole_mlp64x5_forward(const struct cartpole_mlp64x5 *w, const float obs[4], float q[5]);"
+    ));
+    assert!(h.contains(
+        "cartpole_controller_init_mlp64x5(&ctl, &gentle, gentle_levels, 5, &gentle_rig)"
+    ));
 }

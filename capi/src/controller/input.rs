@@ -4,7 +4,7 @@
 
 use core::convert::Infallible;
 
-use firmware::controller::{Command, Scores, StateSensor};
+use firmware::controller::{Command, StateSensor};
 use firmware::estimator::{Estimate, ObserverSensor};
 use firmware::loopback::Latest;
 use firmware::network::{N_ACTIONS, OBS_DIM};
@@ -27,26 +27,28 @@ enum Reads {
     State,
 }
 
-/// A reading format of the controller, as C hands it in and reads its scores back.
-pub(crate) trait Format: Estimate {
-    /// A policy's scores on readings of this format.
-    type Scores: Scores;
-    /// The scores as C's pair of float scores and pair of integer scores; the format that is
-    /// not this one's reads zero.
-    fn scores(q: Self::Scores) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]);
+/// A policy's scores as C's pair of float scores and pair of integer scores: a two-output
+/// network's in the pair of its format, zero in the other; a network of more outputs has
+/// no pair, and reads zero in both (its scores: its forward pass).
+pub(crate) trait CScores {
+    fn pairs(self) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]);
 }
 
-impl Format for [f32; OBS_DIM] {
-    type Scores = [f32; N_ACTIONS];
-    fn scores(q: [f32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
-        (q, [0; N_ACTIONS])
+impl<const A: usize> CScores for [f32; A] {
+    fn pairs(self) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
+        match self.first_chunk() {
+            Some(q) if A == N_ACTIONS => (*q, [0; N_ACTIONS]),
+            _ => ([0.0; N_ACTIONS], [0; N_ACTIONS]),
+        }
     }
 }
 
-impl Format for [i16; OBS_DIM] {
-    type Scores = [i32; N_ACTIONS];
-    fn scores(q: [i32; N_ACTIONS]) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
-        ([0.0; N_ACTIONS], q)
+impl<const A: usize> CScores for [i32; A] {
+    fn pairs(self) -> ([f32; N_ACTIONS], [i32; N_ACTIONS]) {
+        match self.first_chunk() {
+            Some(q) if A == N_ACTIONS => ([0.0; N_ACTIONS], *q),
+            _ => ([0.0; N_ACTIONS], [0; N_ACTIONS]),
+        }
     }
 }
 
@@ -93,7 +95,7 @@ impl<O> Input<O> {
     }
 }
 
-impl<O: Format> StateSensor for Input<O> {
+impl<O: Estimate> StateSensor for Input<O> {
     type Reading = O;
     type Error = Infallible;
 

@@ -6,6 +6,10 @@
 //!                                    const struct cartpole_rig *rig);   /* and every width */
 //! int cartpole_controller_init_qmlp64(cartpole_controller_t *c, const struct cartpole_qmlp64 *w,
 //!                                     const struct cartpole_rig *rig);
+//! int cartpole_controller_init_mlp64x7(cartpole_controller_t *c,            /* and 64x3, 64x5, */
+//!                                      const struct cartpole_mlp64x7 *w,    /* 64x9; qmlp too */
+//!                                      const int16_t *levels, uint32_t n_levels,
+//!                                      const struct cartpole_rig *rig);
 //! int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
 //!                              int32_t pole_counts, cartpole_command_t *out);
 //! int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
@@ -28,22 +32,24 @@
 //! nothing: a NULL pointer ([`CARTPOLE_ERR_NULL`]), a `cartpole_controller_t` that no init
 //! initialised ([`CARTPOLE_ERR_UNINITIALISED`]), an unknown policy
 //! ([`CARTPOLE_ERR_POLICY_KIND`]), a step of the other input kind than the instance's first
-//! ([`CARTPOLE_ERR_INPUT`]), or a rig no machine has ([`CARTPOLE_ERR_RIG`]). Pointers arrive
+//! ([`CARTPOLE_ERR_INPUT`]), a rig no machine has ([`CARTPOLE_ERR_RIG`]), or duty levels
+//! the firmware refuses ([`CARTPOLE_ERR_LEVELS`]). Pointers arrive
 //! as `Option<&T>`, as in the forward passes; non-NULL ones must be valid and aligned.
 
 use core::ffi::c_int;
 
-use firmware::controller::{Assurance, FaultCounters, FaultFlags, Limits, Scores as _};
+use firmware::controller::{Assurance, Command, FaultCounters, FaultFlags, Limits, Scores};
 use firmware::loopback::{Duty, Level};
-use firmware::network::int::QMlp;
-use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
+use firmware::network::{N_ACTIONS, OBS_DIM};
 
 use crate::rig::CartpoleRig;
 
+mod init;
 mod input;
 mod storage;
 
-use input::{Format, Handed};
+pub use init::*;
+use input::{CScores as _, Handed};
 pub use storage::{CONTROLLER_SIZE, CartpoleController};
 use storage::{Float, Int, Kind, Slot, magic, slot, slot_mut};
 
@@ -63,6 +69,9 @@ pub const CARTPOLE_ERR_INPUT: c_int = -4;
 pub const CARTPOLE_ERR_RIG: c_int = -5;
 /// An envelope with a bound that is NaN, infinite or negative.
 pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
+/// Duty levels the firmware refuses ([`firmware::controller::check_levels`]): not one per
+/// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing.
+pub const CARTPOLE_ERR_LEVELS: c_int = -7;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;
@@ -74,7 +83,8 @@ pub const CARTPOLE_POLICY_INT: c_int = 2;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CartpoleCommand {
-    /// `-1` push left, `0` coast, `1` push right ([`Command::level`](firmware::controller::Command::level)).
+    /// The sign of the duty commanded: `-1` a push left, `0` coast (a rejected reading, or
+    /// a level of zero duty), `1` a push right.
     pub command: i32,
     /// The direction pin: `1` high (pushes towards +x), `0` low. Kept while coasting.
     pub direction: u32,
@@ -91,6 +101,9 @@ pub struct CartpoleCommand {
     pub q_int: [i32; N_ACTIONS],
     /// The period's number, from 0.
     pub step: u32,
+    /// The duty commanded, in thousandths of the full push, `+` towards +x: the chosen
+    /// output's level (`-1000` or `1000` for a two-output policy), `0` coasting.
+    pub signed_duty: i32,
 }
 
 /// `cartpole_counters_t`: totals since `cartpole_controller_init`, saturating: the periods
@@ -125,23 +138,25 @@ impl<K: Kind> Run for Slot<K> {
         let command = c.step();
         let (&Level(direction), &Duty(duty)) = c.actuator().pins();
         // `step` has just recorded its period: the fallback is never taken.
-        let (step, q, faults) = c.last().map_or(
-            (
-                c.steps(),
-                <K::Reading as Format>::Scores::UNSCORED,
-                FaultFlags::default(),
-            ),
-            |r| (r.step, r.q, r.faults),
-        );
-        let (q, q_int) = K::Reading::scores(q);
+        let (step, q, faults) = c
+            .last()
+            .map_or((c.steps(), Scores::UNSCORED, FaultFlags::default()), |r| {
+                (r.step, r.q, r.faults)
+            });
+        let (q, q_int) = q.pairs();
+        let signed_duty = match command {
+            Command::Drive(d) => d.thousandths(),
+            Command::Coast => 0,
+        };
         Some(CartpoleCommand {
-            command: command.level() as i32,
+            command: signed_duty.signum().into(),
             direction: direction.into(),
             duty: duty.into(),
             faults: faults.0.into(),
             q,
             q_int,
             step,
+            signed_duty: signed_duty.into(),
         })
     }
 
@@ -171,16 +186,16 @@ impl<K: Kind> Run for Slot<K> {
 }
 
 /// The instance in `c` and, mutably, of whichever kind initialised it: one pair for every
-/// width of either format.
+/// shape of either format.
 macro_rules! instances {
-    ($($h:literal => $forward:ident / $qforward:ident,)*) => {
+    ($($h:literal x $a:literal => $($c:ident)/+,)*) => {
         /// The instance in `c`, whichever kind initialised it.
         fn instance(c: &CartpoleController) -> Result<&dyn Run, c_int> {
             $(
-                if let Some(s) = slot::<Float<$h>>(c) {
+                if let Some(s) = slot::<Float<$h, $a>>(c) {
                     return Ok(s);
                 }
-                if let Some(s) = slot::<Int<$h>>(c) {
+                if let Some(s) = slot::<Int<$h, $a>>(c) {
                     return Ok(s);
                 }
             )*
@@ -192,10 +207,10 @@ macro_rules! instances {
             // Which kind first, then the one borrow to return.
             let m = magic(c);
             let run: Option<&mut dyn Run> = $(
-                if m == Float::<$h>::MAGIC {
-                    slot_mut::<Float<$h>>(c).map(|s| s as _)
-                } else if m == Int::<$h>::MAGIC {
-                    slot_mut::<Int<$h>>(c).map(|s| s as _)
+                if m == Float::<$h, $a>::MAGIC {
+                    slot_mut::<Float<$h, $a>>(c).map(|s| s as _)
+                } else if m == Int::<$h, $a>::MAGIC {
+                    slot_mut::<Int<$h, $a>>(c).map(|s| s as _)
                 } else
             )* {
                 None
@@ -204,7 +219,7 @@ macro_rules! instances {
         }
     };
 }
-firmware::for_each_width!(instances);
+firmware::for_each_shape!(instances);
 
 /// `Ok` as [`CARTPOLE_OK`], an error as its code.
 fn status(done: Result<(), c_int>) -> c_int {
@@ -226,107 +241,6 @@ fn step(
             .and_then(|r| r.step(handed).ok_or(CARTPOLE_ERR_INPUT))
             .map(|command| *out = command),
     )
-}
-
-/// Makes `c` a controller of the shipped policy `policy_kind` ([`CARTPOLE_POLICY_F32`] or
-/// [`CARTPOLE_POLICY_INT`]) on its `RIG`, which has run no period: the observer starts
-/// from the first counts at rest. Solves the observer's gain: call it at start-up, not in
-/// the control interrupt. Initialising an instance again starts it afresh.
-// SAFETY: exporting an unmangled symbol is `unsafe` because two such symbols with one name
-// would clash at link time; this crate defines each C name once.
-#[allow(unsafe_code)]
-#[unsafe(no_mangle)]
-pub extern "C" fn cartpole_controller_init(
-    c: Option<&mut CartpoleController>,
-    policy_kind: c_int,
-) -> c_int {
-    let Some(c) = c else {
-        return CARTPOLE_ERR_NULL;
-    };
-    // The shipped rigs pass the firmware's checks as it is compiled; their gain is
-    // solved here, and a refusal is the rig's.
-    let built = match policy_kind {
-        CARTPOLE_POLICY_F32 => {
-            Slot::<Float<64>>::new(&firmware::policy::POLICY, &firmware::policy::RIG)
-                .map(|s| s.store(c))
-        }
-        CARTPOLE_POLICY_INT => Slot::<Int<64>>::new(
-            &firmware::policy_int::POLICY_INT,
-            &firmware::policy_int::RIG,
-        )
-        .map(|s| s.store(c)),
-        _ => return CARTPOLE_ERR_POLICY_KIND,
-    };
-    built.map_or(CARTPOLE_ERR_RIG, |()| CARTPOLE_OK)
-}
-
-/// Makes `c` a controller of the weights `w` of kind `K` on `rig`, as
-/// [`cartpole_controller_init`] makes one of the shipped policy on its `RIG`; refuses a NULL
-/// and a rig no machine has, writing nothing.
-fn init_exported<K: Kind>(
-    c: Option<&mut CartpoleController>,
-    w: Option<K::Policy>,
-    rig: Option<&CartpoleRig>,
-) -> c_int {
-    let (Some(c), Some(w), Some(rig)) = (c, w, rig) else {
-        return CARTPOLE_ERR_NULL;
-    };
-    match rig.to_rig().map(|rig| Slot::<K>::new(w, &rig)) {
-        Some(Ok(slot)) => {
-            slot.store(c);
-            CARTPOLE_OK
-        }
-        _ => CARTPOLE_ERR_RIG,
-    }
-}
-
-/// `cartpole_controller_init_mlpH` and `cartpole_controller_init_qmlpH` for each width `H`.
-macro_rules! exported_inits {
-    ($($h:literal => $name:ident / $qname:ident,)*) => { $(
-        #[doc = concat!(
-            "Makes `c` a controller of the float 4-", stringify!($h), "-", stringify!($h),
-            "-2 network `w` on `rig` (an exported header's `NAME` and `NAME_rig`). The \
-             controller keeps `w`, not a copy: C must keep the weights for as long as the \
-             controller, or any copy of it, runs (`static const` ones, as exported, always \
-             are). Refuses a rig outside [`CartpoleRig::to_rig`]'s ranges, or one whose \
-             observer the firmware refuses ([`CARTPOLE_ERR_RIG`]), writing nothing."
-        )]
-        // SAFETY: as for `cartpole_controller_init`: one definition per C name.
-        #[allow(unsafe_code)]
-        #[unsafe(no_mangle)]
-        pub extern "C" fn $name(
-            c: Option<&mut CartpoleController>,
-            // `'static`: the controller keeps it, for as long as C promises (the header).
-            w: Option<&'static Mlp<$h>>,
-            rig: Option<&CartpoleRig>,
-        ) -> c_int {
-            init_exported::<Float<$h>>(c, w, rig)
-        }
-
-        #[doc = concat!(
-            "The integer 4-", stringify!($h), "-", stringify!($h), "-2 network's \
-             counterpart of `cartpole_controller_init_mlp", stringify!($h), "`: integer \
-             arithmetic from the observer's estimate to the decision."
-        )]
-        // SAFETY: as for `cartpole_controller_init`: one definition per C name.
-        #[allow(unsafe_code)]
-        #[unsafe(no_mangle)]
-        pub extern "C" fn $qname(
-            c: Option<&mut CartpoleController>,
-            w: Option<&'static QMlp<$h>>,
-            rig: Option<&CartpoleRig>,
-        ) -> c_int {
-            init_exported::<Int<$h>>(c, w, rig)
-        }
-    )* };
-}
-/// The widths `exported_inits!` is given, for the test that they are every supported one.
-#[cfg(test)]
-const INIT_WIDTHS: [usize; 3] = [16, 64, 128];
-exported_inits! {
-    16 => cartpole_controller_init_mlp16 / cartpole_controller_init_qmlp16,
-    64 => cartpole_controller_init_mlp64 / cartpole_controller_init_qmlp64,
-    128 => cartpole_controller_init_mlp128 / cartpole_controller_init_qmlp128,
 }
 
 /// One control period on this period's encoder counts, read through the rig's observer;

@@ -1,5 +1,5 @@
 //! The caller-allocated `cartpole_controller_t`: opaque bytes that hold one controller of
-//! one network format and width, and the magic word that tells an initialised one from any
+//! one network format and shape, and the magic word that tells an initialised one from any
 //! other memory. The only `unsafe` of the controller's API is here: reading the magic from
 //! memory C hands over, and viewing the bytes as the controller the magic names.
 
@@ -7,14 +7,14 @@ use core::ffi::c_void;
 use core::mem::{MaybeUninit, align_of, size_of};
 
 use firmware::ConfigError;
-use firmware::controller::{Controller, Policy};
-use firmware::estimator::ObserverSensor;
+use firmware::controller::{Controller, Greedy, Policy};
+use firmware::estimator::{Estimate, ObserverSensor};
 use firmware::loopback::{self, Latest, Pins};
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
 use firmware::rig::{Options, Rig};
 
-use super::input::{Format, Input};
+use super::input::{CScores, Input};
 
 /// `CARTPOLE_CONTROLLER_SIZE`: the bytes of `cartpole_controller_t`, one value for every
 /// target so that C code can allocate it statically without knowing the library's layout.
@@ -35,41 +35,39 @@ union Opaque {
     align_pointer: *mut c_void,
 }
 
-/// A network format and width, with the reading format its controller runs in.
+/// A network format and shape, with the reading format its controller runs in.
 pub(crate) trait Kind: 'static {
     /// The reading format of its controller.
-    type Reading: Format;
-    /// The network, as the controller holds it.
-    type Policy: Policy<Self::Reading, Scores = <Self::Reading as Format>::Scores>;
+    type Reading: Estimate;
+    /// The network on its levels, as the controller holds it.
+    type Policy: Policy<Self::Reading, Scores: CScores>;
     /// What the first word of an instance of this kind holds.
     const MAGIC: u32;
 }
 
-/// The float network of width `H` (`firmware::network::Mlp`).
-pub(crate) struct Float<const H: usize>;
-/// The integer network of width `H` (`firmware::network::int::QMlp`).
-pub(crate) struct Int<const H: usize>;
+/// The float network of width `H` with `A` outputs (`firmware::network::Mlp`).
+pub(crate) struct Float<const H: usize, const A: usize>;
+/// The integer network of width `H` with `A` outputs (`firmware::network::int::QMlp`).
+pub(crate) struct Int<const H: usize, const A: usize>;
 
-/// `prefix` then a byte that tells the widths apart (each is a power of two).
-const fn magic_of(prefix: [u8; 3], width: usize) -> u32 {
-    u32::from_be_bytes([
-        prefix[0],
-        prefix[1],
-        prefix[2],
-        width.trailing_zeros() as u8,
-    ])
+/// `prefix` then a byte that tells the shapes apart: the width's (a power of two) exponent
+/// in the low four bits, the outputs beyond two in the high four, so that a two-output
+/// network's magic is the one it had before networks had more outputs.
+const fn magic_of(prefix: [u8; 3], width: usize, outputs: usize) -> u32 {
+    let shape = width.trailing_zeros() as usize | ((outputs - 2) << 4);
+    u32::from_be_bytes([prefix[0], prefix[1], prefix[2], shape as u8])
 }
 
-impl<const H: usize> Kind for Float<H> {
+impl<const H: usize, const A: usize> Kind for Float<H, A> {
     type Reading = [f32; 4];
-    type Policy = &'static Mlp<H>;
-    const MAGIC: u32 = magic_of(*b"CPf", H);
+    type Policy = Greedy<&'static Mlp<H, A>, A>;
+    const MAGIC: u32 = magic_of(*b"CPf", H, A);
 }
 
-impl<const H: usize> Kind for Int<H> {
+impl<const H: usize, const A: usize> Kind for Int<H, A> {
     type Reading = [i16; 4];
-    type Policy = &'static QMlp<H>;
-    const MAGIC: u32 = magic_of(*b"CPi", H);
+    type Policy = Greedy<&'static QMlp<H, A>, A>;
+    const MAGIC: u32 = magic_of(*b"CPi", H, A);
 }
 
 /// The controller C runs: one telemetry record, the period's own, is all C reads back.

@@ -1,6 +1,7 @@
 //! What the C program of `tests/c_controller.rs` cannot reach: the shipped rigs have no dead
 //! time and a 20 ms period, so other rigs are built here.
 
+use super::init::bang_bang;
 use super::*;
 use firmware::cartpole::{Params, State, advance};
 use firmware::controller::{Controller, Predictor};
@@ -26,7 +27,7 @@ type Decisions = Vec<(i32, [u32; 2])>;
 /// The library's commands and Q-values over a closed loop, and those of the firmware's
 /// controller with `predictor`, on the same counts.
 fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
-    let mut slot = Slot::<Float<64>>::new(&POLICY, rig).unwrap();
+    let mut slot = Slot::<Float<64, 2>>::new(bang_bang(&POLICY), rig).unwrap();
     let sensor = ObserverSensor::new(rig.observer().unwrap(), Latest::default());
     let mut reference = Controller::new(&POLICY, sensor, loopback::pins(), rig.limits().unwrap());
     if let Some(p) = predictor {
@@ -70,7 +71,7 @@ fn the_period_is_the_rigs_tau_in_whole_microseconds() {
             ..RIG
         };
         assert_eq!(
-            Slot::<Int<64>>::new(&firmware::policy_int::POLICY_INT, &rig)
+            Slot::<Int<64, 2>>::new(bang_bang(&firmware::policy_int::POLICY_INT), &rig)
                 .unwrap()
                 .period_us(),
             us,
@@ -89,6 +90,7 @@ fn memory_init_did_not_write_is_refused_by_every_call() {
         q: [7.0; 2],
         q_int: [7; 2],
         step: 7,
+        signed_duty: 7,
     };
     let before = out;
     for byte in [0x00, 0xab, 0xff] {
@@ -124,11 +126,6 @@ fn memory_init_did_not_write_is_refused_by_every_call() {
     }
 }
 
-#[test]
-fn every_supported_width_has_its_exported_inits() {
-    assert_eq!(INIT_WIDTHS.as_slice(), firmware::network::SUPPORTED_WIDTHS);
-}
-
 /// `n` steps of `c` on the same counts; the last command.
 fn steps(c: &mut CartpoleController, n: usize) -> CartpoleCommand {
     let mut out = CartpoleCommand {
@@ -139,6 +136,7 @@ fn steps(c: &mut CartpoleController, n: usize) -> CartpoleCommand {
         q: [7.0; 2],
         q_int: [7; 2],
         step: 7,
+        signed_duty: 7,
     };
     for _ in 0..n {
         assert_eq!(

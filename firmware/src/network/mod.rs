@@ -53,7 +53,7 @@ pub const PAPER_WIDTH: usize = 64;
 pub type PolicyNet = Mlp<PAPER_WIDTH>;
 
 macro_rules! supported_shapes {
-    ($($h:literal x $a:literal,)*) => {
+    ($($h:literal x $a:literal => $($c:ident)/+,)*) => {
         /// `(width, outputs)` of every network the trainer and the simulator are built for
         /// (any other `H` and `A` compile as [`Mlp<H, A>`] too). The list is
         /// [`for_each_shape!`](crate::for_each_shape).
@@ -62,14 +62,25 @@ macro_rules! supported_shapes {
 }
 crate::for_each_shape!(supported_shapes);
 
+/// The widths of [`for_each_shape!`](crate::for_each_shape)'s two-output shapes, in its
+/// order: an accumulator of widths, then the shapes not yet looked at.
 macro_rules! supported_widths {
-    ($($h:literal => $c:ident / $qc:ident,)*) => {
-        /// Hidden widths of the paper's two-output network (the C API's), the list of
-        /// [`for_each_width!`](crate::for_each_width).
-        pub const SUPPORTED_WIDTHS: &[usize] = &[$($h),*];
+    (@ [$($w:literal)*]) => {
+        /// Hidden widths of the paper's two-output network, the two-output shapes of
+        /// [`for_each_shape!`](crate::for_each_shape).
+        pub const SUPPORTED_WIDTHS: &[usize] = &[$($w),*];
+    };
+    (@ [$($w:literal)*] $h:literal x 2 => $($c:ident)/+, $($rest:tt)*) => {
+        supported_widths!(@ [$($w)* $h] $($rest)*);
+    };
+    (@ [$($w:literal)*] $h:literal x $a:literal => $($c:ident)/+, $($rest:tt)*) => {
+        supported_widths!(@ [$($w)*] $($rest)*);
+    };
+    ($($shapes:tt)*) => {
+        supported_widths!(@ [] $($shapes)*);
     };
 }
-crate::for_each_width!(supported_widths);
+crate::for_each_shape!(supported_widths);
 
 /// Parameters of a 4-h-h-a network: `4h + h + h*h + h + ah + a` (4,610 for the paper's
 /// `h = 64`, `a = 2`).

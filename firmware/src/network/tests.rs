@@ -200,3 +200,8 @@ fn a_policy_can_be_a_static() {
     static NET: PolicyNet = PolicyNet::zeroed();
     assert_eq!(NET.forward(&[0.0; 4]), [0.0, 0.0]);
 }
+
+#[test]
+fn the_two_output_widths_are_those_of_the_shape_list() {
+    assert_eq!(SUPPORTED_WIDTHS, &[16, 64, 128]);
+}

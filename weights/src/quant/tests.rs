@@ -174,7 +174,12 @@ fn sources_name_their_scale_and_size() {
         "static const int16_t p_int_levels[7] = {-1000, -500, -200, 0, 200, 500, 1000};"
     ));
     assert!(c.contains("static inline int16_t p_int_duty(const int32_t q[7]) {"));
-    assert!(!c.contains("_forward") && !c.contains("cartpole_controller_init"));
+    assert!(c.contains(
+        "void cartpole_qmlp64x7_forward(const struct cartpole_qmlp64x7 *w, const int16_t obs[4], int32_t q[7]);"
+    ));
+    assert!(
+        c.contains("cartpole_controller_init_qmlp64x7(&ctl, &p_int, p_int_levels, 7, &p_int_rig)")
+    );
     // Two outputs on other levels than the full pushes: Rust says so, C cannot run them.
     let gentle = crate::feedback::state_feedback(64, &[-0.5, 0.5], [-0.5, -1.0, -20.0, -3.0]);
     let q = quantise(

@@ -134,17 +134,11 @@ fn double(field: &str, v: f64) -> Result<String> {
 }
 
 /// `static const struct cartpole_rig NAME_rig`, `rig` bit for bit, one field a line; `init`
-/// names the function of `libcartpole_policy.a` that builds a controller of `name` on it, if
-/// there is one.
-pub fn c_rig_item(name: &str, rig: &Rig, init: Option<&str>) -> Result<String> {
-    let on = match init {
-        Some(init) => {
-            format!(", on which\n * {init}(&ctl, &{name}, &{name}_rig) builds its controller")
-        }
-        None => String::new(),
-    };
+/// is the call of `libcartpole_policy.a` that builds a controller of `name` on it
+/// ([`c_init_call`](crate::source::c_init_call)).
+pub fn c_rig_item(name: &str, rig: &Rig, init: &str) -> Result<String> {
     let mut s = format!(
-        "\n/* The machine {name} was trained for{on}:\n \
+        "\n/* The machine {name} was trained for, on which\n * {init} builds its controller:\n \
          * the observer, the dead-time predictor, the limits. */\n\
          static const struct cartpole_rig {name}_rig = {{\n"
     );
@@ -170,11 +164,11 @@ mod tests {
     fn a_rig_c_cannot_write_is_refused_naming_the_field() {
         let mut rig = Rig::GYMNASIUM;
         rig.tuning.accel_sd[1] = f64::INFINITY;
-        let e = c_rig_item("p", &rig, None).unwrap_err();
+        let e = c_rig_item("p", &rig, "").unwrap_err();
         assert!(e.is_input() && e.to_string().contains("accel_sd"), "{e}");
         rig.tuning.accel_sd[1] = 1.0;
         rig.params.tau = f64::NAN;
-        let e = c_rig_item("p", &rig, None).unwrap_err();
+        let e = c_rig_item("p", &rig, "").unwrap_err();
         assert!(e.to_string().contains("tau"), "{e}");
     }
 }

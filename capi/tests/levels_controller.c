@@ -1,0 +1,90 @@
+/* A policy of A > 2 outputs through the whole controller, as C and as C++: test_policy,
+ * test_policy_levels and test_policy_rig of a header `policy-export export --format c`
+ * wrote (exported.h), built by INIT (cartpole_controller_init_mlpHxA or _qmlpHxA, defined,
+ * with A, by the file that includes this one).
+ *
+ *   levels steps X V T W ...   INIT, then one cartpole_controller_step_state per state, each
+ *                              printed as `command direction duty signed_duty faults`
+ *   levels refusals            INIT's code on good levels, then on levels the library must
+ *                              refuse, each code and whether the call wrote anything */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include "cartpole_policy.h"
+#include "exported.h"
+
+/* What a call that writes nothing leaves in the controller. */
+#define UNWRITTEN 0x5a
+
+static cartpole_controller_t ctl;
+
+static int unwritten(void) {
+    size_t i;
+    for (i = 0; i < sizeof ctl; i++) {
+        if (ctl.opaque.bytes[i] != UNWRITTEN) return 0;
+    }
+    return 1;
+}
+
+/* INIT on `n` levels `levels` of a controller filled with UNWRITTEN: its code, and whether
+ * it left the controller as it was. */
+static void refused(const int16_t *levels, uint32_t n) {
+    int code;
+    memset(&ctl, UNWRITTEN, sizeof ctl);
+    code = INIT(&ctl, &test_policy, levels, n, &test_policy_rig);
+    printf("%d %d\n", code, unwritten());
+}
+
+static int refusals(void) {
+    int16_t bad[A + 1];
+    int code;
+    memcpy(bad, test_policy_levels, sizeof test_policy_levels);
+    code = INIT(&ctl, &test_policy, test_policy_levels, A, &test_policy_rig);
+    printf("%d\n", code);
+    bad[1] = bad[0]; /* not strictly increasing */
+    refused(bad, A);
+    memcpy(bad, test_policy_levels, sizeof test_policy_levels);
+    bad[0] = bad[1];
+    bad[1] = test_policy_levels[0]; /* unsorted */
+    refused(bad, A);
+    memcpy(bad, test_policy_levels, sizeof test_policy_levels);
+    bad[A - 1] = 1001; /* beyond the full push */
+    refused(bad, A);
+    memcpy(bad, test_policy_levels, sizeof test_policy_levels);
+    bad[0] = -32768;
+    refused(bad, A);
+    memcpy(bad, test_policy_levels, sizeof test_policy_levels);
+    refused(bad, A - 1); /* one level short */
+    bad[A] = 1000;
+    refused(bad, A + 1); /* one level over */
+    refused(NULL, A);
+    return 0;
+}
+
+static int steps(int argc, char **argv) {
+    int k, j;
+    int code = INIT(&ctl, &test_policy, test_policy_levels, A, &test_policy_rig);
+    if (code != CARTPOLE_OK) {
+        printf("init %d\n", code);
+        return 1;
+    }
+    for (k = 2; k + 3 < argc; k += 4) {
+        float state[4];
+        cartpole_command_t cmd;
+        for (j = 0; j < 4; j++) state[j] = strtof(argv[k + j], NULL);
+        code = cartpole_controller_step_state(&ctl, state, &cmd);
+        if (code != CARTPOLE_OK) {
+            printf("step %d\n", code);
+            return 1;
+        }
+        printf("%ld %lu %lu %ld %lu\n", (long)cmd.command, (unsigned long)cmd.direction,
+               (unsigned long)cmd.duty, (long)cmd.signed_duty, (unsigned long)cmd.faults);
+    }
+    return 0;
+}
+
+int main(int argc, char **argv) {
+    if (argc >= 2 && strcmp(argv[1], "steps") == 0) return steps(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "refusals") == 0) return refusals();
+    return 2;
+}
