@@ -8,6 +8,8 @@
 
 use firmware::estimator::Encoders;
 
+use crate::grammar::Values;
+use crate::scenario::Scenario;
 use crate::world::Measurement;
 
 /// A stretch of `periods` consecutive periods at the end of every `every` periods (periods
@@ -58,26 +60,6 @@ impl Faults {
         k > 0 && self.reset.is_some_and(|w| w.holds(k))
     }
 
-    /// Sets the fault of part `key` from its values (`value(i)` the `i`th field, its
-    /// default filled in); false if `key` is no fault's part.
-    pub(crate) fn apply(&mut self, key: &str, value: impl Fn(usize) -> Option<f64>) -> bool {
-        let whole = |i: usize| value(i).map_or(1, |v| v as u32);
-        let window = |i: usize| Window {
-            periods: whole(i),
-            every: whole(i + 1).max(1),
-        };
-        match key {
-            "glitch" => self.glitch = Some((whole(0), Window::every(whole(1).max(1)))),
-            "stuck" => self.stuck = Some(window(0)),
-            "drop" => self.drop = Some(Window::every(whole(0).max(1))),
-            "late" => self.late = Some(Window::every(whole(0).max(1))),
-            "weak" => self.weak = Some((value(0).unwrap_or(1.0), window(1))),
-            "reset" => self.reset = Some(Window::every(whole(0).max(1))),
-            _ => return false,
-        }
-        true
-    }
-
     /// `m`, period `k`'s true measurement, as the faulty sensor gives it: off by the
     /// glitch. Stuck and dropped readings are the world's (they need what came before).
     pub(crate) fn corrupt(&self, m: Measurement, k: u32, encoders: &Encoders) -> Measurement {
@@ -97,6 +79,49 @@ impl Faults {
             Measurement::Missing => m,
         }
     }
+}
+
+/// Stretches of `periods` (field `i`) every `every` (field `i + 1`).
+fn window(v: &Values, i: usize) -> Window {
+    Window {
+        periods: v.whole(i),
+        every: v.whole(i + 1).max(1),
+    }
+}
+
+/// One period every field `i`'s.
+fn every(v: &Values, i: usize) -> Window {
+    Window::every(v.whole(i).max(1))
+}
+
+/// `glitch=N/EVERY`.
+pub(crate) fn glitch(s: &mut Scenario, v: &Values) {
+    s.faults.glitch = Some((v.whole(0), every(v, 1)));
+}
+
+/// `stuck=K/EVERY`.
+pub(crate) fn stuck(s: &mut Scenario, v: &Values) {
+    s.faults.stuck = Some(window(v, 0));
+}
+
+/// `drop=EVERY`.
+pub(crate) fn drop(s: &mut Scenario, v: &Values) {
+    s.faults.drop = Some(every(v, 0));
+}
+
+/// `late=EVERY`.
+pub(crate) fn late(s: &mut Scenario, v: &Values) {
+    s.faults.late = Some(every(v, 0));
+}
+
+/// `weak=F/K/EVERY`.
+pub(crate) fn weak(s: &mut Scenario, v: &Values) {
+    s.faults.weak = Some((v.get(0).unwrap_or(1.0), window(v, 1)));
+}
+
+/// `reset=EVERY`.
+pub(crate) fn reset(s: &mut Scenario, v: &Values) {
+    s.faults.reset = Some(every(v, 0));
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 //! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
 //! share P of samples only.
 
-use crate::scenario::MAX_SPEC_BYTES;
+use crate::scenario::{MAX_SPEC_BYTES, Scenario};
 
 /// How a field's values are read and, in a domain, drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -52,10 +52,12 @@ pub struct Field {
 }
 
 /// One kind of part: its key, its fields, its meaning.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug)]
 pub struct PartSpec {
     /// The key, before `=`.
     pub key: &'static str,
+    /// What it does to a scenario, given its values.
+    pub effect: fn(&mut Scenario, &Values),
     /// The values after `=`, separated by `/`, in order; the first is required unless its
     /// fallback says otherwise (then the part may be written as its key alone).
     pub fields: &'static [Field],
@@ -63,6 +65,45 @@ pub struct PartSpec {
     pub syntax: &'static str,
     /// What it does.
     pub doc: &'static str,
+}
+
+/// A part is known by its key.
+impl PartialEq for PartSpec {
+    fn eq(&self, other: &PartSpec) -> bool {
+        self.key == other.key
+    }
+}
+
+/// A part's values as its effect reads them: one per field, `None` where left out.
+pub struct Values<'a> {
+    spec: &'static PartSpec,
+    given: &'a [Option<f64>],
+}
+
+impl<'a> Values<'a> {
+    /// `given`, one per field of `spec`.
+    pub fn new(spec: &'static PartSpec, given: &'a [Option<f64>]) -> Values<'a> {
+        Values { spec, given }
+    }
+
+    /// Field `i`'s value, its fallback filled in where it was left out.
+    pub fn get(&self, i: usize) -> Option<f64> {
+        self.given[i].or(match self.spec.fields[i].fallback {
+            Fallback::Value(v) => Some(v),
+            Fallback::FiveTimesFirst => self.given[0].map(|v| 5.0 * v),
+            Fallback::Required | Fallback::Absent => None,
+        })
+    }
+
+    /// The first field's value, 1 where it has none.
+    pub fn first(&self) -> f64 {
+        self.get(0).unwrap_or(1.0)
+    }
+
+    /// Field `i` as a whole number, 1 where it has none.
+    pub fn whole(&self, i: usize) -> u32 {
+        self.get(i).map_or(1, |v| v as u32)
+    }
 }
 
 const fn field(name: &'static str, kind: Kind, lo: f64, hi: f64, fallback: Fallback) -> Field {
@@ -103,6 +144,7 @@ const FACTOR: Field = field(
 pub const PARTS: &[PartSpec] = &[
     PartSpec {
         key: "noise",
+        effect: crate::scenario::effects::noise,
         fields: &[field(
             "scale",
             Kind::Real,
@@ -116,6 +158,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "delay",
+        effect: crate::scenario::effects::delay,
         fields: &[field(
             "delay",
             Kind::Whole,
@@ -128,12 +171,14 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "force",
+        effect: crate::scenario::effects::force,
         fields: &[FACTOR],
         syntax: "force=F",
         doc: "F times the motor's stall force",
     },
     PartSpec {
         key: "damping",
+        effect: crate::scenario::effects::damping,
         fields: &[FACTOR],
         syntax: "damping=F",
         doc: "F times the motor's damping (back-EMF and drag, N s/m; none on Gymnasium's \
@@ -141,24 +186,28 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "length",
+        effect: crate::scenario::effects::length,
         fields: &[FACTOR],
         syntax: "length=F",
         doc: "F times the pole's length to its centre of mass",
     },
     PartSpec {
         key: "polemass",
+        effect: crate::scenario::effects::polemass,
         fields: &[FACTOR],
         syntax: "polemass=F",
         doc: "F times the pole's mass",
     },
     PartSpec {
         key: "cartmass",
+        effect: crate::scenario::effects::cartmass,
         fields: &[FACTOR],
         syntax: "cartmass=F",
         doc: "F times the cart's mass",
     },
     PartSpec {
         key: "friction",
+        effect: crate::scenario::effects::friction,
         fields: &[
             field(
                 "cart coefficient",
@@ -181,6 +230,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "encoder",
+        effect: crate::scenario::effects::encoder,
         fields: &[
             field(
                 "counts per revolution",
@@ -205,6 +255,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "jitter",
+        effect: crate::scenario::effects::jitter,
         fields: &[field("share", Kind::Real, 0.0, 0.5, Fallback::Value(0.1))],
         syntax: "jitter[=F]",
         doc: "the encoders are read up to F of a period early or late (an interrupt's \
@@ -213,6 +264,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "push",
+        effect: crate::scenario::effects::push,
         fields: &[
             field("impulse", Kind::Real, 0.0, 1000.0, Fallback::Value(0.5)),
             field(
@@ -228,6 +280,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "glitch",
+        effect: crate::faults::glitch,
         fields: &[
             field("counts", Kind::Whole, 1.0, 1e6, Fallback::Value(100.0)),
             interval(100.0),
@@ -238,6 +291,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "stuck",
+        effect: crate::faults::stuck,
         fields: &[
             field("periods", Kind::Whole, 1.0, 1e6, Fallback::Value(5.0)),
             interval(200.0),
@@ -247,12 +301,14 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "drop",
+        effect: crate::faults::drop,
         fields: &[interval(20.0)],
         syntax: "drop[=EVERY]",
         doc: "every EVERY-th reading never arrives: the sensor returns an error",
     },
     PartSpec {
         key: "late",
+        effect: crate::faults::late,
         fields: &[interval(50.0)],
         syntax: "late[=EVERY]",
         doc: "every EVERY-th period overruns (counted): its command misses the period and the \
@@ -260,6 +316,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "weak",
+        effect: crate::faults::weak,
         fields: &[
             field("factor", Kind::Real, 0.0, 1.0, Fallback::Required),
             field("periods", Kind::Whole, 1.0, 1e6, Fallback::Value(50.0)),
@@ -270,6 +327,7 @@ pub const PARTS: &[PartSpec] = &[
     },
     PartSpec {
         key: "reset",
+        effect: crate::faults::reset,
         fields: &[interval(1000.0)],
         syntax: "reset[=EVERY]",
         doc: "the controller restarts every EVERY periods: its observer starts again from the \

@@ -8,7 +8,7 @@ use firmware::estimator::Encoders;
 use firmware::rig::Rig;
 
 use crate::faults::Faults;
-use crate::grammar::{self, FACTOR_RANGE, Fallback, Part};
+use crate::grammar::{self, FACTOR_RANGE, Part, Values};
 use crate::machine::{Integration, Machine};
 
 /// Sensor noise standard deviations of the `noise` part, per channel: 1 cm, 5 cm/s,
@@ -142,52 +142,7 @@ impl Scenario {
 
     /// Sets what `part` says with `values` (one per field, `None` where left out).
     pub(crate) fn apply(&mut self, part: &Part, values: &[Option<f64>]) {
-        let value = |i: usize| -> Option<f64> {
-            values[i].or(match part.spec.fields[i].fallback {
-                Fallback::Value(v) => Some(v),
-                Fallback::FiveTimesFirst => values[0].map(|v| 5.0 * v),
-                Fallback::Required | Fallback::Absent => None,
-            })
-        };
-        let first = value(0).unwrap_or(1.0);
-        let p = &mut self.params;
-        match part.spec.key {
-            "noise" => self.noise_std = NOISE_STD.map(|v| v * first),
-            "delay" => self.rig.dead_time = first as u32,
-            "force" => p.force_mag *= first,
-            "damping" => p.motor_damping *= first,
-            "length" => p.length *= first,
-            "polemass" => p.masspole *= first,
-            "cartmass" => p.masscart *= first,
-            "friction" => {
-                p.cart_friction = first;
-                p.pole_friction = value(1).unwrap_or(0.0);
-            }
-            "encoder" => {
-                if let Some(n) = value(0) {
-                    let n = (n as u32).max(16);
-                    self.rig.encoders = Encoders {
-                        cart_counts_per_m: value(1).map_or(n.saturating_mul(5), |m| m as u32),
-                        pole_counts_per_rev: n,
-                    };
-                }
-                self.sensing = match value(2) {
-                    Some(d) => Sensing::AlphaBeta(d as f32),
-                    None => Sensing::Observer,
-                };
-            }
-            "jitter" => self.jitter = first,
-            "push" => {
-                self.push = Some(Push {
-                    impulse: first,
-                    every: value(1).map_or(100, |k| (k as u32).max(1)),
-                })
-            }
-            other => {
-                let known = self.faults.apply(other, value);
-                assert!(known, "grammar::PARTS has no part {other}");
-            }
-        }
+        (part.spec.effect)(self, &Values::new(part.spec, values));
     }
 
     /// The robustness table's rows: nominal, each perturbation alone, and all three kinds of
@@ -373,6 +328,81 @@ pub(crate) fn check_factors(p: &Params, nominal: &Params) -> Result<(), String> 
         }
     }
     Ok(())
+}
+
+/// What each part of a world does to a scenario ([`grammar::PARTS`] names each beside its
+/// fields); the faults' are [`crate::faults`]'.
+pub(crate) mod effects {
+    use super::*;
+
+    /// `noise=SCALE`.
+    pub(crate) fn noise(s: &mut Scenario, v: &Values) {
+        s.noise_std = NOISE_STD.map(|sd| sd * v.first());
+    }
+
+    /// `delay=N`.
+    pub(crate) fn delay(s: &mut Scenario, v: &Values) {
+        s.rig.dead_time = v.first() as u32;
+    }
+
+    /// `force=F`.
+    pub(crate) fn force(s: &mut Scenario, v: &Values) {
+        s.params.force_mag *= v.first();
+    }
+
+    /// `damping=F`.
+    pub(crate) fn damping(s: &mut Scenario, v: &Values) {
+        s.params.motor_damping *= v.first();
+    }
+
+    /// `length=F`.
+    pub(crate) fn length(s: &mut Scenario, v: &Values) {
+        s.params.length *= v.first();
+    }
+
+    /// `polemass=F`.
+    pub(crate) fn polemass(s: &mut Scenario, v: &Values) {
+        s.params.masspole *= v.first();
+    }
+
+    /// `cartmass=F`.
+    pub(crate) fn cartmass(s: &mut Scenario, v: &Values) {
+        s.params.masscart *= v.first();
+    }
+
+    /// `friction=C/P`.
+    pub(crate) fn friction(s: &mut Scenario, v: &Values) {
+        s.params.cart_friction = v.first();
+        s.params.pole_friction = v.get(1).unwrap_or(0.0);
+    }
+
+    /// `encoder=N/M/D`: the rig's own encoders unless counts are given.
+    pub(crate) fn encoder(s: &mut Scenario, v: &Values) {
+        if let Some(n) = v.get(0) {
+            let n = (n as u32).max(16);
+            s.rig.encoders = Encoders {
+                cart_counts_per_m: v.get(1).map_or(n.saturating_mul(5), |m| m as u32),
+                pole_counts_per_rev: n,
+            };
+        }
+        s.sensing = match v.get(2) {
+            Some(d) => Sensing::AlphaBeta(d as f32),
+            None => Sensing::Observer,
+        };
+    }
+
+    /// `jitter=F`.
+    pub(crate) fn jitter(s: &mut Scenario, v: &Values) {
+        s.jitter = v.first();
+    }
+
+    /// `push=IMPULSE/EVERY`.
+    pub(crate) fn push(s: &mut Scenario, v: &Values) {
+        s.push = Some(Push {
+            impulse: v.first(),
+            every: v.get(1).map_or(100, |k| (k as u32).max(1)),
+        });
+    }
 }
 
 #[cfg(test)]

@@ -160,3 +160,23 @@ fn bad_specs_are_rejected_with_the_reason() {
         "{e}"
     );
 }
+
+#[test]
+fn every_part_of_the_table_changes_the_world_it_is_applied_to() {
+    let desk = crate::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
+    let nominal = Scenario::nominal_on(&desk);
+    for part in crate::grammar::PARTS {
+        // The desk rig has a period of dead time already: its default would change nothing.
+        let spec = match part.fields[0].fallback {
+            crate::grammar::Fallback::Required => format!("{}=0.5", part.key),
+            _ if part.key == "delay" => "delay=3".to_string(),
+            _ => part.key.to_string(),
+        };
+        let s = Scenario::parse_on(&spec, &desk).unwrap();
+        let unnamed = Scenario {
+            name: nominal.name.clone(),
+            ..s
+        };
+        assert_ne!(unnamed, nominal, "{spec} changed nothing");
+    }
+}
