@@ -10,7 +10,7 @@ mod bound;
 static ALLOCATOR: bound::Bounded = bound::Bounded;
 
 fuzz_target!(|data: &[u8]| {
-    if let Ok(got) = bound::within(data.len(), || weights::checkpoint::onnx::import(data)) {
+    if let Ok(got) = bound::within(data.len(), || weights::checkpoint::onnx::import(data, None)) {
         assert!(
             got.weights
                 .tensors()

@@ -12,6 +12,7 @@ use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, 
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
+use weights::levels::GivenLevels;
 
 mod envelope_cmd;
 mod identify_cmd;
@@ -99,6 +100,12 @@ struct Subject {
     /// Tensor-name prefix of the network in --policy, when it holds several.
     #[arg(long, requires = "policy")]
     prefix: Option<String>,
+    /// The duty level each output of --policy drives, for a checkpoint that records none
+    /// (PyTorch, Stable-Baselines3, ONNX): comma-separated fractions of the full push in
+    /// increasing order, one per output (`-1,-0.2,0,0.2,1`). A two-output checkpoint
+    /// without them drives the paper's two; a file that records other levels refuses them.
+    #[arg(long, requires = "policy", allow_hyphen_values = true)]
+    levels: Option<String>,
     /// The machine the scenarios are built on (a rig file, `rigs/`): its physics, encoders,
     /// dead time, track and continuous-time world. Without it, the rig the policy file
     /// records, or Gymnasium's machine; a different one than the recorded is warned about.
@@ -124,6 +131,12 @@ impl Subject {
         .into_iter()
         .filter_map(|(flag, p)| Some((flag, p?)))
         .collect()
+    }
+
+    /// The levels of --levels, checked.
+    fn given(&self) -> Result<Option<GivenLevels>> {
+        let parse = |l: &str| GivenLevels::parse(l, "--levels");
+        Ok(self.levels.as_deref().map(parse).transpose()?)
     }
 
     /// [`Subject::load`] for `kinds` of controller: the network with its integer version if
@@ -167,7 +180,8 @@ impl Subject {
                 Net::shipped(),
             ));
         };
-        let import = weights::checkpoint::load(path, self.prefix.as_deref())?;
+        let import =
+            weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
         let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
         let net = Net::from_weights(&import.weights, int.then_some(&machine))
             .with_context(|| format!("policy {}", path.display()))?;

@@ -17,6 +17,7 @@ use policy_export::train::{self, EpisodeRecord};
 use rayon::prelude::*;
 use weights::checkpoint;
 use weights::files::{check_io, write_atomic};
+use weights::levels::GivenLevels;
 use weights::quant::Granularity;
 
 mod overrides;
@@ -62,7 +63,8 @@ struct ExportArgs {
     /// A run directory (its policy.safetensors), a safetensors file, a torch.save zip (.pt,
     /// .pth, .cleanrl_model), a Stable-Baselines3 model.zip or an ONNX model: tensors named
     /// fc1/fc2/fc3, nn.Sequential indices (0, 2, 4), or either under a prefix (network.,
-    /// q_net.q_net., ...), found by their chain of shapes 4 -> H -> H -> 2.
+    /// q_net.q_net., ...), found by their chain of shapes 4 -> H -> H -> A, one output per
+    /// duty level.
     src: PathBuf,
     /// Output file (replaced atomically; never the input, never a device or directory).
     #[arg(long)]
@@ -78,6 +80,13 @@ struct ExportArgs {
     /// and a target net); "" for none.
     #[arg(long)]
     prefix: Option<String>,
+    /// The duty level each output drives, for a checkpoint that records none (PyTorch,
+    /// Stable-Baselines3, ONNX): comma-separated fractions of the full push in increasing
+    /// order, one per output (`-1,-0.2,0,0.2,1`). A two-output checkpoint without them
+    /// drives the paper's two, full push left and right; a file that records other levels
+    /// refuses them.
+    #[arg(long, allow_hyphen_values = true)]
+    levels: Option<String>,
     /// Write the integer network for cores without an FPU (`firmware::network::int`):
     /// int8 weights calibrated on states the policy visits (`docs/QUANTISATION.md`).
     #[arg(long, value_enum)]
@@ -431,11 +440,16 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         .clone()
         .unwrap_or_else(|| export::default_name(lang, a.quant.is_some()).to_string());
     export::check_name(lang, &name)?;
+    let levels = a
+        .levels
+        .as_deref()
+        .map(|l| GivenLevels::parse(l, "--levels"))
+        .transpose()?;
     let src_file = checkpoint::policy_file(&a.src);
     let mut inputs = vec![("SRC", src_file.as_path())];
     inputs.extend(a.rig.as_deref().map(|r| ("--rig", r)));
     check_io(&inputs, &[("--out", &a.out)])?;
-    let import = checkpoint::load(&a.src, a.prefix.as_deref())?;
+    let import = checkpoint::load_with(&a.src, a.prefix.as_deref(), levels.as_ref())?;
     let prov = run::source_provenance(&a.src, &import)?;
     let granularity = a.quant.map(|Quant::Int8| match a.granularity {
         None => Granularity::default(),

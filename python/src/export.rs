@@ -10,6 +10,7 @@ use pyo3::prelude::*;
 use safetensors::tensor::{Dtype, TensorView};
 use weights::checkpoint::{self, Import};
 use weights::files::{check_io, write_atomic};
+use weights::levels::GivenLevels;
 use weights::quant::Granularity;
 
 use crate::value_error;
@@ -21,9 +22,10 @@ type Tensor = (String, Vec<usize>, Vec<u8>);
 /// as Rust (`fmt` `rust`) or C (`c`) source, int8-quantised with `quant` `int8`, under
 /// `name` (the command's defaults), for the rig file `rig` (without one, the rig the file
 /// records, or Gymnasium's). `label` names in-memory tensors in the provenance comment, as a
-/// file's name does. Returns the provenance's description of the network.
+/// file's name does; `levels` are the duty levels of a network whose source records none
+/// (`weights::levels`). Returns the provenance's description of the network.
 #[pyfunction]
-#[pyo3(signature = (out, fmt, path=None, tensors=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None))]
+#[pyo3(signature = (out, fmt, path=None, tensors=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None, levels=None))]
 // One argument per keyword of the Python function (`cartpole_ddqn.export`).
 #[allow(clippy::too_many_arguments)]
 pub fn export(
@@ -37,6 +39,7 @@ pub fn export(
     rig: Option<PathBuf>,
     prefix: Option<&str>,
     granularity: Option<&str>,
+    levels: Option<Vec<f32>>,
 ) -> PyResult<String> {
     let lang = match fmt {
         "rust" => Language::Rust,
@@ -68,15 +71,16 @@ pub fn export(
     };
     let name = name.unwrap_or_else(|| exporter::default_name(lang, int).to_string());
     exporter::check_name(lang, &name).map_err(value_error)?;
+    let levels = crate::given_levels(levels)?;
+    let found = Found {
+        prefix,
+        levels: levels.as_ref(),
+        rig: rig.as_deref(),
+        out: &out,
+    };
     let (import, provenance) = match (path, tensors) {
-        (Some(p), None) => from_file(&p, rig.as_deref(), &out, prefix)?,
-        (None, Some(t)) => from_tensors(
-            &t,
-            prefix,
-            label.unwrap_or("state dict"),
-            rig.as_deref(),
-            &out,
-        )?,
+        (Some(p), None) => from_file(&p, &found)?,
+        (None, Some(t)) => from_tensors(&t, label.unwrap_or("state dict"), &found)?,
         _ => {
             return Err(value_error(
                 "expected a policy file's path or a state dict as the source",
@@ -96,18 +100,22 @@ pub fn export(
     Ok(import.describe())
 }
 
+/// What finding the network goes by: the prefix and levels given, and the rig and output
+/// files, checked before it is read.
+struct Found<'a> {
+    prefix: Option<&'a str>,
+    levels: Option<&'a GivenLevels>,
+    rig: Option<&'a Path>,
+    out: &'a Path,
+}
+
 /// The network of a policy file and its provenance, the inputs and `out` checked first.
-fn from_file(
-    src: &Path,
-    rig: Option<&Path>,
-    out: &Path,
-    prefix: Option<&str>,
-) -> PyResult<(Import, Vec<String>)> {
+fn from_file(src: &Path, f: &Found) -> PyResult<(Import, Vec<String>)> {
     let file = checkpoint::policy_file(src);
     let mut inputs = vec![("source", file.as_path())];
-    inputs.extend(rig.map(|r| ("rig", r)));
-    check_io(&inputs, &[("out", out)]).map_err(value_error)?;
-    let import = checkpoint::load(src, prefix).map_err(value_error)?;
+    inputs.extend(f.rig.map(|r| ("rig", r)));
+    check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
+    let import = checkpoint::load_with(src, f.prefix, f.levels).map_err(value_error)?;
     let provenance = policy_export::run::source_provenance(src, &import)
         .map_err(|e| value_error(format!("{e:#}")))?;
     Ok((import, provenance))
@@ -116,13 +124,11 @@ fn from_file(
 /// The network of in-memory tensors and its provenance, as a file named `label` would give.
 fn from_tensors(
     tensors: &BTreeMap<String, Tensor>,
-    prefix: Option<&str>,
     label: &str,
-    rig: Option<&Path>,
-    out: &Path,
+    f: &Found,
 ) -> PyResult<(Import, Vec<String>)> {
-    let inputs: Vec<(&str, &Path)> = rig.map(|r| ("rig", r)).into_iter().collect();
-    check_io(&inputs, &[("out", out)]).map_err(value_error)?;
+    let inputs: Vec<(&str, &Path)> = f.rig.map(|r| ("rig", r)).into_iter().collect();
+    check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
     let views = tensors
         .iter()
         .map(|(n, (dtype, shape, data))| {
@@ -151,7 +157,7 @@ fn from_tensors(
         .collect::<PyResult<Vec<_>>>()?;
     let bytes = safetensors::tensor::serialize(views, None)
         .map_err(|e| value_error(weights::excerpt(&e.to_string())))?;
-    let import = checkpoint::import(&bytes, prefix).map_err(value_error)?;
+    let import = checkpoint::import_with(&bytes, f.prefix, f.levels).map_err(value_error)?;
     let provenance = vec![format!("source: {label} ({})", import.describe())];
     Ok((import, provenance))
 }

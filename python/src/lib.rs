@@ -10,6 +10,7 @@ use std::path::Path;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use twin::Machine;
+use weights::levels::GivenLevels;
 
 mod env;
 mod evaluate;
@@ -21,6 +22,14 @@ mod policy;
 /// says what was expected and what was found.
 pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// The duty levels a caller gave as `levels=`, checked as the firmware checks them.
+pub(crate) fn given_levels(levels: Option<Vec<f32>>) -> PyResult<Option<GivenLevels>> {
+    levels
+        .map(|l| GivenLevels::new(l, "levels"))
+        .transpose()
+        .map_err(value_error)
 }
 
 /// The record a results file keeps of the run that wrote it (`host_common::provenance`), as

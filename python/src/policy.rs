@@ -25,12 +25,19 @@ pub struct Policy {
 
 /// The network at `path` (a policy file or a run directory), `prefix` choosing among several
 /// in one file, on the machine of the rig file `rig` (without one, the rig the file records,
-/// or Gymnasium's).
+/// or Gymnasium's), its outputs driving the duty `levels` if its file records none
+/// (`weights::levels`).
 #[pyfunction]
-#[pyo3(signature = (path, prefix=None, rig=None))]
-pub fn load(path: PathBuf, prefix: Option<&str>, rig: Option<PathBuf>) -> PyResult<Policy> {
+#[pyo3(signature = (path, prefix=None, rig=None, levels=None))]
+pub fn load(
+    path: PathBuf,
+    prefix: Option<&str>,
+    rig: Option<PathBuf>,
+    levels: Option<Vec<f32>>,
+) -> PyResult<Policy> {
     let given = crate::given_machine(rig.as_deref())?;
-    let import = checkpoint::load(&path, prefix).map_err(value_error)?;
+    let levels = crate::given_levels(levels)?;
+    let import = checkpoint::load_with(&path, prefix, levels.as_ref()).map_err(value_error)?;
     let recorded = twin::rigfile::recorded(&import.metadata).map_err(value_error)?;
     let machine = twin::rigfile::choose(given, recorded);
     let net = Net::from_weights(&import.weights, None)
@@ -82,6 +89,12 @@ impl Policy {
             .map(|o| argmax(self.net.forward(&o).values()) as i64)
             .collect();
         Ok(PyArray1::from_vec(py, a))
+    }
+
+    /// The duty level each output drives, as a fraction of the full push.
+    #[getter]
+    fn levels(&self) -> Vec<f32> {
+        self.net.levels().iter().map(|d| d.fraction()).collect()
     }
 
     /// Where the network was found: its layers, prefix and width.

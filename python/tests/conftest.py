@@ -53,3 +53,27 @@ def read_safetensors(path):
         lo, hi = t["data_offsets"]
         out[name] = np.frombuffer(body[lo:hi], dtype=dtypes[t["dtype"]]).reshape(t["shape"])
     return out
+
+
+def write_safetensors(path, tensors):
+    """Writes float32 `tensors` as a safetensors file, by the format's definition, with no
+    metadata: a checkpoint as `safetensors.torch.save_file` writes one, recording no levels."""
+    header, body = {}, b""
+    for name, a in tensors.items():
+        data = np.ascontiguousarray(a, dtype="<f4").tobytes()
+        header[name] = {"dtype": "F32", "shape": list(a.shape), "data_offsets": [len(body), len(body) + len(data)]}
+        body += data
+    text = json.dumps(header).encode()
+    text += b" " * (-len(text) % 8)
+    pathlib.Path(path).write_bytes(struct.pack("<Q", len(text)) + text + body)
+
+
+def five_outputs(seed=0):
+    """A width-64 network of five outputs with random weights, as a state dict."""
+    rng = np.random.default_rng(seed)
+    shapes = {"fc1": (64, 4), "fc2": (64, 64), "fc3": (5, 64)}
+    out = {}
+    for layer, shape in shapes.items():
+        out[f"{layer}.weight"] = (rng.standard_normal(shape) * 0.3).astype(np.float32)
+        out[f"{layer}.bias"] = (rng.standard_normal(shape[0]) * 0.1).astype(np.float32)
+    return out

@@ -5,7 +5,7 @@ import pytest
 
 import cartpole_ddqn
 
-from conftest import REPO, read_safetensors, run
+from conftest import REPO, five_outputs, read_safetensors, run, write_safetensors
 
 FIXTURES = REPO / "weights" / "tests" / "fixtures"
 CASES = [
@@ -83,3 +83,17 @@ def test_a_dict_without_the_network_is_refused(tmp_path):
     with pytest.raises(ValueError):
         cartpole_ddqn.export(tensors, out=tmp_path / "x.rs")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_five_outputs_export_with_their_levels_as_the_command_does(tools, tmp_path):
+    src = tmp_path / "five.safetensors"
+    tensors = five_outputs()
+    write_safetensors(src, tensors)
+    levels = [-1, -0.2, 0, 0.2, 1]
+    out = tmp_path / "py.out"
+    cartpole_ddqn.export(tensors, out=out, label="five.safetensors", levels=levels)
+    assert out.read_bytes() == cli_export(tools, tmp_path, src, ["--levels", "-1,-0.2,0,0.2,1"])
+    out.unlink()
+    with pytest.raises(ValueError, match="expected one level per output of the network, 5; found 3"):
+        cartpole_ddqn.export(src, out=tmp_path / "never.rs", levels=[-1, 0, 1])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["cli.out", "five.safetensors"]

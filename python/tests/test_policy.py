@@ -8,7 +8,7 @@ import pytest
 
 import cartpole_ddqn
 
-from conftest import REPO, read_safetensors, run
+from conftest import REPO, five_outputs, read_safetensors, run, write_safetensors
 
 SHIPPED = REPO / "firmware" / "policy.safetensors"
 
@@ -90,3 +90,37 @@ def test_every_checkpoint_format_gives_pytorchs_q_values(name, prefix):
 def test_a_hostile_or_foreign_checkpoint_is_refused_by_name(name, says):
     with pytest.raises(ValueError, match=says):
         cartpole_ddqn.load(FIXTURES / name)
+
+
+FIVE = [-1.0, -0.2, 0.0, 0.2, 1.0]
+
+
+def test_a_five_output_checkpoint_drives_the_levels_given(tmp_path):
+    path = tmp_path / "five.safetensors"
+    tensors = five_outputs()
+    write_safetensors(path, tensors)
+    policy = cartpole_ddqn.load(path, levels=FIVE)
+    assert policy.levels == pytest.approx(FIVE, abs=1e-7)
+    obs = states()
+    q, want = policy.q_values(obs), numpy_q(tensors, obs)
+    assert q.shape == (len(obs), 5)
+    assert np.max(np.abs(q - want)) <= 1e-5 * max(1.0, np.max(np.abs(want)))
+    top = np.sort(want, axis=1)
+    clear = top[:, -1] - top[:, -2] > 1e-3
+    assert np.array_equal(policy.act(obs)[clear], np.argmax(want, axis=1)[clear])
+    assert policy.q_values(obs.reshape(40, 50, 4)).shape == (40, 50, 5)
+
+
+@pytest.mark.parametrize(
+    "levels, says",
+    [
+        (None, "5 outputs and its file records no duty levels"),
+        ([-1, 1], r"levels \[-1, 1\]: expected one level per output of the network, 5; found 2"),
+        ([1, 0, -1, 0.5, 0.2], "expected strictly increasing"),
+    ],
+)
+def test_five_outputs_without_their_levels_are_refused(tmp_path, levels, says):
+    path = tmp_path / "five.safetensors"
+    write_safetensors(path, five_outputs())
+    with pytest.raises(ValueError, match=says):
+        cartpole_ddqn.load(path, levels=levels)

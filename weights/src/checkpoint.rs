@@ -13,7 +13,9 @@
 //! `q_net.q_net.0.weight` (and a target net under `q_net_target.q_net.`) for a
 //! Stable-Baselines3 DQN policy. [`import`] groups the tensors by prefix and takes the group
 //! whose three linear layers, in natural order of their names, chain the shapes
-//! `[H, 4] -> [H, H] -> [2, H]` with biases `[H]`, `[H]`, `[2]`. A checkpoint holding two
+//! `[H, 4] -> [H, H] -> [A, H]` with biases `[H]`, `[H]`, `[A]`, one output per duty level
+//! (the levels the file records, else those given ([`import_with`]), else the paper's two
+//! for `A = 2`: [`crate::levels`]). A checkpoint holding two
 //! such networks (an online and a target net) is refused with both prefixes named, unless
 //! one is chosen; tensors outside the network are refused unless a prefix was chosen
 //! explicitly, so nothing is dropped without being asked for.
@@ -35,10 +37,11 @@ use std::path::Path;
 
 use firmware::network::{OBS_DIM, TENSOR_NAMES};
 
-pub use safetensors_file::{MAX_HEADER_BYTES, to_safetensors};
+pub use safetensors_file::{LEVELS_KEY, MAX_HEADER_BYTES, to_safetensors};
 use state_dict::{StateDict, shape_text, to_f32};
 
 use crate::files::{MAX_POLICY_BYTES, read_capped};
+use crate::levels::{self, GivenLevels};
 use crate::{Error, Result, Weights, check_shape, few, quote};
 
 /// The kind of file a network was read from.
@@ -128,9 +131,15 @@ pub fn policy_file(path: &Path) -> std::path::PathBuf {
 /// Reads the checkpoint at `path` (a `.safetensors` file, or a run directory's
 /// `policy.safetensors`) and finds its network; `prefix` chooses among several.
 pub fn load(path: &Path, prefix: Option<&str>) -> Result<Import> {
+    load_with(path, prefix, None)
+}
+
+/// [`load`], with the duty levels `given` for a network whose file records none
+/// ([`levels`](crate::levels)).
+pub fn load_with(path: &Path, prefix: Option<&str>, given: Option<&GivenLevels>) -> Result<Import> {
     let file = policy_file(path);
     let bytes = read_capped(&file, MAX_POLICY_BYTES)?;
-    import(&bytes, prefix).map_err(|e| match e {
+    import_with(&bytes, prefix, given).map_err(|e| match e {
         Error::Input(m) => Error::Input(format!("{}: {m}", file.display())),
         other => other,
     })
@@ -145,12 +154,27 @@ struct Layer<'a> {
     other: Vec<&'a str>,
 }
 
-/// Finds the 4-H-H-2 network in a checkpoint's `bytes` (any of the module's formats);
+/// Finds the 4-H-H-A network in a checkpoint's `bytes` (any of the module's formats);
 /// `prefix` chooses among several.
 pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
+    import_with(bytes, prefix, None)
+}
+
+/// [`import`], with the duty levels `given` for a network whose file records none
+/// ([`levels`](crate::levels)).
+pub fn import_with(
+    bytes: &[u8],
+    prefix: Option<&str>,
+    given: Option<&GivenLevels>,
+) -> Result<Import> {
+    let found = Found {
+        prefix,
+        given,
+        metadata: BTreeMap::new(),
+    };
     if bytes.starts_with(b"PK") {
         let (dict, format) = torch::read(bytes)?;
-        return from_dict(&dict, prefix, BTreeMap::new(), format);
+        return from_dict(&dict, found, format);
     }
     if let [0x80, 2..=5, 0x8a, ..] = bytes {
         return Err(Error::Input(
@@ -168,7 +192,7 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
                 quote(p)
             )));
         }
-        return onnx::import(bytes);
+        return onnx::import(bytes, given);
     }
     let (dict, metadata) = safetensors_file::read(bytes).map_err(|e| match e {
         Error::Input(m) if bytes.get(8) != Some(&b'{') => Error::Input(format!(
@@ -177,16 +201,24 @@ pub fn import(bytes: &[u8], prefix: Option<&str>) -> Result<Import> {
         )),
         other => other,
     })?;
-    from_dict(&dict, prefix, metadata, Format::Safetensors)
+    from_dict(&dict, Found { metadata, ..found }, Format::Safetensors)
 }
 
-/// Finds the 4-H-H-2 network among a state dict's tensors.
-fn from_dict(
-    dict: &StateDict,
-    prefix: Option<&str>,
+/// What finding a network in a state dict goes by: the prefix asked for, the levels given,
+/// the file's metadata.
+struct Found<'a> {
+    prefix: Option<&'a str>,
+    given: Option<&'a GivenLevels>,
     metadata: BTreeMap<String, String>,
-    format: Format,
-) -> Result<Import> {
+}
+
+/// Finds the 4-H-H-A network among a state dict's tensors.
+fn from_dict(dict: &StateDict, found: Found, format: Format) -> Result<Import> {
+    let Found {
+        prefix,
+        given,
+        metadata,
+    } = found;
     let names: Vec<&str> = dict.keys().map(|k| k.as_ref()).collect();
     // Messages quote names; PyTorch's are short (`q_net_target.q_net.4.weight` is 27 bytes).
     if let Some(long) = names.iter().find(|n| n.len() > crate::QUOTE_MAX) {
@@ -234,7 +266,7 @@ fn from_dict(
         converted_from = converted_from.or(from);
         *t = values;
     }
-    let levels = levels_of(&metadata, outputs)?;
+    let levels = levels::of_file(&metadata, outputs, given)?;
     let weights = checked_weights(tensors, levels, &own)?;
     Ok(Import {
         weights,
@@ -245,36 +277,6 @@ fn from_dict(
         metadata,
         format,
     })
-}
-
-/// The duty levels of a network of `outputs` outputs: as its file's metadata records them
-/// ([`safetensors_file::LEVELS_KEY`]), the paper's two for a two-output network that records
-/// none; a network of more outputs without levels is refused, never guessed at.
-pub(crate) fn levels_of(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Vec<f32>> {
-    let Some(text) = metadata.get(safetensors_file::LEVELS_KEY) else {
-        if outputs == 2 {
-            return Ok(crate::BANG_BANG.to_vec());
-        }
-        return Err(Error::Input(format!(
-            "the network has {outputs} outputs and its file records no duty levels: \
-             expected a `{}` entry in its metadata listing {outputs} levels",
-            safetensors_file::LEVELS_KEY
-        )));
-    };
-    let levels: Vec<f32> = serde_json::from_str(text).map_err(|e| {
-        Error::Input(format!(
-            "the file's duty levels {}: expected a list of numbers ({})",
-            quote(text),
-            crate::excerpt(&e.to_string())
-        ))
-    })?;
-    if levels.len() != outputs {
-        return Err(Error::Input(format!(
-            "the file records {} duty levels for a network of {outputs} outputs",
-            levels.len()
-        )));
-    }
-    Ok(levels)
 }
 
 /// The network of `tensors` (canonical order, named `names` in the file) on `levels`, with

@@ -6,6 +6,8 @@
 //!   `nn.Sequential` indices, prefixes such as CleanRL's `network.` or Stable-Baselines3's
 //!   `q_net.q_net.`), recognised by their chain of shapes; and the canonical file the trainer
 //!   writes.
+//! - [`levels`]: the duty levels an imported network drives, recorded in its file or given
+//!   for one that records none.
 //! - [`quant`]: post-training int8 quantisation for the integer network, and its Rust and C
 //!   source.
 //! - [`source`]: Rust modules and C headers that compile the weights into flash, bit for bit.
@@ -24,6 +26,7 @@
 pub mod checkpoint;
 pub mod feedback;
 pub mod files;
+pub mod levels;
 pub mod quant;
 pub mod shape;
 pub mod source;
@@ -302,6 +305,26 @@ mod tests {
         nan[4][7] = f32::NAN;
         let e = Weights::new(16, two(), nan).unwrap_err().to_string();
         assert!(e.contains("`fc3.weight`: element 7 is NaN"), "{e}");
+    }
+
+    #[test]
+    fn a_policy_of_more_outputs_is_never_read_as_a_two_level_one() {
+        let five = vec![-1.0, -0.2, 0.0, 0.2, 1.0];
+        let t = shapes(64, 5).map(|s| vec![0.25; s.len()]);
+        let w = Weights::new(64, five.clone(), t).unwrap();
+        let e = w.to_mlp::<64, 2>().unwrap_err().to_string();
+        assert!(
+            e.contains("hidden width 64 with 5 outputs (levels [-1.0, -0.2, 0.0, 0.2, 1.0])")
+                && e.contains("expected width 64 with 2"),
+            "{e}"
+        );
+        assert!(w.to_levels::<2>().is_err() && w.to_levels::<7>().is_err());
+        let levels = w.to_levels::<5>().unwrap();
+        assert_eq!(levels.fractions().to_vec(), five);
+        // Every parameter 0.25, the reading 0: each first-layer unit is its bias, 0.25; each
+        // second 0.25 + 64 * 0.25 * 0.25 = 4.25; each output 0.25 + 64 * 0.25 * 4.25, exact.
+        let q = w.to_mlp::<64, 5>().unwrap().forward(&[0.0; 4]);
+        assert_eq!(q, [68.25; 5]);
     }
 
     #[test]

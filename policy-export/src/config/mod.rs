@@ -285,27 +285,12 @@ config_keys! {
 }
 
 /// The duty levels `spec` lists (comma-separated fractions of the full push), or the
-/// paper's two for an empty spec; refused as the firmware refuses them
-/// (`firmware::controller::check_levels`).
+/// paper's two for an empty spec; refused as `weights::levels::parse_levels` refuses them.
 pub fn parse_levels(spec: &str) -> Result<Vec<f32>, String> {
     if spec.trim().is_empty() {
         return Ok(weights::BANG_BANG.to_vec());
     }
-    let levels = spec
-        .split(',')
-        .map(|v| {
-            v.trim().parse::<f32>().map_err(|_| {
-                format!(
-                    "levels {}: expected comma-separated numbers, found {}",
-                    weights::quote(spec),
-                    weights::quote(v)
-                )
-            })
-        })
-        .collect::<Result<Vec<f32>, String>>()?;
-    firmware::controller::check_levels(&levels)
-        .map_err(|e| format!("levels {}: {e}", weights::quote(spec)))?;
-    Ok(levels)
+    weights::levels::parse_levels(spec, "levels").map_err(|e| e.to_string())
 }
 
 impl Config {

@@ -13,15 +13,22 @@ _DTYPES = {np.dtype(np.float32): "F32", np.dtype(np.float64): "F64", np.dtype(np
 
 
 class Policy:
-    """A Q-network: ``q_values(obs)`` for readings ``[..., 4]`` gives ``[..., 2]``;
-    ``act(obs)`` the controller's actions (1 right, 0 left)."""
+    """A Q-network: ``q_values(obs)`` for readings ``[..., 4]`` gives ``[..., A]``, one
+    column per duty level (``levels``); ``act(obs)`` the controller's actions, the index of
+    the level it drives (with the paper's two, 1 right, 0 left)."""
 
     def __init__(self, native):
         self._native = native
 
     def q_values(self, obs):
         obs = _readings(obs)
-        return self._native.q_values(obs.reshape(-1, 4)).reshape(obs.shape[:-1] + (2,))
+        q = self._native.q_values(obs.reshape(-1, 4))
+        return q.reshape(obs.shape[:-1] + q.shape[-1:])
+
+    @property
+    def levels(self):
+        """The duty level each output drives, a fraction of the full push."""
+        return self._native.levels
 
     def act(self, obs):
         obs = _readings(obs)
@@ -41,11 +48,13 @@ def _readings(obs):
     return obs
 
 
-def load(path, prefix=None, rig=None):
+def load(path, prefix=None, rig=None, levels=None):
     """The network in a policy file or run directory (whatever formats the project reads),
     ``prefix`` choosing among several networks in one file; ``rig`` a rig file for the
-    machine it runs on (without one, the rig the file records, or Gymnasium's)."""
-    return Policy(_native.load(os.fspath(path), prefix, _path(rig)))
+    machine it runs on (without one, the rig the file records, or Gymnasium's); ``levels``
+    the duty level of each output (fractions of the full push, increasing) for a file that
+    records none, as PyTorch's, Stable-Baselines3's and ONNX files do."""
+    return Policy(_native.load(os.fspath(path), prefix, _path(rig), _levels(levels)))
 
 
 def shipped(rig=None):
@@ -55,6 +64,10 @@ def shipped(rig=None):
 
 def _path(p):
     return None if p is None else os.fspath(p)
+
+
+def _levels(levels):
+    return None if levels is None else [float(v) for v in levels]
 
 
 def _tensors(source):
@@ -79,13 +92,16 @@ def _tensors(source):
     return out
 
 
-def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None, granularity=None, label=None):
+def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None, granularity=None, label=None, levels=None):
     """Writes the network of ``source`` (a policy file or run directory's path, or a state
     dict of NumPy arrays or PyTorch tensors) to ``out`` as ``policy-export export`` does:
     Rust (``fmt="rust"``) or C (``"c"``) source, float or ``quant="int8"``, written
     atomically. ``label`` names an in-memory source in the file's provenance comment (as a
-    file's name does; default ``state dict``). Returns ``out``."""
-    kwargs = dict(quant=quant, name=name, rig=_path(rig), prefix=prefix, granularity=granularity)
+    file's name does; default ``state dict``); ``levels`` are the duty levels of a network
+    whose source records none (as ``load``). Returns ``out``."""
+    kwargs = dict(
+        quant=quant, name=name, rig=_path(rig), prefix=prefix, granularity=granularity, levels=_levels(levels)
+    )
     if isinstance(source, dict):
         _native.export(os.fspath(out), fmt, tensors=_tensors(source), label=label, **kwargs)
     elif isinstance(source, (str, os.PathLike)):

@@ -16,7 +16,8 @@ use std::collections::BTreeMap;
 
 use super::protobuf::{Fields, Wire, count, last, text, varints};
 use super::state_dict::{Data, Dtype, Tensor, shape_text, to_f32};
-use super::{Format, Import, checked_weights, levels_of, unchained};
+use super::{Format, Import, checked_weights, unchained};
+use crate::levels::{self, GivenLevels};
 use crate::{Error, Result, check_shape, quote};
 
 fn refuse<T>(why: String) -> Result<T> {
@@ -82,8 +83,9 @@ fn string(bytes: &[u8], n: u64) -> Result<&str> {
     last(bytes, n)?.as_ref().map_or(Ok(""), text)
 }
 
-/// The network in the ONNX model `bytes`.
-pub fn import(bytes: &[u8]) -> Result<Import> {
+/// The network in the ONNX model `bytes`; `given` the duty levels of its outputs (a model
+/// records none).
+pub fn import(bytes: &[u8], given: Option<&GivenLevels>) -> Result<Import> {
     let graphs = count(bytes, 7)?;
     let (1, Some(graph)) = (graphs, last(bytes, 7)?) else {
         return refuse(format!("expected a model with one graph, found {graphs}"));
@@ -139,7 +141,7 @@ pub fn import(bytes: &[u8]) -> Result<Import> {
         };
     }
     let names: [&str; 6] = names.try_into().expect("six names");
-    let levels = levels_of(&BTreeMap::new(), dims[2].1)?;
+    let levels = levels::of_file(&BTreeMap::new(), dims[2].1, given)?;
     Ok(Import {
         weights: checked_weights(tensors, levels, &names)?,
         prefix: String::new(),

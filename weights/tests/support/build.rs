@@ -115,7 +115,12 @@ impl Pickle {
 /// A width-16 network's six tensors with recognisable values (tensor `t`, element `i` is
 /// `t + i / 1000`): the values, as little-endian bytes, and the shapes.
 pub fn network() -> Vec<(Vec<f32>, Vec<u8>, Vec<usize>)> {
-    shapes(16, 2)
+    network_of(16, 2)
+}
+
+/// [`network`] of hidden width `width` with `outputs` outputs.
+pub fn network_of(width: usize, outputs: usize) -> Vec<(Vec<f32>, Vec<u8>, Vec<usize>)> {
+    shapes(width, outputs)
         .iter()
         .enumerate()
         .map(|(t, s)| {
@@ -131,10 +136,21 @@ pub fn network() -> Vec<(Vec<f32>, Vec<u8>, Vec<usize>)> {
 /// The pickle items of the network under `prefix` (`{prefix}0.weight` ...), storages `n0`
 /// to `n5`, and the storages' entries for the zip.
 pub fn network_items(p: &mut Pickle, prefix: &str) -> Vec<(String, Vec<u8>)> {
+    items_of(p, prefix, "n", network())
+}
+
+/// [`network_items`] of the tensors `net` ([`network_of`]), storages `{keys}0` to
+/// `{keys}5` (two networks in one file need two sets of keys).
+pub fn items_of(
+    p: &mut Pickle,
+    prefix: &str,
+    keys: &str,
+    net: Vec<(Vec<f32>, Vec<u8>, Vec<usize>)>,
+) -> Vec<(String, Vec<u8>)> {
     let mut storages = Vec::new();
-    for (k, (v, bytes, dims)) in network().into_iter().enumerate() {
+    for (k, (v, bytes, dims)) in net.into_iter().enumerate() {
         let name = format!("{prefix}{}.{}", 2 * (k / 2), ["weight", "bias"][k % 2]);
-        let key = format!("n{k}");
+        let key = format!("{keys}{k}");
         let stride: Vec<usize> = if dims.len() == 2 {
             vec![dims[1], 1]
         } else {
@@ -225,8 +241,12 @@ pub fn onnx_value(name: &str) -> Vec<u8> {
 /// The graph fields of the width-16 network as `Gemm`s (`transB = 1`) with `Relu`s
 /// between, from input `x` to output `q`.
 pub fn onnx_network_fields() -> Vec<u8> {
+    onnx_fields_of(&network())
+}
+
+/// [`onnx_network_fields`] of the tensors `net` ([`network_of`]).
+pub fn onnx_fields_of(net: &[(Vec<f32>, Vec<u8>, Vec<usize>)]) -> Vec<u8> {
     let mut g = Vec::new();
-    let net = network();
     let mut cur = "x".to_string();
     for k in 0..3 {
         let (w, b) = (format!("w{k}"), format!("b{k}"));

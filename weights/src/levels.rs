@@ -1,0 +1,280 @@
+//! Duty levels given for a policy file: how a command's `--levels` and the Python package's
+//! `levels=` reach the importer, and which levels an imported network drives (the ones its
+//! file records, else the ones given, else the paper's two for a two-output network).
+//!
+//! A checkpoint saved by PyTorch, Stable-Baselines3 or an ONNX exporter records no levels:
+//! its outputs are only numbers. A two-output one is taken to be the paper's (full push left
+//! and right); one of more outputs needs its levels given, and is refused without them
+//! rather than guessed at.
+
+use std::collections::BTreeMap;
+
+use firmware::controller::{Duty, check_levels};
+
+use crate::checkpoint::LEVELS_KEY;
+use crate::{BANG_BANG, Error, Result, few, quote};
+
+/// Duty levels given for a policy file, and the argument that gave them (`--levels`,
+/// `levels`), which a refusal names.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GivenLevels {
+    levels: Vec<f32>,
+    by: &'static str,
+}
+
+impl GivenLevels {
+    /// `levels` (fractions of the full push, one per output) given by the argument `by`;
+    /// refused as the firmware refuses levels ([`check_levels`]).
+    pub fn new(levels: Vec<f32>, by: &'static str) -> Result<GivenLevels> {
+        check_levels(&levels).map_err(|e| Error::Input(format!("{by} {}: {e}", show(&levels))))?;
+        Ok(GivenLevels { levels, by })
+    }
+
+    /// The levels `spec` lists, given by the argument `by` ([`parse_levels`]).
+    pub fn parse(spec: &str, by: &'static str) -> Result<GivenLevels> {
+        Ok(GivenLevels {
+            levels: parse_levels(spec, by)?,
+            by,
+        })
+    }
+
+    /// The levels, in output order.
+    pub fn levels(&self) -> &[f32] {
+        &self.levels
+    }
+}
+
+/// The duty levels `spec` lists, comma-separated fractions of the full push in increasing
+/// order (`-1,-0.2,0,0.2,1`). Refused, naming the argument `by` and quoting `spec`: an empty
+/// list, a word that is no number, and levels the firmware refuses ([`check_levels`]: fewer
+/// than two, not finite, beyond `[-1, 1]`, not strictly increasing in thousandths).
+pub fn parse_levels(spec: &str, by: &str) -> Result<Vec<f32>> {
+    let refuse = |why: String| Error::Input(format!("{by} {}: {why}", quote(spec)));
+    if spec.trim().is_empty() {
+        return Err(refuse(
+            "expected comma-separated duty levels, fractions of the full push in increasing \
+             order (-1,-0.2,0,0.2,1); found none"
+                .into(),
+        ));
+    }
+    let levels = spec
+        .split(',')
+        .map(|v| {
+            v.trim().parse::<f32>().map_err(|_| {
+                refuse(format!(
+                    "expected comma-separated numbers, found {}",
+                    quote(v)
+                ))
+            })
+        })
+        .collect::<Result<Vec<f32>>>()?;
+    check_levels(&levels).map_err(|e| refuse(e.to_string()))?;
+    Ok(levels)
+}
+
+/// `levels` for a message: `[-1, -0.2, 0, 0.2, 1]`, a long list cut.
+fn show(levels: &[f32]) -> String {
+    format!("[{}]", few(levels.iter().map(f32::to_string), 12))
+}
+
+/// The duty levels of a network of `outputs` outputs read from a file with `metadata`: the
+/// levels the file records ([`LEVELS_KEY`]), which `given` may repeat (to the thousandth,
+/// as the bridge drives them) but not contradict; else the levels `given`, one per output;
+/// else the paper's two for a two-output network. A network of more outputs with neither is
+/// refused.
+pub(crate) fn of_file(
+    metadata: &BTreeMap<String, String>,
+    outputs: usize,
+    given: Option<&GivenLevels>,
+) -> Result<Vec<f32>> {
+    match (recorded(metadata, outputs)?, given) {
+        (Some(file), None) => Ok(file),
+        (Some(file), Some(g)) if same_duties(&file, &g.levels) => Ok(file),
+        (Some(file), Some(g)) => Err(Error::Input(format!(
+            "{} {}: the file records the duty levels {}; expected those or no {}",
+            g.by,
+            show(&g.levels),
+            show(&file),
+            g.by
+        ))),
+        (None, Some(g)) if g.levels.len() == outputs => Ok(g.levels.clone()),
+        (None, Some(g)) => Err(Error::Input(format!(
+            "{} {}: expected one level per output of the network, {outputs}; found {}",
+            g.by,
+            show(&g.levels),
+            g.levels.len()
+        ))),
+        (None, None) if outputs == 2 => Ok(BANG_BANG.to_vec()),
+        (None, None) => Err(Error::Input(format!(
+            "the network has {outputs} outputs and its file records no duty levels: expected \
+             the {outputs} levels its outputs drive, given with --levels (levels= in Python) \
+             or recorded as `{LEVELS_KEY}` in its metadata"
+        ))),
+    }
+}
+
+/// The levels `metadata` records for a network of `outputs` outputs, if any.
+fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Option<Vec<f32>>> {
+    let Some(text) = metadata.get(LEVELS_KEY) else {
+        return Ok(None);
+    };
+    let levels: Vec<f32> = serde_json::from_str(text).map_err(|e| {
+        Error::Input(format!(
+            "the file's duty levels {}: expected a list of numbers ({})",
+            quote(text),
+            crate::excerpt(&e.to_string())
+        ))
+    })?;
+    if levels.len() != outputs {
+        return Err(Error::Input(format!(
+            "the file records {} duty levels for a network of {outputs} outputs",
+            levels.len()
+        )));
+    }
+    check_levels(&levels)
+        .map_err(|e| Error::Input(format!("the file's duty levels {}: {e}", show(&levels))))?;
+    Ok(Some(levels))
+}
+
+/// Whether two lists of levels drive the same duties.
+fn same_duties(a: &[f32], b: &[f32]) -> bool {
+    let duties = |l: &[f32]| -> Vec<Option<Duty>> {
+        l.iter().map(|&f| Duty::from_fraction(f).ok()).collect()
+    };
+    duties(a) == duties(b)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn refused(spec: &str) -> String {
+        let e = parse_levels(spec, "--levels").unwrap_err();
+        assert!(e.is_input(), "{e}");
+        e.to_string()
+    }
+
+    #[test]
+    fn a_spec_is_parsed_or_refused_naming_the_flag_and_quoting_it() {
+        let five = parse_levels(" -1, -0.2,0 ,0.2,1", "--levels").unwrap();
+        assert_eq!(five, [-1.0, -0.2, 0.0, 0.2, 1.0]);
+        for (spec, says) in [
+            ("", "found none"),
+            ("  ", "found none"),
+            ("-1,,1", "expected comma-separated numbers, found \"\""),
+            ("-1,half,1", "found \"half\""),
+            ("0x10,1", "found \"0x10\""),
+            ("1,0", "expected strictly increasing"),
+            ("0.2,0.2004", "expected strictly increasing"),
+            ("-1,0,1.5", "expected within [-1, 1]"),
+            ("-1,NaN", "expected a finite number"),
+            ("-1,1e999", "expected a finite number"),
+            ("1", "expected at least two"),
+        ] {
+            let m = refused(spec);
+            assert!(m.starts_with("--levels \""), "{spec:?}: {m}");
+            assert!(m.contains(says), "{spec:?}: {m}");
+        }
+        // Hostile text is quoted short and on one line.
+        let long = format!("1,{}\u{1b}", "9".repeat(10_000));
+        let m = refused(&long);
+        assert!(m.len() < 600 && !m.chars().any(char::is_control), "{m}");
+    }
+
+    #[test]
+    fn given_levels_are_checked_as_the_firmware_checks_them() {
+        let ok = GivenLevels::new(vec![-1.0, 0.0, 1.0], "levels").unwrap();
+        assert_eq!(ok.levels(), [-1.0, 0.0, 1.0]);
+        let e = GivenLevels::new(vec![0.5, -0.5], "levels").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "levels [0.5, -0.5]: levels: expected strictly increasing"
+        );
+        let e = GivenLevels::new(vec![], "levels").unwrap_err().to_string();
+        assert!(e.contains("expected at least two"), "{e}");
+        let many: Vec<f32> = (0..1000).map(|i| i as f32 / 1000.0).collect();
+        assert!(GivenLevels::new(many.clone(), "levels").is_ok());
+        let mut bad = many;
+        bad.push(2.0);
+        let e = GivenLevels::new(bad, "levels").unwrap_err().to_string();
+        assert!(e.contains("and 989 more") && e.len() < 300, "{e}");
+    }
+
+    fn meta(levels: Option<&str>) -> BTreeMap<String, String> {
+        levels
+            .map(|l| (LEVELS_KEY.to_string(), l.to_string()))
+            .into_iter()
+            .collect()
+    }
+
+    fn given(spec: &str) -> GivenLevels {
+        GivenLevels::parse(spec, "--levels").unwrap()
+    }
+
+    #[test]
+    fn a_files_levels_come_from_it_or_the_caller_never_both_differing() {
+        let five = [-1.0, -0.2, 0.0, 0.2, 1.0];
+        let rec = meta(Some("[-1.0,-0.2,0.0,0.2,1.0]"));
+        // Recorded: taken, and given levels may repeat them to the thousandth.
+        assert_eq!(of_file(&rec, 5, None).unwrap(), five);
+        let g = given("-1,-0.2,0.0001,0.2,1");
+        assert_eq!(of_file(&rec, 5, Some(&g)).unwrap(), five);
+        let e = of_file(&rec, 5, Some(&given("-1,-0.5,0,0.5,1"))).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--levels [-1, -0.5, 0, 0.5, 1]: the file records the duty levels \
+             [-1, -0.2, 0, 0.2, 1]; expected those or no --levels"
+        );
+        let e = of_file(&rec, 5, Some(&given("-1,1")))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("records the duty levels [-1, -0.2"), "{e}");
+        // None recorded: the given ones, one per output.
+        let none = meta(None);
+        assert_eq!(
+            of_file(&none, 5, Some(&given("-1,-0.2,0,0.2,1"))).unwrap(),
+            five
+        );
+        assert_eq!(
+            of_file(&none, 2, Some(&given("-0.5,0.5"))).unwrap(),
+            [-0.5, 0.5]
+        );
+        let e = of_file(&none, 5, Some(&given("-1,1"))).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "--levels [-1, 1]: expected one level per output of the network, 5; found 2"
+        );
+        let e = of_file(&none, 2, Some(&given("-1,0,1")))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("expected one level per output of the network, 2; found 3"),
+            "{e}"
+        );
+        // Neither: the paper's two for two outputs, a refusal for more.
+        assert_eq!(of_file(&none, 2, None).unwrap(), BANG_BANG);
+        let e = of_file(&none, 7, None).unwrap_err().to_string();
+        assert!(
+            e.contains("7 outputs and its file records no duty levels") && e.contains("--levels"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn recorded_levels_that_are_no_levels_are_refused() {
+        for (text, n, says) in [
+            ("[-1, 1", 2, "expected a list of numbers"),
+            ("\"-1,1\"", 2, "expected a list of numbers"),
+            (
+                "[-1, 0, 1]",
+                2,
+                "records 3 duty levels for a network of 2 outputs",
+            ),
+            ("[1, -1]", 2, "expected strictly increasing"),
+            ("[-2, 1]", 2, "expected within [-1, 1]"),
+        ] {
+            let e = of_file(&meta(Some(text)), n, None).unwrap_err();
+            assert!(e.is_input() && e.to_string().contains(says), "{text}: {e}");
+        }
+    }
+}
