@@ -11,6 +11,11 @@
 
 use crate::scenario::{MAX_SPEC_BYTES, Scenario};
 
+mod help;
+mod values;
+pub use help::{markdown_table, scenario_help, syntax_list};
+pub use values::Values;
+
 /// How a field's values are read and, in a domain, drawn.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
@@ -71,38 +76,6 @@ pub struct PartSpec {
 impl PartialEq for PartSpec {
     fn eq(&self, other: &PartSpec) -> bool {
         self.key == other.key
-    }
-}
-
-/// A part's values as its effect reads them: one per field, `None` where left out.
-pub struct Values<'a> {
-    spec: &'static PartSpec,
-    given: &'a [Option<f64>],
-}
-
-impl<'a> Values<'a> {
-    /// `given`, one per field of `spec`.
-    pub fn new(spec: &'static PartSpec, given: &'a [Option<f64>]) -> Values<'a> {
-        Values { spec, given }
-    }
-
-    /// Field `i`'s value, its fallback filled in where it was left out.
-    pub fn get(&self, i: usize) -> Option<f64> {
-        self.given[i].or(match self.spec.fields[i].fallback {
-            Fallback::Value(v) => Some(v),
-            Fallback::FiveTimesFirst => self.given[0].map(|v| 5.0 * v),
-            Fallback::Required | Fallback::Absent => None,
-        })
-    }
-
-    /// The first field's value, 1 where it has none.
-    pub fn first(&self) -> f64 {
-        self.get(0).unwrap_or(1.0)
-    }
-
-    /// Field `i` as a whole number, 1 where it has none.
-    pub fn whole(&self, i: usize) -> u32 {
-        self.get(i).map_or(1, |v| v as u32)
     }
 }
 
@@ -485,47 +458,4 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
         ));
     }
     Ok(Span { lo, hi })
-}
-
-/// Every part's syntax, comma-separated: what an error lists and the help shows.
-pub fn syntax_list() -> String {
-    let all: Vec<&str> = PARTS.iter().map(|p| p.syntax).collect();
-    all.join(", ")
-}
-
-/// The help of a `--scenario` flag.
-pub fn scenario_help() -> String {
-    format!(
-        "Scenarios, one row each: `nominal`, or parts joined by `+` from {}; `all` is the \
-         robustness set, `hard` the set beyond it, `hard-candidates` what that set is chosen \
-         from, `faults` one row per fault",
-        syntax_list()
-    )
-}
-
-/// The table of parts in Markdown, as `docs/SCENARIOS.md` shows it (`host-sim parts` prints
-/// it; a test keeps the document's copy equal to it).
-pub fn markdown_table() -> String {
-    let mut out = String::from("| part | values | what it does |\n| --- | --- | --- |\n");
-    for p in PARTS {
-        let values: Vec<String> = p.fields.iter().map(describe).collect();
-        out.push_str(&format!(
-            "| `{}` | {} | {} |\n",
-            p.syntax,
-            values.join("; "),
-            p.doc
-        ));
-    }
-    out
-}
-
-/// A field's bounds and what it is when left out, as the table shows them.
-fn describe(f: &Field) -> String {
-    let left_out = match f.fallback {
-        Fallback::Required => String::new(),
-        Fallback::Value(v) => format!(", default {v}"),
-        Fallback::FiveTimesFirst => ", default 5 times the first".into(),
-        Fallback::Absent => ", optional".into(),
-    };
-    format!("{} {} to {}{left_out}", f.name, f.lo, f.hi)
 }

@@ -1,6 +1,8 @@
 //! The deploy preset's worlds, on any machine: what it trains, selects and tries its
 //! finalists in; and, for a rig, how it drives the motor.
 
+use super::Config;
+
 /// The duty levels the recipe trains for a rig: fine steps near zero, where a balanced pole
 /// needs only small corrections, and full duty kept for pushes. With two levels a policy
 /// can only balance by full pushes reversed every few periods (`docs/RIGS.md`).
@@ -56,4 +58,71 @@ pub fn deploy_eval_domain(machine: &twin::Machine) -> String {
 /// second, through the rig's encoders.
 pub fn deploy_finalist_domain(machine: &twin::Machine) -> String {
     physics(0.2, machine) + "+noise=0..1@0.5+encoder"
+}
+
+impl Config {
+    /// The shipped recipe for `machine`: the same worlds around its rig (physics drawn at
+    /// least as wide as its identification's intervals, and its motor's damping too), with
+    /// the pushes scaled to its motor (a push that takes Gymnasium's motor five periods to
+    /// answer takes this motor as long in seconds) and every count of periods to its control
+    /// rate (the same seconds of pushes and episodes); on a rig, nine duty levels and a
+    /// learner that pays for the motor's effort ([`RIG_LEVELS`], [`RIG_EFFORT`]), where
+    /// Gymnasium's machine keeps the paper's two; dead times stay in periods, a board's
+    /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
+    pub fn deploy_on(machine: &twin::Machine) -> Config {
+        let (p, gym) = (&machine.rig.params, &twin::Machine::GYMNASIUM.rig.params);
+        let (force, rate) = (p.force_mag / gym.force_mag, gym.tau / p.tau);
+        let periods = |n: f64| (n * rate).round().max(1.0);
+        let steps = |n: f64| periods(n) as u32;
+        let push = |lo: f64, hi: f64, every: f64| {
+            let (lo, hi) = (lo * force, hi * force);
+            if lo == hi {
+                format!("push={lo}/{}", periods(every))
+            } else {
+                format!("push={lo}..{hi}/{}", periods(every))
+            }
+        };
+        let rig = *machine != twin::Machine::GYMNASIUM;
+        let reward = "upright=20+centre=5";
+        Config {
+            domain: format!("{}+{}", deploy_domain(machine), push(0.8, 1.2, 50.0)),
+            eval_domain: format!(
+                "{}+{}@0.5",
+                deploy_eval_domain(machine),
+                push(0.5, 0.5, 100.0)
+            ),
+            finalist_domain: format!(
+                "{}+{}",
+                deploy_finalist_domain(machine),
+                push(1.1, 1.1, 50.0)
+            ),
+            compensate: true,
+            reward: if rig {
+                format!("{reward}+{RIG_EFFORT}")
+            } else {
+                reward.into()
+            },
+            levels: if rig {
+                RIG_LEVELS.into()
+            } else {
+                String::new()
+            },
+            episodes: 5000,
+            max_steps: steps(500.0),
+            eval_every: 10,
+            eval_episodes: 50,
+            eval_max_steps: steps(500.0),
+            stop_when_perfect: false,
+            patience: 50,
+            finalists: 20,
+            finalist_episodes: 50,
+            finalist_max_steps: steps(10_000.0),
+            rig: if rig {
+                twin::rigfile::to_toml(machine)
+            } else {
+                String::new()
+            },
+            ..Config::robust()
+        }
+    }
 }

@@ -1,0 +1,46 @@
+//! The parts' table as people read it: the syntax list, a flag's help, the Markdown table.
+
+use super::{Fallback, Field, PARTS};
+
+/// Every part's syntax, comma-separated: what an error lists and the help shows.
+pub fn syntax_list() -> String {
+    let all: Vec<&str> = PARTS.iter().map(|p| p.syntax).collect();
+    all.join(", ")
+}
+
+/// The help of a `--scenario` flag.
+pub fn scenario_help() -> String {
+    format!(
+        "Scenarios, one row each: `nominal`, or parts joined by `+` from {}; `all` is the \
+         robustness set, `hard` the set beyond it, `hard-candidates` what that set is chosen \
+         from, `faults` one row per fault",
+        syntax_list()
+    )
+}
+
+/// The table of parts in Markdown, as `docs/SCENARIOS.md` shows it (`host-sim parts` prints
+/// it; a test keeps the document's copy equal to it).
+pub fn markdown_table() -> String {
+    let mut out = String::from("| part | values | what it does |\n| --- | --- | --- |\n");
+    for p in PARTS {
+        let values: Vec<String> = p.fields.iter().map(describe).collect();
+        out.push_str(&format!(
+            "| `{}` | {} | {} |\n",
+            p.syntax,
+            values.join("; "),
+            p.doc
+        ));
+    }
+    out
+}
+
+/// A field's bounds and what it is when left out, as the table shows them.
+fn describe(f: &Field) -> String {
+    let left_out = match f.fallback {
+        Fallback::Required => String::new(),
+        Fallback::Value(v) => format!(", default {v}"),
+        Fallback::FiveTimesFirst => ", default 5 times the first".into(),
+        Fallback::Absent => ", optional".into(),
+    };
+    format!("{} {} to {}{left_out}", f.name, f.lo, f.hi)
+}
