@@ -1,6 +1,6 @@
 #!/usr/bin/env python3
 """Instructions one call of an `extern "C" fn(input: *const T, output: *mut U)` executes in a
-Cortex-M ELF: the figure docs/PERFORMANCE.md gives per forward pass. Deterministic (an
+Cortex-M ELF: the figure docs/PERFORMANCE_MCU.md gives per forward pass. Deterministic (an
 emulator, not a clock), so machines agree on it.
 
     python3 -m venv .venv && .venv/bin/pip install -r scripts/requirements-dev.txt
