@@ -29,7 +29,7 @@ fuzz_target!(|data: &[u8]| {
     // Each character at most `\u{10ffff}`.
     assert!(c.len() <= 10 * COMMENT_MAX + 3);
     let name = text.lines().next().unwrap_or("");
-    let w = Weights::new(16, shapes(16).map(|s| vec![0.5; s.len()])).unwrap();
+    let w = Weights::new(16, weights::BANG_BANG.to_vec(), shapes(16, 2).map(|s| vec![0.5; s.len()])).unwrap();
     let (hostile, plain) = (vec![text.to_string()], vec!["plain".to_string()]);
     if check_rust_name(name).is_ok() {
         let a = rust_module(&w, name, &hostile, &Rig::GYMNASIUM).unwrap();
