@@ -166,7 +166,9 @@ impl<const H: usize, const A: usize> Trainer<'_, H, A> {
                 taken = Some((*s, a));
                 a
             });
-            let duty = taken.map_or(0.0, |(_, a)| f64::from(levels.fractions()[a]));
+            let duty = taken
+                .and_then(|(_, a)| levels.duty(a))
+                .map_or(0.0, |d| f64::from(d.fraction()));
             let x_dot = world.world().state().x_dot;
             let tr = world.apply();
             self.env_steps += 1;
