@@ -1,22 +1,26 @@
 //! `host-sim eval` for Python: the same rows, built by the same functions from the same
 //! arguments (`host_sim::eval::evaluate` for each horizon, scenario and controller, in the
-//! command's order), returned as the JSON `eval --json` prints under `rows`.
+//! command's order), returned as the JSON `eval --json` prints under `rows`. Each row's
+//! episodes run range by range with the GIL released (`eval::par_episodes`, the command's
+//! parallel runner), Python's signals looked at between ranges, so Ctrl-C stops a long
+//! evaluation within one range.
 
 use std::path::PathBuf;
 
 use clap::ValueEnum;
 use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net};
 use pyo3::prelude::*;
-use twin::{Machine, Scenario};
+use twin::{EpisodeStats, Machine, Scenario};
 
 use crate::policy::Policy;
-use crate::value_error;
+use crate::{PERIODS_PER_CHECK, interruptible, reserve, value_error};
 
 /// The rows of `controllers` on `scenarios` (specs, or the sets `all`, `hard`, `faults`,
 /// `hard-candidates`) at `horizons`, `episodes` each from `seed`; `policy` the network
-/// (the shipped one if `None`), `rig` the machine (the policy's if `None`).
+/// (the shipped one if `None`), `rig` the machine (the policy's if `None`); `levels`, if
+/// given, must be the policy's.
 #[pyfunction]
-#[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None))]
+#[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None, levels=None))]
 // One argument per keyword of the Python function (`cartpole_ddqn.evaluate`).
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_json(
@@ -28,6 +32,7 @@ pub fn evaluate_json(
     horizons: Vec<u32>,
     seed: u64,
     rig: Option<PathBuf>,
+    levels: Option<Vec<f32>>,
 ) -> PyResult<String> {
     if !(1..=MAX_EPISODES).contains(&episodes) {
         return Err(value_error(format!(
@@ -52,6 +57,7 @@ pub fn evaluate_json(
             &shipped
         }
     };
+    same_levels(policy, levels)?;
     let machine = given.unwrap_or(policy.machine);
     let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
@@ -62,18 +68,59 @@ pub fn evaluate_json(
     }
     let rebuilt = network(policy, &kinds, &machine)?;
     let net = rebuilt.as_ref().unwrap_or(&policy.net);
-    let rows = py.detach(|| {
-        let mut rows = Vec::with_capacity(rows);
-        for &h in &horizons {
-            for s in &scenarios {
-                for &k in &kinds {
-                    rows.push(eval::evaluate(k, net, s, h, seed, episodes));
-                }
+    let mut out = Vec::with_capacity(rows);
+    for &h in &horizons {
+        for s in &scenarios {
+            for &k in &kinds {
+                let eps = episodes_of(py, (k, net, s), h, seed, episodes)?;
+                out.push(eval::row(k, s, h, seed, &eps));
             }
         }
-        rows
-    });
-    serde_json::to_string(&rows).map_err(value_error)
+    }
+    serde_json::to_string(&out).map_err(value_error)
+}
+
+/// Episodes `0..episodes` of one controller on one scenario, in ranges of at most
+/// [`PERIODS_PER_CHECK`] periods (one episode at the least).
+fn episodes_of(
+    py: Python<'_>,
+    (kind, net, scenario): (ControllerKind, &Net, &Scenario),
+    horizon: u32,
+    seed: u64,
+    episodes: u64,
+) -> PyResult<Vec<EpisodeStats>> {
+    let per_range = PERIODS_PER_CHECK / u64::from(horizon);
+    let mut eps = Vec::new();
+    interruptible(py, episodes, per_range, |r| {
+        reserve(
+            &mut eps,
+            (r.end - r.start) as usize,
+            "the episodes' statistics",
+        )?;
+        eps.extend(eval::par_episodes(kind, net, scenario, horizon, seed, r));
+        Ok(())
+    })?;
+    Ok(eps)
+}
+
+/// Refuses `levels` other than the policy's (to the thousandth, as the bridge drives them).
+fn same_levels(policy: &Policy, levels: Option<Vec<f32>>) -> PyResult<()> {
+    let Some(given) = crate::given_levels(levels)? else {
+        return Ok(());
+    };
+    let duties = given
+        .levels()
+        .iter()
+        .map(|&f| firmware::controller::Duty::from_fraction(f));
+    let duties: Vec<_> = duties.collect::<Result<_, _>>().map_err(value_error)?;
+    if duties == policy.net.levels() {
+        return Ok(());
+    }
+    let theirs: Vec<f32> = policy.net.levels().iter().map(|d| d.fraction()).collect();
+    Err(value_error(format!(
+        "levels {:?}: the policy drives the duty levels {theirs:?}; expected those or no levels",
+        given.levels()
+    )))
 }
 
 /// A controller by the name `host-sim eval --controller` takes.
