@@ -81,7 +81,8 @@ pub fn evaluate_json(
 }
 
 /// Episodes `0..episodes` of one controller on one scenario, in ranges of at most
-/// [`PERIODS_PER_CHECK`] periods (one episode at the least).
+/// [`PERIODS_PER_CHECK`] periods a thread (one episode at the least). The threads are
+/// rayon's, as many as the machine runs at once.
 fn episodes_of(
     py: Python<'_>,
     (kind, net, scenario): (ControllerKind, &Net, &Scenario),
@@ -89,7 +90,8 @@ fn episodes_of(
     seed: u64,
     episodes: u64,
 ) -> PyResult<Vec<EpisodeStats>> {
-    let per_range = PERIODS_PER_CHECK / u64::from(horizon);
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get() as u64);
+    let per_range = PERIODS_PER_CHECK * threads / u64::from(horizon);
     let mut eps = Vec::new();
     interruptible(py, episodes, per_range, |r| {
         reserve(

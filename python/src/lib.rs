@@ -45,9 +45,10 @@ pub(crate) const MAX_ENVS: usize = 1 << 16;
 /// few milliseconds of work, so Ctrl-C stops it at once.
 pub(crate) const WORLDS_PER_CHECK: u64 = 4096;
 
-/// Periods an evaluation runs (at most, over all its threads) between two looks at Python's
-/// signals, a fraction of a second; an episode longer than this is one look's work.
-pub(crate) const PERIODS_PER_CHECK: u64 = 1 << 19;
+/// Periods an evaluation runs on each of its threads (at most) between two looks at
+/// Python's signals: a tenth of a second or so. An episode longer than this is one look's
+/// work.
+pub(crate) const PERIODS_PER_CHECK: u64 = 1 << 17;
 
 /// Runs `work` on `0..n` in consecutive ranges of at most `chunk` (at least 1), with the
 /// GIL released, looking at Python's signals after each: Ctrl-C (`KeyboardInterrupt`)

@@ -148,7 +148,8 @@ class TwinVectorEnv(VectorEnv):
     def reset(self, *, seed=None, options=None):
         """World ``i`` starts episode 0 of ``seed + i`` (``seed`` may be a list of one
         seed per world)."""
-        super().reset(seed=seed)
+        # Gymnasium's own seeding takes one seed; a list seeds the worlds alone.
+        super().reset(seed=seed if seed is None or isinstance(seed, (int, np.integer)) else None)
         if seed is None:
             base = _seed_from(self.np_random)
             seeds = [base + i for i in range(self.num_envs)]
