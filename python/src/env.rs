@@ -324,7 +324,6 @@ impl VecTwin {
         let setup = &self.setup;
         interruptible(py, n as u64, WORLDS_PER_CHECK, |r| {
             lanes.extend(r.map(|i| setup.start(seeds[i as usize], 0)));
-            Ok(())
         })?;
         self.lanes = lanes;
         self.seeds = seeds;
@@ -365,7 +364,6 @@ impl VecTwin {
         let n = self.lanes.len() as u64;
         if let Err(e) = interruptible(py, n, WORLDS_PER_CHECK, |r| {
             self.advance(r.start as usize..r.end as usize, &actions);
-            Ok(())
         }) {
             self.lanes.clear();
             return Err(e);

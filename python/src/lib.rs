@@ -45,24 +45,19 @@ pub(crate) const MAX_ENVS: usize = 1 << 16;
 /// few milliseconds of work, so Ctrl-C stops it at once.
 pub(crate) const WORLDS_PER_CHECK: u64 = 4096;
 
-/// Periods an evaluation runs on each of its threads (at most) between two looks at
-/// Python's signals: a tenth of a second or so. An episode longer than this is one look's
-/// work.
-pub(crate) const PERIODS_PER_CHECK: u64 = 1 << 17;
-
 /// Runs `work` on `0..n` in consecutive ranges of at most `chunk` (at least 1), with the
 /// GIL released, looking at Python's signals after each: Ctrl-C (`KeyboardInterrupt`)
-/// stops it after the range in progress, and any error `work` returns stops it at once.
+/// stops it after the range in progress.
 pub(crate) fn interruptible(
     py: Python<'_>,
     n: u64,
     chunk: u64,
-    mut work: impl FnMut(Range<u64>) -> PyResult<()> + Send,
+    mut work: impl FnMut(Range<u64>) + Send,
 ) -> PyResult<()> {
     let mut start = 0;
     while start < n {
         let end = start.saturating_add(chunk.max(1)).min(n);
-        py.detach(|| work(start..end))?;
+        py.detach(|| work(start..end));
         py.check_signals()?;
         start = end;
     }

@@ -3,6 +3,7 @@
 //! computes its Q-values, as `host-sim eval --policy` runs it.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use firmware::network::argmax;
 use host_sim::eval::Net;
@@ -20,7 +21,8 @@ pub struct Policy {
     pub import: Option<Import>,
     /// The rig given, or the one the file records, or Gymnasium's.
     pub machine: Machine,
-    pub net: Net,
+    /// Shared with the evaluation threads, which may outlive an interrupted call.
+    pub net: Arc<Net>,
 }
 
 /// The network at `path` (a policy file or a run directory), `prefix` choosing among several
@@ -45,7 +47,7 @@ pub fn load(
     Ok(Policy {
         import: Some(import),
         machine,
-        net,
+        net: Arc::new(net),
     })
 }
 
@@ -56,7 +58,7 @@ pub fn shipped(rig: Option<PathBuf>) -> PyResult<Policy> {
     Ok(Policy {
         import: None,
         machine: crate::machine(rig.as_deref())?,
-        net: Net::shipped(),
+        net: Arc::new(Net::shipped()),
     })
 }
 
@@ -108,8 +110,8 @@ impl Policy {
 }
 
 impl Policy {
-    /// `out` of the network's outputs (one per level) on each of `rows` in order, the GIL released a
-    /// range of rows at a time and Ctrl-C honoured between ranges.
+    /// `out` of the network's outputs (one per level) on each of `rows` in order, the GIL
+    /// released a range of rows at a time and Ctrl-C honoured between ranges.
     fn each(
         &self,
         py: Python<'_>,
@@ -119,7 +121,6 @@ impl Policy {
         interruptible(py, rows.len() as u64, ROWS_PER_CHECK, |r| {
             let rows = &rows[r.start as usize..r.end as usize];
             rows.iter().for_each(|o| out(self.net.forward(o).values()));
-            Ok(())
         })
     }
 }
