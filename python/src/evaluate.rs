@@ -163,15 +163,10 @@ fn same_levels(policy: &Policy, levels: Option<Vec<f32>>) -> PyResult<()> {
     let Some(given) = crate::given_levels(levels)? else {
         return Ok(());
     };
-    let duties = given
-        .levels()
-        .iter()
-        .map(|&f| firmware::controller::Duty::from_fraction(f));
-    let duties: Vec<_> = duties.collect::<Result<_, _>>().map_err(value_error)?;
-    if duties == policy.net.levels() {
+    let theirs: Vec<f32> = policy.net.levels().iter().map(|d| d.fraction()).collect();
+    if weights::levels::same_duties(given.levels(), &theirs) {
         return Ok(());
     }
-    let theirs: Vec<f32> = policy.net.levels().iter().map(|d| d.fraction()).collect();
     Err(value_error(format!(
         "levels {:?}: the policy drives the duty levels {theirs:?}; expected those or no levels",
         given.levels()

@@ -4,6 +4,7 @@ against `host-sim eval`'s row for the same seed and scenario."""
 
 import json
 
+import gymnasium as gym
 import numpy as np
 import pytest
 
@@ -36,6 +37,20 @@ def test_a_scripted_episodes_figures_are_the_hand_counted_ones():
     assert truncated and not terminated
     for name in NAMES:
         assert info[name] == pytest.approx(BY_HAND[name], rel=1e-6), name
+
+
+def test_under_gymnasiums_time_limit_the_figures_are_the_envs_motor():
+    """`gymnasium.make` truncates with its own wrapper, unseen by the environment: `info`
+    has no figures then, `env.unwrapped.motor` has them."""
+    env = gym.make("cartpole_ddqn/Twin-v0", levels=LEVELS, max_episode_steps=len(SCRIPT))
+    env.reset(seed=0)
+    for a in SCRIPT:
+        _, _, terminated, truncated, info = env.step(a)
+    assert truncated and not terminated and not set(NAMES) & set(info)
+    motor = env.unwrapped.motor
+    assert set(motor) == set(NAMES)
+    for name in NAMES:
+        assert motor[name] == pytest.approx(BY_HAND[name], rel=1e-6), name
 
 
 def test_the_vector_env_reports_an_ended_worlds_figures_masked():

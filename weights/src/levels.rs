@@ -136,8 +136,9 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
     Ok(Some(levels))
 }
 
-/// Whether two lists of levels drive the same duties.
-fn same_duties(a: &[f32], b: &[f32]) -> bool {
+/// Whether two lists of levels drive the same duties (to the thousandth, as the bridge
+/// drives them).
+pub fn same_duties(a: &[f32], b: &[f32]) -> bool {
     let duties = |l: &[f32]| -> Vec<Option<Duty>> {
         l.iter().map(|&f| Duty::from_fraction(f).ok()).collect()
     };

@@ -103,6 +103,13 @@ class TwinEnv(gymnasium.Env):
         return self._twin.levels
 
     @property
+    def motor(self):
+        """The motor figures of the episode so far, as ``info`` gives them at its end: for
+        an episode Gymnasium's ``TimeLimit`` wrapper truncated, which the environment does
+        not see (``gymnasium.make`` adds one)."""
+        return dict(self._twin.motor())
+
+    @property
     def state(self):
         """The plant's true state ``[x, x_dot, theta, theta_dot]`` (float64)."""
         return np.array(self._twin.state)
