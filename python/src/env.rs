@@ -61,9 +61,8 @@ fn action(a: i64, levels: &Handed) -> PyResult<usize> {
         .filter(|&i| i < levels.len())
         .ok_or_else(|| {
             value_error(format!(
-                "an action must be the index of a duty level, 0 to {} (levels {:?}); found {a}",
-                levels.len() - 1,
-                levels.fractions()
+                "an action must be the index of a duty level, 0 to {}; found {a}",
+                levels.len() - 1
             ))
         })
 }

@@ -164,13 +164,7 @@ fn same_levels(policy: &Policy, levels: Option<Vec<f32>>) -> PyResult<()> {
         return Ok(());
     };
     let theirs: Vec<f32> = policy.net.levels().iter().map(|d| d.fraction()).collect();
-    if weights::levels::same_duties(given.levels(), &theirs) {
-        return Ok(());
-    }
-    Err(value_error(format!(
-        "levels {:?}: the policy drives the duty levels {theirs:?}; expected those or no levels",
-        given.levels()
-    )))
+    given.agree(&theirs).map_err(value_error)
 }
 
 /// A controller by the name `host-sim eval --controller` takes.

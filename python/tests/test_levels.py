@@ -118,7 +118,7 @@ def test_evaluate_takes_the_policys_levels_and_refuses_others(tmp_path):
     policy = five_level_policy(tmp_path)
     same = cartpole_ddqn.evaluate(policy, episodes=3, horizon=50, levels=FIVE)
     assert same == cartpole_ddqn.evaluate(policy, episodes=3, horizon=50)
-    with pytest.raises(ValueError, match=r"levels \[-1.0, 0.0, 1.0\].*drives the duty levels"):
+    with pytest.raises(ValueError, match=r"levels \[-1, 0, 1\]: the policy drives the duty levels \[-1, -0.2, 0, 0.2, 1\]"):
         cartpole_ddqn.evaluate(policy, episodes=3, levels=[-1, 0, 1])
     with pytest.raises(ValueError, match="levels"):
         cartpole_ddqn.evaluate(episodes=3, levels=FIVE)
