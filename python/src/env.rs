@@ -169,12 +169,12 @@ impl Twin {
         obs
     }
 
-    /// One period under `action`: the next reading, terminated, truncated.
+    /// One period under `action`: the next reading, terminated, truncated, the duty driven.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         action: i64,
-    ) -> PyResult<(Bound<'py, PyArray1<f32>>, bool, bool)> {
+    ) -> PyResult<(Bound<'py, PyArray1<f32>>, bool, bool, f32)> {
         let a = self::action(action, &self.setup.levels)?;
         let lane = self.lane_mut()?;
         let t = lane.step(a);
@@ -182,6 +182,7 @@ impl Twin {
             PyArray1::from_slice(py, &lane.obs()),
             t.terminated,
             t.truncated,
+            lane.duty(),
         ))
     }
 
@@ -189,12 +190,6 @@ impl Twin {
     #[getter]
     fn levels(&self) -> Vec<f32> {
         self.setup.levels.fractions()
-    }
-
-    /// The duty the last period drove (0 coasting, or before the first step).
-    #[getter]
-    fn duty(&self) -> PyResult<f32> {
-        Ok(self.lane()?.duty())
     }
 
     /// The episode's motor figures so far, by the names of `host-sim eval --json`.

@@ -89,8 +89,8 @@ class TwinEnv(gymnasium.Env):
         return obs, {}
 
     def step(self, action):
-        obs, terminated, truncated = self._twin.step(int(action))
-        info = {"duty": self._twin.duty}
+        obs, terminated, truncated, duty = self._twin.step(int(action))
+        info = {"duty": duty}
         if self._monitored:
             info["fallback"] = self._twin.fallback
         if terminated or truncated:
@@ -148,6 +148,9 @@ class TwinVectorEnv(VectorEnv):
         self.levels = probe.levels
         self.single_observation_space = _observation_space(x_limit, theta_limit)
         self.single_action_space = spaces.Discrete(len(self.levels))
+        # The mask of a figure every world has, shared by every step's info: read-only.
+        self._every = np.ones(self.num_envs, dtype=bool)
+        self._every.flags.writeable = False
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._seeded = False
@@ -171,10 +174,9 @@ class TwinVectorEnv(VectorEnv):
     def step(self, actions):
         actions = np.ascontiguousarray(actions, dtype=np.int64).reshape(-1)
         obs, reward, terminated, truncated, duty = self._twin.step(actions)
-        every = np.ones(self.num_envs, dtype=bool)
-        info = {"duty": duty, "_duty": every}
+        info = {"duty": duty, "_duty": self._every}
         if self._monitored:
-            info.update(fallback=self._twin.fallbacks(), _fallback=every)
+            info.update(fallback=self._twin.fallbacks(), _fallback=self._every)
         ended = terminated | truncated
         if ended.any():
             for name, values in self._twin.motor():
