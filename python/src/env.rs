@@ -3,13 +3,14 @@
 
 use std::path::{Path, PathBuf};
 
-use firmware::cartpole::{Action, Transition};
+use firmware::cartpole::Transition;
 use firmware::controller::Limits;
+use host_sim::eval::{MAX_HORIZON, Motor};
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
 use pyo3::prelude::*;
 
-use crate::lane::{Lane, Worlds};
-use crate::value_error;
+use crate::lane::{Handed, Lane, Worlds};
+use crate::{MAX_ENVS, WORLDS_PER_CHECK, interruptible, value_error};
 use twin::run::Aids;
 
 /// The worlds of a scenario or a domain (not both) on the machine of `rig` (Gymnasium's
@@ -29,27 +30,47 @@ fn worlds(scenario: Option<&str>, domain: Option<&str>, rig: Option<PathBuf>) ->
     }
 }
 
-/// `max_episode_steps` as a horizon: at least one period; none, no truncation.
+/// `max_episode_steps` as a horizon: at least one period and at most `host-sim eval`'s
+/// longest; none, no truncation.
 fn horizon(max_episode_steps: Option<i64>) -> PyResult<u32> {
     match max_episode_steps {
         None => Ok(u32::MAX),
-        Some(n) => u32::try_from(n).ok().filter(|&n| n >= 1).ok_or_else(|| {
-            value_error(format!(
-                "max_episode_steps must be a whole number in [1, {}]; found {n}",
-                u32::MAX
-            ))
-        }),
+        Some(n) => u32::try_from(n)
+            .ok()
+            .filter(|n| (1..=MAX_HORIZON).contains(n))
+            .ok_or_else(|| {
+                value_error(format!(
+                    "max_episode_steps must be a whole number in [1, {MAX_HORIZON}]; found {n}"
+                ))
+            }),
     }
 }
 
-/// Gymnasium's action index as the plant's action.
-fn action(a: i64) -> PyResult<Action> {
-    match a {
-        0 | 1 => Ok(Action::from_index(a as usize)),
-        _ => Err(value_error(format!(
-            "an action must be 0 (push left) or 1 (push right); found {a}"
-        ))),
+/// The duty levels `levels=` gives (checked as `--levels`), or the paper's two.
+fn levels(levels: Option<Vec<f32>>) -> PyResult<Handed> {
+    match crate::given_levels(levels)? {
+        Some(given) => Handed::new(&given).map_err(value_error),
+        None => Ok(Handed::bang_bang()),
     }
+}
+
+/// Gymnasium's action: the index of one of `levels`.
+fn action(a: i64, levels: &Handed) -> PyResult<usize> {
+    usize::try_from(a)
+        .ok()
+        .filter(|&i| i < levels.len())
+        .ok_or_else(|| {
+            value_error(format!(
+                "an action must be the index of a duty level, 0 to {}; found {a}",
+                levels.len() - 1
+            ))
+        })
+}
+
+/// The motor figures of the episode so far (`host_sim::eval::Motor`), in the order of
+/// `Motor::NAMES`.
+fn motor(lane: &Lane) -> [f64; 4] {
+    Motor::of(&lane.stats(), lane.scenario().params.tau).values()
 }
 
 /// The runtime monitor's envelope: none, the shipped policy's (`"shipped"`), or the file
@@ -65,24 +86,29 @@ fn envelope(path: Option<PathBuf>) -> PyResult<Option<Limits>> {
 /// The name that asks for the shipped policy's envelope (a file of that name: `./shipped`).
 const SHIPPED: &str = "shipped";
 
-/// What both environments are made of: their worlds, the periods an episode may last, and
-/// what the board knows (whether the policy is shown the predicted state, the monitor's
-/// envelope).
+/// What both environments are made of: their worlds, the duty levels the actions drive, the
+/// periods an episode may last, and what the board knows (whether the policy is shown the
+/// predicted state, the monitor's envelope).
 struct Setup {
     worlds: Worlds,
+    levels: Handed,
     horizon: u32,
     aids: Aids,
 }
 
+/// The world arguments both environments take: scenario, domain, rig.
+type WorldArgs<'a> = (Option<&'a str>, Option<&'a str>, Option<PathBuf>);
+
 impl Setup {
     fn new(
-        (scenario, domain, rig): (Option<&str>, Option<&str>, Option<PathBuf>),
-        max_episode_steps: Option<i64>,
+        (scenario, domain, rig): WorldArgs<'_>,
+        (levels, max_episode_steps): (Option<Vec<f32>>, Option<i64>),
         predict: bool,
         envelope: Option<PathBuf>,
     ) -> PyResult<Setup> {
         Ok(Setup {
             worlds: worlds(scenario, domain, rig)?,
+            levels: self::levels(levels)?,
             horizon: horizon(max_episode_steps)?,
             aids: Aids {
                 predict,
@@ -93,7 +119,8 @@ impl Setup {
 
     /// Episode `episode` of `seed`.
     fn start(&self, seed: u64, episode: u64) -> Lane {
-        Lane::start(&self.worlds, self.horizon, (seed, episode), self.aids)
+        let run = (&self.levels, self.horizon);
+        Lane::start(&self.worlds, run, (seed, episode), self.aids)
     }
 }
 
@@ -109,7 +136,7 @@ pub struct Twin {
 #[pymethods]
 impl Twin {
     #[new]
-    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None))]
+    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None, levels=None))]
     fn new(
         scenario: Option<&str>,
         domain: Option<&str>,
@@ -117,10 +144,11 @@ impl Twin {
         max_episode_steps: Option<i64>,
         predict: bool,
         envelope: Option<PathBuf>,
+        levels: Option<Vec<f32>>,
     ) -> PyResult<Twin> {
-        let world = (scenario, domain, rig);
+        let (world, run) = ((scenario, domain, rig), (levels, max_episode_steps));
         Ok(Twin {
-            setup: Setup::new(world, max_episode_steps, predict, envelope)?,
+            setup: Setup::new(world, run, predict, envelope)?,
             seed: 0,
             episode: 0,
             lane: None,
@@ -141,20 +169,33 @@ impl Twin {
         obs
     }
 
-    /// One period under `action`: the next reading, terminated, truncated.
+    /// One period under `action`: the next reading, terminated, truncated, the duty driven.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         action: i64,
-    ) -> PyResult<(Bound<'py, PyArray1<f32>>, bool, bool)> {
-        let a = self::action(action)?;
+    ) -> PyResult<(Bound<'py, PyArray1<f32>>, bool, bool, f32)> {
+        let a = self::action(action, &self.setup.levels)?;
         let lane = self.lane_mut()?;
         let t = lane.step(a);
         Ok((
             PyArray1::from_slice(py, &lane.obs()),
             t.terminated,
             t.truncated,
+            lane.duty(),
         ))
+    }
+
+    /// The duty level each action drives, a fraction of the full push.
+    #[getter]
+    fn levels(&self) -> Vec<f32> {
+        self.setup.levels.fractions()
+    }
+
+    /// The episode's motor figures so far, by the names of `host-sim eval --json`.
+    fn motor(&self) -> PyResult<Vec<(&'static str, f64)>> {
+        let figures = self::motor(self.lane()?);
+        Ok(Motor::NAMES.into_iter().zip(figures).collect())
     }
 
     /// The plant's true state `[x, x_dot, theta, theta_dot]` (f64).
@@ -218,20 +259,23 @@ pub struct VecTwin {
     reward: Vec<f64>,
     terminated: Vec<bool>,
     truncated: Vec<bool>,
+    duty: Vec<f32>,
 }
 
-/// What one vector step returns: readings `[n, 4]`, rewards, terminated, truncated.
+/// What one vector step returns: readings `[n, 4]`, rewards, terminated, truncated, and
+/// each world's duty in the period.
 type VecStep<'py> = (
     Bound<'py, PyArray2<f32>>,
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<bool>>,
     Bound<'py, PyArray1<bool>>,
+    Bound<'py, PyArray1<f32>>,
 );
 
 #[pymethods]
 impl VecTwin {
     #[new]
-    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None))]
+    #[pyo3(signature = (scenario=None, domain=None, rig=None, max_episode_steps=None, predict=true, envelope=None, levels=None))]
     fn new(
         scenario: Option<&str>,
         domain: Option<&str>,
@@ -239,10 +283,11 @@ impl VecTwin {
         max_episode_steps: Option<i64>,
         predict: bool,
         envelope: Option<PathBuf>,
+        levels: Option<Vec<f32>>,
     ) -> PyResult<VecTwin> {
-        let world = (scenario, domain, rig);
+        let (world, run) = ((scenario, domain, rig), (levels, max_episode_steps));
         Ok(VecTwin {
-            setup: Setup::new(world, max_episode_steps, predict, envelope)?,
+            setup: Setup::new(world, run, predict, envelope)?,
             lanes: Vec::new(),
             seeds: Vec::new(),
             episodes: Vec::new(),
@@ -251,17 +296,30 @@ impl VecTwin {
             reward: Vec::new(),
             terminated: Vec::new(),
             truncated: Vec::new(),
+            duty: Vec::new(),
         })
     }
 
-    /// Starts episode 0 of `seeds[i]` in world `i`; the readings `[n, 4]`.
+    /// Starts episode 0 of `seeds[i]` in world `i` (at most [`MAX_ENVS`] worlds); the
+    /// readings `[n, 4]`. Interrupted (Ctrl-C), it leaves no world started.
     fn reset<'py>(
         &mut self,
         py: Python<'py>,
         seeds: Vec<u64>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
         let n = seeds.len();
-        self.lanes = seeds.iter().map(|&s| self.setup.start(s, 0)).collect();
+        if !(1..=MAX_ENVS).contains(&n) {
+            return Err(value_error(format!(
+                "expected 1 to {MAX_ENVS} environments (one seed each); found {n}"
+            )));
+        }
+        self.lanes.clear();
+        let mut lanes = Vec::with_capacity(n);
+        let setup = &self.setup;
+        interruptible(py, n as u64, WORLDS_PER_CHECK, |r| {
+            lanes.extend(r.map(|i| setup.start(seeds[i as usize], 0)));
+        })?;
+        self.lanes = lanes;
         self.seeds = seeds;
         self.episodes = vec![0; n];
         self.ended = vec![false; n];
@@ -269,15 +327,21 @@ impl VecTwin {
         self.reward = vec![0.0; n];
         self.terminated = vec![false; n];
         self.truncated = vec![false; n];
+        self.duty = vec![0.0; n];
         readings(py, &self.obs)
     }
 
-    /// One period of every world under `actions` (one per world, 0 or 1).
+    /// One period of every world under `actions` (one per world, the index of a duty
+    /// level). Interrupted (Ctrl-C), some worlds have stepped and others not: it leaves the
+    /// environment to be reset before the next step.
     fn step<'py>(
         &mut self,
         py: Python<'py>,
         actions: PyReadonlyArray1<'py, i64>,
     ) -> PyResult<VecStep<'py>> {
+        if self.lanes.is_empty() {
+            return Err(not_reset());
+        }
         let actions = actions.as_slice()?;
         if actions.len() != self.lanes.len() {
             return Err(value_error(format!(
@@ -286,16 +350,24 @@ impl VecTwin {
                 actions.len()
             )));
         }
-        let actions: Vec<Action> = actions
+        let levels = &self.setup.levels;
+        let actions: Vec<usize> = actions
             .iter()
-            .map(|&a| action(a))
+            .map(|&a| action(a, levels))
             .collect::<PyResult<_>>()?;
-        py.detach(|| self.advance(&actions));
+        let n = self.lanes.len() as u64;
+        if let Err(e) = interruptible(py, n, WORLDS_PER_CHECK, |r| {
+            self.advance(r.start as usize..r.end as usize, &actions);
+        }) {
+            self.lanes.clear();
+            return Err(e);
+        }
         Ok((
             readings(py, &self.obs)?,
             PyArray1::from_slice(py, &self.reward),
             PyArray1::from_slice(py, &self.terminated),
             PyArray1::from_slice(py, &self.truncated),
+            PyArray1::from_slice(py, &self.duty),
         ))
     }
 
@@ -304,6 +376,16 @@ impl VecTwin {
     fn fallbacks<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<bool>> {
         let f: Vec<bool> = self.lanes.iter().map(Lane::fallback).collect();
         PyArray1::from_vec(py, f)
+    }
+
+    /// The motor figures of each world's episode so far, by the names of `host-sim eval
+    /// --json`: after a step that ended a world's episode, that episode's.
+    fn motor<'py>(&self, py: Python<'py>) -> Vec<(&'static str, Bound<'py, PyArray1<f64>>)> {
+        let figures: Vec<[f64; 4]> = self.lanes.iter().map(self::motor).collect();
+        let column = |k: usize| figures.iter().map(|f| f[k]).collect::<Vec<f64>>();
+        (Motor::NAMES.iter().enumerate())
+            .map(|(k, &name)| (name, PyArray1::from_vec(py, column(k))))
+            .collect()
     }
 
     /// The plants' true states `[n, 4]` (f64).
@@ -318,9 +400,11 @@ impl VecTwin {
 }
 
 impl VecTwin {
-    /// Every world's period, or the start of its next episode if the last one ended.
-    fn advance(&mut self, actions: &[Action]) {
-        for (i, lane) in self.lanes.iter_mut().enumerate() {
+    /// The period of worlds `range`, or the start of a world's next episode if its last
+    /// one ended.
+    fn advance(&mut self, range: std::ops::Range<usize>, actions: &[usize]) {
+        for i in range {
+            let lane = &mut self.lanes[i];
             let t = if self.ended[i] {
                 self.episodes[i] += 1;
                 let (s, e) = (self.seeds[i], self.episodes[i]);
@@ -339,6 +423,7 @@ impl VecTwin {
             self.reward[i] = f64::from(t.reward);
             self.terminated[i] = t.terminated;
             self.truncated[i] = t.truncated;
+            self.duty[i] = lane.duty();
         }
     }
 }

@@ -1,22 +1,31 @@
 //! `host-sim eval` for Python: the same rows, built by the same functions from the same
 //! arguments (`host_sim::eval::evaluate` for each horizon, scenario and controller, in the
-//! command's order), returned as the JSON `eval --json` prints under `rows`.
+//! command's order), returned as the JSON `eval --json` prints under `rows`. Each row's
+//! episodes run range by range (`eval::par_episodes`, the command's parallel runner) on a
+//! thread of their own while the caller's thread, the GIL released, looks at Python's
+//! signals every few milliseconds: Ctrl-C returns at once, however long an episode, and
+//! leaves at most the range in progress to finish unheard.
 
+use std::ops::Range;
 use std::path::PathBuf;
+use std::sync::{Arc, mpsc};
+use std::time::Duration;
 
 use clap::ValueEnum;
 use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net};
+use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
-use twin::{Machine, Scenario};
+use twin::{EpisodeStats, Machine, Scenario};
 
 use crate::policy::Policy;
-use crate::value_error;
+use crate::{reserve, value_error};
 
 /// The rows of `controllers` on `scenarios` (specs, or the sets `all`, `hard`, `faults`,
 /// `hard-candidates`) at `horizons`, `episodes` each from `seed`; `policy` the network
-/// (the shipped one if `None`), `rig` the machine (the policy's if `None`).
+/// (the shipped one if `None`), `rig` the machine (the policy's if `None`); `levels`, if
+/// given, must be the policy's.
 #[pyfunction]
-#[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None))]
+#[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None, levels=None))]
 // One argument per keyword of the Python function (`cartpole_ddqn.evaluate`).
 #[allow(clippy::too_many_arguments)]
 pub fn evaluate_json(
@@ -28,6 +37,7 @@ pub fn evaluate_json(
     horizons: Vec<u32>,
     seed: u64,
     rig: Option<PathBuf>,
+    levels: Option<Vec<f32>>,
 ) -> PyResult<String> {
     if !(1..=MAX_EPISODES).contains(&episodes) {
         return Err(value_error(format!(
@@ -52,6 +62,7 @@ pub fn evaluate_json(
             &shipped
         }
     };
+    same_levels(policy, levels)?;
     let machine = given.unwrap_or(policy.machine);
     let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
@@ -60,20 +71,100 @@ pub fn evaluate_json(
             "horizons x scenarios x controllers must make at most {MAX_ROWS} rows; found {rows}"
         )));
     }
-    let rebuilt = network(policy, &kinds, &machine)?;
-    let net = rebuilt.as_ref().unwrap_or(&policy.net);
-    let rows = py.detach(|| {
-        let mut rows = Vec::with_capacity(rows);
-        for &h in &horizons {
-            for s in &scenarios {
-                for &k in &kinds {
-                    rows.push(eval::evaluate(k, net, s, h, seed, episodes));
+    let net = network(policy, &kinds, &machine)?.unwrap_or_else(|| policy.net.clone());
+    let mut out = Vec::with_capacity(rows);
+    for &h in &horizons {
+        for s in &scenarios {
+            let s = Arc::new(s.clone());
+            for &k in &kinds {
+                let job = Job {
+                    kind: k,
+                    net: net.clone(),
+                    scenario: s.clone(),
+                    horizon: h,
+                    seed,
+                };
+                let eps = job.episodes(py, episodes)?;
+                out.push(eval::row(k, &s, h, seed, &eps));
+            }
+        }
+    }
+    serde_json::to_string(&out).map_err(value_error)
+}
+
+/// One row's controller, network, scenario, horizon and seed, owned, so that a range of its
+/// episodes may run on past an interrupted call.
+struct Job {
+    kind: ControllerKind,
+    net: Arc<Net>,
+    scenario: Arc<Scenario>,
+    horizon: u32,
+    seed: u64,
+}
+
+/// Periods a range of episodes runs on each thread (at most; an episode longer than this
+/// is a range of its own): what an interrupted evaluation leaves to finish unheard, a tenth
+/// of a second or so.
+const PERIODS_PER_RANGE: u64 = 1 << 17;
+
+/// How often a caller waiting for a range of episodes looks at Python's signals.
+const WAIT: Duration = Duration::from_millis(20);
+
+impl Job {
+    /// Episodes `0..episodes`, in ranges of at most [`PERIODS_PER_RANGE`] periods a thread
+    /// (one episode at the least). The threads are rayon's, as many as the machine runs at
+    /// once.
+    fn episodes(&self, py: Python<'_>, episodes: u64) -> PyResult<Vec<EpisodeStats>> {
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get() as u64);
+        let per_range = (PERIODS_PER_RANGE * threads / u64::from(self.horizon)).max(1);
+        let mut eps = Vec::new();
+        let mut start = 0;
+        while start < episodes {
+            let end = start.saturating_add(per_range).min(episodes);
+            reserve(&mut eps, (end - start) as usize, "the episodes' statistics")?;
+            eps.extend(self.range(py, start..end)?);
+            start = end;
+        }
+        Ok(eps)
+    }
+
+    /// Episodes `r` on a thread of their own, this one waiting with the GIL released and
+    /// looking at Python's signals every [`WAIT`].
+    fn range(&self, py: Python<'_>, r: Range<u64>) -> PyResult<Vec<EpisodeStats>> {
+        let (tx, mut rx) = mpsc::channel();
+        let (kind, net, s) = (self.kind, self.net.clone(), self.scenario.clone());
+        let (horizon, seed) = (self.horizon, self.seed);
+        std::thread::Builder::new()
+            .name("evaluate".into())
+            .spawn(move || {
+                // A receiver gone (the call interrupted) wants no answer.
+                let _ = tx.send(eval::par_episodes(kind, &net, &s, horizon, seed, r));
+            })
+            .map_err(|e| PyRuntimeError::new_err(format!("could not start a thread: {e}")))?;
+        loop {
+            // The receiver crosses to the detached closure and back: it may be sent, not shared.
+            let got;
+            (got, rx) = py.detach(move || (rx.recv_timeout(WAIT), rx));
+            match got {
+                Ok(eps) => return Ok(eps),
+                Err(mpsc::RecvTimeoutError::Timeout) => py.check_signals()?,
+                Err(mpsc::RecvTimeoutError::Disconnected) => {
+                    return Err(PyRuntimeError::new_err(
+                        "the evaluation's thread stopped without its episodes",
+                    ));
                 }
             }
         }
-        rows
-    });
-    serde_json::to_string(&rows).map_err(value_error)
+    }
+}
+
+/// Refuses `levels` other than the policy's (to the thousandth, as the bridge drives them).
+fn same_levels(policy: &Policy, levels: Option<Vec<f32>>) -> PyResult<()> {
+    let Some(given) = crate::given_levels(levels)? else {
+        return Ok(());
+    };
+    let theirs: Vec<f32> = policy.net.levels().iter().map(|d| d.fraction()).collect();
+    given.agree(&theirs).map_err(value_error)
 }
 
 /// A controller by the name `host-sim eval --controller` takes.
@@ -93,7 +184,11 @@ fn kind(name: &str) -> PyResult<ControllerKind> {
 /// The network as `host-sim eval` builds it for `kinds`, where the loaded one will not do:
 /// a file's network with its integer version, quantised on `machine`. The monitored
 /// controllers need an envelope, which only the shipped policy has.
-fn network(policy: &Policy, kinds: &[ControllerKind], machine: &Machine) -> PyResult<Option<Net>> {
+fn network(
+    policy: &Policy,
+    kinds: &[ControllerKind],
+    machine: &Machine,
+) -> PyResult<Option<Arc<Net>>> {
     let Some(import) = &policy.import else {
         return Ok(None);
     };
@@ -107,6 +202,6 @@ fn network(policy: &Policy, kinds: &[ControllerKind], machine: &Machine) -> PyRe
         return Ok(None);
     }
     Net::from_weights(&import.weights, Some(machine))
-        .map(Some)
+        .map(|n| Some(Arc::new(n)))
         .map_err(|e| value_error(format!("{e:#}")))
 }

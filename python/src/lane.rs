@@ -7,14 +7,19 @@
 //! period in its two halves (`Episode::sense`, `Episode::act_with`) and the agent's action
 //! is the answer the controller asks for in between. A rejected reading coasts whatever the agent chose, as
 //! the controller does. Under the runtime monitor, its fallback overrides the agent's action
-//! outside the envelope, as it overrides the policy on a board.
+//! outside the envelope, as it overrides the policy on a board. Action `i` drives the
+//! `i`-th of the environment's duty levels through the period. The lane keeps the episode's
+//! tally as `host-sim eval` keeps it (`twin::run::Tally`), for its motor figures.
 
-use firmware::cartpole::{Action, State, Transition};
-use firmware::controller::{Levels, Sensed};
+use std::sync::Arc;
+
+use firmware::ConfigError;
+use firmware::cartpole::{State, Transition};
+use firmware::controller::{Command, Duty, Policy, Sensed};
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
-use twin::run::{Aids, Episode, start_episode};
-use twin::{Domain, Scenario};
+use twin::run::{Aids, Episode, Tally, start_episode};
+use twin::{Domain, EpisodeStats, Scenario};
 
 /// The seeded stream a domain's world is drawn from, after the four of `twin::run::Stream`.
 const DOMAIN_STREAM: u64 = 5;
@@ -40,8 +45,50 @@ impl Worlds {
     }
 }
 
+/// The duty levels an agent chooses among, in action order: the policy of a controller whose
+/// every decision is handed to it, as `firmware::controller::Levels` is for a count known
+/// as the firmware is compiled.
+#[derive(Clone, Debug)]
+pub struct Handed(Arc<[Duty]>);
+
+impl Handed {
+    /// The levels a caller gave (`levels=`, checked as the tools' `--levels` are).
+    pub fn new(levels: &weights::levels::GivenLevels) -> Result<Handed, ConfigError> {
+        let duties = levels.levels().iter().map(|&f| Duty::from_fraction(f));
+        Ok(Handed(duties.collect::<Result<_, _>>()?))
+    }
+
+    /// The paper's two: full push left (action 0), full push right (action 1).
+    pub fn bang_bang() -> Handed {
+        Handed(
+            firmware::controller::Levels::BANG_BANG
+                .duties()
+                .as_slice()
+                .into(),
+        )
+    }
+
+    /// How many levels there are: the actions `0..len`.
+    pub fn len(&self) -> usize {
+        self.0.len()
+    }
+
+    /// Each level as a fraction of the full push.
+    pub fn fractions(&self) -> Vec<f32> {
+        self.0.iter().map(|d| d.fraction()).collect()
+    }
+}
+
+impl Policy for Handed {
+    type Scores = ();
+    fn scores(&mut self, _: &[f32; 4]) {}
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.0.get(i).copied()
+    }
+}
+
 /// The lane's episode: its controller asks the agent which of its levels drives.
-type Running<'s> = Episode<'s, Levels<2>, Pcg64Mcg>;
+type Running<'s> = Episode<'s, Handed, Pcg64Mcg>;
 
 self_cell!(
     /// A scenario and the episode running in it.
@@ -59,38 +106,63 @@ pub struct Lane {
     horizon: u32,
     /// This period's first half: what the policy will be shown.
     sensed: Sensed<[f32; 4]>,
+    /// What the controller commanded in the last period.
+    command: Command,
+    tally: Tally,
 }
 
 impl Lane {
     /// Episode `episode` of `seed`, with the start, noise and push streams `host-sim eval`
     /// gives the same episode, and the board's `aids` as eval gives them: the predicted
     /// state shown where the scenario has dead time, the runtime monitor with its envelope.
-    pub fn start(worlds: &Worlds, horizon: u32, (seed, episode): (u64, u64), aids: Aids) -> Lane {
+    pub fn start(
+        worlds: &Worlds,
+        (levels, horizon): (&Handed, u32),
+        (seed, episode): (u64, u64),
+        aids: Aids,
+    ) -> Lane {
         let scenario = worlds.scenario(seed, episode);
         let mut live = Live::new(scenario, |s| {
-            start_episode(Levels::BANG_BANG, s, horizon, seed, episode, aids)
+            start_episode(levels.clone(), s, horizon, seed, episode, aids)
         });
         let sensed = live.with_dependent_mut(|_, e| e.sense());
         Lane {
             live,
             horizon,
             sensed,
+            command: Command::Coast,
+            tally: Tally::default(),
         }
     }
 
-    /// The second half of the period under the agent's `action` (Gymnasium's index: 1
-    /// right, 0 left), then the next period's first half. An episode reaching the horizon
-    /// is truncated even as it terminates, as Gymnasium's `TimeLimit` says.
-    pub fn step(&mut self, action: Action) -> Transition {
-        let sensed = self.sensed;
-        let (mut t, next) = self.live.with_dependent_mut(|_, e| {
-            e.act_with(sensed, |_| action.index());
+    /// The second half of the period under the agent's `action` (the index of the level it
+    /// drives; with the paper's two, 1 right, 0 left), then the next period's first half. An
+    /// episode reaching the horizon is truncated even as it terminates, as Gymnasium's
+    /// `TimeLimit` says.
+    pub fn step(&mut self, action: usize) -> Transition {
+        let (sensed, tally) = (self.sensed, &mut self.tally);
+        let (command, mut t, next) = self.live.with_dependent_mut(|_, e| {
+            let command = e.act_with(sensed, |_| action);
             let t = e.apply();
-            (t, e.sense())
+            let (world, fallback) = (e.world(), e.fallback());
+            let state = world.state();
+            tally.period(&world.scenario().params, (command, fallback), &state, &t);
+            (command, t, e.sense())
         });
         t.truncated = self.live.borrow_dependent().world().steps() >= self.horizon;
         self.sensed = next;
+        self.command = command;
         t
+    }
+
+    /// The duty the last period drove, a fraction of the full push (0 coasting).
+    pub fn duty(&self) -> f32 {
+        self.command.level()
+    }
+
+    /// The episode's statistics so far, as `host-sim eval` sums them.
+    pub fn stats(&self) -> EpisodeStats {
+        self.tally.stats()
     }
 
     /// What the policy is shown this period (the reading itself when it is rejected).

@@ -5,9 +5,10 @@
 //! environments and turns arguments and results into Python's.
 
 use std::fmt::Display;
+use std::ops::Range;
 use std::path::Path;
 
-use pyo3::exceptions::PyValueError;
+use pyo3::exceptions::{PyMemoryError, PyValueError};
 use pyo3::prelude::*;
 use twin::Machine;
 use weights::levels::GivenLevels;
@@ -22,6 +23,45 @@ mod policy;
 /// says what was expected and what was found.
 pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// An allocation that failed, as the `MemoryError` Python callers expect, saying what it
+/// was for.
+pub(crate) fn memory_error(what: &str, bytes: usize) -> PyErr {
+    PyMemoryError::new_err(format!("could not allocate {bytes} bytes for {what}"))
+}
+
+/// `v` with room for `more` items, or a `MemoryError` naming `what`.
+pub(crate) fn reserve<T>(v: &mut Vec<T>, more: usize, what: &str) -> PyResult<()> {
+    v.try_reserve(more)
+        .map_err(|_| memory_error(what, more.saturating_mul(size_of::<T>())))
+}
+
+/// Most worlds one vector environment holds. Each keeps its own scenario, world and
+/// controller; Gymnasium's vectorised training runs a few hundred to a few thousand.
+pub(crate) const MAX_ENVS: usize = 1 << 16;
+
+/// Worlds a vector environment starts or steps between two looks at Python's signals: a
+/// few milliseconds of work, so Ctrl-C stops it at once.
+pub(crate) const WORLDS_PER_CHECK: u64 = 4096;
+
+/// Runs `work` on `0..n` in consecutive ranges of at most `chunk` (at least 1), with the
+/// GIL released, looking at Python's signals after each: Ctrl-C (`KeyboardInterrupt`)
+/// stops it after the range in progress.
+pub(crate) fn interruptible(
+    py: Python<'_>,
+    n: u64,
+    chunk: u64,
+    mut work: impl FnMut(Range<u64>) + Send,
+) -> PyResult<()> {
+    let mut start = 0;
+    while start < n {
+        let end = start.saturating_add(chunk.max(1)).min(n);
+        py.detach(|| work(start..end));
+        py.check_signals()?;
+        start = end;
+    }
+    Ok(())
 }
 
 /// The duty levels a caller gave as `levels=`, checked as the firmware checks them.
@@ -55,6 +95,17 @@ pub(crate) fn machine(rig: Option<&Path>) -> PyResult<Machine> {
 
 #[pymodule]
 mod _native {
+    use super::*;
+
+    #[pymodule_init]
+    fn init(m: &Bound<'_, PyModule>) -> PyResult<()> {
+        m.add("MAX_ENVS", MAX_ENVS)?;
+        m.add("MAX_EPISODES", host_sim::eval::MAX_EPISODES)?;
+        m.add("MAX_HORIZON", host_sim::eval::MAX_HORIZON)?;
+        m.add("MAX_ROWS", host_sim::eval::MAX_ROWS)?;
+        Ok(())
+    }
+
     #[pymodule_export]
     use super::env::{Twin, VecTwin};
     #[pymodule_export]

@@ -3,6 +3,7 @@
 //! computes its Q-values, as `host-sim eval --policy` runs it.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use firmware::network::argmax;
 use host_sim::eval::Net;
@@ -11,7 +12,7 @@ use pyo3::prelude::*;
 use twin::Machine;
 use weights::checkpoint::{self, Import};
 
-use crate::value_error;
+use crate::{interruptible, reserve, value_error};
 
 /// A Q-network and the machine it runs on.
 #[pyclass(module = "cartpole_ddqn._native", frozen)]
@@ -20,7 +21,8 @@ pub struct Policy {
     pub import: Option<Import>,
     /// The rig given, or the one the file records, or Gymnasium's.
     pub machine: Machine,
-    pub net: Net,
+    /// Shared with the evaluation threads, which may outlive an interrupted call.
+    pub net: Arc<Net>,
 }
 
 /// The network at `path` (a policy file or a run directory), `prefix` choosing among several
@@ -45,7 +47,7 @@ pub fn load(
     Ok(Policy {
         import: Some(import),
         machine,
-        net,
+        net: Arc::new(net),
     })
 }
 
@@ -56,24 +58,24 @@ pub fn shipped(rig: Option<PathBuf>) -> PyResult<Policy> {
     Ok(Policy {
         import: None,
         machine: crate::machine(rig.as_deref())?,
-        net: Net::shipped(),
+        net: Arc::new(Net::shipped()),
     })
 }
 
 #[pymethods]
 impl Policy {
-    /// Q-values `[n, A]` of readings `[n, 4]`, one column per duty level.
+    /// Q-values `[n, A]` of readings `[n, 4]`, one column per duty level; `MemoryError` if
+    /// they do not fit in memory.
     fn q_values<'py>(
         &self,
         py: Python<'py>,
         obs: PyReadonlyArray2<'py, f32>,
     ) -> PyResult<Bound<'py, PyArray2<f32>>> {
-        let rows = rows(&obs)?;
+        let rows = readings(&obs)?;
         let (n, a) = (rows.len(), self.net.levels().len());
-        let q: Vec<f32> = rows
-            .into_iter()
-            .flat_map(|o| self.net.forward(&o).values().to_vec())
-            .collect();
+        let mut q = Vec::new();
+        reserve(&mut q, n.saturating_mul(a), "the Q-values")?;
+        self.each(py, &rows, |v| q.extend_from_slice(v))?;
         PyArray1::from_vec(py, q).reshape([n, a])
     }
 
@@ -84,10 +86,10 @@ impl Policy {
         py: Python<'py>,
         obs: PyReadonlyArray2<'py, f32>,
     ) -> PyResult<Bound<'py, PyArray1<i64>>> {
-        let a: Vec<i64> = rows(&obs)?
-            .into_iter()
-            .map(|o| argmax(self.net.forward(&o).values()) as i64)
-            .collect();
+        let rows = readings(&obs)?;
+        let mut a = Vec::new();
+        reserve(&mut a, rows.len(), "the actions")?;
+        self.each(py, &rows, |v| a.push(argmax(v) as i64))?;
         Ok(PyArray1::from_vec(py, a))
     }
 
@@ -107,8 +109,28 @@ impl Policy {
     }
 }
 
-/// The rows of `obs`, which must be `[n, 4]`.
-fn rows(obs: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32; 4]>> {
+impl Policy {
+    /// `out` of the network's outputs (one per level) on each of `rows` in order, the GIL
+    /// released a range of rows at a time and Ctrl-C honoured between ranges.
+    fn each(
+        &self,
+        py: Python<'_>,
+        rows: &[[f32; 4]],
+        mut out: impl FnMut(&[f32]) + Send,
+    ) -> PyResult<()> {
+        interruptible(py, rows.len() as u64, ROWS_PER_CHECK, |r| {
+            let rows = &rows[r.start as usize..r.end as usize];
+            rows.iter().for_each(|o| out(self.net.forward(o).values()));
+        })
+    }
+}
+
+/// Readings a forward pass runs between two looks at Python's signals: milliseconds.
+const ROWS_PER_CHECK: u64 = 16384;
+
+/// The rows of `obs`, which must be `[n, 4]`, copied (the GIL is released as the network
+/// runs on them); `MemoryError` if they do not fit.
+fn readings(obs: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32; 4]>> {
     let v = obs.as_array();
     if v.ncols() != 4 {
         return Err(value_error(format!(
@@ -116,8 +138,8 @@ fn rows(obs: &PyReadonlyArray2<'_, f32>) -> PyResult<Vec<[f32; 4]>> {
             v.ncols()
         )));
     }
-    Ok(v.rows()
-        .into_iter()
-        .map(|r| [r[0], r[1], r[2], r[3]])
-        .collect())
+    let mut rows = Vec::new();
+    reserve(&mut rows, v.nrows(), "the readings")?;
+    rows.extend(v.rows().into_iter().map(|r| [r[0], r[1], r[2], r[3]]));
+    Ok(rows)
 }

@@ -42,6 +42,21 @@ impl GivenLevels {
     pub fn levels(&self) -> &[f32] {
         &self.levels
     }
+
+    /// Refused unless these levels drive the duties of `policy`'s (to the thousandth, as
+    /// the bridge drives them): levels given beside a policy that has its own.
+    pub fn agree(&self, policy: &[f32]) -> Result<()> {
+        if same_duties(policy, &self.levels) {
+            return Ok(());
+        }
+        Err(Error::Input(format!(
+            "{} {}: the policy drives the duty levels {}; expected those or no {}",
+            self.by,
+            show(&self.levels),
+            show(policy),
+            self.by
+        )))
+    }
 }
 
 /// The duty levels `spec` lists, comma-separated fractions of the full push in increasing
@@ -147,6 +162,17 @@ fn same_duties(a: &[f32], b: &[f32]) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn given_levels_agree_with_a_policys_to_the_thousandth() {
+        let given = GivenLevels::new(vec![-1.0, 0.2, 1.0], "levels").unwrap();
+        assert!(given.agree(&[-1.0, 0.2004, 1.0]).is_ok());
+        let e = given.agree(&[-1.0, 1.0]).unwrap_err().to_string();
+        assert!(
+            e.contains("levels [-1, 0.2, 1]: the policy drives the duty levels [-1, 1]"),
+            "{e}"
+        );
+    }
 
     fn refused(spec: &str) -> String {
         let e = parse_levels(spec, "--levels").unwrap_err();

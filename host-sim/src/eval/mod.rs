@@ -25,7 +25,7 @@ mod table;
 
 pub use net::{IntNet, Net};
 pub(crate) use table::group;
-pub use table::{Row, WORST, Worst, format_failures, format_table};
+pub use table::{Motor, Row, WORST, Worst, format_failures, format_table};
 
 /// Which controller drives the cart.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, clap::ValueEnum, Serialize)]
@@ -213,15 +213,41 @@ pub fn evaluate(
     seed: u64,
     episodes: u64,
 ) -> Row {
-    let eps: Vec<EpisodeStats> = (0..episodes.div_ceil(CHUNK))
+    let eps = par_episodes(kind, net, scenario, horizon, seed, 0..episodes);
+    row(kind, scenario, horizon, seed, &eps)
+}
+
+/// Episodes `episodes` of one controller in one scenario, in parallel, in order: a caller
+/// may run a row's episodes range by range (and stop between ranges) and get the same row.
+pub fn par_episodes(
+    kind: ControllerKind,
+    net: &Net,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: Range<u64>,
+) -> Vec<EpisodeStats> {
+    let first = episodes.start;
+    let n = episodes.end.saturating_sub(first);
+    (0..n.div_ceil(CHUNK))
         .into_par_iter()
         .flat_map_iter(|c| {
-            let range = c * CHUNK..((c + 1) * CHUNK).min(episodes);
+            let range = first + c * CHUNK..first + ((c + 1) * CHUNK).min(n);
             self::episodes(kind, net, scenario, horizon, seed, range)
         })
-        .collect();
+        .collect()
+}
+
+/// The row of controller `kind`'s episodes `eps` (episode `i` of `seed` at `eps[i]`).
+pub fn row(
+    kind: ControllerKind,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    eps: &[EpisodeStats],
+) -> Row {
     let period = (horizon, scenario.params.tau);
-    Row::from_episodes(&kind.to_string(), &scenario.name, period, seed, &eps)
+    Row::from_episodes(&kind.to_string(), &scenario.name, period, seed, eps)
 }
 
 #[cfg(test)]
@@ -252,5 +278,22 @@ mod tests {
         assert_eq!(one.episodes, episodes as usize);
         assert!(one.success_rate < 1.0, "no episode failed: {one:?}");
         assert_eq!(format!("{one:?}"), format!("{four:?}"));
+    }
+
+    /// A row's episodes run in ranges that cut across the chunks give the row of one run.
+    #[test]
+    fn ranges_of_episodes_give_the_same_row() {
+        let (net, kind) = (Net::shipped(), ControllerKind::Policy);
+        let s = Scenario::parse("noise+push=2").unwrap();
+        let whole = evaluate(kind, &net, &s, 200, 3, 2 * CHUNK + 9);
+        let mut eps = Vec::new();
+        for r in [0..5, 5..CHUNK + 3, CHUNK + 3..2 * CHUNK + 9] {
+            eps.extend(par_episodes(kind, &net, &s, 200, 3, r));
+        }
+        assert!(whole.failures > 0, "no episode failed: {whole:?}");
+        assert_eq!(
+            format!("{whole:?}"),
+            format!("{:?}", row(kind, &s, 200, 3, &eps))
+        );
     }
 }

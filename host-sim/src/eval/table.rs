@@ -104,18 +104,56 @@ impl Row {
             rms_x_m: Estimate::of(&per(&|e| (e.sum_x2 / steps(e)).sqrt())),
             mean_abs_x_m: Estimate::of(&per(&|e| e.sum_abs_x / steps(e))),
             switches_per_s: Estimate::of(&per(&|e| f64::from(e.switches) / (steps(e) * period_s))),
-            reversals_per_s: Estimate::of(&per(&|e| {
-                f64::from(e.reversals) / (steps(e) * period_s)
-            })),
-            mean_abs_duty: Estimate::of(&per(&|e| e.sum_abs_duty / steps(e))),
-            duty_tv_per_s: Estimate::of(&per(&|e| e.sum_duty_change / (steps(e) * period_s))),
-            heat: Estimate::of(&per(&|e| e.sum_heat / steps(e))),
+            reversals_per_s: Estimate::of(&per(&|e| Motor::of(e, period_s).reversals_per_s)),
+            mean_abs_duty: Estimate::of(&per(&|e| Motor::of(e, period_s).mean_abs_duty)),
+            duty_tv_per_s: Estimate::of(&per(&|e| Motor::of(e, period_s).duty_tv_per_s)),
+            heat: Estimate::of(&per(&|e| Motor::of(e, period_s).heat)),
             faults: eps.iter().map(|e| u64::from(e.faults)).sum(),
             fallback_share: eps.iter().map(|e| f64::from(e.fallback)).sum::<f64>()
                 / eps.iter().map(|e| f64::from(e.steps)).sum::<f64>().max(1.0),
             failures: eps.len() - successes,
             worst: worst(seed, eps),
         }
+    }
+}
+
+/// What one episode asked of its motor, the figures a row averages over its episodes.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Motor {
+    /// Reversals of the motor's direction per second of balance.
+    pub reversals_per_s: f64,
+    /// Mean |duty|, a fraction of the full push.
+    pub mean_abs_duty: f64,
+    /// Total variation of the duty per second (full pushes per second).
+    pub duty_tv_per_s: f64,
+    /// Mean squared motor current as a share of a full-duty stall's.
+    pub heat: f64,
+}
+
+impl Motor {
+    /// Episode `e`'s figures, its periods `period_s` long.
+    pub fn of(e: &EpisodeStats, period_s: f64) -> Motor {
+        let steps = f64::from(e.steps.max(1));
+        Motor {
+            reversals_per_s: f64::from(e.reversals) / (steps * period_s),
+            mean_abs_duty: e.sum_abs_duty / steps,
+            duty_tv_per_s: e.sum_duty_change / (steps * period_s),
+            heat: e.sum_heat / steps,
+        }
+    }
+
+    /// The figures' names: those of the row's fields that average them.
+    pub const NAMES: [&'static str; 4] =
+        ["reversals_per_s", "mean_abs_duty", "duty_tv_per_s", "heat"];
+
+    /// The figures in the order of [`Motor::NAMES`].
+    pub fn values(&self) -> [f64; 4] {
+        [
+            self.reversals_per_s,
+            self.mean_abs_duty,
+            self.duty_tv_per_s,
+            self.heat,
+        ]
     }
 }
 
@@ -246,6 +284,34 @@ pub(crate) fn group(n: usize) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// An episode's motor figures are the means of its one-episode row, by the row's names.
+    #[test]
+    fn motor_figures_are_a_rows_by_name() {
+        let e = EpisodeStats {
+            steps: 50,
+            reversals: 4,
+            sum_abs_duty: 30.0,
+            sum_duty_change: 12.0,
+            sum_heat: 20.0,
+            ..EpisodeStats::default()
+        };
+        let m = Motor::of(&e, 0.02);
+        // 4 reversals in 50 periods of 0.02 s: one second. 12 full pushes of change a second.
+        assert_eq!(
+            m,
+            Motor {
+                reversals_per_s: 4.0,
+                mean_abs_duty: 0.6,
+                duty_tv_per_s: 12.0,
+                heat: 0.4
+            }
+        );
+        let row = serde_json::to_value(Row::from_episodes("c", "s", (50, 0.02), 0, &[e])).unwrap();
+        for (name, value) in Motor::NAMES.into_iter().zip(m.values()) {
+            assert_eq!(row[name]["mean"].as_f64(), Some(value), "{name}");
+        }
+    }
 
     #[test]
     fn row_statistics() {

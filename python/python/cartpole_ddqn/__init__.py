@@ -7,10 +7,14 @@ and ``gymnasium.make_vec``). ``load``, ``export`` and ``evaluate`` run the code 
 
 import gymnasium
 
-from .api import Policy, evaluate, export, load, provenance, shipped
-from .env import TwinEnv, TwinVectorEnv
+from .api import MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Policy, evaluate, export, load, provenance, shipped
+from .env import MAX_ENVS, TwinEnv, TwinVectorEnv
 
 __all__ = [
+    "MAX_ENVS",
+    "MAX_EPISODES",
+    "MAX_HORIZON",
+    "MAX_ROWS",
     "Policy",
     "TwinEnv",
     "TwinVectorEnv",

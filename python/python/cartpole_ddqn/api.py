@@ -8,6 +8,11 @@ import numpy as np
 
 from . import _native
 
+# The most episodes of a row, periods of an episode and rows of one evaluation: `host-sim eval`'s.
+MAX_EPISODES = _native.MAX_EPISODES
+MAX_HORIZON = _native.MAX_HORIZON
+MAX_ROWS = _native.MAX_ROWS
+
 # NumPy dtypes a state dict's tensors may have, by safetensors' name for them.
 _DTYPES = {np.dtype(np.float32): "F32", np.dtype(np.float64): "F64", np.dtype(np.float16): "F16"}
 
@@ -67,7 +72,14 @@ def _path(p):
 
 
 def _levels(levels):
-    return None if levels is None else [float(v) for v in levels]
+    if levels is None:
+        return None
+    try:
+        return [float(v) for v in levels]
+    except (TypeError, ValueError):
+        raise ValueError(
+            f"levels must be a list of duty levels, fractions of the full push; found {levels!r:.200}"
+        ) from None
 
 
 def _tensors(source):
@@ -124,12 +136,17 @@ def _list(value, what):
     return values
 
 
-def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None):
+def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,
+             levels=None):
     """The rows ``host-sim eval --json`` prints for the same arguments, as dicts: success
-    rate with its Wilson interval, failures, RMS of angle and position and the rest.
-    ``policy`` is a loaded Policy (the shipped one by default); ``scenario``, ``horizon``
-    and ``controller`` may be lists (``controller`` among policy, policy-int, monitored,
-    monitored-int, lqr, lqr-predict, rule, random)."""
+    rate with its Wilson interval, failures, RMS of angle and position, the motor figures
+    (``reversals_per_s``, ``mean_abs_duty``, ``duty_tv_per_s``, ``heat``) and the rest.
+    ``policy`` is a loaded Policy (the shipped one by default), which drives its own duty
+    levels (``levels``, if given, must be those); ``scenario``, ``horizon`` and
+    ``controller`` may be lists (``controller`` among policy, policy-int, monitored,
+    monitored-int, lqr, lqr-predict, rule, random). At most ``MAX_EPISODES`` episodes of
+    ``MAX_HORIZON`` periods; Ctrl-C (``KeyboardInterrupt``) stops it within a fraction of
+    a second."""
     if policy is not None and not isinstance(policy, Policy):
         raise ValueError(f"expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
     for what, value in (("episodes", episodes), ("seed", seed)):
@@ -143,6 +160,7 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
         [int(h) for h in _list(horizon, "horizon")],
         int(seed),
         _path(rig),
+        _levels(levels),
     )
     return json.loads(rows)
 

@@ -3,7 +3,13 @@
 The observation is what the board's controller decides on in the scenario (the exact state
 rounded to float32 on Gymnasium's machine; with noise, encoders or dead time, the reading
 its sensor gives and its predictor advances), the reward 1.0 per period, and an episode
-terminates where the true plant leaves the track or the angle limit.
+terminates where the true plant leaves the track or the angle limit. Action ``i`` drives the
+``i``-th duty level (``levels=``, fractions of the full push; the paper's two, full push left
+and right, by default) through the period.
+
+``info["duty"]`` is the duty the period drove; at an episode's end ``info`` also has its
+motor figures, by the names ``host-sim eval --json`` gives their means over episodes:
+``reversals_per_s``, ``mean_abs_duty``, ``duty_tv_per_s`` and ``heat``.
 """
 
 import os
@@ -15,6 +21,10 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
+from .api import _levels
+
+# The most worlds a vector environment holds.
+MAX_ENVS = _native.MAX_ENVS
 
 # Gymnasium's CartPole bounds: twice the termination limits for the positions, the largest
 # float32 for the velocities.
@@ -50,6 +60,9 @@ class TwinEnv(gymnasium.Env):
     """One world of a scenario (``scenario="noise+delay=2+push"``) or of a domain
     (``domain="length=0.5..1.6"``), on Gymnasium's machine or a rig file's (``rig=``).
 
+    ``levels=[-1, -0.2, 0, 0.2, 1]`` gives the duty levels the actions drive (checked as the
+    tools' ``--levels``): the action space is ``Discrete(len(levels))``.
+
     With ``envelope=`` (``"shipped"``, or the file ``host-sim envelope --json`` wrote) the
     board's runtime monitor runs: outside the envelope, or on faulty readings, its LQR
     fallback decides instead of the agent, and ``info["fallback"]`` says so."""
@@ -57,14 +70,14 @@ class TwinEnv(gymnasium.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
-                 envelope=None):
+                 envelope=None, levels=None):
         self._twin = _native.Twin(scenario, domain, rig, max_episode_steps, predict,
-                                  _envelope(envelope))
+                                  _envelope(envelope), _levels(levels))
         self._monitored = envelope is not None
         self._twin.reset(0)
         name, self.tau, x_limit, theta_limit = self._twin.world
         self.observation_space = _observation_space(x_limit, theta_limit)
-        self.action_space = spaces.Discrete(2)
+        self.action_space = spaces.Discrete(len(self._twin.levels))
         self._seeded = False
 
     def reset(self, *, seed=None, options=None):
@@ -76,9 +89,25 @@ class TwinEnv(gymnasium.Env):
         return obs, {}
 
     def step(self, action):
-        obs, terminated, truncated = self._twin.step(int(action))
-        info = {"fallback": self._twin.fallback} if self._monitored else {}
+        obs, terminated, truncated, duty = self._twin.step(int(action))
+        info = {"duty": duty}
+        if self._monitored:
+            info["fallback"] = self._twin.fallback
+        if terminated or truncated:
+            info.update(self._twin.motor())
         return obs, 1.0, terminated, truncated, info
+
+    @property
+    def levels(self):
+        """The duty level each action drives, a fraction of the full push."""
+        return self._twin.levels
+
+    @property
+    def motor(self):
+        """The motor figures of the episode so far, as ``info`` gives them at its end: for
+        an episode Gymnasium's ``TimeLimit`` wrapper truncated, which the environment does
+        not see (``gymnasium.make`` adds one)."""
+        return dict(self._twin.motor())
 
     @property
     def state(self):
@@ -94,25 +123,34 @@ class TwinEnv(gymnasium.Env):
 class TwinVectorEnv(VectorEnv):
     """``num_envs`` worlds stepped together in native code, with Gymnasium's next-step
     autoreset: the step after an episode ends returns the next episode's first reading,
-    reward 0, neither terminated nor truncated, and ignores that world's action. With
-    ``envelope=``, as for ``TwinEnv``, ``info["fallback"]`` says per world whether the
-    monitor's fallback decided."""
+    reward 0, neither terminated nor truncated, and ignores that world's action. ``levels=``
+    as for ``TwinEnv``. ``info["duty"]`` is each world's duty in the period; where a world's
+    episode ended, ``info`` has its motor figures (masked by ``info["_reversals_per_s"]``
+    and the like, Gymnasium's way). With ``envelope=``, as for ``TwinEnv``,
+    ``info["fallback"]`` says per world whether the monitor's fallback decided.
+
+    At most ``MAX_ENVS`` worlds. A step interrupted by Ctrl-C (``KeyboardInterrupt``) leaves
+    some worlds stepped and others not: ``reset()`` before stepping again."""
 
     metadata = {"render_modes": [], "autoreset_mode": AutoresetMode.NEXT_STEP}
 
     def __init__(self, num_envs=1, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
-                 envelope=None):
-        if not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be a whole number of at least 1; found {num_envs!r}")
+                 envelope=None, levels=None):
+        if not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
+            raise ValueError(f"num_envs must be a whole number in [1, {MAX_ENVS}]; found {num_envs!r}")
         self.num_envs = int(num_envs)
         self._twin = _native.VecTwin(scenario, domain, rig, max_episode_steps, predict,
-                                     _envelope(envelope))
+                                     _envelope(envelope), _levels(levels))
         self._monitored = envelope is not None
-        probe = _native.Twin(scenario, domain, rig, None, predict)
+        probe = _native.Twin(scenario, domain, rig, None, predict, None, _levels(levels))
         probe.reset(0)
         _, _, x_limit, theta_limit = probe.world
+        self.levels = probe.levels
         self.single_observation_space = _observation_space(x_limit, theta_limit)
-        self.single_action_space = spaces.Discrete(2)
+        self.single_action_space = spaces.Discrete(len(self.levels))
+        # The mask of a figure every world has, shared by every step's info: read-only.
+        self._every = np.ones(self.num_envs, dtype=bool)
+        self._every.flags.writeable = False
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
         self._seeded = False
@@ -120,7 +158,8 @@ class TwinVectorEnv(VectorEnv):
     def reset(self, *, seed=None, options=None):
         """World ``i`` starts episode 0 of ``seed + i`` (``seed`` may be a list of one
         seed per world)."""
-        super().reset(seed=seed)
+        # Gymnasium's own seeding takes one seed; a list seeds the worlds alone.
+        super().reset(seed=seed if seed is None or isinstance(seed, (int, np.integer)) else None)
         if seed is None:
             base = _seed_from(self.np_random)
             seeds = [base + i for i in range(self.num_envs)]
@@ -134,10 +173,14 @@ class TwinVectorEnv(VectorEnv):
 
     def step(self, actions):
         actions = np.ascontiguousarray(actions, dtype=np.int64).reshape(-1)
-        obs, reward, terminated, truncated = self._twin.step(actions)
-        info = {}
+        obs, reward, terminated, truncated, duty = self._twin.step(actions)
+        info = {"duty": duty, "_duty": self._every}
         if self._monitored:
-            info = {"fallback": self._twin.fallbacks(), "_fallback": np.ones(self.num_envs, dtype=bool)}
+            info.update(fallback=self._twin.fallbacks(), _fallback=self._every)
+        ended = terminated | truncated
+        if ended.any():
+            for name, values in self._twin.motor():
+                info[name], info["_" + name] = values, ended
         return obs, reward, terminated, truncated, info
 
     @property
