@@ -24,9 +24,7 @@ use cartpole_policy::{
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::cartpole::{State, advance};
-use firmware::controller::{
-    Assurance, Command, Controller, FaultFlags, Policy, Reading, StateSensor,
-};
+use firmware::controller::{Command, Controller, FaultFlags, Policy, Reading, StateSensor};
 use firmware::envelope::ENVELOPE;
 use firmware::estimator::ObserverSensor;
 use firmware::fixed;
@@ -286,7 +284,7 @@ fn monitored_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Co
     script.call("monitor", &format!("monitor {CARTPOLE_OK}"));
     let observer = rig.observer().unwrap().watching();
     let sensor = ObserverSensor::<_, O>::new(observer, Latest::default());
-    let assurance = Assurance::for_rig(ENVELOPE, rig).unwrap();
+    let assurance = rig.lqr_assurance(ENVELOPE).unwrap();
     let frozen = [(160, FaultFlags::MODEL_ONLY), (160, FaultFlags::FALLBACK)];
     let mut held = (0, 0);
     let c = closed_loop(

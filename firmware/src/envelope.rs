@@ -22,7 +22,7 @@ pub const ENVELOPE: Limits = match Limits::new([2.2913086, 3.8618164, 0.24476074
 pub const FALLBACK_GAIN: [f32; 4] = [-0.9101264, -2.132488, -30.594563, -7.8415055];
 
 /// The monitor's configuration for the shipped policy on [`RIG`].
-pub const ASSURANCE: Assurance = match Assurance::new(ENVELOPE, &RIG, FALLBACK_GAIN) {
+pub const ASSURANCE: Assurance = match RIG.assurance(ENVELOPE, FALLBACK_GAIN) {
     Ok(a) => a,
     Err(_) => panic!("the assurance is refused"),
 };

@@ -59,6 +59,10 @@ pub mod rig;
 pub use cartpole::Action;
 pub use config::ConfigError;
 
+// The shipped policies' machines, checked as the firmware is compiled.
+const _: () = assert!(policy::RIG.check().is_ok());
+const _: () = assert!(policy_int::RIG.check().is_ok());
+
 /// Calls `$m!` with every network shape the trainer, the simulator and the C API are built
 /// for, as `width x outputs`, each beside the names of its C entry points: the float and the
 /// integer forward pass, then the float and the integer controller's init. The paper's two

@@ -237,7 +237,7 @@ pub fn rust_module(envelope: [f32; 4], digest: u64, rig: &Rig, provenance: &[Str
          /// The fallback's LQR gain for [`RIG`] ([`crate::linear::balance_gain`]).\n\
          pub const FALLBACK_GAIN: [f32; 4] = {gain:?};\n\n\
          /// The monitor's configuration for the shipped policy on [`RIG`].\n\
-         pub const ASSURANCE: Assurance = match Assurance::new(ENVELOPE, &RIG, FALLBACK_GAIN) {{\n    \
+         pub const ASSURANCE: Assurance = match RIG.assurance(ENVELOPE, FALLBACK_GAIN) {{\n    \
          Ok(a) => a,\n    Err(_) => panic!(\"the assurance is refused\"),\n}};\n"
     );
     s

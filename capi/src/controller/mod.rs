@@ -345,7 +345,7 @@ pub extern "C" fn cartpole_controller_monitor(
         Some(Some(rig)) => rig,
         Some(None) => return CARTPOLE_ERR_RIG,
     };
-    let Ok(assurance) = Assurance::for_rig(envelope, &rig) else {
+    let Ok(assurance) = rig.lqr_assurance(envelope) else {
         return CARTPOLE_ERR_RIG;
     };
     let digest = firmware::link::digest::rig(&rig);

@@ -144,7 +144,7 @@ impl<'p, const H: usize> Target<'p, H> {
         let monitor = match (start.monitor, self.assurance) {
             (false, _) => None,
             (true, Some(a)) => Some(a),
-            (true, None) => Some(*self.assurance.insert(Assurance::for_rig(ENVELOPE, &rig)?)),
+            (true, None) => Some(*self.assurance.insert(rig.lqr_assurance(ENVELOPE)?)),
         };
         let cache = &mut self.observer;
         let observer = || {

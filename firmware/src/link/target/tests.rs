@@ -56,7 +56,7 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
     let mut board = Controller::new(policy, sensor, pins(), rig.limits().unwrap())
         .with_predictor(rig.predictor().unwrap());
     if monitor {
-        board.set_monitor(Assurance::for_rig(ENVELOPE, &rig).unwrap());
+        board.set_monitor(rig.lqr_assurance(ENVELOPE).unwrap());
     }
     let mut t = target();
     assert!(matches!(
