@@ -27,7 +27,7 @@
 //! use firmware::cartpole::{CartPole, State};
 //! use firmware::estimator::ObserverSensor;
 //! use firmware::loopback::{duty, pins};
-//! use firmware::policy_int::{POLICY_INT, RIG};
+//! use shipped::policy_int::{POLICY_INT, RIG};
 //! use firmware::rig::Options;
 //!
 //! let mut plant = CartPole::new(RIG.params, 500);

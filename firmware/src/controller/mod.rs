@@ -39,7 +39,7 @@
 //! use embedded_hal::{digital::{ErrorType as PinErrorType, OutputPin},
 //!                    pwm::{ErrorType as PwmErrorType, SetDutyCycle}};
 //! use firmware::controller::{Bridge, Command, Controller, Duty, StateSensor};
-//! use firmware::policy::{POLICY, RIG};
+//! use shipped::policy::{POLICY, RIG};
 //!
 //! struct Pin(bool);
 //! impl PinErrorType for Pin { type Error = Infallible; }

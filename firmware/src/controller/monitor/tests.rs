@@ -2,9 +2,9 @@
 
 use super::*;
 use crate::controller::{Levels, Policy, answer};
-use crate::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 use crate::fixed;
 use crate::rig::Rig;
+use crate::shipped::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 
 /// Scores `[0, theta]`: right when the pole leans right, so each policy command is known.
 struct Lean;
@@ -216,7 +216,7 @@ fn a_gain_that_is_no_number_is_refused() {
 /// The generated envelope belongs to the shipped policy and its fallback to the shipped rig.
 #[test]
 fn the_shipped_assurance_is_the_shipped_policys_and_rigs() {
-    use crate::policy::{POLICY, RIG};
+    use crate::shipped::policy::{POLICY, RIG};
     assert_eq!(POLICY_DIGEST, crate::link::digest::mlp(&POLICY));
     let k = crate::linear::balance_gain(&RIG.params).map(|k| k as f32);
     assert_eq!(FALLBACK_GAIN, k);

@@ -7,13 +7,14 @@ use crate::controller::Command;
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
-use crate::policy::{POLICY, RIG};
-use crate::policy_int::POLICY_INT;
+use crate::shipped::envelope::ENVELOPE;
+use crate::shipped::policy::{POLICY, RIG};
+use crate::shipped::policy_int::POLICY_INT;
 
 const CLOCK_HZ: u32 = 1_000;
 
 fn target() -> Target<'static, 64> {
-    Target::new(&POLICY, &POLICY_INT, RIG, CLOCK_HZ)
+    Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, CLOCK_HZ)
 }
 
 /// Sends `message` numbered `seq`; the answer's message, checked to carry `seq`.
