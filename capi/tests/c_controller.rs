@@ -25,12 +25,12 @@ use cartpole_policy::{
 use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::cartpole::{State, advance};
 use firmware::controller::{Command, Controller, FaultFlags, Policy, Reading, StateSensor};
-use firmware::envelope::ENVELOPE;
 use firmware::estimator::ObserverSensor;
 use firmware::fixed;
 use firmware::loopback::{self, Latest, MAX_DUTY, Pins};
 use firmware::rig::{Options, Rig};
-use firmware::{policy, policy_int};
+use shipped::envelope::ENVELOPE;
+use shipped::{policy, policy_int};
 use steps::Scores;
 
 /// Periods of each closed loop.
