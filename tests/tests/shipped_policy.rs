@@ -1,4 +1,4 @@
-//! The policy compiled into `firmware`: where it came from, that it is what it claims to be,
+//! The shipped policy (the `shipped` crate): where it came from, that it is what it claims to be,
 //! and that it balances.
 
 use std::path::PathBuf;

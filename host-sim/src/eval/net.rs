@@ -120,7 +120,7 @@ impl ForShape for Build<'_> {
 }
 
 impl Net {
-    /// The policy compiled into `firmware`, its integer version and its envelope compiled
+    /// The shipped policy (the `shipped` crate), its integer version and its envelope compiled
     /// beside it.
     pub fn shipped() -> Net {
         Net {
