@@ -7,11 +7,12 @@
 //! - [`envelope`]: where the runtime monitor lets the policy drive (`ENVELOPE`) and the
 //!   monitor's configuration on its rig (`ASSURANCE`), written by `host-sim envelope`.
 //!
-//! Every file but this one is generated: `scripts/regenerate.sh --only 'policy-*' --only
-//! 'envelope*'` writes them again, by the commands of `docs/results/manifest.toml` (the
-//! weights they are made from are `policy.safetensors` beside this crate's manifest). The
-//! crate is `no_std`, allocates nothing and depends on `firmware` alone; a board depends on
-//! both.
+//! Every module but this one is generated, by the commands of `docs/results/manifest.toml`
+//! (steps `policy-rs`, `policy-safetensors`, `policy-int-rs`, `envelope-rs`), which
+//! `scripts/regenerate.sh` runs: `--only train --only 'policy-*' --only envelope-rs` trains
+//! the policy again and writes them, and `policy.safetensors` beside this crate's manifest
+//! (the weights the int8 export and the tests read). The crate is `no_std`, allocates
+//! nothing and depends on `firmware` alone; a board depends on both.
 #![no_std]
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
