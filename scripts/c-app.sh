@@ -21,7 +21,7 @@ mkdir -p "$out"
 cargo build -q --profile "$profile" -p capi --target "$target"
 cargo build -q --profile "$profile" -p policy-export
 export_c() {
-  "$target_dir/$profile/policy-export" export firmware/policy.safetensors --format c "$@" \
+  "$target_dir/$profile/policy-export" export shipped/policy.safetensors --format c "$@" \
     2>"$out/export.log" || { cat "$out/export.log" >&2; exit 1; }
 }
 export_c --name shipped --out "$out/shipped.h"

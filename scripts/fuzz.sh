@@ -26,7 +26,7 @@ corpus=fuzz/corpus
 mkdir -p "$corpus"/{weights_import,torch_pickle,onnx_model,config_toml,replay_parse,scenario_parse,source_comment,link_frame}
 fixtures=weights/tests/fixtures
 cp "$fixtures"/*.safetensors "$fixtures"/*.pth "$fixtures"/*.zip "$fixtures"/*.cleanrl_model \
-  firmware/policy.safetensors "$corpus/weights_import/"
+  shipped/policy.safetensors "$corpus/weights_import/"
 cp "$fixtures"/*.onnx "$corpus/onnx_model/"
 # The pickles inside PyTorch's zips (stored uncompressed, so a zip reader is not needed).
 python3 - "$corpus/torch_pickle" "$fixtures"/*.pth <<'PY'

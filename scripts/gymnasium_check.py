@@ -4,7 +4,7 @@ forward pass (its own summation order, not the firmware's), greedy actions, Gymn
 starts and physics. An independent check of what `host-sim eval --scenario nominal` says.
 
     python3 -m venv .venv && .venv/bin/pip install -r tests/data/requirements.txt
-    .venv/bin/python scripts/gymnasium_check.py [--policy firmware/policy.safetensors] \
+    .venv/bin/python scripts/gymnasium_check.py [--policy shipped/policy.safetensors] \
         [--episodes 1000] [--max-steps 500] [--seed 0]
 
 Episode i starts from `env.reset(seed=SEED + i)`. Prints the failures as a count, the five
@@ -110,7 +110,7 @@ def act(t, obs):
 
 def main():
     p = parser(PROG, __doc__.split("\n\n")[0])
-    p.add_argument("--policy", default="firmware/policy.safetensors")
+    p.add_argument("--policy", default="shipped/policy.safetensors")
     p.add_argument("--episodes", type=bounded_int(1, MAX_EPISODES), default=1000)
     p.add_argument("--max-steps", type=bounded_int(1, MAX_STEPS), default=500)
     p.add_argument("--seed", type=bounded_int(0, 2**32 - 1), default=0)

@@ -24,12 +24,12 @@ echo "== export"
 # Beside the run directory, not in it: a file added to it would make it no longer the
 # tool's to replace on the next run.
 pe export "$out" --format c --out "${out%/}-cartpole_policy.h"
-if cmp -s "$out/policy.rs" firmware/src/policy.rs &&
-   cmp -s "$out/policy.safetensors" firmware/policy.safetensors; then
+if cmp -s "$out/policy.rs" shipped/src/policy.rs &&
+   cmp -s "$out/policy.safetensors" shipped/policy.safetensors; then
   echo "$out/policy.rs and policy.safetensors are byte-identical to the shipped ones"
 else
-  echo "$out/policy.rs differs from firmware/src/policy.rs; to ship it:"
-  echo "  cp $out/policy.rs firmware/src/policy.rs && cp $out/policy.safetensors firmware/"
+  echo "$out/policy.rs differs from shipped/src/policy.rs; to ship it:"
+  echo "  cp $out/policy.rs shipped/src/policy.rs && cp $out/policy.safetensors shipped/"
 fi
 echo "== closed loop: the trained policy through firmware::controller against the plant"
 target/release/host-sim eval --policy "$out" --scenario nominal \

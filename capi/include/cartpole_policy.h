@@ -2,7 +2,7 @@
  * `firmware`. Link libcartpole_policy.a (cargo build --release -p capi --target <target>).
  *
  * Call once per control period of the rig the policy was trained for (the shipped
- * policy's is firmware::policy::RIG.params.tau) with the state obs = {x (m), x_dot (m/s),
+ * policy's is shipped::policy::RIG.params.tau) with the state obs = {x (m), x_dot (m/s),
  * theta (rad), theta_dot (rad/s)}; push the cart right (+x) with the full force iff
  * q[1] > q[0]. Allocation-free, no global state, safe to call from an interrupt; a few
  * hundred bytes of stack (measured per target in docs/QUANTISATION.md). The caller checks

@@ -29,8 +29,8 @@
 
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, N_ACTIONS, OBS_DIM};
-use firmware::policy::POLICY;
-use firmware::policy_int::POLICY_INT;
+use shipped::policy::POLICY;
+use shipped::policy_int::POLICY_INT;
 
 /// `q` = the outputs `net` gives `obs` (a network's forward pass, in either format); a NULL
 /// argument (`None`) makes it write nothing.

@@ -106,7 +106,7 @@ impl CartpoleRig {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::policy::RIG;
+    use shipped::policy::RIG;
 
     #[test]
     fn a_rig_goes_to_c_and_back_unchanged() {

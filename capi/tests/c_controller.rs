@@ -24,15 +24,13 @@ use cartpole_policy::{
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
 use firmware::cartpole::{State, advance};
-use firmware::controller::{
-    Assurance, Command, Controller, FaultFlags, Policy, Reading, StateSensor,
-};
-use firmware::envelope::ENVELOPE;
+use firmware::controller::{Command, Controller, FaultFlags, Policy, Reading, StateSensor};
 use firmware::estimator::ObserverSensor;
 use firmware::fixed;
 use firmware::loopback::{self, Latest, MAX_DUTY, Pins};
 use firmware::rig::{Options, Rig};
-use firmware::{policy, policy_int};
+use shipped::envelope::ENVELOPE;
+use shipped::{policy, policy_int};
 use steps::Scores;
 
 /// Periods of each closed loop.
@@ -286,7 +284,7 @@ fn monitored_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Co
     script.call("monitor", &format!("monitor {CARTPOLE_OK}"));
     let observer = rig.observer().unwrap().watching();
     let sensor = ObserverSensor::<_, O>::new(observer, Latest::default());
-    let assurance = Assurance::for_rig(ENVELOPE, rig).unwrap();
+    let assurance = rig.lqr_assurance(ENVELOPE).unwrap();
     let frozen = [(160, FaultFlags::MODEL_ONLY), (160, FaultFlags::FALLBACK)];
     let mut held = (0, 0);
     let c = closed_loop(

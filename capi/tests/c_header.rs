@@ -17,9 +17,9 @@ use common::{C99, CXX11, Compiler, EVERY, compile_and_run, manifest};
 
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_SHAPES, SUPPORTED_WIDTHS, shapes};
-use firmware::policy::POLICY;
-use firmware::policy_int::POLICY_INT;
 use firmware::rig::Rig;
+use shipped::policy::POLICY;
+use shipped::policy_int::POLICY_INT;
 use weights::Weights;
 use weights::quant::{self, Granularity};
 use weights::source::{c_header, c_rig_struct, c_struct};

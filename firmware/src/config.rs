@@ -83,15 +83,6 @@ pub(crate) const fn non_negative(v: f64, field: &'static str) -> Result<f64, Con
     }
 }
 
-/// `delay`, if the dead-time line holds it.
-pub(crate) const fn dead_time(delay: usize) -> Result<usize, ConfigError> {
-    if delay <= crate::controller::predict::MAX_PREDICT {
-        Ok(delay)
-    } else {
-        Err(ConfigError::TooLarge("dead_time"))
-    }
-}
-
 /// `?` for the checks, which are `const fn` (where `?` is not yet allowed) so that a board's
 /// `static` configuration can be checked as it is compiled.
 macro_rules! check {

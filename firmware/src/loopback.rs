@@ -179,7 +179,7 @@ fn run_with<P: Policy<S::Reading>, S: StateSensor>(
 mod tests {
     use super::*;
     use crate::cartpole::{Action, Params};
-    use crate::policy::POLICY;
+    use crate::shipped::policy::POLICY;
 
     fn limits() -> Limits {
         Rig::GYMNASIUM.limits().unwrap()

@@ -2,7 +2,9 @@
 //! the dead time, the track's end stops and the observer's tuning. A board gives it once and
 //! takes from it everything that must agree with the machine: the observer
 //! ([`Rig::observer`]), the dead-time predictor ([`Rig::predictor`]), the limits
-//! ([`Rig::limits`]), and the controller built from them ([`Rig::controller`]). A policy file exported for a rig carries its `RIG` beside the weights,
+//! ([`Rig::limits`]), the runtime monitor's assurance ([`Rig::assurance`]), and the
+//! controller built from them ([`Rig::controller`]). A policy file exported for a rig carries
+//! its `RIG` beside the weights,
 //! so a board runs the model of the machine its policy was trained for.
 //!
 //! ```
@@ -25,7 +27,7 @@
 //! use firmware::cartpole::{CartPole, State};
 //! use firmware::estimator::ObserverSensor;
 //! use firmware::loopback::{duty, pins};
-//! use firmware::policy_int::{POLICY_INT, RIG};
+//! use shipped::policy_int::{POLICY_INT, RIG};
 //! use firmware::rig::Options;
 //!
 //! let mut plant = CartPole::new(RIG.params, 500);
@@ -48,7 +50,8 @@
 //! ```
 
 use crate::cartpole::{GYMNASIUM, Params};
-use crate::config::{self, ConfigError, check};
+use crate::config::{ConfigError, check};
+use crate::controller::predict::dead_time;
 use crate::controller::{Actuator, Assurance, Controller, Limits, Policy, Predictor, StateSensor};
 use crate::estimator::{Encoders, Observer, Tuning};
 
@@ -93,7 +96,7 @@ impl Rig {
         check!(self.params.check());
         check!(self.encoders.check());
         check!(self.tuning.check());
-        check!(config::dead_time(self.dead_time as usize));
+        check!(dead_time(self.dead_time as usize));
         check!(self.limits());
         Ok(self)
     }
@@ -119,6 +122,36 @@ impl Rig {
     /// margin ([`Limits::track`], which refuses a margin that leaves no track).
     pub const fn limits(&self) -> Result<Limits, ConfigError> {
         Limits::track(self.params.x_threshold as f32, self.end_stop_margin as f32)
+    }
+
+    /// Where the runtime monitor's fallback can still recover on this machine: the
+    /// accepted track ([`Rig::limits`]) and the pole short of its failure angle.
+    pub const fn recoverable(&self) -> Result<Limits, ConfigError> {
+        let track = check!(self.limits()).max_abs();
+        Limits::new([
+            track[0],
+            track[1],
+            self.params.theta_threshold_radians as f32,
+            track[3],
+        ])
+    }
+
+    /// The runtime monitor's assurance on this machine for a policy whose `envelope` was
+    /// measured, with the fallback's LQR `gain` ([`Assurance::new`] with
+    /// [`Rig::recoverable`]). A `const fn`, so that a board's is checked as it is compiled.
+    pub const fn assurance(
+        &self,
+        envelope: Limits,
+        gain: [f32; 4],
+    ) -> Result<Assurance, ConfigError> {
+        Assurance::new(envelope, check!(self.recoverable()), gain)
+    }
+
+    /// [`Rig::assurance`] with the fallback designed for this machine's plant here
+    /// ([`crate::linear::balance_gain`], a Riccati iteration in f64: once, at start-up).
+    pub fn lqr_assurance(&self, envelope: Limits) -> Result<Assurance, ConfigError> {
+        let k = crate::linear::balance_gain(&self.params);
+        self.assurance(envelope, k.map(|v| v as f32))
     }
 }
 
@@ -161,9 +194,6 @@ impl Rig {
     }
 }
 
-// The shipped policies' machines, checked as the firmware is compiled.
-const _: () = assert!(crate::policy::RIG.check().is_ok());
-const _: () = assert!(crate::policy_int::RIG.check().is_ok());
 const _: () = assert!(Rig::GYMNASIUM.check().is_ok());
 
 #[cfg(test)]

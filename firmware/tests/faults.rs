@@ -6,9 +6,9 @@ use firmware::cartpole::{CartPole, State};
 use firmware::controller::{Command, Controller, StateSensor};
 use firmware::estimator::{AlphaBeta, AlphaBetaSensor, Estimate, ObserverSensor};
 use firmware::loopback::{Latest, Pins, duty, pins};
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
 use proptest::prelude::*;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 
 /// Periods after a one-period glitch within which the observer's estimate is back within
 /// one count (and one count a period) of the estimate without the glitch, on the shipped

@@ -7,13 +7,14 @@
 #![no_main]
 
 use firmware::link::{FrameReader, MAX_FRAME, Packet, Target, frame};
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut reader = FrameReader::default();
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, 1);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, 1);
     for &byte in data {
         let Some(got) = reader.push(byte) else {
             continue;

@@ -353,9 +353,9 @@ mod x86 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::policy::POLICY;
     use rand_core::{Rng, SeedableRng};
     use rand_pcg::Pcg64Mcg;
+    use shipped::policy::POLICY;
 
     fn uniform(rng: &mut Pcg64Mcg, scale: f32) -> f32 {
         ((rng.next_u32() >> 8) as f32 / (1u32 << 24) as f32 * 2.0 - 1.0) * scale

@@ -9,12 +9,12 @@ use std::hint::black_box;
 use std::time::Instant;
 
 use firmware::cartpole::{Action, CartPole, Params};
-use firmware::policy::POLICY;
 use host_common::kernel::Kernel;
 use host_common::wide::WideMlp;
 use host_sim::eval::{ControllerKind, Net, episode};
 use rand_core::SeedableRng;
 use rand_pcg::Pcg64Mcg;
+use shipped::policy::POLICY;
 use twin::{Scenario, run_episode};
 
 const EPISODES: u64 = 400;

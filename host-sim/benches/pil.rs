@@ -12,10 +12,11 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use firmware::link::Format;
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
 use host_sim::pil::link::{Local, Session};
 use host_sim::pil::{MACHINES, Place, handshake, run_row};
+use shipped::envelope::ENVELOPE;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 /// Episodes of 500 periods a row: 10,000 periods.
@@ -28,7 +29,7 @@ fn rate(place: &Place, format: Format) -> Option<f64> {
     let mut best: Option<f64> = None;
     for _ in 0..2 {
         let mut remote = Session::new(place.start(Duration::from_secs(60)).ok()?);
-        let mut here = Session::new(Local::new(&POLICY, &POLICY_INT, RIG));
+        let mut here = Session::new(Local::new(&POLICY, &POLICY_INT, RIG, ENVELOPE));
         let scenarios = std::slice::from_ref(&scenario);
         let info = handshake(&mut remote, &mut here, format, scenarios).ok()?;
         let t = Instant::now();

@@ -1,5 +1,5 @@
 //! `host-sim envelope`: measures where a policy drives in the episodes it balances: the
-//! runtime monitor's envelope, written beside the shipped policy (`firmware/src/envelope.rs`)
+//! runtime monitor's envelope, written beside the shipped policy (`shipped/src/envelope.rs`)
 //! or, for another, printed as the JSON `eval --envelope` reads.
 
 use std::path::PathBuf;
@@ -7,11 +7,11 @@ use std::path::PathBuf;
 use anyhow::{Result, ensure};
 use clap::Args;
 use firmware::link::digest;
-use firmware::policy::{POLICY, RIG};
 use host_common::provenance::Provenance;
 use host_sim::envelope::{Report, rust_module, visited};
 use host_sim::eval::ControllerKind;
 use indicatif::{ProgressBar, ProgressStyle};
+use shipped::policy::{POLICY, RIG};
 use weights::files::write_atomic;
 
 use crate::Subject;
@@ -42,7 +42,7 @@ pub struct EnvelopeArgs {
     /// The factor on each channel's quantile.
     #[arg(long, default_value_t = 1.1)]
     margin: f32,
-    /// Write the firmware's module (`firmware/src/envelope.rs`) here: the shipped policy's
+    /// Write the shipped crate's module (`shipped/src/envelope.rs`) here: the shipped policy's
     /// only.
     #[arg(long)]
     out: Option<PathBuf>,
@@ -62,7 +62,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
     );
     if let (Some(policy), Some(_)) = (&a.subject.policy, &a.out) {
         anyhow::bail!(
-            "--out writes the firmware's module, the shipped policy's envelope: for --policy {} \
+            "--out writes the shipped crate's module, the shipped policy's envelope: for --policy {} \
              use --json and give the file to eval --envelope",
             policy.display()
         );

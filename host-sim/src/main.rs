@@ -92,9 +92,10 @@ enum Command {
 /// Which policy runs, on which machine.
 #[derive(Args)]
 struct Subject {
-    /// A policy instead of the one compiled into firmware: a run directory, or a checkpoint
-    /// as PyTorch users save it (safetensors, torch.save zip, Stable-Baselines3 model.zip,
-    /// ONNX; fc1/fc2/fc3, nn.Sequential indices, prefixed layouts), of any supported width.
+    /// A policy instead of the shipped one (the `shipped` crate): a run directory, or a
+    /// checkpoint as PyTorch users save it (safetensors, torch.save zip, Stable-Baselines3
+    /// model.zip, ONNX; fc1/fc2/fc3, nn.Sequential indices, prefixed layouts), of any
+    /// supported width.
     #[arg(long)]
     policy: Option<PathBuf>,
     /// Tensor-name prefix of the network in --policy, when it holds several.

@@ -8,14 +8,15 @@ use std::time::Duration;
 use anyhow::{Result, bail};
 use clap::Args;
 use firmware::link::Format;
-use firmware::policy::RIG;
-use firmware::policy_int::POLICY_INT;
 use host_common::provenance::Provenance;
 use host_sim::eval::{ControllerKind, Row};
 use host_sim::pil::link::{Local, Session};
 use host_sim::pil::{Check, ICOUNT, NS_PER_INSTRUCTION, Place, handshake, run_row};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::RIG;
+use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 use crate::EvalArgs;
@@ -53,7 +54,7 @@ impl PilArgs {
         if policy {
             bail!(
                 "--pil runs the policy compiled into the target's application, found --policy \
-                 (export yours into firmware/src and rebuild the pil application)"
+                 (export yours into shipped/src and rebuild the pil application)"
             );
         }
         if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
@@ -87,7 +88,12 @@ struct PilRow<'a> {
 pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)]) -> Result<bool> {
     let timeout = Duration::from_secs_f64(a.pil.pil_timeout);
     let mut target = Session::new(place.start(timeout)?);
-    let mut reference = Session::new(Local::new(&firmware::policy::POLICY, &POLICY_INT, RIG));
+    let mut reference = Session::new(Local::new(
+        &shipped::policy::POLICY,
+        &POLICY_INT,
+        RIG,
+        ENVELOPE,
+    ));
     let scenarios: Vec<Scenario> = jobs.iter().map(|j| j.1.clone()).collect();
     let total = jobs.len() as u64 * a.episodes;
     let bar = ProgressBar::new(total).with_style(

@@ -192,7 +192,7 @@ fn render_writes_only_into_a_directory_of_its_own(dir: &Path) {
 #[test]
 fn the_integer_policy_is_evaluated_and_compared_with_the_float_one() {
     // The shipped policy and the shipped file quantised on the fly: the same integers.
-    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../firmware/policy.safetensors");
+    let shipped = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../shipped/policy.safetensors");
     let a = eval(&["--json", "--controller", "policy-int"]);
     let b = eval(&[
         "--json",

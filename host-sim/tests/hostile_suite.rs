@@ -70,7 +70,7 @@ fn with_bad(template: Vec<OsString>) -> Args {
 /// Every path argument of every subcommand: its file format and its command line.
 fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
     let words = &["expected", "safetensors"];
-    let policy = || format("firmware/policy.safetensors", 64 << 20, words);
+    let policy = || format("shipped/policy.safetensors", 64 << 20, words);
     let rig = || format("rigs/desk.toml", 64 << 10, &["expected", "missing field"]);
     let envelope = || format("docs/results/envelope.json", 64 << 10, &["expected"]);
     let results = || format("docs/results/eval-int.json", 16 << 20, &["expected"]);

@@ -22,7 +22,7 @@ fn repo(path: &str) -> PathBuf {
 /// The command recorded in the shipped module writes the shipped module again.
 #[test]
 fn the_shipped_envelope_regenerates_byte_for_byte() {
-    let shipped = std::fs::read_to_string(repo("firmware/src/envelope.rs")).unwrap();
+    let shipped = std::fs::read_to_string(repo("shipped/src/envelope.rs")).unwrap();
     let line = shipped
         .lines()
         .find_map(|l| l.strip_prefix("//! - measured: `host-sim "))
@@ -80,7 +80,7 @@ fn the_monitor_holds_a_frozen_encoder_and_fires_nowhere_else() {
 /// A policy file's envelope, measured and handed to `eval`, monitors that policy.
 #[test]
 fn a_policy_files_envelope_is_measured_and_monitors_it() {
-    let policy = repo("firmware/policy.safetensors");
+    let policy = repo("shipped/policy.safetensors");
     let dir = std::env::temp_dir().join(format!("hs-envelope-file-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("envelope.json");
@@ -149,7 +149,7 @@ fn bad_input_exits_2_before_any_work() {
         ),
         (
             vec!["envelope", "--policy", fixture, "--out", "x.rs"],
-            "--out writes the firmware's module",
+            "--out writes the shipped crate's module",
         ),
         (vec!["envelope", "--envelope", negative], "takes none"),
         (

@@ -7,7 +7,7 @@ use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-use firmware::policy::POLICY;
+use shipped::policy::POLICY;
 use weights::Weights;
 use weights::checkpoint::to_safetensors;
 

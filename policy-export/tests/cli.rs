@@ -347,7 +347,7 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let out = dir.join("policy_int.rs");
     let o = export(&[
-        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        repo.join("shipped/policy.safetensors").to_str().unwrap(),
         "--quant",
         "int8",
         "--out",
@@ -357,14 +357,14 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     assert!(stderr(&o).contains("5512 bytes"), "{}", stderr(&o));
     assert_eq!(
         std::fs::read_to_string(&out).unwrap(),
-        std::fs::read_to_string(repo.join("firmware/src/policy_int.rs")).unwrap(),
-        "firmware/src/policy_int.rs is not what `export --quant int8` writes (docs/GUIDE.md, \
+        std::fs::read_to_string(repo.join("shipped/src/policy_int.rs")).unwrap(),
+        "shipped/src/policy_int.rs is not what `export --quant int8` writes (docs/GUIDE.md, \
          \"Export\", says how to regenerate it)"
     );
     // A C header, per channel this time, for the board --rig describes.
     let c = dir.join("policy_int.h");
     let o = export(&[
-        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        repo.join("shipped/policy.safetensors").to_str().unwrap(),
         "--quant",
         "int8",
         "--granularity",
@@ -389,7 +389,7 @@ fn the_shipped_policy_exports_to_the_committed_integer_module() {
     // --granularity means nothing without --quant: refused before any work, nothing written.
     let never = dir.join("never.rs");
     let o = export(&[
-        repo.join("firmware/policy.safetensors").to_str().unwrap(),
+        repo.join("shipped/policy.safetensors").to_str().unwrap(),
         "--granularity",
         "per-channel",
         "--out",

@@ -23,7 +23,7 @@ fn repo(path: &str) -> PathBuf {
 
 /// The shipped policy file.
 fn policy() -> PathBuf {
-    repo("firmware/policy.safetensors")
+    repo("shipped/policy.safetensors")
 }
 
 fn policy_format() -> Format {

@@ -43,7 +43,7 @@ fn refused(args: &[&str], rig: &Path, out: &Path, field: &str) {
 #[test]
 fn train_and_export_refuse_a_rig_no_machine_has_naming_the_field() {
     let dir = scratch("bad");
-    let shipped = repo().join("firmware/policy.safetensors");
+    let shipped = repo().join("shipped/policy.safetensors");
     let src = shipped.to_str().unwrap();
     for (rig, field) in bad_rigs(&dir) {
         refused(&["train", "--episodes", "1"], &rig, &dir.join("run"), field);

@@ -78,7 +78,7 @@ fn motor(lane: &Lane) -> [f64; 4] {
 fn envelope(path: Option<PathBuf>) -> PyResult<Option<Limits>> {
     match path {
         None => Ok(None),
-        Some(p) if p == Path::new(SHIPPED) => Ok(Some(firmware::envelope::ENVELOPE)),
+        Some(p) if p == Path::new(SHIPPED) => Ok(Some(shipped::envelope::ENVELOPE)),
         Some(p) => host_sim::envelope::read(&p).map(Some).map_err(value_error),
     }
 }

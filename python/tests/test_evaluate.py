@@ -34,7 +34,7 @@ def test_refusals_raise_value_error():
     with pytest.raises(ValueError, match="episodes"):
         cartpole_ddqn.evaluate(episodes=0)
     with pytest.raises(ValueError, match="monitored"):
-        cartpole_ddqn.evaluate(cartpole_ddqn.load(REPO / "firmware" / "policy.safetensors"), controller="monitored")
+        cartpole_ddqn.evaluate(cartpole_ddqn.load(REPO / "shipped" / "policy.safetensors"), controller="monitored")
 
 
 def test_provenance_is_the_tools_record(tools):

@@ -24,7 +24,7 @@ def cli_export(tools, tmp_path, src, flags):
 
 @pytest.mark.parametrize("fmt, quant, flags", CASES)
 def test_path_source_is_the_commands_output(tools, tmp_path, fmt, quant, flags):
-    src = REPO / "firmware" / "policy.safetensors"
+    src = REPO / "shipped" / "policy.safetensors"
     out = tmp_path / "py.out"
     assert cartpole_ddqn.export(src, out=out, fmt=fmt, quant=quant) == out
     assert out.read_bytes() == cli_export(tools, tmp_path, src, flags)
@@ -54,7 +54,7 @@ def test_torch_like_tensors_are_detached_and_copied_to_the_cpu(tmp_path):
         def numpy(self):
             return self.a
 
-    tensors = read_safetensors(REPO / "firmware" / "policy.safetensors")
+    tensors = read_safetensors(REPO / "shipped" / "policy.safetensors")
     a, b = tmp_path / "a.rs", tmp_path / "b.rs"
     cartpole_ddqn.export(tensors, out=a)
     cartpole_ddqn.export({k: Tensor(v) for k, v in tensors.items()}, out=b)
@@ -73,12 +73,12 @@ def test_torch_like_tensors_are_detached_and_copied_to_the_cpu(tmp_path):
 def test_refusals_raise_value_error_and_write_nothing(tmp_path, kwargs, words):
     out = tmp_path / "never.rs"
     with pytest.raises(ValueError, match=words):
-        cartpole_ddqn.export(REPO / "firmware" / "policy.safetensors", out=out, **kwargs)
+        cartpole_ddqn.export(REPO / "shipped" / "policy.safetensors", out=out, **kwargs)
     assert list(tmp_path.iterdir()) == []
 
 
 def test_a_dict_without_the_network_is_refused(tmp_path):
-    tensors = read_safetensors(REPO / "firmware" / "policy.safetensors")
+    tensors = read_safetensors(REPO / "shipped" / "policy.safetensors")
     del tensors["fc2.weight"]
     with pytest.raises(ValueError):
         cartpole_ddqn.export(tensors, out=tmp_path / "x.rs")

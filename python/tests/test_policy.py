@@ -10,7 +10,7 @@ import cartpole_ddqn
 
 from conftest import REPO, five_outputs, read_safetensors, run, write_safetensors
 
-SHIPPED = REPO / "firmware" / "policy.safetensors"
+SHIPPED = REPO / "shipped" / "policy.safetensors"
 
 
 def numpy_q(tensors, obs):

@@ -11,8 +11,8 @@ use firmware::cartpole::{CartPole, Params, State};
 use firmware::controller::Policy;
 use firmware::estimator::Estimate;
 use firmware::loopback;
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 
 use crate::selftest;
 

@@ -39,8 +39,8 @@ fn run(board: &mut impl app::Board) -> bool {
 
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {
-    use firmware::{policy::POLICY, policy_int::POLICY_INT};
     use selftest::{selftest_forward, selftest_forward_int};
+    use shipped::{policy::POLICY, policy_int::POLICY_INT};
     let ok = selftest::report(
         &POLICY,
         &POLICY_INT,

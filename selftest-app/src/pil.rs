@@ -21,8 +21,9 @@ mod on_riscv;
 mod port;
 
 use firmware::link::Target;
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 
 /// Serves the link until the host closes it: every frame answered, the period timed on a
 /// clock of `clock_hz` (`now`, with `since` its difference) from the frame's last byte to
@@ -34,7 +35,7 @@ fn serve(
     now: impl Fn() -> u32,
     since: impl Fn(u32, u32) -> u32,
 ) -> bool {
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, clock_hz);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, clock_hz);
     while let Some(byte) = read() {
         let arrived = now();
         if let Some(answer) = target.receive(byte, || since(arrived, now()))

@@ -9,14 +9,14 @@
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params};
 use firmware::controller::{FaultCounters, Limits, Monitor, Policy, answer};
-use firmware::envelope::ASSURANCE;
 use firmware::estimator::Estimate;
 use firmware::loopback::{Outcome, run, run_with_encoders};
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, dot, dot_portable};
-use firmware::policy::RIG;
 use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
+use shipped::envelope::ASSURANCE;
+use shipped::policy::RIG;
 
 /// The shipped policy's forward pass as a C function: the self-test calls it by address, so
 /// that the ELF keeps it as a function of its own whose instructions can be counted
@@ -27,7 +27,7 @@ use rand_pcg::Pcg32;
 #[unsafe(no_mangle)]
 pub extern "C" fn selftest_forward(obs: Option<&[f32; 4]>, q: Option<&mut [f32; 2]>) {
     if let (Some(obs), Some(q)) = (obs, q) {
-        *q = firmware::policy::POLICY.forward(obs);
+        *q = shipped::policy::POLICY.forward(obs);
     }
 }
 
@@ -37,7 +37,7 @@ pub extern "C" fn selftest_forward(obs: Option<&[f32; 4]>, q: Option<&mut [f32; 
 #[unsafe(no_mangle)]
 pub extern "C" fn selftest_forward_int(obs: Option<&[i16; 4]>, q: Option<&mut [i32; 2]>) {
     if let (Some(obs), Some(q)) = (obs, q) {
-        *q = firmware::policy_int::POLICY_INT.forward(obs);
+        *q = shipped::policy_int::POLICY_INT.forward(obs);
     }
 }
 
@@ -52,7 +52,7 @@ pub extern "C" fn selftest_monitored_int(obs: Option<&[i16; 4]>, q: Option<&mut 
     if let (Some(obs), Some(q)) = (obs, q) {
         let mut monitor = Monitor::new(ASSURANCE);
         let mut counters = FaultCounters::default();
-        let mut policy = &firmware::policy_int::POLICY_INT;
+        let mut policy = &shipped::policy_int::POLICY_INT;
         let decide = |s: &[i16; 4]| answer(&mut policy, s);
         (*q, _, _) = monitor.decide(obs, obs, false, decide, &mut counters);
     }
@@ -329,8 +329,8 @@ fn episodes<O: Estimate, P: Policy + Policy<O> + Copy>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::policy::POLICY;
-    use firmware::policy_int::POLICY_INT;
+    use shipped::policy::POLICY;
+    use shipped::policy_int::POLICY_INT;
 
     #[test]
     fn the_shipped_policy_passes_the_self_test_on_the_host_in_both_formats() {

@@ -13,12 +13,13 @@ use std::time::Duration;
 
 use e2e::{build_app, mcu_targets, repo, runners};
 use firmware::link::{Format, Info};
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Local, Remote, Session};
 use host_sim::pil::{ICOUNT, MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 /// How long the host waits for one answer: a watchdog against a target that hangs, far
@@ -27,7 +28,7 @@ use twin::Scenario;
 const WATCHDOG: Duration = Duration::from_secs(120);
 
 fn reference() -> Session<Local<64>> {
-    Session::new(Local::new(&POLICY, &POLICY_INT, RIG))
+    Session::new(Local::new(&POLICY, &POLICY_INT, RIG, ENVELOPE))
 }
 
 /// Encoders through the observer with dropped readings and restarts, and the exact state
@@ -206,7 +207,7 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
 /// until the host's end closes.
 fn board_on(mut port: serialport::TTYPort) {
     use std::io::{Read, Write};
-    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, 1);
+    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, 1);
     let mut buf = [0u8; 64];
     loop {
         let n = match port.read(&mut buf) {

@@ -1,12 +1,12 @@
-//! The policy compiled into `firmware`: where it came from, that it is what it claims to be,
+//! The shipped policy (the `shipped` crate): where it came from, that it is what it claims to be,
 //! and that it balances.
 
 use std::path::PathBuf;
 
-use firmware::policy::POLICY;
 use policy_export::config::Config;
 use policy_export::run::write_run;
 use policy_export::train;
+use shipped::policy::POLICY;
 use weights::Weights;
 
 fn repo() -> PathBuf {
@@ -27,7 +27,7 @@ fn bits(tensors: &[Vec<f32>; 6]) -> Vec<u32> {
 
 #[test]
 fn compiled_constants_equal_the_committed_safetensors_bit_for_bit() {
-    let w = weights::checkpoint::load(&repo().join("firmware/policy.safetensors"), None).unwrap();
+    let w = weights::checkpoint::load(&repo().join("shipped/policy.safetensors"), None).unwrap();
     let compiled = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
     assert_eq!(bits(w.weights.tensors()), bits(compiled.tensors()));
 }
@@ -44,15 +44,15 @@ fn the_shipped_policy_regenerates_bit_identically() {
                 .tensors()
         ),
         "retraining the recipe no longer gives the shipped weights: \
-         regenerate firmware/src/policy.rs as docs/GUIDE.md says, or find what changed"
+         regenerate shipped/src/policy.rs as docs/GUIDE.md says, or find what changed"
     );
     // The files a user's `train` writes, through the same writer: the metadata too, so a
     // config that gains keys shows here rather than as a "differs" in the main job.
     let dir = std::env::temp_dir().join(format!("shipped-policy-{}", std::process::id()));
     write_run(&dir, &cfg, SHIPPED_SEED, &result).unwrap();
     for (written, committed) in [
-        ("policy.rs", "firmware/src/policy.rs"),
-        ("policy.safetensors", "firmware/policy.safetensors"),
+        ("policy.rs", "shipped/src/policy.rs"),
+        ("policy.safetensors", "shipped/policy.safetensors"),
     ] {
         assert!(
             std::fs::read(dir.join(written)).unwrap()

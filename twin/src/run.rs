@@ -9,7 +9,7 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params, State, Transition};
-use firmware::controller::{Assurance, Command, Controller, FaultFlags, Limits, Policy, Sensed};
+use firmware::controller::{Command, Controller, FaultFlags, Limits, Policy, Sensed};
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
 use firmware::rig::Options;
@@ -167,9 +167,7 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
         let rig = &scenario.rig;
         let options = Options {
             predict: aids.predict,
-            monitor: aids
-                .envelope
-                .map(|e| Assurance::for_rig(e, rig).expect(CHECKED)),
+            monitor: aids.envelope.map(|e| rig.lqr_assurance(e).expect(CHECKED)),
         };
         let sensor = sensor(scenario, watch).expect(CHECKED);
         let controller = rig

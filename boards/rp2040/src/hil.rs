@@ -16,8 +16,9 @@ use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::driver::EndpointError;
 use embassy_usb::{Builder, Config};
 use firmware::link::{MAX_FRAME, Target};
-use firmware::policy::{POLICY, RIG};
-use firmware::policy_int::POLICY_INT;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::{POLICY, RIG};
+use shipped::policy_int::POLICY_INT;
 
 embassy_rp::bind_interrupts!(struct Irqs {
     USBCTRL_IRQ => InterruptHandler<USB>;
@@ -59,7 +60,7 @@ pub async fn run(usb: Peri<'static, USB>) -> ! {
 
 /// One connection: every frame answered, each period timed from its frame's last byte.
 async fn serve<'d>(class: &mut CdcAcmClass<'d, Driver<'d, USB>>) -> EndpointError {
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, TICK_HZ as u32);
+    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, TICK_HZ as u32);
     let mut buf = [0u8; PACKET as usize];
     loop {
         let n = match class.read_packet(&mut buf).await {

@@ -12,7 +12,7 @@ use embassy_rp::pio::{InterruptHandler, Pio};
 use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
 use embassy_rp::pwm::{self, Pwm};
 use firmware::controller::Bridge;
-use firmware::policy_int::RIG;
+use shipped::policy_int::RIG;
 
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
 const PWM_TOP: u16 = 6_249;
@@ -96,7 +96,7 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     use defmt::{info, warn};
     use embassy_time::{Duration, Instant, Ticker};
     use firmware::estimator::ObserverSensor;
-    use firmware::policy_int::POLICY_INT;
+    use shipped::policy_int::POLICY_INT;
     use firmware::rig::Options;
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
@@ -106,12 +106,12 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // predictor's plant at start-up, where a refusal halts the board (through the panic
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
-    // is configured as the firmware compiles (`firmware::envelope::ASSURANCE`).
+    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`).
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, counts);
     let options = Options {
         predict: true,
-        monitor: Some(firmware::envelope::ASSURANCE),
+        monitor: Some(shipped::envelope::ASSURANCE),
     };
     let mut controller = defmt::unwrap!(RIG.controller(&POLICY_INT, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);

@@ -1,5 +1,5 @@
 //! The cart-pole balance controller on a Raspberry Pi Pico: the shipped policy in integers
-//! (`firmware::policy_int`, no floating point in the forward pass: the RP2040's Cortex-M0+ has
+//! (`shipped::policy_int`, no floating point in the forward pass: the RP2040's Cortex-M0+ has
 //! no FPU), two quadrature encoders read by PIO state machines into the encoder observer
 //! (`firmware::estimator::ObserverSensor`, handing the controller Q3.12 readings), an
 //! H-bridge driven through embedded-hal 1.0 (`firmware::controller::Bridge` over an

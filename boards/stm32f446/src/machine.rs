@@ -12,7 +12,7 @@ use embassy_stm32::timer::{GeneralInstance4Channel, low_level::CountingMode};
 use embassy_time::{Duration, Instant, Ticker};
 use firmware::controller::Bridge;
 use firmware::estimator::ObserverSensor;
-use firmware::policy::{POLICY, RIG};
+use shipped::policy::{POLICY, RIG};
 use firmware::rig::Options;
 
 /// A timer's 16-bit count carried into 32 bits: each period adds what it moved since the
@@ -66,13 +66,13 @@ pub async fn balance(p: Peripherals) -> ! {
     // The observer's gain is solved once, now; a refusal halts the board (through the panic
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
-    // is configured as the firmware compiles (`firmware::envelope::ASSURANCE`).
+    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`).
     let counts = move || (cart.read(), pole.read());
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, counts);
     let options = Options {
         predict: true,
-        monitor: Some(firmware::envelope::ASSURANCE),
+        monitor: Some(shipped::envelope::ASSURANCE),
     };
     let mut controller = defmt::unwrap!(RIG.controller(&POLICY, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);

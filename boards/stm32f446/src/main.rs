@@ -1,5 +1,5 @@
 //! The cart-pole balance controller on an STM32 Nucleo-F446RE: the shipped policy in f32 on
-//! the Cortex-M4F's FPU (`firmware::policy`), two quadrature encoders counted by timers in
+//! the Cortex-M4F's FPU (`shipped::policy`), two quadrature encoders counted by timers in
 //! encoder mode into the encoder observer (`firmware::estimator::ObserverSensor`), an
 //! H-bridge driven through embedded-hal 1.0 (`firmware::controller::Bridge` over an
 //! `OutputPin` for the direction and a `SetDutyCycle` for the enable), a ticker at the rig's

@@ -36,12 +36,12 @@ pub extern "C" fn cartpole_controller_init(
     // solved here, and a refusal is the rig's.
     let built = match policy_kind {
         CARTPOLE_POLICY_F32 => {
-            Slot::<Float<64, 2>>::new(bang_bang(&firmware::policy::POLICY), &firmware::policy::RIG)
+            Slot::<Float<64, 2>>::new(bang_bang(&shipped::policy::POLICY), &shipped::policy::RIG)
                 .map(|s| s.store(c))
         }
         CARTPOLE_POLICY_INT => Slot::<Int<64, 2>>::new(
-            bang_bang(&firmware::policy_int::POLICY_INT),
-            &firmware::policy_int::RIG,
+            bang_bang(&shipped::policy_int::POLICY_INT),
+            &shipped::policy_int::RIG,
         )
         .map(|s| s.store(c)),
         _ => return CARTPOLE_ERR_POLICY_KIND,

@@ -73,9 +73,9 @@ pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 /// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing.
 pub const CARTPOLE_ERR_LEVELS: c_int = -7;
 
-/// `CARTPOLE_POLICY_F32`: the shipped float policy (`firmware::policy`).
+/// `CARTPOLE_POLICY_F32`: the shipped float policy (`shipped::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;
-/// `CARTPOLE_POLICY_INT`: the shipped integer policy (`firmware::policy_int`), integer
+/// `CARTPOLE_POLICY_INT`: the shipped integer policy (`shipped::policy_int`), integer
 /// arithmetic from the observer's estimate to the decision.
 pub const CARTPOLE_POLICY_INT: c_int = 2;
 
@@ -317,7 +317,7 @@ pub extern "C" fn cartpole_controller_period_us(
 
 /// Puts `c`'s controller under the runtime monitor from its next period
 /// (`firmware::controller::monitor`): the policy drives inside `envelope` (per-channel
-/// bounds on `|reading|`; NULL: the shipped policy's, `firmware::envelope`), bang-bang LQR
+/// bounds on `|reading|`; NULL: the shipped policy's, `shipped::envelope`), bang-bang LQR
 /// designed for `rig` outside it and after runs of faulty readings, a latched stop beyond
 /// what LQR can recover; the observer watches for frozen encoders. `rig` must be the machine
 /// `c` was initialised for (NULL: the shipped policies'). Solves the LQR gain: call it at
@@ -336,16 +336,16 @@ pub extern "C" fn cartpole_controller_monitor(
         return CARTPOLE_ERR_NULL;
     };
     let envelope = match envelope.map(|e| Limits::new(*e)) {
-        None => firmware::envelope::ENVELOPE,
+        None => shipped::envelope::ENVELOPE,
         Some(Ok(e)) => e,
         Some(Err(_)) => return CARTPOLE_ERR_ENVELOPE,
     };
     let rig = match rig.map(CartpoleRig::to_rig) {
-        None => firmware::policy::RIG,
+        None => shipped::policy::RIG,
         Some(Some(rig)) => rig,
         Some(None) => return CARTPOLE_ERR_RIG,
     };
-    let Ok(assurance) = Assurance::for_rig(envelope, &rig) else {
+    let Ok(assurance) = rig.lqr_assurance(envelope) else {
         return CARTPOLE_ERR_RIG;
     };
     let digest = firmware::link::digest::rig(&rig);

@@ -7,8 +7,8 @@ use firmware::cartpole::{Params, State, advance};
 use firmware::controller::{Controller, Predictor};
 use firmware::estimator::ObserverSensor;
 use firmware::loopback::{self, Latest};
-use firmware::policy::{POLICY, RIG};
 use firmware::rig::Rig;
+use shipped::policy::{POLICY, RIG};
 
 extern crate std;
 use std::vec::Vec;
@@ -71,7 +71,7 @@ fn the_period_is_the_rigs_tau_in_whole_microseconds() {
             ..RIG
         };
         assert_eq!(
-            Slot::<Int<64, 2>>::new(bang_bang(&firmware::policy_int::POLICY_INT), &rig)
+            Slot::<Int<64, 2>>::new(bang_bang(&shipped::policy_int::POLICY_INT), &rig)
                 .unwrap()
                 .period_us(),
             us,
@@ -165,8 +165,8 @@ fn the_shipped_weights_and_rig_given_by_hand_make_the_shipped_controller() {
 #[test]
 fn a_refused_init_leaves_the_instance_running_as_it_was() {
     let mut c = CartpoleController::filled(0);
-    let good = crate::CartpoleRig::from(&firmware::policy_int::RIG);
-    let w = &firmware::policy_int::POLICY_INT;
+    let good = crate::CartpoleRig::from(&shipped::policy_int::RIG);
+    let w = &shipped::policy_int::POLICY_INT;
     assert_eq!(
         cartpole_controller_init_qmlp64(Some(&mut c), Some(w), Some(&good)),
         CARTPOLE_OK

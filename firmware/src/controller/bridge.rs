@@ -4,7 +4,7 @@
 use embedded_hal::digital::OutputPin;
 use embedded_hal::pwm::SetDutyCycle;
 
-use super::{Command, Duty};
+use super::levels::{Command, Duty};
 
 /// A pin or duty-cycle write failed; the actuator's state is then unknown.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

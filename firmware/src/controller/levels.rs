@@ -146,6 +146,29 @@ impl<const A: usize> Levels<A> {
     }
 }
 
+/// What the controller asked of the motor in one period.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Command {
+    /// Drive at this duty: a level the policy chose, or the monitor's fallback.
+    Drive(Duty),
+    /// Duty off, for want of a decision: a rejected reading, scores that are not numbers,
+    /// a stopped monitor.
+    Coast,
+}
+
+impl Command {
+    /// The motor duty of the command, the fraction of full force the model-based observer
+    /// and predictor apply ([`crate::cartpole::Plant::motor_force`]): `-1` to `1`, `0`
+    /// coasting.
+    pub fn level(self) -> f32 {
+        match self {
+            Command::Drive(d) => d.fraction(),
+            Command::Coast => 0.0,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -39,7 +39,7 @@
 //! use embedded_hal::{digital::{ErrorType as PinErrorType, OutputPin},
 //!                    pwm::{ErrorType as PwmErrorType, SetDutyCycle}};
 //! use firmware::controller::{Bridge, Command, Controller, Duty, StateSensor};
-//! use firmware::policy::{POLICY, RIG};
+//! use shipped::policy::{POLICY, RIG};
 //!
 //! struct Pin(bool);
 //! impl PinErrorType for Pin { type Error = Infallible; }
@@ -84,9 +84,9 @@ mod reading;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
-pub use levels::{Duty, Levels, check_levels};
+pub use levels::{Command, Duty, Levels, check_levels};
 pub use monitor::{Assurance, Mode, Monitor};
-pub use policy::{Greedy, Policy, Scores};
+pub use policy::{Answer, Greedy, Policy, Scores, answer};
 pub use predict::Predictor;
 pub use reading::Reading;
 
@@ -140,29 +140,6 @@ impl<O: Copy> Sensed<O> {
     /// The reading as the sensor gave it (zero when the sensor failed).
     pub fn reading(&self) -> O {
         self.obs
-    }
-}
-
-/// What the controller asked of the motor in one period.
-#[cfg_attr(feature = "defmt", derive(defmt::Format))]
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-pub enum Command {
-    /// Drive at this duty: a level the policy chose, or the monitor's fallback.
-    Drive(Duty),
-    /// Duty off, for want of a decision: a rejected reading, scores that are not numbers,
-    /// a stopped monitor.
-    Coast,
-}
-
-impl Command {
-    /// The motor duty of the command, the fraction of full force the model-based observer
-    /// and predictor apply ([`crate::cartpole::Plant::motor_force`]): `-1` to `1`, `0`
-    /// coasting.
-    pub fn level(self) -> f32 {
-        match self {
-            Command::Drive(d) => d.fraction(),
-            Command::Coast => 0.0,
-        }
     }
 }
 
@@ -463,19 +440,6 @@ where
     pub fn act(&mut self, sensed: Sensed<S::Reading>) -> Command {
         self.act_by(sensed, |policy, seen| answer(policy, seen))
     }
-}
-
-/// A decision: the scores to record, and the duty they choose (`None` when no duty may
-/// rest on them): what [`Monitor::decide`] asks for.
-pub type Answer<Q> = (Q, Option<Duty>);
-
-/// The policy's answer on `seen`: its scores, and the duty of the output they choose. What
-/// [`Controller::act`] asks of its policy, and a caller of [`Monitor::decide`] hands it.
-#[inline(always)]
-pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<P::Scores> {
-    let q = policy.scores(seen);
-    let duty = q.choice().and_then(|i| policy.duty(i));
-    (q, duty)
 }
 
 #[cfg(test)]

@@ -30,9 +30,11 @@
 //! allocation-free, and runs on the reading's own format: the envelope checks of an integer
 //! reading are integer compares.
 
-use super::{Answer, Command, Duty, FaultCounters, FaultFlags, Limits, Reading, Scores};
+use super::faults::{FaultCounters, FaultFlags, Limits};
+use super::levels::{Command, Duty};
+use super::policy::{Answer, Scores};
+use super::reading::Reading;
 use crate::config::{ConfigError, check};
-use crate::rig::Rig;
 
 /// The fraction of the envelope a reading must lie within, channel by channel, for the
 /// fallback to hand the loop back.
@@ -68,12 +70,14 @@ impl Assurance {
     /// Rejected or model-only readings in a row that hand the loop to the fallback.
     pub const FAULT_RUN: u16 = 3;
 
-    /// The assurance of a policy whose `envelope` was measured, on `rig`, with the
-    /// fallback's LQR `gain` (`u = -K s`, in newtons per unit of each channel;
-    /// [`crate::linear::balance_gain`] designs it). Refused: a gain that is not finite.
+    /// The assurance of a policy whose `envelope` was measured, with the fallback's LQR
+    /// `gain` (`u = -K s`, in newtons per unit of each channel;
+    /// [`crate::linear::balance_gain`] designs it), which can recover a reading within
+    /// `recoverable` (the rig's, [`Rig::assurance`](crate::rig::Rig::assurance)). Refused:
+    /// a gain that is not finite.
     pub const fn new(
         envelope: Limits,
-        rig: &Rig,
+        recoverable: Limits,
         gain: [f32; 4],
     ) -> Result<Assurance, ConfigError> {
         let mut i = 0;
@@ -90,26 +94,12 @@ impl Assurance {
             e[2] * HYSTERESIS,
             e[3] * HYSTERESIS,
         ]));
-        let track = check!(rig.limits()).max_abs();
-        let recoverable = check!(Limits::new([
-            track[0],
-            track[1],
-            rig.params.theta_threshold_radians as f32,
-            track[3],
-        ]));
         Ok(Assurance {
             envelope,
             calm,
             recoverable,
             gain,
         })
-    }
-
-    /// [`Assurance::new`] with the fallback designed for `rig`'s plant here
-    /// ([`crate::linear::balance_gain`], a Riccati iteration in f64: once, at start-up).
-    pub fn for_rig(envelope: Limits, rig: &Rig) -> Result<Assurance, ConfigError> {
-        let k = crate::linear::balance_gain(&rig.params);
-        Assurance::new(envelope, rig, k.map(|v| v as f32))
     }
 }
 

@@ -1,7 +1,8 @@
 //! What decides a period: a [`Policy`] scores the sanitised reading, its [`Scores`] choose an
 //! output, and the output's duty level drives the motor.
 
-use super::{Duty, Levels, Reading};
+use super::levels::{Duty, Levels};
+use super::reading::Reading;
 use crate::network::int::QMlp;
 use crate::network::{Mlp, OBS_DIM, argmax};
 
@@ -149,4 +150,18 @@ impl<O: Reading, const A: usize> Policy<O> for Levels<A> {
     fn duty(&self, i: usize) -> Option<Duty> {
         Levels::duty(self, i)
     }
+}
+
+/// A decision: the scores to record, and the duty they choose (`None` when no duty may
+/// rest on them): what [`Monitor::decide`](super::Monitor::decide) asks for.
+pub type Answer<Q> = (Q, Option<Duty>);
+
+/// The policy's answer on `seen`: its scores, and the duty of the output they choose. What
+/// [`Controller::act`](super::Controller::act) asks of its policy, and a caller of
+/// [`Monitor::decide`](super::Monitor::decide) hands it.
+#[inline(always)]
+pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<P::Scores> {
+    let q = policy.scores(seen);
+    let duty = q.choice().and_then(|i| policy.duty(i));
+    (q, duty)
 }

@@ -10,11 +10,20 @@
 //! plant itself keeps `libm`, for bit-exactness with Gymnasium.
 
 use crate::cartpole::{Params, Plant};
-use crate::config::{self, ConfigError};
+use crate::config::ConfigError;
 use crate::network::OBS_DIM;
 
 /// Most periods of dead time the predictor can bridge.
 pub const MAX_PREDICT: usize = 16;
+
+/// `delay`, if the dead-time line holds it.
+pub(crate) const fn dead_time(delay: usize) -> Result<usize, ConfigError> {
+    if delay <= MAX_PREDICT {
+        Ok(delay)
+    } else {
+        Err(ConfigError::TooLarge("dead_time"))
+    }
+}
 
 /// Commands on their way to the motor: a line `delay` periods long. The twin's actuator, the
 /// predictor and the encoder observer each keep one, so all three agree on which command
@@ -80,7 +89,7 @@ impl Predictor {
     pub fn new(p: &Params, delay: usize) -> Result<Predictor, ConfigError> {
         Ok(Predictor {
             plant: Plant::new(&p.check()?),
-            sent: DeadTime::new(config::dead_time(delay)?),
+            sent: DeadTime::new(dead_time(delay)?),
         })
     }
 

@@ -1,7 +1,8 @@
 //! The two formats a reading comes in: `[f32; 4]` in SI units for the float network, and
 //! `[i16; 4]` in Q3.12 ([`crate::fixed`]) for the integer one.
 
-use super::{FaultFlags, Limits, Predictor};
+use super::faults::{FaultFlags, Limits};
+use super::predict::Predictor;
 use crate::fixed;
 use crate::network::OBS_DIM;
 

@@ -1,8 +1,8 @@
 //! The model-based observer ([`Observer`]).
 
 use crate::cartpole::{Params, Plant};
-use crate::config::{self, ConfigError, check, positive};
-use crate::controller::predict::DeadTime;
+use crate::config::{ConfigError, check, positive};
+use crate::controller::predict::{self, DeadTime};
 use crate::linear::{kalman_gain, linearise};
 
 use super::{Encoders, wrap};
@@ -135,7 +135,7 @@ impl Observer {
         let enc = enc.check()?;
         let nominal = nominal.check()?;
         let tuning = tuning.check()?;
-        let dead_time = config::dead_time(dead_time)?;
+        let dead_time = predict::dead_time(dead_time)?;
         let per_count = enc.per_count();
         let (a, b) = linearise(&nominal);
         let t = nominal.tau;

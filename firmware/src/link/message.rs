@@ -99,8 +99,9 @@ pub struct Start {
     /// Whether the controller runs its rig's dead-time predictor.
     pub predict: bool,
     /// Whether the controller runs under the runtime monitor
-    /// ([`crate::controller::monitor`]) with the shipped policy's envelope
-    /// ([`crate::envelope::ENVELOPE`]), its observer watching for frozen encoders.
+    /// ([`crate::controller::monitor`]) with the envelope the target holds
+    /// ([`Target::new`](super::Target::new): a board's `shipped::envelope::ENVELOPE`), its
+    /// observer watching for frozen encoders.
     pub monitor: bool,
     /// The periods of dead time the observer and predictor assume, in place of the rig's.
     pub dead_time: u8,

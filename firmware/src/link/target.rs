@@ -5,8 +5,9 @@
 //! same code.
 
 use crate::config::ConfigError;
-use crate::controller::{Assurance, Controller, FaultFlags, Policy, Scores as _, StateSensor};
-use crate::envelope::ENVELOPE;
+use crate::controller::{
+    Assurance, Controller, FaultFlags, Limits, Policy, Scores as _, StateSensor,
+};
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
 use crate::network::Mlp;
@@ -19,11 +20,13 @@ use super::sensor::LinkSensor;
 use super::session::{Request, Session};
 use super::{Measurement, digest};
 
-/// What a target holds: both formats of its policy and the rig it was built for.
+/// What a target holds: both formats of its policy, the rig it was built for and the
+/// policy's envelope.
 pub struct Target<'p, const H: usize> {
     policy: &'p Mlp<H>,
     policy_int: &'p QMlp<H>,
     rig: Rig,
+    envelope: Limits,
     clock_hz: u32,
     session: Session,
     reader: FrameReader,
@@ -55,14 +58,21 @@ enum Running<'p, const H: usize> {
 }
 
 impl<'p, const H: usize> Target<'p, H> {
-    /// A target holding `policy`, its integer version `policy_int` and `rig` (the board's
-    /// `POLICY`, `POLICY_INT` and `RIG`), timing periods on a clock of `clock_hz` ticks a
-    /// second.
-    pub fn new(policy: &'p Mlp<H>, policy_int: &'p QMlp<H>, rig: Rig, clock_hz: u32) -> Self {
+    /// A target holding `policy`, its integer version `policy_int`, `rig` and the envelope
+    /// its runtime monitor lets the policy drive in (the board's `POLICY`, `POLICY_INT`,
+    /// `RIG` and `ENVELOPE`), timing periods on a clock of `clock_hz` ticks a second.
+    pub fn new(
+        policy: &'p Mlp<H>,
+        policy_int: &'p QMlp<H>,
+        rig: Rig,
+        envelope: Limits,
+        clock_hz: u32,
+    ) -> Self {
         Target {
             policy,
             policy_int,
             rig,
+            envelope,
             clock_hz,
             session: Session::default(),
             reader: FrameReader::default(),
@@ -134,7 +144,7 @@ impl<'p, const H: usize> Target<'p, H> {
     }
 
     /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
-    /// (if asked) predictor and runtime monitor, with the shipped policy's envelope.
+    /// (if asked) predictor and runtime monitor, with the policy's envelope.
     fn start(&mut self, start: Start) -> Result<Running<'p, H>, ConfigError> {
         let rig = Rig {
             dead_time: u32::from(start.dead_time),
@@ -144,7 +154,7 @@ impl<'p, const H: usize> Target<'p, H> {
         let monitor = match (start.monitor, self.assurance) {
             (false, _) => None,
             (true, Some(a)) => Some(a),
-            (true, None) => Some(*self.assurance.insert(Assurance::for_rig(ENVELOPE, &rig)?)),
+            (true, None) => Some(*self.assurance.insert(rig.lqr_assurance(self.envelope)?)),
         };
         let cache = &mut self.observer;
         let observer = || {

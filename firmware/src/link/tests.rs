@@ -298,8 +298,8 @@ fn fnv1a_gives_the_published_test_vectors() {
 
 #[test]
 fn digests_follow_every_parameter() {
-    use crate::policy::{POLICY, RIG};
-    use crate::policy_int::POLICY_INT;
+    use crate::shipped::policy::{POLICY, RIG};
+    use crate::shipped::policy_int::POLICY_INT;
     let mut m = POLICY.clone();
     m.fc3_bias[1] = f32::from_bits(m.fc3_bias[1].to_bits() ^ 1);
     assert_ne!(digest::mlp(&m), digest::mlp(&POLICY));

@@ -4,12 +4,12 @@ use std::fmt;
 
 use anyhow::Result;
 use firmware::controller::{Duty, Levels, Limits, Policy, Scores};
-use firmware::envelope::ENVELOPE;
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, SUPPORTED_SHAPES, argmax};
-use firmware::policy::POLICY;
-use firmware::policy_int::POLICY_INT;
 use host_common::wide::WideMlp;
+use shipped::envelope::ENVELOPE;
+use shipped::policy::POLICY;
+use shipped::policy_int::POLICY_INT;
 use weights::Weights;
 use weights::quant::Granularity;
 use weights::shape::{ForShape, by_shape};
@@ -120,7 +120,7 @@ impl ForShape for Build<'_> {
 }
 
 impl Net {
-    /// The policy compiled into `firmware`, its integer version and its envelope compiled
+    /// The shipped policy (the `shipped` crate), its integer version and its envelope compiled
     /// beside it.
     pub fn shipped() -> Net {
         Net {
@@ -156,7 +156,7 @@ impl Net {
     }
 
     /// The envelope the runtime monitor lets this network drive in: measured for the
-    /// shipped policy (`firmware::envelope`), none for another until it is given one.
+    /// shipped policy (`shipped::envelope`), none for another until it is given one.
     pub fn envelope(&self) -> Option<Limits> {
         self.envelope
     }

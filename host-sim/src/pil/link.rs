@@ -9,6 +9,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
+use firmware::controller::Limits;
 use firmware::link::{
     Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Reason, Reply, Start,
     Target, frame,
@@ -118,10 +119,15 @@ pub fn describe(reason: Reason) -> &'static str {
 pub struct Local<const H: usize>(Target<'static, H>);
 
 impl<const H: usize> Local<H> {
-    /// A target holding `policy`, `policy_int` and `rig` (a board's `POLICY`, `POLICY_INT`
-    /// and `RIG`), timed on nothing: its ticks are 0.
-    pub fn new(policy: &'static Mlp<H>, policy_int: &'static QMlp<H>, rig: Rig) -> Self {
-        Local(Target::new(policy, policy_int, rig, 1))
+    /// A target holding `policy`, `policy_int`, `rig` and `envelope` (a board's `POLICY`,
+    /// `POLICY_INT`, `RIG` and `ENVELOPE`), timed on nothing: its ticks are 0.
+    pub fn new(
+        policy: &'static Mlp<H>,
+        policy_int: &'static QMlp<H>,
+        rig: Rig,
+        envelope: Limits,
+    ) -> Self {
+        Local(Target::new(policy, policy_int, rig, envelope, 1))
     }
 }
 

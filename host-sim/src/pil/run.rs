@@ -78,7 +78,7 @@ pub fn handshake(
     ensure!(got.clock_hz > 0, "the target's clock runs at 0 Hz");
     for s in scenarios {
         let board = Rig {
-            dead_time: firmware::policy::RIG.dead_time,
+            dead_time: shipped::policy::RIG.dead_time,
             ..s.rig
         };
         if digest::rig(&board) != got.rig {

@@ -165,7 +165,7 @@ fn a_late_command_leaves_the_bridge_on_the_one_before_and_a_weak_motor_scales_th
 #[test]
 fn dropped_readings_coast_and_late_periods_and_restarts_are_counted_by_the_board() {
     let s = Scenario::parse_on("encoder+drop=5+late=7+reset=11", &Machine::GYMNASIUM).unwrap();
-    let policy = &firmware::policy::POLICY;
+    let policy = &shipped::policy::POLICY;
     let mut ep = Episode::start(
         policy,
         &s,

@@ -2,7 +2,7 @@ use super::*;
 use firmware::Action;
 use firmware::cartpole::{Params, advance};
 use firmware::controller::{Duty, Levels};
-use firmware::policy::POLICY;
+use shipped::policy::POLICY;
 
 /// Pushes towards `theta + 0.5 theta_dot`, never coasting.
 struct Rule;

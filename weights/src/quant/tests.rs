@@ -1,6 +1,6 @@
 use firmware::fixed::from_state as fixed_obs;
-use firmware::policy::POLICY;
 use firmware::rig::Rig;
+use shipped::policy::POLICY;
 
 use super::quantiser::{adaptive_round, quantise_weights, requant, symmetric};
 use super::*;

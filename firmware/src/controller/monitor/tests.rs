@@ -2,8 +2,9 @@
 
 use super::*;
 use crate::controller::{Levels, Policy, answer};
-use crate::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 use crate::fixed;
+use crate::rig::Rig;
+use crate::shipped::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
 
 /// Scores `[0, theta]`: right when the pole leans right, so each policy command is known.
 struct Lean;
@@ -35,7 +36,9 @@ impl Policy for Broken {
 /// (so `u = -(x + x_dot + 10 theta + theta_dot)`).
 fn assurance() -> Assurance {
     let envelope = Limits::new([1.0, 1.0, 0.1, 1.0]).unwrap();
-    Assurance::new(envelope, &Rig::GYMNASIUM, [1.0, 1.0, 10.0, 1.0]).unwrap()
+    Rig::GYMNASIUM
+        .assurance(envelope, [1.0, 1.0, 10.0, 1.0])
+        .unwrap()
 }
 
 fn decide(m: &mut Monitor, obs: [f32; 4], c: &mut FaultCounters) -> (Command, FaultFlags) {
@@ -206,16 +209,16 @@ impl Policy<[i16; 4]> for FnPolicy<'_> {
 #[test]
 fn a_gain_that_is_no_number_is_refused() {
     let envelope = Limits::new([1.0; 4]).unwrap();
-    let bad = Assurance::new(envelope, &Rig::GYMNASIUM, [1.0, f32::NAN, 1.0, 1.0]);
+    let bad = Rig::GYMNASIUM.assurance(envelope, [1.0, f32::NAN, 1.0, 1.0]);
     assert_eq!(bad, Err(ConfigError::NotFinite("assurance.gain")));
 }
 
 /// The generated envelope belongs to the shipped policy and its fallback to the shipped rig.
 #[test]
 fn the_shipped_assurance_is_the_shipped_policys_and_rigs() {
-    use crate::policy::{POLICY, RIG};
+    use crate::shipped::policy::{POLICY, RIG};
     assert_eq!(POLICY_DIGEST, crate::link::digest::mlp(&POLICY));
     let k = crate::linear::balance_gain(&RIG.params).map(|k| k as f32);
     assert_eq!(FALLBACK_GAIN, k);
-    assert_eq!(Assurance::for_rig(ENVELOPE, &RIG), Ok(ASSURANCE));
+    assert_eq!(RIG.lqr_assurance(ENVELOPE), Ok(ASSURANCE));
 }

@@ -7,13 +7,14 @@ use crate::controller::Command;
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
-use crate::policy::{POLICY, RIG};
-use crate::policy_int::POLICY_INT;
+use crate::shipped::envelope::ENVELOPE;
+use crate::shipped::policy::{POLICY, RIG};
+use crate::shipped::policy_int::POLICY_INT;
 
 const CLOCK_HZ: u32 = 1_000;
 
 fn target() -> Target<'static, 64> {
-    Target::new(&POLICY, &POLICY_INT, RIG, CLOCK_HZ)
+    Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, CLOCK_HZ)
 }
 
 /// Sends `message` numbered `seq`; the answer's message, checked to carry `seq`.
@@ -56,7 +57,7 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
     let mut board = Controller::new(policy, sensor, pins(), rig.limits().unwrap())
         .with_predictor(rig.predictor().unwrap());
     if monitor {
-        board.set_monitor(Assurance::for_rig(ENVELOPE, &rig).unwrap());
+        board.set_monitor(rig.lqr_assurance(ENVELOPE).unwrap());
     }
     let mut t = target();
     assert!(matches!(

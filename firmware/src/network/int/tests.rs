@@ -2,7 +2,7 @@ use rand_core::{Rng, SeedableRng};
 use rand_pcg::Pcg32;
 
 use super::*;
-use crate::policy_int::POLICY_INT;
+use crate::shipped::policy_int::POLICY_INT;
 
 /// [`Requant::apply`] as its documentation states it, in i128 with divisions instead of
 /// shifts: the reference the shift-and-clamp code is checked against.

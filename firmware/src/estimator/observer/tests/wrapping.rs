@@ -4,7 +4,7 @@ use super::*;
 use crate::controller::{Command, Controller, FaultFlags};
 use crate::estimator::ObserverSensor;
 use crate::loopback::{Latest, pins};
-use crate::policy::{POLICY, RIG};
+use crate::shipped::policy::{POLICY, RIG};
 
 /// 4,096 counts a revolution: a pole that leaves upright at 3 rad/s, turns once in 100
 /// periods and comes to rest upright again, then held there.

@@ -1,0 +1,26 @@
+//! The shipped balance policy: the constants a board compiles beside `firmware`.
+//!
+//! - [`policy`]: the 4-64-64-2 network (`POLICY`), its duty levels and the rig it was
+//!   trained for (`RIG`), written by `policy-export export`.
+//! - [`policy_int`]: the same policy in integers (`POLICY_INT`, `firmware::network::int`)
+//!   and its `RIG`, for cores without an FPU, written by `policy-export export --quant int8`.
+//! - [`envelope`]: where the runtime monitor lets the policy drive (`ENVELOPE`) and the
+//!   monitor's configuration on its rig (`ASSURANCE`), written by `host-sim envelope`.
+//!
+//! Every module but this one is generated, by the commands of `docs/results/manifest.toml`
+//! (steps `policy-rs`, `policy-safetensors`, `policy-int-rs`, `envelope-rs`), which
+//! `scripts/regenerate.sh` runs: `--only train --only 'policy-*' --only envelope-rs` trains
+//! the policy again and writes them, and `policy.safetensors` beside this crate's manifest
+//! (the weights the int8 export and the tests read). The crate is `no_std`, allocates
+//! nothing and depends on `firmware` alone; a board depends on both.
+#![no_std]
+#![deny(unsafe_code)]
+#![warn(missing_docs)]
+
+pub mod envelope;
+pub mod policy;
+pub mod policy_int;
+
+// The shipped policies' machines, checked as the crate is compiled.
+const _: () = assert!(policy::RIG.check().is_ok());
+const _: () = assert!(policy_int::RIG.check().is_ok());
