@@ -1,14 +1,17 @@
 //! How good a policy is: greedy episodes on fresh starts, and the paper's "solved" measure
 //! on a run's returns.
 
-use firmware::controller::Levels;
+use firmware::controller::{Greedy, Levels, Policy};
 use firmware::network::Mlp;
+use firmware::network::int::QMlp;
 use host_common::wide::WideMlp;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use twin::lockstep::run_lockstep;
-use twin::{Domain, Episode, Scenario};
+use twin::{Domain, Episode, Machine, Scenario};
+use weights::Weights;
+use weights::quant::Granularity;
 
 use super::Stream;
 
@@ -77,6 +80,44 @@ pub fn evaluate<const H: usize, const A: usize>(
     streams: EvalStreams,
 ) -> EvalResult {
     let wide = WideMlp::new(net, levels);
+    evaluate_policy(&*wide, episodes, max_steps, domain, compensate, streams)
+}
+
+/// `net` quantised as `policy-export export --quant int8` quantises the policy file of it for
+/// `machine` (the default granularity, calibrated on `machine`'s worlds): the integers an
+/// int8 board runs. `Greedy { net: &*q, levels }` is then that board's policy on a float
+/// reading, rounded to Q3.12 as the board's sensor rounds it (`firmware::controller`).
+pub fn quantised<const H: usize, const A: usize>(
+    (net, levels): (&Mlp<H, A>, Levels<A>),
+    machine: &Machine,
+) -> weights::Result<Box<QMlp<H, A>>> {
+    let w = Weights::from_mlp(net, &levels)?;
+    twin::calibrate::quantise_policy(&w, Granularity::default(), machine)?.to_qmlp::<H, A>()
+}
+
+/// [`evaluate`] with the integer network `q` on `levels`, on the same episodes: the same
+/// streams give the same worlds, starts, noise and pushes as the float network met.
+pub fn evaluate_int<const H: usize, const A: usize>(
+    (q, levels): (&QMlp<H, A>, Levels<A>),
+    episodes: usize,
+    max_steps: u32,
+    domain: &Domain,
+    compensate: bool,
+    streams: EvalStreams,
+) -> EvalResult {
+    let policy = Greedy { net: q, levels };
+    evaluate_policy(policy, episodes, max_steps, domain, compensate, streams)
+}
+
+/// [`evaluate`]'s episodes with any policy a controller runs.
+fn evaluate_policy<P: Policy + Copy + Send + Sync>(
+    policy: P,
+    episodes: usize,
+    max_steps: u32,
+    domain: &Domain,
+    compensate: bool,
+    streams: EvalStreams,
+) -> EvalResult {
     let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(CHUNK))
         .into_par_iter()
         .flat_map_iter(|c| {
@@ -93,7 +134,7 @@ pub fn evaluate<const H: usize, const A: usize>(
                     let pair = (streams.rng(e(i), 2), streams.rng(e(i), 3));
                     let mut start = streams.rng(e(i), 1);
                     let s = &scenarios[i];
-                    Episode::start(&*wide, s, max_steps, &mut start, pair, compensate)
+                    Episode::start(policy, s, max_steps, &mut start, pair, compensate)
                 },
                 |i, ep, command, t| {
                     let (p, s) = (&scenarios[i].params, ep.world().state());
