@@ -182,6 +182,78 @@ pub fn trailing_means(values: &[f64], w: usize) -> impl Iterator<Item = f64> + '
 #[cfg(test)]
 mod tests {
     use super::*;
+    use firmware::policy::POLICY;
+    use firmware::policy_int::POLICY_INT;
+
+    /// The trial's quantisation is the exporter's: the shipped policy's committed int8 module
+    /// (`policy-export export --quant int8` of it on Gymnasium's machine) is what the trial
+    /// makes of the float policy.
+    #[test]
+    fn the_trial_quantises_as_export_does() {
+        let q = quantised((&POLICY, Levels::BANG_BANG), &Machine::GYMNASIUM).unwrap();
+        assert!(*q == POLICY_INT);
+    }
+
+    /// The int8 trial's episodes, one at a time and by hand: each world, start, noise and
+    /// pushes drawn from the streams the float network's trial draws them from, the
+    /// committed int8 network deciding on the reading rounded to Q3.12.
+    #[test]
+    fn the_int8_trial_runs_the_integer_board_on_the_float_trials_worlds() {
+        let cfg = crate::config::Config::deploy();
+        let domain = Domain::parse_on(&cfg.finalist_domain, &Machine::GYMNASIUM).unwrap();
+        let streams = EvalStreams {
+            seed: 7,
+            streams: [
+                Stream::TrialWorld,
+                Stream::Trial,
+                Stream::TrialNoise,
+                Stream::TrialPushes,
+            ],
+        };
+        let (episodes, max_steps) = (40, 400);
+        let int = (&POLICY_INT, Levels::BANG_BANG);
+        let res = evaluate_int(int, episodes, max_steps, &domain, true, streams);
+        let returns: Vec<f64> = (0..episodes as u64)
+            .map(|e| {
+                let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
+                let scenario = domain.sample(&mut rng(0));
+                let mut ep = Episode::start(
+                    &POLICY_INT,
+                    &scenario,
+                    max_steps,
+                    &mut rng(1),
+                    (rng(2), rng(3)),
+                    true,
+                );
+                let mut ret = 0.0;
+                loop {
+                    ep.decide();
+                    let t = ep.apply();
+                    ret += f64::from(t.reward);
+                    if t.terminated || t.truncated {
+                        return ret;
+                    }
+                }
+            })
+            .collect();
+        let mean = returns.iter().sum::<f64>() / episodes as f64;
+        let min = returns.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(
+            (res.mean.to_bits(), res.min.to_bits()),
+            (mean.to_bits(), min.to_bits())
+        );
+        // Hard enough that some episodes fall and some hold, and not the float board's.
+        assert!(min < f64::from(max_steps) && mean > min, "{res:?}");
+        let float = evaluate(
+            (&POLICY, Levels::BANG_BANG),
+            episodes,
+            max_steps,
+            &domain,
+            true,
+            streams,
+        );
+        assert_ne!(float, res);
+    }
 
     #[test]
     fn solved_episode_is_the_first_full_window_reaching_the_threshold() {

@@ -154,7 +154,14 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         let (episodes, steps, domain) = self.plan(which);
         let streams = eval_streams(self.seed, which);
         let policy = (net, self.levels);
-        let res = evaluate(policy, episodes, steps, domain, self.cfg.compensate, streams);
+        let res = evaluate(
+            policy,
+            episodes,
+            steps,
+            domain,
+            self.cfg.compensate,
+            streams,
+        );
         self.count(which, &res);
         res
     }
@@ -166,7 +173,14 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
             Ok(q) => {
                 let streams = eval_streams(self.seed, Eval::Trial);
                 let policy = (&*q, self.levels);
-                evaluate_int(policy, episodes, steps, domain, self.cfg.compensate, streams)
+                evaluate_int(
+                    policy,
+                    episodes,
+                    steps,
+                    domain,
+                    self.cfg.compensate,
+                    streams,
+                )
             }
             Err(_) => EvalResult {
                 episodes,
@@ -252,5 +266,45 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
             trial,
             final_eval,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(mean: f64) -> EvalResult {
+        EvalResult {
+            episodes: 50,
+            max_steps: 10_000,
+            mean,
+            min: mean - 100.0,
+            cost: 0.01,
+        }
+    }
+
+    fn run(episode: usize, f32: f64, int8: Option<f64>) -> TrialRun {
+        TrialRun {
+            episode,
+            f32: result(f32),
+            int8: int8.map(result),
+        }
+    }
+
+    #[test]
+    fn a_finalist_whose_int8_board_falls_loses() {
+        // The first holds best as a float board and falls at once as an int8 one.
+        let trial = [
+            run(10, 10_000.0, Some(120.0)),
+            run(20, 9_500.0, Some(9_400.0)),
+            run(30, 9_400.0, Some(10_000.0)),
+        ];
+        assert_eq!(trial.each_ref().map(TrialRun::survival), [120.0, 9_400.0, 9_400.0]);
+        // Equal survival: the earlier, of the better periodic rank.
+        assert_eq!(pick(&trial), Some(1));
+        // Without int8 figures the float board alone ranks them.
+        let float = trial.map(|t| TrialRun { int8: None, ..t });
+        assert_eq!(pick(&float), Some(0));
+        assert_eq!(pick(&[]), None);
     }
 }
