@@ -299,7 +299,10 @@ mod tests {
             run(20, 9_500.0, Some(9_400.0)),
             run(30, 9_400.0, Some(10_000.0)),
         ];
-        assert_eq!(trial.each_ref().map(TrialRun::survival), [120.0, 9_400.0, 9_400.0]);
+        assert_eq!(
+            trial.each_ref().map(TrialRun::survival),
+            [120.0, 9_400.0, 9_400.0]
+        );
         // Equal survival: the earlier, of the better periodic rank.
         assert_eq!(pick(&trial), Some(1));
         // Without int8 figures the float board alone ranks them.
