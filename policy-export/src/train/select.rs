@@ -169,27 +169,19 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
     /// `net`'s trial as its int8 board runs it, on the float network's episodes.
     fn trial_int8(&mut self, net: &Mlp<H, A>) -> EvalResult {
         let (episodes, steps, domain) = self.plan(Eval::Trial);
-        let res = match quantised((net, self.levels), &self.domains.machine) {
-            Ok(q) => {
-                let streams = eval_streams(self.seed, Eval::Trial);
-                let policy = (&*q, self.levels);
-                evaluate_int(
-                    policy,
-                    episodes,
-                    steps,
-                    domain,
-                    self.cfg.compensate,
-                    streams,
-                )
-            }
-            Err(_) => EvalResult {
+        let Ok(q) = quantised((net, self.levels), &self.domains.machine) else {
+            return EvalResult {
                 episodes,
                 max_steps: steps,
                 mean: 0.0,
                 min: 0.0,
                 cost: 0.0,
-            },
+            };
         };
+        let streams = eval_streams(self.seed, Eval::Trial);
+        let policy = (&*q, self.levels);
+        let compensate = self.cfg.compensate;
+        let res = evaluate_int(policy, episodes, steps, domain, compensate, streams);
         self.count(Eval::Trial, &res);
         res
     }
