@@ -401,6 +401,19 @@ fn print_summary(s: &Summary) {
         s.wall_s,
         s.us_per_env_step
     );
+    if let Some(b) = &s.board_trial {
+        host_common::outln!(
+            "seed {:>3}: the policy's trial as its boards run it: f32 mean {:.1} (min {}), \
+             int8 mean {:.1} (min {}) over {} x {} periods",
+            s.seed,
+            b.f32.mean,
+            b.f32.min,
+            b.int8.mean,
+            b.int8.min,
+            b.f32.episodes,
+            b.f32.max_steps
+        );
+    }
 }
 
 /// The seeds together, printed and written into the run directory as `aggregate.json`.
@@ -466,6 +479,9 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
                 "wrote {out}: {name}, {params} parameters in {bytes} bytes ({how}; {q})"
             )
         }
+    }
+    for warning in run::board_warnings(&a.src) {
+        host_common::errln!("{warning}");
     }
     Ok(())
 }

@@ -9,7 +9,7 @@
 //! [`crate::outdir`].
 
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use host_common::stats::mean;
@@ -20,7 +20,7 @@ use weights::source::{DEFAULT_RUST_NAME, rust_module};
 
 use crate::config::Config;
 use crate::nn::Kernel;
-use crate::train::{EvalResult, RunResult, solved_episode, trailing_means};
+use crate::train::{EvalResult, RunResult, TrialRun, solved_episode, trailing_means};
 
 /// The contents of `summary.json`.
 #[derive(Clone, Debug, Serialize, Deserialize)]
@@ -71,18 +71,36 @@ pub struct Summary {
     /// The finalists' longer trial that chose among the best periodic snapshots (empty
     /// without `finalists`).
     #[serde(default)]
-    pub finalist_trial: Vec<TrialEval>,
+    pub finalist_trial: Vec<TrialRun>,
+    /// The exported policy's trial as each board runs it; `null` when the trial did not
+    /// run its int8 network (`board_int8`) or there was none.
+    #[serde(default)]
+    pub board_trial: Option<BoardTrial>,
     /// The exported policy, greedy, on fresh starts.
     pub final_eval: EvalResult,
 }
 
-/// One finalist's trial.
+/// The shipped snapshot's finalists' trial on both boards, on the same episodes.
 #[derive(Clone, Debug, Serialize, Deserialize)]
-pub struct TrialEval {
+pub struct BoardTrial {
     /// The snapshot taken after this episode.
     pub episode: usize,
-    /// Its result.
-    pub result: EvalResult,
+    /// The float network's.
+    pub f32: EvalResult,
+    /// The int8 network's.
+    pub int8: EvalResult,
+}
+
+impl BoardTrial {
+    /// The chosen snapshot's, if its trial ran both boards.
+    fn of(trial: &[TrialRun], episode: usize) -> Option<BoardTrial> {
+        let t = trial.iter().find(|t| t.episode == episode)?;
+        Some(BoardTrial {
+            episode,
+            f32: t.f32.clone(),
+            int8: t.int8.clone()?,
+        })
+    }
 }
 
 /// One periodic evaluation.
@@ -135,14 +153,8 @@ pub fn summarize(cfg: &Config, seed: u64, r: &RunResult) -> Summary {
                 min: e.min,
             })
             .collect(),
-        finalist_trial: r
-            .trial
-            .iter()
-            .map(|(episode, e)| TrialEval {
-                episode: *episode,
-                result: e.clone(),
-            })
-            .collect(),
+        finalist_trial: r.trial.clone(),
+        board_trial: BoardTrial::of(&r.trial, r.policy_episode),
         final_eval: r.final_eval.clone(),
     }
 }
@@ -183,13 +195,61 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     Ok(provenance(&s))
 }
 
+/// The `summary.json` of the policy at `src`: in a run directory, or beside a policy file.
+fn summary_of(src: &Path) -> Option<PathBuf> {
+    let dir = if src.is_dir() { src } else { src.parent()? };
+    let path = dir.join("summary.json");
+    path.is_file().then_some(path)
+}
+
+/// What the run's summary says against putting the policy at `src` on a board, a line each:
+/// no board-level trial figures, or a board that did not hold every episode of the
+/// finalists' trial to its end. Nothing when no summary describes the policy.
+pub fn board_warnings(src: &Path) -> Vec<String> {
+    let Some(path) = summary_of(src) else {
+        return Vec::new();
+    };
+    let shown = path.display();
+    let summary = read_capped(&path, MAX_POLICY_BYTES)
+        .ok()
+        .and_then(|b| serde_json::from_slice::<Summary>(&b).ok());
+    let Some(summary) = summary else {
+        return vec![format!(
+            "warning: {shown} is not a run summary, so the policy has no board-level trial \
+             figures"
+        )];
+    };
+    let Some(b) = summary.board_trial else {
+        return vec![format!(
+            "warning: {shown} has no board-level trial figures (board_trial): the policy was \
+             not tried as an int8 board runs it (train with board_int8 = true)"
+        )];
+    };
+    [("f32", &b.f32), ("int8", &b.int8)]
+        .into_iter()
+        .filter(|(_, r)| r.mean < f64::from(r.max_steps))
+        .map(|(board, r)| {
+            format!(
+                "warning: {shown}: board_trial.{board}.mean is {:.1} of {} periods (min {} over \
+                 {} episodes): the {board} board falls in the finalists' trial",
+                r.mean, r.max_steps, r.min, r.episodes
+            )
+        })
+        .collect()
+}
+
 /// The configuration a policy file records: everything its weights depend on. The kernel
 /// is left out: every kernel trains the same bits, so a file must not differ by the machine
-/// that made it (`summary.json` says which ran).
+/// that made it (`summary.json` says which ran). `board_int8` is left out when off, which a
+/// file without it reads as, so the files of runs that did not try int8 boards keep the
+/// bytes they had before the key existed.
 fn weights_config(cfg: &Config) -> Result<String> {
     let mut v = serde_json::to_value(cfg)?;
     if let Some(map) = v.as_object_mut() {
         map.remove("kernel");
+        if !cfg.board_int8 {
+            map.remove("board_int8");
+        }
     }
     Ok(serde_json::to_string(&v)?)
 }

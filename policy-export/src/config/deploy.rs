@@ -117,6 +117,7 @@ impl Config {
             finalists: 20,
             finalist_episodes: 50,
             finalist_max_steps: steps(10_000.0),
+            board_int8: rig,
             rig: if rig {
                 twin::rigfile::to_toml(machine)
             } else {

@@ -268,6 +268,11 @@ config_keys! {
         /// The worlds of the finalists' trial (a domain spec); empty: `eval_domain`'s.
         #[serde(default)]
         finalist_domain: String = String::new(), limit Limit::Domain;
+        /// Try each finalist as its int8 network too (quantised as `export --quant int8`
+        /// does), on the same worlds, and rank it by the worse of the two: a board may run
+        /// either, so a snapshot whose integer network fails is not shipped.
+        #[serde(default)]
+        board_int8: bool = false;
         /// Decide on readings advanced over each world's dead time with the nominal model, as
         /// the deployed controller does (`firmware::controller::predict`).
         #[serde(default)]

@@ -344,6 +344,8 @@ fn the_deploy_recipe_is_made_for_its_machine() {
         (g.levels.as_str(), g.reward.as_str()),
         ("", "upright=20+centre=5")
     );
+    // The shipped policy keeps its bits: its finalists are not tried as int8 boards.
+    assert!(!g.board_int8);
     // A weaker motor at twice the rate: pushes half as strong, counts of periods doubled.
     let text = "cart_mass_kg = 0.6\npole_mass_kg = 0.08\npole_com_m = 0.22\n\
                 track_half_length_m = 0.4\nend_stop_margin_m = 0.05\nperiod_s = 0.01\n\
@@ -366,6 +368,8 @@ fn the_deploy_recipe_is_made_for_its_machine() {
     // A rig's motor is driven gently: nine levels, effort paid for.
     assert_eq!(d.levels, "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1");
     assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=2");
+    // And judged as each of its boards runs it.
+    assert!(d.board_int8);
     d.validate().unwrap();
 }
 

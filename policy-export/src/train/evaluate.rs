@@ -1,14 +1,17 @@
 //! How good a policy is: greedy episodes on fresh starts, and the paper's "solved" measure
 //! on a run's returns.
 
-use firmware::controller::Levels;
+use firmware::controller::{Greedy, Levels, Policy};
 use firmware::network::Mlp;
+use firmware::network::int::QMlp;
 use host_common::wide::WideMlp;
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use twin::lockstep::run_lockstep;
-use twin::{Domain, Episode, Scenario};
+use twin::{Domain, Episode, Machine, Scenario};
+use weights::Weights;
+use weights::quant::Granularity;
 
 use super::Stream;
 
@@ -77,6 +80,44 @@ pub fn evaluate<const H: usize, const A: usize>(
     streams: EvalStreams,
 ) -> EvalResult {
     let wide = WideMlp::new(net, levels);
+    evaluate_policy(&*wide, episodes, max_steps, domain, compensate, streams)
+}
+
+/// `net` quantised as `policy-export export --quant int8` quantises the policy file of it for
+/// `machine` (the default granularity, calibrated on `machine`'s worlds): the integers an
+/// int8 board runs. `Greedy { net: &*q, levels }` is then that board's policy on a float
+/// reading, rounded to Q3.12 as the board's sensor rounds it (`firmware::controller`).
+pub fn quantised<const H: usize, const A: usize>(
+    (net, levels): (&Mlp<H, A>, Levels<A>),
+    machine: &Machine,
+) -> weights::Result<Box<QMlp<H, A>>> {
+    let w = Weights::from_mlp(net, &levels)?;
+    twin::calibrate::quantise_policy(&w, Granularity::default(), machine)?.to_qmlp::<H, A>()
+}
+
+/// [`evaluate`] with the integer network `q` on `levels`, on the same episodes: the same
+/// streams give the same worlds, starts, noise and pushes as the float network met.
+pub fn evaluate_int<const H: usize, const A: usize>(
+    (q, levels): (&QMlp<H, A>, Levels<A>),
+    episodes: usize,
+    max_steps: u32,
+    domain: &Domain,
+    compensate: bool,
+    streams: EvalStreams,
+) -> EvalResult {
+    let policy = Greedy { net: q, levels };
+    evaluate_policy(policy, episodes, max_steps, domain, compensate, streams)
+}
+
+/// [`evaluate`]'s episodes with any policy a controller runs.
+fn evaluate_policy<P: Policy + Copy + Send + Sync>(
+    policy: P,
+    episodes: usize,
+    max_steps: u32,
+    domain: &Domain,
+    compensate: bool,
+    streams: EvalStreams,
+) -> EvalResult {
     let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(CHUNK))
         .into_par_iter()
         .flat_map_iter(|c| {
@@ -93,7 +134,7 @@ pub fn evaluate<const H: usize, const A: usize>(
                     let pair = (streams.rng(e(i), 2), streams.rng(e(i), 3));
                     let mut start = streams.rng(e(i), 1);
                     let s = &scenarios[i];
-                    Episode::start(&*wide, s, max_steps, &mut start, pair, compensate)
+                    Episode::start(policy, s, max_steps, &mut start, pair, compensate)
                 },
                 |i, ep, command, t| {
                     let (p, s) = (&scenarios[i].params, ep.world().state());
@@ -141,6 +182,78 @@ pub fn trailing_means(values: &[f64], w: usize) -> impl Iterator<Item = f64> + '
 #[cfg(test)]
 mod tests {
     use super::*;
+    use firmware::policy::POLICY;
+    use firmware::policy_int::POLICY_INT;
+
+    /// The trial's quantisation is the exporter's: the shipped policy's committed int8 module
+    /// (`policy-export export --quant int8` of it on Gymnasium's machine) is what the trial
+    /// makes of the float policy.
+    #[test]
+    fn the_trial_quantises_as_export_does() {
+        let q = quantised((&POLICY, Levels::BANG_BANG), &Machine::GYMNASIUM).unwrap();
+        assert!(*q == POLICY_INT);
+    }
+
+    /// The int8 trial's episodes, one at a time and by hand: each world, start, noise and
+    /// pushes drawn from the streams the float network's trial draws them from, the
+    /// committed int8 network deciding on the reading rounded to Q3.12.
+    #[test]
+    fn the_int8_trial_runs_the_integer_board_on_the_float_trials_worlds() {
+        let cfg = crate::config::Config::deploy();
+        let domain = Domain::parse_on(&cfg.finalist_domain, &Machine::GYMNASIUM).unwrap();
+        let streams = EvalStreams {
+            seed: 7,
+            streams: [
+                Stream::TrialWorld,
+                Stream::Trial,
+                Stream::TrialNoise,
+                Stream::TrialPushes,
+            ],
+        };
+        let (episodes, max_steps) = (40, 400);
+        let int = (&POLICY_INT, Levels::BANG_BANG);
+        let res = evaluate_int(int, episodes, max_steps, &domain, true, streams);
+        let returns: Vec<f64> = (0..episodes as u64)
+            .map(|e| {
+                let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
+                let scenario = domain.sample(&mut rng(0));
+                let mut ep = Episode::start(
+                    &POLICY_INT,
+                    &scenario,
+                    max_steps,
+                    &mut rng(1),
+                    (rng(2), rng(3)),
+                    true,
+                );
+                let mut ret = 0.0;
+                loop {
+                    ep.decide();
+                    let t = ep.apply();
+                    ret += f64::from(t.reward);
+                    if t.terminated || t.truncated {
+                        return ret;
+                    }
+                }
+            })
+            .collect();
+        let mean = returns.iter().sum::<f64>() / episodes as f64;
+        let min = returns.iter().copied().fold(f64::INFINITY, f64::min);
+        assert_eq!(
+            (res.mean.to_bits(), res.min.to_bits()),
+            (mean.to_bits(), min.to_bits())
+        );
+        // Hard enough that some episodes fall and some hold, and not the float board's.
+        assert!(min < f64::from(max_steps) && mean > min, "{res:?}");
+        let float = evaluate(
+            (&POLICY, Levels::BANG_BANG),
+            episodes,
+            max_steps,
+            &domain,
+            true,
+            streams,
+        );
+        assert_ne!(float, res);
+    }
 
     #[test]
     fn solved_episode_is_the_first_full_window_reaching_the_threshold() {

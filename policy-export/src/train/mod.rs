@@ -37,6 +37,7 @@ pub use evaluate::{EvalResult, EvalStreams, evaluate, solved_episode, trailing_m
 pub use learner::{Learner, init_weights, td_targets};
 pub use replay::ReplayBuffer;
 pub use reward::Reward;
+pub use select::TrialRun;
 
 /// Independent random streams of a run, so that changing how often one is drawn from (say,
 /// the batch size) leaves the others' sequences alone.
@@ -138,9 +139,8 @@ pub struct RunResult {
     pub selection_steps: u64,
     /// Periodic evaluations: (episode, result).
     pub evals: Vec<(usize, EvalResult)>,
-    /// The finalists' trial, best periodic snapshot first: (episode, result); empty without
-    /// finalists.
-    pub trial: Vec<(usize, EvalResult)>,
+    /// The finalists' trial, best periodic snapshot first; empty without finalists.
+    pub trial: Vec<TrialRun>,
     /// `policy` on fresh starts.
     pub final_eval: EvalResult,
     /// Total environment steps.
@@ -212,6 +212,8 @@ impl ForShape for Training<'_> {
 
 /// The domains of a run, parsed (`validate` has checked them).
 struct Domains {
+    /// The machine they are drawn around: the one an int8 board's network is quantised on.
+    machine: twin::Machine,
     train: Domain,
     eval: Domain,
     trial: Domain,
@@ -228,6 +230,7 @@ fn domains(cfg: &Config) -> Result<Domains> {
             spec => parse(spec)?,
         },
         eval,
+        machine,
     })
 }
 

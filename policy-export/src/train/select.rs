@@ -1,11 +1,53 @@
 //! Which weights a run ships: the best periodically evaluated snapshots, tried again in the
-//! finalists' longer trial, and the winner evaluated once more on fresh episodes.
+//! finalists' longer trial (with `board_int8`, each as its float and its int8 board runs
+//! it), and the winner evaluated once more on fresh episodes.
 
 use firmware::controller::Levels;
 use firmware::network::Mlp;
+use serde::{Deserialize, Serialize};
 
+use super::evaluate::{evaluate_int, quantised};
 use super::{Domains, EpisodeRecord, EvalResult, EvalStreams, Learner, Stream, evaluate};
 use crate::config::Config;
+
+/// One finalist's trial: its float network's result, and with `board_int8` its integer
+/// network's on the same episodes.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct TrialRun {
+    /// The snapshot taken after this episode.
+    pub episode: usize,
+    /// The float network (f32 board).
+    #[serde(rename = "result")]
+    pub f32: EvalResult,
+    /// The integer network (int8 board), quantised as `export --quant int8` quantises it;
+    /// a network the quantiser refuses holds no episode on such a board and scores 0.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub int8: Option<EvalResult>,
+}
+
+impl TrialRun {
+    /// What the trial ranks by: the mean survival of the worse of its boards, since either
+    /// may run it.
+    pub fn survival(&self) -> f64 {
+        self.int8
+            .as_ref()
+            .map_or(self.f32.mean, |q| self.f32.mean.min(q.mean))
+    }
+}
+
+/// The finalist a trial picks: the best survival; among equals the earlier, which had the
+/// better periodic rank, since the periodic cost (nominal-like worlds) measures precision
+/// better than the trial's pushes.
+pub(super) fn pick(trial: &[TrialRun]) -> Option<usize> {
+    let mut best: Option<(usize, f64)> = None;
+    for (i, t) in trial.iter().enumerate() {
+        let s = t.survival();
+        if best.is_none_or(|(_, b)| s > b) {
+            best = Some((i, s));
+        }
+    }
+    best.map(|(i, _)| i)
+}
 
 /// Which evaluation a set of streams serves.
 #[derive(Clone, Copy)]
@@ -71,7 +113,7 @@ pub(super) struct Chosen<const H: usize, const A: usize> {
     pub selection_episodes: u64,
     pub selection_steps: u64,
     pub evals: Vec<(usize, EvalResult)>,
-    pub trial: Vec<(usize, EvalResult)>,
+    pub trial: Vec<TrialRun>,
     pub final_eval: EvalResult,
 }
 
@@ -90,29 +132,57 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         }
     }
 
+    /// The episodes, their length and worlds of `which`.
+    fn plan(&self, which: Eval) -> (usize, u32, &'a twin::Domain) {
+        let (cfg, d) = (self.cfg, self.domains);
+        match which {
+            Eval::Periodic => (cfg.eval_episodes, cfg.eval_max_steps, &d.eval),
+            Eval::Final => (cfg.final_eval_episodes, cfg.eval_max_steps, &d.eval),
+            Eval::Trial => (cfg.finalist_episodes, cfg.finalist_max_steps, &d.trial),
+        }
+    }
+
+    /// Counts an evaluation that chose the policy.
+    fn count(&mut self, which: Eval, res: &EvalResult) {
+        if !matches!(which, Eval::Final) {
+            self.episodes += res.episodes as u64;
+            self.steps += steps_of(res);
+        }
+    }
+
     fn evaluate(&mut self, net: &Mlp<H, A>, which: Eval) -> EvalResult {
-        let cfg = self.cfg;
-        let (episodes, steps, domain) = match which {
-            Eval::Periodic | Eval::Final => {
-                (cfg.eval_episodes, cfg.eval_max_steps, &self.domains.eval)
-            }
-            Eval::Trial => (
-                cfg.finalist_episodes,
-                cfg.finalist_max_steps,
-                &self.domains.trial,
-            ),
-        };
-        let episodes = match which {
-            Eval::Final => cfg.final_eval_episodes,
-            _ => episodes,
-        };
+        let (episodes, steps, domain) = self.plan(which);
         let streams = eval_streams(self.seed, which);
         let policy = (net, self.levels);
-        let res = evaluate(policy, episodes, steps, domain, cfg.compensate, streams);
-        if !matches!(which, Eval::Final) {
-            self.episodes += episodes as u64;
-            self.steps += steps_of(&res);
-        }
+        let res = evaluate(
+            policy,
+            episodes,
+            steps,
+            domain,
+            self.cfg.compensate,
+            streams,
+        );
+        self.count(which, &res);
+        res
+    }
+
+    /// `net`'s trial as its int8 board runs it, on the float network's episodes.
+    fn trial_int8(&mut self, net: &Mlp<H, A>) -> EvalResult {
+        let (episodes, steps, domain) = self.plan(Eval::Trial);
+        let Ok(q) = quantised((net, self.levels), &self.domains.machine) else {
+            return EvalResult {
+                episodes,
+                max_steps: steps,
+                mean: 0.0,
+                min: 0.0,
+                cost: 0.0,
+            };
+        };
+        let streams = eval_streams(self.seed, Eval::Trial);
+        let policy = (&*q, self.levels);
+        let compensate = self.cfg.compensate;
+        let res = evaluate_int(policy, episodes, steps, domain, compensate, streams);
+        self.count(Eval::Trial, &res);
         res
     }
 
@@ -148,19 +218,17 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         let mut trial = Vec::new();
         if evaluate_policy && self.cfg.finalists > 0 {
             let pool = std::mem::take(&mut self.pool);
-            let mut best: Option<(usize, f64)> = None;
-            for (i, (_, ep, net)) in pool.iter().enumerate() {
-                let res = self.evaluate(net, Eval::Trial);
-                // Survival decides; among equals the better periodic rank, since the periodic
-                // cost (nominal-like worlds) measures precision better than the trial's
-                // pushes.
-                if best.is_none_or(|(_, b)| res.mean > b) {
-                    best = Some((i, res.mean));
-                }
-                trial.push((*ep, res));
+            for (_, episode, net) in &pool {
+                let f32 = self.evaluate(net, Eval::Trial);
+                let int8 = self.cfg.board_int8.then(|| self.trial_int8(net));
+                trial.push(TrialRun {
+                    episode: *episode,
+                    f32,
+                    int8,
+                });
             }
             self.pool = pool;
-            if let Some((i, _)) = best {
+            if let Some(i) = pick(&trial) {
                 self.pool.swap(0, i);
             }
         }
@@ -190,5 +258,48 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
             trial,
             final_eval,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn result(mean: f64) -> EvalResult {
+        EvalResult {
+            episodes: 50,
+            max_steps: 10_000,
+            mean,
+            min: mean - 100.0,
+            cost: 0.01,
+        }
+    }
+
+    fn run(episode: usize, f32: f64, int8: Option<f64>) -> TrialRun {
+        TrialRun {
+            episode,
+            f32: result(f32),
+            int8: int8.map(result),
+        }
+    }
+
+    #[test]
+    fn a_finalist_whose_int8_board_falls_loses() {
+        // The first holds best as a float board and falls at once as an int8 one.
+        let trial = [
+            run(10, 10_000.0, Some(120.0)),
+            run(20, 9_500.0, Some(9_400.0)),
+            run(30, 9_400.0, Some(10_000.0)),
+        ];
+        assert_eq!(
+            trial.each_ref().map(TrialRun::survival),
+            [120.0, 9_400.0, 9_400.0]
+        );
+        // Equal survival: the earlier, of the better periodic rank.
+        assert_eq!(pick(&trial), Some(1));
+        // Without int8 figures the float board alone ranks them.
+        let float = trial.map(|t| TrialRun { int8: None, ..t });
+        assert_eq!(pick(&float), Some(0));
+        assert_eq!(pick(&[]), None);
     }
 }

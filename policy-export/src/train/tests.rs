@@ -187,6 +187,52 @@ fn the_shipped_recipe_cut_short_gives_the_recorded_bits() {
 const RECORDED_RECIPE_LEARNED: u64 = 3_788_568_233_672_756_947;
 const RECORDED_RECIPE: u64 = 4_214_896_325_062_899_796;
 
+/// With `board_int8` every finalist is tried on both boards, the shipped one is the best by
+/// the worse of the two, and the summary records its two figures.
+#[test]
+fn board_int8_tries_each_finalist_on_both_boards_and_records_the_shipped_ones() {
+    let cfg = Config {
+        eval_every: 10,
+        eval_episodes: 3,
+        finalists: 3,
+        finalist_episodes: 4,
+        finalist_max_steps: 300,
+        board_int8: true,
+        ..small(KernelChoice::Auto)
+    };
+    let r = train(&cfg, 5, &mut |_| {}).unwrap();
+    assert_eq!(r.trial.len(), 3);
+    let best = r
+        .trial
+        .iter()
+        .map(TrialRun::survival)
+        .fold(f64::MIN, f64::max);
+    let shipped = r.trial.iter().find(|t| t.survival() == best).unwrap();
+    assert_eq!(shipped.episode, r.policy_episode);
+    for t in &r.trial {
+        let int8 = t.int8.as_ref().expect("an int8 trial");
+        assert_eq!((int8.episodes, int8.max_steps), (4, 300));
+        assert_eq!(t.survival(), t.f32.mean.min(int8.mean));
+    }
+    let b = crate::run::summarize(&cfg, 5, &r).board_trial.unwrap();
+    assert_eq!(
+        (b.episode, &b.f32, Some(&b.int8)),
+        (shipped.episode, &shipped.f32, shipped.int8.as_ref())
+    );
+    // Without it, the same run's summary has no board figures.
+    let off = train(
+        &Config {
+            board_int8: false,
+            ..cfg.clone()
+        },
+        5,
+        &mut |_| {},
+    )
+    .unwrap();
+    assert!(off.trial.iter().all(|t| t.int8.is_none()));
+    assert!(crate::run::summarize(&cfg, 5, &off).board_trial.is_none());
+}
+
 #[test]
 fn a_diverging_run_stops_with_the_episode_and_step() {
     let cfg = Config {
