@@ -182,8 +182,8 @@ pub fn trailing_means(values: &[f64], w: usize) -> impl Iterator<Item = f64> + '
 #[cfg(test)]
 mod tests {
     use super::*;
-    use firmware::policy::POLICY;
-    use firmware::policy_int::POLICY_INT;
+    use shipped::policy::POLICY;
+    use shipped::policy_int::POLICY_INT;
 
     /// The trial's quantisation is the exporter's: the shipped policy's committed int8 module
     /// (`policy-export export --quant int8` of it on Gymnasium's machine) is what the trial
