@@ -97,6 +97,11 @@ type Forward = extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 2]>);
 /// And for the integer one.
 type ForwardInt = extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>);
 
+/// The entry points of the nine-level policy.
+type ForwardLevels = extern "C" fn(Option<&[f32; 4]>, Option<&mut [f32; 9]>);
+/// And of its integer version.
+type ForwardLevelsInt = extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 9]>);
+
 /// The whole run; whether everything passed.
 pub fn run(board: &mut impl Board) -> bool {
     // Probes go through C entry points by address, so the linker keeps them as real
@@ -109,6 +114,14 @@ pub fn run(board: &mut impl Board) -> bool {
         &POLICY_INT,
         |o, q| forward(Some(o), Some(q)),
         |o, q| forward_int(Some(o), Some(q)),
+        |l| board.line(l),
+    );
+    // The nine-level policy's entry points too, by address, for their instruction counts.
+    let levels: ForwardLevels = core::hint::black_box(selftest::selftest_forward_levels);
+    let levels_int: ForwardLevelsInt = core::hint::black_box(selftest::selftest_forward_levels_int);
+    selftest::levels_probes(
+        |o, q| levels(Some(o), Some(q)),
+        |o, q| levels_int(Some(o), Some(q)),
         |l| board.line(l),
     );
     ok &= paced_runs(board);

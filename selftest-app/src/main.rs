@@ -40,12 +40,18 @@ fn run(board: &mut impl app::Board) -> bool {
 #[cfg(not(target_os = "none"))]
 fn main() -> std::process::ExitCode {
     use selftest::{selftest_forward, selftest_forward_int};
+    use selftest::{selftest_forward_levels, selftest_forward_levels_int};
     use shipped::{policy::POLICY, policy_int::POLICY_INT};
     let ok = selftest::report(
         &POLICY,
         &POLICY_INT,
         |o, q| selftest_forward(Some(o), Some(q)),
         |o, q| selftest_forward_int(Some(o), Some(q)),
+        |l| println!("{l}"),
+    );
+    selftest::levels_probes(
+        |o, q| selftest_forward_levels(Some(o), Some(q)),
+        |o, q| selftest_forward_levels_int(Some(o), Some(q)),
         |l| println!("{l}"),
     );
     if ok {

@@ -41,6 +41,52 @@ pub extern "C" fn selftest_forward_int(obs: Option<&[i16; 4]>, q: Option<&mut [i
     }
 }
 
+/// The nine-level desk policy's forward pass (`shipped::desk`) as a C function: what a
+/// policy with duty levels costs a core, counted as [`selftest_forward`]'s is.
+// SAFETY: as for `selftest_forward`.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn selftest_forward_levels(obs: Option<&[f32; 4]>, q: Option<&mut [f32; 9]>) {
+    if let (Some(obs), Some(q)) = (obs, q) {
+        *q = shipped::desk::POLICY.forward(obs);
+    }
+}
+
+/// [`selftest_forward_levels`] for the same policy in integers (`shipped::desk_int`).
+// SAFETY: as for `selftest_forward`.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn selftest_forward_levels_int(obs: Option<&[i16; 4]>, q: Option<&mut [i32; 9]>) {
+    if let (Some(obs), Some(q)) = (obs, q) {
+        *q = shipped::desk_int::POLICY_INT.forward(obs);
+    }
+}
+
+/// The nine-level policy's outputs on every probe, f32 and int8 (`probe-levels`,
+/// `probe-levels-int` lines), for the host to compare bit for bit as it compares
+/// [`report`]'s.
+pub fn levels_probes(
+    forward: impl Fn(&[f32; 4], &mut [f32; 9]),
+    forward_int: impl Fn(&[i16; 4], &mut [i32; 9]),
+    mut line: impl FnMut(core::fmt::Arguments<'_>),
+) {
+    for (i, obs) in PROBES.iter().enumerate() {
+        let mut q = [0.0; 9];
+        forward(obs, &mut q);
+        // 192 bytes hold a nine-output line (133 characters).
+        let mut text = heapless::String::<192>::new();
+        let _ = probe_line(&mut text, "probe-levels", i, obs, &q);
+        line(format_args!("{text}"));
+    }
+    for (i, obs) in INT_PROBES.iter().enumerate() {
+        let mut q = [0; 9];
+        forward_int(obs, &mut q);
+        let mut text = heapless::String::<192>::new();
+        let _ = int_probe_line(&mut text, "probe-levels-int", i, obs, &q);
+        line(format_args!("{text}"));
+    }
+}
+
 /// One period of the runtime monitor (`firmware::controller::monitor`) around the integer
 /// policy, as a fresh monitor of the shipped assurance decides on `obs`: the policy's
 /// outputs inside the envelope, zeros where the fallback decides. Its instructions less
@@ -117,11 +163,12 @@ pub fn int_check<const H: usize>(net: &QMlp<H>, kernel: impl Fn(&[i16; 4]) -> [i
 /// One integer probe line: index, the observation and the two Q-values, in hex.
 pub fn int_probe_line<W: core::fmt::Write>(
     out: &mut W,
+    name: &str,
     index: usize,
     obs: &[i16; 4],
-    q: &[i32; 2],
+    q: &[i32],
 ) -> core::fmt::Result {
-    write!(out, "probe-int {index}")?;
+    write!(out, "{name} {index}")?;
     for v in obs {
         write!(out, " {:04x}", *v as u16)?;
     }
@@ -188,11 +235,12 @@ pub const LIMITS: Limits = match RIG.limits() {
 /// format with this, so a bit difference shows as a text difference.
 pub fn probe_line<W: core::fmt::Write>(
     out: &mut W,
+    name: &str,
     index: usize,
     obs: &[f32; 4],
-    q: &[f32; 2],
+    q: &[f32],
 ) -> core::fmt::Result {
-    write!(out, "probe {index}")?;
+    write!(out, "{name} {index}")?;
     for v in obs {
         write!(out, " {:08x}", v.to_bits())?;
     }
@@ -248,14 +296,14 @@ pub fn report<const H: usize>(
         let mut text = heapless::String::<96>::new();
         // 96 bytes hold a probe line (64 characters); a truncated line is still a mismatch the
         // host test reports, never a panic.
-        let _ = probe_line(&mut text, i, obs, &q);
+        let _ = probe_line(&mut text, "probe", i, obs, &q);
         line(format_args!("{text}"));
     }
     for (i, obs) in INT_PROBES.iter().enumerate() {
         let mut q = [0; 2];
         forward_int(obs, &mut q);
         let mut text = heapless::String::<96>::new();
-        let _ = int_probe_line(&mut text, i, obs, &q);
+        let _ = int_probe_line(&mut text, "probe-int", i, obs, &q);
         line(format_args!("{text}"));
     }
     let dot_bad = if OWN_DOT {
@@ -373,7 +421,14 @@ mod tests {
             }
         }
         let mut s = S(heapless::String::new());
-        int_probe_line(&mut s, 1, &[1, -1, 32767, -32768], &[-2, 65536]).unwrap();
+        int_probe_line(
+            &mut s,
+            "probe-int",
+            1,
+            &[1, -1, 32767, -32768],
+            &[-2, 65536],
+        )
+        .unwrap();
         assert_eq!(
             s.0.as_str(),
             "probe-int 1 0001 ffff 7fff 8000 -> fffffffe 00010000"
@@ -389,7 +444,7 @@ mod tests {
             }
         }
         let mut s = S(heapless::String::new());
-        probe_line(&mut s, 3, &[1.0, -0.0, 0.5, 2.0], &[1.5, -2.0]).unwrap();
+        probe_line(&mut s, "probe", 3, &[1.0, -0.0, 0.5, 2.0], &[1.5, -2.0]).unwrap();
         assert_eq!(
             s.0.as_str(),
             "probe 3 3f800000 80000000 3f000000 40000000 -> 3fc00000 c0000000"

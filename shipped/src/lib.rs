@@ -4,11 +4,15 @@
 //!   trained for (`RIG`), written by `policy-export export`.
 //! - [`policy_int`]: the same policy in integers (`POLICY_INT`, `firmware::network::int`)
 //!   and its `RIG`, for cores without an FPU, written by `policy-export export --quant int8`.
+//! - [`desk`], [`desk_int`]: the gentle nine-level policy trained for the identified desk
+//!   rig (`docs/RIGS.md`), f32 and int8, each with its `LEVELS` and `RIG`: what a policy with
+//!   duty levels costs a core (the self-test counts its forward passes).
 //! - [`envelope`]: where the runtime monitor lets the policy drive (`ENVELOPE`) and the
 //!   monitor's configuration on its rig (`ASSURANCE`), written by `host-sim envelope`.
 //!
 //! Every module but this one is generated, by the commands of `docs/results/manifest.toml`
-//! (steps `policy-rs`, `policy-safetensors`, `policy-int-rs`, `envelope-rs`), which
+//! (steps `policy-rs`, `policy-safetensors`, `policy-int-rs`, `envelope-rs`, and for the desk
+//! policy `rig-desk-rs` and `rig-desk-int-rs` after `rig-desk-train`), which
 //! `scripts/regenerate.sh` runs: `--only train --only 'policy-*' --only envelope-rs` trains
 //! the policy again and writes them, and `policy.safetensors` beside this crate's manifest
 //! (the weights the int8 export and the tests read). The crate is `no_std`, allocates
@@ -17,6 +21,8 @@
 #![deny(unsafe_code)]
 #![warn(missing_docs)]
 
+pub mod desk;
+pub mod desk_int;
 pub mod envelope;
 pub mod policy;
 pub mod policy_int;
@@ -24,3 +30,5 @@ pub mod policy_int;
 // The shipped policies' machines, checked as the crate is compiled.
 const _: () = assert!(policy::RIG.check().is_ok());
 const _: () = assert!(policy_int::RIG.check().is_ok());
+const _: () = assert!(desk::RIG.check().is_ok());
+const _: () = assert!(desk_int::RIG.check().is_ok());

@@ -26,7 +26,7 @@ fn expected_probe_lines() -> Vec<String> {
 fn probe_lines(stdout: &str) -> impl Iterator<Item = &str> {
     stdout
         .lines()
-        .filter(|l| l.starts_with("probe ") || l.starts_with("probe-int "))
+        .filter(|l| l.split(' ').next().is_some_and(|w| w.starts_with("probe")))
 }
 
 fn cargo(args: &[&str]) -> Output {

@@ -3,7 +3,8 @@
 //! what was expected, and no traceback. Every check here comes before the scripts import
 //! NumPy, Gymnasium or Unicorn (the test makes those imports fail), so it runs with Python
 //! alone. The emulator's instruction cap needs Unicorn, Capstone and pyelftools
-//! (scripts/requirements-dev.txt).
+//! (scripts/requirements-dev.txt), and so do the budgets the counter holds the self-test's
+//! forward passes to.
 //!
 //! The Python is `CARTPOLE_PYTHON`, else `python3`; scripts/test.sh makes an environment with
 //! the requirements and names it. A missing Python or module fails, naming what to install;
@@ -225,14 +226,12 @@ fn count_insns_refuses_bad_files_counts_and_non_arm_elves() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// With Unicorn installed: a function that never returns is stopped at the cap and reported.
-#[test]
-fn count_insns_stops_a_function_that_never_returns() {
-    let Some(py) = python() else {
-        return;
-    };
-    if skip("CARTPOLE_SKIP_UNICORN", "the instruction counter's cap") {
-        return;
+/// The Python with Unicorn, Capstone and pyelftools, for the counter's own runs; `None`
+/// only where a `CARTPOLE_SKIP_*` variable says to skip `what`, which it says loudly.
+fn unicorn_python(what: &str) -> Option<String> {
+    let py = python()?;
+    if skip("CARTPOLE_SKIP_UNICORN", what) {
+        return None;
     }
     let has_unicorn = Command::new(&py)
         .args(["-c", "import unicorn, capstone, elftools"])
@@ -246,6 +245,15 @@ fn count_insns_stops_a_function_that_never_returns() {
          scripts/requirements-dev.txt`, then CARTPOLE_PYTHON=.venv/bin/python; scripts/test.sh \
          does so), or set CARTPOLE_SKIP_UNICORN=1 to skip this test"
     );
+    Some(py)
+}
+
+/// With Unicorn installed: a function that never returns is stopped at the cap and reported.
+#[test]
+fn count_insns_stops_a_function_that_never_returns() {
+    let Some(py) = unicorn_python("the instruction counter's cap") else {
+        return;
+    };
     let dir = scratch("loop");
     let elf = dir.join("loop.elf");
     std::fs::write(&elf, looping_elf()).unwrap();
@@ -333,4 +341,81 @@ fn looping_elf() -> Vec<u8> {
     b.extend(section(9, 3, str_off, strtab.len() as u32, 0, 0, 0));
     b.extend(section(17, 3, shstr_off, shstrtab.len() as u32, 0, 0, 0));
     b
+}
+
+/// Instructions one call of `symbol` in the self-test's image for `target` runs on `cpu`,
+/// the most over `inputs`, as `scripts/count_insns.py` counts them.
+fn most_insns(py: &str, target: &str, symbol: &str, int: bool, inputs: &[&str]) -> u64 {
+    let elf = e2e::build_app("selftest-app", Some(target));
+    let cpu = if target.starts_with("thumbv6m") {
+        "m0"
+    } else {
+        "m4"
+    };
+    let types: &[&str] = if int {
+        &["--in-type", "i16", "--out-type", "i32"]
+    } else {
+        &[]
+    };
+    let count = |input: &&str| {
+        let out = Command::new(py)
+            .arg(repo().join("scripts/count_insns.py"))
+            .arg(&elf)
+            .args([
+                symbol,
+                "--cpu",
+                cpu,
+                "--nout",
+                "9",
+                &format!("--in={input}"),
+            ])
+            .args(types)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{symbol} on {cpu}: {text}{out:?}");
+        let n = text
+            .lines()
+            .find_map(|l| l.strip_prefix("instructions: "))
+            .and_then(|l| l.split(' ').next()?.parse().ok());
+        n.unwrap_or_else(|| panic!("{symbol} on {cpu}: no count in {text}"))
+    };
+    inputs.iter().map(count).max().unwrap()
+}
+
+/// The forward passes within the budgets `docs/PERFORMANCE_MCU.md` states, for the shipped
+/// two-output policy and the nine-level desk policy alike: the f32 one on the Cortex-M4F
+/// within 10,000 instructions, the integer one on the Cortex-M0 within 25,000, wherever the
+/// reading lies (ReLU's zeros and the integer clamps take other paths).
+#[test]
+fn the_forward_passes_keep_their_instruction_budgets() {
+    let Some(py) = unicorn_python("the forward passes' instruction budgets") else {
+        return;
+    };
+    let floats = [
+        "0.5,-1,0.25,2",
+        "0,0,0,0",
+        "0.01,-0.02,0.03,0.04",
+        "-2.4,-1.5,-0.2,-2",
+    ];
+    let ints = [
+        "41,-82,123,164",
+        "0,0,0,0",
+        "2048,-4096,1024,8192",
+        "-9830,-6144,-819,-8192",
+    ];
+    for symbol in ["selftest_forward", "selftest_forward_levels"] {
+        let n = most_insns(&py, "thumbv7em-none-eabihf", symbol, false, &floats);
+        assert!(
+            n <= 10_000,
+            "{symbol}: {n} instructions on the M4F, budget 10,000"
+        );
+    }
+    for symbol in ["selftest_forward_int", "selftest_forward_levels_int"] {
+        let n = most_insns(&py, "thumbv6m-none-eabi", symbol, true, &ints);
+        assert!(
+            n <= 25_000,
+            "{symbol}: {n} instructions on the M0, budget 25,000"
+        );
+    }
 }
