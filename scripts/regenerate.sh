@@ -7,7 +7,7 @@
 # docs/results/manifest.toml's, the one place they are written; this script only runs them.
 #
 #   scripts/regenerate.sh [--list] [--only GLOB]... [--from STEP] [--skip GLOB]...
-#                         [--profile PROFILE]
+#                         [--profile PROFILE] [--built]
 #
 #   --list         print the steps that would run (name, estimated CPU minutes, tools,
 #                  command) and run nothing
@@ -19,6 +19,9 @@
 #                  step is named in the plan
 #   --profile P    build the tools with cargo profile P (default release; `quick` builds
 #                  faster and computes the same bits)
+#   --built        the tools of that profile are built already (a test run built them
+#                  with the workspace's features): read the manifest with them without
+#                  building first (a step that changes what they compile still rebuilds)
 #
 # A step that needs a tool beyond cargo (QEMU, arm-none-eabi-gcc, a Python with
 # stable_baselines3 and cartpole_ddqn as $PYTHON, default python3) is refused before any
@@ -29,10 +32,11 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 
 die() { echo "regenerate: $*" >&2; exit 2; }
-only=() skip=() from="" list=0 profile=release
+only=() skip=() from="" list=0 built=0 profile=release
 while [ $# -gt 0 ]; do
   case $1 in
     --list) list=1; shift ;;
+    --built) built=1; shift ;;
     --only|--skip|--from|--profile)
       [ $# -ge 2 ] && [ -n "$2" ] || die "$1 expects a value"
       case $1 in
@@ -76,7 +80,11 @@ has() { # TOOL: whether a step's tool is here
 }
 
 # --list builds the tools only if they are not there (it needs host-sim to read the manifest).
-if [ $list = 0 ] || [ ! -x "$target_dir/$profile/host-sim" ]; then
+if [ $built = 1 ]; then
+  for tool in host-sim policy-export; do
+    [ -x "$target_dir/$profile/$tool" ] || die "--built: expected $target_dir/$profile/$tool, found none"
+  done
+elif [ $list = 0 ] || [ ! -x "$target_dir/$profile/host-sim" ]; then
   echo "== build ($profile)"
   build
 fi

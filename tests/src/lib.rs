@@ -69,9 +69,12 @@ pub fn build_app(bin: &str, target: Option<&str>) -> PathBuf {
 }
 
 /// Builds a host tool (`host-sim`, `policy-export`) with the profile the tests were built
-/// with, so that it reuses their artefacts; the executable's path.
+/// with, so that it reuses their artefacts; the executable's path. The whole workspace's
+/// tests are selected beside it (fresh, after `cargo test --workspace`): alone, `-p
+/// host-sim` would resolve its dependencies' features without the test run's development
+/// dependencies and build a second copy of half the workspace for it.
 pub fn build_tool(package: &str) -> PathBuf {
-    build(package, package, &test_profile(), None)
+    build_with(package, &test_profile(), None, &["--workspace", "--tests"])
 }
 
 /// The cargo profile of this test binary: the name of the directory above its `deps/`
@@ -93,20 +96,18 @@ pub fn test_profile() -> String {
 /// Builds binary `bin` of `package` with `profile` for `target` (the host without one); the
 /// executable's path, as cargo names it.
 pub fn build(package: &str, bin: &str, profile: &str, target: Option<&str>) -> PathBuf {
+    build_with(bin, profile, target, &["-p", package])
+}
+
+/// [`build`], the packages selected by `select`.
+fn build_with(bin: &str, profile: &str, target: Option<&str>, select: &[&str]) -> PathBuf {
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let mut c = Command::new(cargo);
-    c.args([
-        "build",
-        "-q",
-        "--profile",
-        profile,
-        "-p",
-        package,
-        "--bin",
-        bin,
-    ])
-    .arg("--message-format=json")
-    .current_dir(repo());
+    c.args(["build", "-q", "--profile", profile])
+        .args(select)
+        .args(["--bin", bin])
+        .arg("--message-format=json")
+        .current_dir(repo());
     if let Some(t) = target {
         c.args(["--target", t]);
     }
