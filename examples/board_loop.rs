@@ -59,7 +59,7 @@ fn board_loop<P: Policy<[i16; 4]>>(name: &str, policy: P, rig: &Rig) -> Result<b
         balanced += 1;
     }
     let f = controller.faults();
-    let mean_abs_duty = sum_abs_duty / f64::from(balanced.max(1));
+    let mean_abs_duty = sum_abs_duty / f64::from(controller.steps());
     println!("{name} (a period of {} ms):", rig.params.tau * 1e3);
     println!("  balanced     {balanced} of {periods} periods");
     println!("  mean |duty|  {mean_abs_duty:.3} of the full push");
