@@ -2,10 +2,10 @@
 //! (`firmware::loopback`'s pins): encoder counts into the rig's observer, the integer
 //! policy, the dead-time predictor (where the rig has dead time) and the limits, all built
 //! from the `RIG` exported beside the policy, and one `controller.step()` per control period
-//! for 10 s of periods. It runs
-//! the shipped int8 policy (two levels, full pushes) and the nine-level desk policy, which
-//! holds the pole with small duties, and prints for each how long it balanced, its mean
-//! |duty|, its motor reversals and the controller's fault counters.
+//! for 10 s of periods. It runs the shipped int8 policy (two levels, full pushes) and the
+//! nine-level desk policy, which holds the pole with small duties, and prints for each how
+//! long it balanced, its mean |duty|, its motor reversals and the controller's fault
+//! counters.
 //!
 //! ```sh
 //! cargo run --release -p cartpole-examples --example board_loop
