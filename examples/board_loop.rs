@@ -47,7 +47,9 @@ fn board_loop<P: Policy<[i16; 4]>>(name: &str, policy: P, rig: &Rig) -> Result<b
         controller.step();
         let d = duty(controller.actuator());
         sum_abs_duty += d.abs();
-        if d != 0.0 {
+        // Pushes too small to take up a gearbox's backlash do not count (as in `host-sim
+        // eval`'s reversals per second).
+        if d.abs() >= f64::from(twin::run::REVERSAL_DUTY) {
             reversals += u32::from(last_sign != 0.0 && d.signum() != last_sign);
             last_sign = d.signum();
         }
@@ -63,7 +65,7 @@ fn board_loop<P: Policy<[i16; 4]>>(name: &str, policy: P, rig: &Rig) -> Result<b
     println!("{name} (a period of {} ms):", rig.params.tau * 1e3);
     println!("  balanced     {balanced} of {periods} periods");
     println!("  mean |duty|  {mean_abs_duty:.3} of the full push");
-    println!("  reversals    {reversals} of the motor's direction");
+    println!("  reversals    {reversals} of the motor's direction (pushes of 10% or more)");
     println!(
         "  faults       {} rejected readings, {} overruns",
         f.rejected_readings, f.overruns
