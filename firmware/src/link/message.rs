@@ -443,9 +443,10 @@ fn read_values<T: Copy + Default>(
     Some(Values { v, n: n as u8 })
 }
 
-/// A reply's command code: the duty in thousandths of the full push, or [`COAST`].
+/// A reply's duty code of a coast: no duty a level can have.
 const COAST: i16 = i16::MIN;
 
+/// A reply's duty code: the duty in thousandths of the full push, or [`COAST`].
 fn command_code(c: Command) -> i16 {
     match c {
         Command::Drive(d) => d.thousandths(),

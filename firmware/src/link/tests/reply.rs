@@ -85,7 +85,10 @@ fn a_reply_has_the_bytes_the_protocol_document_gives() {
     // A duty of 0.2 (200 thousandths): a level between the full pushes.
     let fifth = Command::Drive(Duty::from_fraction(0.2).unwrap());
     let want = [head([0xC8, 0x00], 1, 1), std::vec![0xFF; 4]].concat();
-    assert_eq!(read(&want), [Ok(reply(fifth, Scores::I32(Values::of([-1]))))]);
+    assert_eq!(
+        read(&want),
+        [Ok(reply(fifth, Scores::I32(Values::of([-1]))))]
+    );
 }
 
 #[test]
@@ -113,6 +116,9 @@ fn a_reply_whose_count_or_fields_are_out_of_range_or_disagree_with_its_length_is
     assert_eq!(read(&good[..good.len() - 1]), refused);
     assert_eq!(read(&good[..4 + 9]), refused);
     // A duty beyond the full push, a scores' type the protocol has not.
-    assert_eq!(read(&[head([0xE9, 0x03], 0, 2), scores(2)].concat()), refused);
+    assert_eq!(
+        read(&[head([0xE9, 0x03], 0, 2), scores(2)].concat()),
+        refused
+    );
     assert_eq!(read(&[head(right, 2, 2), scores(2)].concat()), refused);
 }
