@@ -1,10 +1,10 @@
 //! The messages, and their bytes inside a frame's payload: a four-byte header (protocol
 //! version, kind, sequence number, little-endian) and a body whose length the kind fixes.
 
-use core::fmt;
-
 use crate::controller::{Command, Duty, FaultFlags};
 use crate::network::MAX_OUTPUTS;
+
+pub use super::values::Values;
 
 /// The protocol's version; a frame of another is refused ([`Reason::Version`]).
 pub const VERSION: u8 = 3;
@@ -117,55 +117,6 @@ pub enum Scores {
     F32(Values<f32>),
     /// An integer policy's outputs.
     I32(Values<i32>),
-}
-
-/// One to [`MAX_OUTPUTS`] scores, in a fixed buffer.
-#[derive(Clone, Copy)]
-pub struct Values<T> {
-    v: [T; MAX_OUTPUTS],
-    n: u8,
-}
-
-impl<T: Copy + Default> Values<T> {
-    /// The scores of an `A`-output policy (`A` in `1..=MAX_OUTPUTS`, checked as it compiles).
-    pub fn of<const A: usize>(q: [T; A]) -> Values<T> {
-        const { assert!(A >= 1 && A <= MAX_OUTPUTS) };
-        let mut v = [T::default(); MAX_OUTPUTS];
-        v[..A].copy_from_slice(&q);
-        Values { v, n: A as u8 }
-    }
-
-    /// `q`'s scores; `None` for none or more than [`MAX_OUTPUTS`].
-    pub fn new(q: &[T]) -> Option<Values<T>> {
-        if q.is_empty() || q.len() > MAX_OUTPUTS {
-            return None;
-        }
-        let mut v = [T::default(); MAX_OUTPUTS];
-        v[..q.len()].copy_from_slice(q);
-        Some(Values {
-            v,
-            n: q.len() as u8,
-        })
-    }
-}
-
-impl<T> Values<T> {
-    /// The scores, one per output.
-    pub fn as_slice(&self) -> &[T] {
-        self.v.get(..usize::from(self.n)).unwrap_or(&[])
-    }
-}
-
-impl<T: PartialEq> PartialEq for Values<T> {
-    fn eq(&self, other: &Self) -> bool {
-        self.as_slice() == other.as_slice()
-    }
-}
-
-impl<T: fmt::Debug> fmt::Debug for Values<T> {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.debug_list().entries(self.as_slice()).finish()
-    }
 }
 
 /// One period's answer.
@@ -339,11 +290,11 @@ impl Message {
                 w.put(&r.ticks.to_le_bytes());
                 match r.scores {
                     Scores::F32(q) => {
-                        w.put(&[0, q.n]);
+                        w.put(&[0, q.as_slice().len() as u8]);
                         q.as_slice().iter().for_each(|x| w.put(&x.to_le_bytes()));
                     }
                     Scores::I32(q) => {
-                        w.put(&[1, q.n]);
+                        w.put(&[1, q.as_slice().len() as u8]);
                         q.as_slice().iter().for_each(|x| w.put(&x.to_le_bytes()));
                     }
                 }
@@ -418,8 +369,8 @@ fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
         return None;
     }
     let scores = match kind {
-        0 => Scores::F32(read_values(r, n, f32::from_le_bytes)?),
-        1 => Scores::I32(read_values(r, n, i32::from_le_bytes)?),
+        0 => Scores::F32(Values::from_fn(n, || r.bytes().map(f32::from_le_bytes))?),
+        1 => Scores::I32(Values::from_fn(n, || r.bytes().map(i32::from_le_bytes))?),
         _ => return None,
     };
     Some(Reply {
@@ -428,19 +379,6 @@ fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
         faults,
         ticks,
     })
-}
-
-/// `n` scores (`1..=MAX_OUTPUTS`, checked), each four bytes `from` reads.
-fn read_values<T: Copy + Default>(
-    r: &mut Reader<'_>,
-    n: usize,
-    from: fn([u8; 4]) -> T,
-) -> Option<Values<T>> {
-    let mut v = [T::default(); MAX_OUTPUTS];
-    for x in v.get_mut(..n)? {
-        *x = from(r.bytes()?);
-    }
-    Some(Values { v, n: n as u8 })
 }
 
 /// A reply's duty code of a coast: no duty a level can have.

@@ -22,6 +22,7 @@ mod message;
 mod sensor;
 pub mod session;
 pub mod target;
+mod values;
 
 pub use frame::{FrameReader, MAX_FRAME};
 
