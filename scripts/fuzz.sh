@@ -47,8 +47,9 @@ for spec in nominal noise=2+delay push=0.5/40 length=0.8+polemass=1.2 force=0.8+
 done
 printf 'cartpole_policy\nsource: a */ b /* c ??/ \\' >"$corpus/source_comment/seed-1"
 printf 'POLICY' >"$corpus/source_comment/seed-2"
-# An exchange's requests as frames (Hello, Start, a reading), written by zlib's CRC-32 and
-# a COBS encoder of their own, so the reader's fuzzing starts past the frame check.
+# An exchange's requests as frames (Hello, Start, readings), then a reply of nine scores
+# (which a target reads, then refuses as a kind), written by zlib's CRC-32 and a COBS encoder
+# of their own, so the reader's fuzzing starts past the frame check.
 python3 - "$corpus/link_frame/exchange" <<'PY'
 import struct, sys, zlib
 def cobs(data):
@@ -63,9 +64,11 @@ def cobs(data):
 def frame(payload):
     return cobs(payload + struct.pack("<I", zlib.crc32(payload))) + b"\0"
 with open(sys.argv[1], "wb") as f:
-    f.write(frame(bytes([2, 1, 0, 0, 1])) + frame(bytes([2, 2, 1, 0, 1, 1, 2]) + bytes(4))
-            + frame(bytes([2, 4, 2, 0]) + struct.pack("<ii", -120, 2047))
-            + frame(bytes([2, 5, 3, 0])))
+    f.write(frame(bytes([3, 1, 0, 0, 1])) + frame(bytes([3, 2, 1, 0, 1, 1, 2]) + bytes(4))
+            + frame(bytes([3, 4, 2, 0]) + struct.pack("<ii", -120, 2047))
+            + frame(bytes([3, 5, 3, 0]))
+            + frame(bytes([3, 0x83, 4, 0]) + struct.pack("<hHIBB9i", 500, 0, 7, 1, 9,
+                                                         *range(-4, 5))))
 PY
 log=$(mktemp)
 trap 'rm -f "$log"' EXIT

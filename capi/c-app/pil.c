@@ -16,7 +16,9 @@
 #include "shipped.h"
 #include "shipped_int.h"
 
-enum { MAX_FRAME = 37, MAX_PAYLOAD = 31, VERSION = 2, CLOCK_HZ = 25000000 };
+enum { MAX_FRAME = 56, MAX_PAYLOAD = 50, VERSION = 3, CLOCK_HZ = 25000000 };
+/* A reply's body before its scores, and the most scores it carries. */
+enum { REPLY_FIXED = 10, MAX_OUTPUTS = 9 };
 enum { HELLO = 0x01, START = 0x02, STATE = 0x03, COUNTS = 0x04, MISSED = 0x05 };
 enum { INFO = 0x81, STARTED = 0x82, REPLY = 0x83, REFUSED = 0xFF };
 enum { R_VERSION = 1, R_KIND = 2, R_LENGTH = 3, R_CRC = 4, R_OVERSIZED = 5, R_ENCODING = 6 };
@@ -264,22 +266,24 @@ static int period(struct writer *w, int kind, const uint8_t *body, uint32_t arri
         cartpole_controller_step_state(&t.running, state, &cmd);
     }
     uint32_t ticks = (now() - arrived) & 0xFFFFFFu;
-    int8_t command = (int8_t)cmd.command;
-    uint8_t type = (uint8_t)t.format;
+    /* The shipped policy has no level of zero duty, so a command of 0 is a coast. */
+    int16_t duty = cmd.command == CARTPOLE_COAST ? INT16_MIN : (int16_t)cmd.signed_duty;
+    uint8_t type_count[2] = {(uint8_t)t.format, 2};
     uint16_t faults = (uint16_t)cmd.faults;
-    put(w, &command, 1);
-    put(w, t.format ? (const void *)cmd.q_int : (const void *)cmd.q, 8);
-    put(w, &type, 1);
+    put(w, &duty, 2);
     put(w, &faults, 2);
     put(w, &ticks, 4);
+    put(w, type_count, 2);
+    put(w, t.format ? (const void *)cmd.q_int : (const void *)cmd.q, 8);
     return REPLY;
 }
 
-/* Every kind and its body's length (docs/LINK.md); -1 for an unknown kind. */
+/* Every kind and its body's length (docs/LINK.md; a reply's longest); -1 for an unknown
+ * kind. */
 static int body_len(int kind)
 {
     static const uint8_t kinds[9][2] = {{HELLO, 1}, {START, 7}, {STATE, 16}, {COUNTS, 8},
-                                        {MISSED, 0}, {INFO, 27}, {STARTED, 0}, {REPLY, 16},
+                                        {MISSED, 0}, {INFO, 27}, {STARTED, 0}, {REPLY, REPLY_FIXED + 4 * MAX_OUTPUTS},
                                         {REFUSED, 1}};
     for (int i = 0; i < 9; i++) {
         if (kinds[i][0] == kind) {
@@ -289,16 +293,24 @@ static int body_len(int kind)
     return -1;
 }
 
-/* Whether a body's fields are in their ranges (a target's kinds too, which are refused as
- * kinds once read): a format, a sensing, the options, a discount only with the filter, a
- * command, a scores' type, a reason. */
-static int fields_valid(int kind, const uint8_t *body)
+/* Whether a body of `len` bytes fits `kind` and its fields are in their ranges (a target's
+ * kinds too, which are refused as kinds once read): a format, a sensing, the options, a
+ * discount only with the filter, a duty or a coast, a scores' type, a count of scores the
+ * length agrees with, a reason. */
+static int body_valid(int kind, const uint8_t *body, int len)
 {
+    if (kind == REPLY) {
+        int duty = (int16_t)(body[0] | body[1] << 8), count = len < REPLY_FIXED ? 0 : body[9];
+        return len == REPLY_FIXED + 4 * count && count >= 1 && count <= MAX_OUTPUTS &&
+               (duty == INT16_MIN || (duty >= -1000 && duty <= 1000)) && body[8] <= 1;
+    }
+    if (len != body_len(kind)) {
+        return 0;
+    }
     switch (kind) {
     case HELLO: return body[0] <= 1;
     case START: return body[0] <= 2 && body[1] <= 3 && (body[0] == 2 || u32_at(body + 3) == 0);
     case INFO: return body[0] <= 1;
-    case REPLY: return (body[0] <= 1 || body[0] == 0xFF) && body[9] <= 1;
     case REFUSED: return body[0] >= R_VERSION && body[0] <= R_UNSUPPORTED;
     default: return 1;
     }
@@ -336,7 +348,7 @@ static int answer(const uint8_t *p, int n, uint16_t *seq, struct writer *w, uint
     if (len < 0) {
         return refuse(w, R_KIND);
     }
-    if (len != n - 4 || !fields_valid(kind, p + 4)) {
+    if (!body_valid(kind, p + 4, n - 4)) {
         return refuse(w, R_LENGTH);
     }
     *seq = (uint16_t)(p[2] | p[3] << 8);

@@ -37,6 +37,15 @@ impl Duty {
         Ok(Duty(r as i16))
     }
 
+    /// The duty of `t` thousandths of the full push; `None` beyond `-1000..=1000`.
+    pub const fn from_thousandths(t: i16) -> Option<Duty> {
+        if t < -Duty::FULL || t > Duty::FULL {
+            None
+        } else {
+            Some(Duty(t))
+        }
+    }
+
     /// Thousandths of the full push, `-1000..=1000`.
     pub const fn thousandths(self) -> i16 {
         self.0

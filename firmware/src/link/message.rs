@@ -2,9 +2,12 @@
 //! version, kind, sequence number, little-endian) and a body whose length the kind fixes.
 
 use crate::controller::{Command, Duty, FaultFlags};
+use crate::network::MAX_OUTPUTS;
+
+pub use super::values::Values;
 
 /// The protocol's version; a frame of another is refused ([`Reason::Version`]).
-pub const VERSION: u8 = 2;
+pub const VERSION: u8 = 3;
 /// Version, kind and sequence number.
 pub const HEADER_LEN: usize = 4;
 /// The longest payload (header and body) of any message.
@@ -107,13 +110,13 @@ pub struct Start {
     pub dead_time: u8,
 }
 
-/// The policy's two scores, in its arithmetic.
+/// The policy's scores, one per output, in its arithmetic.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Scores {
     /// A float policy's Q-values.
-    F32([f32; 2]),
+    F32(Values<f32>),
     /// An integer policy's outputs.
-    I32([i32; 2]),
+    I32(Values<i32>),
 }
 
 /// One period's answer.
@@ -165,7 +168,11 @@ const KIND_STARTED: u8 = 0x82;
 const KIND_REPLY: u8 = 0x83;
 const KIND_REFUSED: u8 = 0xFF;
 
-/// Every kind and its body's length: the one table both directions use.
+/// A reply's body before its scores: duty, fault flags, ticks, scores' type, count.
+const REPLY_FIXED: usize = 10;
+
+/// Every kind and its body's length (a reply's longest, with [`MAX_OUTPUTS`] scores): the
+/// one table both directions use.
 const KINDS: [(u8, usize); 9] = [
     (KIND_HELLO, 1),
     (KIND_START, 7),
@@ -174,7 +181,7 @@ const KINDS: [(u8, usize); 9] = [
     (KIND_MISSED, 0),
     (KIND_INFO, 27),
     (KIND_STARTED, 0),
-    (KIND_REPLY, 16),
+    (KIND_REPLY, REPLY_FIXED + 4 * MAX_OUTPUTS),
     (KIND_REFUSED, 1),
 ];
 
@@ -189,8 +196,14 @@ const fn max_body() -> usize {
     max
 }
 
-fn body_len(kind: u8) -> Option<usize> {
-    KINDS.iter().find(|k| k.0 == kind).map(|k| k.1)
+/// Whether a body of `len` bytes fits `kind`: its length, or for a reply, one its count
+/// (checked as the reply is read) may give.
+fn body_fits(kind: u8, len: usize) -> Option<bool> {
+    let max = KINDS.iter().find(|k| k.0 == kind)?.1;
+    Some(match kind {
+        KIND_REPLY => (REPLY_FIXED + 4..=max).contains(&len),
+        _ => len == max,
+    })
 }
 
 /// A message and its sequence number: what one frame carries.
@@ -220,7 +233,7 @@ impl Packet {
             return Err(Reason::Version);
         }
         let kind = header[1];
-        if body_len(kind).ok_or(Reason::Kind)? != body.len() {
+        if !body_fits(kind, body.len()).ok_or(Reason::Kind)? {
             return Err(Reason::Length);
         }
         let seq = u16::from_le_bytes([header[2], header[3]]);
@@ -272,14 +285,19 @@ impl Message {
                 w.put(&i.clock_hz.to_le_bytes());
             }
             Message::Reply(r) => {
-                w.put(&[command_byte(r.command) as u8]);
-                match r.scores {
-                    Scores::F32(q) => q.iter().for_each(|x| w.put(&x.to_le_bytes())),
-                    Scores::I32(q) => q.iter().for_each(|x| w.put(&x.to_le_bytes())),
-                }
-                w.put(&[matches!(r.scores, Scores::I32(_)) as u8]);
+                w.put(&command_code(r.command).to_le_bytes());
                 w.put(&r.faults.0.to_le_bytes());
                 w.put(&r.ticks.to_le_bytes());
+                match r.scores {
+                    Scores::F32(q) => {
+                        w.put(&[0, q.as_slice().len() as u8]);
+                        q.as_slice().iter().for_each(|x| w.put(&x.to_le_bytes()));
+                    }
+                    Scores::I32(q) => {
+                        w.put(&[1, q.as_slice().len() as u8]);
+                        q.as_slice().iter().for_each(|x| w.put(&x.to_le_bytes()));
+                    }
+                }
             }
             Message::Refused(reason) => w.put(&[*reason as u8]),
         }
@@ -337,33 +355,40 @@ fn format(b: u8) -> Option<Format> {
     [Format::F32, Format::Int8].get(b as usize).copied()
 }
 
+/// A reply's body; `None` for a duty, a scores' type or a count out of its range, or a
+/// count the body's length disagrees with.
 fn decode_reply(r: &mut Reader<'_>) -> Option<Reply> {
-    let command = match r.u8()? as i8 {
-        -1 => Command::Drive(Duty::LEFT),
-        1 => Command::Drive(Duty::RIGHT),
-        0 => Command::Coast,
-        _ => return None,
+    let command = match i16::from_le_bytes(r.bytes()?) {
+        COAST => Command::Coast,
+        t => Command::Drive(Duty::from_thousandths(t)?),
     };
-    let raw: [[u8; 4]; 2] = [r.bytes()?, r.bytes()?];
-    let scores = match r.u8()? {
-        0 => Scores::F32(raw.map(f32::from_le_bytes)),
-        1 => Scores::I32(raw.map(i32::from_le_bytes)),
+    let faults = FaultFlags(u16::from_le_bytes(r.bytes()?));
+    let ticks = r.u32()?;
+    let (kind, n) = (r.u8()?, usize::from(r.u8()?));
+    if !(1..=MAX_OUTPUTS).contains(&n) || r.0.len() != 4 * n {
+        return None;
+    }
+    let scores = match kind {
+        0 => Scores::F32(Values::from_fn(n, || r.bytes().map(f32::from_le_bytes))?),
+        1 => Scores::I32(Values::from_fn(n, || r.bytes().map(i32::from_le_bytes))?),
         _ => return None,
     };
     Some(Reply {
         command,
         scores,
-        faults: FaultFlags(u16::from_le_bytes(r.bytes()?)),
-        ticks: r.u32()?,
+        faults,
+        ticks,
     })
 }
 
-/// The command's direction: a target runs a policy on the two full-duty levels, whose
-/// every command is one of the three.
-fn command_byte(c: Command) -> i8 {
+/// A reply's duty code of a coast: no duty a level can have.
+const COAST: i16 = i16::MIN;
+
+/// A reply's duty code: the duty in thousandths of the full push, or [`COAST`].
+fn command_code(c: Command) -> i16 {
     match c {
-        Command::Drive(d) => d.thousandths().signum() as i8,
-        Command::Coast => 0,
+        Command::Drive(d) => d.thousandths(),
+        Command::Coast => COAST,
     }
 }
 

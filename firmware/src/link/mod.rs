@@ -22,6 +22,7 @@ mod message;
 mod sensor;
 pub mod session;
 pub mod target;
+mod values;
 
 pub use frame::{FrameReader, MAX_FRAME};
 
@@ -29,7 +30,7 @@ pub use frame::{FrameReader, MAX_FRAME};
 pub const BAUD: u32 = 115_200;
 pub use message::{
     Format, HEADER_LEN, Info, MAX_PAYLOAD, Message, Packet, Reason, Reply, Scores, Sensing, Start,
-    VERSION,
+    VERSION, Values,
 };
 pub use sensor::{LinkSensor, Missing};
 pub use session::{Measurement, Request, Session};

@@ -15,7 +15,7 @@ use crate::network::int::QMlp;
 use crate::rig::{Options, Rig};
 
 use super::frame::{self, FrameReader, MAX_FRAME};
-use super::message::{Format, Info, Message, Packet, Reason, Reply, Scores, Start};
+use super::message::{Format, Info, Message, Packet, Reason, Reply, Scores, Start, Values};
 use super::sensor::LinkSensor;
 use super::session::{Request, Session};
 use super::{Measurement, digest};
@@ -192,8 +192,8 @@ impl<'p, const H: usize> Target<'p, H> {
     fn period(&mut self, m: Measurement) -> Option<Reply> {
         Some(match &mut self.running {
             Running::Idle => return None,
-            Running::F32(c) => step(c, m, Scores::F32),
-            Running::Int8(c) => step(c, m, Scores::I32),
+            Running::F32(c) => step(c, m, |q| Scores::F32(Values::of(q))),
+            Running::Int8(c) => step(c, m, |q| Scores::I32(Values::of(q))),
         })
     }
 

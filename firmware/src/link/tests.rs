@@ -6,6 +6,9 @@ use rand_pcg::Pcg64Mcg;
 
 use super::*;
 use crate::controller::{Command, Duty, FaultFlags};
+use crate::network::MAX_OUTPUTS;
+
+mod reply;
 
 /// The bit-at-a-time definition the nibble table must agree with.
 fn crc32_bitwise(data: &[u8]) -> u32 {
@@ -34,7 +37,7 @@ fn crc32_gives_the_catalogue_check_value_and_the_bitwise_definition() {
     }
 }
 
-fn cobs_encoded(input: &[u8]) -> Vec<u8> {
+pub(super) fn cobs_encoded(input: &[u8]) -> Vec<u8> {
     let mut out = std::vec![0u8; cobs::max_encoded_len(input.len())];
     let n = cobs::encode(input, &mut out).unwrap();
     out.truncate(n);
@@ -172,9 +175,22 @@ fn every_kind() -> Vec<Packet> {
             ..info
         }),
         Message::Started,
-        reply(Command::Drive(Duty::LEFT), Scores::F32([-1.5, f32::MAX])),
-        reply(Command::Drive(Duty::RIGHT), Scores::I32([i32::MIN, 0])),
-        reply(Command::Coast, Scores::F32([f32::NEG_INFINITY; 2])),
+        reply(
+            Command::Drive(Duty::LEFT),
+            Scores::F32(Values::of([-1.5, f32::MAX])),
+        ),
+        reply(
+            Command::Drive(Duty::RIGHT),
+            Scores::I32(Values::of([i32::MIN, 0])),
+        ),
+        reply(
+            Command::Coast,
+            Scores::F32(Values::of([f32::NEG_INFINITY; 2])),
+        ),
+        reply(
+            Command::Drive(Duty::OFF),
+            Scores::I32(Values::of([i32::MAX; MAX_OUTPUTS])),
+        ),
         Message::Refused(Reason::Mode),
         Message::Refused(Reason::Version),
     ];
@@ -194,7 +210,7 @@ fn wire(p: &Packet) -> Vec<u8> {
     out[..n].to_vec()
 }
 
-fn received(bytes: &[u8]) -> Vec<Result<Packet, Reason>> {
+pub(super) fn received(bytes: &[u8]) -> Vec<Result<Packet, Reason>> {
     let mut reader = FrameReader::default();
     bytes.iter().filter_map(|&b| reader.push(b)).collect()
 }
@@ -223,7 +239,7 @@ fn the_bytes_are_those_the_protocol_document_gives() {
     let n = p.encode(&mut payload);
     assert_eq!(
         &payload[..n],
-        &[2, 0x04, 7, 0, 0x88, 0xFF, 0xFF, 0xFF, 0xFF, 0x07, 0, 0]
+        &[3, 0x04, 7, 0, 0x88, 0xFF, 0xFF, 0xFF, 0xFF, 0x07, 0, 0]
     );
 }
 
@@ -250,20 +266,20 @@ fn malformed_payloads_are_refused_for_what_they_are() {
         bytes.push(0);
         received(&bytes)
     };
-    assert_eq!(frame_of(&[1, 0x01, 0, 0, 0]), [Err(Reason::Version)]);
-    assert_eq!(frame_of(&[2, 0x06, 0, 0]), [Err(Reason::Kind)]);
+    assert_eq!(frame_of(&[2, 0x01, 0, 0, 0]), [Err(Reason::Version)]);
+    assert_eq!(frame_of(&[3, 0x06, 0, 0]), [Err(Reason::Kind)]);
     // A format, a sensing, an option bit the protocol has not; a discount where no filter
     // runs.
-    assert_eq!(frame_of(&[2, 0x01, 0, 0, 2]), [Err(Reason::Length)]);
-    let start = |b: [u8; 7]| frame_of(&[&[2, 0x02, 0, 0][..], &b].concat());
+    assert_eq!(frame_of(&[3, 0x01, 0, 0, 2]), [Err(Reason::Length)]);
+    let start = |b: [u8; 7]| frame_of(&[&[3, 0x02, 0, 0][..], &b].concat());
     assert_eq!(start([3, 0, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
     assert_eq!(start([1, 4, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
     assert_eq!(start([1, 0, 0, 0, 0, 0, 0x3F]), [Err(Reason::Length)]);
-    assert_eq!(frame_of(&[2, 0x02, 0, 0, 1, 0]), [Err(Reason::Length)]);
-    assert_eq!(frame_of(&[2, 0xFF, 0, 0, 0]), [Err(Reason::Length)]);
-    assert_eq!(frame_of(&[2, 0x01, 0]), [Err(Reason::Length)]);
+    assert_eq!(frame_of(&[3, 0x02, 0, 0, 1, 0]), [Err(Reason::Length)]);
+    assert_eq!(frame_of(&[3, 0xFF, 0, 0, 0]), [Err(Reason::Length)]);
+    assert_eq!(frame_of(&[3, 0x01, 0]), [Err(Reason::Length)]);
     assert_eq!(
-        frame_of(&[2, 0x01, 3, 0, 1]),
+        frame_of(&[3, 0x01, 3, 0, 1]),
         [Ok(Packet {
             seq: 3,
             message: Message::Hello(Format::Int8)
@@ -333,7 +349,7 @@ fn digests_follow_every_parameter() {
 #[test]
 fn the_documented_sizes_hold() {
     // docs/LINK.md, "Frames".
-    assert_eq!((MAX_PAYLOAD, MAX_FRAME), (31, 37));
+    assert_eq!((MAX_PAYLOAD, MAX_FRAME), (50, 56));
 }
 
 #[test]

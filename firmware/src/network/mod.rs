@@ -62,6 +62,20 @@ macro_rules! supported_shapes {
 }
 crate::for_each_shape!(supported_shapes);
 
+/// The most outputs of any network in [`SUPPORTED_SHAPES`]: what a link's reply carries at
+/// most.
+pub const MAX_OUTPUTS: usize = {
+    let mut max = 0;
+    let mut i = 0;
+    while i < SUPPORTED_SHAPES.len() {
+        if SUPPORTED_SHAPES[i].1 > max {
+            max = SUPPORTED_SHAPES[i].1;
+        }
+        i += 1;
+    }
+    max
+};
+
 /// The widths of [`for_each_shape!`](crate::for_each_shape)'s two-output shapes, in its
 /// order: an accumulator of widths, then the shapes not yet looked at.
 macro_rules! supported_widths {

@@ -5,7 +5,7 @@ use std::fmt;
 use anyhow::Result;
 use firmware::controller::{Duty, Levels, Limits, Policy, Scores};
 use firmware::network::int::QMlp;
-use firmware::network::{Mlp, SUPPORTED_SHAPES, argmax};
+use firmware::network::{MAX_OUTPUTS, Mlp, argmax};
 use host_common::wide::WideMlp;
 use shipped::envelope::ENVELOPE;
 use shipped::policy::POLICY;
@@ -25,19 +25,6 @@ pub struct Net {
     levels: Vec<Duty>,
     envelope: Option<Limits>,
 }
-
-/// The most outputs of any supported network.
-pub const MAX_OUTPUTS: usize = {
-    let mut max = 0;
-    let mut i = 0;
-    while i < SUPPORTED_SHAPES.len() {
-        if SUPPORTED_SHAPES[i].1 > max {
-            max = SUPPORTED_SHAPES[i].1;
-        }
-        i += 1;
-    }
-    max
-};
 
 /// The scores of a network whose output count is known only at run time: the first `n`
 /// of `q`.

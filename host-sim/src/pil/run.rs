@@ -45,7 +45,11 @@ pub struct Mismatch {
 /// Whether two answers say the same: the command, the scores bit for bit, the flags.
 fn same(a: &Reply, b: &Reply) -> bool {
     let scores = match (a.scores, b.scores) {
-        (Scores::F32(x), Scores::F32(y)) => x.map(f32::to_bits) == y.map(f32::to_bits),
+        (Scores::F32(x), Scores::F32(y)) => x
+            .as_slice()
+            .iter()
+            .map(|v| v.to_bits())
+            .eq(y.as_slice().iter().map(|v| v.to_bits())),
         (x, y) => x == y,
     };
     a.command == b.command && scores && a.faults == b.faults
@@ -176,4 +180,36 @@ pub fn run_row(
         |q: f64| times.get(((times.len() as f64 * q) as usize).min(times.len().saturating_sub(1)));
     check.time_ns = [at(0.5), at(0.99), times.last()].map(|t| t.copied().unwrap_or(0));
     Ok((stats, check))
+}
+
+#[cfg(test)]
+mod tests {
+    use firmware::controller::{Command, Duty};
+    use firmware::link::Values;
+
+    use super::*;
+
+    fn reply(scores: Scores) -> Reply {
+        Reply {
+            command: Command::Drive(Duty::LEFT),
+            scores,
+            faults: FaultFlags(0),
+            ticks: 7,
+        }
+    }
+
+    #[test]
+    fn answers_are_the_same_when_their_scores_match_in_count_and_bits() {
+        let f = |q: &[f32]| reply(Scores::F32(Values::new(q).unwrap()));
+        let nan = f32::from_bits(0x7FC0_0001);
+        assert!(same(&f(&[1.0, nan]), &f(&[1.0, nan])));
+        assert!(!same(&f(&[1.0, nan]), &f(&[1.0, f32::NAN])));
+        assert!(!same(&f(&[0.0, 1.0]), &f(&[-0.0, 1.0])));
+        // A policy of more outputs is another answer, whatever its first scores.
+        assert!(!same(&f(&[1.0, 2.0]), &f(&[1.0, 2.0, 3.0])));
+        let i = |q: &[i32]| reply(Scores::I32(Values::new(q).unwrap()));
+        assert!(same(&i(&[3; 9]), &i(&[3; 9])));
+        assert!(!same(&i(&[3; 9]), &i(&[3; 8])));
+        assert!(!same(&i(&[0, 1]), &f(&[0.0, 1.0])));
+    }
 }
