@@ -245,16 +245,12 @@ pub const INT8_SHORTFALL: f64 = 0.01;
 
 /// The configuration a policy file records: everything its weights depend on. The kernel
 /// is left out: every kernel trains the same bits, so a file must not differ by the machine
-/// that made it (`summary.json` says which ran). `board_int8` is left out when off, which a
-/// file without it reads as, so the files of runs that did not try int8 boards keep the
-/// bytes they had before the key existed.
+/// that made it (`summary.json` says which ran). Otherwise as files record it
+/// ([`Config::recorded`]).
 fn weights_config(cfg: &Config) -> Result<String> {
-    let mut v = serde_json::to_value(cfg)?;
+    let mut v = cfg.recorded()?;
     if let Some(map) = v.as_object_mut() {
         map.remove("kernel");
-        if !cfg.board_int8 {
-            map.remove("board_int8");
-        }
     }
     Ok(serde_json::to_string(&v)?)
 }

@@ -121,7 +121,8 @@ fn build_with(bin: &str, profile: &str, target: Option<&str>, select: &[&str]) -
         .expect("cargo's messages are UTF-8")
         .lines()
         .filter_map(|l| serde_json::from_str::<serde_json::Value>(l).ok())
-        .filter(|m| m["target"]["name"] == bin)
+        // The binary itself, not its unit tests' harness (`--tests` builds both).
+        .filter(|m| m["target"]["name"] == bin && m["profile"]["test"] == false)
         .find_map(|m| m["executable"].as_str().map(PathBuf::from))
         .unwrap_or_else(|| panic!("{bin} for {target:?}: cargo named no executable"))
 }

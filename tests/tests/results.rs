@@ -430,7 +430,7 @@ fn the_reproductions_cheapest_runs_are_todays() {
         );
         assert_eq!(
             recorded["config"],
-            serde_json::to_value(&v.cfg).unwrap(),
+            v.cfg.recorded().unwrap(),
             "{}: {}",
             v.study,
             v.label
@@ -440,7 +440,7 @@ fn the_reproductions_cheapest_runs_are_todays() {
     // The two cheapest distinct configurations: fewest periods at most, then narrowest.
     let cheap = |c: &Config| (c.episodes as u64 * u64::from(c.max_steps), c.width);
     all.sort_by_key(|v| cheap(&v.cfg));
-    let config = |v: &policy_export::reproduce::Variant| serde_json::to_value(&v.cfg).unwrap();
+    let config = |v: &policy_export::reproduce::Variant| v.cfg.recorded().unwrap();
     all.dedup_by(|a, b| config(a) == config(b));
     for v in &all[..2] {
         let recorded = per_seed.iter().find(|p| p["config"] == config(v)).unwrap();

@@ -311,6 +311,17 @@ impl Config {
         }
         twin::rigfile::parse(&self.rig, "rig").map_err(|e| ConfigError(e.to_string()))
     }
+
+    /// The configuration as the project's files record it (policy files, the reproduction's
+    /// results): every key, but `board_int8` while it is off, so the files of runs that do
+    /// not try int8 boards keep the bytes they had before the key existed.
+    pub fn recorded(&self) -> serde_json::Result<serde_json::Value> {
+        let mut v = serde_json::to_value(self)?;
+        if let Some(map) = v.as_object_mut().filter(|_| !self.board_int8) {
+            map.remove("board_int8");
+        }
+        Ok(v)
+    }
 }
 
 impl Config {

@@ -65,16 +65,16 @@ pub fn write(
 ) -> Result<Vec<Row>> {
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     let rows: Vec<Row> = variants.iter().zip(runs).map(|(v, r)| row(v, r)).collect();
-    let per_seed: Vec<serde_json::Value> = variants
+    let per_seed = variants
         .iter()
         .zip(runs)
         .map(|(v, rs)| {
-            serde_json::json!({
-                "study": v.study, "label": v.label, "config": v.cfg,
+            Ok(serde_json::json!({
+                "study": v.study, "label": v.label, "config": v.cfg.recorded()?,
                 "runs": rs.iter().map(seed_json).collect::<Vec<_>>(),
-            })
+            }))
         })
-        .collect();
+        .collect::<Result<Vec<serde_json::Value>>>()?;
     let json = serde_json::json!({ "provenance": provenance, "rows": rows, "per_seed": per_seed });
     write_atomic(
         &dir.join("results.json"),
