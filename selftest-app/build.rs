@@ -19,15 +19,21 @@
 use std::path::Path;
 
 fn main() {
+    let dir = std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
+    let memory = Path::new(&dir).join("memory");
+    // By absolute path, as the maps are linked: a build directory shared with a checkout
+    // elsewhere (CI's clone) finds the paths it recorded gone and runs this again, rather
+    // than linking the other checkout's maps.
     println!("cargo:rerun-if-changed=build.rs");
-    println!("cargo:rerun-if-changed=memory");
-    println!("cargo:rerun-if-changed=../memory.x");
+    println!("cargo:rerun-if-changed={}", memory.display());
+    println!(
+        "cargo:rerun-if-changed={}",
+        Path::new(&dir).join("../memory.x").display()
+    );
     println!("cargo::rustc-check-cfg=cfg(selftest_m33)");
     if std::env::var("CARGO_CFG_TARGET_OS").as_deref() != Ok("none") {
         return;
     }
-    let dir = std::env::var_os("CARGO_MANIFEST_DIR").expect("cargo sets CARGO_MANIFEST_DIR");
-    let memory = Path::new(&dir).join("memory");
     let target = std::env::var("TARGET").unwrap_or_default();
     let scripts = if target.starts_with("thumbv8m.main") {
         println!("cargo::rustc-cfg=selftest_m33");
