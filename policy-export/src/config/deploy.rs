@@ -8,10 +8,15 @@ use super::Config;
 /// can only balance by full pushes reversed every few periods (`docs/RIGS.md`).
 pub const RIG_LEVELS: &str = "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1";
 
-/// What the recipe's learner pays for driving a rig's motor: the duty squared and its
-/// change from the previous period (`train::Reward`), beside the pole's lean and the
-/// cart's distance.
-pub const RIG_EFFORT: &str = "effort=1+smooth=2";
+/// What the recipe's learner pays for driving a rig's motor (`train::Reward`), beside the
+/// pole's lean and the cart's distance: the duty squared and its change from the previous
+/// period, priced for a rig run `rate` times as fast as Gymnasium's 50 Hz. Every other part
+/// is paid each period, so it adds up `rate` times as often in a second; a change of duty is
+/// paid once however many periods it is spread over, so its weight grows by `rate` to keep
+/// its price beside the others: `effort=1+smooth=2` at 50 Hz, `smooth=4` at 100 Hz.
+pub fn rig_effort(rate: f64) -> String {
+    format!("effort=1+smooth={}", 2.0 * rate)
+}
 
 /// The plant's physics a deploy domain draws: the pole's length and mass, the cart's mass
 /// and the motor's stall force (and its damping, on a machine that has some) each within
@@ -66,9 +71,10 @@ impl Config {
     /// the pushes scaled to its motor (a push that takes Gymnasium's motor five periods to
     /// answer takes this motor as long in seconds) and every count of periods to its control
     /// rate (the same seconds of pushes and episodes); on a rig, nine duty levels and a
-    /// learner that pays for the motor's effort ([`RIG_LEVELS`], [`RIG_EFFORT`]), where
-    /// Gymnasium's machine keeps the paper's two; dead times stay in periods, a board's
-    /// own unit. On Gymnasium's machine it is the shipped recipe exactly.
+    /// learner that pays for the motor's effort ([`RIG_LEVELS`], [`rig_effort`]), where
+    /// Gymnasium's machine keeps the paper's two; the discount per period keeps the same
+    /// horizon in seconds; dead times stay in periods, a board's own unit. On Gymnasium's
+    /// machine it is the shipped recipe exactly.
     pub fn deploy_on(machine: &twin::Machine) -> Config {
         let (p, gym) = (&machine.rig.params, &twin::Machine::GYMNASIUM.rig.params);
         let (force, rate) = (p.force_mag / gym.force_mag, gym.tau / p.tau);
@@ -84,7 +90,11 @@ impl Config {
         };
         let rig = *machine != twin::Machine::GYMNASIUM;
         let reward = "upright=20+centre=5";
+        let robust = Config::robust();
         Config {
+            // The same horizon in seconds: at twice the rate, a period's discount is
+            // taken twice as often.
+            gamma: robust.gamma.powf(1.0 / rate),
             domain: format!("{}+{}", deploy_domain(machine), push(0.8, 1.2, 50.0)),
             eval_domain: format!(
                 "{}+{}@0.5",
@@ -98,7 +108,7 @@ impl Config {
             ),
             compensate: true,
             reward: if rig {
-                format!("{reward}+{RIG_EFFORT}")
+                format!("{reward}+{}", rig_effort(rate))
             } else {
                 reward.into()
             },
@@ -123,7 +133,7 @@ impl Config {
             } else {
                 String::new()
             },
-            ..Config::robust()
+            ..robust
         }
     }
 }

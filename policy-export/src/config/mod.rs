@@ -54,7 +54,7 @@ mod keys;
 mod limits;
 
 pub use deploy::{
-    RIG_EFFORT, RIG_LEVELS, deploy_domain, deploy_eval_domain, deploy_finalist_domain,
+    RIG_LEVELS, deploy_domain, deploy_eval_domain, deploy_finalist_domain, rig_effort,
 };
 
 use keys::config_keys;

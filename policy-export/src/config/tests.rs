@@ -365,9 +365,13 @@ fn the_deploy_recipe_is_made_for_its_machine() {
         (1000, 1000, 20_000)
     );
     assert_eq!(d.machine().unwrap(), m);
-    // A rig's motor is driven gently: nine levels, effort paid for.
+    // A rig's motor is driven gently: nine levels, effort paid for at the same price per
+    // second as at 50 Hz: a change of duty weighs twice beside the per-period parts, and
+    // the discount reaches as many seconds ahead (0.99 per 20 ms).
     assert_eq!(d.levels, "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1");
-    assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=2");
+    assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=4");
+    assert!((d.gamma * d.gamma - 0.99).abs() < 1e-15, "{}", d.gamma);
+    assert_eq!(g.gamma, 0.99);
     // And judged as each of its boards runs it.
     assert!(d.board_int8);
     d.validate().unwrap();
