@@ -1,20 +1,18 @@
 //! Bytes as a target's serial port would receive them, through the link's frame reader and
-//! the target that runs the controller on them (its session, its controller in either
-//! format, its observer, filter and predictor built from what Start says): no panic on
-//! anything, every answer one the encoder can send, and every packet the reader accepts
-//! one the encoder gives the same bytes for, so nothing is accepted that a host did not
-//! send.
+//! the targets that run the controller on them, the shipped policy's and the nine-level desk
+//! policy's (each its session, its controller in either format, its observer, filter and
+//! predictor built from what Start says): no panic on anything, every answer one the
+//! encoder can send, and every packet the reader accepts one the encoder gives the same
+//! bytes for, so nothing is accepted that a host did not send.
 #![no_main]
 
-use firmware::link::{FrameReader, MAX_FRAME, Packet, Target, frame};
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
+use firmware::link::{FrameReader, MAX_FRAME, Packet, frame};
 use libfuzzer_sys::fuzz_target;
 
 fuzz_target!(|data: &[u8]| {
     let mut reader = FrameReader::default();
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, 1);
+    let mut target = shipped::target(1);
+    let mut desk = shipped::desk_target(1);
     for &byte in data {
         let Some(got) = reader.push(byte) else {
             continue;
@@ -22,8 +20,9 @@ fuzz_target!(|data: &[u8]| {
         if let Ok(packet) = got {
             assert_eq!(round_trip(&packet), wire(&packet));
         }
-        let answer = target.handle(got, || 0);
-        assert_eq!(round_trip(&answer), wire(&answer));
+        for answer in [target.handle(got, || 0), desk.handle(got, || 0)] {
+            assert_eq!(round_trip(&answer), wire(&answer));
+        }
     }
 });
 

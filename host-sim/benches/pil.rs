@@ -12,11 +12,8 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use firmware::link::Format;
-use host_sim::pil::link::{Local, Session};
-use host_sim::pil::{MACHINES, Place, handshake, run_row};
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
+use host_sim::pil::link::Session;
+use host_sim::pil::{Board, MACHINES, Place, handshake, run_row};
 use twin::Scenario;
 
 /// Episodes of 500 periods a row: 10,000 periods.
@@ -29,9 +26,9 @@ fn rate(place: &Place, format: Format) -> Option<f64> {
     let mut best: Option<f64> = None;
     for _ in 0..2 {
         let mut remote = Session::new(place.start(Duration::from_secs(60)).ok()?);
-        let mut here = Session::new(Local::new(&POLICY, &POLICY_INT, RIG, ENVELOPE));
+        let mut here = Session::new(Board::Shipped.reference());
         let scenarios = std::slice::from_ref(&scenario);
-        let info = handshake(&mut remote, &mut here, format, scenarios).ok()?;
+        let info = handshake(&mut remote, &mut here, format, scenarios, Board::Shipped).ok()?;
         let t = Instant::now();
         let (_, check) = run_row(
             &mut remote,
@@ -60,12 +57,12 @@ fn target_dir() -> PathBuf {
 fn main() {
     let mut places = Vec::new();
     let host = target_dir().join("release/pil");
-    match Place::parse(&format!("exec:{}", host.display()), None) {
+    match Place::parse(&format!("exec:{}", host.display()), None, Board::Shipped) {
         Ok(p) => places.push(p),
         Err(e) => println!("skipped: {e}"),
     }
     for m in &MACHINES {
-        match Place::parse(&format!("qemu:{}", m.target), None) {
+        match Place::parse(&format!("qemu:{}", m.target), None, Board::Shipped) {
             Ok(p) => places.push(p),
             Err(e) => println!("skipped: {e}"),
         }

@@ -10,13 +10,10 @@ use clap::Args;
 use firmware::link::Format;
 use host_common::provenance::Provenance;
 use host_sim::eval::{ControllerKind, Row};
-use host_sim::pil::link::{Local, Session};
-use host_sim::pil::{Check, ICOUNT, NS_PER_INSTRUCTION, Place, handshake, run_row};
+use host_sim::pil::link::Session;
+use host_sim::pil::{Board, Check, ICOUNT, NS_PER_INSTRUCTION, Place, handshake, run_row};
 use indicatif::{ProgressBar, ProgressStyle};
 use serde::Serialize;
-use shipped::envelope::ENVELOPE;
-use shipped::policy::RIG;
-use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 use crate::EvalArgs;
@@ -39,6 +36,12 @@ pub struct PilArgs {
     /// of it for TARGET].
     #[arg(long, value_name = "PATH", requires = "pil")]
     pub pil_elf: Option<PathBuf>,
+    /// The shipped policy the target holds, and the reference here with it: `shipped` (two
+    /// levels; the `pil` application) or `desk` (the nine-level desk policy on the desk rig,
+    /// whose scenarios need `--rig rigs/desk-identified.toml`; the `pil-desk` application;
+    /// no envelope, so no monitored controller).
+    #[arg(long, value_enum, default_value_t = Board::Shipped, requires = "pil")]
+    pub pil_policy: Board,
     /// Seconds to wait for each answer of the target before giving up (exit 2).
     #[arg(long, default_value_t = 10.0, requires = "pil")]
     pub pil_timeout: f64,
@@ -54,7 +57,8 @@ impl PilArgs {
         if policy {
             bail!(
                 "--pil runs the policy compiled into the target's application, found --policy \
-                 (export yours into shipped/src and rebuild the pil application)"
+                 (choose a shipped one with --pil-policy, or export yours into shipped/src and \
+                 rebuild the pil application)"
             );
         }
         if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
@@ -63,13 +67,23 @@ impl PilArgs {
                  found --controller {c}"
             );
         }
+        let board = self.pil_policy;
+        if let Some(c) = controllers
+            .iter()
+            .find(|c| c.monitored() && !board.monitors())
+        {
+            bail!(
+                "--pil-policy {board}: no envelope is measured for it, so the target refuses \
+                 its runtime monitor; found --controller {c} (run policy or policy-int)"
+            );
+        }
         if !(self.pil_timeout > 0.0 && self.pil_timeout <= MAX_TIMEOUT_S) {
             bail!(
                 "--pil-timeout must lie in (0, {MAX_TIMEOUT_S}] s, found {}",
                 self.pil_timeout
             );
         }
-        Place::parse(spec, self.pil_elf.as_deref()).map(Some)
+        Place::parse(spec, self.pil_elf.as_deref(), board).map(Some)
     }
 }
 
@@ -88,12 +102,8 @@ struct PilRow<'a> {
 pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)]) -> Result<bool> {
     let timeout = Duration::from_secs_f64(a.pil.pil_timeout);
     let mut target = Session::new(place.start(timeout)?);
-    let mut reference = Session::new(Local::new(
-        &shipped::policy::POLICY,
-        &POLICY_INT,
-        RIG,
-        ENVELOPE,
-    ));
+    let board = a.pil.pil_policy;
+    let mut reference = Session::new(board.reference());
     let scenarios: Vec<Scenario> = jobs.iter().map(|j| j.1.clone()).collect();
     let total = jobs.len() as u64 * a.episodes;
     let bar = ProgressBar::new(total).with_style(
@@ -103,7 +113,7 @@ pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)
     let (mut rows, mut checks) = (Vec::new(), Vec::new());
     for &(h, s, c) in jobs {
         let format = if c.int() { Format::Int8 } else { Format::F32 };
-        let info = handshake(&mut target, &mut reference, format, &scenarios)?;
+        let info = handshake(&mut target, &mut reference, format, &scenarios, board)?;
         bar.set_message(format!("{c} on {} at {h}", s.name));
         let (eps, check) = run_row(
             &mut target,

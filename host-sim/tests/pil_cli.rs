@@ -140,6 +140,23 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
             &["compiled into the target"],
         ),
         Case::new(
+            "a monitor without an envelope".into(),
+            &eval(&[
+                &"--pil",
+                &echo,
+                &"--pil-policy",
+                &"desk",
+                &"--controller",
+                &"policy-int,monitored-int",
+            ]),
+            &["--pil-policy desk: no envelope"],
+        ),
+        Case::new(
+            "an unknown shipped policy".into(),
+            &eval(&[&"--pil", &echo, &"--pil-policy", &"gym"]),
+            &["--pil-policy"],
+        ),
+        Case::new(
             "no timeout".into(),
             &eval(&[&"--pil", &echo, &"--pil-timeout", &"0"]),
             &["must lie in"],

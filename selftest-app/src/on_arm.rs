@@ -1,4 +1,4 @@
-//! The Cortex-M side of both binaries: reset entry, the core's clock, exit and panics over
+//! The Cortex-M side of every binary: reset entry, the core's clock, exit and panics over
 //! semihosting. The self-test's part is `arm_selftest`, the link's is in `port`.
 
 use cortex_m::peripheral::SYST;

@@ -1,4 +1,4 @@
-//! The RISC-V side of both binaries, for QEMU's `virt` machine (`riscv32imac`, no FPU, like
+//! The RISC-V side of every binary, for QEMU's `virt` machine (`riscv32imac`, no FPU, like
 //! most RISC-V microcontrollers): riscv-rt entry, the CLINT's `mtime` as the link's clock,
 //! exit and panics over semihosting. The self-test's part is `riscv_selftest`, the link's
 //! is in `port`.

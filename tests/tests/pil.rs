@@ -8,18 +8,19 @@
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
+use std::cell::RefCell;
+use std::collections::BTreeSet;
 use std::process::Command;
+use std::rc::Rc;
 use std::time::Duration;
 
 use e2e::{build_app, mcu_targets, repo, runners};
-use firmware::link::{Format, Info};
+use firmware::controller::Command as Drive;
+use firmware::link::{Format, Info, Message, Scores};
 use host_sim::eval::{self, ControllerKind, Net, Row};
-use host_sim::pil::link::{Local, Remote, Session};
-use host_sim::pil::{ICOUNT, MACHINES, Place, handshake, run_row};
+use host_sim::pil::link::{Remote, Session};
+use host_sim::pil::{Board, ICOUNT, MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 /// How long the host waits for one answer: a watchdog against a target that hangs, far
@@ -27,8 +28,8 @@ use twin::Scenario;
 /// verdict on speed.
 const WATCHDOG: Duration = Duration::from_secs(120);
 
-fn reference() -> Session<Local<64>> {
-    Session::new(Local::new(&POLICY, &POLICY_INT, RIG, ENVELOPE))
+fn reference() -> Session<Box<dyn Remote>> {
+    Session::new(Board::Shipped.reference())
 }
 
 /// Encoders through the observer with dropped readings and restarts, and the exact state
@@ -75,11 +76,12 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     let scenarios = scenarios();
     for target in mcu_targets() {
         let elf = build_app("pil", Some(&target));
-        let place = Place::parse(&format!("qemu:{target}"), Some(&elf)).unwrap();
+        let place = Place::parse(&format!("qemu:{target}"), Some(&elf), Board::Shipped).unwrap();
         let mut remote = Session::new(place.start(WATCHDOG).unwrap());
         let mut here = reference();
         for format in [Format::F32, Format::Int8] {
-            let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+            let info =
+                handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
             for s in &scenarios {
                 let (eps, check) =
                     run_row(&mut remote, &mut here, (&info, false), s, 200, 0, 2, || ()).unwrap();
@@ -110,11 +112,88 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     }
 }
 
+/// What the answers of a run said: the duties driven (thousandths; coasting is none) and how
+/// many scores each answer carried.
+#[derive(Default)]
+struct Seen {
+    duties: BTreeSet<i16>,
+    scores: BTreeSet<usize>,
+}
+
+/// A remote whose answers are noted as they pass.
+struct Noting<R> {
+    remote: R,
+    seen: Rc<RefCell<Seen>>,
+}
+
+impl<R: Remote> Remote for Noting<R> {
+    fn exchange(&mut self, seq: u16, message: Message) -> anyhow::Result<Message> {
+        let answer = self.remote.exchange(seq, message)?;
+        if let Message::Reply(r) = &answer {
+            let mut seen = self.seen.borrow_mut();
+            if let Drive::Drive(d) = r.command {
+                seen.duties.insert(d.thousandths());
+            }
+            seen.scores.insert(match r.scores {
+                Scores::F32(q) => q.as_slice().len(),
+                Scores::I32(q) => q.as_slice().len(),
+            });
+        }
+        Ok(answer)
+    }
+}
+
+/// The nine-level desk policy (`pil-desk`) on every target in QEMU, on the desk rig it was
+/// trained for, in both formats: every answer equals the same target code's here, each
+/// carries nine scores, and the commands drive more than two of the policy's levels (a
+/// target that collapsed them to two would fail).
+#[test]
+fn on_every_target_a_policy_of_nine_levels_answers_as_the_controller_here() {
+    if skip_qemu() {
+        return;
+    }
+    let desk = twin::rigfile::load(&repo().join("rigs/desk-identified.toml")).unwrap();
+    let specs = ["encoder+drop=40+reset=150", "noise+push"].map(String::from);
+    let scenarios = Scenario::words_on(&specs, &desk).unwrap();
+    let levels: BTreeSet<i16> = (0..9)
+        .filter_map(|i| shipped::desk::LEVELS.duty(i).map(|d| d.thousandths()))
+        .collect();
+    assert_eq!(levels.len(), 9);
+    for target in mcu_targets() {
+        let elf = build_app(Board::Desk.app(), Some(&target));
+        let place = Place::parse(&format!("qemu:{target}"), Some(&elf), Board::Desk).unwrap();
+        let seen = Rc::new(RefCell::new(Seen::default()));
+        let remote = place.start(WATCHDOG).unwrap();
+        let mut remote = Session::new(Noting {
+            remote,
+            seen: seen.clone(),
+        });
+        let mut here = Session::new(Board::Desk.reference());
+        for format in [Format::F32, Format::Int8] {
+            *seen.borrow_mut() = Seen::default();
+            let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Desk).unwrap();
+            for s in &scenarios {
+                let (eps, check) =
+                    run_row(&mut remote, &mut here, (&info, false), s, 200, 0, 2, || ()).unwrap();
+                let what = format!("{target} {format:?} {}", s.name);
+                assert_eq!(eps.len(), 2, "{what}");
+                assert!(check.periods >= 200, "{what}: {check:?}");
+                assert_eq!(check.mismatches, 0, "{what}: {check:?}");
+            }
+            let seen = seen.borrow();
+            let what = format!("{target} {format:?}");
+            assert_eq!(seen.scores, BTreeSet::from([9]), "{what}");
+            assert!(seen.duties.is_subset(&levels), "{what}: {:?}", seen.duties);
+            assert!(seen.duties.len() > 2, "{what}: only {:?}", seen.duties);
+        }
+    }
+}
+
 /// Under the runtime monitor, with the encoders frozen for a quarter of every 2 s: the
 /// target's monitor answers as the one here, and its fallback took over.
 fn monitored_row(
     remote: &mut Session<impl Remote>,
-    here: &mut Session<Local<64>>,
+    here: &mut Session<impl Remote>,
     info: &Info,
     what: &str,
 ) {
@@ -153,12 +232,12 @@ fn the_c_application_answers_as_the_rust_one() {
         String::from_utf8_lossy(&built.stderr)
     );
     let elf = out.join("c-pil.elf");
-    let place = Place::parse("qemu:thumbv7em-none-eabihf", Some(&elf)).unwrap();
+    let place = Place::parse("qemu:thumbv7em-none-eabihf", Some(&elf), Board::Shipped).unwrap();
     let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let scenarios = ["encoder+noise+push", "noise+delay+push"].map(|s| Scenario::parse(s).unwrap());
     for format in [Format::F32, Format::Int8] {
-        let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+        let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
         for s in &scenarios {
             let (_, check) =
                 run_row(&mut remote, &mut here, (&info, false), s, 300, 0, 3, || ()).unwrap();
@@ -173,7 +252,7 @@ fn the_c_application_answers_as_the_rust_one() {
 #[test]
 fn the_host_build_of_the_pil_application_gives_evals_rows() {
     let exe = build_app("pil", None);
-    let place = Place::parse(&format!("exec:{}", exe.display()), None).unwrap();
+    let place = Place::parse(&format!("exec:{}", exe.display()), None, Board::Shipped).unwrap();
     let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let mut scenarios = scenarios();
@@ -185,7 +264,7 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
         (Format::F32, ControllerKind::Monitored),
         (Format::Int8, ControllerKind::MonitoredInt),
     ] {
-        let info = handshake(&mut remote, &mut here, format, &scenarios).unwrap();
+        let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
         for s in &scenarios {
             let run = (&info, kind.monitored());
             let (eps, check) = run_row(&mut remote, &mut here, run, s, 400, 3, 8, || ()).unwrap();
@@ -207,7 +286,7 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
 /// until the host's end closes.
 fn board_on(mut port: serialport::TTYPort) {
     use std::io::{Read, Write};
-    let mut target = firmware::link::Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, 1);
+    let mut target = shipped::target(1);
     let mut buf = [0u8; 64];
     loop {
         let n = match port.read(&mut buf) {
@@ -229,7 +308,7 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
     let (board, host) = serialport::TTYPort::pair().unwrap();
     let path = host.name().expect("the host's end of the pair has a name");
     let _board = std::thread::spawn(move || board_on(board));
-    let place = Place::parse(&format!("serial:{path}"), None).unwrap();
+    let place = Place::parse(&format!("serial:{path}"), None, Board::Shipped).unwrap();
     let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let s = Scenario::parse("encoder+drop=40+reset=150+noise+push").unwrap();
@@ -238,6 +317,7 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
         &mut here,
         Format::F32,
         std::slice::from_ref(&s),
+        Board::Shipped,
     )
     .unwrap();
     let (eps, check) =

@@ -36,12 +36,9 @@ use e2e::{build_tool, repo};
 use firmware::link::Format;
 use host_sim::eval::{ControllerKind, Row};
 use host_sim::manifest::{Manifest, Step};
-use host_sim::pil::link::{Local, Session};
-use host_sim::pil::{handshake, run_row};
+use host_sim::pil::link::Session;
+use host_sim::pil::{Board, handshake, run_row};
 use serde_json::Value as Json;
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
 use twin::Scenario;
 
 /// Periods of rows re-run per file beyond its cheapest row.
@@ -283,7 +280,7 @@ fn processor_in_the_loop_rows_are_the_targets_code_run_here() {
                 .find(|k| k.to_string() == controller)
                 .unwrap_or_else(|| panic!("{file}: `{controller}` runs on no target"));
             let s = Scenario::parse(&scenario).unwrap();
-            let here = || Session::new(Local::new(&POLICY, &POLICY_INT, RIG, ENVELOPE));
+            let here = || Session::new(Board::Shipped.reference());
             let (mut target, mut reference) = (here(), here());
             let format = if kind.int() {
                 Format::Int8
@@ -295,6 +292,7 @@ fn processor_in_the_loop_rows_are_the_targets_code_run_here() {
                 &mut reference,
                 format,
                 std::slice::from_ref(&s),
+                Board::Shipped,
             )
             .unwrap();
             let run = (&info, kind.monitored());

@@ -15,10 +15,7 @@ use embassy_time::{Instant, TICK_HZ};
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State};
 use embassy_usb::driver::EndpointError;
 use embassy_usb::{Builder, Config};
-use firmware::link::{MAX_FRAME, Target};
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
+use firmware::link::MAX_FRAME;
 
 embassy_rp::bind_interrupts!(struct Irqs {
     USBCTRL_IRQ => InterruptHandler<USB>;
@@ -60,7 +57,7 @@ pub async fn run(usb: Peri<'static, USB>) -> ! {
 
 /// One connection: every frame answered, each period timed from its frame's last byte.
 async fn serve<'d>(class: &mut CdcAcmClass<'d, Driver<'d, USB>>) -> EndpointError {
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, TICK_HZ as u32);
+    let mut target = shipped::target(TICK_HZ as u32);
     let mut buf = [0u8; PACKET as usize];
     loop {
         let n = match class.read_packet(&mut buf).await {

@@ -10,10 +10,7 @@ use embassy_stm32::usart::{self, BufferedUart};
 use embassy_stm32::{Peripherals, bind_interrupts, peripherals};
 use embassy_time::{Instant, TICK_HZ};
 use embedded_io_async::{Read, Write};
-use firmware::link::{BAUD, Target};
-use shipped::envelope::ENVELOPE;
-use shipped::policy::{POLICY, RIG};
-use shipped::policy_int::POLICY_INT;
+use firmware::link::BAUD;
 
 bind_interrupts!(struct Irqs {
     USART2 => usart::BufferedInterruptHandler<peripherals::USART2>;
@@ -33,7 +30,7 @@ pub async fn run(p: Peripherals) -> ! {
         Irqs,
         config,
     ));
-    let mut target = Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, TICK_HZ as u32);
+    let mut target = shipped::target(TICK_HZ as u32);
     let mut buf = [0u8; 32];
     loop {
         let n = match uart.read(&mut buf).await {

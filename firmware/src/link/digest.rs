@@ -39,7 +39,7 @@ impl Fnv {
 }
 
 /// The digest of a float network's parameters.
-pub fn mlp<const H: usize>(m: &Mlp<H>) -> u64 {
+pub fn mlp<const H: usize, const A: usize>(m: &Mlp<H, A>) -> u64 {
     let f = f32::to_le_bytes;
     Fnv::default()
         .all(m.fc1_weight.as_flattened(), f)
@@ -52,7 +52,7 @@ pub fn mlp<const H: usize>(m: &Mlp<H>) -> u64 {
 }
 
 /// The digest of an integer network's parameters.
-pub fn qmlp<const H: usize>(m: &QMlp<H>) -> u64 {
+pub fn qmlp<const H: usize, const A: usize>(m: &QMlp<H, A>) -> u64 {
     let (i, w) = (i32::to_le_bytes, i8::to_le_bytes);
     let requant = |h: Fnv, r: &[crate::network::int::Requant]| {
         r.iter().fold(h, |h, r| {

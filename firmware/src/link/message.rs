@@ -104,7 +104,7 @@ pub struct Start {
     /// Whether the controller runs under the runtime monitor
     /// ([`crate::controller::monitor`]) with the envelope the target holds
     /// ([`Target::new`](super::Target::new): a board's `shipped::envelope::ENVELOPE`), its
-    /// observer watching for frozen encoders.
+    /// observer watching for frozen encoders; refused by a target that holds none.
     pub monitor: bool,
     /// The periods of dead time the observer and predictor assume, in place of the rig's.
     pub dead_time: u8,

@@ -4,9 +4,8 @@
 //! between its serial port and its clock; the host's software-in-the-loop check runs the
 //! same code.
 
-use crate::config::ConfigError;
 use crate::controller::{
-    Assurance, Controller, FaultFlags, Limits, Policy, Scores as _, StateSensor,
+    Assurance, Controller, FaultFlags, Greedy, Levels, Limits, Policy, Scores as _, StateSensor,
 };
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
@@ -20,20 +19,21 @@ use super::sensor::LinkSensor;
 use super::session::{Request, Session};
 use super::{Measurement, digest};
 
-/// What a target holds: both formats of its policy, the rig it was built for and the
+/// What a target holds: both formats of its policy of width `H` and `A` outputs, the duty
+/// level each output drives (the paper's two by default), the rig it was built for and the
 /// policy's envelope.
-pub struct Target<'p, const H: usize> {
-    policy: &'p Mlp<H>,
-    policy_int: &'p QMlp<H>,
+pub struct Target<'p, const H: usize, const A: usize = 2> {
+    policy: Greedy<&'p Mlp<H, A>, A>,
+    policy_int: Greedy<&'p QMlp<H, A>, A>,
     rig: Rig,
-    envelope: Limits,
+    envelope: Option<Limits>,
     clock_hz: u32,
     session: Session,
     reader: FrameReader,
     out: [u8; MAX_FRAME],
     refused: u32,
     format: Format,
-    running: Running<'p, H>,
+    running: Running<'p, H, A>,
     /// The last observer built, and the dead time it was built for: a Start with the same
     /// dead time copies it rather than solving its gain again.
     observer: Option<(u8, Observer)>,
@@ -47,30 +47,41 @@ pub fn period_ns(rig: &Rig) -> u32 {
     libm::round(rig.params.tau * 1e9) as u32
 }
 
-type Float<'p, const H: usize> = Controller<&'p Mlp<H>, LinkSensor<[f32; 4]>, Pins>;
-type Int<'p, const H: usize> = Controller<&'p QMlp<H>, LinkSensor<[i16; 4]>, Pins>;
+type Float<'p, const H: usize, const A: usize> =
+    Controller<Greedy<&'p Mlp<H, A>, A>, LinkSensor<[f32; 4]>, Pins>;
+type Int<'p, const H: usize, const A: usize> =
+    Controller<Greedy<&'p QMlp<H, A>, A>, LinkSensor<[i16; 4]>, Pins>;
 
 /// The episode's controller, in the format Hello asked for.
-enum Running<'p, const H: usize> {
+enum Running<'p, const H: usize, const A: usize> {
     Idle,
-    F32(Float<'p, H>),
-    Int8(Int<'p, H>),
+    F32(Float<'p, H, A>),
+    Int8(Int<'p, H, A>),
 }
 
-impl<'p, const H: usize> Target<'p, H> {
-    /// A target holding `policy`, its integer version `policy_int`, `rig` and the envelope
-    /// its runtime monitor lets the policy drive in (the board's `POLICY`, `POLICY_INT`,
-    /// `RIG` and `ENVELOPE`), timing periods on a clock of `clock_hz` ticks a second.
+impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
+    /// A target holding `policy`, its integer version `policy_int`, the duty `levels` their
+    /// outputs drive, `rig` and the envelope its runtime monitor lets the policy drive in
+    /// (the board's `POLICY`, `POLICY_INT`, `LEVELS`, `RIG` and `ENVELOPE`; with no
+    /// envelope, a Start that asks for the monitor is refused), timing periods on a clock
+    /// of `clock_hz` ticks a second.
     pub fn new(
-        policy: &'p Mlp<H>,
-        policy_int: &'p QMlp<H>,
+        policy: &'p Mlp<H, A>,
+        policy_int: &'p QMlp<H, A>,
+        levels: Levels<A>,
         rig: Rig,
-        envelope: Limits,
+        envelope: Option<Limits>,
         clock_hz: u32,
     ) -> Self {
         Target {
-            policy,
-            policy_int,
+            policy: Greedy {
+                net: policy,
+                levels,
+            },
+            policy_int: Greedy {
+                net: policy_int,
+                levels,
+            },
             rig,
             envelope,
             clock_hz,
@@ -105,11 +116,11 @@ impl<'p, const H: usize> Target<'p, H> {
                 Message::Info(self.info())
             }
             Request::Start(start) => match self.start(start) {
-                Ok(running) => {
+                Some(running) => {
                     self.running = running;
                     Message::Started
                 }
-                Err(_) => self.refuse(Reason::Unsupported),
+                None => self.refuse(Reason::Unsupported),
             },
             Request::Period(m) => match self.period(m) {
                 Some(mut reply) => {
@@ -128,10 +139,16 @@ impl<'p, const H: usize> Target<'p, H> {
         self.refused
     }
 
+    /// Whether the target holds an envelope, so that a Start may ask for the runtime
+    /// monitor.
+    pub fn monitors(&self) -> bool {
+        self.envelope.is_some()
+    }
+
     fn info(&self) -> Info {
         let (format, policy) = match self.format {
-            Format::F32 => (Format::F32, digest::mlp(self.policy)),
-            Format::Int8 => (Format::Int8, digest::qmlp(self.policy_int)),
+            Format::F32 => (Format::F32, digest::mlp(self.policy.net)),
+            Format::Int8 => (Format::Int8, digest::qmlp(self.policy_int.net)),
         };
         Info {
             format,
@@ -144,17 +161,20 @@ impl<'p, const H: usize> Target<'p, H> {
     }
 
     /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
-    /// (if asked) predictor and runtime monitor, with the policy's envelope.
-    fn start(&mut self, start: Start) -> Result<Running<'p, H>, ConfigError> {
+    /// (if asked) predictor and runtime monitor, with the policy's envelope; `None` for a
+    /// Start the rig refuses, or one that asks for a monitor without an envelope.
+    fn start(&mut self, start: Start) -> Option<Running<'p, H, A>> {
         let rig = Rig {
             dead_time: u32::from(start.dead_time),
             ..self.rig
         }
-        .check()?;
-        let monitor = match (start.monitor, self.assurance) {
-            (false, _) => None,
-            (true, Some(a)) => Some(a),
-            (true, None) => Some(*self.assurance.insert(rig.lqr_assurance(self.envelope)?)),
+        .check()
+        .ok()?;
+        let monitor = match (start.monitor, self.assurance, self.envelope) {
+            (false, ..) => None,
+            (true, Some(a), _) => Some(a),
+            (true, None, Some(e)) => Some(*self.assurance.insert(rig.lqr_assurance(e).ok()?)),
+            (true, None, None) => return None,
         };
         let cache = &mut self.observer;
         let observer = || {
@@ -172,19 +192,25 @@ impl<'p, const H: usize> Target<'p, H> {
             predict: start.predict,
             monitor,
         };
-        Ok(match self.format {
-            Format::F32 => Running::F32(rig.controller(
-                self.policy,
-                LinkSensor::new(start.sensing, &rig, observer)?,
-                pins(),
-                options,
-            )?),
-            Format::Int8 => Running::Int8(rig.controller(
-                self.policy_int,
-                LinkSensor::new(start.sensing, &rig, observer)?,
-                pins(),
-                options,
-            )?),
+        Some(match self.format {
+            Format::F32 => Running::F32(
+                rig.controller(
+                    self.policy,
+                    LinkSensor::new(start.sensing, &rig, observer).ok()?,
+                    pins(),
+                    options,
+                )
+                .ok()?,
+            ),
+            Format::Int8 => Running::Int8(
+                rig.controller(
+                    self.policy_int,
+                    LinkSensor::new(start.sensing, &rig, observer).ok()?,
+                    pins(),
+                    options,
+                )
+                .ok()?,
+            ),
         })
     }
 

@@ -9,14 +9,10 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::Duration;
 
 use anyhow::{Context, Result, anyhow, bail};
-use firmware::controller::Limits;
 use firmware::link::{
     Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Reason, Reply, Start,
     Target, frame,
 };
-use firmware::network::Mlp;
-use firmware::network::int::QMlp;
-use firmware::rig::Rig;
 
 /// A target the host's world talks to, one request and its answer at a time.
 pub trait Remote {
@@ -115,23 +111,10 @@ pub fn describe(reason: Reason) -> &'static str {
 }
 
 /// The target code in this process: the software-in-the-loop reference a processor-in-
-/// the-loop run is compared with, frame for frame.
-pub struct Local<const H: usize>(Target<'static, H>);
+/// the-loop run is compared with, frame for frame. Its ticks are 0.
+pub struct Local<const H: usize, const A: usize = 2>(pub Target<'static, H, A>);
 
-impl<const H: usize> Local<H> {
-    /// A target holding `policy`, `policy_int`, `rig` and `envelope` (a board's `POLICY`,
-    /// `POLICY_INT`, `RIG` and `ENVELOPE`), timed on nothing: its ticks are 0.
-    pub fn new(
-        policy: &'static Mlp<H>,
-        policy_int: &'static QMlp<H>,
-        rig: Rig,
-        envelope: Limits,
-    ) -> Self {
-        Local(Target::new(policy, policy_int, rig, envelope, 1))
-    }
-}
-
-impl<const H: usize> Remote for Local<H> {
+impl<const H: usize, const A: usize> Remote for Local<H, A> {
     fn exchange(&mut self, seq: u16, message: Message) -> Result<Message> {
         Ok(self.0.handle(Ok(Packet { seq, message }), || 0).message)
     }

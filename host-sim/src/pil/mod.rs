@@ -5,6 +5,7 @@
 //! process fed the same frames: the software-in-the-loop reference every answer is compared
 //! with. `docs/PIL.md` has the results.
 //!
+//! - `board`: which shipped policy the target holds, and the reference holding it here.
 //! - `link`: the host's end of the exchange, a target in a process or in this one.
 //! - `serial`: a board on a serial port.
 //! - `run`: episodes over the link, their statistics, the comparison and the target's time.
@@ -15,10 +16,12 @@ use std::time::Duration;
 
 use anyhow::{Result, bail};
 
+mod board;
 pub mod link;
 mod run;
 pub mod serial;
 
+pub use board::Board;
 pub use run::{Check, Mismatch, handshake, run_row};
 
 /// A QEMU machine the `pil` application runs on: one per target of the matrix, the
@@ -100,10 +103,10 @@ pub enum Place {
 
 impl Place {
     /// The place `spec` names (`qemu:TARGET`, `serial:PATH` or `exec:PATH`), with the ELF
-    /// `elf` for QEMU
-    /// (by default the `pil` application's release build for the target); refused, naming
-    /// what was expected, when the target is unknown or the file is missing.
-    pub fn parse(spec: &str, elf: Option<&Path>) -> Result<Place> {
+    /// `elf` for QEMU (by default the release build for the target of the application that
+    /// holds `board`); refused, naming what was expected, when the target is unknown or the
+    /// file is missing.
+    pub fn parse(spec: &str, elf: Option<&Path>, board: Board) -> Result<Place> {
         let targets = || MACHINES.map(|m| m.target).join(", ");
         let place = match spec.split_once(':') {
             Some(("qemu", target)) => {
@@ -113,11 +116,12 @@ impl Place {
                         targets()
                     );
                 };
-                let elf = elf.map_or_else(|| default_elf(target), Path::to_path_buf);
+                let app = board.app();
+                let elf = elf.map_or_else(|| default_elf(target, app), Path::to_path_buf);
                 if !elf.is_file() {
                     bail!(
                         "--pil {spec}: no application at {} (build it with `cargo build --release \
-                         -p selftest-app --bin pil --target {target}`, or give --pil-elf)",
+                         -p selftest-app --bin {app} --target {target}`, or give --pil-elf)",
                         elf.display()
                     );
                 }
@@ -171,11 +175,36 @@ fn is_char_device(path: &Path) -> bool {
     std::fs::metadata(path).is_ok_and(|m| m.file_type().is_char_device())
 }
 
-/// The `pil` application's release build for `target`, in cargo's target directory.
-fn default_elf(target: &str) -> PathBuf {
+/// The release build of `selftest-app`'s binary `app` for `target`, in cargo's target
+/// directory.
+fn default_elf(target: &str, app: &str) -> PathBuf {
     let dir = std::env::var_os("CARGO_TARGET_DIR").map_or_else(
         || Path::new(env!("CARGO_MANIFEST_DIR")).join("../target"),
         PathBuf::from,
     );
-    dir.join(target).join("release").join("pil")
+    dir.join(target).join("release").join(app)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_default_elf_is_the_build_of_the_application_holding_the_policy() {
+        let elf = default_elf("thumbv6m-none-eabi", Board::Desk.app());
+        assert!(
+            elf.ends_with("thumbv6m-none-eabi/release/pil-desk"),
+            "{elf:?}"
+        );
+        let missing = Place::parse(
+            "qemu:thumbv6m-none-eabi",
+            Some(Path::new("/no/such")),
+            Board::Desk,
+        );
+        let e = missing.unwrap_err().to_string();
+        assert!(
+            e.contains("--bin pil-desk --target thumbv6m-none-eabi"),
+            "{e}"
+        );
+    }
 }

@@ -10,6 +10,7 @@ use serde::Serialize;
 use twin::run::{Stream, Tally, episode_rng};
 use twin::{EpisodeStats, Scenario, World};
 
+use super::Board;
 use super::link::{Remote, Session};
 
 /// What the comparison with the software-in-the-loop reference and the target's clock
@@ -55,20 +56,24 @@ fn same(a: &Reply, b: &Reply) -> bool {
     a.command == b.command && scores && a.faults == b.faults
 }
 
-/// Checks that `target` holds what the reference holds for `format`, and runs `scenario`'s
-/// board (its rig less the dead time, which Start sets); the target's `Info`.
+/// Checks that `target` holds what the reference holds for `format` (the application of
+/// `board`), and runs `scenario`'s board (its rig less the dead time, which Start sets);
+/// the target's `Info`.
 pub fn handshake(
     target: &mut Session<impl Remote>,
     reference: &mut Session<impl Remote>,
     format: Format,
     scenarios: &[Scenario],
+    board: Board,
 ) -> Result<Info> {
     let got = target.hello(format).context("the handshake")?;
     let want = reference.hello(format)?;
     let differs = |what: &str| {
         anyhow::anyhow!(
-            "the target holds another {what} than this build of the firmware ({format:?}: \
-             target {got:?}, here {want:?}); rebuild the pil application"
+            "the target holds another {what} than this build of the firmware's {board} \
+             policy ({format:?}: target {got:?}, here {want:?}); rebuild the {} application, \
+             or give the --pil-policy it holds",
+            board.app()
         )
     };
     ensure!(
@@ -81,15 +86,15 @@ pub fn handshake(
     );
     ensure!(got.clock_hz > 0, "the target's clock runs at 0 Hz");
     for s in scenarios {
-        let board = Rig {
-            dead_time: shipped::policy::RIG.dead_time,
+        let built = Rig {
+            dead_time: board.rig().dead_time,
             ..s.rig
         };
-        if digest::rig(&board) != got.rig {
+        if digest::rig(&built) != got.rig {
             bail!(
                 "scenario {}: its board's rig differs from the target's in more than the dead \
                  time (a rig file or encoder of its own); the target runs the rig it was built \
-                 with",
+                 with (--rig gives the scenarios that machine)",
                 s.name
             );
         }

@@ -3,22 +3,29 @@ use std::vec::Vec;
 
 use super::*;
 use crate::cartpole::{CartPole, State};
-use crate::controller::Command;
+use crate::controller::{Command, Duty};
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
 use crate::shipped::envelope::ENVELOPE;
-use crate::shipped::policy::{POLICY, RIG};
+use crate::shipped::policy::{LEVELS, POLICY, RIG};
 use crate::shipped::policy_int::POLICY_INT;
+use crate::shipped::{desk, desk_int};
 
 const CLOCK_HZ: u32 = 1_000;
 
 fn target() -> Target<'static, 64> {
-    Target::new(&POLICY, &POLICY_INT, RIG, ENVELOPE, CLOCK_HZ)
+    Target::new(&POLICY, &POLICY_INT, LEVELS, RIG, Some(ENVELOPE), CLOCK_HZ)
+}
+
+/// The nine-level desk policy's target: no envelope measured for it.
+fn desk_target() -> Target<'static, 64, 9> {
+    let (f, i) = (&desk::POLICY, &desk_int::POLICY_INT);
+    Target::new(f, i, desk::LEVELS, desk::RIG, None, CLOCK_HZ)
 }
 
 /// Sends `message` numbered `seq`; the answer's message, checked to carry `seq`.
-fn send(t: &mut Target<'_, 64>, seq: u16, message: Message) -> Message {
+fn send<const A: usize>(t: &mut Target<'_, 64, A>, seq: u16, message: Message) -> Message {
     let answer = t.handle(Ok(Packet { seq, message }), || 7);
     assert_eq!(answer.seq, seq);
     answer.message
@@ -31,18 +38,19 @@ fn reply(m: Message) -> Reply {
     }
 }
 
-/// A closed loop of the plant and a controller built as a board builds it (the rig's
+/// A closed loop of `rig`'s plant and a controller built as a board builds it (the rig's
 /// observer on the counts, its predictor for `dead_time` periods, its limits, and with
-/// `monitor` the runtime monitor, the encoders frozen for half a second); beside it the
-/// target, handed the same counts as frames. Their commands and faults, period by period.
-fn both<O: Estimate, P: crate::controller::Policy<O>>(
-    policy: P,
+/// `monitor` the runtime monitor with the shipped envelope, the encoders frozen for half a
+/// second); beside it the target `t`, handed the same counts as frames. Their commands and
+/// faults, period by period.
+fn both<O: Estimate, P: crate::controller::Policy<O>, const A: usize>(
+    (policy, mut t, rig): (P, Target<'_, 64, A>, Rig),
     format: Format,
     (dead_time, monitor): (u8, bool),
 ) -> Vec<((Command, u16), (Command, u16))> {
     let rig = Rig {
         dead_time: dead_time.into(),
-        ..RIG
+        ..rig
     };
     let mut plant = CartPole::new(rig.params, 300);
     plant.reset_to(State::from_array([0.03, 0.0, -0.04, 0.02]));
@@ -59,7 +67,6 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
     if monitor {
         board.set_monitor(rig.lqr_assurance(ENVELOPE).unwrap());
     }
-    let mut t = target();
     assert!(matches!(
         send(&mut t, 0, Message::Hello(format)),
         Message::Info(_)
@@ -94,8 +101,8 @@ fn both<O: Estimate, P: crate::controller::Policy<O>>(
 #[test]
 fn the_target_commands_what_a_board_built_from_its_rig_commands() {
     for aids in [(0, false), (2, false), (0, true)] {
-        let f32s = both::<[f32; 4], _>(&POLICY, Format::F32, aids);
-        let ints = both::<[i16; 4], _>(&POLICY_INT, Format::Int8, aids);
+        let f32s = both::<[f32; 4], _, 2>((&POLICY, target(), RIG), Format::F32, aids);
+        let ints = both::<[i16; 4], _, 2>((&POLICY_INT, target(), RIG), Format::Int8, aids);
         for run in [f32s, ints] {
             assert_eq!(run.len(), 300, "the board balanced for the whole run");
             for (k, (got, want)) in run.iter().enumerate() {
@@ -107,6 +114,91 @@ fn the_target_commands_what_a_board_built_from_its_rig_commands() {
             assert_eq!(flagged(FaultFlags::FALLBACK), aids.1);
         }
     }
+}
+
+/// The desk policy's nine outputs each drive their level: the target commands what a board
+/// built from the desk rig commands with the same levels, in both formats, with dead time,
+/// and more than two of the levels drive the motor.
+#[test]
+fn a_target_of_nine_levels_commands_what_its_board_commands() {
+    for dead_time in [0, 1] {
+        let f32s = both::<[f32; 4], _, 9>(
+            (
+                Greedy {
+                    net: &desk::POLICY,
+                    levels: desk::LEVELS,
+                },
+                desk_target(),
+                desk::RIG,
+            ),
+            Format::F32,
+            (dead_time, false),
+        );
+        let ints = both::<[i16; 4], _, 9>(
+            (
+                Greedy {
+                    net: &desk_int::POLICY_INT,
+                    levels: desk_int::LEVELS,
+                },
+                desk_target(),
+                desk_int::RIG,
+            ),
+            Format::Int8,
+            (dead_time, false),
+        );
+        for run in [f32s, ints] {
+            assert_eq!(run.len(), 300, "the board balanced for the whole run");
+            for (k, (got, want)) in run.iter().enumerate() {
+                assert_eq!(got, want, "period {k}, dead time {dead_time}");
+            }
+            let drive = |c: Command| match c {
+                Command::Drive(d) => Some(d),
+                Command::Coast => None,
+            };
+            let mut seen: Vec<Option<Duty>> = run.iter().map(|(got, _)| drive(got.0)).collect();
+            seen.sort_unstable();
+            seen.dedup();
+            assert!(seen.len() > 2, "dead time {dead_time}: only {seen:?}");
+            let levels: Vec<_> = (0..9).map(|i| desk::LEVELS.duty(i)).collect();
+            assert!(seen.iter().all(|d| levels.contains(d)), "{seen:?}");
+        }
+    }
+}
+
+/// A reply carries all nine scores, the network's own bits; a monitor the target holds no
+/// envelope for is refused.
+#[test]
+fn a_target_of_nine_levels_replies_with_nine_scores_and_refuses_a_monitor() {
+    let mut t = desk_target();
+    send(&mut t, 1, Message::Hello(Format::F32));
+    let exact = Start {
+        sensing: Sensing::Exact,
+        predict: false,
+        monitor: false,
+        dead_time: 0,
+    };
+    assert_eq!(send(&mut t, 2, Message::Start(exact)), Message::Started);
+    let obs = [0.01, -0.02, 0.03, 0.1];
+    let got = reply(send(&mut t, 3, Message::State(obs)));
+    let want = desk::POLICY.forward(&obs);
+    let Scores::F32(q) = got.scores else {
+        panic!("f32 scores were due, got {got:?}");
+    };
+    let bits = |v: &[f32]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    assert_eq!(bits(q.as_slice()), bits(&want));
+    let chosen = crate::network::argmax(&want);
+    assert_eq!(
+        got.command,
+        Command::Drive(desk::LEVELS.duty(chosen).unwrap())
+    );
+    let monitored = Start {
+        monitor: true,
+        ..exact
+    };
+    assert_eq!(
+        send(&mut t, 4, Message::Start(monitored)),
+        Message::Refused(Reason::Unsupported)
+    );
 }
 
 #[test]
