@@ -58,9 +58,9 @@ pub fn deploy_eval_domain(machine: &twin::Machine) -> String {
     physics(0.25, machine) + "+noise=0..1@0.5+delay=0..1+encoder"
 }
 
-/// The worlds its finalists are tried in for 10,000 steps: plants drawn like the default
-/// set's, half of them with its noise, all under pushes of (Gymnasium's) 1.1 N s every
-/// second, through the rig's encoders.
+/// The worlds its finalists are tried in for 10,000 steps, but for the pushes
+/// ([`Config::deploy_on`] adds them): plants drawn like the default set's, half of them with
+/// its noise, through the rig's encoders.
 pub fn deploy_finalist_domain(machine: &twin::Machine) -> String {
     physics(0.2, machine) + "+noise=0..1@0.5+encoder"
 }
@@ -101,10 +101,17 @@ impl Config {
                 deploy_eval_domain(machine),
                 push(0.5, 0.5, 100.0)
             ),
+            // On a rig, pushes its balanced pole survives, so that the trial's cost can
+            // choose among the survivors (`trial_margin`); Gymnasium's machine keeps the
+            // shipped policy's harder ones, which every finalist falls to.
             finalist_domain: format!(
                 "{}+{}",
                 deploy_finalist_domain(machine),
-                push(1.1, 1.1, 50.0)
+                if rig {
+                    push(0.5, 0.5, 100.0)
+                } else {
+                    push(1.1, 1.1, 50.0)
+                }
             ),
             compensate: true,
             reward: if rig {
@@ -128,6 +135,7 @@ impl Config {
             finalist_episodes: 50,
             finalist_max_steps: steps(10_000.0),
             board_int8: rig,
+            trial_margin: if rig { 0.05 } else { 0.0 },
             rig: if rig {
                 twin::rigfile::to_toml(machine)
             } else {

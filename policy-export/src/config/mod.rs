@@ -273,6 +273,13 @@ config_keys! {
         /// either, so a snapshot whose integer network fails is not shipped.
         #[serde(default)]
         board_int8: bool = false;
+        /// How much shorter a finalist's trial survival may be than the best's and still be
+        /// chosen, as a fraction of the best: 0 ships the longest survivor (the earlier among
+        /// equals); above 0, the finalist of the lowest trial cost among those within it,
+        /// since survivals that differ by less than the trial's sampling noise say nothing of
+        /// which policy is better, and the cost says which holds the pole more gently.
+        #[serde(default)]
+        trial_margin: f64 = 0.0, limit Limit::ZeroToOne;
         /// Decide on readings advanced over each world's dead time with the nominal model, as
         /// the deployed controller does (`firmware::controller::predict`).
         #[serde(default)]
@@ -313,12 +320,17 @@ impl Config {
     }
 
     /// The configuration as the project's files record it (policy files, the reproduction's
-    /// results): every key, but `board_int8` while it is off, so the files of runs that do
-    /// not try int8 boards keep the bytes they had before the key existed.
+    /// results): every key, but `board_int8` and `trial_margin` while they are off, so the
+    /// files of runs that use neither keep the bytes they had before the keys existed.
     pub fn recorded(&self) -> serde_json::Result<serde_json::Value> {
         let mut v = serde_json::to_value(self)?;
-        if let Some(map) = v.as_object_mut().filter(|_| !self.board_int8) {
-            map.remove("board_int8");
+        if let Some(map) = v.as_object_mut() {
+            if !self.board_int8 {
+                map.remove("board_int8");
+            }
+            if self.trial_margin == 0.0 {
+                map.remove("trial_margin");
+            }
         }
         Ok(v)
     }

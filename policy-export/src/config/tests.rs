@@ -355,11 +355,14 @@ fn the_deploy_recipe_is_made_for_its_machine() {
     let m = twin::rigfile::parse(text, "t").unwrap();
     let d = Config::deploy_on(&m);
     assert!(d.domain.ends_with("+push=0.4..0.6/100"), "{}", d.domain);
+    // Its trial's pushes are the periodic evaluation's, which a balanced rig survives, and
+    // its cost chooses among the finalists surviving within 5% of the longest.
     assert!(
-        d.finalist_domain.ends_with("+push=0.55/100"),
+        d.finalist_domain.ends_with("+encoder+push=0.25/200"),
         "{}",
         d.finalist_domain
     );
+    assert_eq!((d.trial_margin, g.trial_margin), (0.05, 0.0));
     assert_eq!(
         (d.max_steps, d.eval_max_steps, d.finalist_max_steps),
         (1000, 1000, 20_000)

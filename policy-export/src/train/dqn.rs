@@ -25,6 +25,7 @@ use rand_pcg::Pcg64Mcg;
 use twin::{Episode, Scenario};
 use weights::Weights;
 
+use super::evaluate::Judge;
 use super::reward::Drive;
 use super::select::Selection;
 use super::{
@@ -59,7 +60,11 @@ pub(super) fn run<const H: usize, const A: usize>(
         pushes: rng(seed, Stream::Pushes),
     };
     let mut domain_rng = rng(seed, Stream::Domain);
-    let mut selection = Selection::new(cfg, seed, &d, levels);
+    let judge = Judge {
+        compensate: cfg.compensate,
+        change_price: r.reward.change_price(),
+    };
+    let mut selection = Selection::new(cfg, seed, &d, levels, judge);
     let mut records = Vec::with_capacity(cfg.episodes);
     for ep in 0..cfg.episodes {
         let scenario = d.train.sample(&mut domain_rng);

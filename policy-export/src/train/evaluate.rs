@@ -27,11 +27,12 @@ pub struct EvalResult {
     /// Worst return.
     pub min: f64,
     /// How far from upright and centred it held the plant, and how hard it drove the motor
-    /// doing so: the mean over every step of `(theta / theta_max)^2 + (x / x_max)^2 + u^2`
-    /// for the period's duty `u`. Between snapshots of equal returns, the lower is the better
-    /// controller: of two-level policies (`u^2 = 1` always) the one held closer; of policies
-    /// with smaller levels, mostly the gentler, since a duty's square outweighs the angles'
-    /// at balance.
+    /// doing so: the mean over every step of `(theta / theta_max)^2 + (x / x_max)^2 + u^2
+    /// + c |u - u_prev|` for the period's duty `u` and the previous period's `u_prev` (0
+    /// before the first), `c` the [`Judge`]'s price of a change. Between snapshots of equal
+    /// returns, the lower is the better controller: of two-level policies (`u^2 = 1` always)
+    /// the one held closer; of policies with smaller levels, mostly the gentler, since a
+    /// duty's square and its changes outweigh the angles' at balance.
     #[serde(default)]
     pub cost: f64,
 }
@@ -63,24 +64,34 @@ impl EvalStreams {
     }
 }
 
+/// How an evaluation runs its episodes and prices their driving.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Judge {
+    /// Decide on readings advanced over the world's dead time.
+    pub compensate: bool,
+    /// What [`EvalResult::cost`] charges per unit of change of the duty between periods,
+    /// beside its square at 1: the learning reward's `smooth` weight, so that a selection
+    /// prefers what the learner was asked for.
+    pub change_price: f64,
+}
+
 /// Episodes a thread runs side by side ([`twin::lockstep`]), enough to keep the lanes full as
 /// episodes end.
 const CHUNK: usize = 32;
 
 /// Runs `episodes` greedy episodes of at most `max_steps` through the firmware's controller,
-/// each in a world of `domain`; with `compensate`, deciding on readings advanced over the
-/// world's dead time. Episodes run in parallel and are summed in order, so the result does
+/// each in a world of `domain`, run and priced as `judge` says. Episodes run in parallel and are summed in order, so the result does
 /// not depend on the number of threads.
 pub fn evaluate<const H: usize, const A: usize>(
     (net, levels): (&Mlp<H, A>, Levels<A>),
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
-    compensate: bool,
+    judge: Judge,
     streams: EvalStreams,
 ) -> EvalResult {
     let wide = WideMlp::new(net, levels);
-    evaluate_policy(&*wide, episodes, max_steps, domain, compensate, streams)
+    evaluate_policy(&*wide, episodes, max_steps, domain, judge, streams)
 }
 
 /// `net` quantised as `policy-export export --quant int8` quantises the policy file of it for
@@ -102,11 +113,11 @@ pub fn evaluate_int<const H: usize, const A: usize>(
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
-    compensate: bool,
+    judge: Judge,
     streams: EvalStreams,
 ) -> EvalResult {
     let policy = Greedy { net: q, levels };
-    evaluate_policy(policy, episodes, max_steps, domain, compensate, streams)
+    evaluate_policy(policy, episodes, max_steps, domain, judge, streams)
 }
 
 /// [`evaluate`]'s episodes with any policy a controller runs.
@@ -115,7 +126,7 @@ fn evaluate_policy<P: Policy + Copy + Send + Sync>(
     episodes: usize,
     max_steps: u32,
     domain: &Domain,
-    compensate: bool,
+    judge: Judge,
     streams: EvalStreams,
 ) -> EvalResult {
     let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(CHUNK))
@@ -127,26 +138,30 @@ fn evaluate_policy<P: Policy + Copy + Send + Sync>(
             let scenarios: Vec<Scenario> = (0..n)
                 .map(|i| domain.sample(&mut streams.rng(e(i), 0)))
                 .collect();
-            let mut sums = vec![(0.0, 0.0, 0u64); n];
+            // Each episode's return, cost, steps and previous duty.
+            let mut sums = vec![(0.0, 0.0, 0u64, 0.0); n];
             run_lockstep(
                 n,
                 |i| {
                     let pair = (streams.rng(e(i), 2), streams.rng(e(i), 3));
                     let mut start = streams.rng(e(i), 1);
                     let s = &scenarios[i];
-                    Episode::start(policy, s, max_steps, &mut start, pair, compensate)
+                    Episode::start(policy, s, max_steps, &mut start, pair, judge.compensate)
                 },
                 |i, ep, command, t| {
                     let (p, s) = (&scenarios[i].params, ep.world().state());
-                    let (ret, cost, steps) = &mut sums[i];
+                    let (ret, cost, steps, previous) = &mut sums[i];
+                    let duty = f64::from(command.level());
                     *ret += f64::from(t.reward);
                     *cost += (s.theta / p.theta_threshold_radians).powi(2)
                         + (s.x / p.x_threshold).powi(2)
-                        + f64::from(command.level()).powi(2);
+                        + duty.powi(2)
+                        + judge.change_price * (duty - *previous).abs();
+                    *previous = duty;
                     *steps += 1;
                 },
             );
-            sums
+            sums.into_iter().map(|(r, c, n, _)| (r, c, n))
         })
         .collect();
     let (mut sum, mut min, mut cost, mut steps) = (0.0, f64::INFINITY, 0.0, 0u64);
@@ -212,7 +227,11 @@ mod tests {
         };
         let (episodes, max_steps) = (40, 400);
         let int = (&POLICY_INT, Levels::BANG_BANG);
-        let res = evaluate_int(int, episodes, max_steps, &domain, true, streams);
+        let judge = Judge {
+            compensate: true,
+            change_price: 0.0,
+        };
+        let res = evaluate_int(int, episodes, max_steps, &domain, judge, streams);
         let returns: Vec<f64> = (0..episodes as u64)
             .map(|e| {
                 let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
@@ -249,10 +268,64 @@ mod tests {
             episodes,
             max_steps,
             &domain,
-            true,
+            judge,
             streams,
         );
         assert_ne!(float, res);
+    }
+
+    /// A change of duty costs what the judge prices it at: the cost with a price of 2 is the
+    /// cost without one plus twice the mean change per period, counted here episode by
+    /// episode (the first period's change from 0).
+    #[test]
+    fn the_cost_prices_each_change_of_duty() {
+        let domain = Domain::parse_on("noise=0..1+push=1.1/50", &Machine::GYMNASIUM).unwrap();
+        let streams = EvalStreams {
+            seed: 3,
+            streams: [
+                Stream::EvalWorld,
+                Stream::Eval,
+                Stream::EvalNoise,
+                Stream::EvalPushes,
+            ],
+        };
+        let (episodes, max_steps) = (20, 300);
+        let int = (&POLICY_INT, Levels::BANG_BANG);
+        let judged = |change_price| {
+            let judge = Judge {
+                compensate: false,
+                change_price,
+            };
+            evaluate_int(int, episodes, max_steps, &domain, judge, streams)
+        };
+        let (free, priced) = (judged(0.0), judged(2.0));
+        let (mut changes, mut steps) = (0.0, 0u64);
+        for e in 0..episodes as u64 {
+            let rng = |i: usize| host_common::seed::rng(3, e, streams.streams[i] as u64);
+            let scenario = domain.sample(&mut rng(0));
+            let (start, pair) = (&mut rng(1), (rng(2), rng(3)));
+            let mut ep = Episode::start(&POLICY_INT, &scenario, max_steps, start, pair, false);
+            let mut previous = 0.0;
+            loop {
+                let duty = f64::from(ep.decide().level());
+                changes += (duty - previous).abs();
+                previous = duty;
+                steps += 1;
+                let t = ep.apply();
+                if t.terminated || t.truncated {
+                    break;
+                }
+            }
+        }
+        let mean_change = changes / steps as f64;
+        // A bang-bang policy reverses often: the price is not lost in the rounding.
+        assert!(mean_change > 0.1, "{mean_change}");
+        assert_eq!(free.mean, priced.mean);
+        let expected = free.cost + 2.0 * mean_change;
+        assert!(
+            (priced.cost - expected).abs() < 1e-9,
+            "{priced:?} {expected}"
+        );
     }
 
     #[test]

@@ -103,6 +103,11 @@ impl Reward {
         *self == Reward::parse("").expect("the empty spec parses")
     }
 
+    /// What it charges per unit of change of the duty between periods (`smooth=W`).
+    pub fn change_price(&self) -> f64 {
+        self.smooth
+    }
+
     /// The learning reward of a step that drove the motor as `drive` and led to `next`
     /// (terminated or not), for a plant of physics `p`.
     pub fn of(&self, p: &Params, drive: &Drive, next: &State, terminated: bool) -> f32 {

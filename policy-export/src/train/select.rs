@@ -6,7 +6,7 @@ use firmware::controller::Levels;
 use firmware::network::Mlp;
 use serde::{Deserialize, Serialize};
 
-use super::evaluate::{evaluate_int, quantised};
+use super::evaluate::{Judge, evaluate_int, quantised};
 use super::{Domains, EpisodeRecord, EvalResult, EvalStreams, Learner, Stream, evaluate};
 use crate::config::Config;
 
@@ -33,12 +33,21 @@ impl TrialRun {
             .as_ref()
             .map_or(self.f32.mean, |q| self.f32.mean.min(q.mean))
     }
+
+    /// Its cost on the worse of its boards.
+    pub fn cost(&self) -> f64 {
+        self.int8
+            .as_ref()
+            .map_or(self.f32.cost, |q| self.f32.cost.max(q.cost))
+    }
 }
 
-/// The finalist a trial picks: the best survival; among equals the earlier, which had the
-/// better periodic rank, since the periodic cost (nominal-like worlds) measures precision
-/// better than the trial's pushes.
-pub(super) fn pick(trial: &[TrialRun]) -> Option<usize> {
+/// The finalist a trial picks. With no `margin`, the best survival; among equals the
+/// earlier, which had the better periodic rank, since the periodic cost (nominal-like
+/// worlds) measures precision better than pushes every finalist falls to. With a margin
+/// (a fraction of the best survival), the lowest cost among those surviving within it: a
+/// trial its finalists survive says in its cost which holds the pole more gently.
+pub(super) fn pick(trial: &[TrialRun], margin: f64) -> Option<usize> {
     let mut best: Option<(usize, f64)> = None;
     for (i, t) in trial.iter().enumerate() {
         let s = t.survival();
@@ -46,7 +55,15 @@ pub(super) fn pick(trial: &[TrialRun]) -> Option<usize> {
             best = Some((i, s));
         }
     }
-    best.map(|(i, _)| i)
+    let (longest, b) = best?;
+    if margin == 0.0 {
+        return Some(longest);
+    }
+    let within = |t: &&TrialRun| t.survival() >= b * (1.0 - margin);
+    let costs = trial.iter().enumerate().filter(|(_, t)| within(t));
+    costs
+        .min_by(|(_, x), (_, y)| x.cost().total_cmp(&y.cost()))
+        .map(|(i, _)| i)
 }
 
 /// Which evaluation a set of streams serves.
@@ -92,6 +109,7 @@ fn steps_of(res: &EvalResult) -> u64 {
 /// The snapshots of a run and their evaluations so far.
 pub(super) struct Selection<'a, const H: usize, const A: usize> {
     levels: Levels<A>,
+    judge: Judge,
     cfg: &'a Config,
     seed: u64,
     domains: &'a Domains,
@@ -118,9 +136,16 @@ pub(super) struct Chosen<const H: usize, const A: usize> {
 }
 
 impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
-    pub fn new(cfg: &'a Config, seed: u64, domains: &'a Domains, levels: Levels<A>) -> Self {
+    pub fn new(
+        cfg: &'a Config,
+        seed: u64,
+        domains: &'a Domains,
+        levels: Levels<A>,
+        judge: Judge,
+    ) -> Self {
         Selection {
             levels,
+            judge,
             cfg,
             seed,
             domains,
@@ -154,14 +179,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         let (episodes, steps, domain) = self.plan(which);
         let streams = eval_streams(self.seed, which);
         let policy = (net, self.levels);
-        let res = evaluate(
-            policy,
-            episodes,
-            steps,
-            domain,
-            self.cfg.compensate,
-            streams,
-        );
+        let res = evaluate(policy, episodes, steps, domain, self.judge, streams);
         self.count(which, &res);
         res
     }
@@ -180,8 +198,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         };
         let streams = eval_streams(self.seed, Eval::Trial);
         let policy = (&*q, self.levels);
-        let compensate = self.cfg.compensate;
-        let res = evaluate_int(policy, episodes, steps, domain, compensate, streams);
+        let res = evaluate_int(policy, episodes, steps, domain, self.judge, streams);
         self.count(Eval::Trial, &res);
         res
     }
@@ -228,7 +245,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
                 });
             }
             self.pool = pool;
-            if let Some(i) = pick(&trial) {
+            if let Some(i) = pick(&trial, self.cfg.trial_margin) {
                 self.pool.swap(0, i);
             }
         }
@@ -296,10 +313,42 @@ mod tests {
             [120.0, 9_400.0, 9_400.0]
         );
         // Equal survival: the earlier, of the better periodic rank.
-        assert_eq!(pick(&trial), Some(1));
+        assert_eq!(pick(&trial, 0.0), Some(1));
         // Without int8 figures the float board alone ranks them.
         let float = trial.map(|t| TrialRun { int8: None, ..t });
-        assert_eq!(pick(&float), Some(0));
-        assert_eq!(pick(&[]), None);
+        assert_eq!(pick(&float, 0.0), Some(0));
+        assert_eq!(pick(&[], 0.0), None);
+        assert_eq!(pick(&[], 0.05), None);
+    }
+
+    #[test]
+    fn with_a_margin_the_cheapest_of_the_survivors_within_it_wins() {
+        let priced = |episode, f32: f64, f32_cost, int8: f64, int8_cost| TrialRun {
+            episode,
+            f32: EvalResult {
+                cost: f32_cost,
+                ..result(f32)
+            },
+            int8: Some(EvalResult {
+                cost: int8_cost,
+                ..result(int8)
+            }),
+        };
+        let trial = [
+            // The longest survivor, the dearest.
+            priced(10, 10_000.0, 0.9, 10_000.0, 0.8),
+            // Within 5% of it (9,500 of 10,000) and the cheapest on its worse board.
+            priced(20, 9_600.0, 0.2, 9_500.0, 0.3),
+            // Cheaper still on its float board, but its int8 board is the dearest of all.
+            priced(30, 10_000.0, 0.1, 10_000.0, 1.0),
+            // The cheapest, but its int8 board survives 9,499: outside the margin.
+            priced(40, 10_000.0, 0.05, 9_499.0, 0.05),
+        ];
+        assert_eq!(trial.each_ref().map(TrialRun::cost), [0.9, 0.3, 1.0, 0.05]);
+        assert_eq!(pick(&trial, 0.05), Some(1));
+        // No margin: the longest survivor, the earlier among equals.
+        assert_eq!(pick(&trial, 0.0), Some(0));
+        // A margin too narrow for any but the longest survivors.
+        assert_eq!(pick(&trial, 0.001), Some(0));
     }
 }
