@@ -62,7 +62,7 @@ pub(super) fn run<const H: usize, const A: usize>(
     let mut domain_rng = rng(seed, Stream::Domain);
     let judge = Judge {
         compensate: cfg.compensate,
-        change_price: r.reward.change_price(),
+        prices: r.reward.prices(),
     };
     let mut selection = Selection::new(cfg, seed, &d, levels, judge);
     let mut records = Vec::with_capacity(cfg.episodes);

@@ -27,12 +27,12 @@ pub struct EvalResult {
     /// Worst return.
     pub min: f64,
     /// How far from upright and centred it held the plant, and how hard it drove the motor
-    /// doing so: the mean over every step of `(theta / theta_max)^2 + (x / x_max)^2 + u^2
-    /// + c |u - u_prev|` for the period's duty `u` and the previous period's `u_prev` (0
-    /// before the first), `c` the [`Judge`]'s price of a change. Between snapshots of equal
-    /// returns, the lower is the better controller: of two-level policies (`u^2 = 1` always)
-    /// the one held closer; of policies with smaller levels, mostly the gentler, since a
-    /// duty's square and its changes outweigh the angles' at balance.
+    /// doing so: the mean over every step of `lean (theta / theta_max)^2 + distance
+    /// (x / x_max)^2 + duty u^2 + change |u - u_prev|` for the period's duty `u` and the
+    /// previous period's `u_prev` (0 before the first), at the [`Judge`]'s [`Prices`].
+    /// Between snapshots of equal returns, the lower is the better controller: at the plain
+    /// prices, of two-level policies (`u^2 = 1` always) the one held closer; with the
+    /// learning reward's prices, the one the learner was asked for.
     #[serde(default)]
     pub cost: f64,
 }
@@ -69,10 +69,28 @@ impl EvalStreams {
 pub struct Judge {
     /// Decide on readings advanced over the world's dead time.
     pub compensate: bool,
-    /// What [`EvalResult::cost`] charges per unit of change of the duty between periods,
-    /// beside its square at 1: the learning reward's `smooth` weight, so that a selection
-    /// prefers what the learner was asked for.
-    pub change_price: f64,
+    /// What [`EvalResult::cost`] charges.
+    pub prices: Prices,
+}
+
+/// The weights of [`EvalResult::cost`]'s terms: the pole's lean, the cart's distance, the
+/// duty's square and its change between periods.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Prices {
+    pub lean: f64,
+    pub distance: f64,
+    pub duty: f64,
+    pub change: f64,
+}
+
+impl Prices {
+    /// Lean, distance and duty alike, changes free: the shipped recipe's selection.
+    pub const PLAIN: Prices = Prices {
+        lean: 1.0,
+        distance: 1.0,
+        duty: 1.0,
+        change: 0.0,
+    };
 }
 
 /// Episodes a thread runs side by side ([`twin::lockstep`]), enough to keep the lanes full as
@@ -153,10 +171,11 @@ fn evaluate_policy<P: Policy + Copy + Send + Sync>(
                     let (ret, cost, steps, previous) = &mut sums[i];
                     let duty = f64::from(command.level());
                     *ret += f64::from(t.reward);
-                    *cost += (s.theta / p.theta_threshold_radians).powi(2)
-                        + (s.x / p.x_threshold).powi(2)
-                        + duty.powi(2)
-                        + judge.change_price * (duty - *previous).abs();
+                    let w = judge.prices;
+                    *cost += w.lean * (s.theta / p.theta_threshold_radians).powi(2)
+                        + w.distance * (s.x / p.x_threshold).powi(2)
+                        + w.duty * duty.powi(2)
+                        + w.change * (duty - *previous).abs();
                     *previous = duty;
                     *steps += 1;
                 },
@@ -229,7 +248,7 @@ mod tests {
         let int = (&POLICY_INT, Levels::BANG_BANG);
         let judge = Judge {
             compensate: true,
-            change_price: 0.0,
+            prices: Prices::PLAIN,
         };
         let res = evaluate_int(int, episodes, max_steps, &domain, judge, streams);
         let returns: Vec<f64> = (0..episodes as u64)
@@ -275,8 +294,8 @@ mod tests {
     }
 
     /// A change of duty costs what the judge prices it at: the cost with a price of 2 is the
-    /// cost without one plus twice the mean change per period, counted here episode by
-    /// episode (the first period's change from 0).
+    /// plain cost plus twice the mean change per period, counted here episode by episode
+    /// (the first period's change from 0).
     #[test]
     fn the_cost_prices_each_change_of_duty() {
         let domain = Domain::parse_on("noise=0..1+push=1.1/50", &Machine::GYMNASIUM).unwrap();
@@ -291,10 +310,13 @@ mod tests {
         };
         let (episodes, max_steps) = (20, 300);
         let int = (&POLICY_INT, Levels::BANG_BANG);
-        let judged = |change_price| {
+        let judged = |change| {
             let judge = Judge {
                 compensate: false,
-                change_price,
+                prices: Prices {
+                    change,
+                    ..Prices::PLAIN
+                },
             };
             evaluate_int(int, episodes, max_steps, &domain, judge, streams)
         };

@@ -33,7 +33,9 @@ mod replay;
 mod reward;
 mod select;
 
-pub use evaluate::{EvalResult, EvalStreams, Judge, evaluate, solved_episode, trailing_means};
+pub use evaluate::{
+    EvalResult, EvalStreams, Judge, Prices, evaluate, solved_episode, trailing_means,
+};
 pub use learner::{Learner, init_weights, td_targets};
 pub use replay::ReplayBuffer;
 pub use reward::Reward;

@@ -21,6 +21,8 @@
 
 use firmware::cartpole::{Params, State};
 
+use super::evaluate::Prices;
+
 /// What the motor was told in a step, for the effort parts: the period's duty, the previous
 /// period's (0 before the first) and the cart's speed as the period started.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -103,9 +105,20 @@ impl Reward {
         *self == Reward::parse("").expect("the empty spec parses")
     }
 
-    /// What it charges per unit of change of the duty between periods (`smooth=W`).
-    pub fn change_price(&self) -> f64 {
-        self.smooth
+    /// The prices a selection judges snapshots at: a reward that prices the motor's effort
+    /// (`effort`, `smooth` or `heat`) judges by its own weights of the lean, the distance,
+    /// the duty and its change, so the snapshot shipped is the one the learner was asked
+    /// for; any other keeps the plain prices (the shipped recipe's, which keeps its bits).
+    pub fn prices(&self) -> Prices {
+        if self.effort == 0.0 && self.smooth == 0.0 && self.heat == 0.0 {
+            return Prices::PLAIN;
+        }
+        Prices {
+            lean: self.upright,
+            distance: self.centre,
+            duty: self.effort,
+            change: self.smooth,
+        }
     }
 
     /// The learning reward of a step that drove the motor as `drive` and led to `next`
@@ -162,6 +175,23 @@ mod tests {
         assert!(!Reward::parse("effort=0.1").unwrap().is_env());
 
         assert!(!Reward::parse("scale=1.5").unwrap().is_env());
+    }
+
+    #[test]
+    fn a_reward_that_prices_the_motor_is_the_selections_price_list() {
+        let prices = |spec: &str| Reward::parse(spec).unwrap().prices();
+        assert_eq!(prices(""), Prices::PLAIN);
+        assert_eq!(prices("upright=20+centre=5"), Prices::PLAIN);
+        let rig = Prices {
+            lean: 20.0,
+            distance: 5.0,
+            duty: 1.0,
+            change: 4.0,
+        };
+        assert_eq!(prices("upright=20+centre=5+effort=1+smooth=4"), rig);
+        // Heat alone prices the motor too, and the duty's square is then free.
+        let heat = prices("upright=3+heat=1");
+        assert_eq!((heat.lean, heat.duty, heat.change), (3.0, 0.0, 0.0));
     }
 
     #[test]
