@@ -358,7 +358,7 @@ fn the_rigs_trained_for_are_identified_again() {
     let exe = build_tool("host-sim");
     let m = manifest();
     let dir = scratch("rigs");
-    for rig in ["desk", "desk-100hz"] {
+    for rig in ["desk", "desk-100hz", "lab"] {
         let committed = format!("rigs/{rig}-identified.toml");
         // The logs step and the identification step, their outputs moved to the scratch dir.
         let log = format!("runs/rig-study/{rig}.log");
