@@ -12,6 +12,9 @@ use embassy_rp::pio::{InterruptHandler, Pio};
 use embassy_rp::pio_programs::rotary_encoder::{Direction, PioEncoder, PioEncoderProgram};
 use embassy_rp::pwm::{self, Pwm};
 use firmware::controller::Bridge;
+#[cfg(feature = "desk")]
+use shipped::desk_int::RIG;
+#[cfg(not(feature = "desk"))]
 use shipped::policy_int::RIG;
 
 /// PWM: 125 MHz / 6,250 = 20 kHz, above hearing; full duty is the full push.
@@ -96,7 +99,6 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     use defmt::{info, warn};
     use embassy_time::{Duration, Instant, Ticker};
     use firmware::estimator::ObserverSensor;
-    use shipped::policy_int::POLICY_INT;
     use firmware::rig::Options;
 
     // The pole's zero is where it is at power-on: hold it upright until the first log line.
@@ -106,14 +108,29 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // predictor's plant at start-up, where a refusal halts the board (through the panic
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
-    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`).
+    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`). With `desk`,
+    // the gentle desk policy drives its nine duty levels through the PWM, without the
+    // monitor: no envelope was measured for it.
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, counts);
+    #[cfg(not(feature = "desk"))]
+    let (policy, monitor) = (
+        &shipped::policy_int::POLICY_INT,
+        Some(shipped::envelope::ASSURANCE),
+    );
+    #[cfg(feature = "desk")]
+    let (policy, monitor) = (
+        firmware::controller::Greedy {
+            net: &shipped::desk_int::POLICY_INT,
+            levels: shipped::desk_int::LEVELS,
+        },
+        None,
+    );
     let options = Options {
         predict: true,
-        monitor: Some(shipped::envelope::ASSURANCE),
+        monitor,
     };
-    let mut controller = defmt::unwrap!(RIG.controller(&POLICY_INT, sensor, bridge, options));
+    let mut controller = defmt::unwrap!(RIG.controller(policy, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-rp2040: integer policy, {} Hz", per_second);

@@ -12,7 +12,10 @@ use embassy_stm32::timer::{GeneralInstance4Channel, low_level::CountingMode};
 use embassy_time::{Duration, Instant, Ticker};
 use firmware::controller::Bridge;
 use firmware::estimator::ObserverSensor;
-use shipped::policy::{POLICY, RIG};
+#[cfg(feature = "desk")]
+use shipped::desk::RIG;
+#[cfg(not(feature = "desk"))]
+use shipped::policy::RIG;
 use firmware::rig::Options;
 
 /// A timer's 16-bit count carried into 32 bits: each period adds what it moved since the
@@ -66,15 +69,27 @@ pub async fn balance(p: Peripherals) -> ! {
     // The observer's gain is solved once, now; a refusal halts the board (through the panic
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
-    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`).
+    // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`). With `desk`,
+    // the gentle desk policy drives its nine duty levels through the PWM, without the
+    // monitor: no envelope was measured for it.
     let counts = move || (cart.read(), pole.read());
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, counts);
+    #[cfg(not(feature = "desk"))]
+    let (policy, monitor) = (&shipped::policy::POLICY, Some(shipped::envelope::ASSURANCE));
+    #[cfg(feature = "desk")]
+    let (policy, monitor) = (
+        firmware::controller::Greedy {
+            net: &shipped::desk::POLICY,
+            levels: shipped::desk::LEVELS,
+        },
+        None,
+    );
     let options = Options {
         predict: true,
-        monitor: Some(shipped::envelope::ASSURANCE),
+        monitor,
     };
-    let mut controller = defmt::unwrap!(RIG.controller(&POLICY, sensor, bridge, options));
+    let mut controller = defmt::unwrap!(RIG.controller(policy, sensor, bridge, options));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-stm32f446: f32 policy, {} Hz", per_second);
