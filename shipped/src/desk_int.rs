@@ -297,11 +297,12 @@ pub static POLICY_INT: ::firmware::network::int::QMlp<64, 9> = ::firmware::netwo
 };
 
 /// The duty level of each output, a fraction of the full push (+ towards +x).
-pub const LEVELS: ::firmware::controller::Levels<9> =
-    match ::firmware::controller::Levels::new([-1.0, -0.4, -0.15, -0.05, 0.0, 0.05, 0.15, 0.4, 1.0]) {
-        Ok(levels) => levels,
-        Err(_) => panic!("the policy's levels are refused"),
-    };
+pub const LEVELS: ::firmware::controller::Levels<9> = match ::firmware::controller::Levels::new([
+    -1.0, -0.4, -0.15, -0.05, 0.0, 0.05, 0.15, 0.4, 1.0,
+]) {
+    Ok(levels) => levels,
+    Err(_) => panic!("the policy's levels are refused"),
+};
 
 /// The machine the policy was trained for: build the board's observer, dead-time
 /// predictor and limits from it (`RIG.observer()`, `RIG.predictor()`, `RIG.limits()`).
