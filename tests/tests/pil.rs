@@ -19,7 +19,7 @@ use firmware::controller::Command as Drive;
 use firmware::link::{Format, Info, Message, Scores};
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Remote, Session};
-use host_sim::pil::{Board, ICOUNT, MACHINES, Place, handshake, run_row};
+use host_sim::pil::{Board, Check, ICOUNT, MACHINES, Place, handshake, run_row};
 use serialport::SerialPort;
 use twin::Scenario;
 
@@ -83,12 +83,8 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
             let info =
                 handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
             for s in &scenarios {
-                let (eps, check) =
-                    run_row(&mut remote, &mut here, (&info, false), s, 200, 0, 2, || ()).unwrap();
                 let what = format!("{target} {format:?} {}", s.name);
-                assert_eq!(eps.len(), 2, "{what}");
-                assert!(check.periods >= 200, "{what}: {check:?}");
-                assert_eq!(check.mismatches, 0, "{what}: {check:?}");
+                let check = two_episodes_agree(&mut remote, &mut here, &info, s, &what);
                 let [median, _, worst] = check.time_ns;
                 assert!(median > 0, "{what}: the target's clock did not move");
                 // Under -icount the time counts instructions: with an FPU, or in integers,
@@ -110,6 +106,22 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
             );
         }
     }
+}
+
+/// Two episodes of 200 periods of `scenario` on the target and here: both run whole, and
+/// no answer of the target's differs from the reference's.
+fn two_episodes_agree(
+    remote: &mut Session<impl Remote>,
+    here: &mut Session<impl Remote>,
+    info: &Info,
+    scenario: &Scenario,
+    what: &str,
+) -> Check {
+    let (eps, check) = run_row(remote, here, (info, false), scenario, 200, 0, 2, || ()).unwrap();
+    assert_eq!(eps.len(), 2, "{what}");
+    assert!(check.periods >= 200, "{what}: {check:?}");
+    assert_eq!(check.mismatches, 0, "{what}: {check:?}");
+    check
 }
 
 /// What the answers of a run said: the duties driven (thousandths; coasting is none) and how
@@ -173,12 +185,8 @@ fn on_every_target_a_policy_of_nine_levels_answers_as_the_controller_here() {
             *seen.borrow_mut() = Seen::default();
             let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Desk).unwrap();
             for s in &scenarios {
-                let (eps, check) =
-                    run_row(&mut remote, &mut here, (&info, false), s, 200, 0, 2, || ()).unwrap();
                 let what = format!("{target} {format:?} {}", s.name);
-                assert_eq!(eps.len(), 2, "{what}");
-                assert!(check.periods >= 200, "{what}: {check:?}");
-                assert_eq!(check.mismatches, 0, "{what}: {check:?}");
+                two_episodes_agree(&mut remote, &mut here, &info, s, &what);
             }
             let seen = seen.borrow();
             let what = format!("{target} {format:?}");
