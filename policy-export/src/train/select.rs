@@ -4,6 +4,7 @@
 
 use firmware::controller::Levels;
 use firmware::network::Mlp;
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::evaluate::{Judge, evaluate_int, quantised};
@@ -176,16 +177,21 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
     }
 
     fn evaluate(&mut self, net: &Mlp<H, A>, which: Eval) -> EvalResult {
-        let (episodes, steps, domain) = self.plan(which);
-        let streams = eval_streams(self.seed, which);
-        let policy = (net, self.levels);
-        let res = evaluate(policy, episodes, steps, domain, self.judge, streams);
+        let res = self.run(net, which);
         self.count(which, &res);
         res
     }
 
-    /// `net`'s trial as its int8 board runs it, on the float network's episodes.
-    fn trial_int8(&mut self, net: &Mlp<H, A>) -> EvalResult {
+    /// `net`'s evaluation `which`, not yet counted.
+    fn run(&self, net: &Mlp<H, A>, which: Eval) -> EvalResult {
+        let (episodes, steps, domain) = self.plan(which);
+        let (policy, streams) = ((net, self.levels), eval_streams(self.seed, which));
+        evaluate(policy, episodes, steps, domain, self.judge, streams)
+    }
+
+    /// `net`'s trial as its int8 board runs it, on the float network's episodes, not yet
+    /// counted.
+    fn trial_int8(&self, net: &Mlp<H, A>) -> EvalResult {
         let (episodes, steps, domain) = self.plan(Eval::Trial);
         let Ok(q) = quantised((net, self.levels), &self.domains.machine) else {
             return EvalResult {
@@ -198,9 +204,35 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         };
         let streams = eval_streams(self.seed, Eval::Trial);
         let policy = (&*q, self.levels);
-        let res = evaluate_int(policy, episodes, steps, domain, self.judge, streams);
-        self.count(Eval::Trial, &res);
-        res
+        evaluate_int(policy, episodes, steps, domain, self.judge, streams)
+    }
+
+    /// Every finalist's trial, f32 and (if asked) int8 boards, the finalists side by side on
+    /// all cores: each trial is a pure function of its network, so the order they run in
+    /// changes nothing.
+    fn trials(&mut self, pool: &[(EvalResult, usize, Box<Mlp<H, A>>)]) -> Vec<TrialRun> {
+        let this = &*self;
+        let runs: Vec<TrialRun> = pool
+            .par_iter()
+            .map(|(_, episode, net)| {
+                let (f32, int8) = rayon::join(
+                    || this.run(net, Eval::Trial),
+                    || this.cfg.board_int8.then(|| this.trial_int8(net)),
+                );
+                TrialRun {
+                    episode: *episode,
+                    f32,
+                    int8,
+                }
+            })
+            .collect();
+        for t in &runs {
+            self.count(Eval::Trial, &t.f32);
+            if let Some(i) = &t.int8 {
+                self.count(Eval::Trial, i);
+            }
+        }
+        runs
     }
 
     /// Evaluates the learner's weights after episode `episode` (1-based) and keeps them if
@@ -235,15 +267,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         let mut trial = Vec::new();
         if evaluate_policy && self.cfg.finalists > 0 {
             let pool = std::mem::take(&mut self.pool);
-            for (_, episode, net) in &pool {
-                let f32 = self.evaluate(net, Eval::Trial);
-                let int8 = self.cfg.board_int8.then(|| self.trial_int8(net));
-                trial.push(TrialRun {
-                    episode: *episode,
-                    f32,
-                    int8,
-                });
-            }
+            trial = self.trials(&pool);
             self.pool = pool;
             if let Some(i) = pick(&trial, self.cfg.trial_margin) {
                 self.pool.swap(0, i);
