@@ -5,6 +5,7 @@
 //! anyone; a check against mistakes. Every value is digested as its little-endian bytes, in
 //! the order of its type's fields.
 
+use crate::controller::Levels;
 use crate::network::Mlp;
 use crate::network::int::QMlp;
 use crate::rig::Rig;
@@ -69,6 +70,15 @@ pub fn qmlp<const H: usize, const A: usize>(m: &QMlp<H, A>) -> u64 {
         .all(m.fc2_weight.as_flattened(), w)
         .all(m.fc3_weight.as_flattened(), w)
         .finish()
+}
+
+/// A network's digest ([`mlp`] or [`qmlp`]) continued over the duty levels its outputs
+/// drive, in thousandths of the full push: what a target's [`super::Info`] names as its
+/// policy. The same network driving other duties is another policy: it pushes the cart
+/// otherwise.
+pub fn policy<const A: usize>(network: u64, levels: &Levels<A>) -> u64 {
+    let thousandths: [i16; A] = core::array::from_fn(|i| levels.duties()[i].thousandths());
+    Fnv(network).all(&thousandths, i16::to_le_bytes).finish()
 }
 
 /// The digest of a rig: every number a board's observer, predictor and limits are built

@@ -54,7 +54,8 @@ pub struct Info {
     pub format: Format,
     /// The policy's hidden width.
     pub hidden: u16,
-    /// [`super::digest::mlp`] or [`super::digest::qmlp`] of the policy.
+    /// [`super::digest::policy`]: the network's digest ([`super::digest::mlp`] or
+    /// [`super::digest::qmlp`]) with the duty levels its outputs drive.
     pub policy: u64,
     /// [`super::digest::rig`] of the rig the target's observer and predictor model.
     pub rig: u64,

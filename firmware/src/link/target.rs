@@ -139,6 +139,11 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
         self.refused
     }
 
+    /// The rig the target was built for, with the dead time it was built with.
+    pub fn rig(&self) -> &Rig {
+        &self.rig
+    }
+
     /// Whether the target holds an envelope, so that a Start may ask for the runtime
     /// monitor.
     pub fn monitors(&self) -> bool {
@@ -146,10 +151,11 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
     }
 
     fn info(&self) -> Info {
-        let (format, policy) = match self.format {
+        let (format, network) = match self.format {
             Format::F32 => (Format::F32, digest::mlp(self.policy.net)),
             Format::Int8 => (Format::Int8, digest::qmlp(self.policy_int.net)),
         };
+        let policy = digest::policy(network, &self.policy.levels);
         Info {
             format,
             hidden: H as u16,

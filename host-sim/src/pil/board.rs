@@ -30,8 +30,8 @@ impl Board {
     /// The rig it was built for, with the dead time it was built with.
     pub fn rig(self) -> Rig {
         match self {
-            Board::Shipped => shipped::policy::RIG,
-            Board::Desk => shipped::desk::RIG,
+            Board::Shipped => *shipped::target(1).rig(),
+            Board::Desk => *shipped::desk_target(1).rig(),
         }
     }
 

@@ -3,7 +3,7 @@ use std::vec::Vec;
 
 use super::*;
 use crate::cartpole::{CartPole, State};
-use crate::controller::{Command, Duty};
+use crate::controller::{Command, Duty, Levels};
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
@@ -209,13 +209,45 @@ fn hello_says_what_the_target_holds_in_the_format_asked_for() {
     };
     assert_eq!(info.format, Format::Int8);
     assert_eq!(info.hidden, 64);
-    assert_eq!(info.policy, digest::qmlp(&POLICY_INT));
+    assert_eq!(
+        info.policy,
+        digest::policy(digest::qmlp(&POLICY_INT), &LEVELS)
+    );
     assert_eq!(info.rig, digest::rig(&RIG));
     assert_eq!((info.period_ns, info.clock_hz), (20_000_000, CLOCK_HZ));
     let Message::Info(info) = send(&mut t, 4, Message::Hello(Format::F32)) else {
         panic!("an Info was due");
     };
-    assert_eq!(info.policy, digest::mlp(&POLICY));
+    assert_eq!(info.policy, digest::policy(digest::mlp(&POLICY), &LEVELS));
+}
+
+/// The same networks driving other duties are another policy: a host that runs the
+/// shipped levels refuses a target that would push the cart at half of them.
+#[test]
+fn hello_names_the_levels_with_the_network() {
+    let halved = Levels::new([-0.5, 0.5]).unwrap();
+    let mut shipped = target();
+    let mut other = Target::new(&POLICY, &POLICY_INT, halved, RIG, Some(ENVELOPE), CLOCK_HZ);
+    for format in [Format::F32, Format::Int8] {
+        let (Message::Info(a), Message::Info(b)) = (
+            send(&mut shipped, 1, Message::Hello(format)),
+            send(&mut other, 1, Message::Hello(format)),
+        ) else {
+            panic!("an Info was due");
+        };
+        assert_ne!(a.policy, b.policy, "{format:?}");
+        assert_eq!(
+            (a.hidden, a.rig, a.period_ns),
+            (b.hidden, b.rig, b.period_ns)
+        );
+    }
+    // The digest over the levels is FNV-1a's over their thousandths' bytes, continued.
+    let by_hand = [0x0cu8, 0xfe, 0xf4, 0x01]
+        .iter()
+        .fold(digest::mlp(&POLICY), |h, &b| {
+            (h ^ u64::from(b)).wrapping_mul(0x100_0000_01b3)
+        });
+    assert_eq!(digest::policy(digest::mlp(&POLICY), &halved), by_hand);
 }
 
 #[test]
