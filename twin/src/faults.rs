@@ -1,10 +1,11 @@
-//! What goes wrong in a real loop, as parts of a scenario (`glitch`, `stuck`, `drop`,
-//! `late`, `weak`, `reset`; [`crate::grammar::PARTS`] documents each): an encoder that
-//! jumps for a period or freezes, a reading that never arrives, a period that overruns, a
-//! motor that gives less than it should, a controller that restarts. The world applies the sensing and motor faults
-//! ([`crate::world::World`]); the episode applies the controller's ([`crate::run::Episode`]).
-//! Each comes in stretches at fixed periods ([`Window`]), so every controller meets the same
-//! faults at the same moments.
+//! What goes wrong in a real loop, as parts of a scenario (`zero`, `glitch`, `stuck`,
+//! `drop`, `late`, `weak`, `reset`; [`crate::grammar::PARTS`] documents each): an encoder
+//! zeroed off the true zero, one that jumps for a period or freezes, a reading that never
+//! arrives, a period that overruns, a motor that gives less than it should, a controller
+//! that restarts. The world applies the sensing and motor faults ([`crate::world::World`]);
+//! the episode applies the controller's ([`crate::run::Episode`]). Each but the zero comes
+//! in stretches at fixed periods ([`Window`]), so every controller meets the same faults at
+//! the same moments.
 
 use firmware::estimator::Encoders;
 
@@ -39,6 +40,10 @@ impl Window {
 /// A scenario's faults; the default is none.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Faults {
+    /// The encoders' zeros are off: every reading of the pole angle is this many radians,
+    /// and every reading of the cart this many metres, more than the truth (through
+    /// encoders, in the nearest whole counts).
+    pub zero: Option<(f64, f64)>,
     /// The pole encoder reads this many counts off, in the window's periods (with exact
     /// sensing, the angle is off by as many of the rig's pole counts).
     pub glitch: Option<(u32, Window)>,
@@ -60,20 +65,31 @@ impl Faults {
         k > 0 && self.reset.is_some_and(|w| w.holds(k))
     }
 
-    /// `m`, period `k`'s true measurement, as the faulty sensor gives it: off by the
-    /// glitch. Stuck and dropped readings are the world's (they need what came before).
+    /// `m`, period `k`'s true measurement, as the faulty sensor gives it: off by the zero
+    /// errors and the glitch. Stuck and dropped readings are the world's (they need what
+    /// came before).
     pub(crate) fn corrupt(&self, m: Measurement, k: u32, encoders: &Encoders) -> Measurement {
-        let glitch = match self.glitch {
-            Some((n, w)) if w.holds(k) => n,
-            _ => return m,
-        };
+        let pole_count = core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev);
+        let (mut theta, x) = self.zero.unwrap_or((0.0, 0.0));
+        if let Some((n, w)) = self.glitch
+            && w.holds(k)
+        {
+            theta += f64::from(n) * pole_count;
+        }
+        if (theta, x) == (0.0, 0.0) {
+            return m;
+        }
         match m {
             Measurement::Counts(cart, pole) => {
-                Measurement::Counts(cart, pole.wrapping_add_unsigned(glitch))
+                let counts = |v: f64| v.round() as i32;
+                Measurement::Counts(
+                    cart.wrapping_add(counts(x * f64::from(encoders.cart_counts_per_m))),
+                    pole.wrapping_add(counts(theta / pole_count)),
+                )
             }
             Measurement::State(mut s) => {
-                let count = core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev);
-                s[2] = (f64::from(s[2]) + f64::from(glitch) * count) as f32;
+                s[0] = (f64::from(s[0]) + x) as f32;
+                s[2] = (f64::from(s[2]) + theta) as f32;
                 Measurement::State(s)
             }
             Measurement::Missing => m,
@@ -92,6 +108,12 @@ fn window(v: &Values, i: usize) -> Window {
 /// One period every field `i`'s.
 fn every(v: &Values, i: usize) -> Window {
     Window::every(v.whole(i).max(1))
+}
+
+/// `zero=DEG/MM`.
+pub(crate) fn zero(s: &mut Scenario, v: &Values) {
+    let (deg, mm) = (v.get(0).unwrap_or(0.0), v.get(1).unwrap_or(0.0));
+    s.faults.zero = Some((deg.to_radians(), mm / 1000.0));
 }
 
 /// `glitch=N/EVERY`.

@@ -252,6 +252,17 @@ pub const PARTS: &[PartSpec] = &[
         doc: "a push of IMPULSE N s every EVERY periods, to a random side",
     },
     PartSpec {
+        key: "zero",
+        effect: crate::faults::zero,
+        fields: &[
+            field("pole degrees", Kind::Real, -5.0, 5.0, Fallback::Required),
+            field("cart mm", Kind::Real, -100.0, 100.0, Fallback::Value(0.0)),
+        ],
+        syntax: "zero=DEG[/MM]",
+        doc: "the encoders' zeros are off for the whole episode: the pole reads DEG degrees \
+              and the cart MM mm more than they are (through encoders, in whole counts)",
+    },
+    PartSpec {
         key: "glitch",
         effect: crate::faults::glitch,
         fields: &[

@@ -56,6 +56,8 @@ fn the_parts_set_the_faults_with_their_defaults() {
         ))
     );
     assert_eq!(f("reset=40").reset, Some(w(40)));
+    assert_eq!(f("zero=-2").zero, Some(((-2.0f64).to_radians(), 0.0)));
+    assert_eq!(f("zero=1/-25").zero, Some((1.0f64.to_radians(), -0.025)));
     assert_eq!(f("noise+delay"), Faults::default());
     for bad in [
         "weak",
@@ -64,6 +66,9 @@ fn the_parts_set_the_faults_with_their_defaults() {
         "drop=0",
         "stuck=2/0",
         "late=-1",
+        "zero",
+        "zero=6",
+        "zero=1/101",
     ] {
         assert!(Scenario::parse(bad).is_err(), "{bad} was accepted");
     }
@@ -113,6 +118,38 @@ fn a_glitch_adds_its_counts_to_the_pole_for_one_period() {
         let off = if k % 7 == 6 { 3.0 * count } else { 0.0 };
         assert_eq!(g[2], (f64::from(s[2]) + off) as f32, "period {k}");
         assert_eq!((g[0], g[1], g[3]), (s[0], s[1], s[3]));
+    });
+}
+
+#[test]
+fn a_zero_error_offsets_every_reading_by_its_whole_counts() {
+    // 1 degree of a 1,024-count pole encoder is 2.84 counts, read as 3; 5 mm of the cart's
+    // 5,120 counts a metre is 25.6, read as 26. A glitch adds its counts on top.
+    side_by_side("encoder=1024", "zero=1/5+glitch=10/4", |k, sound, got| {
+        let Measurement::Counts(c, p) = sound else {
+            panic!()
+        };
+        let glitch = if k % 4 == 3 { 10 } else { 0 };
+        assert_eq!(
+            got,
+            Measurement::Counts(c + 26, p + 3 + glitch),
+            "period {k}"
+        );
+    });
+    side_by_side("encoder=1024", "zero=-1/-5", |k, sound, got| {
+        let Measurement::Counts(c, p) = sound else {
+            panic!()
+        };
+        assert_eq!(got, Measurement::Counts(c - 26, p - 3), "period {k}");
+    });
+    // Exact sensing: the angle and the position off by the amounts themselves.
+    side_by_side("nominal", "zero=2/-30", |k, sound, got| {
+        let (Measurement::State(s), Measurement::State(g)) = (sound, got) else {
+            panic!()
+        };
+        assert_eq!(g[0], (f64::from(s[0]) - 0.03) as f32, "period {k}");
+        assert_eq!(g[2], (f64::from(s[2]) + 2.0f64.to_radians()) as f32);
+        assert_eq!((g[1], g[3]), (s[1], s[3]));
     });
 }
 
