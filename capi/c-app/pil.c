@@ -170,6 +170,10 @@ static uint64_t qmlp_digest(const struct cartpole_qmlp64 *m)
     return FIELD(h, m->fc3_weight);
 }
 
+/* The policy's digest goes on over the duty level of each output, in thousandths: the
+ * shipped policy's two full pushes. */
+static const int16_t shipped_levels[2] = {-1000, 1000};
+
 static uint64_t rig_digest(const struct cartpole_rig *r)
 {
     uint64_t h = FIELD(FNV_START, r->gravity);
@@ -208,7 +212,8 @@ static int info(struct writer *w, const uint8_t *body, uint16_t seq)
     t.format = body[0];
     t.fresh_dead_time = -1;
     uint16_t hidden = 64;
-    uint64_t policy = t.format ? qmlp_digest(&shipped_int) : mlp_digest(&shipped);
+    uint64_t network = t.format ? qmlp_digest(&shipped_int) : mlp_digest(&shipped);
+    uint64_t policy = FIELD(network, shipped_levels);
     uint64_t rig = rig_digest(&shipped_rig);
     uint32_t period_ns = (uint32_t)(shipped_rig.tau * 1e9 + 0.5), clock = CLOCK_HZ;
     put(w, body, 1);
