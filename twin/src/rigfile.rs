@@ -329,13 +329,20 @@ impl Fields<'_> {
     }
 
     /// The `[identified]` half-widths: relative, so a value off by more than itself (1) is
-    /// not an identification. And its misfit's, if any.
+    /// not an identification. And its misfit's, if any, which widens each to at least
+    /// [`MISFIT_HALF_WIDTH`].
     fn uncertainty(self, i: &Identified) -> Result<Uncertainty> {
-        let c =
-            |field: &str, v: f64| self.check(&format!("identified.{field}"), v, (0.0, 1.0), false);
-        if let Some(m) = &i.misfit {
-            m.check(self)?;
-        }
+        let least = match &i.misfit {
+            Some(m) => {
+                m.check(self)?;
+                MISFIT_HALF_WIDTH
+            }
+            None => 0.0,
+        };
+        let c = |field: &str, v: f64| {
+            let v = self.check(&format!("identified.{field}"), v, (0.0, 1.0), false)?;
+            Ok::<f64, weights::Error>(v.max(least))
+        };
         Ok(Uncertainty {
             stall_force: c("stall_force", i.stall_force)?,
             damping: c("damping", i.damping)?,
@@ -475,7 +482,7 @@ pub fn to_toml(machine: &Machine) -> String {
 }
 
 mod misfit;
-pub use misfit::{Misfit, misfit};
+pub use misfit::{MISFIT_HALF_WIDTH, Misfit, misfit};
 
 #[cfg(test)]
 mod tests;

@@ -382,7 +382,8 @@ fn the_deploy_recipe_is_made_for_its_machine() {
 
 /// On Gymnasium's machine the deploy domains are the shipped recipe's, to the character (the
 /// recipe's strings are recorded in the policy file); on a rig with a damped motor the damping
-/// is drawn too, and a value identified less precisely than the range is drawn wider.
+/// is drawn too, and a value identified less precisely than the range is drawn wider, as is
+/// every value of a fit that did not explain its logs.
 #[test]
 fn deploy_domains_widen_to_the_identifications_intervals() {
     let g = Config::deploy();
@@ -413,4 +414,17 @@ fn deploy_domains_widen_to_the_identifications_intervals() {
             .contains("+force=0.6..1.4+damping=0.8..1.2+")
     );
     d.validate().unwrap();
+    // A fit that did not explain its logs: every value drawn over +-50% at least.
+    let misfit = "\n[identified]\nstall_force = 0.01\ndamping = 0.75\npole_com = 0.01\n\
+                  [identified.misfit]\ncart_rms_counts = 9.0\npole_rms_counts = 1.2\n\
+                  autocorrelation = 0.9\n";
+    let text = include_str!("../../../rigs/desk.toml").to_owned() + misfit;
+    let d = Config::deploy_on(&twin::rigfile::parse(&text, "misfit").unwrap());
+    for spec in [&d.domain, &d.eval_domain, &d.finalist_domain] {
+        assert!(spec.starts_with("length=0.5..1.5+polemass="), "{spec}");
+        assert!(
+            spec.contains("+force=0.5..1.5+damping=0.25..1.75"),
+            "{spec}"
+        );
+    }
 }

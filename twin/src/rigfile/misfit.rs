@@ -5,6 +5,13 @@ use weights::{Error, Result};
 
 use super::{Fields, File, parse};
 
+/// The least relative half-width of each identified value (the motor's stall force and
+/// damping, the pole's centre of mass) of a rig whose fit did not explain its logs. A
+/// misfit's estimates are biased by what the model leaves out, and its intervals, which
+/// assume independent residuals, are far too narrow; so the training for such a rig draws
+/// those values over +-50%, twice the deploy recipe's own +-25% (`docs/RIGS.md`).
+pub const MISFIT_HALF_WIDTH: f64 = 0.5;
+
 /// The `[identified.misfit]` table `host-sim identify` writes when its fit does not explain
 /// the logs (`host_sim::identify::misfit`): the rig's model is then not the machine, and
 /// its values and intervals are not to be trusted. Absent, the fit held.

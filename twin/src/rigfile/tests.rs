@@ -195,9 +195,11 @@ fn bad_rigs_are_refused_naming_the_field() {
 }
 
 /// A misfit table written reads back as written, after the file's other tables and with or
-/// without an `[identified]` table of its own; a file without one has none.
+/// without an `[identified]` table of its own; a file without one has none. The machine it
+/// describes has every identified half-width widened to at least [`MISFIT_HALF_WIDTH`], a
+/// wider one kept.
 #[test]
-fn a_misfit_reads_back_as_written() {
+fn a_misfit_reads_back_as_written_and_widens_the_intervals() {
     let m = Misfit {
         cart_rms_counts: 12.5,
         pole_rms_counts: 0.3,
@@ -207,9 +209,25 @@ fn a_misfit_reads_back_as_written() {
     assert_eq!(misfit(&desk, "desk").unwrap(), None);
     let mut identified = Machine::GYMNASIUM;
     identified.uncertainty.stall_force = 0.1;
+    identified.uncertainty.damping = 0.8;
     for machine in [Machine::GYMNASIUM, identified] {
         let text = to_toml(&machine) + &m.to_toml();
         assert_eq!(misfit(&text, "t").unwrap(), Some(m), "{text}");
-        assert_eq!(parse(&text, "t").unwrap(), machine);
+        let read = parse(&text, "t").unwrap();
+        let u = machine.uncertainty;
+        let widened = Uncertainty {
+            stall_force: u.stall_force.max(0.5),
+            damping: u.damping.max(0.5),
+            pole_com: u.pole_com.max(0.5),
+        };
+        assert_eq!(read.uncertainty, widened, "{text}");
+        assert_eq!(parse(&to_toml(&machine), "t").unwrap(), machine);
+        assert_eq!(
+            Machine {
+                uncertainty: u,
+                ..read
+            },
+            machine
+        );
     }
 }
