@@ -93,8 +93,8 @@ impl Prices {
     };
 }
 
-/// Episodes a thread runs side by side ([`twin::lockstep`]) at most, enough to keep the lanes
-/// full as episodes end.
+/// Episodes one task of an evaluation runs through [`twin::lockstep`] at most: enough to
+/// keep its lanes full as episodes end.
 const CHUNK: usize = 32;
 
 /// Runs `episodes` greedy episodes of at most `max_steps` through the firmware's controller,
@@ -147,8 +147,8 @@ fn evaluate_policy<P: Policy + Copy + Send + Sync>(
     judge: Judge,
     streams: EvalStreams,
 ) -> EvalResult {
-    // Chunks of equal size, so that 50 episodes keep two threads busy alike (25 and 25, not
-    // 32 and 18); an episode's figures do not depend on the chunk it runs in.
+    // Chunks as equal as they can be, so that 50 episodes keep two threads busy alike (25
+    // and 25, not 32 and 18); an episode's figures do not depend on the chunk it runs in.
     let size = episodes.div_ceil(episodes.div_ceil(CHUNK).max(1)).max(1);
     let per_episode: Vec<(f64, f64, u64)> = (0..episodes.div_ceil(size))
         .into_par_iter()

@@ -190,49 +190,51 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
     }
 
     /// `net`'s trial as its int8 board runs it, on the float network's episodes, not yet
-    /// counted.
-    fn trial_int8(&self, net: &Mlp<H, A>) -> EvalResult {
+    /// counted; `None` if the quantiser refuses the network.
+    fn trial_int8(&self, net: &Mlp<H, A>) -> Option<EvalResult> {
         let (episodes, steps, domain) = self.plan(Eval::Trial);
-        let Ok(q) = quantised((net, self.levels), &self.domains.machine) else {
-            return EvalResult {
-                episodes,
-                max_steps: steps,
-                mean: 0.0,
-                min: 0.0,
-                cost: 0.0,
-            };
-        };
+        let q = quantised((net, self.levels), &self.domains.machine).ok()?;
         let streams = eval_streams(self.seed, Eval::Trial);
         let policy = (&*q, self.levels);
-        evaluate_int(policy, episodes, steps, domain, self.judge, streams)
+        Some(evaluate_int(
+            policy, episodes, steps, domain, self.judge, streams,
+        ))
     }
 
     /// Every finalist's trial, f32 and (if asked) int8 boards, the finalists side by side on
     /// all cores: each trial is a pure function of its network, so the order they run in
-    /// changes nothing.
+    /// changes nothing. The episodes that ran are counted; an int8 board the quantiser
+    /// refused ran none and scores 0.
     fn trials(&mut self, pool: &[(EvalResult, usize, Box<Mlp<H, A>>)]) -> Vec<TrialRun> {
         let this = &*self;
-        let runs: Vec<TrialRun> = pool
+        let runs: Vec<_> = pool
             .par_iter()
             .map(|(_, episode, net)| {
                 let (f32, int8) = rayon::join(
                     || this.run(net, Eval::Trial),
                     || this.cfg.board_int8.then(|| this.trial_int8(net)),
                 );
-                TrialRun {
-                    episode: *episode,
-                    f32,
-                    int8,
-                }
+                (*episode, f32, int8)
             })
             .collect();
-        for t in &runs {
-            self.count(Eval::Trial, &t.f32);
-            if let Some(i) = &t.int8 {
-                self.count(Eval::Trial, i);
+        let (episodes, max_steps, _) = self.plan(Eval::Trial);
+        let refused = EvalResult {
+            episodes,
+            max_steps,
+            mean: 0.0,
+            min: 0.0,
+            cost: 0.0,
+        };
+        let mut trial = Vec::with_capacity(runs.len());
+        for (episode, f32, int8) in runs {
+            self.count(Eval::Trial, &f32);
+            if let Some(Some(ran)) = &int8 {
+                self.count(Eval::Trial, ran);
             }
+            let int8 = int8.map(|r| r.unwrap_or_else(|| refused.clone()));
+            trial.push(TrialRun { episode, f32, int8 });
         }
-        runs
+        trial
     }
 
     /// Evaluates the learner's weights after episode `episode` (1-based) and keeps them if
