@@ -170,8 +170,9 @@ static uint64_t qmlp_digest(const struct cartpole_qmlp64 *m)
     return FIELD(h, m->fc3_weight);
 }
 
-/* The policy's digest goes on over the duty level of each output, in thousandths: the
- * shipped policy's two full pushes. */
+/* The policy's digest goes on over the duty level of each output, in thousandths. The
+ * headers of a two-output policy carry no levels: the C API's two-output controller always
+ * drives the two full pushes, so they are written here. */
 static const int16_t shipped_levels[2] = {-1000, 1000};
 
 static uint64_t rig_digest(const struct cartpole_rig *r)

@@ -69,27 +69,33 @@ impl Faults {
     /// errors and the glitch. Stuck and dropped readings are the world's (they need what
     /// came before).
     pub(crate) fn corrupt(&self, m: Measurement, k: u32, encoders: &Encoders) -> Measurement {
-        let pole_count = core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev);
-        let (mut theta, x) = self.zero.unwrap_or((0.0, 0.0));
-        if let Some((n, w)) = self.glitch
-            && w.holds(k)
-        {
-            theta += f64::from(n) * pole_count;
-        }
-        if (theta, x) == (0.0, 0.0) {
+        let (theta, x) = self.zero.unwrap_or((0.0, 0.0));
+        let glitch = match self.glitch {
+            Some((n, w)) if w.holds(k) => n,
+            _ => 0,
+        };
+        if (theta, x, glitch) == (0.0, 0.0, 0) {
             return m;
         }
+        let pole_count = core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev);
         match m {
             Measurement::Counts(cart, pole) => {
                 let counts = |v: f64| v.round() as i32;
                 Measurement::Counts(
                     cart.wrapping_add(counts(x * f64::from(encoders.cart_counts_per_m))),
-                    pole.wrapping_add(counts(theta / pole_count)),
+                    pole.wrapping_add(counts(theta / pole_count))
+                        .wrapping_add_unsigned(glitch),
                 )
             }
             Measurement::State(mut s) => {
-                s[0] = (f64::from(s[0]) + x) as f32;
-                s[2] = (f64::from(s[2]) + theta) as f32;
+                // A channel with nothing to add is left alone, its bits (a -0.0) too.
+                if x != 0.0 {
+                    s[0] = (f64::from(s[0]) + x) as f32;
+                }
+                let theta = theta + f64::from(glitch) * pole_count;
+                if theta != 0.0 {
+                    s[2] = (f64::from(s[2]) + theta) as f32;
+                }
                 Measurement::State(s)
             }
             Measurement::Missing => m,

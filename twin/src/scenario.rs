@@ -232,7 +232,8 @@ pub const HARD: &[&str] = &[
     "encoder=512+push=1.1/50",
 ];
 
-/// The `faults` set: each fault of a real loop alone, at its default and a severe level
+/// The `faults` set: each transient fault of a real loop alone (not `zero`, a lasting
+/// error: `docs/RIGS.md`), at its default and a severe level
 /// (half a revolution of glitch, half a second stuck, every other reading lost or period
 /// late, the motor dead for 0.2 s every 5 s, a restart every third period), read through
 /// the encoders and the observer where the fault is the sensor's, and all of them at once
