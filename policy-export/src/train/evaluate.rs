@@ -254,6 +254,9 @@ mod tests {
             prices: Prices::PLAIN,
         };
         let res = evaluate_int(int, episodes, max_steps, &domain, judge, streams);
+        // Cut into other chunks (33 episodes run as 17 and 16), the first 33 episodes give
+        // the figures of the same 33 run one at a time below.
+        let first = evaluate_int(int, 33, max_steps, &domain, judge, streams);
         let returns: Vec<f64> = (0..episodes as u64)
             .map(|e| {
                 let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
@@ -277,11 +280,19 @@ mod tests {
                 }
             })
             .collect();
-        let mean = returns.iter().sum::<f64>() / episodes as f64;
-        let min = returns.iter().copied().fold(f64::INFINITY, f64::min);
+        let figures = |r: &[f64]| {
+            let mean = r.iter().sum::<f64>() / r.len() as f64;
+            (mean, r.iter().copied().fold(f64::INFINITY, f64::min))
+        };
+        let (mean, min) = figures(&returns);
         assert_eq!(
             (res.mean.to_bits(), res.min.to_bits()),
             (mean.to_bits(), min.to_bits())
+        );
+        let (mean33, min33) = figures(&returns[..33]);
+        assert_eq!(
+            (first.mean.to_bits(), first.min.to_bits()),
+            (mean33.to_bits(), min33.to_bits())
         );
         // Hard enough that some episodes fall and some hold, and not the float board's.
         assert!(min < f64::from(max_steps) && mean > min, "{res:?}");
