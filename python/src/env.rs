@@ -22,10 +22,10 @@ fn worlds(scenario: Option<&str>, domain: Option<&str>, rig: Option<PathBuf>) ->
             "expected a scenario or a domain, not both; found scenario {s:?} and domain {d:?}"
         ))),
         (None, Some(d)) => twin::Domain::parse_on(d, &machine)
-            .map(Worlds::Random)
+            .map(|d| Worlds::Random(Box::new(d)))
             .map_err(value_error),
         (s, None) => twin::Scenario::parse_on(s.unwrap_or("nominal"), &machine)
-            .map(Worlds::Fixed)
+            .map(|s| Worlds::Fixed(Box::new(s)))
             .map_err(value_error),
     }
 }

@@ -28,16 +28,16 @@ const DOMAIN_STREAM: u64 = 5;
 #[derive(Clone, Debug)]
 pub enum Worlds {
     /// The same scenario every episode.
-    Fixed(Scenario),
+    Fixed(Box<Scenario>),
     /// A scenario drawn from the domain each episode.
-    Random(Domain),
+    Random(Box<Domain>),
 }
 
 impl Worlds {
     /// The world of episode `episode` of `seed`.
     fn scenario(&self, seed: u64, episode: u64) -> Scenario {
         match self {
-            Worlds::Fixed(s) => s.clone(),
+            Worlds::Fixed(s) => (**s).clone(),
             Worlds::Random(d) => {
                 d.sample(&mut host_common::seed::rng(seed, episode, DOMAIN_STREAM))
             }
