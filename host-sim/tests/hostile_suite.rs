@@ -12,6 +12,10 @@ mod hostile;
 
 use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
+#[path = "hostile_suite/worlds.rs"]
+mod worlds;
+use worlds::{bad_rigs, bad_specs};
+
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
 }
@@ -316,45 +320,6 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
     cases
 }
 
-/// Scenario specs no command can take.
-fn bad_specs() -> Vec<Case> {
-    let mut cases = Vec::new();
-    let long = "x".repeat(5_000);
-    let specs = [
-        "nominal+mass=2",
-        "wind=3",
-        "mass",
-        "mass=abc",
-        "mass=1e300",
-        "length=999+length=999",
-        "noise=-1",
-        "delay=99",
-        "+",
-        "mass=1..0",
-        "mass=2@7",
-        &long,
-    ];
-    for spec in specs {
-        for cmd in [
-            &["eval", "--episodes", "1"][..],
-            &["render", "--horizon", "5", "--out", "r"],
-        ] {
-            let mut args: Vec<OsString> = cmd.iter().map(OsString::from).collect();
-            args.extend([OsString::from("--scenario"), OsString::from(spec)]);
-            let label: String = format!("{cmd:?} --scenario {spec}")
-                .chars()
-                .take(60)
-                .collect();
-            cases.push(Case::new(
-                label,
-                &args,
-                &["expected", "unknown part", "needs", "must be", "comes to"],
-            ));
-        }
-    }
-    cases
-}
-
 /// Results files of `tables` that are no files: a FIFO (which blocked) and a link to
 /// `/dev/zero` (read until memory ran out).
 fn bad_tables(s: &Scratch) -> Vec<Case> {
@@ -395,6 +360,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     cases.extend(bad_values(&s));
     cases.extend(bad_specs());
     cases.extend(bad_tables(&s));
+    cases.extend(bad_rigs(&s));
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }
