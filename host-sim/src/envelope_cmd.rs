@@ -64,7 +64,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         anyhow::bail!(
             "--out writes the shipped crate's module, the shipped policy's envelope: for --policy {} \
              use --json and give the file to eval --envelope",
-            policy.display()
+            weights::shown(policy)
         );
     }
     let outputs: Vec<(&str, &std::path::Path)> =

@@ -40,7 +40,7 @@ fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
     let mut total = 0;
     for path in paths {
         let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
-        let origin = path.display().to_string();
+        let origin = weights::shown(path);
         total += bytes.len() as u64;
         if total > log::MAX_TOTAL_LOG_BYTES {
             return Err(weights::Error::Input(format!(
@@ -150,7 +150,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     if truth.rig.params.tau != board.rig.params.tau {
         return Err(weights::Error::Input(format!(
             "--rig {}: expected the period of --world ({} s), found {} s",
-            a.rig.display(),
+            weights::shown(&a.rig),
             truth.rig.params.tau,
             board.rig.params.tau
         ))

@@ -149,7 +149,7 @@ impl Subject {
             anyhow::bail!(
                 "--controller monitored needs the envelope measured for --policy {}: give \
                  --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
-                path.display()
+                weights::shown(path)
             );
         }
         let envelope = self
@@ -185,7 +185,7 @@ impl Subject {
             weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
         let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
         let net = Net::from_weights(&import.weights, int.then_some(&machine))
-            .with_context(|| format!("policy {}", path.display()))?;
+            .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))
     }
 }

@@ -398,7 +398,7 @@ fn degrees(rad: f64) -> f64 {
 /// Reads the rig file at `path` (see [the module](self)).
 pub fn load(path: &Path) -> Result<Machine> {
     let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
-    let origin = format!("rig {}", path.display());
+    let origin = format!("rig {}", weights::shown(path));
     let text = std::str::from_utf8(&bytes)
         .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
     parse(text, &origin)

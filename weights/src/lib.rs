@@ -77,6 +77,13 @@ pub fn excerpt(s: &str) -> String {
     if cut { text + "..." } else { text }
 }
 
+/// A path as a message shows it: its text with [`excerpt`]'s escaping and cut, so that a
+/// file named with a line break or an escape sequence is named on one line that moves no
+/// cursor. Every message that names a file names it so.
+pub fn shown(path: &std::path::Path) -> String {
+    excerpt(&path.to_string_lossy())
+}
+
 /// The escaped beginning of `s`, at most [`QUOTE_MAX`] characters, and whether it was cut.
 /// An escape is never split, and only what is shown is read: a 64 MiB name costs as much as a
 /// short one.
