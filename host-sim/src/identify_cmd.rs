@@ -76,6 +76,14 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     let inputs: Vec<&Path> = labelled.iter().map(|(_, p)| p.as_path()).collect();
     if let Some(dir) = &a.plots {
         report::check_plots(dir, &logs, &inputs)?;
+        let plots: Vec<PathBuf> = report::plot_paths(dir, &logs)
+            .into_iter()
+            .flatten()
+            .flat_map(|png| [png.with_extension("svg"), png])
+            .collect();
+        let mut files = vec![("--out", a.out.as_path())];
+        files.extend(plots.iter().map(|p| ("--plots", p.as_path())));
+        weights::files::check_apart(&files, &[("--plots", dir)])?;
     }
     identify::check(&logs, &machine)?;
     let bar = ProgressBar::new_spinner().with_style(

@@ -242,6 +242,36 @@ fn bad_output_dirs(s: &Scratch, log: &Path, dir: &Path, file: &Path, fifo: PathB
         ]);
         cases.push(Case::new(format!("identify --plots {label}"), &plots, want));
     }
+    // Two outputs at one place: the rig file written where the plots went (or they below
+    // it), after the plots were drawn.
+    let (plots, id) = (s.join("plots"), s.join("id-out.toml"));
+    std::os::unix::fs::symlink(&s.0, s.join("here")).unwrap();
+    for (label, out, dir) in [
+        ("the plots", plots.clone(), plots.clone()),
+        ("a plot", plots.join("identify-1-cart.png"), plots.clone()),
+        ("above the plots", id.clone(), id.join("plots")),
+        (
+            "the plots through a link",
+            s.join("here/plots"),
+            plots.clone(),
+        ),
+    ] {
+        let args = os(&[
+            &"identify",
+            &log,
+            &"--rig",
+            &rig,
+            &"--out",
+            &out,
+            &"--plots",
+            &dir,
+        ]);
+        cases.push(Case::new(
+            format!("identify --out {label}"),
+            &args,
+            &["expected a place of its own"],
+        ));
+    }
     // A picture's name taken by a directory.
     std::fs::create_dir_all(dir.join("episode.gif")).unwrap();
     let render = os(&[&"render", &"--horizon", &"5", &"--out", &dir]);

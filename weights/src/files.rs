@@ -10,6 +10,9 @@ use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
+mod apart;
+pub use apart::check_apart;
+
 /// Largest policy file read: every supported network fits many times over (width 256 is 270
 /// KB), yet `/dev/zero` or a runaway file cannot exhaust memory.
 pub const MAX_POLICY_BYTES: u64 = 64 << 20;

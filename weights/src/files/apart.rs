@@ -1,0 +1,76 @@
+//! Outputs of one command kept apart: no two at one place, and no file where another output
+//! needs a directory. Each output's own check ([`super::check_output`]) passes while nothing
+//! is there yet, so two outputs at one place pass it both, and the second write failed after
+//! the first was done.
+
+use std::path::{Component, Path, PathBuf};
+
+use crate::{Error, Result, shown};
+
+/// Refuses `files` (labelled file outputs) and `dirs` (directory outputs) of which one file
+/// is the place of another output, or above it: a file where the other needs a directory.
+/// Paths are compared as the system will resolve them (absolute, through the links of the
+/// part that exists), so `./a` and `a`, or a link to a directory and the directory, meet.
+pub fn check_apart(files: &[(&str, &Path)], dirs: &[(&str, &Path)]) -> Result<()> {
+    let all: Vec<(&str, &Path, PathBuf)> = files
+        .iter()
+        .chain(dirs)
+        .map(|&(label, path)| (label, path, resolved(path)))
+        .collect();
+    for (i, (label, path, place)) in all.iter().enumerate() {
+        let is_file = i < files.len();
+        for (j, (other, other_path, other_place)) in all.iter().enumerate() {
+            let clash = if i == j {
+                false
+            } else if is_file {
+                other_place.starts_with(place)
+            } else {
+                other_place == place
+            };
+            if clash {
+                return Err(Error::Input(format!(
+                    "{label} {}: expected a place of its own, found {} {} at it{}",
+                    shown(path),
+                    other,
+                    shown(other_path),
+                    if other_place == place {
+                        ""
+                    } else {
+                        " or below it"
+                    }
+                )));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// `path` made absolute, the part of it that exists with its links resolved, the rest as
+/// written (`..` in it taken lexically).
+fn resolved(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut existing = abs.as_path();
+    let mut rest = Vec::new();
+    let mut base = loop {
+        if let Ok(p) = existing.canonicalize() {
+            break p;
+        }
+        match (existing.parent(), existing.components().next_back()) {
+            (Some(parent), Some(last)) => {
+                rest.push(last);
+                existing = parent;
+            }
+            _ => break PathBuf::new(),
+        }
+    };
+    for c in rest.into_iter().rev() {
+        match c {
+            Component::ParentDir => {
+                base.pop();
+            }
+            Component::CurDir => {}
+            other => base.push(other),
+        }
+    }
+    base
+}
