@@ -306,8 +306,14 @@ fn bad_numbers() -> Vec<Case> {
         "--tau",
         "--eval-episodes",
         "--seed",
+        "--grad-clip",
+        "--eps-end",
     ];
-    let values = ["-1", "abc", "", "1e999", "NaN", "1e39", "0x10"];
+    // Subnormals were taken (a gamma of 5e-324, a clip of nothing), and shown in a message as
+    // 320 decimal places.
+    let values = [
+        "-1", "abc", "", "1e999", "NaN", "1e39", "0x10", "5e-324", "1e-310",
+    ];
     for flag in flags {
         for v in values {
             let args = os(&[&"train", &flag, &v]);
