@@ -166,7 +166,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     }
     if !(a.jitter.is_finite() && (0.0..=100.0).contains(&a.jitter)) {
         return Err(weights::Error::Input(format!(
-            "--jitter: expected counts in [0, 100], found {}",
+            "--jitter: expected counts in [0, 100], found {:?}",
             a.jitter
         ))
         .into());
@@ -174,7 +174,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     for (flag, seconds) in [("--cart-s", a.cart_s), ("--swing-s", a.swing_s)] {
         if !(log::MIN_SECONDS..=MAX_SIMULATED_S).contains(&seconds) {
             return Err(weights::Error::Input(format!(
-                "{flag}: expected seconds in [{}, {MAX_SIMULATED_S}], found {seconds}",
+                "{flag}: expected seconds in [{}, {MAX_SIMULATED_S}], found {seconds:?}",
                 log::MIN_SECONDS
             ))
             .into());

@@ -324,7 +324,7 @@ fn check_eval(a: &EvalArgs) -> Result<()> {
     if let Some(m) = a.min_success {
         anyhow::ensure!(
             (0.0..=1.0).contains(&m),
-            "--min-success must lie in [0, 1], got {m}"
+            "--min-success must lie in [0, 1], got {m:?}"
         );
     }
     anyhow::ensure!(

@@ -347,6 +347,32 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             cases.push(Case::new(format!("{cmd:?} {flag} {v:?}"), &args, &want));
         }
     }
+    // A tiny real shown as written, not as 300 decimal places.
+    let (desk, out) = (repo("rigs/desk.toml"), s.join("tiny.log"));
+    let simulate = os(&[
+        &"simulate-logs",
+        &"--world",
+        &desk,
+        &"--rig",
+        &desk,
+        &"--out",
+        &out,
+    ]);
+    let reals: [(Vec<OsString>, &str); 6] = [
+        (os(&[&"envelope"]), "--quantile"),
+        (os(&[&"eval", &"--episodes", &"1"]), "--min-success"),
+        (os(&[&"soak"]), "--hours"),
+        (simulate.clone(), "--cart-s"),
+        (simulate.clone(), "--swing-s"),
+        (simulate, "--jitter"),
+    ];
+    for (cmd, flag) in reals {
+        let args = [cmd, os(&[&format!("{flag}=-1e-300")])].concat();
+        cases.push(Case::new(format!("{flag} -1e-300"), &args, &["-1e-300"]));
+    }
+    // An f32 flag: the smallest normal one.
+    let margin = os(&[&"envelope", &"--margin=-1e-30"]);
+    cases.push(Case::new("--margin -1e-30".into(), &margin, &["-1e-30"]));
     cases
 }
 

@@ -324,6 +324,15 @@ fn bad_numbers() -> Vec<Case> {
             ));
         }
     }
+    // A tiny real shown as written, not as 300 decimal places.
+    for flag in ["--gamma", "--lr", "--grad-clip", "--tau"] {
+        let args = os(&[&"train", &format!("{flag}=-1e-300")]);
+        cases.push(Case::new(
+            format!("train {flag} -1e-300"),
+            &args,
+            &["-1e-300"],
+        ));
+    }
     for v in ["0", "1", "1001", "-3", "x", "99999999999999999999"] {
         let args = os(&[&"reproduce", &"--seeds", &v]);
         cases.push(Case::new(

@@ -197,7 +197,7 @@ impl Fields<'_> {
         }
         let bracket = if open_lo { '(' } else { '[' };
         Err(self.refuse(format!(
-            "{field}: expected a number in {bracket}{lo}, {hi}], found {value}"
+            "{field}: expected a number in {bracket}{lo}, {hi}], found {value:?}"
         )))
     }
 

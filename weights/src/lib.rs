@@ -383,6 +383,13 @@ mod tests {
         for s in [hostile, &long, &wide, "\0\r\t"] {
             assert!(!quote(s).chars().any(|c| c.is_control()), "{s:?}");
         }
+        // A path likewise; a name that is not UTF-8 shows the replacement character.
+        let path = std::path::Path::new("dir").join(hostile);
+        assert_eq!(shown(&path), format!("dir/{want}"));
+        assert_eq!(shown(std::path::Path::new(&long)), excerpt(&long));
+        use std::os::unix::ffi::OsStrExt;
+        let bytes = std::ffi::OsStr::from_bytes(b"a\xff\x1b");
+        assert_eq!(shown(std::path::Path::new(bytes)), "a\u{fffd}\\u{1b}");
     }
 
     #[test]
