@@ -14,7 +14,7 @@ use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_c
 
 #[path = "hostile_suite/worlds.rs"]
 mod worlds;
-use worlds::{bad_rigs, bad_specs};
+use worlds::{bad_rigs, bad_rows, bad_specs};
 
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
@@ -417,6 +417,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     cases.extend(bad_specs());
     cases.extend(bad_tables(&s));
     cases.extend(bad_rigs(&s));
+    cases.extend(bad_rows());
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }

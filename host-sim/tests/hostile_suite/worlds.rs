@@ -138,3 +138,21 @@ pub fn bad_rigs(s: &Scratch) -> Vec<Case> {
     ));
     cases
 }
+
+/// Rows of `eval` asked for twice: the table showed one row twice.
+pub fn bad_rows() -> Vec<Case> {
+    let base = ["eval", "--episodes", "1", "--horizon", "3"];
+    let twice: [&[&str]; 4] = [
+        &["--scenario", "all,noise", "--controller", "lqr"],
+        &["--scenario", "nominal", "--scenario", "nominal"],
+        &["--scenario", "nominal", "--controller", "lqr,rule,lqr"],
+        &["--scenario", "nominal", "--horizon", "3"],
+    ];
+    twice
+        .iter()
+        .map(|extra| {
+            let args: Vec<&str> = base.iter().chain(extra.iter()).copied().collect();
+            Case::new(format!("{args:?}"), &args, &["expected each row once"])
+        })
+        .collect()
+}
