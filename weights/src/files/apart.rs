@@ -11,36 +11,32 @@ use crate::{Error, Result, shown};
 /// is the place of another output, or above it: a file where the other needs a directory.
 /// Paths are compared as the system will resolve them (absolute, through the links of the
 /// part that exists), so `./a` and `a`, or a link to a directory and the directory, meet.
+/// Sorted by place, whatever lies below a place follows it at once, so neighbours alone are
+/// compared: `identify`'s 40,000 plots of 10,000 logs, compared pairwise, took minutes.
 pub fn check_apart(files: &[(&str, &Path)], dirs: &[(&str, &Path)]) -> Result<()> {
-    let all: Vec<(&str, &Path, PathBuf)> = files
+    let mut all: Vec<(PathBuf, bool, &str, &Path)> = files
         .iter()
-        .chain(dirs)
-        .map(|&(label, path)| (label, path, resolved(path)))
+        .map(|&(label, path)| (resolved(path), true, label, path))
+        .chain(
+            dirs.iter()
+                .map(|&(label, path)| (resolved(path), false, label, path)),
+        )
         .collect();
-    for (i, (label, path, place)) in all.iter().enumerate() {
-        let is_file = i < files.len();
-        for (j, (other, other_path, other_place)) in all.iter().enumerate() {
-            let clash = if i == j {
-                false
-            } else if is_file {
-                other_place.starts_with(place)
-            } else {
-                other_place == place
-            };
-            if clash {
-                return Err(Error::Input(format!(
-                    "{label} {}: expected a place of its own, found {} {} at it{}",
-                    shown(path),
-                    other,
-                    shown(other_path),
-                    if other_place == place {
-                        ""
-                    } else {
-                        " or below it"
-                    }
-                )));
-            }
-        }
+    all.sort_by(|a, b| a.0.cmp(&b.0));
+    for w in all.windows(2) {
+        let ((place, is_file, label, path), (next, _, other, other_path)) = (&w[0], &w[1]);
+        let at = if next == place {
+            "at it"
+        } else if *is_file && next.starts_with(place) {
+            "below it"
+        } else {
+            continue;
+        };
+        return Err(Error::Input(format!(
+            "{label} {}: expected a place of its own, found {other} {} {at}",
+            shown(path),
+            shown(other_path)
+        )));
     }
     Ok(())
 }
