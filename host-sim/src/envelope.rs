@@ -149,7 +149,8 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
         weights::Error::Input(m) => weights::Error::Input(format!("envelope {m}")),
         io => io,
     })?;
-    let bad = |why: String| weights::Error::Input(format!("envelope {}: {why}", path.display()));
+    let bad =
+        |why: String| weights::Error::Input(format!("envelope {}: {why}", weights::shown(path)));
     let e: Envelope = serde_json::from_slice(&bytes).map_err(|e| {
         bad(format!(
             "expected the JSON `host-sim envelope --json` prints, {}",

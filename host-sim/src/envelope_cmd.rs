@@ -64,7 +64,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         anyhow::bail!(
             "--out writes the shipped crate's module, the shipped policy's envelope: for --policy {} \
              use --json and give the file to eval --envelope",
-            policy.display()
+            weights::shown(policy)
         );
     }
     let outputs: Vec<(&str, &std::path::Path)> =
@@ -139,12 +139,12 @@ fn check(a: &EnvelopeArgs) -> Result<()> {
     );
     ensure!(
         a.quantile > 0.0 && a.quantile <= 1.0,
-        "--quantile must be in (0, 1], got {}",
+        "--quantile must be in (0, 1], got {:?}",
         a.quantile
     );
     ensure!(
         a.margin.is_finite() && a.margin >= 1.0 && a.margin <= 10.0,
-        "--margin must be in [1, 10], got {}",
+        "--margin must be in [1, 10], got {:?}",
         a.margin
     );
     Ok(())

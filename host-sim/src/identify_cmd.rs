@@ -40,7 +40,7 @@ fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
     let mut total = 0;
     for path in paths {
         let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
-        let origin = path.display().to_string();
+        let origin = weights::shown(path);
         total += bytes.len() as u64;
         if total > log::MAX_TOTAL_LOG_BYTES {
             return Err(weights::Error::Input(format!(
@@ -76,6 +76,14 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     let inputs: Vec<&Path> = labelled.iter().map(|(_, p)| p.as_path()).collect();
     if let Some(dir) = &a.plots {
         report::check_plots(dir, &logs, &inputs)?;
+        let plots: Vec<PathBuf> = report::plot_paths(dir, &logs)
+            .into_iter()
+            .flatten()
+            .flat_map(|png| [png.with_extension("svg"), png])
+            .collect();
+        let mut files = vec![("--out", a.out.as_path())];
+        files.extend(plots.iter().map(|p| ("--plots", p.as_path())));
+        weights::files::check_apart(&files, &[("--plots", dir)])?;
     }
     identify::check(&logs, &machine)?;
     let bar = ProgressBar::new_spinner().with_style(
@@ -150,7 +158,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     if truth.rig.params.tau != board.rig.params.tau {
         return Err(weights::Error::Input(format!(
             "--rig {}: expected the period of --world ({} s), found {} s",
-            a.rig.display(),
+            weights::shown(&a.rig),
             truth.rig.params.tau,
             board.rig.params.tau
         ))
@@ -158,7 +166,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     }
     if !(a.jitter.is_finite() && (0.0..=100.0).contains(&a.jitter)) {
         return Err(weights::Error::Input(format!(
-            "--jitter: expected counts in [0, 100], found {}",
+            "--jitter: expected counts in [0, 100], found {:?}",
             a.jitter
         ))
         .into());
@@ -166,7 +174,7 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     for (flag, seconds) in [("--cart-s", a.cart_s), ("--swing-s", a.swing_s)] {
         if !(log::MIN_SECONDS..=MAX_SIMULATED_S).contains(&seconds) {
             return Err(weights::Error::Input(format!(
-                "{flag}: expected seconds in [{}, {MAX_SIMULATED_S}], found {seconds}",
+                "{flag}: expected seconds in [{}, {MAX_SIMULATED_S}], found {seconds:?}",
                 log::MIN_SECONDS
             ))
             .into());

@@ -8,13 +8,14 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
 use host_common::provenance::Provenance;
-use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net, Row};
+use host_sim::eval::{self, ControllerKind, MAX_ROWS, Net, Row};
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
 use weights::levels::GivenLevels;
 
 mod envelope_cmd;
+mod eval_cmd;
 mod identify_cmd;
 mod pil_cmd;
 mod render_cmd;
@@ -149,7 +150,7 @@ impl Subject {
             anyhow::bail!(
                 "--controller monitored needs the envelope measured for --policy {}: give \
                  --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
-                path.display()
+                weights::shown(path)
             );
         }
         let envelope = self
@@ -185,7 +186,7 @@ impl Subject {
             weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
         let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
         let net = Net::from_weights(&import.weights, int.then_some(&machine))
-            .with_context(|| format!("policy {}", path.display()))?;
+            .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))
     }
 }
@@ -319,27 +320,8 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
     Ok(())
 }
 
-/// Checks `eval`'s counts before any work.
-fn check_eval(a: &EvalArgs) -> Result<()> {
-    if let Some(m) = a.min_success {
-        anyhow::ensure!(
-            (0.0..=1.0).contains(&m),
-            "--min-success must lie in [0, 1], got {m}"
-        );
-    }
-    anyhow::ensure!(
-        (1..=MAX_EPISODES).contains(&a.episodes),
-        "--episodes must be in [1, {MAX_EPISODES}], got {}",
-        a.episodes
-    );
-    if let Some(h) = a.horizon.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
-        anyhow::bail!("--horizon must be in [1, {MAX_HORIZON}], got {h}");
-    }
-    Ok(())
-}
-
 fn run_eval(a: &EvalArgs) -> Result<bool> {
-    check_eval(a)?;
+    eval_cmd::check_eval(a)?;
     let mut inputs = a.subject.inputs();
     inputs.extend(a.world.clone().map(|w| ("--world", w)));
     check_io(&inputs, &[])?;
@@ -354,7 +336,19 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
     // The scenarios are checked before the policy loads; built on the machine it is run on.
     let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
-    let rows = a.horizon.len() * parse_scenarios(&a.scenario, &probe)?.len() * controllers.len();
+    let probed = parse_scenarios(&a.scenario, &probe)?;
+    // A row asked for twice is a slip (`--scenario all,noise`, `--controller lqr,lqr`): the
+    // table would show one row twice.
+    eval_cmd::once("--horizon", a.horizon.iter().map(u32::to_string))?;
+    eval_cmd::once("--scenario", probed.iter().map(|s| s.name.clone()))?;
+    eval_cmd::once(
+        "--controller",
+        controllers.iter().map(|c| {
+            let name = clap::ValueEnum::to_possible_value(c);
+            name.map_or_else(|| format!("{c:?}"), |n| n.get_name().to_string())
+        }),
+    )?;
+    let rows = a.horizon.len() * probed.len() * controllers.len();
     anyhow::ensure!(
         rows <= MAX_ROWS,
         "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"

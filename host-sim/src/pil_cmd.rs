@@ -79,7 +79,7 @@ impl PilArgs {
         }
         if !(self.pil_timeout > 0.0 && self.pil_timeout <= MAX_TIMEOUT_S) {
             bail!(
-                "--pil-timeout must lie in (0, {MAX_TIMEOUT_S}] s, found {}",
+                "--pil-timeout must lie in (0, {MAX_TIMEOUT_S}] s, found {:?}",
                 self.pil_timeout
             );
         }

@@ -36,7 +36,7 @@ pub fn gif(
     let delay_ms = (stride as f64 * params.tau * 1000.0).round() as u32;
     let root = BitMapBackend::gif(path, (w, h), delay_ms)
         .map_err(err)
-        .with_context(|| format!("creating {}", path.display()))?
+        .with_context(|| format!("creating {}", weights::shown(path)))?
         .into_drawing_area();
     let to_px = |x: f64, y: f64| -> (i32, i32) {
         (
@@ -153,7 +153,7 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
         .map_err(err)?;
     root.present()
         .map_err(err)
-        .with_context(|| format!("writing {}", path.display()))
+        .with_context(|| format!("writing {}", weights::shown(path)))
 }
 
 fn panel(

@@ -69,7 +69,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     {
         anyhow::bail!(
             "--out {}: expected a directory (or a new path), found {}",
-            out.display(),
+            weights::shown(out),
             weights::files::kind(&m.file_type())
         );
     }
@@ -82,7 +82,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         frames.push(f)
     });
     std::fs::create_dir_all(out)
-        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", out.display())))?;
+        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(out))))?;
     let title = format!("{controller}, {}", scenario.name);
     // Drawn under temporary names and renamed, so a failure leaves no half-written picture;
     // the names end in the real extension because the encoders choose the format by it.
@@ -111,7 +111,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     }
     for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
         std::fs::rename(tmp, path)
-            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", path.display())))?;
+            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(path))))?;
     }
     host_common::outln!("{}\n{}", gif.display(), png.display());
     Ok(())

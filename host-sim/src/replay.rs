@@ -101,8 +101,8 @@ pub const MAX_ACTIONS: usize = 1_000_000;
 pub fn load(path: &Path) -> Result<Vec<Case>> {
     let bytes = weights::files::read_capped(path, MAX_FILE_BYTES)?;
     let text = std::str::from_utf8(&bytes)
-        .map_err(|e| anyhow::anyhow!("{}: expected UTF-8 JSON Lines, {e}", path.display()))?;
-    parse(text, &path.display().to_string())
+        .map_err(|e| anyhow::anyhow!("{}: expected UTF-8 JSON Lines, {e}", weights::shown(path)))?;
+    parse(text, &weights::shown(path))
 }
 
 /// Every case of JSON Lines `text`; blank lines are skipped. Errors name `origin` and the

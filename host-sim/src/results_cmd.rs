@@ -73,8 +73,9 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
         Action::Moved { old, new, name } => {
             let json = |p: &PathBuf| -> Result<serde_json::Value> {
                 let text = read_text(p)?;
-                serde_json::from_str(&text)
-                    .with_context(|| format!("{}: expected a results file's JSON", p.display()))
+                serde_json::from_str(&text).with_context(|| {
+                    format!("{}: expected a results file's JSON", weights::shown(p))
+                })
             };
             let (was, now) = (json(old)?, json(new)?);
             let name = name.clone().unwrap_or_else(|| new.display().to_string());

@@ -62,7 +62,7 @@ struct Soak {
 pub fn run(a: &SoakArgs) -> Result<bool> {
     anyhow::ensure!(
         a.hours > 0.0 && a.hours <= MAX_HOURS,
-        "--hours must be a number of simulated hours in (0, {MAX_HOURS}], found {}",
+        "--hours must be a number of simulated hours in (0, {MAX_HOURS}], found {:?}",
         a.hours
     );
     let (machine, net) = a.subject.load_for(&[a.controller])?;

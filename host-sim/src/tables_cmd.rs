@@ -33,12 +33,12 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     };
     let mut updates: Vec<(PathBuf, String, Vec<Stale>)> = Vec::new();
     for doc in documents(&root)? {
-        let text =
-            read_text(&root.join(&doc)).with_context(|| format!("reading {}", doc.display()))?;
+        let text = read_text(&root.join(&doc))
+            .with_context(|| format!("reading {}", weights::shown(&doc)))?;
         let load =
             |file: &str| read_text(&root.join(file)).map_err(|e| format!("reading {file}: {e:#}"));
         let (new, stale) = tables::update(&text, load)
-            .map_err(|r| anyhow!("{}:{}: {}", doc.display(), r.line, r.message))?;
+            .map_err(|r| anyhow!("{}:{}: {}", weights::shown(&doc), r.line, r.message))?;
         updates.push((doc, new, stale));
     }
     updates.extend(results_pages(&root)?);
@@ -46,13 +46,13 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     for (doc, new, stale) in &updates {
         if a.check {
             for s in stale {
-                host_common::errln!("{}:{}: {}", doc.display(), s.line, s.what);
+                host_common::errln!("{}:{}: {}", weights::shown(doc), s.line, s.what);
             }
         } else if !stale.is_empty() {
             write_atomic(&root.join(doc), new.as_bytes())?;
             host_common::outln!(
                 "{}: {} tables, values or pages written",
-                doc.display(),
+                weights::shown(doc),
                 stale.len()
             );
         }
@@ -107,7 +107,7 @@ fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, S
 fn results_files(root: &Path) -> Result<Vec<String>> {
     let dir = root.join(RESULTS_DIR);
     let mut files: Vec<String> = std::fs::read_dir(&dir)
-        .with_context(|| format!("listing {}", dir.display()))?
+        .with_context(|| format!("listing {}", weights::shown(&dir)))?
         .filter_map(|e| {
             let name = e.ok()?.file_name().into_string().ok()?;
             (name.ends_with(".json") && !name.starts_with('.')).then_some(name)
@@ -123,7 +123,8 @@ const MAX_TEXT_BYTES: u64 = 16 << 20;
 /// The UTF-8 text of the regular file `path` (not a FIFO, never past [`MAX_TEXT_BYTES`]).
 pub fn read_text(path: &Path) -> Result<String> {
     let bytes = weights::files::read_capped(path, MAX_TEXT_BYTES)?;
-    String::from_utf8(bytes).map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", path.display()))
+    String::from_utf8(bytes)
+        .map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", weights::shown(path)))
 }
 
 /// The nearest directory at or above `dir` with a Cargo.toml and the results directory.
@@ -134,7 +135,7 @@ pub fn find_root(dir: &Path) -> Result<PathBuf> {
         .ok_or_else(|| {
             anyhow!(
                 "no directory at or above {} holds a Cargo.toml and {RESULTS_DIR}: give --root",
-                dir.display()
+                weights::shown(dir)
             )
         })
 }
@@ -142,7 +143,7 @@ pub fn find_root(dir: &Path) -> Result<PathBuf> {
 /// README.md and docs/*.md, relative to `root`, in a fixed order.
 fn documents(root: &Path) -> Result<Vec<PathBuf>> {
     let mut docs: Vec<PathBuf> = std::fs::read_dir(root.join("docs"))
-        .with_context(|| format!("listing {}", root.join("docs").display()))?
+        .with_context(|| format!("listing {}", weights::shown(&root.join("docs"))))?
         .map(|e| e.map(|e| Path::new("docs").join(e.file_name())))
         .collect::<std::io::Result<_>>()?;
     docs.retain(|d| d.extension().is_some_and(|x| x == "md") && root.join(d).is_file());

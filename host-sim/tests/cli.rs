@@ -113,7 +113,7 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
         // Each factor is finite; their product would not be, and 1e300 is refused on its own.
         (
             &["eval", "--scenario", "length=1e300+length=1e300"],
-            "length factor must be a number in [0.001, 1000], found \"1e300\"",
+            "length factor must be zero or a normal number in [0.001, 1000], found \"1e300\"",
         ),
         (
             &["eval", "--scenario", "length=999+length=999"],

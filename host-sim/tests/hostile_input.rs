@@ -91,8 +91,9 @@ fn check_scenario(spec: &str) {
     }
 }
 
-/// The values each kind of part of an accepted `spec` gave, read from the text here: the
-/// last part of a kind (the one that sets it), a point range as its value, a share dropped.
+/// The values each kind of part of an accepted `spec` gave, read from the text here (a kind
+/// repeats only if it is a factor, whose values are checked against their bounds alone), a
+/// point range as its value, a share dropped.
 fn given(spec: &str) -> HashMap<&str, Vec<f64>> {
     let mut last = HashMap::new();
     for part in spec.split('+') {
@@ -161,7 +162,8 @@ fn check_parsed(spec: &str, s: &Scenario) {
 }
 
 /// Specs that random text seldom makes whole: each part alone, with and without its
-/// optional values, at its bounds, and parts of one kind repeated.
+/// optional values, at its bounds, and factors repeated; a part that is not a factor,
+/// repeated, is refused rather than replaced.
 #[test]
 fn written_scenarios_hold_what_they_say() {
     for spec in [
@@ -176,11 +178,13 @@ fn written_scenarios_hold_what_they_say() {
         "encoder=128/640/0.5",
         "push",
         "push=1.1/50",
-        "noise+delay=3+delay=4+push=0.2+friction=0.3/0.01+encoder=1024/2048",
+        "noise+delay=4+push=0.2+friction=0.3/0.01+encoder=1024/2048+length=2+length=0.75",
     ] {
         let s = Scenario::parse(spec).unwrap_or_else(|e| panic!("{spec}: {e}"));
         check_parsed(spec, &s);
     }
+    let e = Scenario::parse("noise+delay=3+delay=4").unwrap_err();
+    assert!(e.contains("found delay again"), "{e}");
 }
 
 /// A part of the grammar: every key of [`PARTS`] (and one that is not), with up to three

@@ -12,6 +12,13 @@ mod hostile;
 
 use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
+#[path = "hostile_suite/worlds.rs"]
+mod worlds;
+
+#[path = "hostile_suite/work.rs"]
+mod work;
+use worlds::{bad_rigs, bad_rows, bad_specs};
+
 fn exe() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_host-sim"))
 }
@@ -238,6 +245,58 @@ fn bad_output_dirs(s: &Scratch, log: &Path, dir: &Path, file: &Path, fifo: PathB
         ]);
         cases.push(Case::new(format!("identify --plots {label}"), &plots, want));
     }
+    // Two outputs at one place: the rig file written where the plots went (or they below
+    // it), after the plots were drawn.
+    let (plots, id) = (s.join("plots"), s.join("id-out.toml"));
+    std::os::unix::fs::symlink(&s.0, s.join("here")).unwrap();
+    for (label, out, dir) in [
+        ("the plots", plots.clone(), plots.clone()),
+        ("a plot", plots.join("identify-1-cart.png"), plots.clone()),
+        ("above the plots", id.clone(), id.join("plots")),
+        (
+            "the plots through a link",
+            s.join("here/plots"),
+            plots.clone(),
+        ),
+    ] {
+        let args = os(&[
+            &"identify",
+            &log,
+            &"--rig",
+            &rig,
+            &"--out",
+            &out,
+            &"--plots",
+            &dir,
+        ]);
+        cases.push(Case::new(
+            format!("identify --out {label}"),
+            &args,
+            &["expected a place of its own"],
+        ));
+    }
+    // 3,000 logs of a row each, with plots: 12,000 plots kept apart pairwise took seconds
+    // (10,000 logs, minutes).
+    let one = std::fs::read_to_string(log).unwrap();
+    let row = one.find("\n0,").unwrap() + 1;
+    let one = &one[..row + one[row..].find('\n').unwrap() + 1];
+    let many = s.join("many.log");
+    std::fs::write(&many, one.repeat(3_000)).unwrap();
+    let args = os(&[
+        &"identify",
+        &many,
+        &"--rig",
+        &rig,
+        &"--out",
+        &id,
+        &"--plots",
+        &plots,
+    ]);
+    cases.push(Case::new(
+        "identify 10000 logs".into(),
+        &args,
+        &["too short"],
+    ));
     // A picture's name taken by a directory.
     std::fs::create_dir_all(dir.join("episode.gif")).unwrap();
     let render = os(&[&"render", &"--horizon", &"5", &"--out", &dir]);
@@ -313,45 +372,32 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             cases.push(Case::new(format!("{cmd:?} {flag} {v:?}"), &args, &want));
         }
     }
-    cases
-}
-
-/// Scenario specs no command can take.
-fn bad_specs() -> Vec<Case> {
-    let mut cases = Vec::new();
-    let long = "x".repeat(5_000);
-    let specs = [
-        "nominal+mass=2",
-        "wind=3",
-        "mass",
-        "mass=abc",
-        "mass=1e300",
-        "length=999+length=999",
-        "noise=-1",
-        "delay=99",
-        "+",
-        "mass=1..0",
-        "mass=2@7",
-        &long,
+    // A tiny real shown as written, not as 300 decimal places.
+    let (desk, out) = (repo("rigs/desk.toml"), s.join("tiny.log"));
+    let simulate = os(&[
+        &"simulate-logs",
+        &"--world",
+        &desk,
+        &"--rig",
+        &desk,
+        &"--out",
+        &out,
+    ]);
+    let reals: [(Vec<OsString>, &str); 6] = [
+        (os(&[&"envelope"]), "--quantile"),
+        (os(&[&"eval", &"--episodes", &"1"]), "--min-success"),
+        (os(&[&"soak"]), "--hours"),
+        (simulate.clone(), "--cart-s"),
+        (simulate.clone(), "--swing-s"),
+        (simulate, "--jitter"),
     ];
-    for spec in specs {
-        for cmd in [
-            &["eval", "--episodes", "1"][..],
-            &["render", "--horizon", "5", "--out", "r"],
-        ] {
-            let mut args: Vec<OsString> = cmd.iter().map(OsString::from).collect();
-            args.extend([OsString::from("--scenario"), OsString::from(spec)]);
-            let label: String = format!("{cmd:?} --scenario {spec}")
-                .chars()
-                .take(60)
-                .collect();
-            cases.push(Case::new(
-                label,
-                &args,
-                &["expected", "unknown part", "needs", "must be", "comes to"],
-            ));
-        }
+    for (cmd, flag) in reals {
+        let args = [cmd, os(&[&format!("{flag}=-1e-300")])].concat();
+        cases.push(Case::new(format!("{flag} -1e-300"), &args, &["-1e-300"]));
     }
+    // An f32 flag: the smallest normal one.
+    let margin = os(&[&"envelope", &"--margin=-1e-30"]);
+    cases.push(Case::new("--margin -1e-30".into(), &margin, &["-1e-30"]));
     cases
 }
 
@@ -395,6 +441,8 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     cases.extend(bad_values(&s));
     cases.extend(bad_specs());
     cases.extend(bad_tables(&s));
+    cases.extend(bad_rigs(&s));
+    cases.extend(bad_rows());
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }

@@ -189,7 +189,7 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
         "{total} runs in {:.1} s on {} threads; results in {}",
         started.elapsed().as_secs_f64(),
         rayon::current_num_threads(),
-        out.display()
+        weights::shown(out)
     );
     Ok(())
 }
@@ -471,7 +471,11 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
     });
     let r = export::render(&import, &prov, a.rig.as_deref(), lang, granularity, &name)?;
     write_atomic(&a.out, r.text.as_bytes())?;
-    let (out, params, how) = (a.out.display(), import.weights.params(), import.describe());
+    let (out, params, how) = (
+        weights::shown(&a.out),
+        import.weights.params(),
+        import.describe(),
+    );
     match r.int8 {
         None => host_common::errln!("wrote {out}: {name}, {params} parameters ({how})"),
         Some((bytes, q)) => {

@@ -150,7 +150,7 @@ pub fn check_output_dir(dir: &Path, kind: &str) -> Result<()> {
         bail!(Error::Input(format!(
             "--out {}: expected a new path, an empty directory or an earlier output of `{} \
              {kind}`; not replacing it: {why}",
-            dir.display(),
+            weights::shown(dir),
             env!("CARGO_PKG_NAME")
         )))
     };
@@ -197,8 +197,8 @@ impl Staging {
         std::fs::create_dir_all(&parent).map_err(|e| {
             Error::Input(format!(
                 "--out {}: creating {}: {e}",
-                dest.display(),
-                parent.display()
+                weights::shown(dest),
+                weights::shown(&parent)
             ))
         })?;
         for old in weights::files::stale(dest, &["partial", "old"]) {
@@ -211,8 +211,8 @@ impl Staging {
         std::fs::create_dir(&tmp).map_err(|e| {
             Error::Input(format!(
                 "--out {}: creating {}: {e}",
-                dest.display(),
-                tmp.display()
+                weights::shown(dest),
+                weights::shown(&tmp)
             ))
         })?;
         let staging = Staging {
@@ -243,12 +243,13 @@ impl Staging {
         let had_old = self.dest.exists();
         if had_old {
             std::fs::rename(&self.dest, &old)
-                .with_context(|| format!("moving {} aside", self.dest.display()))?;
+                .with_context(|| format!("moving {} aside", weights::shown(&self.dest)))?;
         }
         std::fs::rename(&self.tmp, &self.dest)
-            .with_context(|| format!("renaming onto {}", self.dest.display()))?;
+            .with_context(|| format!("renaming onto {}", weights::shown(&self.dest)))?;
         if had_old {
-            std::fs::remove_dir_all(&old).with_context(|| format!("removing {}", old.display()))?;
+            std::fs::remove_dir_all(&old)
+                .with_context(|| format!("removing {}", weights::shown(&old)))?;
         }
         Ok(())
     }

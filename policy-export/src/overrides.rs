@@ -73,9 +73,10 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
         None => None,
         Some(path) => {
             let bytes = read_capped(std::path::Path::new(path), twin::rigfile::MAX_RIG_BYTES)?;
+            let shown = weights::excerpt(path);
             let text = String::from_utf8(bytes)
-                .map_err(|_| ConfigError(format!("--rig {path}: expected UTF-8 text")))?;
-            let machine = twin::rigfile::parse(&text, &format!("--rig {path}"))?;
+                .map_err(|_| ConfigError(format!("--rig {shown}: expected UTF-8 text")))?;
+            let machine = twin::rigfile::parse(&text, &format!("--rig {shown}"))?;
             Some((text, machine))
         }
     };
@@ -86,10 +87,10 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
         let text = String::from_utf8(bytes).map_err(|e| {
             ConfigError(format!(
                 "--config {}: expected UTF-8 text, {e}",
-                path.display()
+                weights::shown(path)
             ))
         })?;
-        cfg = cfg.overlay_toml(&text, &path.display().to_string())?;
+        cfg = cfg.overlay_toml(&text, &weights::shown(path))?;
     }
     args.set.apply(&mut cfg);
     if let Some((text, _)) = rig {

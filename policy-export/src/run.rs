@@ -188,7 +188,7 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     let s: Summary = serde_json::from_slice(&bytes).map_err(|e| {
         weights::Error::Input(format!(
             "{}: not a run summary: {}",
-            summary_path.display(),
+            weights::shown(&summary_path),
             weights::excerpt(&e.to_string())
         ))
     })?;
@@ -211,7 +211,7 @@ pub fn board_warnings(src: &Path) -> Vec<String> {
     let Some(path) = summary_of(src) else {
         return Vec::new();
     };
-    let shown = path.display();
+    let shown = weights::shown(&path);
     let summary = read_capped(&path, MAX_POLICY_BYTES)
         .ok()
         .and_then(|b| serde_json::from_slice::<Summary>(&b).ok());
@@ -258,7 +258,7 @@ fn weights_config(cfg: &Config) -> Result<String> {
 /// Writes one run's files into `dir` (a [`crate::outdir::Staging`] path or one of its
 /// `seed-N`).
 pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<Summary> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", weights::shown(dir)))?;
     let summary = summarize(cfg, seed, r);
 
     let mut csv = csv::Writer::from_writer(Vec::new());

@@ -306,8 +306,14 @@ fn bad_numbers() -> Vec<Case> {
         "--tau",
         "--eval-episodes",
         "--seed",
+        "--grad-clip",
+        "--eps-end",
     ];
-    let values = ["-1", "abc", "", "1e999", "NaN", "1e39", "0x10"];
+    // Subnormals were taken (a gamma of 5e-324, a clip of nothing), and shown in a message as
+    // 320 decimal places.
+    let values = [
+        "-1", "abc", "", "1e999", "NaN", "1e39", "0x10", "5e-324", "1e-310",
+    ];
     for flag in flags {
         for v in values {
             let args = os(&[&"train", &flag, &v]);
@@ -317,6 +323,15 @@ fn bad_numbers() -> Vec<Case> {
                 &["invalid value", "must be", "expected"],
             ));
         }
+    }
+    // A tiny real shown as written, not as 300 decimal places.
+    for flag in ["--gamma", "--lr", "--grad-clip", "--tau"] {
+        let args = os(&[&"train", &format!("{flag}=-1e-300")]);
+        cases.push(Case::new(
+            format!("train {flag} -1e-300"),
+            &args,
+            &["-1e-300"],
+        ));
     }
     for v in ["0", "1", "1001", "-3", "x", "99999999999999999999"] {
         let args = os(&[&"reproduce", &"--seeds", &v]);

@@ -20,7 +20,7 @@ use firmware::cartpole::unit_f64;
 use rand_core::Rng;
 
 use crate::grammar::{self, Kind, Part, Span};
-use crate::machine::Machine;
+use crate::machine::{Machine, check_integrable};
 use crate::scenario::{Scenario, check_factors};
 
 /// A distribution over scenarios; see [the module](self).
@@ -66,17 +66,22 @@ impl Domain {
             machine: *machine,
             parts: grammar::parse(spec, "domain")?,
         };
-        for corner in [false, true] {
+        // Every low end, every high end, and the stiffest corner: the most damping and
+        // friction on the lightest, shortest pole and cart.
+        let stiff = |p: &Part| matches!(p.spec.key, "damping" | "friction");
+        let corners: [&dyn Fn(&Part) -> bool; 3] = [&|_| false, &|_| true, &stiff];
+        for high in corners {
             let mut s = Scenario::nominal_on(machine);
             for part in &d.parts {
                 let values: Vec<Option<f64>> = part
                     .values
                     .iter()
-                    .map(|v| v.map(|v| if corner { v.hi } else { v.lo }))
+                    .map(|v| v.map(|v| if high(part) { v.hi } else { v.lo }))
                     .collect();
                 s.apply(part, &values);
             }
             check_factors(&s.params, &rig.params)
+                .and_then(|()| check_integrable(&s.params, s.integration))
                 .map_err(|e| format!("domain {}: {e}", weights::quote(spec)))?;
         }
         Ok(d)

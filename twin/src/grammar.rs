@@ -376,9 +376,22 @@ pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
              nominal joined with parts"
         ));
     }
-    spec.split('+')
+    let parts: Vec<Part> = spec
+        .split('+')
         .map(|raw| parse_part(raw).map_err(|e| format!("{what} {shown}: {e}")))
-        .collect()
+        .collect::<Result<_, _>>()?;
+    // A factor given twice multiplies; any other part given again would replace the first,
+    // which a reader of the spec cannot tell.
+    for (k, p) in parts.iter().enumerate() {
+        if p.spec.fields != [FACTOR] && parts[..k].iter().any(|q| q.spec == p.spec) {
+            return Err(format!(
+                "{what} {shown}: expected each part once (only factors multiply), found {} \
+                 again",
+                p.spec.key
+            ));
+        }
+    }
+    Ok(parts)
 }
 
 fn parse_part(raw: &str) -> Result<Part, String> {
@@ -445,12 +458,13 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
     let (a, b) = text.split_once("..").unwrap_or((text, text));
     let read = |t: &str| -> Result<f64, String> {
         let v = match f.kind {
-            Kind::Real => t.parse::<f64>().ok().filter(|v| v.is_finite()),
+            // A subnormal is no setting anyone means: a slip, lost in the physics.
+            Kind::Real => t.parse::<f64>().ok().filter(|v| *v == 0.0 || v.is_normal()),
             Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
         };
         v.filter(|v| (f.lo..=f.hi).contains(v)).ok_or_else(|| {
             let kind = match f.kind {
-                Kind::Real => "a number",
+                Kind::Real => "zero or a normal number",
                 Kind::Whole | Kind::LogWhole => "a whole number",
             };
             format!(

@@ -24,6 +24,14 @@ pub enum Integration {
 }
 
 impl Integration {
+    /// The length of one step over a period of `tau` seconds.
+    pub fn step(self, tau: f64) -> f64 {
+        match self {
+            Integration::Euler => tau,
+            Integration::Rk4 { substeps } => tau / f64::from(substeps),
+        }
+    }
+
     /// Runge-Kutta steps of at most `max_step_s` for a period of `tau` seconds.
     pub fn rk4(tau: f64, max_step_s: f64) -> Integration {
         // A step that divides the period exactly, once rounded, must not add a step.
@@ -191,6 +199,43 @@ fn turned((s, c): (f64, f64), delta: f64, stage: f64) -> (f64, f64) {
         - d2 * 0.5
             * (1.0 - d2 * (1.0 / 12.0) * (1.0 - d2 * (1.0 / 30.0) * (1.0 - d2 * (1.0 / 56.0))));
     (s * cos_d + c * sin_d, c * cos_d - s * sin_d)
+}
+
+/// The most a velocity may decay by in one step (its rate times the step): an explicit
+/// Euler step of a decay faster than 2 per step grows it instead, and classic Runge-Kutta
+/// stops at 2.79; beyond it the world's state becomes infinite, then NaN, and an episode of
+/// NaN never fails.
+pub const MAX_DECAY_PER_STEP: f64 = 2.0;
+
+/// Refuses physics whose motor damping or pivot friction damps the cart's or the pole's
+/// velocity faster than steps of `integration` can follow (see [`MAX_DECAY_PER_STEP`]). The
+/// rates are the largest over the pole's angle: the damping acts on the cart's mass and a
+/// quarter of the pole's, the friction on the pole's inertia about the pivot less what the
+/// cart takes back.
+pub fn check_integrable(
+    p: &firmware::cartpole::Params,
+    integration: Integration,
+) -> Result<(), String> {
+    let step = integration.step(p.tau);
+    let m = p.masspole;
+    let pole = p.length * p.length * m * (4.0 / 3.0 - m / p.total_mass());
+    for (what, rate) in [
+        (
+            "the motor's damping",
+            p.motor_damping / (p.masscart + m / 4.0),
+        ),
+        ("the pivot's friction", p.pole_friction / pole),
+    ] {
+        let decay = rate * step;
+        if decay.is_nan() || decay > MAX_DECAY_PER_STEP {
+            return Err(format!(
+                "{what} damps a velocity by {decay:.3e} per integration step of {step} s, \
+                 expected at most {MAX_DECAY_PER_STEP} (the world would not stay finite): a \
+                 smaller damping or friction, a heavier or longer pole, or shorter steps"
+            ));
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

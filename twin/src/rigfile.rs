@@ -149,15 +149,14 @@ struct Friction {
 struct World {
     #[serde(default = "continuous")]
     integration: String,
-    #[serde(default = "substep")]
-    substep_s: f64,
+    substep_s: Option<f64>,
 }
 
 impl Default for World {
     fn default() -> World {
         World {
             integration: continuous(),
-            substep_s: substep(),
+            substep_s: None,
         }
     }
 }
@@ -166,15 +165,12 @@ fn continuous() -> String {
     "continuous".into()
 }
 
-fn substep() -> f64 {
-    DEFAULT_SUBSTEP_S
-}
-
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct Observer {
     force_sd: f64,
-    accel_sd: [f64; 2],
+    // A list, not a pair, so that a third value is refused rather than dropped.
+    accel_sd: Vec<f64>,
 }
 
 /// The checks of one rig file's fields, each refusal naming the file (`origin`) and the
@@ -189,12 +185,19 @@ impl Fields<'_> {
     fn check(self, field: &str, value: f64, (lo, hi): (f64, f64), open_lo: bool) -> Result<f64> {
         let ok =
             value.is_finite() && (if open_lo { value > lo } else { value >= lo }) && value <= hi;
+        // No measurement is a subnormal number: one is a typing slip, and the physics would
+        // lose it, or divide by it.
+        if ok && value != 0.0 && !value.is_normal() {
+            return Err(self.refuse(format!(
+                "{field}: expected zero or a normal number, found the subnormal {value:e}"
+            )));
+        }
         if ok {
             return Ok(value);
         }
         let bracket = if open_lo { '(' } else { '[' };
         Err(self.refuse(format!(
-            "{field}: expected a number in {bracket}{lo}, {hi}], found {value}"
+            "{field}: expected a number in {bracket}{lo}, {hi}], found {value:?}"
         )))
     }
 
@@ -319,6 +322,12 @@ impl Fields<'_> {
             return Ok(Tuning::DEFAULT);
         };
         let sd = |field: &str, v: f64| self.check(field, v, (0.0, 1e4), true);
+        if o.accel_sd.len() != 2 {
+            return Err(self.refuse(format!(
+                "observer.accel_sd: expected 2 numbers (the cart's and the pole's), found {}",
+                o.accel_sd.len()
+            )));
+        }
         Ok(Tuning {
             force_sd: sd("observer.force_sd", o.force_sd)?,
             accel_sd: [
@@ -352,13 +361,22 @@ impl Fields<'_> {
 
     /// How the world advances over periods of `tau`.
     fn integration(self, w: &World, tau: f64) -> Result<Integration> {
-        match w.integration.as_str() {
-            "euler" => Ok(Integration::Euler),
-            "continuous" => Ok(Integration::rk4(
+        match (w.integration.as_str(), w.substep_s) {
+            ("euler", None) => Ok(Integration::Euler),
+            ("euler", Some(step)) => Err(self.refuse(format!(
+                "world.substep_s: expected none with integration = \"euler\" (one step a \
+                 period), found {step}"
+            ))),
+            ("continuous", step) => Ok(Integration::rk4(
                 tau,
-                self.check("world.substep_s", w.substep_s, (1e-5, 0.05), false)?,
+                self.check(
+                    "world.substep_s",
+                    step.unwrap_or(DEFAULT_SUBSTEP_S),
+                    (1e-5, 0.05),
+                    false,
+                )?,
             )),
-            other => Err(self.refuse(format!(
+            (other, _) => Err(self.refuse(format!(
                 "world.integration: expected \"continuous\" or \"euler\", found {}",
                 quote(other)
             ))),
@@ -387,7 +405,7 @@ fn degrees(rad: f64) -> f64 {
 /// Reads the rig file at `path` (see [the module](self)).
 pub fn load(path: &Path) -> Result<Machine> {
     let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
-    let origin = format!("rig {}", path.display());
+    let origin = format!("rig {}", weights::shown(path));
     let text = std::str::from_utf8(&bytes)
         .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
     parse(text, &origin)
@@ -413,6 +431,7 @@ pub fn parse(text: &str, origin: &str) -> Result<Machine> {
         .and_then(|r| r.observer())
         .map_err(|e| fields.refuse(format!("the board refuses it: {e}")))?;
     let integration = fields.integration(&f.world, params.tau)?;
+    crate::machine::check_integrable(&params, integration).map_err(|e| fields.refuse(e))?;
     let uncertainty = fields.uncertainty(&f.identified)?;
     Ok(Machine {
         rig,

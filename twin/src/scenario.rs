@@ -9,7 +9,7 @@ use firmware::rig::Rig;
 
 use crate::faults::Faults;
 use crate::grammar::{self, FACTOR_RANGE, Part, Values};
-use crate::machine::{Integration, Machine};
+use crate::machine::{Integration, Machine, check_integrable};
 
 /// Sensor noise standard deviations of the `noise` part, per channel: 1 cm, 5 cm/s,
 /// 0.3 degrees, 0.05 rad/s; a cheap encoder and a finite-difference velocity.
@@ -134,7 +134,9 @@ impl Scenario {
             let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
             s.apply(&part, &values);
         }
-        check_factors(&s.params, &rig.params).map_err(|e| format!("scenario {shown}: {e}"))?;
+        check_factors(&s.params, &rig.params)
+            .and_then(|()| check_integrable(&s.params, s.integration))
+            .map_err(|e| format!("scenario {shown}: {e}"))?;
         s.check_board()
             .map_err(|e| format!("scenario {shown}: the board refuses it: {e}"))?;
         Ok(s)

@@ -140,7 +140,7 @@ pub fn load_with(path: &Path, prefix: Option<&str>, given: Option<&GivenLevels>)
     let file = policy_file(path);
     let bytes = read_capped(&file, MAX_POLICY_BYTES)?;
     import_with(&bytes, prefix, given).map_err(|e| match e {
-        Error::Input(m) => Error::Input(format!("{}: {m}", file.display())),
+        Error::Input(m) => Error::Input(format!("{}: {m}", crate::shown(&file))),
         other => other,
     })
 }

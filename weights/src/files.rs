@@ -10,6 +10,9 @@ use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
 
+mod apart;
+pub use apart::check_apart;
+
 /// Largest policy file read: every supported network fits many times over (width 256 is 270
 /// KB), yet `/dev/zero` or a runaway file cannot exhaust memory.
 pub const MAX_POLICY_BYTES: u64 = 64 << 20;
@@ -30,19 +33,19 @@ fn open_regular(path: &Path) -> Result<File> {
         Error::Input(match std::fs::metadata(path) {
             Ok(m) if !m.is_file() => format!(
                 "{}: expected a regular file, found {}",
-                path.display(),
+                crate::shown(path),
                 kind(&m.file_type())
             ),
-            _ => format!("{}: {e}", path.display()),
+            _ => format!("{}: {e}", crate::shown(path)),
         })
     })?;
     let meta = file
         .metadata()
-        .map_err(|e| Error::Input(format!("{}: {e}", path.display())))?;
+        .map_err(|e| Error::Input(format!("{}: {e}", crate::shown(path))))?;
     if !meta.is_file() {
         return Err(Error::Input(format!(
             "{}: expected a regular file, found {}",
-            path.display(),
+            crate::shown(path),
             kind(&meta.file_type())
         )));
     }
@@ -58,11 +61,11 @@ pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
     let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0).saturating_add(1));
     file.take(max + 1)
         .read_to_end(&mut bytes)
-        .map_err(|e| Error::Input(format!("reading {}: {e}", path.display())))?;
+        .map_err(|e| Error::Input(format!("reading {}: {e}", crate::shown(path))))?;
     if bytes.len() as u64 > max {
         return Err(Error::Input(format!(
             "{}: expected at most {max} bytes, found more",
-            path.display()
+            crate::shown(path)
         )));
     }
     Ok(bytes)
@@ -142,13 +145,13 @@ pub fn check_place(path: &Path) -> Result<()> {
             {
                 continue;
             }
-            Err(e) => return Err(Error::Input(format!("{}: {e}", dir.display()))),
+            Err(e) => return Err(Error::Input(format!("{}: {e}", crate::shown(dir)))),
         };
         if !meta.is_dir() {
             return Err(Error::Input(format!(
                 "{}: expected {} to be a directory, found {}",
-                path.display(),
-                dir.display(),
+                crate::shown(path),
+                crate::shown(dir),
                 kind(&meta.file_type())
             )));
         }
@@ -163,8 +166,8 @@ pub fn check_place(path: &Path) -> Result<()> {
             .map_err(|e| {
                 Error::Input(format!(
                     "{}: expected a directory this process can write in, but {} refuses: {e}",
-                    path.display(),
-                    dir.display()
+                    crate::shown(path),
+                    crate::shown(dir)
                 ))
             });
     }
@@ -179,7 +182,7 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
     if path.file_name().is_none() {
         return Err(Error::Input(format!(
             "{}: expected an output file name",
-            path.display()
+            crate::shown(path)
         )));
     }
     match std::fs::symlink_metadata(path) {
@@ -189,11 +192,11 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
                 e.kind(),
                 std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
             ) => {}
-        Err(e) => return Err(Error::Input(format!("{}: {e}", path.display()))),
+        Err(e) => return Err(Error::Input(format!("{}: {e}", crate::shown(path)))),
         Ok(meta) if !meta.is_file() => {
             return Err(Error::Input(format!(
                 "{}: expected a regular file to replace (or no file), found {}",
-                path.display(),
+                crate::shown(path),
                 kind(&meta.file_type())
             )));
         }
@@ -203,8 +206,8 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
         if same_file(path, input) {
             return Err(Error::Input(format!(
                 "{}: the output would overwrite the input {}",
-                path.display(),
-                input.display()
+                crate::shown(path),
+                crate::shown(input)
             )));
         }
     }
@@ -300,7 +303,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .filter(|d| !d.as_os_str().is_empty())
         .unwrap_or(Path::new("."));
     std::fs::create_dir_all(dir)
-        .map_err(|e| Error::Io(format!("creating {}: {e}", dir.display())))?;
+        .map_err(|e| Error::Io(format!("creating {}: {e}", crate::shown(dir))))?;
     // A killed writer's temporary, or a probe of check_place.
     remove_stale(path, &["tmp", "probe"]);
     let tmp = temp_path(path);
@@ -308,7 +311,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
         .and_then(|()| std::fs::rename(&tmp, path))
         .map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
-            Error::Io(format!("writing {}: {e}", path.display()))
+            Error::Io(format!("writing {}: {e}", crate::shown(path)))
         })
 }
 

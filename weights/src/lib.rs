@@ -77,6 +77,13 @@ pub fn excerpt(s: &str) -> String {
     if cut { text + "..." } else { text }
 }
 
+/// A path as a message shows it: its text with [`excerpt`]'s escaping and cut, so that a
+/// file named with a line break or an escape sequence is named on one line that moves no
+/// cursor. Every message that names a file names it so.
+pub fn shown(path: &std::path::Path) -> String {
+    excerpt(&path.to_string_lossy())
+}
+
 /// The escaped beginning of `s`, at most [`QUOTE_MAX`] characters, and whether it was cut.
 /// An escape is never split, and only what is shown is read: a 64 MiB name costs as much as a
 /// short one.
@@ -376,6 +383,13 @@ mod tests {
         for s in [hostile, &long, &wide, "\0\r\t"] {
             assert!(!quote(s).chars().any(|c| c.is_control()), "{s:?}");
         }
+        // A path likewise; a name that is not UTF-8 shows the replacement character.
+        let path = std::path::Path::new("dir").join(hostile);
+        assert_eq!(shown(&path), format!("dir/{want}"));
+        assert_eq!(shown(std::path::Path::new(&long)), excerpt(&long));
+        use std::os::unix::ffi::OsStrExt;
+        let bytes = std::ffi::OsStr::from_bytes(b"a\xff\x1b");
+        assert_eq!(shown(std::path::Path::new(bytes)), "a\u{fffd}\\u{1b}");
     }
 
     #[test]

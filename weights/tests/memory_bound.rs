@@ -391,6 +391,24 @@ fn onnx_messages_of_millions_of_tiny_fields_cost_no_memory_per_field() {
     assert!(said.contains("appears twice"), "{said}");
 }
 
+#[test]
+fn onnx_graphs_of_millions_of_empty_nodes_or_inputs_reserve_nothing_for_them() {
+    let _alone = alone();
+    // 3,000,000 empty nodes (two bytes each), or empty graph inputs: an index reserved per
+    // field, 16 or 8 bytes each, was 8 or 4 times the file before a node was read.
+    for (field, what, want) in [
+        (1, "ONNX empty nodes", "node \"\" (\"\") is not part of"),
+        (11, "ONNX empty inputs", "found 3000001 and 1"),
+    ] {
+        let mut g = onnx_network_fields();
+        for _ in 0..3_000_000 {
+            bytes_field(field, &[], &mut g);
+        }
+        let said = bounded(what, &onnx_model(g), None);
+        assert!(said.contains(want), "{said}");
+    }
+}
+
 /// The graph message of `onnx_model` (with its input and output), without the model.
 fn onnx_model_graph(mut g: Vec<u8>) -> Vec<u8> {
     bytes_field(11, &onnx_value("x"), &mut g);

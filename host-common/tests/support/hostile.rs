@@ -170,10 +170,13 @@ pub enum Bad {
     NotUtf8,
     Huge,
     NonUtf8Name,
+    /// Garbage under a name with an escape sequence and a line break, which a message
+    /// must show escaped.
+    ControlName,
 }
 
 /// Every kind.
-pub const BAD: [Bad; 13] = [
+pub const BAD: [Bad; 14] = [
     Bad::Missing,
     Bad::Directory,
     Bad::Fifo,
@@ -187,6 +190,7 @@ pub const BAD: [Bad; 13] = [
     Bad::NotUtf8,
     Bad::Huge,
     Bad::NonUtf8Name,
+    Bad::ControlName,
 ];
 
 /// What a slot's files look like: a good one (truncated for [`Bad::Truncated`]), its
@@ -227,6 +231,11 @@ impl Bad {
             Bad::Huge => std::fs::File::create(&p)
                 .and_then(|h| h.set_len(f.cap + 1))
                 .unwrap(),
+            Bad::ControlName => {
+                let p = dir.join(format!("{tag}-\u{1b}[2J\nerror: fake"));
+                std::fs::write(&p, b"\x00\x01garbage{[\"\xff").unwrap();
+                return p;
+            }
             Bad::NonUtf8Name => {
                 use std::os::unix::ffi::OsStringExt;
                 let name = [format!("{tag}-").into_bytes(), vec![0xff, 0xfe]].concat();
@@ -249,6 +258,8 @@ impl Bad {
             Bad::DevZero | Bad::LinkToDevice => vec!["found a device"],
             Bad::Huge => vec!["expected at most"],
             Bad::Empty | Bad::Garbage | Bad::Truncated | Bad::NotUtf8 => f.malformed.to_vec(),
+            // The name shown, escaped.
+            Bad::ControlName => vec!["\\u{1b}[2J\\nerror: fake"],
         }
     }
 }
@@ -311,6 +322,9 @@ fn judge(exe: &Path, cwd: &Path, case: &Case) -> Result<(), String> {
     }
     if !case.expect.iter().any(|w| ran.stderr.contains(w)) {
         broken.push(format!("no word of {:?}", case.expect));
+    }
+    if ran.stderr.chars().any(|c| c.is_control() && c != '\n') {
+        broken.push("a raw control character on stderr".into());
     }
     if ran.stderr.contains("panicked") || ran.stderr.len() > 1_000 || !ran.stdout.is_empty() {
         broken.push(format!(

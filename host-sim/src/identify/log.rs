@@ -318,7 +318,7 @@ impl Log {
             return Err(self.fail(
                 None,
                 format!(
-                    "{KEY_PERIOD}: expected the rig's period_s {}, found {}",
+                    "{KEY_PERIOD}: expected the rig's period_s {:?}, found {:?}",
                     p.tau, self.period_s
                 ),
             ));

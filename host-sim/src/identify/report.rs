@@ -148,7 +148,7 @@ pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Resul
     {
         return Err(weights::Error::Input(format!(
             "--plots {}: expected a directory (or a new path), found {}",
-            dir.display(),
+            weights::shown(dir),
             weights::files::kind(&m.file_type())
         )));
     }
@@ -178,7 +178,7 @@ fn draw(png: &Path, title: &str, y_label: &str, curves: &[Curve]) -> anyhow::Res
         for ext in ["png", "svg"] {
             let to = png.with_extension(ext);
             std::fs::rename(tmp.with_extension(ext), &to)
-                .map_err(|e| weights::Error::Io(format!("writing {}: {e}", to.display())))?;
+                .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(&to))))?;
         }
         Ok(())
     });
@@ -194,7 +194,7 @@ fn draw(png: &Path, title: &str, y_label: &str, curves: &[Curve]) -> anyhow::Res
 /// the band a fit that holds stays in ([`misfit::MAX_RMS_COUNTS`]).
 pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>> {
     std::fs::create_dir_all(dir)
-        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", dir.display())))?;
+        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(dir))))?;
     let paths = plot_paths(dir, logs);
     for trace in &fit.traces {
         let (log, [counts, residuals]) = (&logs[trace.log], &paths[trace.log]);

@@ -122,7 +122,7 @@ impl Place {
                     bail!(
                         "--pil {spec}: no application at {} (build it with `cargo build --release \
                          -p selftest-app --bin {app} --target {target}`, or give --pil-elf)",
-                        elf.display()
+                        weights::shown(&elf)
                     );
                 }
                 Place::Qemu { machine, elf }

@@ -22,14 +22,14 @@ pub struct Serial {
 impl Serial {
     /// Opens the port at `path`; answers later than `timeout` end the run.
     pub fn open(path: &Path, timeout: Duration) -> Result<Serial> {
-        let what = format!("the board on {}", path.display());
+        let what = format!("the board on {}", weights::shown(path));
         let name = path
             .to_str()
             .context("a serial port's path must be UTF-8")?;
         let mut port = serialport::new(name, BAUD)
             .timeout(timeout)
             .open_native()
-            .with_context(|| format!("could not open {} as a serial port", path.display()))?;
+            .with_context(|| format!("could not open {} as a serial port", weights::shown(path)))?;
         // Whatever a board sent before the host came is no answer to it, and a zero ends
         // whatever line noise the board read before this frame.
         port.clear(serialport::ClearBuffer::All)?;

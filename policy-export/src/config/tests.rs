@@ -84,6 +84,18 @@ fn bad_values_are_named() {
     );
     bad(|c| c.width = 0, "width must be one of");
     bad(|c| c.gamma = 1.5, "gamma must be in [0, 1]");
+    bad(
+        |c| c.gamma = 5e-324,
+        "gamma must be in [0, 1], zero or normal in f32, got 5e-324",
+    );
+    bad(
+        |c| c.lr = 1e-320,
+        "lr must be > 0 and finite in f32, got 1e-320",
+    );
+    bad(
+        |c| c.grad_clip = 1e-40,
+        "grad_clip must be >= 0 and finite in f32, zero or normal",
+    );
     bad(|c| c.gamma = -0.1, "gamma must be in [0, 1]");
     bad(
         |c| c.episodes = 0,

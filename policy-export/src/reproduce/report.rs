@@ -63,7 +63,7 @@ pub fn write(
     runs: &[Vec<RunStats>],
     provenance: &Provenance,
 ) -> Result<Vec<Row>> {
-    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", weights::shown(dir)))?;
     let rows: Vec<Row> = variants.iter().zip(runs).map(|(v, r)| row(v, r)).collect();
     let per_seed = variants
         .iter()

@@ -86,7 +86,7 @@ fn an_encoder_spec_reads_through_the_observer_or_a_filter_of_its_discount() {
     assert_eq!(s.rig.encoders.cart_counts_per_m, 16_000);
     let e = Scenario::parse("encoder=2400/16000/1.5").unwrap_err();
     assert!(
-        e.contains("discount must be a number in [0, 0.99], found \"1.5\""),
+        e.contains("discount must be zero or a normal number in [0, 0.99], found \"1.5\""),
         "{e}"
     );
     assert!(Scenario::parse("encoder=2400/16000/x").is_err());
@@ -106,7 +106,7 @@ fn bad_specs_are_rejected_with_the_reason() {
         ("force", "force needs a value, e.g. force=F"),
         (
             "force=-1",
-            "factor must be a number in [0.001, 1000], found \"-1\"",
+            "factor must be zero or a normal number in [0.001, 1000], found \"-1\"",
         ),
         (
             "push=0.5/0",
@@ -114,16 +114,19 @@ fn bad_specs_are_rejected_with_the_reason() {
         ),
         (
             "noise=x",
-            "scale must be a number in [0, 1000], found \"x\"",
+            "scale must be zero or a normal number in [0, 1000], found \"x\"",
         ),
         (
             "force=0",
-            "factor must be a number in [0.001, 1000], found \"0\"",
+            "factor must be zero or a normal number in [0.001, 1000], found \"0\"",
         ),
         // One quantity's factors multiply: each is fine, their product is not.
         ("length=999+length=999", "length comes to 9.98"),
         ("length=1e300", "found \"1e300\""),
-        ("push=1e9", "impulse must be a number in [0, 1000]"),
+        (
+            "push=1e9",
+            "impulse must be zero or a normal number in [0, 1000]",
+        ),
         (
             "delay=17",
             "delay must be a whole number in [0, 16], found \"17\"",
@@ -138,10 +141,13 @@ fn bad_specs_are_rejected_with_the_reason() {
             "encoder=",
             "encoder counts per revolution must be a whole number in [16, 16777216], found \"\"",
         ),
-        ("friction=2", "cart coefficient must be a number in [0, 1]"),
+        (
+            "friction=2",
+            "cart coefficient must be zero or a normal number in [0, 1]",
+        ),
         (
             "friction=0.1/0.5",
-            "pivot coefficient must be a number in [0, 0.1]",
+            "pivot coefficient must be zero or a normal number in [0, 0.1]",
         ),
         ("friction=0.1/0.01/3", "friction takes at most 2 values"),
         (

@@ -4,7 +4,7 @@
 //! recognised by that chain; any other operator is refused by name.
 //!
 //! The model is read in place. What is kept per node is its output's name and where the node
-//! is (16 bytes: a node of a known operator with an output takes at least 10 in the file),
+//! is (16 bytes: a node of a known operator with an output takes at least 12 in the file),
 //! and per graph input its name (8 bytes, at least 5 in the file) and whether it is an
 //! initializer: the index is at most twice the file. Initializers are not indexed: the six a
 //! network uses are found in one more pass over the graph. The path is walked back from the
@@ -166,8 +166,10 @@ impl<'a> Graph<'a> {
             at: (s.as_ptr() as usize - bytes.as_ptr() as usize) as u32,
             len: s.len() as u32,
         };
-        let mut producers = Vec::with_capacity(count(bytes, 1)?);
-        let mut inputs = Vec::with_capacity(count(bytes, 11)?);
+        // Reserved only for fields that can be what they are counted as: an empty field is
+        // two bytes, and its entry in the index eight or sixteen.
+        let mut producers = Vec::with_capacity(count_at_least(bytes, 1, MIN_NODE_BYTES)?);
+        let mut inputs = Vec::with_capacity(count_at_least(bytes, 11, MIN_INPUT_BYTES)?);
         let mut unnamed = 0;
         let mut output = (0, "");
         for f in Fields::new(bytes) {
@@ -272,6 +274,23 @@ impl<'a> Graph<'a> {
             })
             .collect()
     }
+}
+
+/// The fewest bytes of a node's message that can hold a known operator with its inputs and
+/// output (`Relu`: its operator field, 6 bytes, and an input and an output, 2 each).
+const MIN_NODE_BYTES: usize = 10;
+
+/// The fewest bytes of a graph input's message that can hold a name (a field of one byte).
+const MIN_INPUT_BYTES: usize = 3;
+
+/// How many fields `n` of `bytes` are messages of at least `min` bytes: the entries an index
+/// of them can need, where [`count`] would count empty fields too.
+fn count_at_least(bytes: &[u8], n: u64, min: usize) -> Result<usize> {
+    let mut k = 0;
+    for f in Fields::new(bytes) {
+        k += usize::from(matches!(f?, (m, Wire::Bytes(b)) if m == n && b.len() >= min));
+    }
+    Ok(k)
 }
 
 /// The operators of a network's graph and how many inputs each takes.

@@ -4,9 +4,11 @@
 //!
 //! Pickle is a program for a stack machine whose `GLOBAL` opcode imports any Python callable
 //! and whose `REDUCE` calls it, so a general unpickler runs whatever the file asks. This one
-//! runs nothing: it knows the opcodes a state dict uses (protocols 2 to 5) and three globals,
-//! `collections.OrderedDict`, `torch._utils._rebuild_tensor_v2` and the float storage
-//! classes, and refuses every other opcode and global by name before reading further.
+//! runs nothing: it knows the opcodes a state dict uses (protocols 2 to 5) and four kinds of
+//! global, `collections.OrderedDict`, `torch._utils._rebuild_tensor_v2`, `_rebuild_parameter`
+//! (a dict of parameters) and the storage classes (floats for the network; integers and
+//! booleans for buffers beside it, refused only if the network needs them), and refuses
+//! every other opcode and global by name before reading further.
 //!
 //! Nothing the file names more than once is copied more than once: values are shared (`Rc`),
 //! strings are borrowed from the pickle's bytes, and a tuple of integers (a shape) is
@@ -32,7 +34,7 @@ pub struct TensorRef<'a> {
     /// The storage's key: its file is `data/<key>` in the zip.
     pub key: &'a str,
     /// The storage's element type.
-    pub dtype: Dtype,
+    pub dtype: Element,
     /// Elements in the storage.
     pub numel: u64,
     /// First element of the tensor in the storage.
@@ -43,12 +45,18 @@ pub struct TensorRef<'a> {
     pub stride: Rc<[usize]>,
 }
 
+/// A storage's element type: a float the network may be stored in, or another one PyTorch
+/// stores (an integer buffer such as a batch norm's count, a mask) by its name and size, read
+/// so that a tensor of it is refused only if the network needs it.
+pub type Element = std::result::Result<Dtype, (&'static str, usize)>;
+
 /// The callables a state dict's pickle may name.
 #[derive(Clone, Copy, Debug, PartialEq)]
 enum Global {
     OrderedDict,
     RebuildTensor,
-    Storage(Dtype),
+    RebuildParameter,
+    Storage(Element),
 }
 
 #[derive(Debug)]
@@ -66,7 +74,7 @@ enum Value<'a> {
     Global(Global),
     Storage {
         key: &'a str,
-        dtype: Dtype,
+        dtype: Element,
         numel: u64,
     },
     Tensor(Box<TensorRef<'a>>),
@@ -87,14 +95,22 @@ fn global(module: &str, name: &str) -> Result<Global> {
     Ok(match (module, name) {
         ("collections", "OrderedDict") => Global::OrderedDict,
         ("torch._utils", "_rebuild_tensor_v2") => Global::RebuildTensor,
-        ("torch", "FloatStorage") => Global::Storage(Dtype::F32),
-        ("torch", "DoubleStorage") => Global::Storage(Dtype::F64),
-        ("torch", "HalfStorage") => Global::Storage(Dtype::F16),
-        ("torch", "BFloat16Storage") => Global::Storage(Dtype::BF16),
+        // A dict of parameters (`dict(module.named_parameters())`) wraps each tensor.
+        ("torch._utils", "_rebuild_parameter") => Global::RebuildParameter,
+        ("torch", "FloatStorage") => Global::Storage(Ok(Dtype::F32)),
+        ("torch", "DoubleStorage") => Global::Storage(Ok(Dtype::F64)),
+        ("torch", "HalfStorage") => Global::Storage(Ok(Dtype::F16)),
+        ("torch", "BFloat16Storage") => Global::Storage(Ok(Dtype::BF16)),
+        ("torch", "LongStorage") => Global::Storage(Err(("I64", 8))),
+        ("torch", "IntStorage") => Global::Storage(Err(("I32", 4))),
+        ("torch", "ShortStorage") => Global::Storage(Err(("I16", 2))),
+        ("torch", "CharStorage") => Global::Storage(Err(("I8", 1))),
+        ("torch", "ByteStorage") => Global::Storage(Err(("U8", 1))),
+        ("torch", "BoolStorage") => Global::Storage(Err(("BOOL", 1))),
         _ => {
             return refuse(format!(
-                "refused global {}: a state dict of float tensors uses only \
-                 collections.OrderedDict, torch._utils._rebuild_tensor_v2 and torch's float \
+                "refused global {}: a state dict uses only collections.OrderedDict, \
+                 torch._utils._rebuild_tensor_v2 and _rebuild_parameter and torch's \
                  storages, and nothing in the file is run",
                 quote(&format!("{module}.{name}"))
             ));
@@ -208,9 +224,16 @@ fn reduce<'a>(f: &Value<'a>, args: &Value<'a>) -> Result<Value<'a>> {
             Ok(Value::Dict(RefCell::default()))
         }
         Value::Global(Global::RebuildTensor) => rebuild_tensor(args),
+        // `_rebuild_parameter(data, requires_grad, backward_hooks)`: the tensor itself.
+        Value::Global(Global::RebuildParameter) => match args.first().map(|t| &**t) {
+            Some(Value::Tensor(t)) if args.len() == 3 => Ok(Value::Tensor(t.clone())),
+            _ => refuse(
+                "_rebuild_parameter's arguments are not (tensor, requires_grad, hooks)".into(),
+            ),
+        },
         _ => refuse(format!(
-            "REDUCE calls {} with {} arguments; only OrderedDict() and _rebuild_tensor_v2 are \
-             called in a state dict",
+            "REDUCE calls {} with {} arguments; only OrderedDict(), _rebuild_tensor_v2 and \
+             _rebuild_parameter are called in a state dict",
             kind(f),
             args.len()
         )),

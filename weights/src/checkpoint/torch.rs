@@ -7,7 +7,7 @@ use std::borrow::Cow;
 
 use super::Format;
 use super::pickle;
-use super::state_dict::{Data, StateDict, Tensor};
+use super::state_dict::{Data, Dtype, StateDict, Tensor};
 use super::zip::Zip;
 use crate::{Error, QUOTE_MAX, Result, quote};
 
@@ -88,7 +88,7 @@ fn state_dict<'a>(zip: &Zip<'a>, dir: &str) -> Result<StateDict<'a>> {
             ));
         }
         let storage = zip.read(&[dir, "data/", r.key])?;
-        let size = r.dtype.size();
+        let size = r.dtype.map_or_else(|(_, size)| size, Dtype::size);
         if Some(storage.len())
             != usize::try_from(r.numel)
                 .ok()
@@ -103,7 +103,7 @@ fn state_dict<'a>(zip: &Zip<'a>, dir: &str) -> Result<StateDict<'a>> {
             ));
         }
         let tensor = Tensor {
-            dtype: Ok(r.dtype),
+            dtype: r.dtype.map_err(|(name, _)| name.to_string()),
             shape: r.shape,
             data: Data::View {
                 storage,

@@ -1,0 +1,41 @@
+//! `host-sim eval`'s checks of its flags, before any work: the counts, and each row asked
+//! for once.
+
+use anyhow::Result;
+use host_sim::eval::{MAX_EPISODES, MAX_HORIZON};
+
+use super::EvalArgs;
+
+/// Checks `eval`'s counts before any work.
+pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
+    if let Some(m) = a.min_success {
+        anyhow::ensure!(
+            (0.0..=1.0).contains(&m),
+            "--min-success must lie in [0, 1], got {m:?}"
+        );
+    }
+    anyhow::ensure!(
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be in [1, {MAX_EPISODES}], got {}",
+        a.episodes
+    );
+    if let Some(h) = a.horizon.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
+        anyhow::bail!("--horizon must be in [1, {MAX_HORIZON}], got {h}");
+    }
+    Ok(())
+}
+
+/// Refuses a value of `flag` given twice among `values`.
+pub(super) fn once(flag: &str, values: impl Iterator<Item = String>) -> Result<()> {
+    let mut seen = std::collections::BTreeSet::new();
+    for v in values {
+        if seen.contains(&v) {
+            anyhow::bail!(
+                "{flag}: expected each row once, found {} twice",
+                weights::quote(&v)
+            );
+        }
+        seen.insert(v);
+    }
+    Ok(())
+}
