@@ -17,6 +17,9 @@ mod worlds;
 
 #[path = "hostile_suite/work.rs"]
 mod work;
+
+#[path = "hostile_suite/outputs.rs"]
+mod outputs;
 use worlds::{bad_rigs, bad_rows, bad_specs};
 
 fn exe() -> PathBuf {
@@ -108,15 +111,8 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
     };
     let agree = |flag: &str| with_bad(os(&[&"agree", &"--states", &"1", &flag, &BAD_PATH]));
     let draw = |flag: &str| {
-        with_bad(os(&[
-            &"render",
-            &"--horizon",
-            &"5",
-            &"--out",
-            &render,
-            &flag,
-            &BAD_PATH,
-        ]))
+        let cmd = os(&[&"render", &"--horizon", &"5", &"--out", &render]);
+        with_bad([cmd, os(&[&flag, &BAD_PATH])].concat())
     };
     let identify = |log: &dyn AsRef<std::ffi::OsStr>, rig: &dyn AsRef<std::ffi::OsStr>| {
         with_bad(os(&[&"identify", log, &"--rig", rig, &"--out", &out]))
@@ -245,58 +241,7 @@ fn bad_output_dirs(s: &Scratch, log: &Path, dir: &Path, file: &Path, fifo: PathB
         ]);
         cases.push(Case::new(format!("identify --plots {label}"), &plots, want));
     }
-    // Two outputs at one place: the rig file written where the plots went (or they below
-    // it), after the plots were drawn.
-    let (plots, id) = (s.join("plots"), s.join("id-out.toml"));
-    std::os::unix::fs::symlink(&s.0, s.join("here")).unwrap();
-    for (label, out, dir) in [
-        ("the plots", plots.clone(), plots.clone()),
-        ("a plot", plots.join("identify-1-cart.png"), plots.clone()),
-        ("above the plots", id.clone(), id.join("plots")),
-        (
-            "the plots through a link",
-            s.join("here/plots"),
-            plots.clone(),
-        ),
-    ] {
-        let args = os(&[
-            &"identify",
-            &log,
-            &"--rig",
-            &rig,
-            &"--out",
-            &out,
-            &"--plots",
-            &dir,
-        ]);
-        cases.push(Case::new(
-            format!("identify --out {label}"),
-            &args,
-            &["expected a place of its own"],
-        ));
-    }
-    // 3,000 logs of a row each, with plots: 12,000 plots kept apart pairwise took seconds
-    // (10,000 logs, minutes).
-    let one = std::fs::read_to_string(log).unwrap();
-    let row = one.find("\n0,").unwrap() + 1;
-    let one = &one[..row + one[row..].find('\n').unwrap() + 1];
-    let many = s.join("many.log");
-    std::fs::write(&many, one.repeat(3_000)).unwrap();
-    let args = os(&[
-        &"identify",
-        &many,
-        &"--rig",
-        &rig,
-        &"--out",
-        &id,
-        &"--plots",
-        &plots,
-    ]);
-    cases.push(Case::new(
-        "identify 10000 logs".into(),
-        &args,
-        &["too short"],
-    ));
+    cases.extend(outputs::apart(s, log, &rig));
     // A picture's name taken by a directory.
     std::fs::create_dir_all(dir.join("episode.gif")).unwrap();
     let render = os(&[&"render", &"--horizon", &"5", &"--out", &dir]);
@@ -372,32 +317,7 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
             cases.push(Case::new(format!("{cmd:?} {flag} {v:?}"), &args, &want));
         }
     }
-    // A tiny real shown as written, not as 300 decimal places.
-    let (desk, out) = (repo("rigs/desk.toml"), s.join("tiny.log"));
-    let simulate = os(&[
-        &"simulate-logs",
-        &"--world",
-        &desk,
-        &"--rig",
-        &desk,
-        &"--out",
-        &out,
-    ]);
-    let reals: [(Vec<OsString>, &str); 6] = [
-        (os(&[&"envelope"]), "--quantile"),
-        (os(&[&"eval", &"--episodes", &"1"]), "--min-success"),
-        (os(&[&"soak"]), "--hours"),
-        (simulate.clone(), "--cart-s"),
-        (simulate.clone(), "--swing-s"),
-        (simulate, "--jitter"),
-    ];
-    for (cmd, flag) in reals {
-        let args = [cmd, os(&[&format!("{flag}=-1e-300")])].concat();
-        cases.push(Case::new(format!("{flag} -1e-300"), &args, &["-1e-300"]));
-    }
-    // An f32 flag: the smallest normal one.
-    let margin = os(&[&"envelope", &"--margin=-1e-30"]);
-    cases.push(Case::new("--margin -1e-30".into(), &margin, &["-1e-30"]));
+    cases.extend(outputs::tiny_reals(s));
     cases
 }
 

@@ -117,7 +117,12 @@ pub fn bad_rigs(s: &Scratch) -> Vec<Case> {
             &["expected"],
         ));
     }
-    // A motor damping the desk rig's steps cannot follow, through a scenario.
+    cases.push(damping_scenario());
+    cases
+}
+
+/// A motor damping the desk rig's steps cannot follow, through a scenario.
+fn damping_scenario() -> Case {
     let damping = os(&[
         &"eval",
         &"--episodes",
@@ -131,12 +136,7 @@ pub fn bad_rigs(s: &Scratch) -> Vec<Case> {
         &"--scenario",
         &"damping=1000",
     ]);
-    cases.push(Case::new(
-        "eval damping=1000 on desk".into(),
-        &damping,
-        &["expected"],
-    ));
-    cases
+    Case::new("eval damping=1000 on desk".into(), &damping, &["expected"])
 }
 
 /// Rows of `eval` asked for twice: the table showed one row twice.

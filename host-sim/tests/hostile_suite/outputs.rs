@@ -1,0 +1,97 @@
+//! Outputs kept apart from each other, and reals shown as written in refusals.
+
+use std::ffi::OsString;
+use std::path::Path;
+
+use super::hostile::{Case, Scratch};
+use super::{os, repo};
+
+/// Two outputs at one place: the rig file written where the plots went (or they below it),
+/// after the plots were drawn; and many logs with plots, kept apart in linear time.
+pub fn apart(s: &Scratch, log: &Path, rig: &Path) -> Vec<Case> {
+    let mut cases = Vec::new();
+    // Two outputs at one place: the rig file written where the plots went (or they below
+    // it), after the plots were drawn.
+    let (plots, id) = (s.join("plots"), s.join("id-out.toml"));
+    std::os::unix::fs::symlink(&s.0, s.join("here")).unwrap();
+    for (label, out, dir) in [
+        ("the plots", plots.clone(), plots.clone()),
+        ("a plot", plots.join("identify-1-cart.png"), plots.clone()),
+        ("above the plots", id.clone(), id.join("plots")),
+        (
+            "the plots through a link",
+            s.join("here/plots"),
+            plots.clone(),
+        ),
+    ] {
+        let args = os(&[
+            &"identify",
+            &log,
+            &"--rig",
+            &rig,
+            &"--out",
+            &out,
+            &"--plots",
+            &dir,
+        ]);
+        cases.push(Case::new(
+            format!("identify --out {label}"),
+            &args,
+            &["expected a place of its own"],
+        ));
+    }
+    // 3,000 logs of a row each, with plots: 12,000 plots kept apart pairwise took seconds
+    // (10,000 logs, minutes).
+    let one = std::fs::read_to_string(log).unwrap();
+    let row = one.find("\n0,").unwrap() + 1;
+    let one = &one[..row + one[row..].find('\n').unwrap() + 1];
+    let many = s.join("many.log");
+    std::fs::write(&many, one.repeat(3_000)).unwrap();
+    let args = os(&[
+        &"identify",
+        &many,
+        &"--rig",
+        &rig,
+        &"--out",
+        &id,
+        &"--plots",
+        &plots,
+    ]);
+    cases.push(Case::new(
+        "identify 10000 logs".into(),
+        &args,
+        &["too short"],
+    ));
+    cases
+}
+
+/// A tiny real shown as written, not as 300 decimal places.
+pub fn tiny_reals(s: &Scratch) -> Vec<Case> {
+    let mut cases = Vec::new();
+    let (desk, out) = (repo("rigs/desk.toml"), s.join("tiny.log"));
+    let simulate = os(&[
+        &"simulate-logs",
+        &"--world",
+        &desk,
+        &"--rig",
+        &desk,
+        &"--out",
+        &out,
+    ]);
+    let reals: [(Vec<OsString>, &str); 6] = [
+        (os(&[&"envelope"]), "--quantile"),
+        (os(&[&"eval", &"--episodes", &"1"]), "--min-success"),
+        (os(&[&"soak"]), "--hours"),
+        (simulate.clone(), "--cart-s"),
+        (simulate.clone(), "--swing-s"),
+        (simulate, "--jitter"),
+    ];
+    for (cmd, flag) in reals {
+        let args = [cmd, os(&[&format!("{flag}=-1e-300")])].concat();
+        cases.push(Case::new(format!("{flag} -1e-300"), &args, &["-1e-300"]));
+    }
+    // An f32 flag: the smallest normal one.
+    let margin = os(&[&"envelope", &"--margin=-1e-30"]);
+    cases.push(Case::new("--margin -1e-30".into(), &margin, &["-1e-30"]));
+    cases
+}
