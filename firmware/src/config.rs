@@ -37,6 +37,9 @@ pub enum ConfigError {
     TooFew(&'static str),
     /// A list that must be strictly increasing is not (duty levels).
     NotIncreasing(&'static str),
+    /// Beyond what another value allows (a catch region wider than the release angle):
+    /// the field, then what it must be.
+    AboveLimit(&'static str, &'static str),
 }
 
 impl fmt::Display for ConfigError {
@@ -57,6 +60,7 @@ impl fmt::Display for ConfigError {
             ConfigError::NotIncreasing(field) => {
                 write!(f, "{field}: expected strictly increasing")
             }
+            ConfigError::AboveLimit(field, bound) => write!(f, "{field}: expected {bound}"),
         }
     }
 }

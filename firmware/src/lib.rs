@@ -62,6 +62,7 @@ pub mod link;
 pub mod loopback;
 pub mod network;
 pub mod rig;
+pub mod startup;
 
 pub use cartpole::Action;
 pub use config::ConfigError;

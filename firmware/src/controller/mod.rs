@@ -76,6 +76,7 @@ use crate::network::{N_ACTIONS, OBS_DIM};
 
 mod bridge;
 mod faults;
+mod hold;
 mod levels;
 pub mod monitor;
 mod policy;
@@ -333,6 +334,19 @@ where
                 },
             }
         };
+        self.finish(obs, q, command, flags)
+    }
+
+    /// The end of every period, whoever decided `command`: tell the predictor, drive the
+    /// bridge (an error counted and flagged), tell the sensor, record.
+    #[inline(always)]
+    fn finish(
+        &mut self,
+        obs: S::Reading,
+        q: P::Scores,
+        command: Command,
+        mut flags: FaultFlags,
+    ) -> Command {
         if let Some(p) = &mut self.predictor {
             p.record(command.level());
         }

@@ -128,6 +128,11 @@ impl Monitor {
         }
     }
 
+    /// What it was built with.
+    pub fn assurance(&self) -> Assurance {
+        self.assurance
+    }
+
     /// Who drives now.
     pub fn mode(&self) -> Mode {
         self.mode

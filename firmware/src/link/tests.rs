@@ -198,7 +198,7 @@ fn every_kind() -> Vec<Packet> {
         .into_iter()
         .enumerate()
         .map(|(i, message)| Packet {
-            seq: 0xFFF0 + i as u16,
+            seq: 0xFFF0_u16.wrapping_add(i as u16),
             message,
         })
         .collect()

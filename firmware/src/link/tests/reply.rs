@@ -50,7 +50,9 @@ fn head(duty: [u8; 2], kind: u8, count: u8) -> Vec<u8> {
 fn replies_of_one_two_and_the_most_scores_read_back_in_both_arithmetics() {
     assert_eq!(MAX_OUTPUTS, 9);
     let f: Vec<f32> = (0..9).map(|i| -1.5 + i as f32 * 0.375).collect();
-    let n: Vec<i32> = (0..9).map(|i| i32::MIN + i * 0x1234_5678).collect();
+    let n: Vec<i32> = (0..9)
+        .map(|i: i32| i32::MIN.wrapping_add(i.wrapping_mul(0x1234_5678)))
+        .collect();
     for count in [1, 2, 9] {
         for scores in [
             Scores::F32(Values::new(&f[..count]).unwrap()),

@@ -1,0 +1,302 @@
+//! From power-on to balance, and back after a fall: the mode machine a rig's loop runs
+//! around the balance controller, once per control period, on the encoders' raw counts.
+//!
+//! A rig does not start balanced. At power-on the pole hangs (and may still swing), the
+//! encoders count from wherever they were, and a balance controller would read an angle of
+//! half a turn. A [`Sequencer`] takes the loop from there, in [`Phase`]s:
+//!
+//! - **Zeroing**, motor off: the pole's zero is the one gravity gives. A pendulum swings
+//!   symmetrically about hanging, so the middle of its swing is the hanging count, whether it
+//!   swings 30 degrees or rests; it is taken once two windows of
+//!   [`Startup::zero_periods`] in a row agree on it within a count (so each window must
+//!   span a whole swing). Upright is half a revolution from it. The cart's zero is where it
+//!   stands then: a user centres the cart before power-on.
+//! - **Waiting**, motor off, until a hand lifts the pole into the catch region; or, with a
+//!   [`Swing`], **SwingingUp**: an energy-based swing-up ([`swing`]) drives instead.
+//! - **Catching**: the pole inside the catch region ([`Startup::catch_angle`] and
+//!   [`Startup::catch_rate`]); whoever drove before goes on driving. After
+//!   [`Startup::catch_periods`] in a row inside, the balance controller takes over;
+//!   leaving the region first goes back.
+//! - **Balancing**: the balance controller drives, until the pole passes
+//!   [`Startup::release_angle`] or the cart the track's accepted end ([`Rig::limits`]).
+//! - **Fallen**: the motor off for that period, then waiting (or swinging up) again, with
+//!   the zero kept: no reset.
+//!
+//! Every transition is counted ([`Transitions`]). The sequencer decides from counts alone
+//! (the angle to a count, rates from the difference of consecutive counts), so it runs the
+//! same beside either estimator and cannot be misled by an estimate that has not yet
+//! converged; the estimator keeps following the plant through the periods it does not
+//! decide ([`Controller::hold`](crate::controller::Controller::hold)). Fixed-size,
+//! allocation-free, and no input makes it panic.
+
+use crate::config::{ConfigError, check, positive};
+use crate::controller::Command;
+use crate::rig::Rig;
+
+pub mod swing;
+mod zero;
+
+use swing::Pump;
+pub use swing::Swing;
+use zero::Zeroing;
+
+/// Where the loop is between power-on and balance.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Phase {
+    /// Motor off, taking the pole's hanging zero.
+    Zeroing,
+    /// Motor off, until the pole is lifted into the catch region.
+    Waiting,
+    /// The energy-based swing-up drives.
+    SwingingUp,
+    /// Inside the catch region, not yet for long enough.
+    Catching,
+    /// The balance controller drives.
+    Balancing,
+    /// Past the release angle or the track's end: motor off for this period.
+    Fallen,
+}
+
+/// How a rig starts: how long the zero is watched for, where the balance controller may take
+/// over and where it must let go, and the swing-up if there is one. Checked against its rig
+/// by [`Startup::check`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Startup {
+    /// Periods in each of the two windows the pole's zero is taken over: at least one swing
+    /// of the hanging pole (`2 pi sqrt(4 l / 3 g)`, about 1.1 s for a 44 cm pole).
+    pub zero_periods: u16,
+    /// The catch region's half-width in angle from upright, rad.
+    pub catch_angle: f32,
+    /// The catch region's half-width in the pole's rate, rad/s.
+    pub catch_rate: f32,
+    /// Periods in a row inside the catch region before the balance controller drives.
+    pub catch_periods: u16,
+    /// The angle from upright past which the motor turns off, rad: above the catch angle, at
+    /// most the rig's failure angle.
+    pub release_angle: f32,
+    /// The swing-up, or `None` to wait for a hand.
+    pub swing: Option<Swing>,
+}
+
+impl Startup {
+    /// `self`, if every region is one a rig can run on `rig`: finite, non-empty, the catch
+    /// region inside the release angle, the release angle at most the rig's failure angle,
+    /// the windows at least a period long, and a swing-up as [`Swing::check`] accepts.
+    pub const fn check(self, rig: &Rig) -> Result<Startup, ConfigError> {
+        if self.zero_periods < 2 {
+            return Err(ConfigError::TooFew("startup.zero_periods"));
+        }
+        if self.catch_periods == 0 {
+            return Err(ConfigError::NotPositive("startup.catch_periods"));
+        }
+        check!(positive(self.catch_angle as f64, "startup.catch_angle"));
+        check!(positive(self.catch_rate as f64, "startup.catch_rate"));
+        check!(positive(self.release_angle as f64, "startup.release_angle"));
+        if self.catch_angle >= self.release_angle {
+            return Err(ConfigError::AboveLimit(
+                "startup.catch_angle",
+                "below startup.release_angle",
+            ));
+        }
+        if self.release_angle as f64 > rig.params.theta_threshold_radians {
+            return Err(ConfigError::AboveLimit(
+                "startup.release_angle",
+                "at most params.theta_threshold_radians",
+            ));
+        }
+        if let Some(s) = self.swing {
+            check!(s.check());
+        }
+        Ok(self)
+    }
+}
+
+/// Every transition so far, by kind.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Transitions {
+    /// Zeros taken (one per power-on).
+    pub zeroed: u32,
+    /// Entries into the catch region.
+    pub entered: u32,
+    /// Hand-overs to the balance controller.
+    pub caught: u32,
+    /// Catches abandoned: the pole left the region before the hand-over.
+    pub missed: u32,
+    /// Falls: past the release angle or the track's end while balancing.
+    pub fell: u32,
+}
+
+/// What the loop does this period.
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Act {
+    /// Drive this command without asking the balance controller
+    /// ([`Controller::hold`](crate::controller::Controller::hold)).
+    Hold(Command),
+    /// Run the balance controller's period. `engaged` in its first period: rearm it
+    /// ([`Controller::rearm`](crate::controller::Controller::rearm)).
+    Balance {
+        /// The first period of this catch.
+        engaged: bool,
+    },
+}
+
+/// The mode machine, from power-on ([`Sequencer::new`]) on.
+#[derive(Clone, Copy, Debug)]
+pub struct Sequencer {
+    startup: Startup,
+    /// Radians per pole count, metres per cart count.
+    per_count: [f32; 2],
+    half_rev: i32,
+    rev: i64,
+    tau: f32,
+    track: f32,
+    pump: Option<Pump>,
+    phase: Phase,
+    zeroing: Zeroing,
+    /// The counts at the cart's centre and the pole upright, once zeroed.
+    zero: Option<(i32, i32)>,
+    last: Option<(i32, i32)>,
+    inside: u16,
+    transitions: Transitions,
+}
+
+impl Sequencer {
+    /// The machine at power-on, zeroing, for `rig` run as `startup` says; refused as
+    /// [`Startup::check`] and [`Rig::check`] refuse.
+    pub fn new(startup: Startup, rig: &Rig) -> Result<Sequencer, ConfigError> {
+        let rig = check!(rig.check());
+        let startup = check!(startup.check(&rig));
+        let [per_m, per_rad] = rig.encoders.per_count();
+        let rev = rig.encoders.pole_counts_per_rev;
+        let track = check!(rig.limits()).max_abs()[0];
+        Ok(Sequencer {
+            startup,
+            per_count: [per_rad as f32, per_m as f32],
+            half_rev: (rev / 2) as i32,
+            rev: i64::from(rev),
+            tau: rig.params.tau as f32,
+            track,
+            pump: startup.swing.map(|s| Pump::new(s, &rig.params, track)),
+            phase: Phase::Zeroing,
+            zeroing: Zeroing::new(startup.zero_periods),
+            zero: None,
+            last: None,
+            inside: 0,
+            transitions: Transitions::default(),
+        })
+    }
+
+    /// One period on the encoders' raw counts `(cart, pole)`: the phase moves on, and what
+    /// the loop does is returned.
+    pub fn period(&mut self, cart: i32, pole: i32) -> Act {
+        let Some(zero) = self.zero else {
+            if let Some(hanging) = self.zeroing.count(pole) {
+                let upright = hanging.wrapping_add(self.half_rev);
+                self.zero = Some((cart, upright));
+                self.transitions.zeroed = self.transitions.zeroed.saturating_add(1);
+                self.phase = self.idle();
+                self.last = Some((cart, pole));
+            }
+            return Act::Hold(Command::Coast);
+        };
+        let state = self.state(zero, (cart, pole));
+        self.last = Some((cart, pole));
+        self.advance(&state)
+    }
+
+    /// The phase after this period's state `s` (`[x, x_dot, theta, theta_dot]` from counts).
+    fn advance(&mut self, s: &[f32; 4]) -> Act {
+        let inside = libm::fabsf(s[2]) <= self.startup.catch_angle
+            && libm::fabsf(s[3]) <= self.startup.catch_rate;
+        match self.phase {
+            Phase::Zeroing | Phase::Fallen => self.phase = self.idle(),
+            Phase::Waiting | Phase::SwingingUp if inside => {
+                self.transitions.entered = self.transitions.entered.saturating_add(1);
+                self.inside = 0;
+                self.phase = Phase::Catching;
+            }
+            Phase::Catching if !inside => {
+                self.transitions.missed = self.transitions.missed.saturating_add(1);
+                self.phase = self.idle();
+            }
+            Phase::Balancing => {
+                if libm::fabsf(s[2]) > self.startup.release_angle || libm::fabsf(s[0]) > self.track
+                {
+                    self.transitions.fell = self.transitions.fell.saturating_add(1);
+                    self.phase = Phase::Fallen;
+                    return Act::Hold(Command::Coast);
+                }
+                return Act::Balance { engaged: false };
+            }
+            _ => {}
+        }
+        if self.phase == Phase::Catching {
+            self.inside = self.inside.saturating_add(1);
+            if self.inside >= self.startup.catch_periods {
+                self.transitions.caught = self.transitions.caught.saturating_add(1);
+                self.phase = Phase::Balancing;
+                return Act::Balance { engaged: true };
+            }
+        }
+        Act::Hold(match &self.pump {
+            Some(pump) if self.phase != Phase::Waiting => pump.command(s),
+            _ => Command::Coast,
+        })
+    }
+
+    /// Where the machine goes when nothing holds the pole: swinging it up, or waiting.
+    fn idle(&self) -> Phase {
+        if self.pump.is_some() {
+            Phase::SwingingUp
+        } else {
+            Phase::Waiting
+        }
+    }
+
+    /// `[x, x_dot, theta, theta_dot]` from the counts about the zero, the angle in one
+    /// revolution about upright and the rates from the last period's counts.
+    fn state(&self, (cart0, upright): (i32, i32), (cart, pole): (i32, i32)) -> [f32; 4] {
+        let angle = |c: i32| self.wrap(i64::from(c.wrapping_sub(upright)));
+        let x = cart.wrapping_sub(cart0) as f32 * self.per_count[1];
+        let (last_cart, last_pole) = self.last.unwrap_or((cart, pole));
+        let dx = cart.wrapping_sub(last_cart) as f32 * self.per_count[1];
+        let dtheta = self.wrap(i64::from(pole.wrapping_sub(last_pole)));
+        [x, dx / self.tau, angle(pole), dtheta / self.tau]
+    }
+
+    /// Counts `c` as an angle in (-pi, pi] (to half a count).
+    fn wrap(&self, c: i64) -> f32 {
+        let half = self.rev / 2;
+        let w = half - (half - c).rem_euclid(self.rev.max(1));
+        w as f32 * self.per_count[0]
+    }
+
+    /// The phase this period ended in.
+    pub fn phase(&self) -> Phase {
+        self.phase
+    }
+
+    /// The transitions so far.
+    pub fn transitions(&self) -> Transitions {
+        self.transitions
+    }
+
+    /// The counts `(cart, pole)` of the cart's centre and the pole upright, once zeroed:
+    /// what the estimator's counts are taken from ([`Sequencer::about_upright`]).
+    pub fn zero(&self) -> Option<(i32, i32)> {
+        self.zero
+    }
+
+    /// Raw counts as the balance controller's estimator reads them: from the cart's centre
+    /// and the pole upright (the raw counts themselves until zeroed).
+    pub fn about_upright(&self, (cart, pole): (i32, i32)) -> (i32, i32) {
+        let (c0, p0) = self.zero.unwrap_or((0, 0));
+        (cart.wrapping_sub(c0), pole.wrapping_sub(p0))
+    }
+}
+
+#[cfg(test)]
+mod tests;
