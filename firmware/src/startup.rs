@@ -7,9 +7,9 @@
 //!
 //! - **Zeroing**, motor off: the pole's zero is the one gravity gives. A pendulum swings
 //!   symmetrically about hanging, so the middle of its swing is the hanging count, whether it
-//!   swings 30 degrees or rests; it is taken once two windows of
-//!   [`Startup::zero_periods`] in a row agree on it within a count (so each window must
-//!   span a whole swing). Upright is half a revolution from it. The cart's zero is where it
+//!   swings 30 degrees or rests: from the turning points of a swing, the decay cancelled,
+//!   or from two windows of [`Startup::zero_periods`] at rest, once two in a row agree
+//!   within a count. Upright is half a revolution from it. The cart's zero is where it
 //!   stands then: a user centres the cart before power-on.
 //! - **Waiting**, motor off, until a hand lifts the pole into the catch region; or, with a
 //!   [`Swing`], **SwingingUp**: an energy-based swing-up ([`swing`]) drives instead.
@@ -19,18 +19,19 @@
 //!   leaving the region first goes back.
 //! - **Balancing**: the balance controller drives, until the pole passes
 //!   [`Startup::release_angle`] or the cart the track's accepted end ([`Rig::limits`]).
-//! - **Fallen**: the motor off for that period, then waiting (or swinging up) again, with
-//!   the zero kept: no reset.
+//! - **Fallen**: the motor off from that period until the pole is below horizontal, then
+//!   waiting (or swinging up) again, with the zero kept: no reset.
 //!
 //! Every transition is counted ([`Transitions`]). The sequencer decides from counts alone
 //! (the angle to a count, rates from the difference of consecutive counts), so it runs the
 //! same beside either estimator and cannot be misled by an estimate that has not yet
 //! converged; the estimator keeps following the plant through the periods it does not
-//! decide ([`Controller::hold`](crate::controller::Controller::hold)). Fixed-size,
-//! allocation-free, and no input makes it panic.
+//! decide ([`Controller::hold`]). [`Sequencer::run`] is a loop's whole period with it.
+//! Fixed-size, allocation-free, and no input makes it panic.
 
 use crate::config::{ConfigError, check, positive};
-use crate::controller::Command;
+use crate::controller::{Actuator, Command, Controller, Policy, StateSensor};
+use crate::estimator::Zeroed;
 use crate::rig::Rig;
 
 pub mod swing;
@@ -54,7 +55,8 @@ pub enum Phase {
     Catching,
     /// The balance controller drives.
     Balancing,
-    /// Past the release angle or the track's end: motor off for this period.
+    /// Past the release angle or the track's end: motor off until the pole is below
+    /// horizontal.
     Fallen,
 }
 
@@ -63,8 +65,8 @@ pub enum Phase {
 /// by [`Startup::check`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Startup {
-    /// Periods in each of the two windows the pole's zero is taken over: at least one swing
-    /// of the hanging pole (`2 pi sqrt(4 l / 3 g)`, about 1.1 s for a 44 cm pole).
+    /// Periods in each of the two windows a pole at rest is watched over: long enough that a
+    /// pole still swinging moves more than a count within one (half a swing).
     pub zero_periods: u16,
     /// The catch region's half-width in angle from upright, rad.
     pub catch_angle: f32,
@@ -80,6 +82,38 @@ pub struct Startup {
 }
 
 impl Startup {
+    /// A start-up for `rig` from its physics, swinging up: the zero watched for half a swing
+    /// of the hanging pole (`pi / w` with `w = sqrt(3 g / 4 l)`, a uniform pole's angular
+    /// frequency), the catch region 0.7 of the failure angle and `w / 4` in rate, three
+    /// periods inside, the release at 0.95 of the failure angle. The swing-up's acceleration
+    /// sways the cart by about `a / w^2` at the pendulum's frequency: it asks for the most
+    /// that keeps that sway within 0.3 of the track's accepted half-length, and at most half
+    /// the cart's stall acceleration (`F / (M + m)`). Its centring (a spring of 2.4 rad/s,
+    /// damped at 0.8), its energy gain and its overshoot are the ones measured on the desk
+    /// rig (`docs/STARTUP.md`).
+    pub fn suggested(rig: &Rig) -> Result<Startup, ConfigError> {
+        let rig = check!(rig.check());
+        let p = &rig.params;
+        let w = libm::sqrt(3.0 * p.gravity / (4.0 * p.length));
+        let track = f64::from(check!(rig.limits()).max_abs()[0]);
+        let failure = p.theta_threshold_radians as f32;
+        let max_accel = (0.3 * track * w * w).min(0.5 * p.force_mag / p.total_mass());
+        let startup = Startup {
+            zero_periods: libm::ceil(core::f64::consts::PI / w / p.tau).clamp(2.0, 65_535.0) as u16,
+            catch_angle: 0.7 * failure,
+            catch_rate: (w / 4.0) as f32,
+            catch_periods: 3,
+            release_angle: 0.95 * failure,
+            swing: Some(Swing {
+                energy_gain: 3.0,
+                max_accel: max_accel as f32,
+                centring: [6.0, 4.0],
+                overshoot: 0.015,
+            }),
+        };
+        startup.check(&rig)
+    }
+
     /// `self`, if every region is one a rig can run on `rig`: finite, non-empty, the catch
     /// region inside the release angle, the release angle at most the rig's failure angle,
     /// the windows at least a period long, and a swing-up as [`Swing::check`] accepts.
@@ -212,7 +246,13 @@ impl Sequencer {
         let inside = libm::fabsf(s[2]) <= self.startup.catch_angle
             && libm::fabsf(s[3]) <= self.startup.catch_rate;
         match self.phase {
-            Phase::Zeroing | Phase::Fallen => self.phase = self.idle(),
+            Phase::Zeroing => self.phase = self.idle(),
+            // Motor off until the pole is down: a pole let go at the track's end is still up,
+            // and catching it again there would run the cart into the end stop.
+            Phase::Fallen if libm::fabsf(s[2]) < core::f32::consts::FRAC_PI_2 => {
+                return Act::Hold(Command::Coast);
+            }
+            Phase::Fallen => self.phase = self.idle(),
             Phase::Waiting | Phase::SwingingUp if inside => {
                 self.transitions.entered = self.transitions.entered.saturating_add(1);
                 self.inside = 0;
@@ -284,17 +324,40 @@ impl Sequencer {
         self.transitions
     }
 
-    /// The counts `(cart, pole)` of the cart's centre and the pole upright, once zeroed:
-    /// what the estimator's counts are taken from ([`Sequencer::about_upright`]).
+    /// The raw counts `(cart, pole)` of the cart's centre and the pole upright, once zeroed.
     pub fn zero(&self) -> Option<(i32, i32)> {
         self.zero
     }
 
-    /// Raw counts as the balance controller's estimator reads them: from the cart's centre
-    /// and the pole upright (the raw counts themselves until zeroed).
-    pub fn about_upright(&self, (cart, pole): (i32, i32)) -> (i32, i32) {
-        let (c0, p0) = self.zero.unwrap_or((0, 0));
-        (cart.wrapping_sub(c0), pole.wrapping_sub(p0))
+    /// One period of a rig's loop on the raw counts `counts` (as the controller's sensor
+    /// reads them this period): the phase moves on ([`Sequencer::period`]), then the
+    /// controller holds the command or runs its own period. The period the zero is taken,
+    /// the sensor is zeroed there ([`Zeroed::zero_at`]); the period of a catch, the
+    /// controller is rearmed ([`Controller::rearm`]).
+    pub fn run<P, S, A, const N: usize>(
+        &mut self,
+        counts: (i32, i32),
+        controller: &mut Controller<P, S, A, N>,
+    ) -> Command
+    where
+        P: Policy<S::Reading>,
+        S: StateSensor + Zeroed,
+        A: Actuator,
+    {
+        let zeroed = self.zero.is_some();
+        let act = self.period(counts.0, counts.1);
+        if let (false, Some(zero)) = (zeroed, self.zero) {
+            controller.sensor_mut().zero_at(zero);
+        }
+        match act {
+            Act::Hold(command) => controller.hold(command),
+            Act::Balance { engaged } => {
+                if engaged {
+                    controller.rearm();
+                }
+                controller.step()
+            }
+        }
     }
 }
 

@@ -10,6 +10,8 @@
 //!   firmware's estimator, actuator dead time, pushes; the named sets the tables use.
 //! - [`faults`]: what goes wrong in a real loop (encoder glitches, stuck and dropped
 //!   readings, overruns, a weak motor, controller resets), as scenario parts.
+//! - [`startup`]: episodes from power-on: the pole hanging or lifted, the board's start-up
+//!   taking it to balance.
 //! - [`world`]: one episode of a scenario's plant, period by period: the measurement, then
 //!   the actuator.
 //! - [`run`]: the unchanged firmware controller against a world, through pins and the
@@ -32,6 +34,7 @@ pub mod machine;
 pub mod rigfile;
 pub mod run;
 pub mod scenario;
+pub mod startup;
 pub mod world;
 
 pub use domain::Domain;

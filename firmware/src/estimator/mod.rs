@@ -49,7 +49,7 @@ mod wrap;
 
 pub use alpha_beta::AlphaBeta;
 pub use observer::{Observer, Tuning};
-pub use sensor::{AlphaBetaSensor, Counter, Estimate, ObserverSensor};
+pub use sensor::{AlphaBetaSensor, Counter, Estimate, ObserverSensor, Zeroed};
 
 use crate::config::ConfigError;
 

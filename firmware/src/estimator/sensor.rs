@@ -21,12 +21,26 @@ impl<F: FnMut() -> (i32, i32)> Counter for F {
     }
 }
 
+/// A sensor on encoder counts whose zero a start-up takes after power-on
+/// ([`crate::startup`]): until then it reads the counts as they come.
+pub trait Zeroed {
+    /// From the next reading on, reads the counts about `zero` (the raw counts of the cart's
+    /// centre and of the pole upright) and estimates afresh from them.
+    fn zero_at(&mut self, zero: (i32, i32));
+}
+
+/// The counts `(cart, pole)` about `zero`, wrapping as a counter does.
+fn about((cart, pole): (i32, i32), zero: (i32, i32)) -> (i32, i32) {
+    (cart.wrapping_sub(zero.0), pole.wrapping_sub(zero.1))
+}
+
 /// The encoders read through the model-based [`Observer`], which is told every command:
 /// the sensor every encoder-read controller runs (the twin's, the loopback's, a board's).
 /// `O` is the reading's format: `[f32; 4]`, or `[i16; 4]` (Q3.12) for the integer network.
 pub struct ObserverSensor<C, O = [f32; OBS_DIM]> {
     counter: C,
     observer: Observer,
+    zero: (i32, i32),
     format: PhantomData<O>,
 }
 
@@ -36,6 +50,7 @@ impl<C: Counter, O> ObserverSensor<C, O> {
         ObserverSensor {
             counter,
             observer,
+            zero: (0, 0),
             format: PhantomData,
         }
     }
@@ -67,7 +82,7 @@ impl<C: Counter, O: Estimate> StateSensor for ObserverSensor<C, O> {
     type Error = core::convert::Infallible;
     #[inline]
     fn read(&mut self) -> Result<O, Self::Error> {
-        let (cart, pole) = self.counter.counts();
+        let (cart, pole) = about(self.counter.counts(), self.zero);
         self.observer.update(cart, pole);
         Ok(O::observed(&self.observer))
     }
@@ -81,12 +96,20 @@ impl<C: Counter, O: Estimate> StateSensor for ObserverSensor<C, O> {
     }
 }
 
+impl<C, O> Zeroed for ObserverSensor<C, O> {
+    fn zero_at(&mut self, zero: (i32, i32)) {
+        self.zero = zero;
+        self.observer.reset();
+    }
+}
+
 /// The encoders read through the model-free [`AlphaBeta`] filter, which needs no commands.
 /// With `O = [i16; 4]` the whole path from counts to the integer network's decision is
 /// integer arithmetic.
 pub struct AlphaBetaSensor<C, O = [f32; OBS_DIM]> {
     counter: C,
     filter: AlphaBeta,
+    zero: (i32, i32),
     format: PhantomData<O>,
 }
 
@@ -96,6 +119,7 @@ impl<C: Counter, O> AlphaBetaSensor<C, O> {
         AlphaBetaSensor {
             counter,
             filter,
+            zero: (0, 0),
             format: PhantomData,
         }
     }
@@ -158,8 +182,15 @@ impl<C: Counter, O: Estimate> StateSensor for AlphaBetaSensor<C, O> {
     type Error = core::convert::Infallible;
     #[inline]
     fn read(&mut self) -> Result<O, Self::Error> {
-        let (cart, pole) = self.counter.counts();
+        let (cart, pole) = about(self.counter.counts(), self.zero);
         self.filter.update(cart, pole);
         Ok(O::filtered(&self.filter))
+    }
+}
+
+impl<C, O> Zeroed for AlphaBetaSensor<C, O> {
+    fn zero_at(&mut self, zero: (i32, i32)) {
+        self.zero = zero;
+        self.filter.reset();
     }
 }

@@ -17,6 +17,10 @@ use crate::cartpole::Params;
 use crate::config::{ConfigError, check, non_negative, positive};
 use crate::controller::{Command, Duty};
 
+/// The least rate, rad/s, the law takes the pole's to be (with its sign, `+` at rest): a pole
+/// hanging still is pushed off rather than left there.
+const STIR: f32 = 1.0;
+
 /// The swing-up's gains.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Swing {
@@ -26,6 +30,9 @@ pub struct Swing {
     pub max_accel: f32,
     /// The pull to the centre: acceleration per metre from it (1/s^2) and per m/s (1/s).
     pub centring: [f32; 2],
+    /// The energy aimed at, above upright's, in units of `m g l`: a little over zero, so
+    /// that the pole arrives at the top still moving rather than slowing to a stop on the way.
+    pub overshoot: f32,
 }
 
 impl Swing {
@@ -45,6 +52,10 @@ impl Swing {
             self.centring[1] as f64,
             "startup.swing.centring[1]"
         ));
+        check!(non_negative(
+            self.overshoot as f64,
+            "startup.swing.overshoot"
+        ));
         Ok(self)
     }
 }
@@ -61,6 +72,8 @@ pub(super) struct Pump {
     damping: f32,
     /// The track's accepted half-length, m.
     track: f32,
+    /// Half the control period, s.
+    half_tau: f32,
 }
 
 impl Pump {
@@ -73,6 +86,7 @@ impl Pump {
             force: p.force_mag as f32,
             damping: p.motor_damping as f32,
             track,
+            half_tau: (p.tau / 2.0) as f32,
         }
     }
 
@@ -89,13 +103,16 @@ impl Pump {
             energy_gain,
             max_accel,
             centring,
+            overshoot,
         } = self.swing;
-        let side = if theta_dot * libm::cosf(theta) >= 0.0 {
-            1.0
+        // The rate is the last period's mean: the angle halfway through it goes with it.
+        let energy = self.energy(theta - theta_dot * self.half_tau, theta_dot) - overshoot;
+        let stir = if theta_dot >= 0.0 {
+            theta_dot.max(STIR)
         } else {
-            -1.0
+            theta_dot.min(-STIR)
         };
-        let pump = energy_gain * self.gravity * self.energy(theta, theta_dot) * side;
+        let pump = energy_gain * self.gravity * energy * stir * libm::cosf(theta);
         let mut accel = pump.clamp(-max_accel, max_accel) - centring[0] * x - centring[1] * x_dot;
         let stop = x + x_dot * libm::fabsf(x_dot) / (2.0 * max_accel);
         if libm::fabsf(stop) >= self.track && x_dot * stop > 0.0 {

@@ -1,3 +1,6 @@
+extern crate std;
+use std::vec::Vec;
+
 use super::*;
 use crate::controller::Duty;
 
@@ -15,64 +18,80 @@ const START: Startup = Startup {
     swing: None,
 };
 
-/// Feeds `poles` with the cart at `cart`, returning what each period did.
-fn feed(s: &mut Sequencer, cart: i32, poles: &[i32]) -> [Act; 8] {
-    let mut acts = [Act::Hold(Command::Coast); 8];
-    for (a, &p) in acts.iter_mut().zip(poles) {
-        *a = s.period(cart, p);
-    }
-    acts
+/// Feeds `poles` with the cart at `cart`; true if every period held the motor off.
+fn feed(s: &mut Sequencer, cart: i32, poles: impl IntoIterator<Item = i32>) -> bool {
+    poles
+        .into_iter()
+        .all(|p| s.period(cart, p) == Act::Hold(Command::Coast))
 }
 
-/// A sequencer zeroed with the pole hanging at raw count 500 and the cart at 100: upright
+/// A sequencer zeroed with the pole resting at raw count 500 and the cart at 100: upright
 /// is 500 + 2,048.
 fn zeroed(startup: Startup) -> Sequencer {
     let mut s = Sequencer::new(startup, &RIG).unwrap();
-    feed(&mut s, 100, &[490, 500, 510, 500, 491, 509, 500, 495]);
+    feed(&mut s, 100, [500; 8]);
     assert_eq!(s.zero(), Some((100, 2548)));
     s
 }
 
-#[test]
-fn the_zero_is_the_middle_of_the_swing_once_two_windows_agree() {
-    let mut s = Sequencer::new(START, &RIG).unwrap();
-    // Windows of four: 490..=510 has its middle at 500 ((0 + 20 + 1) / 2 = 10 past 490), so
-    // has 491..=509 ((0 + 18 + 1) / 2 = 9 past 491).
-    let acts = feed(&mut s, 100, &[490, 500, 510, 500, 491, 509, 500]);
-    assert!(acts.iter().all(|a| *a == Act::Hold(Command::Coast)));
-    assert_eq!((s.phase(), s.zero()), (Phase::Zeroing, None));
-    assert_eq!(s.period(100, 495), Act::Hold(Command::Coast));
-    assert_eq!((s.phase(), s.zero()), (Phase::Waiting, Some((100, 2548))));
-    assert_eq!(s.transitions().zeroed, 1);
-    assert_eq!(s.about_upright((101, 2548 + 7)), (1, 7));
-
-    // Middles of 500, then 503 (a hand moved it), then 503 again: the third window's.
-    let mut s = Sequencer::new(START, &RIG).unwrap();
-    feed(&mut s, 0, &[490, 500, 510, 500, 493, 503, 513, 503]);
-    assert_eq!(s.zero(), None);
-    feed(&mut s, 0, &[494, 512, 503, 503]);
-    assert_eq!(s.zero(), Some((0, 503 + 2048)));
+/// Counts from `from` through each turning point in turn, 3 counts a period.
+fn swing(from: i32, turns: &[i32]) -> Vec<i32> {
+    let mut counts = Vec::new();
+    let mut at = from;
+    for &to in turns {
+        let step = if to > at { 3 } else { -3 };
+        while (to - at) * step > 3 {
+            at += step;
+            counts.push(at);
+        }
+        at = to;
+        counts.push(to);
+    }
+    counts
 }
 
 #[test]
-fn a_zero_is_taken_across_the_counter_wrapping() {
+fn a_resting_pole_is_zeroed_once_two_windows_agree() {
     let mut s = Sequencer::new(START, &RIG).unwrap();
-    let m = i32::MAX;
-    feed(
-        &mut s,
-        0,
-        &[
-            m - 5,
-            m,
-            m.wrapping_add(5),
-            m,
-            m - 4,
-            m,
-            m.wrapping_add(4),
-            m,
-        ],
+    // A flicker of one count is rest: the middle of 500 and 501 is 500.5, count 500.
+    assert!(feed(&mut s, 100, [500, 501, 500, 501, 501, 500, 501]));
+    assert_eq!((s.phase(), s.zero()), (Phase::Zeroing, None));
+    assert!(feed(&mut s, 100, [500]));
+    assert_eq!(
+        (s.phase(), s.zero()),
+        (Phase::Waiting, Some((100, 501 + 2048)))
     );
-    assert_eq!(s.zero(), Some((0, m.wrapping_add(2048))));
+    assert_eq!(s.transitions().zeroed, 1);
+
+    // Two counts is not rest, and a window that moved does not agree with the one before.
+    let mut s = Sequencer::new(START, &RIG).unwrap();
+    feed(&mut s, 0, [500, 500, 502, 502, 502, 502, 502, 502]);
+    assert_eq!(s.zero(), None);
+    feed(&mut s, 0, [505; 4]);
+    assert_eq!(s.zero(), None);
+    feed(&mut s, 0, [505; 4]);
+    assert_eq!(s.zero(), Some((0, 505 + 2048)));
+}
+
+#[test]
+fn a_decaying_swing_is_zeroed_by_its_turning_points() {
+    let mut s = Sequencer::new(START, &RIG).unwrap();
+    // About 500, losing 2 counts a half swing: the middle of the first two turning points,
+    // (520 + 481) / 2, is half a count high, of the next, (481 + 518) / 2, half a count low.
+    // (520 + 2 x 481 + 518 + 2) / 4 = 500.5 and (481 + 2 x 518 + 483 + 2) / 4 = 500.5 agree.
+    let turns = [520, 481, 518, 483, 516, 485];
+    // The fourth turn (483) shows once the count is 2 back up from it.
+    let to_fourth = swing(500, &turns[..4]);
+    assert!(feed(&mut s, 7, to_fourth.iter().copied()));
+    assert_eq!(s.zero(), None);
+    assert!(feed(&mut s, 7, [484, 486]));
+    assert_eq!(s.zero(), Some((7, 500 + 2048)));
+    // Across the counter's wrap, the same.
+    let mut s = Sequencer::new(START, &RIG).unwrap();
+    let base = i32::MAX - 500;
+    let counts = to_fourth.iter().chain(&[484, 486]);
+    feed(&mut s, 0, counts.map(|&c| base.wrapping_add(c)));
+    assert_eq!(s.zero(), Some((0, base.wrapping_add(500 + 2048))));
 }
 
 #[test]
@@ -93,7 +112,12 @@ fn a_lifted_pole_is_caught_after_its_periods_inside_and_let_go_past_the_release_
     assert_eq!(s.period(100, 2548 + 130), Act::Balance { engaged: false });
     assert_eq!(s.period(100, 2548 + 131), Act::Hold(Command::Coast));
     assert_eq!(s.phase(), Phase::Fallen);
-    assert_eq!(s.period(100, 2548 + 200), Act::Hold(Command::Coast));
+    // Motor off until the pole is below horizontal (1,024 counts from upright), then waiting.
+    for pole in [2548 + 200, 2548 + 1023, 2548 - 1023] {
+        assert_eq!(s.period(100, pole), Act::Hold(Command::Coast));
+        assert_eq!(s.phase(), Phase::Fallen);
+    }
+    assert_eq!(s.period(100, 2548 - 1025), Act::Hold(Command::Coast));
     assert_eq!(s.phase(), Phase::Waiting);
     let t = s.transitions();
     assert_eq!((t.entered, t.caught, t.missed, t.fell), (1, 1, 0, 1));
@@ -173,6 +197,7 @@ fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
         energy_gain: 0.5,
         max_accel: f32::INFINITY,
         centring: [1.0, 2.0],
+        overshoot: 0.0,
     };
     assert_eq!(
         refused(Startup {
@@ -187,23 +212,27 @@ const SWING: Swing = Swing {
     energy_gain: 0.5,
     max_accel: 3.0,
     centring: [1.0, 2.0],
+    overshoot: 0.0,
 };
 
 #[test]
 fn the_swing_law_by_hand() {
     let pump = Pump::new(SWING, &RIG.params, 2.4);
-    // Hanging at rest: energy -2; the sign taken as +, so 0.5 g (-2) = -9.8 saturates at -3;
-    // less 1 x 0.1 and 2 x 0.2: -3.5 m/s^2, times 1.1 kg over 10 N: -0.385 of full duty.
+    // Hanging at rest: energy -2, the rate taken as +1 rad/s, cos theta -1: 0.5 g (-2) (+1)
+    // (-1) = 9.8 saturates at 3; less 1 x 0.1 and 2 x 0.2: 2.5 m/s^2, times 1.1 kg over 10 N:
+    // 0.275 of full duty.
     let hanging = [0.1, 0.2, core::f32::consts::PI, 0.0];
     assert_eq!(pump.energy(hanging[2], 0.0), -2.0);
     let drive = |t| Command::Drive(Duty::from_thousandths(t).unwrap());
-    assert_eq!(pump.command(&hanging), drive(-385));
+    assert_eq!(pump.command(&hanging), drive(275));
     // Level with the pivot (cos 0) at 2 rad/s: 2 l / 3 g x 4 = 0.1361 above -1.
     assert!((pump.energy(core::f32::consts::FRAC_PI_2, -2.0) + 0.863_946).abs() < 1e-5);
-    // Near the top, 0.0340 - 0.0050 = 0.0290 over, rising (theta_dot cos theta > 0): 0.5 x
-    // 9.8 x 0.0290 = 0.1422 m/s^2, times 1.1 kg over 10 N: 0.0156 of full duty.
+    // Near the top at 0.1 rad and 1 rad/s: the energy is taken half a period back, at 0.09
+    // rad: 0.0340 - 0.0040 = 0.0300 over; 0.5 x 9.8 x 0.0300 x 1 x cos 0.1 = 0.146 m/s^2,
+    // times 1.1 kg over 10 N: 0.016 of full duty.
     let top = [0.0, 0.0, 0.1, 1.0];
     assert!((pump.energy(0.1, 1.0) - 0.029_018).abs() < 1e-5);
+    assert!((pump.energy(0.09, 1.0) - 0.029_967).abs() < 1e-5);
     assert_eq!(pump.command(&top), drive(16));
     // Stopping from 2 m/s at 3 m/s^2 takes 0.667 m: from 2.0 m that passes 2.4, so full
     // braking; from 1.5 m/s (0.375 m) it does not.
@@ -223,11 +252,28 @@ fn with_a_swing_the_machine_pumps_instead_of_waiting() {
         ..START
     });
     assert_eq!(s.phase(), Phase::SwingingUp);
-    // Hanging at the zero, the cart at the centre. Moving 5 counts from the last zeroing
-    // period's 495 (0.38 rad/s, theta_dot cos theta < 0): 0.5 x 9.8 x 1.995 = 9.8 saturated
-    // at 3 m/s^2, 0.33 of full duty; then still (the sign taken as +): -0.33.
+    // Hanging still at the zero, the cart at the centre: 0.5 g (-2) (+1) (-1) = 9.8,
+    // saturated at 3 m/s^2: 0.33 of full duty.
     let drive = |t| Act::Hold(Command::Drive(Duty::from_thousandths(t).unwrap()));
     assert_eq!(s.period(100, 500), drive(330));
-    assert_eq!(s.period(100, 500), drive(-330));
     assert_eq!(s.phase(), Phase::SwingingUp);
+}
+
+#[test]
+fn the_suggested_start_up_by_hand() {
+    // Gymnasium's pole: w = sqrt(3 x 9.8 / (4 x 0.5)) = 3.834 rad/s, half a swing 0.819 s =
+    // 40.97 periods; the failure angle 12 degrees (0.2094 rad). The sway limit 0.3 x 2.4 x
+    // 14.7 = 10.58 m/s^2 is above half the stall acceleration, 10 N / 1.1 kg / 2 = 4.545.
+    let s = Startup::suggested(&RIG).unwrap();
+    assert_eq!((s.zero_periods, s.catch_periods), (41, 3));
+    assert!((s.catch_angle - 0.146_608).abs() < 1e-6);
+    assert!((s.catch_rate - 0.958_514).abs() < 1e-6);
+    assert!((s.release_angle - 0.198_968).abs() < 1e-6);
+    let swing = s.swing.unwrap();
+    assert!((swing.max_accel - 4.545_454).abs() < 1e-5);
+    // A 10 cm track with no margin: 0.3 x 0.1 x 14.7 = 0.441 m/s^2 is the lower.
+    let mut short = RIG;
+    short.params.x_threshold = 0.1;
+    let swing = Startup::suggested(&short).unwrap().swing.unwrap();
+    assert!((swing.max_accel - 0.441).abs() < 1e-6);
 }

@@ -1,0 +1,190 @@
+//! Episodes from power-on: the pole hanging (or lifted by a hand) and the board's start-up
+//! ([`firmware::startup`]) taking it to balance, on a machine's continuous world through its
+//! encoders and dead time, the cart stopped by the track's end stops.
+//!
+//! The board counts from zero at power-on, wherever the cart and pole are: its zero is the
+//! start-up's to find. An end stop is inelastic: the cart stops against it (its speed goes
+//! to zero, the pole's motion is left as it was) and the contact is counted.
+
+use core::cell::Cell;
+
+use firmware::ConfigError;
+use firmware::cartpole::{Plant, State};
+use firmware::controller::predict::DeadTime;
+use firmware::controller::{FaultCounters, Policy};
+use firmware::estimator::ObserverSensor;
+use firmware::loopback::{duty, pins};
+use firmware::rig::{Options, Rig};
+use firmware::startup::{Phase, Sequencer, Startup, Transitions};
+
+use crate::machine::{self, Machine};
+
+/// A hand lifting the pole from where it hangs along a smooth path, and letting go. The
+/// hand steadies the cart while it lifts: the cart stays where it was taken, at rest.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Lift {
+    /// The period the hand takes the pole.
+    pub from: u32,
+    /// Periods it takes to lift it.
+    pub periods: u32,
+    /// Where it lets go: the angle from upright (rad) and the pole's rate then (rad/s).
+    pub release: (f64, f64),
+}
+
+impl Lift {
+    /// The pole's angle and rate `k` periods into the lift from `start` (the angle it was
+    /// taken at): a half cosine in the angle, from rest, arriving at the release rate by a
+    /// last stretch of constant rate.
+    fn at(&self, start: f64, k: u32, tau: f64) -> (f64, f64) {
+        let (to, rate) = self.release;
+        let t = f64::from(self.periods) * tau;
+        // The release angle less the stretch the release rate covers in a tenth of the lift.
+        let tail = rate * t / 10.0;
+        let goal = nearest_turn(start, to - tail);
+        let u = (f64::from(k) * tau / (0.9 * t)).min(1.0);
+        if u < 1.0 {
+            let w = 0.5 - 0.5 * (std::f64::consts::PI * u).cos();
+            let dw = 0.5 * std::f64::consts::PI * (std::f64::consts::PI * u).sin() / (0.9 * t);
+            (start + (goal - start) * w, (goal - start) * dw)
+        } else {
+            (goal + rate * (f64::from(k) * tau - 0.9 * t), rate)
+        }
+    }
+}
+
+/// `angle` moved by whole turns to the one nearest `near`.
+fn nearest_turn(near: f64, angle: f64) -> f64 {
+    let turn = std::f64::consts::TAU;
+    angle + turn * ((near - angle) / turn).round()
+}
+
+/// An external push on the cart: its force (N) held over one period.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Knock {
+    /// The period it acts over.
+    pub period: u32,
+    /// Its force, N (positive towards +x).
+    pub force: f64,
+}
+
+/// What an episode from power-on came to.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Outcome {
+    /// The first period of the balance that lasted to the end, if one did.
+    pub balanced_from: Option<u32>,
+    /// The start-up's upright zero less the true one, in pole counts, once taken.
+    pub zero_error: Option<i64>,
+    /// The largest distance of the cart from the centre, m.
+    pub max_abs_x: f64,
+    /// The largest distance of the cart from the centre while the start-up drove it, m.
+    pub max_abs_x_swinging: f64,
+    /// Periods the cart spent against an end stop.
+    pub end_stop_periods: u32,
+    /// The start-up's transitions.
+    pub transitions: Transitions,
+    /// The balance controller's faults.
+    pub faults: FaultCounters,
+    /// The phase the episode ended in.
+    pub phase: Phase,
+}
+
+/// What happens to an episode from power-on: how long it runs, a hand's lift, pushes.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Events<'a> {
+    /// Periods run.
+    pub periods: u32,
+    /// A hand lifting the pole, if one does.
+    pub lift: Option<Lift>,
+    /// Pushes on the cart.
+    pub knocks: &'a [Knock],
+}
+
+/// Runs `events.periods` of `world`'s true physics from `start`, read through its encoders,
+/// its board (`board`, the rig it was told: the integer `policy` behind the observer and
+/// predictor) started by `startup`.
+pub fn power_on<P: Policy<[i16; 4]>>(
+    world: &Machine,
+    board: &Rig,
+    startup: Startup,
+    policy: P,
+    start: State,
+    events: Events<'_>,
+) -> Result<Outcome, ConfigError> {
+    let (rig, truth) = (board, world.rig);
+    let plant = Plant::new(&truth.params);
+    let counts = |s: &State| truth.encoders.counts(s.x, s.theta);
+    let origin = counts(&start);
+    let latest = Cell::new((0, 0));
+    let sensor = ObserverSensor::<_, [i16; 4]>::new(rig.observer()?, || latest.get());
+    let options = Options {
+        predict: true,
+        monitor: None,
+    };
+    let mut controller = rig.controller(policy, sensor, pins(), options)?;
+    let mut sequencer = Sequencer::new(startup, rig)?;
+    let mut line = DeadTime::new(truth.dead_time as usize);
+    let mut s = start;
+    let mut out = Outcome {
+        balanced_from: None,
+        zero_error: None,
+        max_abs_x: 0.0,
+        max_abs_x_swinging: 0.0,
+        end_stop_periods: 0,
+        transitions: Transitions::default(),
+        faults: FaultCounters::default(),
+        phase: Phase::Zeroing,
+    };
+    let (mut lifted_from, mut held) = (start.theta, start);
+    for period in 0..events.periods {
+        sequencer.run(latest.get(), &mut controller);
+        let phase = sequencer.phase();
+        if phase != Phase::Balancing {
+            out.balanced_from = None;
+            out.max_abs_x_swinging = out.max_abs_x_swinging.max(s.x.abs());
+        } else if out.balanced_from.is_none() {
+            out.balanced_from = Some(period);
+        }
+        let push = events
+            .knocks
+            .iter()
+            .filter(|k| k.period == period)
+            .map(|k| k.force)
+            .sum();
+        let acting = line.send(duty(controller.actuator()));
+        s = machine::advance(&plant, world.integration, &s, acting, push);
+        if let Some(lift) = &events.lift {
+            match period.checked_sub(lift.from) {
+                Some(0) => (lifted_from, held) = (s.theta, s),
+                Some(k) if k <= lift.periods => {
+                    (s.theta, s.theta_dot) = lift.at(lifted_from, k, truth.params.tau);
+                    (s.x, s.x_dot) = (held.x, 0.0);
+                }
+                _ => {}
+            }
+        }
+        let end = truth.params.x_threshold;
+        if s.x.abs() >= end {
+            s.x = s.x.clamp(-end, end);
+            s.x_dot = 0.0;
+            out.end_stop_periods += 1;
+        }
+        out.max_abs_x = out.max_abs_x.max(s.x.abs());
+        let (cart, pole) = counts(&s);
+        latest.set((cart.wrapping_sub(origin.0), pole.wrapping_sub(origin.1)));
+    }
+    let truth_rev = truth.encoders.pole_counts_per_rev;
+    out.zero_error = sequencer.zero().map(|(_, upright)| {
+        let upright_true = i64::from(origin.1.wrapping_neg());
+        wrapped(i64::from(upright) - upright_true, truth_rev)
+    });
+    out.transitions = sequencer.transitions();
+    out.faults = controller.faults();
+    out.phase = sequencer.phase();
+    Ok(out)
+}
+
+/// `c` counts moved by whole revolutions of `rev` counts to the nearest zero.
+fn wrapped(c: i64, rev: u32) -> i64 {
+    let rev = i64::from(rev);
+    (c + rev / 2).rem_euclid(rev) - rev / 2
+}
