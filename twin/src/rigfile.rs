@@ -30,7 +30,8 @@
 //! `[identified]` table that `host-sim identify` writes: how far each fitted value may be off
 //! (`stall_force`, `damping`, `pole_com`: the half-width of its 95% interval relative to the
 //! value, [`crate::machine::Uncertainty`]), and, where the fit did not explain the logs,
-//! an `[identified.misfit]` table ([`Misfit`], read by [`misfit`]). Every value is checked:
+//! an `[identified.misfit]` table ([`Misfit`], read by [`misfit`]), and a `[startup]`
+//! table ([`load_startup`]: how the rig starts from power-on). Every value is checked:
 //! a rig that is not physical is refused, naming the field.
 
 use std::path::Path;
@@ -38,6 +39,7 @@ use std::path::Path;
 use firmware::cartpole::Params;
 use firmware::estimator::{Encoders, Tuning};
 use firmware::rig::Rig;
+use firmware::startup::Startup;
 use serde::Deserialize;
 use weights::{Error, Result, quote};
 
@@ -104,6 +106,8 @@ struct File {
     observer: Option<Observer>,
     #[serde(default)]
     identified: Identified,
+    #[serde(default)]
+    startup: startup::Table,
 }
 
 /// The `[identified]` table: each fitted value's 95% half-width, relative to the value.
@@ -385,20 +389,40 @@ impl Fields<'_> {
 
 /// Reads the rig file at `path` (see [the module](self)).
 pub fn load(path: &Path) -> Result<Machine> {
-    let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
-    let origin = format!("rig {}", weights::shown(path));
-    let text = std::str::from_utf8(&bytes)
-        .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
-    parse(text, &origin)
+    load_startup(path).map(|(machine, _)| machine)
 }
 
 /// Parses a rig file's text; `origin` names it in errors.
 pub fn parse(text: &str, origin: &str) -> Result<Machine> {
     let f: File = toml::from_str(text)
         .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
+    machine(&f, Fields { origin })
+}
+
+/// Reads the rig file at `path` with its start-up: its `[startup]` table, the rest suggested
+/// from its physics ([`startup`]).
+pub fn load_startup(path: &Path) -> Result<(Machine, Startup)> {
+    let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
+    let origin = format!("rig {}", weights::shown(path));
+    let text = std::str::from_utf8(&bytes)
+        .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
+    parse_startup(text, &origin)
+}
+
+/// [`parse`] with the start-up, as [`load_startup`] reads it.
+pub fn parse_startup(text: &str, origin: &str) -> Result<(Machine, Startup)> {
+    let f: File = toml::from_str(text)
+        .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
     let fields = Fields { origin };
-    let (half, margin) = fields.track(&f)?;
-    let params = fields.params(&f, half)?;
+    let machine = machine(&f, fields)?;
+    let startup = fields.startup(&f.startup, &machine.rig)?;
+    Ok((machine, startup))
+}
+
+/// The machine file `f` describes.
+fn machine(f: &File, fields: Fields<'_>) -> Result<Machine> {
+    let (half, margin) = fields.track(f)?;
+    let params = fields.params(f, half)?;
     let rig = Rig {
         params,
         encoders: fields.encoders(&f.encoders)?,
@@ -422,6 +446,7 @@ pub fn parse(text: &str, origin: &str) -> Result<Machine> {
 }
 
 mod misfit;
+mod startup;
 mod write;
 pub use misfit::{MISFIT_HALF_WIDTH, Misfit, misfit};
 use write::radians;

@@ -1,0 +1,89 @@
+//! The `[startup]` table: how a rig starts from power-on (`firmware::startup`), each value
+//! optional, the rest [`Startup::suggested`] from the rig's physics.
+//!
+//! ```toml
+//! [startup]
+//! zero_window_s = 0.56          # a pole at rest is watched for two windows of this
+//! catch_angle_deg = 8.4         # the catch region: angle from upright
+//! catch_rate_deg_s = 83         # and the pole's rate
+//! catch_periods = 3             # periods inside before the balance controller drives
+//! release_angle_deg = 11.4      # past this the motor turns off; at most failure_angle_deg
+//! swing_up = true               # or wait for a hand to lift the pole
+//! swing_energy_gain_s = 3.0     # the swing-up's gains (firmware::startup::Swing)
+//! swing_max_accel_m_s2 = 3.5
+//! swing_centring_per_s2 = 6.0
+//! swing_centring_per_s = 4.0
+//! swing_overshoot = 0.015
+//! ```
+
+use firmware::rig::Rig;
+use firmware::startup::Startup;
+use serde::Deserialize;
+use weights::Result;
+
+use super::{Fields, radians};
+
+#[derive(Deserialize, Default)]
+#[serde(deny_unknown_fields)]
+pub(super) struct Table {
+    zero_window_s: Option<f64>,
+    catch_angle_deg: Option<f64>,
+    catch_rate_deg_s: Option<f64>,
+    catch_periods: Option<u16>,
+    release_angle_deg: Option<f64>,
+    swing_up: Option<bool>,
+    swing_energy_gain_s: Option<f64>,
+    swing_max_accel_m_s2: Option<f64>,
+    swing_centring_per_s2: Option<f64>,
+    swing_centring_per_s: Option<f64>,
+    swing_overshoot: Option<f64>,
+}
+
+impl Fields<'_> {
+    /// The start-up `t` gives for `rig`, each value checked and the whole as the board
+    /// checks it (the catch region inside the release angle, the release angle at most the
+    /// failure angle).
+    pub(super) fn startup(self, t: &Table, rig: &Rig) -> Result<Startup> {
+        let refused = |e| self.refuse(format!("the board refuses its start-up: {e}"));
+        let mut s = Startup::suggested(rig).map_err(refused)?;
+        let value = |field: &str, v: Option<f64>, hi: f64| match v {
+            Some(v) => self
+                .check(&format!("startup.{field}"), v, (0.0, hi), true)
+                .map(Some),
+            None => Ok(None),
+        };
+        if let Some(w) = value("zero_window_s", t.zero_window_s, 60.0)? {
+            s.zero_periods = (w / rig.params.tau).ceil().clamp(2.0, 65_535.0) as u16;
+        }
+        if let Some(a) = value("catch_angle_deg", t.catch_angle_deg, 90.0)? {
+            s.catch_angle = radians(a) as f32;
+        }
+        if let Some(r) = value("catch_rate_deg_s", t.catch_rate_deg_s, 1e4)? {
+            s.catch_rate = radians(r) as f32;
+        }
+        s.catch_periods = t.catch_periods.unwrap_or(s.catch_periods);
+        if let Some(a) = value("release_angle_deg", t.release_angle_deg, 90.0)? {
+            s.release_angle = radians(a) as f32;
+        }
+        s.swing = match (t.swing_up, s.swing) {
+            (Some(false), _) | (_, None) => None,
+            (_, Some(mut w)) => {
+                let gain = value("swing_energy_gain_s", t.swing_energy_gain_s, 1e3)?;
+                let accel = value("swing_max_accel_m_s2", t.swing_max_accel_m_s2, 1e3)?;
+                let spring = value("swing_centring_per_s2", t.swing_centring_per_s2, 1e3)?;
+                let damper = value("swing_centring_per_s", t.swing_centring_per_s, 1e3)?;
+                let over = value("swing_overshoot", t.swing_overshoot, 2.0)?;
+                w.energy_gain = gain.map_or(w.energy_gain, |v| v as f32);
+                w.max_accel = accel.map_or(w.max_accel, |v| v as f32);
+                w.centring[0] = spring.map_or(w.centring[0], |v| v as f32);
+                w.centring[1] = damper.map_or(w.centring[1], |v| v as f32);
+                w.overshoot = over.map_or(w.overshoot, |v| v as f32);
+                Some(w)
+            }
+        };
+        s.check(rig).map_err(refused)
+    }
+}
+
+#[cfg(test)]
+mod tests;

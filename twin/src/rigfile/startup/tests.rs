@@ -1,0 +1,57 @@
+use firmware::startup::Startup;
+
+use crate::rigfile::parse_startup;
+
+/// The desk rig's file with `table` appended, read with its start-up.
+fn desk_with(table: &str) -> weights::Result<Startup> {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let text = std::fs::read_to_string(repo.join("rigs/desk.toml")).unwrap();
+    parse_startup(&format!("{text}\n[startup]\n{table}\n"), "desk").map(|(_, s)| s)
+}
+
+#[test]
+fn a_startup_table_overrides_the_suggested_values_it_names() {
+    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let rig = crate::rigfile::load(&repo.join("rigs/desk.toml"))
+        .unwrap()
+        .rig;
+    let suggested = desk_with("").unwrap();
+    assert_eq!(suggested, Startup::suggested(&rig).unwrap());
+    let s = desk_with("catch_angle_deg = 6.0\nzero_window_s = 0.5\nswing_max_accel_m_s2 = 3.0")
+        .unwrap();
+    assert_eq!(s.catch_angle, 6f64.to_radians() as f32);
+    // 0.5 s at 50 Hz: 25 periods.
+    assert_eq!(s.zero_periods, 25);
+    assert_eq!(s.swing.unwrap().max_accel, 3.0);
+    assert_eq!(s.catch_rate, suggested.catch_rate);
+    assert_eq!(desk_with("swing_up = false").unwrap().swing, None);
+}
+
+#[test]
+fn regions_a_board_cannot_run_are_refused_naming_the_field() {
+    let refusal = |table: &str| desk_with(table).unwrap_err().to_string();
+    let e = refusal("release_angle_deg = 13.0");
+    assert!(
+        e.contains("startup.release_angle: expected at most params.theta_threshold_radians"),
+        "{e}"
+    );
+    let e = refusal("catch_angle_deg = 11.5");
+    assert!(
+        e.contains("startup.catch_angle: expected below startup.release_angle"),
+        "{e}"
+    );
+    let e = refusal("catch_rate_deg_s = nan");
+    assert!(
+        e.contains("startup.catch_rate_deg_s: expected a number in (0, 10000], found NaN"),
+        "{e}"
+    );
+    let e = refusal("catch_angle_deg = -1.0");
+    assert!(e.contains("startup.catch_angle_deg"), "{e}");
+    let e = refusal("catch_periods = 0");
+    assert!(
+        e.contains("startup.catch_periods: expected more than zero"),
+        "{e}"
+    );
+    let e = refusal("catch_region = 3");
+    assert!(e.contains("unknown field `catch_region`"), "{e}");
+}
