@@ -21,6 +21,7 @@ mod pil_cmd;
 mod render_cmd;
 mod results_cmd;
 mod soak_cmd;
+mod startup_cmd;
 mod tables_cmd;
 
 /// Most states `agree` compares: a hundred million take minutes.
@@ -68,6 +69,11 @@ enum Command {
     /// hour, the last hour and the whole run, and its coasting periods. Exits 1 if it did
     /// not balance to the end, 2 on bad input.
     Soak(soak_cmd::SoakArgs),
+    /// Run episodes from power-on through the board's start-up: the pole hanging (or
+    /// swinging, or lifted by a hand), its zero taken as gravity gives it, swung up or
+    /// caught, then balanced; report how often and how fast the pole was up (f32 and int8),
+    /// the track it took and the zero's error. Exits 2 on bad input.
+    Startup(startup_cmd::StartupArgs),
     /// Measure where a policy drives in the episodes it balances (the default and hard sets
     /// by default): the runtime monitor's envelope, a quantile of each channel's readings
     /// with a margin; the shipped policy's as the firmware's `envelope` module with --out,
@@ -271,6 +277,7 @@ fn main() -> ExitCode {
         Command::Tables(a) => tables_cmd::run(&a),
         Command::Results(a) => results_cmd::run(&a).map(|()| true),
         Command::Soak(a) => soak_cmd::run(&a),
+        Command::Startup(a) => startup_cmd::run(&a),
         Command::Envelope(a) => envelope_cmd::run(&a).map(|()| true),
         Command::Parts => {
             host_common::out!("{}", twin::grammar::markdown_table());

@@ -9,13 +9,14 @@
 use core::cell::Cell;
 
 use firmware::ConfigError;
-use firmware::cartpole::{Plant, State};
+use firmware::cartpole::{Plant, State, unit_f64};
 use firmware::controller::predict::DeadTime;
 use firmware::controller::{FaultCounters, Policy};
-use firmware::estimator::ObserverSensor;
+use firmware::estimator::{Estimate, ObserverSensor};
 use firmware::loopback::{duty, pins};
 use firmware::rig::{Options, Rig};
 use firmware::startup::{Phase, Sequencer, Startup, Transitions};
+use rand_core::Rng;
 
 use crate::machine::{self, Machine};
 
@@ -56,6 +57,46 @@ impl Lift {
 fn nearest_turn(near: f64, angle: f64) -> f64 {
     let turn = std::f64::consts::TAU;
     angle + turn * ((near - angle) / turn).round()
+}
+
+/// How an episode from power-on begins.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Begin {
+    /// The pole hanging nearly at rest: within 0.02 rad and 0.05 rad/s of it, the cart
+    /// within a centimetre of the centre.
+    Hanging,
+    /// The pole swinging by up to 30 degrees.
+    Swinging,
+    /// Hanging nearly at rest, then lifted by a hand (from 5 to 7 s, over 0.5 to 2 s) into
+    /// the catch region (0.8 of its angle, half its rate) and let go.
+    Lifted,
+}
+
+impl Begin {
+    /// A start of this kind drawn from `rng`, for a rig run at `tau` seconds a period and
+    /// started by `startup`: the state at power-on, and the lift.
+    pub fn draw(self, rng: &mut impl Rng, startup: &Startup, tau: f64) -> (State, Option<Lift>) {
+        let mut u = || 2.0 * unit_f64(rng) - 1.0;
+        let swing = match self {
+            Begin::Swinging => 30f64.to_radians(),
+            Begin::Hanging | Begin::Lifted => 0.02,
+        };
+        let (x, theta, theta_dot) = (0.01 * u(), std::f64::consts::PI + swing * u(), 0.05 * u());
+        let state = State::from_array([x, 0.0, theta, theta_dot]);
+        let lift = (self == Begin::Lifted).then(|| {
+            let seconds = |s: f64| (s / tau).round() as u32;
+            Lift {
+                from: seconds(6.0 + u()),
+                periods: seconds(1.25 + 0.75 * u()),
+                release: (
+                    0.8 * f64::from(startup.catch_angle) * u(),
+                    0.5 * f64::from(startup.catch_rate) * u(),
+                ),
+            }
+        });
+        (state, lift)
+    }
 }
 
 /// An external push on the cart: its force (N) held over one period.
@@ -100,9 +141,9 @@ pub struct Events<'a> {
 }
 
 /// Runs `events.periods` of `world`'s true physics from `start`, read through its encoders,
-/// its board (`board`, the rig it was told: the integer `policy` behind the observer and
-/// predictor) started by `startup`.
-pub fn power_on<P: Policy<[i16; 4]>>(
+/// its board (`board`, the rig it was told: `policy` behind the observer and predictor, on
+/// readings in the format `O`, f32 or the integer network's Q3.12) started by `startup`.
+pub fn power_on<O: Estimate, P: Policy<O>>(
     world: &Machine,
     board: &Rig,
     startup: Startup,
@@ -115,7 +156,7 @@ pub fn power_on<P: Policy<[i16; 4]>>(
     let counts = |s: &State| truth.encoders.counts(s.x, s.theta);
     let origin = counts(&start);
     let latest = Cell::new((0, 0));
-    let sensor = ObserverSensor::<_, [i16; 4]>::new(rig.observer()?, || latest.get());
+    let sensor = ObserverSensor::<_, O>::new(rig.observer()?, || latest.get());
     let options = Options {
         predict: true,
         monitor: None,

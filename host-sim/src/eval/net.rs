@@ -118,6 +118,17 @@ impl Net {
         }
     }
 
+    /// The gentle nine-level policy trained for the identified desk rig (`shipped::desk`),
+    /// with its integer version; no envelope was measured for it.
+    pub fn shipped_desk() -> Net {
+        Net {
+            float: WideMlp::new(&shipped::desk::POLICY, shipped::desk::LEVELS),
+            int: Some(Box::new(shipped::desk_int::POLICY_INT.clone())),
+            levels: shipped::desk::LEVELS.duties().to_vec(),
+            envelope: None,
+        }
+    }
+
     /// A network from checked weights of any supported width; with `int`, also its integer
     /// version, quantised as `policy-export export --quant int8` does by default on that
     /// machine (the same granularity and calibration). Without `int`, a float policy the

@@ -1,0 +1,306 @@
+//! `host-sim startup`: episodes from power-on through the board's start-up
+//! (`firmware::startup`): the hanging zero, the swing-up or a hand's lift, the catch, the
+//! balance; how often and how fast the pole is up, and what it cost the track.
+
+use anyhow::{Context, Result};
+use clap::{Args, ValueEnum};
+use firmware::controller::Policy;
+use firmware::startup::Startup;
+use host_sim::eval::{ControllerKind, IntNet, Net};
+use indicatif::{ProgressBar, ProgressStyle};
+use rand_pcg::Pcg64Mcg;
+use rayon::prelude::*;
+use serde::Serialize;
+use twin::startup::{Begin, Events, Outcome, power_on};
+use twin::{Integration, Machine};
+
+use crate::Subject;
+
+/// Most episodes one run takes.
+const MAX_EPISODES: u32 = 1_000_000;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, ValueEnum)]
+pub enum StartArg {
+    /// The pole hanging nearly at rest; swung up.
+    Hanging,
+    /// The pole swinging by up to 30 degrees at power-on; swung up.
+    Swinging,
+    /// Hanging at rest, lifted by a hand into the catch region; no swing-up.
+    Lifted,
+}
+
+#[derive(Args)]
+pub struct StartupArgs {
+    /// How each episode begins.
+    #[arg(long, value_enum, default_value = "hanging")]
+    start: StartArg,
+    /// Episodes.
+    #[arg(long, default_value_t = 1000)]
+    episodes: u32,
+    /// Seconds from power-on within which the pole must be balanced.
+    #[arg(long, default_value_t = 10.0)]
+    within: f64,
+    /// Seconds it must then stay balanced.
+    #[arg(long, default_value_t = 60.0)]
+    hold: f64,
+    /// The board: without --policy, the shipped desk policy on the identified desk rig
+    /// (or on --rig). The start-up is --rig's `[startup]` table, the rest suggested from
+    /// the rig's physics.
+    #[command(flatten)]
+    subject: Subject,
+    /// The true machine (a rig file), when the board models another.
+    #[arg(long)]
+    world: Option<std::path::PathBuf>,
+    /// Seed of the starts and lifts.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// One arithmetic's episodes, summed up.
+#[derive(Serialize)]
+struct Row {
+    arithmetic: &'static str,
+    episodes: u32,
+    /// Balanced within `within_s` of power-on and held `hold_s` after.
+    success: f64,
+    /// Seconds from power-on to the balance that held, median, 90th and 99th percentile and
+    /// largest, over the successful episodes.
+    time_to_balance_s: [f64; 4],
+    /// The cart's largest distance from the centre, m: the 99th percentile and the largest.
+    track_used_m: [f64; 2],
+    /// Episodes in which the cart passed into the end-stop margin, and touched a stop.
+    into_margin: u32,
+    end_stop_contacts: u32,
+    /// The largest error of the hanging zero, pole counts.
+    zero_error_counts: i64,
+    catches: u64,
+    misses: u64,
+    falls: u64,
+}
+
+/// The run's rows and what they ran.
+#[derive(Serialize)]
+struct Report {
+    start: Begin,
+    seed: u64,
+    within_s: f64,
+    hold_s: f64,
+    startup: String,
+    rows: Vec<Row>,
+}
+
+/// Runs the episodes `a` asks for; the report is printed.
+pub fn run(a: &StartupArgs) -> Result<bool> {
+    anyhow::ensure!(
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be 1 to {MAX_EPISODES}, found {}",
+        a.episodes
+    );
+    for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
+        anyhow::ensure!(
+            s.is_finite() && s > 0.0 && s <= 3600.0,
+            "{flag} must be seconds in (0, 3600], found {s:?}"
+        );
+    }
+    let (board, mut startup, net) = board(&a.subject)?;
+    let world = match &a.world {
+        Some(path) => twin::rigfile::load(path)?,
+        None => board,
+    };
+    let begin = match a.start {
+        StartArg::Hanging => Begin::Hanging,
+        StartArg::Swinging => Begin::Swinging,
+        StartArg::Lifted => Begin::Lifted,
+    };
+    if begin == Begin::Lifted {
+        startup.swing = None;
+    }
+    let tau = board.rig.params.tau;
+    let within = (a.within / tau).round() as u32;
+    let periods = within + (a.hold / tau).round() as u32;
+    let margin = f64::from(board.rig.limits().map_err(anyhow::Error::msg)?.max_abs()[0]);
+    let bar = ProgressBar::new(2 * u64::from(a.episodes)).with_style(
+        ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed}<{eta}")
+            .context("the progress bar's template")?,
+    );
+    let runs = Runs {
+        begin,
+        startup,
+        world: &world,
+        board: &board,
+        periods,
+        seed: a.seed,
+        episodes: a.episodes,
+        bar: &bar,
+    };
+    let summary = |name, outcomes: Vec<Outcome>| summarise(name, &outcomes, within, tau, margin);
+    let float = summary("f32", runs.all(&net)?);
+    let int = IntNet::of(&net).context("the policy has no integer version")?;
+    let int = summary("int8", runs.all(int)?);
+    bar.finish_and_clear();
+    let report = Report {
+        start: begin,
+        seed: a.seed,
+        within_s: a.within,
+        hold_s: a.hold,
+        startup: format!("{startup:?}"),
+        rows: vec![float, int],
+    };
+    if a.json {
+        host_common::outln!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        host_common::out!("{}", table(&report));
+    }
+    Ok(true)
+}
+
+/// What every episode of a run shares.
+struct Runs<'a> {
+    begin: Begin,
+    startup: Startup,
+    world: &'a Machine,
+    board: &'a Machine,
+    periods: u32,
+    seed: u64,
+    episodes: u32,
+    bar: &'a ProgressBar,
+}
+
+impl Runs<'_> {
+    /// Every episode with `policy`, on all cores, in episode order: episode `k` draws its
+    /// start from its own stream of the seed.
+    fn all<P: Policy<[f32; 4]> + Copy + Send + Sync>(&self, policy: P) -> Result<Vec<Outcome>> {
+        let tau = self.board.rig.params.tau;
+        (0..self.episodes)
+            .into_par_iter()
+            .map(|k| {
+                let mut rng = Pcg64Mcg::new((u128::from(self.seed) << 64) | u128::from(k));
+                let (start, lift) = self.begin.draw(&mut rng, &self.startup, tau);
+                let events = Events {
+                    periods: self.periods,
+                    lift,
+                    knocks: &[],
+                };
+                let rig = &self.board.rig;
+                let o =
+                    power_on::<[f32; 4], _>(self.world, rig, self.startup, policy, start, events);
+                self.bar.inc(1);
+                o.map_err(anyhow::Error::msg)
+            })
+            .collect()
+    }
+}
+
+/// The row of one arithmetic's `outcomes`: success is a balance begun by period `within`
+/// that lasted to the end; the margin is the track's accepted half-length `margin`.
+fn summarise(
+    arithmetic: &'static str,
+    outcomes: &[Outcome],
+    within: u32,
+    tau: f64,
+    margin: f64,
+) -> Row {
+    let mut times: Vec<f64> = outcomes
+        .iter()
+        .filter_map(|o| o.balanced_from.filter(|&b| b <= within))
+        .map(|b| f64::from(b) * tau)
+        .collect();
+    times.sort_by(f64::total_cmp);
+    let mut track: Vec<f64> = outcomes.iter().map(|o| o.max_abs_x).collect();
+    track.sort_by(f64::total_cmp);
+    let count = |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count() as u32;
+    let total = |f: &dyn Fn(&Outcome) -> u32| outcomes.iter().map(|o| u64::from(f(o))).sum();
+    Row {
+        arithmetic,
+        episodes: outcomes.len() as u32,
+        success: times.len() as f64 / outcomes.len().max(1) as f64,
+        time_to_balance_s: [0.5, 0.9, 0.99, 1.0].map(|q| quantile(&times, q)),
+        track_used_m: [0.99, 1.0].map(|q| quantile(&track, q)),
+        into_margin: count(&|o| o.max_abs_x > margin),
+        end_stop_contacts: count(&|o| o.end_stop_periods > 0),
+        zero_error_counts: outcomes
+            .iter()
+            .map(|o| o.zero_error.map_or(i64::MAX, i64::abs))
+            .max()
+            .unwrap_or(0),
+        catches: total(&|o| o.transitions.caught),
+        misses: total(&|o| o.transitions.missed),
+        falls: total(&|o| o.transitions.fell),
+    }
+}
+
+/// The `q` quantile of `sorted` (the nearest rank below); NaN for none.
+fn quantile(sorted: &[f64], q: f64) -> f64 {
+    match sorted.len() {
+        0 => f64::NAN,
+        n => sorted[((n - 1) as f64 * q).floor() as usize],
+    }
+}
+
+/// The report as a table.
+fn table(r: &Report) -> String {
+    let mut out = format!(
+        "start-up from {:?}, seed {}: balanced within {} s of power-on and held {} s\n  {}\n\n  \
+         {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>16}\n",
+        r.start,
+        r.seed,
+        r.within_s,
+        r.hold_s,
+        r.startup,
+        "",
+        "episodes",
+        "success",
+        "time to balance s p50/p90/p99/max",
+        "track m p99/max",
+        "margin",
+        "stops",
+        "zero",
+        "catch/miss/fall"
+    );
+    for w in &r.rows {
+        let t = w.time_to_balance_s;
+        out += &format!(
+            "  {:<6} {:>8} {:>7.1}% {:>25} {:>15} {:>7} {:>6} {:>5} {:>16}\n",
+            w.arithmetic,
+            w.episodes,
+            100.0 * w.success,
+            format!("{:.1}/{:.1}/{:.1}/{:.1}", t[0], t[1], t[2], t[3]),
+            format!("{:.3}/{:.3}", w.track_used_m[0], w.track_used_m[1]),
+            w.into_margin,
+            w.end_stop_contacts,
+            w.zero_error_counts,
+            format!("{}/{}/{}", w.catches, w.misses, w.falls),
+        );
+    }
+    out
+}
+
+/// The board's machine, its start-up and its policy: --policy on its rig (or --rig), or the
+/// shipped desk policy on the identified desk rig it was trained for (or --rig).
+fn board(s: &Subject) -> Result<(Machine, Startup, Net)> {
+    let given = s
+        .rig
+        .as_deref()
+        .map(twin::rigfile::load_startup)
+        .transpose()?;
+    let (machine, net) = match &s.policy {
+        Some(_) => s.load_for(&[ControllerKind::Policy, ControllerKind::PolicyInt])?,
+        None => {
+            let rig = shipped::desk::RIG;
+            let desk = Machine {
+                rig,
+                integration: Integration::rk4(rig.params.tau, twin::rigfile::DEFAULT_SUBSTEP_S),
+                uncertainty: Default::default(),
+            };
+            (given.map_or(desk, |(m, _)| m), Net::shipped_desk())
+        }
+    };
+    let startup = match given {
+        Some((m, startup)) if m == machine => startup,
+        _ => Startup::suggested(&machine.rig).map_err(anyhow::Error::msg)?,
+    };
+    Ok((machine, startup, net))
+}

@@ -1,0 +1,91 @@
+//! `host-sim startup`: the shipped desk policy from power-on on the true desk rig, both
+//! arithmetics, the same figures for the same seed, and bad input refused with exit 2.
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+fn repo(path: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .join(path)
+}
+
+fn startup(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .arg("startup")
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn desk(args: &[&str]) -> serde_json::Value {
+    let (rig, world) = (repo("rigs/desk-identified.toml"), repo("rigs/desk.toml"));
+    let mut all = vec!["--json", "--rig", rig.to_str().unwrap()];
+    all.extend(["--world", world.to_str().unwrap()]);
+    all.extend(args);
+    let o = startup(&all);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+#[test]
+fn lifted_poles_are_caught_in_both_arithmetics_with_the_zero_within_a_count() {
+    let v = desk(&["--start", "lifted", "--episodes", "40"]);
+    assert_eq!(v["start"], "lifted");
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
+    for (row, arithmetic) in rows.iter().zip(["f32", "int8"]) {
+        assert_eq!(row["arithmetic"], arithmetic);
+        assert_eq!(
+            (row["episodes"].as_u64(), row["success"].as_f64()),
+            (Some(40), Some(1.0))
+        );
+        assert_eq!(row["catches"], 40, "{row}");
+        assert!(row["zero_error_counts"].as_i64().unwrap() <= 1, "{row}");
+        // The lift comes at 5 to 7 s: the catch follows it within a few periods.
+        let t: Vec<f64> = serde_json::from_value(row["time_to_balance_s"].clone()).unwrap();
+        assert!(t[0] > 5.0 && t[3] < 9.5, "{t:?}");
+        assert_eq!(row["into_margin"], 0, "{row}");
+    }
+}
+
+#[test]
+fn the_same_seed_gives_the_same_figures_and_another_seed_other_ones() {
+    let run = |seed: &str| desk(&["--episodes", "12", "--seed", seed]);
+    let (a, b, c) = (run("3"), run("3"), run("4"));
+    assert_eq!(a, b);
+    assert_ne!(a["rows"], c["rows"]);
+}
+
+#[test]
+fn bad_input_exits_2_naming_what_was_expected() {
+    let refused = |args: &[&str], expected: &str| {
+        let o = startup(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(expected), "{args:?}: {err}");
+        assert!(o.stdout.is_empty());
+    };
+    refused(
+        &["--episodes", "0"],
+        "--episodes must be 1 to 1000000, found 0",
+    );
+    refused(
+        &["--hold=-1"],
+        "--hold must be seconds in (0, 3600], found -1.0",
+    );
+    let dir = std::env::temp_dir().join(format!("startup-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("rig.toml");
+    let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
+    std::fs::write(
+        &bad,
+        format!("{desk}\n[startup]\nrelease_angle_deg = 20.0\n"),
+    )
+    .unwrap();
+    refused(
+        &["--rig", bad.to_str().unwrap()],
+        "startup.release_angle: expected at most params.theta_threshold_radians",
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
