@@ -96,14 +96,19 @@ pub async fn on_the_machine(spawner: Spawner, p: embassy_rp::Peripherals) {
 /// The balance controller, period by period, for ever.
 #[cfg(not(feature = "identify"))]
 async fn balance<A: firmware::controller::Actuator>(bridge: A) {
+    use core::cell::Cell;
     use defmt::{info, warn};
     use embassy_time::{Duration, Instant, Ticker};
     use firmware::estimator::ObserverSensor;
     use firmware::rig::Options;
+    use firmware::startup::{Sequencer, Startup};
 
-    // The pole's zero is where it is at power-on: hold it upright until the first log line.
-    // The observer's gain is solved once, now. The PIO program counts one step per quadrature
-    // cycle (four edges), so the rig's counts per revolution is the encoder's line count.
+    // The start-up takes the pole's zero where gravity hangs it, then swings the pole up and
+    // hands it to the balance controller (`firmware::startup`); centre the cart before
+    // power-on. The encoders are read once a period, for the start-up and the observer
+    // alike. The observer's gain is solved once, now. The PIO program counts one step per
+    // quadrature cycle (four edges), so the rig's counts per revolution is the encoder's line
+    // count.
     // The limits are checked as the board is compiled; the observer's gain and the
     // predictor's plant at start-up, where a refusal halts the board (through the panic
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
@@ -112,7 +117,8 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // the gentle desk policy drives its nine duty levels through the PWM, without the
     // monitor: no envelope was measured for it.
     let observer = defmt::unwrap!(RIG.observer()).watching();
-    let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, counts);
+    let latest = Cell::new((0, 0));
+    let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, || latest.get());
     #[cfg(not(feature = "desk"))]
     let (policy, monitor) = (
         &shipped::policy_int::POLICY_INT,
@@ -131,6 +137,8 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
         monitor,
     };
     let mut controller = defmt::unwrap!(RIG.controller(policy, sensor, bridge, options));
+    let startup = defmt::unwrap!(Startup::suggested(&RIG));
+    let mut sequencer = defmt::unwrap!(Sequencer::new(startup, &RIG));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-rp2040: integer policy, {} Hz", per_second);
@@ -139,7 +147,8 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     loop {
         ticker.next().await;
         let start = Instant::now();
-        let command = controller.step();
+        latest.set(counts());
+        let command = sequencer.run(latest.get(), &mut controller);
         let took = start.elapsed();
         if took >= period {
             // Whole periods lost while this step ran.
@@ -151,13 +160,15 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
             let faults = controller.faults();
             if let Some(r) = controller.last() {
                 info!(
-                    "step {}: {} obs {} q {} mode {} faults {}",
+                    "step {}: {} {} obs {} q {} mode {} faults {} transitions {}",
                     r.step,
+                    sequencer.phase(),
                     command,
                     r.obs,
                     r.q,
                     controller.mode(),
-                    faults
+                    faults,
+                    sequencer.transitions()
                 );
             }
         }

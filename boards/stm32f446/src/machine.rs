@@ -2,6 +2,8 @@
 //! TIM3 (PA6, PA7: D12, D11), the H-bridge's direction on PB5 (D4) and its enable on TIM1
 //! channel 1 (PA8: D7) at 20 kHz, and the balance controller driving it.
 
+use core::cell::Cell;
+
 use defmt::{info, warn};
 use embassy_stm32::Peripherals;
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
@@ -12,11 +14,12 @@ use embassy_stm32::timer::{GeneralInstance4Channel, low_level::CountingMode};
 use embassy_time::{Duration, Instant, Ticker};
 use firmware::controller::Bridge;
 use firmware::estimator::ObserverSensor;
+use firmware::rig::Options;
+use firmware::startup::{Sequencer, Startup};
 #[cfg(feature = "desk")]
 use shipped::desk::RIG;
 #[cfg(not(feature = "desk"))]
 use shipped::policy::RIG;
-use firmware::rig::Options;
 
 /// A timer's 16-bit count carried into 32 bits: each period adds what it moved since the
 /// last, which a 20 ms period keeps far below half the counter's range.
@@ -65,16 +68,18 @@ pub async fn balance(p: Peripherals) -> ! {
     enable.enable();
     let bridge = Bridge::new(direction, enable);
 
-    // The pole's zero is where it is at power-on: hold it upright until the first log line.
-    // The observer's gain is solved once, now; a refusal halts the board (through the panic
-    // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
+    // The start-up takes the pole's zero where gravity hangs it, then swings the pole up and
+    // hands it to the balance controller (`firmware::startup`); centre the cart before
+    // power-on. The encoders are read once a period, for the start-up and the observer
+    // alike. The observer's gain is solved once, now; a refusal halts the board (through the
+    // panic handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
     // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`). With `desk`,
     // the gentle desk policy drives its nine duty levels through the PWM, without the
     // monitor: no envelope was measured for it.
-    let counts = move || (cart.read(), pole.read());
+    let latest = Cell::new((0, 0));
     let observer = defmt::unwrap!(RIG.observer()).watching();
-    let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, counts);
+    let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, || latest.get());
     #[cfg(not(feature = "desk"))]
     let (policy, monitor) = (&shipped::policy::POLICY, Some(shipped::envelope::ASSURANCE));
     #[cfg(feature = "desk")]
@@ -90,6 +95,8 @@ pub async fn balance(p: Peripherals) -> ! {
         monitor,
     };
     let mut controller = defmt::unwrap!(RIG.controller(policy, sensor, bridge, options));
+    let startup = defmt::unwrap!(Startup::suggested(&RIG));
+    let mut sequencer = defmt::unwrap!(Sequencer::new(startup, &RIG));
     let period = Duration::from_micros((RIG.params.tau * 1e6) as u64);
     let per_second = (1.0 / RIG.params.tau) as u32;
     info!("cartpole-stm32f446: f32 policy, {} Hz", per_second);
@@ -98,7 +105,8 @@ pub async fn balance(p: Peripherals) -> ! {
     loop {
         ticker.next().await;
         let start = Instant::now();
-        let command = controller.step();
+        latest.set((cart.read(), pole.read()));
+        let command = sequencer.run(latest.get(), &mut controller);
         let took = start.elapsed();
         if took >= period {
             // Whole periods lost while this step ran.
@@ -110,13 +118,15 @@ pub async fn balance(p: Peripherals) -> ! {
             && let Some(r) = controller.last()
         {
             info!(
-                "step {}: {} obs {} q {} mode {} faults {}",
+                "step {}: {} {} obs {} q {} mode {} faults {} transitions {}",
                 r.step,
+                sequencer.phase(),
                 command,
                 r.obs,
                 r.q,
                 controller.mode(),
-                controller.faults()
+                controller.faults(),
+                sequencer.transitions()
             );
         }
     }
