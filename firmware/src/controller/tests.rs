@@ -5,9 +5,9 @@ use embedded_hal_mock::eh1::digital::{Mock as PinMock, State, Transaction as Pin
 use embedded_hal_mock::eh1::pwm::{Mock as PwmMock, Transaction as PwmTx};
 
 /// Replays a fixed list of readings, then reports errors.
-struct Script<'a> {
-    readings: &'a [Result<[f32; 4], ()>],
-    next: usize,
+pub(super) struct Script<'a> {
+    pub(super) readings: &'a [Result<[f32; 4], ()>],
+    pub(super) next: usize,
 }
 
 impl StateSensor for Script<'_> {
@@ -20,8 +20,9 @@ impl StateSensor for Script<'_> {
     }
 }
 
-/// Scores fixed by the sign of theta, so the test knows each action in advance.
-struct SignOfTheta;
+/// Scores fixed by the sign of theta, so the test knows each action in advance: right when
+/// the pole leans right.
+pub(super) struct SignOfTheta;
 
 impl Policy for SignOfTheta {
     type Scores = [f32; 2];

@@ -1,45 +1,20 @@
 //! Held periods against the plain ones: what is read, counted and recorded.
 
-use super::super::{Controller, FaultCounters, Limits, Mode, StateSensor};
-use crate::controller::{Command, Duty, Levels, Policy};
+use super::super::tests::{Script, SignOfTheta};
+use super::super::{Controller, FaultCounters, Limits, Mode};
+use crate::controller::{Command, Duty};
 use crate::loopback::{Pins, duty, pins};
 use crate::rig::Rig;
-
-/// Replays `readings` in turn (an error past them).
-struct Script<'a>(&'a [Result<[f32; 4], ()>]);
-
-impl StateSensor for Script<'_> {
-    type Reading = [f32; 4];
-    type Error = ();
-    fn read(&mut self) -> Result<[f32; 4], ()> {
-        let (first, rest) = self.0.split_first().ok_or(())?;
-        self.0 = rest;
-        *first
-    }
-}
-
-/// Right when the pole leans right.
-struct Lean;
-
-impl Policy for Lean {
-    type Scores = [f32; 2];
-    fn duty(&self, i: usize) -> Option<Duty> {
-        Levels::BANG_BANG.duty(i)
-    }
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        [0.0, obs[2]]
-    }
-}
 
 const HANGING: Result<[f32; 4], ()> = Ok([0.0, 0.0, 3.1, 0.0]);
 const LEANING: Result<[f32; 4], ()> = Ok([0.0, 0.0, 0.05, 0.0]);
 
-fn monitored(readings: &[Result<[f32; 4], ()>]) -> Controller<Lean, Script<'_>, Pins, 8> {
+fn monitored(readings: &[Result<[f32; 4], ()>]) -> Controller<SignOfTheta, Script<'_>, Pins, 8> {
     let envelope = Limits::new([1.0, 1.0, 0.1, 1.0]).unwrap();
     let assurance = Rig::GYMNASIUM.assurance(envelope, [1.0, 1.0, 10.0, 1.0]);
     let limits = Rig::GYMNASIUM.limits().unwrap();
-    Controller::with_history(Lean, Script(readings), pins(), limits)
-        .with_monitor(assurance.unwrap())
+    let sensor = Script { readings, next: 0 };
+    Controller::with_history(SignOfTheta, sensor, pins(), limits).with_monitor(assurance.unwrap())
 }
 
 #[test]

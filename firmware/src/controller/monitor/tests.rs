@@ -1,23 +1,11 @@
 //! The monitor's switches against hand-built envelopes and hand-computed LQR signs.
 
 use super::*;
+use crate::controller::tests::SignOfTheta;
 use crate::controller::{Levels, Policy, answer};
 use crate::fixed;
 use crate::rig::Rig;
 use crate::shipped::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
-
-/// Scores `[0, theta]`: right when the pole leans right, so each policy command is known.
-struct Lean;
-
-impl Policy for Lean {
-    type Scores = [f32; 2];
-    fn duty(&self, i: usize) -> Option<Duty> {
-        Levels::BANG_BANG.duty(i)
-    }
-    fn scores(&mut self, obs: &[f32; 4]) -> [f32; 2] {
-        [0.0, obs[2]]
-    }
-}
 
 /// Scores that are no numbers.
 struct Broken;
@@ -42,7 +30,7 @@ fn assurance() -> Assurance {
 }
 
 fn decide(m: &mut Monitor, obs: [f32; 4], c: &mut FaultCounters) -> (Command, FaultFlags) {
-    let (_, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Lean, s), c);
+    let (_, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut SignOfTheta, s), c);
     (command, flags)
 }
 
@@ -51,7 +39,7 @@ fn inside_the_envelope_the_policy_decides_alone() {
     let mut m = Monitor::new(assurance());
     let mut c = FaultCounters::default();
     let obs = [0.5, -0.5, 0.05, 0.5];
-    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Lean, s), &mut c);
+    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut SignOfTheta, s), &mut c);
     assert_eq!(
         (q, command, flags),
         (
@@ -120,7 +108,13 @@ fn a_run_of_faulty_readings_hands_over_and_a_sound_one_breaks_the_run() {
     // Readings from the model alone count as faulty too.
     let mut m = Monitor::new(assurance());
     for k in 1..=Assurance::FAULT_RUN {
-        let (_, _, flags) = m.decide(&[0.0; 4], &[0.0; 4], true, |s| answer(&mut Lean, s), &mut c);
+        let (_, _, flags) = m.decide(
+            &[0.0; 4],
+            &[0.0; 4],
+            true,
+            |s| answer(&mut SignOfTheta, s),
+            &mut c,
+        );
         assert_eq!(
             flags == FaultFlags::FALLBACK,
             k == Assurance::FAULT_RUN,
