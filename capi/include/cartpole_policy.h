@@ -235,7 +235,7 @@ struct cartpole_rig {
 /* The bytes of cartpole_controller_t, on every target: the library checks at compile time
  * that each policy's controller fits. Its alignment is its union's: that of uint64_t, double
  * and void * (8 on Cortex-M, RISC-V and 64-bit hosts). */
-#define CARTPOLE_CONTROLLER_SIZE 768
+#define CARTPOLE_CONTROLLER_SIZE 1024
 /* Full scale of cartpole_command_t's duty: the motor's full push. */
 #define CARTPOLE_DUTY_MAX 1000
 /* The fault bits of cartpole_command_t: channel (0 x, 1 x_dot, 2 theta, 3 theta_dot) NaN or
@@ -260,8 +260,9 @@ enum cartpole_status {
                                         finite observer gain for the rig; to
                                         cartpole_controller_monitor, another rig than c's */
     CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative */
-    CARTPOLE_ERR_LEVELS = -7         /* duty levels not one per output, beyond [-1000, 1000]
+    CARTPOLE_ERR_LEVELS = -7,        /* duty levels not one per output, beyond [-1000, 1000]
                                         or not strictly increasing */
+    CARTPOLE_ERR_NO_STARTUP = -8     /* cartpole_controller_phase without a start-up */
 };
 
 /* The shipped policies. */
@@ -322,6 +323,27 @@ typedef struct cartpole_counters {
     uint32_t non_finite_scores; /* periods whose policy scores were not finite */
     uint32_t safe_stops;        /* times the monitor stopped the controller */
 } cartpole_counters_t;
+
+/* cartpole_phase_t's phase: where the start-up (cartpole_controller_startup) is. */
+enum cartpole_phase {
+    CARTPOLE_PHASE_ZEROING = 0,     /* motor off, taking the pole's hanging zero */
+    CARTPOLE_PHASE_WAITING = 1,     /* motor off until a hand lifts the pole into the catch
+                                       region */
+    CARTPOLE_PHASE_SWINGING_UP = 2, /* the energy-based swing-up drives */
+    CARTPOLE_PHASE_CATCHING = 3,    /* inside the catch region, not yet for long enough */
+    CARTPOLE_PHASE_BALANCING = 4,   /* the balance controller drives */
+    CARTPOLE_PHASE_FALLEN = 5       /* motor off until the pole is below horizontal */
+};
+
+/* The start-up's phase after the last step, and its transitions since it began. */
+typedef struct cartpole_phase_state {
+    uint32_t phase;   /* enum cartpole_phase */
+    uint32_t zeroed;  /* zeros taken */
+    uint32_t entered; /* entries into the catch region */
+    uint32_t caught;  /* hand-overs to the balance controller */
+    uint32_t missed;  /* catches abandoned before the hand-over */
+    uint32_t fell;    /* falls while balancing: past the release angle or the track's end */
+} cartpole_phase_t;
 
 #ifdef __cplusplus
 extern "C" {
@@ -387,7 +409,9 @@ CARTPOLE_DECLARE_INIT(64x9);
 
 /* One control period on this period's encoder counts (cart: counts per metre of travel,
  * pole: counts per revolution, zero upright, as the RIG's encoders; the first counts are
- * taken at rest), read through the rig's observer; the command in *out. */
+ * taken at rest), read through the rig's observer; the command in *out. Under a start-up
+ * (cartpole_controller_startup), the counts as the encoders count from power-on, and the
+ * period the start-up's: cartpole_controller_phase says which. */
 int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
                              int32_t pole_counts, cartpole_command_t *out);
 
@@ -396,7 +420,8 @@ int cartpole_controller_step(cartpole_controller_t *c, int32_t cart_counts,
  * channel is not an error: the controller rejects the reading, coasts and flags it. The
  * integer policy takes the state in Q3.12 (SI units times 4096, rounded, saturated), where
  * a channel NaN or beyond the format is flagged out of range. An instance reads counts or
- * states, whichever its first step was given. */
+ * states, whichever its first step was given; under a start-up, counts
+ * (CARTPOLE_ERR_INPUT). */
 int cartpole_controller_step_state(cartpole_controller_t *c, const float state[4],
                                    cartpole_command_t *out);
 
@@ -422,6 +447,21 @@ int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *peri
  * CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_RIG (a rig no machine has, or not c's). */
 int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
                                 const struct cartpole_rig *rig);
+
+/* Runs *c's next steps inside the start-up from power-on (docs/STARTUP.md), its values
+ * suggested for rig (the machine c was initialised for; NULL: the shipped policies'): motor
+ * off while the pole's zero is taken hanging (at rest or swinging), then the pole swung up
+ * (swing_up non-zero) or waited for until a hand lifts it into the catch region, caught,
+ * balanced, and after a fall (past the release angle, the cart at its track's end) motor off
+ * until the pole is down, then again. Steps then take counts as the encoders count from
+ * power-on: centre the cart before it. Refused, writing nothing: CARTPOLE_ERR_RIG (a rig no
+ * machine has, or not c's), CARTPOLE_ERR_INPUT (c has read states). */
+int cartpole_controller_startup(cartpole_controller_t *c, const struct cartpole_rig *rig,
+                                int swing_up);
+
+/* The start-up's phase and transitions in *out. Refused, writing nothing:
+ * CARTPOLE_ERR_NO_STARTUP. */
+int cartpole_controller_phase(const cartpole_controller_t *c, cartpole_phase_t *out);
 
 #ifdef __cplusplus
 }

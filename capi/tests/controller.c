@@ -49,6 +49,20 @@ static void print_counters(const cartpole_controller_t *c) {
            (unsigned long)n.non_finite_scores, (unsigned long)n.safe_stops);
 }
 
+static void print_phase(const cartpole_controller_t *c) {
+    cartpole_phase_t p;
+    int rc;
+    memset(&p, UNWRITTEN, sizeof p);
+    rc = cartpole_controller_phase(c, &p);
+    if (rc != CARTPOLE_OK) {
+        printf("phase refused %d %d\n", rc, unwritten(&p, sizeof p));
+        return;
+    }
+    printf("phase %d %lu %lu %lu %lu %lu %lu\n", rc, (unsigned long)p.phase,
+           (unsigned long)p.zeroed, (unsigned long)p.entered, (unsigned long)p.caught,
+           (unsigned long)p.missed, (unsigned long)p.fell);
+}
+
 /* One line of a script; 0 if it is none of the calls. */
 static int run_line(cartpole_controller_t *c, const char *line) {
     cartpole_command_t out;
@@ -72,6 +86,10 @@ static int run_line(cartpole_controller_t *c, const char *line) {
         printf("overrun %d\n", cartpole_controller_record_overruns(c, (uint32_t)ticks));
     } else if (strncmp(line, "monitor", 7) == 0) {
         printf("monitor %d\n", cartpole_controller_monitor(c, NULL, NULL));
+    } else if (sscanf(line, "startup %d", &kind) == 1) {
+        printf("startup %d\n", cartpole_controller_startup(c, NULL, kind));
+    } else if (strncmp(line, "phase", 5) == 0) {
+        print_phase(c);
     } else if (strncmp(line, "counters", 8) == 0) {
         print_counters(c);
     } else if (strncmp(line, "period", 6) == 0) {
@@ -131,6 +149,10 @@ static void layout(void) {
     printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
            (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
            (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);
+    printf("startup-constants %d %d %d %d %d %d %d %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
+           CARTPOLE_PHASE_ZEROING, CARTPOLE_PHASE_WAITING, CARTPOLE_PHASE_SWINGING_UP,
+           CARTPOLE_PHASE_CATCHING, CARTPOLE_PHASE_BALANCING, CARTPOLE_PHASE_FALLEN,
+           (unsigned long)sizeof(cartpole_phase_t), (unsigned long)offsetof(cartpole_phase_t, fell));
 }
 
 /* Every call on c and on NULL outputs, then whether the outputs are as they were. */

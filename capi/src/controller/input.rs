@@ -5,7 +5,7 @@
 use core::convert::Infallible;
 
 use firmware::controller::{Command, StateSensor};
-use firmware::estimator::{Estimate, ObserverSensor};
+use firmware::estimator::{Estimate, ObserverSensor, Zeroed};
 use firmware::loopback::Latest;
 use firmware::network::{N_ACTIONS, OBS_DIM};
 
@@ -78,6 +78,12 @@ impl<O> Input<O> {
 
     /// Takes this period's input; `false` (and nothing taken) if it is not the kind this
     /// instance has read so far.
+    /// Whether the instance has read states: a start-up, which takes its zero from counts,
+    /// cannot run on them.
+    pub(crate) fn reads_states(&self) -> bool {
+        self.reads == Reads::State
+    }
+
     pub(crate) fn hand(&mut self, handed: Handed) -> bool {
         let kind = match handed {
             Handed::Counts(..) => Reads::Counts,
@@ -119,5 +125,11 @@ impl<O: Estimate> StateSensor for Input<O> {
     #[inline]
     fn model_only(&self) -> bool {
         self.reads == Reads::Counts && self.encoders.model_only()
+    }
+}
+
+impl<O> Zeroed for Input<O> {
+    fn zero_at(&mut self, zero: (i32, i32)) {
+        self.encoders.zero_at(zero);
     }
 }

@@ -41,15 +41,19 @@ use core::ffi::c_int;
 use firmware::controller::{Assurance, Command, FaultCounters, FaultFlags, Limits, Scores};
 use firmware::loopback::{Duty, Level};
 use firmware::network::{N_ACTIONS, OBS_DIM};
+use firmware::rig::Rig;
+use firmware::startup::{Sequencer, Startup};
 
 use crate::rig::CartpoleRig;
 
 mod init;
 mod input;
+mod startup;
 mod storage;
 
 pub use init::*;
 use input::{CScores as _, Handed};
+pub use startup::*;
 pub use storage::{CONTROLLER_SIZE, CartpoleController};
 use storage::{Float, Int, Kind, Slot, magic, slot, slot_mut};
 
@@ -72,6 +76,8 @@ pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 /// Duty levels the firmware refuses ([`firmware::controller::check_levels`]): not one per
 /// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing.
 pub const CARTPOLE_ERR_LEVELS: c_int = -7;
+/// `cartpole_controller_phase` on an instance without a start-up.
+pub const CARTPOLE_ERR_NO_STARTUP: c_int = -8;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`shipped::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;
@@ -127,15 +133,24 @@ trait Run {
     /// Puts the controller under the monitor of `assurance`, its observer watching for
     /// frozen encoders; refused if `rig` is not the digest of the instance's rig.
     fn monitor(&mut self, assurance: Assurance, rig: u64) -> Result<(), c_int>;
+    /// Runs the controller's next periods inside `startup` on `rig`; refused if `rig` is
+    /// not the instance's, or the instance has read states.
+    fn start_up(&mut self, startup: Startup, rig: &Rig) -> Result<(), c_int>;
+    /// The start-up's phase and transitions, if it has one.
+    fn startup(&self) -> Option<&Sequencer>;
 }
 
 impl<K: Kind> Run for Slot<K> {
     fn step(&mut self, handed: Handed) -> Option<CartpoleCommand> {
         let c = &mut self.controller;
-        if !c.sensor_mut().hand(handed) {
+        let during_startup = matches!(handed, Handed::State(_)) && self.startup.is_some();
+        if during_startup || !c.sensor_mut().hand(handed) {
             return None;
         }
-        let command = c.step();
+        let command = match (&mut self.startup, handed) {
+            (Some(s), Handed::Counts(cart, pole)) => s.run((cart, pole), c),
+            _ => c.step(),
+        };
         let (&Level(direction), &Duty(duty)) = c.actuator().pins();
         // `step` has just recorded its period: the fallback is never taken.
         let (step, q, faults) = c
@@ -174,6 +189,21 @@ impl<K: Kind> Run for Slot<K> {
         self.controller.sensor_mut().watch();
         self.controller.set_monitor(assurance);
         Ok(())
+    }
+
+    fn start_up(&mut self, startup: Startup, rig: &Rig) -> Result<(), c_int> {
+        if firmware::link::digest::rig(rig) != self.rig {
+            return Err(CARTPOLE_ERR_RIG);
+        }
+        if self.controller.sensor().reads_states() {
+            return Err(CARTPOLE_ERR_INPUT);
+        }
+        self.startup = Some(Sequencer::new(startup, rig).map_err(|_| CARTPOLE_ERR_RIG)?);
+        Ok(())
+    }
+
+    fn startup(&self) -> Option<&Sequencer> {
+        self.startup.as_ref()
     }
 
     fn record_overruns(&mut self, ticks: u32) {
@@ -340,16 +370,23 @@ pub extern "C" fn cartpole_controller_monitor(
         Some(Ok(e)) => e,
         Some(Err(_)) => return CARTPOLE_ERR_ENVELOPE,
     };
-    let rig = match rig.map(CartpoleRig::to_rig) {
-        None => shipped::policy::RIG,
-        Some(Some(rig)) => rig,
-        Some(None) => return CARTPOLE_ERR_RIG,
+    let Ok(rig) = rig_or_shipped(rig) else {
+        return CARTPOLE_ERR_RIG;
     };
     let Ok(assurance) = rig.lqr_assurance(envelope) else {
         return CARTPOLE_ERR_RIG;
     };
     let digest = firmware::link::digest::rig(&rig);
     status(instance_mut(c).and_then(|r| r.monitor(assurance, digest)))
+}
+
+/// The machine of `rig` (NULL: the shipped policies'); refused as one no machine has.
+fn rig_or_shipped(rig: Option<&CartpoleRig>) -> Result<Rig, c_int> {
+    match rig.map(CartpoleRig::to_rig) {
+        None => Ok(shipped::policy::RIG),
+        Some(Some(rig)) => Ok(rig),
+        Some(None) => Err(CARTPOLE_ERR_RIG),
+    }
 }
 
 #[cfg(test)]

@@ -13,12 +13,13 @@ use firmware::loopback::{self, Latest, Pins};
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
 use firmware::rig::{Options, Rig};
+use firmware::startup::Sequencer;
 
 use super::input::{CScores, Input};
 
 /// `CARTPOLE_CONTROLLER_SIZE`: the bytes of `cartpole_controller_t`, one value for every
 /// target so that C code can allocate it statically without knowing the library's layout.
-pub const CONTROLLER_SIZE: usize = 768;
+pub const CONTROLLER_SIZE: usize = 1024;
 
 /// `cartpole_controller_t`: aligned as the union of the C header (`uint64_t`, `double`,
 /// `void *`) aligns it, which C99 can say without `_Alignas`.
@@ -84,6 +85,8 @@ pub(crate) struct Slot<K: Kind> {
     /// designed for the machine the controller was built for.
     pub(crate) rig: u64,
     pub(crate) controller: Running<K>,
+    /// The start-up around it, once C asked for one (`cartpole_controller_startup`).
+    pub(crate) startup: Option<Sequencer>,
 }
 
 impl<K: Kind> Slot<K> {
@@ -110,6 +113,7 @@ impl<K: Kind> Slot<K> {
             period_us: (rig.params.tau * 1e6 + 0.5) as u32,
             rig: firmware::link::digest::rig(rig),
             controller,
+            startup: None,
         })
     }
 

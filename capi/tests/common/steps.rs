@@ -31,7 +31,10 @@ impl Scores for [i16; 4] {
 /// `STATUS COMMAND DIRECTION DUTY FAULTS Q0 Q1 QI0 QI1 STEP` for the period `r` records, the
 /// pins as it left them; the floats as their bits in hex.
 pub fn step_line<R: Scores>(status: i32, r: &Record<R, R::Scores>, pins: &Pins) -> String {
-    let command = r.command.level() as i32;
+    // The duty's sign, as the header's `command`: a partial duty (a level, a swing-up's push)
+    // is a push too.
+    let level = r.command.level();
+    let command = i32::from(level > 0.0) - i32::from(level < 0.0);
     let (&Level(direction), &Duty(duty)) = pins.pins();
     let (q, qi) = R::pair(r.q);
     format!(

@@ -1,0 +1,119 @@
+//! The start-up from power-on for C (`firmware::startup`), declared in
+//! `capi/include/cartpole_policy.h`:
+//!
+//! ```c
+//! int cartpole_controller_startup(cartpole_controller_t *c, const struct cartpole_rig *rig,
+//!                                 int swing_up);
+//! int cartpole_controller_phase(const cartpole_controller_t *c, cartpole_phase_t *out);
+//! ```
+
+use core::ffi::c_int;
+
+use firmware::startup::{Phase, Startup};
+
+use super::{
+    CARTPOLE_ERR_NO_STARTUP, CARTPOLE_ERR_NULL, CARTPOLE_ERR_RIG, CartpoleController, instance,
+    instance_mut, rig_or_shipped, status,
+};
+use crate::rig::CartpoleRig;
+
+/// `cartpole_phase_t`: where the start-up is, and its transitions so far.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct CartpolePhase {
+    /// `CARTPOLE_PHASE_*`.
+    pub phase: u32,
+    /// Zeros taken.
+    pub zeroed: u32,
+    /// Entries into the catch region.
+    pub entered: u32,
+    /// Hand-overs to the balance controller.
+    pub caught: u32,
+    /// Catches abandoned before the hand-over.
+    pub missed: u32,
+    /// Falls while balancing.
+    pub fell: u32,
+}
+
+/// [`Phase::Zeroing`]: motor off, taking the pole's hanging zero.
+pub const CARTPOLE_PHASE_ZEROING: u32 = 0;
+/// [`Phase::Waiting`]: motor off until a hand lifts the pole into the catch region.
+pub const CARTPOLE_PHASE_WAITING: u32 = 1;
+/// [`Phase::SwingingUp`]: the energy-based swing-up drives.
+pub const CARTPOLE_PHASE_SWINGING_UP: u32 = 2;
+/// [`Phase::Catching`]: inside the catch region, not yet for long enough.
+pub const CARTPOLE_PHASE_CATCHING: u32 = 3;
+/// [`Phase::Balancing`]: the balance controller drives.
+pub const CARTPOLE_PHASE_BALANCING: u32 = 4;
+/// [`Phase::Fallen`]: motor off until the pole is below horizontal.
+pub const CARTPOLE_PHASE_FALLEN: u32 = 5;
+
+/// The C constant of `phase`.
+fn code(phase: Phase) -> u32 {
+    match phase {
+        Phase::Zeroing => CARTPOLE_PHASE_ZEROING,
+        Phase::Waiting => CARTPOLE_PHASE_WAITING,
+        Phase::SwingingUp => CARTPOLE_PHASE_SWINGING_UP,
+        Phase::Catching => CARTPOLE_PHASE_CATCHING,
+        Phase::Balancing => CARTPOLE_PHASE_BALANCING,
+        Phase::Fallen => CARTPOLE_PHASE_FALLEN,
+    }
+}
+
+/// Runs `c`'s next periods inside the start-up suggested for `rig`
+/// ([`Startup::suggested`]; `rig` must be the machine `c` was initialised for, NULL the
+/// shipped policies'): from power-on the pole's zero is taken hanging, then the pole is
+/// swung up (`swing_up` non-zero) or waited for until a hand lifts it, caught, balanced,
+/// and after a fall swung up or waited for again. Its steps take counts (raw, as the
+/// encoders count from power-on). Refused, writing nothing: a rig no machine has or not
+/// the instance's ([`CARTPOLE_ERR_RIG`]), an instance that has read states
+/// ([`super::CARTPOLE_ERR_INPUT`]).
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_startup(
+    c: Option<&mut CartpoleController>,
+    rig: Option<&CartpoleRig>,
+    swing_up: c_int,
+) -> c_int {
+    let Some(c) = c else {
+        return CARTPOLE_ERR_NULL;
+    };
+    let Ok(rig) = rig_or_shipped(rig) else {
+        return CARTPOLE_ERR_RIG;
+    };
+    let Ok(mut startup) = Startup::suggested(&rig) else {
+        return CARTPOLE_ERR_RIG;
+    };
+    if swing_up == 0 {
+        startup.swing = None;
+    }
+    status(instance_mut(c).and_then(|r| r.start_up(startup, &rig)))
+}
+
+/// The start-up's phase after the last step, and its transitions, in `out`. Refused,
+/// writing nothing: an instance without a start-up ([`CARTPOLE_ERR_NO_STARTUP`]).
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_phase(
+    c: Option<&CartpoleController>,
+    out: Option<&mut CartpolePhase>,
+) -> c_int {
+    let (Some(c), Some(out)) = (c, out) else {
+        return CARTPOLE_ERR_NULL;
+    };
+    status(instance(c).and_then(|r| {
+        let s = r.startup().ok_or(CARTPOLE_ERR_NO_STARTUP)?;
+        let t = s.transitions();
+        *out = CartpolePhase {
+            phase: code(s.phase()),
+            zeroed: t.zeroed,
+            entered: t.entered,
+            caught: t.caught,
+            missed: t.missed,
+            fell: t.fell,
+        };
+        Ok(())
+    }))
+}
