@@ -13,9 +13,40 @@ use twin::Frame;
 
 /// Pixels per metre in the animation; the track is drawn to scale.
 const PX_PER_M: f64 = 100.0;
+/// The narrowest animation, pixels.
+const MIN_WIDTH_PX: f64 = 500.0;
 
 fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
     anyhow!("drawing: {e:?}")
+}
+
+/// The animation's frame: the track, with room for the pole above it and, where the pole
+/// hangs in some frame (a start-up), below it; a short track drawn larger.
+struct Canvas {
+    half_track: f64,
+    pole: f64,
+    px_per_m: f64,
+    below: f64,
+    w: u32,
+    h: u32,
+}
+
+impl Canvas {
+    fn of(frames: &[Frame], params: &Params) -> Canvas {
+        let half_track = params.x_threshold + 0.3;
+        let pole = 2.0 * params.length;
+        let px_per_m = PX_PER_M.max(MIN_WIDTH_PX / (2.0 * half_track));
+        let hangs = frames.iter().any(|f| f.state.theta.cos() < 0.0);
+        let below = if hangs { pole } else { 0.0 };
+        Canvas {
+            half_track,
+            pole,
+            px_per_m,
+            below,
+            w: (2.0 * half_track * px_per_m) as u32,
+            h: ((pole + 0.6 + below) * px_per_m) as u32,
+        }
+    }
 }
 
 /// Writes an animated GIF of `frames` (every `stride`-th period, in real time).
@@ -27,12 +58,14 @@ pub fn gif(
     title: &str,
 ) -> Result<()> {
     ensure_font()?;
-    let half_track = params.x_threshold + 0.3;
-    let pole = 2.0 * params.length;
-    let (w, h) = (
-        (2.0 * half_track * PX_PER_M) as u32,
-        ((pole + 0.6) * PX_PER_M) as u32,
-    );
+    let Canvas {
+        half_track,
+        pole,
+        px_per_m,
+        below,
+        w,
+        h,
+    } = Canvas::of(frames, params);
     let delay_ms = (stride as f64 * params.tau * 1000.0).round() as u32;
     let root = BitMapBackend::gif(path, (w, h), delay_ms)
         .map_err(err)
@@ -40,8 +73,8 @@ pub fn gif(
         .into_drawing_area();
     let to_px = |x: f64, y: f64| -> (i32, i32) {
         (
-            ((x + half_track) * PX_PER_M).round() as i32,
-            (f64::from(h) - (y + 0.3) * PX_PER_M).round() as i32,
+            ((x + half_track) * px_per_m).round() as i32,
+            (f64::from(h) - (y + 0.3 + below) * px_per_m).round() as i32,
         )
     };
     let font = (FONT, 15).into_font();
@@ -112,6 +145,10 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
     };
     let x_lim = params.x_threshold;
     let th_lim = params.theta_threshold_radians.to_degrees();
+    // The angle about upright in one turn, drawn on its whole range once it leaves the
+    // failure limits (a swing-up).
+    let theta = |f: &Frame| f.state.theta.sin().atan2(f.state.theta.cos()).to_degrees();
+    let th_range = frames.iter().map(theta).fold(th_lim, |m, t| m.max(t.abs()));
     panel(
         &panels[0],
         t_end,
@@ -123,9 +160,9 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
     panel(
         &panels[1],
         t_end,
-        (-th_lim, th_lim),
+        (-th_range, th_range),
         "theta (deg)",
-        &series(&|f| f.state.theta.to_degrees()),
+        &series(&theta),
         th_lim,
     )?;
     let command = series(&|f| f64::from(f.command.level()));

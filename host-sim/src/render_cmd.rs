@@ -1,13 +1,14 @@
 //! `host-sim render`: one episode drawn as an animated GIF and a time-series PNG, written
 //! under temporary names and renamed, so a failure leaves no half-written picture.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::Result;
 use clap::Args;
+use firmware::cartpole::Params;
 use host_sim::eval::{self, ControllerKind};
 use host_sim::render;
-use twin::Scenario;
+use twin::{Frame, Scenario};
 use weights::files::{remove_stale, temp_path_keeping_extension};
 
 use crate::Subject;
@@ -61,8 +62,29 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         .transpose()?;
     Scenario::parse_on(&a.scenario, &given.unwrap_or(twin::Machine::GYMNASIUM))
         .map_err(anyhow::Error::msg)?;
-    // The outputs are checked before the work: a directory (or a new path) holding, if
-    // anything, regular files by those names, which are replaced whole.
+    let (gif, png) = pictures(out)?;
+    crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
+    let (machine, net) = a.subject.load_for(&[a.controller])?;
+    let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
+    let (controller, seed, episode) = (a.controller, a.seed, a.episode);
+    let mut frames = Vec::new();
+    let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
+        frames.push(f)
+    });
+    let title = format!("{controller}, {}", scenario.name);
+    let caption = format!(
+        "{title}: {} of {horizon} periods, {}",
+        stats.steps,
+        if stats.success { "balanced" } else { "fell" }
+    );
+    let (gif, png) = draw(out, &frames, &scenario.params, stride, (&title, &caption))?;
+    host_common::outln!("{}\n{}", gif.display(), png.display());
+    Ok(())
+}
+
+/// The two pictures' paths in `out`, once `out` is found to be a directory or a new path:
+/// checked before the work, and replaced whole.
+pub fn pictures(out: &Path) -> Result<(PathBuf, PathBuf)> {
     let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
     if let Ok(m) = std::fs::symlink_metadata(out)
         && !m.is_dir()
@@ -73,37 +95,31 @@ pub fn run(a: &RenderArgs) -> Result<()> {
             weights::files::kind(&m.file_type())
         );
     }
-    crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
-    let (machine, net) = a.subject.load_for(&[a.controller])?;
-    let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
-    let (controller, seed, episode) = (a.controller, a.seed, a.episode);
-    let mut frames = Vec::new();
-    let stats = eval::episode(controller, &net, &scenario, horizon, seed, episode, |f| {
-        frames.push(f)
-    });
+    Ok((gif, png))
+}
+
+/// Draws `frames` into `out`'s `episode.gif` (every `stride`-th period, titled `title`)
+/// and `episode.png` (titled `caption`), each under a temporary name and renamed, so a
+/// failure leaves no half-written picture; their paths.
+pub fn draw(
+    out: &Path,
+    frames: &[Frame],
+    params: &Params,
+    stride: usize,
+    (title, caption): (&str, &str),
+) -> Result<(PathBuf, PathBuf)> {
+    let (gif, png) = pictures(out)?;
     std::fs::create_dir_all(out)
         .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(out))))?;
-    let title = format!("{controller}, {}", scenario.name);
-    // Drawn under temporary names and renamed, so a failure leaves no half-written picture;
-    // the names end in the real extension because the encoders choose the format by it.
+    // The names end in the real extension because the encoders choose the format by it.
     remove_stale(&gif, &["tmp.gif"]);
     remove_stale(&png, &["tmp.png"]);
     let (gif_tmp, png_tmp) = (
         temp_path_keeping_extension(&gif),
         temp_path_keeping_extension(&png),
     );
-    let drawn = render::gif(&gif_tmp, &frames, &scenario.params, stride, &title).and_then(|()| {
-        render::timeseries(
-            &png_tmp,
-            &frames,
-            &scenario.params,
-            &format!(
-                "{title}: {} of {horizon} periods, {}",
-                stats.steps,
-                if stats.success { "balanced" } else { "fell" }
-            ),
-        )
-    });
+    let drawn = render::gif(&gif_tmp, frames, params, stride, title)
+        .and_then(|()| render::timeseries(&png_tmp, frames, params, caption));
     if let Err(e) = drawn {
         let _ = std::fs::remove_file(&gif_tmp);
         let _ = std::fs::remove_file(&png_tmp);
@@ -113,6 +129,5 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         std::fs::rename(tmp, path)
             .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(path))))?;
     }
-    host_common::outln!("{}\n{}", gif.display(), png.display());
-    Ok(())
+    Ok((gif, png))
 }

@@ -2,15 +2,19 @@
 //! (`firmware::startup`): the hanging zero, the swing-up or a hand's lift, the catch, the
 //! balance; how often and how fast the pole is up, and what it cost the track.
 
+use std::path::PathBuf;
+
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use firmware::controller::Policy;
+use firmware::startup::Phase;
 use firmware::startup::Startup;
 use host_sim::eval::{ControllerKind, IntNet, Net};
 use indicatif::{ProgressBar, ProgressStyle};
 use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::Serialize;
+use twin::Frame;
 use twin::startup::{Begin, Events, Outcome, power_on};
 use twin::{Integration, Machine};
 
@@ -50,13 +54,19 @@ pub struct StartupArgs {
     subject: Subject,
     /// The true machine (a rig file), when the board models another.
     #[arg(long)]
-    world: Option<std::path::PathBuf>,
+    world: Option<PathBuf>,
     /// Seed of the starts and lifts.
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Print JSON instead of the table.
     #[arg(long)]
     json: bool,
+    /// Also draw one episode (f32) into this directory: episode.gif and episode.png.
+    #[arg(long)]
+    render: Option<PathBuf>,
+    /// The episode --render draws.
+    #[arg(long, default_value_t = 0, requires = "render")]
+    episode: u32,
 }
 
 /// One arithmetic's episodes, summed up.
@@ -94,17 +104,7 @@ struct Report {
 
 /// Runs the episodes `a` asks for; the report is printed.
 pub fn run(a: &StartupArgs) -> Result<bool> {
-    anyhow::ensure!(
-        (1..=MAX_EPISODES).contains(&a.episodes),
-        "--episodes must be 1 to {MAX_EPISODES}, found {}",
-        a.episodes
-    );
-    for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
-        anyhow::ensure!(
-            s.is_finite() && s > 0.0 && s <= 3600.0,
-            "{flag} must be seconds in (0, 3600], found {s:?}"
-        );
-    }
+    check(a)?;
     let (board, mut startup, net) = board(&a.subject)?;
     let world = match &a.world {
         Some(path) => twin::rigfile::load(path)?,
@@ -120,7 +120,6 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     }
     let tau = board.rig.params.tau;
     let within = (a.within / tau).round() as u32;
-    let periods = within + (a.hold / tau).round() as u32;
     let margin = f64::from(board.rig.limits().map_err(anyhow::Error::msg)?.max_abs()[0]);
     let bar = ProgressBar::new(2 * u64::from(a.episodes)).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed}<{eta}")
@@ -131,7 +130,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         startup,
         world: &world,
         board: &board,
-        periods,
+        periods: within + (a.hold / tau).round() as u32,
         seed: a.seed,
         episodes: a.episodes,
         bar: &bar,
@@ -141,6 +140,11 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     let int = IntNet::of(&net).context("the policy has no integer version")?;
     let int = summary("int8", runs.all(int)?);
     bar.finish_and_clear();
+    let drawn = a
+        .render
+        .as_deref()
+        .map(|out| draw(&runs, &net, a.episode, out))
+        .transpose()?;
     let report = Report {
         start: begin,
         seed: a.seed,
@@ -154,7 +158,57 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     } else {
         host_common::out!("{}", table(&report));
     }
+    if let Some((gif, png)) = drawn {
+        // Beside the JSON, the pictures are named on standard error.
+        let names = format!("{}\n{}", gif.display(), png.display());
+        if a.json {
+            host_common::errln!("{names}");
+        } else {
+            host_common::outln!("{names}");
+        }
+    }
     Ok(true)
+}
+
+/// `a`'s values, and its picture's paths, before any work.
+fn check(a: &StartupArgs) -> Result<()> {
+    anyhow::ensure!(
+        (1..=MAX_EPISODES).contains(&a.episodes),
+        "--episodes must be 1 to {MAX_EPISODES}, found {}",
+        a.episodes
+    );
+    for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
+        anyhow::ensure!(
+            s.is_finite() && s > 0.0 && s <= 3600.0,
+            "{flag} must be seconds in (0, 3600], found {s:?}"
+        );
+    }
+    if let Some(out) = &a.render {
+        anyhow::ensure!(
+            a.episode < a.episodes,
+            "--episode must be below --episodes ({}), found {}",
+            a.episodes,
+            a.episode
+        );
+        let (gif, png) = crate::render_cmd::pictures(out)?;
+        let mut inputs = a.subject.inputs();
+        inputs.extend(a.world.clone().map(|w| ("--world", w)));
+        crate::check_io(&inputs, &[("--render", &gif), ("--render", &png)])?;
+    }
+    Ok(())
+}
+
+/// Draws episode `k` of `runs` with the float network into `out`; the pictures' paths.
+fn draw(runs: &Runs<'_>, net: &Net, k: u32, out: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+    let mut frames = Vec::new();
+    let o = runs.episode(k, net, |f, _| frames.push(*f))?;
+    let title = format!("start-up from {:?}, episode {k}", runs.begin);
+    let tau = runs.world.rig.params.tau;
+    let caption = match o.balanced_from {
+        Some(b) => format!("{title}: balanced from {:.2} s", f64::from(b) * tau),
+        None => format!("{title}: not balanced at the end"),
+    };
+    crate::render_cmd::draw(out, &frames, &runs.world.rig.params, 2, (&title, &caption))
 }
 
 /// What every episode of a run shares.
@@ -170,27 +224,37 @@ struct Runs<'a> {
 }
 
 impl Runs<'_> {
-    /// Every episode with `policy`, on all cores, in episode order: episode `k` draws its
-    /// start from its own stream of the seed.
+    /// Every episode with `policy`, on all cores, in episode order.
     fn all<P: Policy<[f32; 4]> + Copy + Send + Sync>(&self, policy: P) -> Result<Vec<Outcome>> {
-        let tau = self.board.rig.params.tau;
         (0..self.episodes)
             .into_par_iter()
             .map(|k| {
-                let mut rng = Pcg64Mcg::new((u128::from(self.seed) << 64) | u128::from(k));
-                let (start, lift) = self.begin.draw(&mut rng, &self.startup, tau);
-                let events = Events {
-                    periods: self.periods,
-                    lift,
-                    knocks: &[],
-                };
-                let rig = &self.board.rig;
-                let o =
-                    power_on::<[f32; 4], _>(self.world, rig, self.startup, policy, start, events);
+                let o = self.episode(k, policy, |_, _| {});
                 self.bar.inc(1);
-                o.map_err(anyhow::Error::msg)
+                o
             })
             .collect()
+    }
+
+    /// Episode `k` with `policy`, `each` shown every period: the start drawn from the
+    /// episode's own stream of the seed.
+    fn episode<P: Policy<[f32; 4]>>(
+        &self,
+        k: u32,
+        policy: P,
+        each: impl FnMut(&Frame, Phase),
+    ) -> Result<Outcome> {
+        let tau = self.board.rig.params.tau;
+        let mut rng = Pcg64Mcg::new((u128::from(self.seed) << 64) | u128::from(k));
+        let (start, lift) = self.begin.draw(&mut rng, &self.startup, tau);
+        let events = Events {
+            periods: self.periods,
+            lift,
+            knocks: &[],
+        };
+        let (world, rig) = (self.world, &self.board.rig);
+        power_on::<[f32; 4], _>(world, rig, self.startup, (policy, start), events, each)
+            .map_err(anyhow::Error::msg)
     }
 }
 

@@ -58,6 +58,32 @@ fn the_same_seed_gives_the_same_figures_and_another_seed_other_ones() {
 }
 
 #[test]
+fn an_episode_is_drawn_beside_the_json_and_an_episode_past_the_run_is_refused() {
+    let dir = std::env::temp_dir().join(format!("startup-render-{}", std::process::id()));
+    let v = desk(&[
+        "--episodes",
+        "2",
+        "--render",
+        dir.to_str().unwrap(),
+        "--episode",
+        "1",
+    ]);
+    assert_eq!(v["rows"][0]["episodes"], 2);
+    let gif = std::fs::read(dir.join("episode.gif")).unwrap();
+    let png = std::fs::read(dir.join("episode.png")).unwrap();
+    assert!(gif.starts_with(b"GIF89a") && png.starts_with(b"\x89PNG\r\n\x1a\n"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    let o = startup(&["--episodes", "2", "--render", "x", "--episode", "2"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--episode must be below --episodes (2), found 2"),
+        "{err}"
+    );
+    assert!(!std::path::Path::new("x").exists());
+}
+
+#[test]
 fn bad_input_exits_2_naming_what_was_expected() {
     let refused = |args: &[&str], expected: &str| {
         let o = startup(args);

@@ -19,6 +19,7 @@ use firmware::startup::{Phase, Sequencer, Startup, Transitions};
 use rand_core::Rng;
 
 use crate::machine::{self, Machine};
+use crate::run::Frame;
 
 /// A hand lifting the pole from where it hangs along a smooth path, and letting go. The
 /// hand steadies the cart while it lifts: the cart stays where it was taken, at rest.
@@ -99,6 +100,22 @@ impl Begin {
     }
 }
 
+impl Lift {
+    /// The hand's hold on `s` after period `period`: it takes the pole as it is in period
+    /// `from` (kept in `grip`), then sets its angle and rate on the path and keeps the cart
+    /// where it was, at rest.
+    fn hold(&self, period: u32, s: &mut State, grip: &mut State, tau: f64) {
+        match period.checked_sub(self.from) {
+            Some(0) => *grip = *s,
+            Some(k) if k <= self.periods => {
+                (s.theta, s.theta_dot) = self.at(grip.theta, k, tau);
+                (s.x, s.x_dot) = (grip.x, 0.0);
+            }
+            _ => {}
+        }
+    }
+}
+
 /// An external push on the cart: its force (N) held over one period.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Knock {
@@ -143,13 +160,15 @@ pub struct Events<'a> {
 /// Runs `events.periods` of `world`'s true physics from `start`, read through its encoders,
 /// its board (`board`, the rig it was told: `policy` behind the observer and predictor, on
 /// readings in the format `O`, f32 or the integer network's Q3.12) started by `startup`.
+/// `each` is shown every period's frame (the true state after it and the command; no
+/// reading) and the phase it ran in.
 pub fn power_on<O: Estimate, P: Policy<O>>(
     world: &Machine,
     board: &Rig,
     startup: Startup,
-    policy: P,
-    start: State,
+    (policy, start): (P, State),
     events: Events<'_>,
+    mut each: impl FnMut(&Frame, Phase),
 ) -> Result<Outcome, ConfigError> {
     let (rig, truth) = (board, world.rig);
     let plant = Plant::new(&truth.params);
@@ -175,9 +194,9 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         faults: FaultCounters::default(),
         phase: Phase::Zeroing,
     };
-    let (mut lifted_from, mut held) = (start.theta, start);
+    let mut grip = start;
     for period in 0..events.periods {
-        sequencer.run(latest.get(), &mut controller);
+        let command = sequencer.run(latest.get(), &mut controller);
         let phase = sequencer.phase();
         if phase != Phase::Balancing {
             out.balanced_from = None;
@@ -185,31 +204,22 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         } else if out.balanced_from.is_none() {
             out.balanced_from = Some(period);
         }
-        let push = events
-            .knocks
-            .iter()
-            .filter(|k| k.period == period)
-            .map(|k| k.force)
-            .sum();
         let acting = line.send(duty(controller.actuator()));
-        s = machine::advance(&plant, world.integration, &s, acting, push);
+        s = machine::advance(&plant, world.integration, &s, acting, events.push(period));
         if let Some(lift) = &events.lift {
-            match period.checked_sub(lift.from) {
-                Some(0) => (lifted_from, held) = (s.theta, s),
-                Some(k) if k <= lift.periods => {
-                    (s.theta, s.theta_dot) = lift.at(lifted_from, k, truth.params.tau);
-                    (s.x, s.x_dot) = (held.x, 0.0);
-                }
-                _ => {}
-            }
+            lift.hold(period, &mut s, &mut grip, truth.params.tau);
         }
-        let end = truth.params.x_threshold;
-        if s.x.abs() >= end {
-            s.x = s.x.clamp(-end, end);
-            s.x_dot = 0.0;
-            out.end_stop_periods += 1;
-        }
+        out.end_stop_periods += u32::from(stopped_at_ends(&mut s, truth.params.x_threshold));
         out.max_abs_x = out.max_abs_x.max(s.x.abs());
+        let reading = [0.0; 4];
+        each(
+            &Frame {
+                state: s,
+                command,
+                reading,
+            },
+            phase,
+        );
         let (cart, pole) = counts(&s);
         latest.set((cart.wrapping_sub(origin.0), pole.wrapping_sub(origin.1)));
     }
@@ -222,6 +232,24 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     out.faults = controller.faults();
     out.phase = sequencer.phase();
     Ok(out)
+}
+
+impl Events<'_> {
+    /// The knocks' force in period `period`, N.
+    fn push(&self, period: u32) -> f64 {
+        let now = self.knocks.iter().filter(|k| k.period == period);
+        now.map(|k| k.force).sum()
+    }
+}
+
+/// Whether the cart in `s` is at an end stop `end` from the centre; one stops it there.
+fn stopped_at_ends(s: &mut State, end: f64) -> bool {
+    let at = s.x.abs() >= end;
+    if at {
+        s.x = s.x.clamp(-end, end);
+        s.x_dot = 0.0;
+    }
+    at
 }
 
 /// `c` counts moved by whole revolutions of `rev` counts to the nearest zero.

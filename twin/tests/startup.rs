@@ -32,7 +32,7 @@ fn episode(
         lift,
         knocks,
     };
-    power_on::<[i16; 4], _>(&world, &RIG, startup, policy, start, events).unwrap()
+    power_on::<[i16; 4], _>(&world, &RIG, startup, (policy, start), events, |_, _| {}).unwrap()
 }
 
 /// Balanced from a period within `within` and held to the end.
