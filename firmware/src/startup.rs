@@ -31,7 +31,7 @@
 
 use crate::config::{ConfigError, check, positive};
 use crate::controller::{Actuator, Command, Controller, Policy, StateSensor};
-use crate::estimator::Zeroed;
+use crate::estimator::{Zeroed, wrap};
 use crate::rig::Rig;
 
 pub mod swing;
@@ -184,7 +184,7 @@ pub struct Sequencer {
     /// Radians per pole count, metres per cart count.
     per_count: [f32; 2],
     half_rev: i32,
-    rev: i64,
+    rev: u32,
     tau: f32,
     track: f32,
     pump: Option<Pump>,
@@ -210,7 +210,7 @@ impl Sequencer {
             startup,
             per_count: [per_rad as f32, per_m as f32],
             half_rev: (rev / 2) as i32,
-            rev: i64::from(rev),
+            rev,
             tau: rig.params.tau as f32,
             track,
             pump: startup.swing.map(|s| Pump::new(s, &rig.params, track)),
@@ -307,11 +307,9 @@ impl Sequencer {
         [x, dx / self.tau, angle(pole), dtheta / self.tau]
     }
 
-    /// Counts `c` as an angle in (-pi, pi] (to half a count).
+    /// Counts `c` as an angle within one revolution about zero (the estimator's wrap).
     fn wrap(&self, c: i64) -> f32 {
-        let half = self.rev / 2;
-        let w = half - (half - c).rem_euclid(self.rev.max(1));
-        w as f32 * self.per_count[0]
+        wrap::count(c, self.rev) as f32 * self.per_count[0]
     }
 
     /// The phase this period ended in.

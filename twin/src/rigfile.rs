@@ -394,9 +394,7 @@ pub fn load(path: &Path) -> Result<Machine> {
 
 /// Parses a rig file's text; `origin` names it in errors.
 pub fn parse(text: &str, origin: &str) -> Result<Machine> {
-    let f: File = toml::from_str(text)
-        .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
-    machine(&f, Fields { origin })
+    parse_startup(text, origin).map(|(machine, _)| machine)
 }
 
 /// Reads the rig file at `path` with its start-up: its `[startup]` table, the rest suggested

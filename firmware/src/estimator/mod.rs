@@ -45,7 +45,7 @@
 mod alpha_beta;
 mod observer;
 mod sensor;
-mod wrap;
+pub(crate) mod wrap;
 
 pub use alpha_beta::AlphaBeta;
 pub use observer::{Observer, Tuning};
