@@ -154,7 +154,7 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
         t_end,
         (-x_lim, x_lim),
         "x (m)",
-        &series(&|f| f.state.x),
+        &[series(&|f| f.state.x)],
         x_lim,
     )?;
     panel(
@@ -162,7 +162,7 @@ pub fn timeseries(path: &Path, frames: &[Frame], params: &Params, title: &str) -
         t_end,
         (-th_range, th_range),
         "theta (deg)",
-        &series(&theta),
+        &turns(series(&theta)),
         th_lim,
     )?;
     let command = series(&|f| f64::from(f.command.level()));
@@ -198,7 +198,7 @@ fn panel(
     t_end: f64,
     (lo, hi): (f64, f64),
     label: &str,
-    points: &[(f64, f64)],
+    lines: &[Vec<(f64, f64)>],
     limit: f64,
 ) -> Result<()> {
     let mut chart = ChartBuilder::on(area)
@@ -218,13 +218,25 @@ fn panel(
             .draw_series(LineSeries::new([(0.0, l), (t_end, l)], RED.mix(0.6)))
             .map_err(err)?;
     }
-    chart
-        .draw_series(LineSeries::new(
-            points.iter().copied(),
-            BLUE.stroke_width(2),
-        ))
-        .map_err(err)?;
+    for line in lines {
+        chart
+            .draw_series(LineSeries::new(line.iter().copied(), BLUE.stroke_width(2)))
+            .map_err(err)?;
+    }
     Ok(())
+}
+
+/// The angle's line cut where it crosses the bottom (+-180 degrees), so it is not joined
+/// across the panel: a wide line turned back on itself there draws a spike out of the panel.
+fn turns(points: Vec<(f64, f64)>) -> Vec<Vec<(f64, f64)>> {
+    let mut lines: Vec<Vec<(f64, f64)>> = Vec::new();
+    for p in points {
+        match lines.last_mut() {
+            Some(line) if line.last().is_some_and(|q| (p.1 - q.1).abs() <= 180.0) => line.push(p),
+            _ => lines.push(vec![p]),
+        }
+    }
+    lines
 }
 
 #[cfg(test)]
@@ -261,5 +273,25 @@ mod tests {
             .unwrap();
         assert_eq!((png.info().width, png.info().height), (1000, 720));
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn the_angle_line_is_cut_only_where_it_crosses_the_bottom() {
+        let t = |v: &[f64]| -> Vec<(f64, f64)> {
+            v.iter().enumerate().map(|(i, &y)| (i as f64, y)).collect()
+        };
+        let lines = turns(t(&[170.0, 179.0, -179.0, -170.0, -90.0, 0.0, 90.0, 179.5]));
+        let ys: Vec<Vec<f64>> = lines
+            .iter()
+            .map(|l| l.iter().map(|p| p.1).collect())
+            .collect();
+        assert_eq!(
+            ys,
+            [
+                vec![170.0, 179.0],
+                vec![-179.0, -170.0, -90.0, 0.0, 90.0, 179.5]
+            ]
+        );
+        assert!(turns(Vec::new()).is_empty());
     }
 }
