@@ -343,6 +343,8 @@ typedef struct cartpole_phase_state {
     uint32_t caught;  /* hand-overs to the balance controller */
     uint32_t missed;  /* catches abandoned before the hand-over */
     uint32_t fell;    /* falls while balancing: past the release angle or the track's end */
+    float trim;       /* the pole's zero refined while balancing so far, rad: integral action
+                         that keeps the cart centred */
 } cartpole_phase_t;
 
 #ifdef __cplusplus

@@ -51,6 +51,7 @@ static void print_counters(const cartpole_controller_t *c) {
 
 static void print_phase(const cartpole_controller_t *c) {
     cartpole_phase_t p;
+    uint32_t trim;
     int rc;
     memset(&p, UNWRITTEN, sizeof p);
     rc = cartpole_controller_phase(c, &p);
@@ -58,9 +59,10 @@ static void print_phase(const cartpole_controller_t *c) {
         printf("phase refused %d %d\n", rc, unwritten(&p, sizeof p));
         return;
     }
-    printf("phase %d %lu %lu %lu %lu %lu %lu\n", rc, (unsigned long)p.phase,
+    memcpy(&trim, &p.trim, sizeof trim);
+    printf("phase %d %lu %lu %lu %lu %lu %lu %08lx\n", rc, (unsigned long)p.phase,
            (unsigned long)p.zeroed, (unsigned long)p.entered, (unsigned long)p.caught,
-           (unsigned long)p.missed, (unsigned long)p.fell);
+           (unsigned long)p.missed, (unsigned long)p.fell, (unsigned long)trim);
 }
 
 /* One line of a script; 0 if it is none of the calls. */
@@ -149,10 +151,11 @@ static void layout(void) {
     printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
            (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
            (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);
-    printf("startup-constants %d %d %d %d %d %d %d %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
+    printf("startup-constants %d %d %d %d %d %d %d %lu %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
            CARTPOLE_PHASE_ZEROING, CARTPOLE_PHASE_WAITING, CARTPOLE_PHASE_SWINGING_UP,
            CARTPOLE_PHASE_CATCHING, CARTPOLE_PHASE_BALANCING, CARTPOLE_PHASE_FALLEN,
-           (unsigned long)sizeof(cartpole_phase_t), (unsigned long)offsetof(cartpole_phase_t, fell));
+           (unsigned long)sizeof(cartpole_phase_t), (unsigned long)offsetof(cartpole_phase_t, fell),
+           (unsigned long)offsetof(cartpole_phase_t, trim));
 }
 
 /* Every call on c and on NULL outputs, then whether the outputs are as they were. */

@@ -29,7 +29,7 @@
 //! decide ([`Controller::hold`]). [`Sequencer::run`] is a loop's whole period with it.
 //! Fixed-size, allocation-free, and no input makes it panic.
 
-use crate::config::{ConfigError, check, positive};
+use crate::config::{ConfigError, check, non_negative, positive};
 use crate::controller::{Actuator, Command, Controller, Policy, StateSensor};
 use crate::estimator::{Zeroed, wrap};
 use crate::rig::Rig;
@@ -60,6 +60,10 @@ pub enum Phase {
     Fallen,
 }
 
+/// [`Startup::suggested`]'s trim rate, rad per metre-second, and its bound, rad (2 degrees).
+const TRIM_RATE: f32 = 0.003;
+const TRIM_MAX: f32 = 0.035;
+
 /// How a rig starts: how long the zero is watched for, where the balance controller may take
 /// over and where it must let go, and the swing-up if there is one. Checked against its rig
 /// by [`Startup::check`].
@@ -79,6 +83,14 @@ pub struct Startup {
     pub release_angle: f32,
     /// The swing-up, or `None` to wait for a hand.
     pub swing: Option<Swing>,
+    /// How fast the zero is refined while balancing, rad per metre-second: the pole's
+    /// reading is moved by this times the cart's distance from the centre each second
+    /// (integral action), so a zero a little off, a track not level or a cable's pull
+    /// leaves the cart centred rather than parked where its position term cancels the error.
+    /// 0 turns it off.
+    pub trim_rate: f32,
+    /// The most the zero is refined by, rad.
+    pub trim_max: f32,
 }
 
 impl Startup {
@@ -90,7 +102,9 @@ impl Startup {
     /// that keeps that sway within 0.3 of the track's accepted half-length, and at most half
     /// the cart's stall acceleration (`F / (M + m)`). Its centring (a spring of 2.4 rad/s,
     /// damped at 0.8), its energy gain and its overshoot are the ones measured on the desk
-    /// rig (`docs/STARTUP.md`).
+    /// rig (`docs/STARTUP.md`). The trim refines the zero by up to 2 degrees, at 0.003 rad
+    /// per metre-second: slow beside the balance (a cart parked 0.1 m off moves the reading by
+    /// a count of a 2,400-count encoder in about 9 s), measured on the desk and lab rigs.
     pub fn suggested(rig: &Rig) -> Result<Startup, ConfigError> {
         let rig = check!(rig.check());
         let p = &rig.params;
@@ -110,13 +124,16 @@ impl Startup {
                 centring: [6.0, 4.0],
                 overshoot: 0.015,
             }),
+            trim_rate: TRIM_RATE,
+            trim_max: TRIM_MAX,
         };
         startup.check(&rig)
     }
 
     /// `self`, if every region is one a rig can run on `rig`: finite, non-empty, the catch
     /// region inside the release angle, the release angle at most the rig's failure angle,
-    /// the windows at least a period long, and a swing-up as [`Swing::check`] accepts.
+    /// the windows at least a period long, the trim not negative and below the catch angle,
+    /// and a swing-up as [`Swing::check`] accepts.
     pub const fn check(self, rig: &Rig) -> Result<Startup, ConfigError> {
         if self.zero_periods < 2 {
             return Err(ConfigError::TooFew("startup.zero_periods"));
@@ -137,6 +154,14 @@ impl Startup {
             return Err(ConfigError::AboveLimit(
                 "startup.release_angle",
                 "at most params.theta_threshold_radians",
+            ));
+        }
+        check!(non_negative(self.trim_rate as f64, "startup.trim_rate"));
+        check!(non_negative(self.trim_max as f64, "startup.trim_max"));
+        if self.trim_max >= self.catch_angle {
+            return Err(ConfigError::AboveLimit(
+                "startup.trim_max",
+                "below startup.catch_angle",
             ));
         }
         if let Some(s) = self.swing {
@@ -194,6 +219,8 @@ pub struct Sequencer {
     zero: Option<(i32, i32)>,
     last: Option<(i32, i32)>,
     inside: u16,
+    /// The zero's refinement so far, rad.
+    trim: f32,
     transitions: Transitions,
 }
 
@@ -219,6 +246,7 @@ impl Sequencer {
             zero: None,
             last: None,
             inside: 0,
+            trim: 0.0,
             transitions: Transitions::default(),
         })
     }
@@ -269,6 +297,8 @@ impl Sequencer {
                     self.phase = Phase::Fallen;
                     return Act::Hold(Command::Coast);
                 }
+                let max = self.startup.trim_max;
+                self.trim = (self.trim + self.startup.trim_rate * s[0] * self.tau).clamp(-max, max);
                 return Act::Balance { engaged: false };
             }
             _ => {}
@@ -322,6 +352,12 @@ impl Sequencer {
         self.transitions
     }
 
+    /// The zero's refinement so far, rad ([`Startup::trim_rate`]): what the pole's reading
+    /// is moved by.
+    pub fn trim(&self) -> f32 {
+        self.trim
+    }
+
     /// The raw counts `(cart, pole)` of the cart's centre and the pole upright, once zeroed.
     pub fn zero(&self) -> Option<(i32, i32)> {
         self.zero
@@ -347,6 +383,7 @@ impl Sequencer {
         if let (false, Some(zero)) = (zeroed, self.zero) {
             controller.sensor_mut().zero_at(zero);
         }
+        controller.sensor_mut().trim(self.trim);
         match act {
             Act::Hold(command) => controller.hold(command),
             Act::Balance { engaged } => {

@@ -86,6 +86,10 @@ struct Row {
     end_stop_contacts: u32,
     /// The largest error of the hanging zero, pole counts.
     zero_error_counts: i64,
+    /// At steady balance (an episode's second half): the cart's RMS distance from the
+    /// centre, m, median and 99th percentile over the episodes; the mean |duty|.
+    steady_rms_x_m: [f64; 2],
+    steady_mean_abs_duty: f64,
     catches: u64,
     misses: u64,
     falls: u64,
@@ -275,6 +279,10 @@ fn summarise(
     times.sort_by(f64::total_cmp);
     let mut track: Vec<f64> = outcomes.iter().map(|o| o.max_abs_x).collect();
     track.sort_by(f64::total_cmp);
+    let steady: Vec<_> = outcomes.iter().filter_map(|o| o.steady).collect();
+    let mut rms_x: Vec<f64> = steady.iter().map(|s| s.rms_x).collect();
+    rms_x.sort_by(f64::total_cmp);
+    let duty = steady.iter().map(|s| s.mean_abs_duty).sum::<f64>() / steady.len() as f64;
     let count = |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count() as u32;
     let total = |f: &dyn Fn(&Outcome) -> u32| outcomes.iter().map(|o| u64::from(f(o))).sum();
     Row {
@@ -290,6 +298,8 @@ fn summarise(
             .map(|o| o.zero_error.map_or(i64::MAX, i64::abs))
             .max()
             .unwrap_or(0),
+        steady_rms_x_m: [0.5, 0.99].map(|q| quantile(&rms_x, q)),
+        steady_mean_abs_duty: duty,
         catches: total(&|o| o.transitions.caught),
         misses: total(&|o| o.transitions.missed),
         falls: total(&|o| o.transitions.fell),
@@ -308,7 +318,7 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 fn table(r: &Report) -> String {
     let mut out = format!(
         "start-up from {:?}, seed {}: balanced within {} s of power-on and held {} s\n  {}\n\n  \
-         {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>16}\n",
+         {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>18} {:>7} {:>16}\n",
         r.start,
         r.seed,
         r.within_s,
@@ -322,12 +332,14 @@ fn table(r: &Report) -> String {
         "margin",
         "stops",
         "zero",
+        "steady x m p50/p99",
+        "|duty|",
         "catch/miss/fall"
     );
     for w in &r.rows {
         let t = w.time_to_balance_s;
         out += &format!(
-            "  {:<6} {:>8} {:>7.1}% {:>25} {:>15} {:>7} {:>6} {:>5} {:>16}\n",
+            "  {:<6} {:>8} {:>7.1}% {:>25} {:>15} {:>7} {:>6} {:>5} {:>18} {:>6.1}% {:>16}\n",
             w.arithmetic,
             w.episodes,
             100.0 * w.success,
@@ -336,6 +348,8 @@ fn table(r: &Report) -> String {
             w.into_margin,
             w.end_stop_contacts,
             w.zero_error_counts,
+            format!("{:.3}/{:.3}", w.steady_rms_x_m[0], w.steady_rms_x_m[1]),
+            100.0 * w.steady_mean_abs_duty,
             format!("{}/{}/{}", w.catches, w.misses, w.falls),
         );
     }

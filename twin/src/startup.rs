@@ -144,6 +144,37 @@ pub struct Outcome {
     pub faults: FaultCounters,
     /// The phase the episode ended in.
     pub phase: Phase,
+    /// The balance over the episode's second half, if it balanced then.
+    pub steady: Option<Steady>,
+}
+
+/// The balance at rest: the periods of an episode's second half that the balance
+/// controller drove, as a rig runs once it has settled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Steady {
+    /// The cart's RMS distance from the centre, m.
+    pub rms_x: f64,
+    /// The mean |duty|, a fraction of full.
+    pub mean_abs_duty: f64,
+}
+
+/// Sums over the second half's balanced periods: `[x^2, |duty|, periods]`.
+#[derive(Default)]
+struct Sums([f64; 3]);
+
+impl Sums {
+    fn add(&mut self, x: f64, duty: f64) {
+        self.0[0] += x * x;
+        self.0[1] += duty.abs();
+        self.0[2] += 1.0;
+    }
+    fn steady(&self) -> Option<Steady> {
+        let [x2, duty, n] = self.0;
+        (n > 0.0).then(|| Steady {
+            rms_x: (x2 / n).sqrt(),
+            mean_abs_duty: duty / n,
+        })
+    }
 }
 
 /// What happens to an episode from power-on: how long it runs, a hand's lift, pushes.
@@ -193,7 +224,9 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         transitions: Transitions::default(),
         faults: FaultCounters::default(),
         phase: Phase::Zeroing,
+        steady: None,
     };
+    let mut sums = Sums::default();
     let mut grip = start;
     for period in 0..events.periods {
         let command = sequencer.run(latest.get(), &mut controller);
@@ -204,7 +237,11 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         } else if out.balanced_from.is_none() {
             out.balanced_from = Some(period);
         }
-        let acting = line.send(duty(controller.actuator()));
+        let commanded = duty(controller.actuator());
+        if phase == Phase::Balancing && period >= events.periods / 2 {
+            sums.add(s.x, commanded);
+        }
+        let acting = line.send(commanded);
         s = machine::advance(&plant, world.integration, &s, acting, events.push(period));
         if let Some(lift) = &events.lift {
             lift.hold(period, &mut s, &mut grip, truth.params.tau);
@@ -231,6 +268,7 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     out.transitions = sequencer.transitions();
     out.faults = controller.faults();
     out.phase = sequencer.phase();
+    out.steady = sums.steady();
     Ok(out)
 }
 

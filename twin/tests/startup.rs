@@ -99,3 +99,25 @@ fn a_knock_that_drops_the_pole_is_recovered_by_the_swing_up_without_a_reset() {
     assert!(o.balanced_from.is_some_and(|b| b > 1000), "{o:?}");
     assert_eq!(o.transitions.zeroed, 1);
 }
+
+#[test]
+fn the_trim_keeps_the_cart_centred_where_the_zero_alone_lets_it_park_off_centre() {
+    let suggested = Startup::suggested(&RIG).unwrap();
+    let untrimmed = Startup {
+        trim_rate: 0.0,
+        ..suggested
+    };
+    // The cart's RMS distance from the centre over each episode's second half, sorted.
+    let steady = |startup: Startup| {
+        let mut rng = Pcg64Mcg::new(44);
+        let mut rms: Vec<f64> = (0..40)
+            .map(|_| episode(Begin::Hanging, startup, &mut rng, 500 + MINUTE, &[]))
+            .map(|o| o.steady.expect("balancing in the second half").rms_x)
+            .collect();
+        rms.sort_by(f64::total_cmp);
+        rms
+    };
+    let (trimmed, untrimmed) = (steady(suggested), steady(untrimmed));
+    assert!(trimmed[39] < 0.05, "trimmed: {trimmed:?}");
+    assert!(untrimmed[20] > 0.1, "untrimmed: {untrimmed:?}");
+}

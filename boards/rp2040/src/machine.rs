@@ -160,7 +160,7 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
             let faults = controller.faults();
             if let Some(r) = controller.last() {
                 info!(
-                    "step {}: {} {} obs {} q {} mode {} faults {} transitions {}",
+                    "step {}: {} {} obs {} q {} mode {} faults {} transitions {} trim {} rad",
                     r.step,
                     sequencer.phase(),
                     command,
@@ -168,7 +168,8 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
                     r.q,
                     controller.mode(),
                     faults,
-                    sequencer.transitions()
+                    sequencer.transitions(),
+                    sequencer.trim()
                 );
             }
         }

@@ -118,7 +118,7 @@ pub async fn balance(p: Peripherals) -> ! {
             && let Some(r) = controller.last()
         {
             info!(
-                "step {}: {} {} obs {} q {} mode {} faults {} transitions {}",
+                "step {}: {} {} obs {} q {} mode {} faults {} transitions {} trim {} rad",
                 r.step,
                 sequencer.phase(),
                 command,
@@ -126,7 +126,8 @@ pub async fn balance(p: Peripherals) -> ! {
                 r.q,
                 controller.mode(),
                 controller.faults(),
-                sequencer.transitions()
+                sequencer.transitions(),
+                sequencer.trim()
             );
         }
     }

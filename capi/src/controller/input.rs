@@ -132,4 +132,7 @@ impl<O> Zeroed for Input<O> {
     fn zero_at(&mut self, zero: (i32, i32)) {
         self.encoders.zero_at(zero);
     }
+    fn trim(&mut self, rad: f32) {
+        self.encoders.trim(rad);
+    }
 }

@@ -19,7 +19,7 @@ use crate::rig::CartpoleRig;
 
 /// `cartpole_phase_t`: where the start-up is, and its transitions so far.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct CartpolePhase {
     /// `CARTPOLE_PHASE_*`.
     pub phase: u32,
@@ -33,6 +33,8 @@ pub struct CartpolePhase {
     pub missed: u32,
     /// Falls while balancing.
     pub fell: u32,
+    /// The zero refined while balancing so far, rad ([`Startup::trim_rate`]).
+    pub trim: f32,
 }
 
 /// [`Phase::Zeroing`]: motor off, taking the pole's hanging zero.
@@ -113,6 +115,7 @@ pub extern "C" fn cartpole_controller_phase(
             caught: t.caught,
             missed: t.missed,
             fell: t.fell,
+            trim: s.trim(),
         };
         Ok(())
     }))

@@ -125,6 +125,8 @@ pub struct AlphaBeta {
     last: (i32, i32),
     started: bool,
     fixed: [ToFixed; 4],
+    /// Added to the pole's position, 1/4096 count ([`AlphaBeta::trim`]).
+    trim: i64,
 }
 
 impl AlphaBeta {
@@ -154,6 +156,7 @@ impl AlphaBeta {
             pole: Channel::default(),
             last: (0, 0),
             started: false,
+            trim: 0,
             fixed: [
                 ToFixed::new(cart),
                 ToFixed::new(cart * per_s),
@@ -188,7 +191,7 @@ impl AlphaBeta {
     /// The pole's position handed out: within the revolution about upright, (-pi, pi].
     fn angle(&self) -> i64 {
         let rev = i64::from(self.enc.pole_counts_per_rev) << FRACTION_BITS;
-        wrap::fixed(self.pole.p, rev)
+        wrap::fixed(self.pole.p.wrapping_add(self.trim), rev)
     }
 
     /// The current estimate `[x (m), x_dot (m/s), theta (rad), theta_dot (rad/s)]`.
@@ -233,6 +236,19 @@ impl AlphaBeta {
     pub fn encoders(&self) -> Encoders {
         self.enc
     }
+
+    /// From the next reading on, reads the pole `rad` further from upright than its counts
+    /// say, to 1/4096 count: a zero finer than a count. A reset keeps it.
+    pub fn trim(&mut self, rad: f32) {
+        let per_rev = crate::fixed::ONE * self.enc.pole_counts_per_rev as f32;
+        let units = rad / core::f32::consts::TAU * per_rev;
+        // Within a revolution, so that any finite trim is exact in i64; NaN trims nothing.
+        self.trim = if units.abs() <= per_rev {
+            libm::roundf(units) as i64
+        } else {
+            0
+        };
+    }
 }
 
 #[cfg(test)]
@@ -256,6 +272,21 @@ mod tests {
         let u = 1 << FRACTION_BITS;
         assert_eq!(raw.raw(), [37 * u, 37 * u, -5 * u, -5 * u]);
         assert!((s[1] - 37.0 / 10_000.0 / 0.02).abs() < 1e-6);
+    }
+
+    #[test]
+    fn a_trim_moves_the_angle_by_its_nearest_4096th_of_a_count_and_outlives_a_reset() {
+        let u = 1 << FRACTION_BITS;
+        let mut e = AlphaBeta::new(ENC, 0.5, 0.02).unwrap();
+        // 0.01 rad of 4,096 counts a turn is 6.5190 counts: 26,702 units.
+        e.trim(0.01);
+        e.update(0, 10);
+        assert_eq!(e.raw()[2], 10 * u + 26_702);
+        e.reset();
+        e.update(0, -10);
+        assert_eq!(e.raw()[2], -10 * u + 26_702);
+        e.trim(f32::NAN);
+        assert_eq!(e.raw()[2], -10 * u);
     }
 
     #[test]

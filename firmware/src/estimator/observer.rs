@@ -101,6 +101,8 @@ pub struct Observer {
     frozen: bool,
     /// The running mean of the residuals' size, in counts (only while watching).
     residual: f32,
+    /// Added to the pole's angle as its counts give it, rad ([`Observer::trim`]).
+    trim: f32,
 }
 
 /// The larger of residuals `e` (m, rad) in counts of its encoder.
@@ -170,6 +172,7 @@ impl Observer {
             watch: false,
             frozen: false,
             residual: 0.0,
+            trim: 0.0,
         })
     }
 
@@ -209,7 +212,7 @@ impl Observer {
         let repeated = self.last == Some((cart_counts, pole_counts));
         self.count(cart_counts, pole_counts);
         let yx = (self.cart as f32 + 0.5) * self.per_count[0];
-        let yt = (self.pole as f32 + 0.5) * self.per_count[1];
+        let yt = (self.pole as f32 + 0.5) * self.per_count[1] + self.trim;
         if !self.started {
             self.frozen = false;
             self.estimate = [yx, 0.0, yt, 0.0];
@@ -315,6 +318,13 @@ impl Observer {
     /// The encoders' resolutions.
     pub fn encoders(&self) -> Encoders {
         self.enc
+    }
+
+    /// From the next update on, reads the pole `rad` further from upright than its counts
+    /// say: a zero finer than a count. Moved a little a period, it is followed as the pole
+    /// moving; a reset keeps it.
+    pub fn trim(&mut self, rad: f32) {
+        self.trim = if rad.is_finite() { rad } else { 0.0 };
     }
 }
 

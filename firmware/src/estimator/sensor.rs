@@ -27,6 +27,10 @@ pub trait Zeroed {
     /// From the next reading on, reads the counts about `zero` (the raw counts of the cart's
     /// centre and of the pole upright) and estimates afresh from them.
     fn zero_at(&mut self, zero: (i32, i32));
+    /// From the next reading on, reads the pole `rad` further from upright than its counts
+    /// about the zero say: the zero refined finer than a count, while balancing
+    /// ([`crate::startup::Startup::trim_rate`]).
+    fn trim(&mut self, rad: f32);
 }
 
 /// The counts `(cart, pole)` about `zero`, wrapping as a counter does.
@@ -100,6 +104,10 @@ impl<C, O> Zeroed for ObserverSensor<C, O> {
     fn zero_at(&mut self, zero: (i32, i32)) {
         self.zero = zero;
         self.observer.reset();
+        self.observer.trim(0.0);
+    }
+    fn trim(&mut self, rad: f32) {
+        self.observer.trim(rad);
     }
 }
 
@@ -192,5 +200,9 @@ impl<C, O> Zeroed for AlphaBetaSensor<C, O> {
     fn zero_at(&mut self, zero: (i32, i32)) {
         self.zero = zero;
         self.filter.reset();
+        self.filter.trim(0.0);
+    }
+    fn trim(&mut self, rad: f32) {
+        self.filter.trim(rad);
     }
 }

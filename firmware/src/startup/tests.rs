@@ -16,6 +16,8 @@ const START: Startup = Startup {
     catch_periods: 3,
     release_angle: 0.2,
     swing: None,
+    trim_rate: 0.0,
+    trim_max: 0.0,
 };
 
 /// Feeds `poles` with the cart at `cart`; true if every period held the motor off.
@@ -152,6 +154,38 @@ fn the_cart_past_the_track_lets_go_and_a_pole_leaving_the_region_is_a_miss() {
 }
 
 #[test]
+fn the_trim_integrates_the_carts_distance_while_balancing_only_and_stops_at_its_bound() {
+    let mut s = zeroed(Startup {
+        catch_periods: 1,
+        trim_rate: 0.5,
+        trim_max: 0.01,
+        ..START
+    });
+    // 0.1 m right of the centre (2,048 counts) while catching: nothing yet.
+    assert_eq!(s.period(100 + 2048, 2548), Act::Hold(Command::Coast));
+    assert_eq!(s.trim, 0.0);
+    // Balancing: 0.5 rad/(m s) x 0.1 m x 0.02 s = 0.001 rad a period, to the bound's 0.01.
+    assert_eq!(s.period(100 + 2048, 2548), Act::Balance { engaged: true });
+    for k in 1..=9 {
+        assert_eq!(s.period(100 + 2048, 2548), Act::Balance { engaged: false });
+        assert!(
+            (s.trim - 0.001 * k as f32).abs() < 1e-7,
+            "period {k}: {}",
+            s.trim
+        );
+    }
+    s.period(100 + 2048, 2548);
+    s.period(100 + 2048, 2548);
+    assert_eq!(s.trim, 0.01);
+    // Left of the centre it comes back; falling keeps it.
+    s.period(100 - 4096, 2548);
+    assert!((s.trim - 0.008).abs() < 1e-7);
+    let kept = s.trim;
+    s.period(100, 2548 + 200);
+    assert_eq!((s.phase(), s.trim), (Phase::Fallen, kept));
+}
+
+#[test]
 fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
     let refused = |s: Startup| Sequencer::new(s, &RIG).err();
     let above = ConfigError::AboveLimit;
@@ -192,6 +226,20 @@ fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
             ..START
         }),
         Some(ConfigError::TooFew("startup.zero_periods"))
+    );
+    assert_eq!(
+        refused(Startup {
+            trim_rate: -1e-3,
+            ..START
+        }),
+        Some(ConfigError::Negative("startup.trim_rate"))
+    );
+    assert_eq!(
+        refused(Startup {
+            trim_max: 0.1,
+            ..START
+        }),
+        Some(above("startup.trim_max", "below startup.catch_angle"))
     );
     let swing = Swing {
         energy_gain: 0.5,

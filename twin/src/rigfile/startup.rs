@@ -14,6 +14,8 @@
 //! swing_centring_per_s2 = 6.0
 //! swing_centring_per_s = 4.0
 //! swing_overshoot = 0.015
+//! trim_deg_per_m_s = 0.17       # the zero refined while balancing (integral action); 0: off
+//! trim_max_deg = 2.0            # by at most this
 //! ```
 
 use firmware::rig::Rig;
@@ -37,6 +39,8 @@ pub(super) struct Table {
     swing_centring_per_s2: Option<f64>,
     swing_centring_per_s: Option<f64>,
     swing_overshoot: Option<f64>,
+    trim_deg_per_m_s: Option<f64>,
+    trim_max_deg: Option<f64>,
 }
 
 impl Fields<'_> {
@@ -64,6 +68,17 @@ impl Fields<'_> {
         s.catch_periods = t.catch_periods.unwrap_or(s.catch_periods);
         if let Some(a) = value("release_angle_deg", t.release_angle_deg, 90.0)? {
             s.release_angle = radians(a) as f32;
+        }
+        // Zero turns the trim off.
+        let trim = |field: &str, v: Option<f64>| {
+            v.map(|v| self.check(&format!("startup.{field}"), v, (0.0, 90.0), false))
+                .transpose()
+        };
+        if let Some(r) = trim("trim_deg_per_m_s", t.trim_deg_per_m_s)? {
+            s.trim_rate = radians(r) as f32;
+        }
+        if let Some(m) = trim("trim_max_deg", t.trim_max_deg)? {
+            s.trim_max = radians(m) as f32;
         }
         s.swing = match (t.swing_up, s.swing) {
             (Some(false), _) | (_, None) => None,

@@ -191,3 +191,17 @@ fn the_fixed_state_is_the_state_rounded_in_q12() {
     o.estimate = [1e9, -1e9, f32::NAN, 3.0];
     assert_eq!(o.fixed_state(), [32_767, -32_768, 0, 12_288]);
 }
+
+#[test]
+fn a_trim_moves_the_angle_read_and_outlives_a_reset() {
+    let per = core::f32::consts::TAU / 4096.0;
+    let mut o = Observer::new(FINE, &Params::default(), Tuning::DEFAULT, 0).unwrap();
+    o.trim(0.01);
+    // The first reading is the counts' (the middle of count 10) plus the trim.
+    assert_eq!(o.update(0, 10)[2], 10.5 * per + 0.01);
+    o.reset();
+    assert_eq!(o.update(0, -10)[2], -9.5 * per + 0.01);
+    o.trim(f32::INFINITY);
+    o.reset();
+    assert_eq!(o.update(0, -10)[2], -9.5 * per);
+}

@@ -25,6 +25,8 @@ fn a_startup_table_overrides_the_suggested_values_it_names() {
     assert_eq!(s.swing.unwrap().max_accel, 3.0);
     assert_eq!(s.catch_rate, suggested.catch_rate);
     assert_eq!(desk_with("swing_up = false").unwrap().swing, None);
+    let t = desk_with("trim_deg_per_m_s = 0\ntrim_max_deg = 1").unwrap();
+    assert_eq!((t.trim_rate, t.trim_max), (0.0, 1f64.to_radians() as f32));
 }
 
 #[test]
@@ -50,6 +52,16 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
     let e = refusal("catch_periods = 0");
     assert!(
         e.contains("startup.catch_periods: expected more than zero"),
+        "{e}"
+    );
+    let e = refusal("trim_deg_per_m_s = -0.1");
+    assert!(
+        e.contains("startup.trim_deg_per_m_s: expected a number in [0, 90], found -0.1"),
+        "{e}"
+    );
+    let e = refusal("trim_max_deg = 9");
+    assert!(
+        e.contains("startup.trim_max: expected below startup.catch_angle"),
         "{e}"
     );
     let e = refusal("catch_region = 3");
