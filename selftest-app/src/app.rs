@@ -14,7 +14,7 @@ use firmware::loopback;
 use shipped::policy::{POLICY, RIG};
 use shipped::policy_int::POLICY_INT;
 
-use crate::selftest;
+use crate::{period, selftest};
 
 /// The clock the runners model: QEMU's `-icount shift=6` (`.cargo/config.toml`) advances
 /// virtual time by 2^6 ns per instruction, a 15.625 MHz core retiring one instruction per
@@ -125,12 +125,38 @@ pub fn run(board: &mut impl Board) -> bool {
         |l| board.line(l),
     );
     ok &= paced_runs(board);
+    ok &= startup_check(board);
     ok &= monitor_check(board, forward_int, monitored);
     stack_report(board, forward, forward_int);
     instruction_report(board, forward, [forward_int, monitored]);
     board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
     ok
 }
+
+/// The start-up from power-on around the desk board's controller: the pole zeroed hanging,
+/// then caught upright and balanced. Whether the last period balanced.
+fn startup_check(board: &mut impl Board) -> bool {
+    // By address, as the probes: its instructions are counted from this ELF.
+    let periods: StartupPeriods = core::hint::black_box(period::selftest_startup_periods);
+    let mut out = [0; 2];
+    periods(Some(&[STARTUP_PERIODS, 0, 0, 0]), Some(&mut out));
+    let [balancing, balanced] = out;
+    board.line(format_args!(
+        "start-up: {} after {STARTUP_PERIODS} periods, {balanced} of them balancing",
+        if balancing == 1 {
+            "balancing"
+        } else {
+            "NOT BALANCING"
+        }
+    ));
+    balancing == 1
+}
+
+/// Periods [`startup_check`] runs: the desk rig's two windows of rest, the catch, and more.
+const STARTUP_PERIODS: i16 = 200;
+
+/// The start-up's entry point ([`period::selftest_startup_periods`]).
+type StartupPeriods = extern "C" fn(Option<&[i16; 4]>, Option<&mut [i32; 2]>);
 
 /// Both network formats paced by the timer, as a board runs them: a timer interrupt every
 /// control period, the core asleep in between. Whether both balanced.

@@ -27,6 +27,8 @@ mod arm_selftest;
 mod on_arm;
 #[cfg(all(target_os = "none", target_arch = "riscv32"))]
 mod on_riscv;
+#[cfg(target_os = "none")]
+mod period;
 #[cfg(all(target_os = "none", target_arch = "riscv32"))]
 mod riscv_selftest;
 mod selftest;

@@ -142,6 +142,10 @@ fn run_on(target: &str) -> Option<String> {
             "{target}: {stdout}"
         );
     }
+    assert!(
+        stdout.contains("start-up: balancing after 200 periods, 141 of them balancing"),
+        "{target}: {stdout}"
+    );
     assert!(stdout.lines().any(|l| l == "PASS"), "{stdout}");
     Some(stdout.into_owned())
 }

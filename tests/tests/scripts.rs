@@ -419,3 +419,22 @@ fn the_forward_passes_keep_their_instruction_budgets() {
         );
     }
 }
+
+/// A whole balancing period of the desk board on the Cortex-M0 (the start-up around the
+/// controller: counts, the watching observer, the predictor, the nine-level integer network,
+/// the bridge) within a fifth of its 20 ms period at 16 MHz, one instruction a cycle: 64,000
+/// instructions. Two runs from power-on differ by 80 balancing periods, the set-up cancelled.
+#[test]
+fn a_balancing_period_with_the_start_up_takes_under_a_fifth_of_the_m0s_period() {
+    let Some(py) = unicorn_python("the start-up period's instruction budget") else {
+        return;
+    };
+    let symbol = "selftest_startup_periods";
+    let runs = |periods: &str| most_insns(&py, "thumbv6m-none-eabi", symbol, true, &[periods]);
+    let (short, long) = (runs("80,0,0,0"), runs("160,0,0,0"));
+    let per_period = (long - short) / 80;
+    assert!(
+        (20_000..=64_000).contains(&per_period),
+        "{per_period} instructions a balancing period on the M0, budget 64,000"
+    );
+}
