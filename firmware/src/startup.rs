@@ -61,7 +61,7 @@ pub enum Phase {
 }
 
 /// [`Startup::suggested`]'s trim rate, rad per metre-second, and its bound, rad (2 degrees).
-const TRIM_RATE: f32 = 0.003;
+const TRIM_RATE: f32 = 0.012;
 const TRIM_MAX: f32 = 0.035;
 
 /// How a rig starts: how long the zero is watched for, where the balance controller may take
@@ -102,9 +102,10 @@ impl Startup {
     /// that keeps that sway within 0.3 of the track's accepted half-length, and at most half
     /// the cart's stall acceleration (`F / (M + m)`). Its centring (a spring of 2.4 rad/s,
     /// damped at 0.8), its energy gain and its overshoot are the ones measured on the desk
-    /// rig (`docs/STARTUP.md`). The trim refines the zero by up to 2 degrees, at 0.003 rad
+    /// rig (`docs/STARTUP.md`). The trim refines the zero by up to 2 degrees, at 0.012 rad
     /// per metre-second: slow beside the balance (a cart parked 0.1 m off moves the reading by
-    /// a count of a 2,400-count encoder in about 9 s), measured on the desk and lab rigs.
+    /// a count of a 2,400-count encoder in about 2 s), fast enough to centre the cart within
+    /// half a minute of a zero a degree off, measured on the desk and lab rigs.
     pub fn suggested(rig: &Rig) -> Result<Startup, ConfigError> {
         let rig = check!(rig.check());
         let p = &rig.params;

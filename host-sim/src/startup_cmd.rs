@@ -55,6 +55,11 @@ pub struct StartupArgs {
     /// The true machine (a rig file), when the board models another.
     #[arg(long)]
     world: Option<PathBuf>,
+    /// The pole's zero read this many degrees off once the start-up has taken it (an
+    /// encoder that slipped on its shaft, a bent mount), in whole counts of the world's
+    /// encoder.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    zero_error: f64,
     /// Seed of the starts and lifts.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -135,6 +140,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         world: &world,
         board: &board,
         periods: within + (a.hold / tau).round() as u32,
+        zero_off: counts_off(a.zero_error, &world),
         seed: a.seed,
         episodes: a.episodes,
         bar: &bar,
@@ -181,6 +187,11 @@ fn check(a: &StartupArgs) -> Result<()> {
         "--episodes must be 1 to {MAX_EPISODES}, found {}",
         a.episodes
     );
+    anyhow::ensure!(
+        a.zero_error.is_finite() && a.zero_error.abs() <= 10.0,
+        "--zero-error must be degrees in [-10, 10], found {:?}",
+        a.zero_error
+    );
     for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
         anyhow::ensure!(
             s.is_finite() && s > 0.0 && s <= 3600.0,
@@ -222,9 +233,17 @@ struct Runs<'a> {
     world: &'a Machine,
     board: &'a Machine,
     periods: u32,
+    /// The zero's error once taken, pole counts ([`Events::zero_off`]).
+    zero_off: i32,
     seed: u64,
     episodes: u32,
     bar: &'a ProgressBar,
+}
+
+/// `degrees` in whole counts of `world`'s pole encoder.
+fn counts_off(degrees: f64, world: &Machine) -> i32 {
+    let rev = f64::from(world.rig.encoders.pole_counts_per_rev);
+    (degrees / 360.0 * rev).round() as i32
 }
 
 impl Runs<'_> {
@@ -255,6 +274,7 @@ impl Runs<'_> {
             periods: self.periods,
             lift,
             knocks: &[],
+            zero_off: self.zero_off,
         };
         let (world, rig) = (self.world, &self.board.rig);
         power_on::<[f32; 4], _>(world, rig, self.startup, (policy, start), events, each)

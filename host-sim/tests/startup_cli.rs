@@ -100,6 +100,14 @@ fn bad_input_exits_2_naming_what_was_expected() {
         &["--hold=-1"],
         "--hold must be seconds in (0, 3600], found -1.0",
     );
+    refused(
+        &["--zero-error", "-12"],
+        "--zero-error must be degrees in [-10, 10], found -12.0",
+    );
+    refused(
+        &["--zero-error", "nan"],
+        "--zero-error must be degrees in [-10, 10], found NaN",
+    );
     let dir = std::env::temp_dir().join(format!("startup-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("rig.toml");

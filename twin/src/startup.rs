@@ -186,6 +186,10 @@ pub struct Events<'a> {
     pub lift: Option<Lift>,
     /// Pushes on the cart.
     pub knocks: &'a [Knock],
+    /// Pole counts the board reads off from the period after it took its zero on: a zero
+    /// that gravity did not give exactly (an encoder that slipped on its shaft, a bent
+    /// mount). 0 for none.
+    pub zero_off: i32,
 }
 
 /// Runs `events.periods` of `world`'s true physics from `start`, read through its encoders,
@@ -258,7 +262,13 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
             phase,
         );
         let (cart, pole) = counts(&s);
-        latest.set((cart.wrapping_sub(origin.0), pole.wrapping_sub(origin.1)));
+        let off = if sequencer.zero().is_some() {
+            events.zero_off
+        } else {
+            0
+        };
+        let pole = pole.wrapping_sub(origin.1).wrapping_add(off);
+        latest.set((cart.wrapping_sub(origin.0), pole));
     }
     let truth_rev = truth.encoders.pole_counts_per_rev;
     out.zero_error = sequencer.zero().map(|(_, upright)| {

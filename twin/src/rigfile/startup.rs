@@ -14,7 +14,7 @@
 //! swing_centring_per_s2 = 6.0
 //! swing_centring_per_s = 4.0
 //! swing_overshoot = 0.015
-//! trim_deg_per_m_s = 0.17       # the zero refined while balancing (integral action); 0: off
+//! trim_deg_per_m_s = 0.69       # the zero refined while balancing (integral action); 0: off
 //! trim_max_deg = 2.0            # by at most this
 //! ```
 
