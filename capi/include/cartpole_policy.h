@@ -235,7 +235,7 @@ struct cartpole_rig {
 /* The bytes of cartpole_controller_t, on every target: the library checks at compile time
  * that each policy's controller fits. Its alignment is its union's: that of uint64_t, double
  * and void * (8 on Cortex-M, RISC-V and 64-bit hosts). */
-#define CARTPOLE_CONTROLLER_SIZE 1024
+#define CARTPOLE_CONTROLLER_SIZE 1152
 /* Full scale of cartpole_command_t's duty: the motor's full push. */
 #define CARTPOLE_DUTY_MAX 1000
 /* The fault bits of cartpole_command_t: channel (0 x, 1 x_dot, 2 theta, 3 theta_dot) NaN or
@@ -332,7 +332,9 @@ enum cartpole_phase {
     CARTPOLE_PHASE_SWINGING_UP = 2, /* the energy-based swing-up drives */
     CARTPOLE_PHASE_CATCHING = 3,    /* inside the catch region, not yet for long enough */
     CARTPOLE_PHASE_BALANCING = 4,   /* the balance controller drives */
-    CARTPOLE_PHASE_FALLEN = 5       /* motor off until the pole is below horizontal */
+    CARTPOLE_PHASE_FALLEN = 5,      /* motor off until the pole is below horizontal */
+    CARTPOLE_PHASE_HOMING = 6       /* the cart driven against the -x end stop, then to the
+                                       centre */
 };
 
 /* The start-up's phase after the last step, and its transitions since it began. */
@@ -345,6 +347,7 @@ typedef struct cartpole_phase_state {
     uint32_t fell;    /* falls while balancing: past the release angle or the track's end */
     float trim;       /* the pole's zero refined while balancing so far, rad: integral action
                          that keeps the cart centred */
+    uint32_t homed;   /* centres found by homing */
 } cartpole_phase_t;
 
 #ifdef __cplusplus

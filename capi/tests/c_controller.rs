@@ -308,10 +308,10 @@ fn startup_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Copy
             let t = sequencer.transitions();
             let phase = sequencer.phase() as u32;
             let (z, e, ca, m, f) = (t.zeroed, t.entered, t.caught, t.missed, t.fell);
-            let trim = sequencer.trim().to_bits();
+            let (trim, h) = (sequencer.trim().to_bits(), t.homed);
             script.call(
                 "phase",
-                &format!("phase {CARTPOLE_OK} {phase} {z} {e} {ca} {m} {f} {trim:08x}"),
+                &format!("phase {CARTPOLE_OK} {phase} {z} {e} {ca} {m} {f} {trim:08x} {h}"),
             );
         }
         // Euler's steps of a whole period feed a free swing energy: twenty shorter ones do not.
@@ -465,7 +465,7 @@ fn refused_calls_return_their_codes_and_write_nothing() {
                 FaultFlags::MODEL_ONLY.0
             ),
             format!(
-                "startup-constants {CARTPOLE_ERR_NO_STARTUP} 0 1 2 3 4 5 {} {} {}",
+                "startup-constants {CARTPOLE_ERR_NO_STARTUP} 0 1 2 3 4 5 6 {} {} {}",
                 size_of::<CartpolePhase>(),
                 offset_of!(CartpolePhase, fell),
                 offset_of!(CartpolePhase, trim)

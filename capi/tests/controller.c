@@ -60,9 +60,10 @@ static void print_phase(const cartpole_controller_t *c) {
         return;
     }
     memcpy(&trim, &p.trim, sizeof trim);
-    printf("phase %d %lu %lu %lu %lu %lu %lu %08lx\n", rc, (unsigned long)p.phase,
+    printf("phase %d %lu %lu %lu %lu %lu %lu %08lx %lu\n", rc, (unsigned long)p.phase,
            (unsigned long)p.zeroed, (unsigned long)p.entered, (unsigned long)p.caught,
-           (unsigned long)p.missed, (unsigned long)p.fell, (unsigned long)trim);
+           (unsigned long)p.missed, (unsigned long)p.fell, (unsigned long)trim,
+           (unsigned long)p.homed);
 }
 
 /* One line of a script; 0 if it is none of the calls. */
@@ -151,9 +152,10 @@ static void layout(void) {
     printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
            (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
            (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);
-    printf("startup-constants %d %d %d %d %d %d %d %lu %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
+    printf("startup-constants %d %d %d %d %d %d %d %d %lu %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
            CARTPOLE_PHASE_ZEROING, CARTPOLE_PHASE_WAITING, CARTPOLE_PHASE_SWINGING_UP,
            CARTPOLE_PHASE_CATCHING, CARTPOLE_PHASE_BALANCING, CARTPOLE_PHASE_FALLEN,
+           CARTPOLE_PHASE_HOMING,
            (unsigned long)sizeof(cartpole_phase_t), (unsigned long)offsetof(cartpole_phase_t, fell),
            (unsigned long)offsetof(cartpole_phase_t, trim));
 }

@@ -5,12 +5,14 @@
 //! encoders count from wherever they were, and a balance controller would read an angle of
 //! half a turn. A [`Sequencer`] takes the loop from there, in [`Phase`]s:
 //!
+//! - **Homing**, with a [`Homing`]: the cart driven gently against the track's -x end stop
+//!   until it stalls, which puts the centre the track's half-length away, then to the centre.
 //! - **Zeroing**, motor off: the pole's zero is the one gravity gives. A pendulum swings
 //!   symmetrically about hanging, so the middle of its swing is the hanging count, whether it
 //!   swings 30 degrees or rests: from the turning points of a swing, the decay cancelled,
 //!   or from two windows of [`Startup::zero_periods`] at rest, once two in a row agree
-//!   within a count. Upright is half a revolution from it. The cart's zero is where it
-//!   stands then: a user centres the cart before power-on.
+//!   within a count. Upright is half a revolution from it. The cart's zero is the homed
+//!   centre, or where it stands then: without homing a user centres the cart before power-on.
 //! - **Waiting**, motor off, until a hand lifts the pole into the catch region; or, with a
 //!   [`Swing`], **SwingingUp**: an energy-based swing-up ([`swing`]) drives instead.
 //! - **Catching**: the pole inside the catch region ([`Startup::catch_angle`] and
@@ -34,9 +36,12 @@ use crate::controller::{Actuator, Command, Controller, Policy, StateSensor};
 use crate::estimator::{Zeroed, wrap};
 use crate::rig::Rig;
 
+mod home;
 pub mod swing;
 mod zero;
 
+pub use home::Homing;
+use home::{Home, Homed};
 use swing::Pump;
 pub use swing::Swing;
 use zero::Zeroing;
@@ -58,6 +63,9 @@ pub enum Phase {
     /// Past the release angle or the track's end: motor off until the pole is below
     /// horizontal.
     Fallen,
+    /// Before zeroing, with a [`Homing`]: the cart driven gently against the -x end stop,
+    /// then to the centre.
+    Homing,
 }
 
 /// [`Startup::suggested`]'s trim rate, rad per metre-second, and its bound, rad (2 degrees).
@@ -91,6 +99,8 @@ pub struct Startup {
     pub trim_rate: f32,
     /// The most the zero is refined by, rad.
     pub trim_max: f32,
+    /// Homing the cart before the zero, or `None` for a cart centred by hand.
+    pub homing: Option<Homing>,
 }
 
 impl Startup {
@@ -127,6 +137,7 @@ impl Startup {
             }),
             trim_rate: TRIM_RATE,
             trim_max: TRIM_MAX,
+            homing: None,
         };
         startup.check(&rig)
     }
@@ -168,6 +179,9 @@ impl Startup {
         if let Some(s) = self.swing {
             check!(s.check());
         }
+        if let Some(h) = self.homing {
+            check!(h.check());
+        }
         Ok(self)
     }
 }
@@ -186,6 +200,8 @@ pub struct Transitions {
     pub missed: u32,
     /// Falls: past the release angle or the track's end while balancing.
     pub fell: u32,
+    /// Centres found by homing.
+    pub homed: u32,
 }
 
 /// What the loop does this period.
@@ -214,6 +230,8 @@ pub struct Sequencer {
     tau: f32,
     track: f32,
     pump: Option<Pump>,
+    /// Homing, if the start-up homes: under way, or the centre it found.
+    home: Option<Home>,
     phase: Phase,
     zeroing: Zeroing,
     /// The counts at the cart's centre and the pole upright, once zeroed.
@@ -242,7 +260,13 @@ impl Sequencer {
             tau: rig.params.tau as f32,
             track,
             pump: startup.swing.map(|s| Pump::new(s, &rig.params, track)),
-            phase: Phase::Zeroing,
+            home: startup
+                .homing
+                .map(|h| Home::new(h, &rig.params, f64::from(rig.encoders.cart_counts_per_m))),
+            phase: match startup.homing {
+                Some(_) => Phase::Homing,
+                None => Phase::Zeroing,
+            },
             zeroing: Zeroing::new(startup.zero_periods),
             zero: None,
             last: None,
@@ -255,10 +279,21 @@ impl Sequencer {
     /// One period on the encoders' raw counts `(cart, pole)`: the phase moves on, and what
     /// the loop does is returned.
     pub fn period(&mut self, cart: i32, pole: i32) -> Act {
+        let centre = match &mut self.home {
+            Some(home) if home.arrived().is_none() => match home.period(cart) {
+                Homed::Drive(command) => return Act::Hold(command),
+                Homed::Centre(centre) => {
+                    self.transitions.homed = self.transitions.homed.saturating_add(1);
+                    self.phase = Phase::Zeroing;
+                    Some(centre)
+                }
+            },
+            home => home.as_ref().and_then(Home::arrived),
+        };
         let Some(zero) = self.zero else {
             if let Some(hanging) = self.zeroing.count(pole) {
                 let upright = hanging.wrapping_add(self.half_rev);
-                self.zero = Some((cart, upright));
+                self.zero = Some((centre.unwrap_or(cart), upright));
                 self.transitions.zeroed = self.transitions.zeroed.saturating_add(1);
                 self.phase = self.idle();
                 self.last = Some((cart, pole));

@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
+use firmware::cartpole::unit_f64;
 use firmware::controller::Policy;
 use firmware::startup::Phase;
 use firmware::startup::Startup;
@@ -60,6 +61,10 @@ pub struct StartupArgs {
     /// encoder.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     zero_error: f64,
+    /// The cart left anywhere within this many metres of the centre at power-on, rather
+    /// than centred by hand (within a centimetre): for a start-up that homes.
+    #[arg(long, default_value_t = 0.0)]
+    cart_start: f64,
     /// Seed of the starts and lifts.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -89,8 +94,10 @@ struct Row {
     /// Episodes in which the cart passed into the end-stop margin, and touched a stop.
     into_margin: u32,
     end_stop_contacts: u32,
-    /// The largest error of the hanging zero, pole counts.
+    /// The largest error of the hanging zero, pole counts, and of the cart's centre, cart
+    /// counts.
     zero_error_counts: i64,
+    centre_error_counts: i64,
     /// At steady balance (an episode's second half): the cart's RMS distance from the
     /// centre, m, median and 99th percentile over the episodes; the mean |duty|.
     steady_rms_x_m: [f64; 2],
@@ -141,6 +148,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         board: &board,
         periods: within + (a.hold / tau).round() as u32,
         zero_off: counts_off(a.zero_error, &world),
+        cart_start: a.cart_start,
         seed: a.seed,
         episodes: a.episodes,
         bar: &bar,
@@ -192,6 +200,11 @@ fn check(a: &StartupArgs) -> Result<()> {
         "--zero-error must be degrees in [-10, 10], found {:?}",
         a.zero_error
     );
+    anyhow::ensure!(
+        a.cart_start.is_finite() && (0.0..=10.0).contains(&a.cart_start),
+        "--cart-start must be metres in [0, 10], found {:?}",
+        a.cart_start
+    );
     for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
         anyhow::ensure!(
             s.is_finite() && s > 0.0 && s <= 3600.0,
@@ -235,6 +248,8 @@ struct Runs<'a> {
     periods: u32,
     /// The zero's error once taken, pole counts ([`Events::zero_off`]).
     zero_off: i32,
+    /// The cart's start drawn within this of the centre, m (0: as the start draws it).
+    cart_start: f64,
     seed: u64,
     episodes: u32,
     bar: &'a ProgressBar,
@@ -269,7 +284,10 @@ impl Runs<'_> {
     ) -> Result<Outcome> {
         let tau = self.board.rig.params.tau;
         let mut rng = Pcg64Mcg::new((u128::from(self.seed) << 64) | u128::from(k));
-        let (start, lift) = self.begin.draw(&mut rng, &self.startup, tau);
+        let (mut start, lift) = self.begin.draw(&mut rng, &self.startup, tau);
+        if self.cart_start > 0.0 {
+            start.x = self.cart_start * (2.0 * unit_f64(&mut rng) - 1.0);
+        }
         let events = Events {
             periods: self.periods,
             lift,
@@ -313,17 +331,23 @@ fn summarise(
         track_used_m: [0.99, 1.0].map(|q| quantile(&track, q)),
         into_margin: count(&|o| o.max_abs_x > margin),
         end_stop_contacts: count(&|o| o.end_stop_periods > 0),
-        zero_error_counts: outcomes
-            .iter()
-            .map(|o| o.zero_error.map_or(i64::MAX, i64::abs))
-            .max()
-            .unwrap_or(0),
+        zero_error_counts: worst(outcomes, |o| o.zero_error),
+        centre_error_counts: worst(outcomes, |o| o.centre_error),
         steady_rms_x_m: [0.5, 0.99].map(|q| quantile(&rms_x, q)),
         steady_mean_abs_duty: duty,
         catches: total(&|o| o.transitions.caught),
         misses: total(&|o| o.transitions.missed),
         falls: total(&|o| o.transitions.fell),
     }
+}
+
+/// The largest |error| `of` the outcomes, `i64::MAX` where one never took its zero.
+fn worst(outcomes: &[Outcome], of: impl Fn(&Outcome) -> Option<i64>) -> i64 {
+    outcomes
+        .iter()
+        .map(|o| of(o).map_or(i64::MAX, i64::abs))
+        .max()
+        .unwrap_or(0)
 }
 
 /// The `q` quantile of `sorted` (the nearest rank below); NaN for none.
@@ -338,7 +362,7 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 fn table(r: &Report) -> String {
     let mut out = format!(
         "start-up from {:?}, seed {}: balanced within {} s of power-on and held {} s\n  {}\n\n  \
-         {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>18} {:>7} {:>16}\n",
+         {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>6} {:>18} {:>7} {:>16}\n",
         r.start,
         r.seed,
         r.within_s,
@@ -352,6 +376,7 @@ fn table(r: &Report) -> String {
         "margin",
         "stops",
         "zero",
+        "centre",
         "steady x m p50/p99",
         "|duty|",
         "catch/miss/fall"
@@ -359,7 +384,7 @@ fn table(r: &Report) -> String {
     for w in &r.rows {
         let t = w.time_to_balance_s;
         out += &format!(
-            "  {:<6} {:>8} {:>7.1}% {:>25} {:>15} {:>7} {:>6} {:>5} {:>18} {:>6.1}% {:>16}\n",
+            "  {:<6} {:>8} {:>7.1}% {:>25} {:>15} {:>7} {:>6} {:>5} {:>6} {:>18} {:>6.1}% {:>16}\n",
             w.arithmetic,
             w.episodes,
             100.0 * w.success,
@@ -368,6 +393,7 @@ fn table(r: &Report) -> String {
             w.into_margin,
             w.end_stop_contacts,
             w.zero_error_counts,
+            w.centre_error_counts,
             format!("{:.3}/{:.3}", w.steady_rms_x_m[0], w.steady_rms_x_m[1]),
             100.0 * w.steady_mean_abs_duty,
             format!("{}/{}/{}", w.catches, w.misses, w.falls),

@@ -108,6 +108,10 @@ fn bad_input_exits_2_naming_what_was_expected() {
         &["--zero-error", "nan"],
         "--zero-error must be degrees in [-10, 10], found NaN",
     );
+    refused(
+        &["--cart-start=-0.1"],
+        "--cart-start must be metres in [0, 10], found -0.1",
+    );
     let dir = std::env::temp_dir().join(format!("startup-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("rig.toml");

@@ -132,11 +132,14 @@ pub struct Outcome {
     pub balanced_from: Option<u32>,
     /// The start-up's upright zero less the true one, in pole counts, once taken.
     pub zero_error: Option<i64>,
-    /// The largest distance of the cart from the centre, m.
+    /// The start-up's cart zero (the homed centre, or where the cart stood) less the true
+    /// centre, in cart counts, once taken.
+    pub centre_error: Option<i64>,
+    /// The largest distance of the cart from the centre, m, homing aside.
     pub max_abs_x: f64,
     /// The largest distance of the cart from the centre while the start-up drove it, m.
     pub max_abs_x_swinging: f64,
-    /// Periods the cart spent against an end stop.
+    /// Periods the cart spent against an end stop, homing aside.
     pub end_stop_periods: u32,
     /// The start-up's transitions.
     pub transitions: Transitions,
@@ -222,6 +225,7 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     let mut out = Outcome {
         balanced_from: None,
         zero_error: None,
+        centre_error: None,
         max_abs_x: 0.0,
         max_abs_x_swinging: 0.0,
         end_stop_periods: 0,
@@ -250,8 +254,12 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         if let Some(lift) = &events.lift {
             lift.hold(period, &mut s, &mut grip, truth.params.tau);
         }
-        out.end_stop_periods += u32::from(stopped_at_ends(&mut s, truth.params.x_threshold));
-        out.max_abs_x = out.max_abs_x.max(s.x.abs());
+        // Homing drives the cart to an end stop on purpose.
+        let stopped = stopped_at_ends(&mut s, truth.params.x_threshold);
+        if phase != Phase::Homing {
+            out.end_stop_periods += u32::from(stopped);
+            out.max_abs_x = out.max_abs_x.max(s.x.abs());
+        }
         let reading = [0.0; 4];
         each(
             &Frame {
@@ -275,6 +283,10 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         let upright_true = i64::from(origin.1.wrapping_neg());
         wrapped(i64::from(upright) - upright_true, truth_rev)
     });
+    let centre_true = counts(&State::default()).0.wrapping_sub(origin.0);
+    out.centre_error = sequencer
+        .zero()
+        .map(|(cart0, _)| i64::from(cart0.wrapping_sub(centre_true)));
     out.transitions = sequencer.transitions();
     out.faults = controller.faults();
     out.phase = sequencer.phase();

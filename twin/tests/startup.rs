@@ -3,7 +3,7 @@
 //! hanging zero, the swing-up, a hand's catch, and a knock that drops the pole.
 
 use firmware::controller::Greedy;
-use firmware::startup::Startup;
+use firmware::startup::{Homing, Startup};
 use rand_pcg::Pcg64Mcg;
 use shipped::desk_int::{LEVELS, POLICY_INT, RIG};
 use twin::rigfile::load;
@@ -31,8 +31,7 @@ fn episode_off(
     (periods, knocks): (u32, &[Knock]),
     zero_off: i32,
 ) -> Outcome {
-    let repo = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let world = load(&repo.join("rigs/desk.toml")).unwrap();
+    let world = load(&repo().join("rigs/desk.toml")).unwrap();
     let (start, lift) = begin.draw(rng, &startup, RIG.params.tau);
     let policy = Greedy {
         net: &POLICY_INT,
@@ -45,6 +44,11 @@ fn episode_off(
         zero_off,
     };
     power_on::<[i16; 4], _>(&world, &RIG, startup, (policy, start), events, |_, _| {}).unwrap()
+}
+
+/// The repository's root.
+fn repo() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
 }
 
 /// Balanced from a period within `within` and held to the end.
@@ -149,5 +153,43 @@ fn a_lifted_pole_is_caught_and_the_cart_centred_with_the_zero_a_degree_off() {
             let rms_x = o.steady.expect("balancing in the second half").rms_x;
             assert!(rms_x < 0.05, "{off} counts: RMS x {rms_x} m");
         }
+    }
+}
+
+#[test]
+fn a_cart_left_anywhere_on_the_track_is_homed_to_the_centre_and_the_pole_swung_up() {
+    let startup = Startup {
+        homing: Some(Homing::suggested(RIG.params.tau)),
+        ..Startup::suggested(&RIG).unwrap()
+    };
+    let world = load(&repo().join("rigs/desk.toml")).unwrap();
+    let mut rng = Pcg64Mcg::new(46);
+    for _ in 0..40 {
+        let (mut start, _) = Begin::Hanging.draw(&mut rng, &startup, RIG.params.tau);
+        start.x = 0.3 * (2.0 * firmware::cartpole::unit_f64(&mut rng) - 1.0);
+        let policy = Greedy {
+            net: &POLICY_INT,
+            levels: LEVELS,
+        };
+        let events = Events {
+            periods: 1000 + MINUTE,
+            ..Events::default()
+        };
+        let o = power_on::<[i16; 4], _>(&world, &RIG, startup, (policy, start), events, |_, _| {})
+            .unwrap();
+        let error = o.centre_error.expect("homed and zeroed");
+        // 15,000 counts a metre: within a millimetre.
+        assert!(
+            error.abs() <= 15,
+            "from x = {:.3} m: {error} counts off",
+            start.x
+        );
+        assert_eq!(o.transitions.homed, 1);
+        assert!(
+            balanced_within(&o, 1000),
+            "from x = {:.3} m: {o:?}",
+            start.x
+        );
+        assert!(o.steady.is_some_and(|s| s.rms_x < 0.05), "{o:?}");
     }
 }

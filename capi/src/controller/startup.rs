@@ -35,6 +35,8 @@ pub struct CartpolePhase {
     pub fell: u32,
     /// The zero refined while balancing so far, rad ([`Startup::trim_rate`]).
     pub trim: f32,
+    /// Centres found by homing.
+    pub homed: u32,
 }
 
 /// [`Phase::Zeroing`]: motor off, taking the pole's hanging zero.
@@ -49,6 +51,8 @@ pub const CARTPOLE_PHASE_CATCHING: u32 = 3;
 pub const CARTPOLE_PHASE_BALANCING: u32 = 4;
 /// [`Phase::Fallen`]: motor off until the pole is below horizontal.
 pub const CARTPOLE_PHASE_FALLEN: u32 = 5;
+/// [`Phase::Homing`]: the cart driven against the -x end stop, then to the centre.
+pub const CARTPOLE_PHASE_HOMING: u32 = 6;
 
 /// The C constant of `phase`.
 fn code(phase: Phase) -> u32 {
@@ -59,6 +63,7 @@ fn code(phase: Phase) -> u32 {
         Phase::Catching => CARTPOLE_PHASE_CATCHING,
         Phase::Balancing => CARTPOLE_PHASE_BALANCING,
         Phase::Fallen => CARTPOLE_PHASE_FALLEN,
+        Phase::Homing => CARTPOLE_PHASE_HOMING,
     }
 }
 
@@ -116,6 +121,7 @@ pub extern "C" fn cartpole_controller_phase(
             missed: t.missed,
             fell: t.fell,
             trim: s.trim(),
+            homed: t.homed,
         };
         Ok(())
     }))

@@ -19,7 +19,7 @@ use super::input::{CScores, Input};
 
 /// `CARTPOLE_CONTROLLER_SIZE`: the bytes of `cartpole_controller_t`, one value for every
 /// target so that C code can allocate it statically without knowing the library's layout.
-pub const CONTROLLER_SIZE: usize = 1024;
+pub const CONTROLLER_SIZE: usize = 1152;
 
 /// `cartpole_controller_t`: aligned as the union of the C header (`uint64_t`, `double`,
 /// `void *`) aligns it, which C99 can say without `_Alignas`.

@@ -18,6 +18,7 @@ const START: Startup = Startup {
     swing: None,
     trim_rate: 0.0,
     trim_max: 0.0,
+    homing: None,
 };
 
 /// Feeds `poles` with the cart at `cart`; true if every period held the motor off.
@@ -186,6 +187,40 @@ fn the_trim_integrates_the_carts_distance_while_balancing_only_and_stops_at_its_
 }
 
 #[test]
+fn homing_stalls_at_the_stop_then_centres_and_the_zero_is_the_homed_centre() {
+    let mut s = Sequencer::new(
+        Startup {
+            homing: Some(Homing {
+                duty: 0.3,
+                stall_periods: 3,
+            }),
+            ..START
+        },
+        &RIG,
+    )
+    .unwrap();
+    let push = |f: f32| Act::Hold(Command::Drive(Duty::from_fraction(f).unwrap()));
+    // Towards -x at the homing duty while the cart moves, and through the stall's periods.
+    for cart in [1000, 950, 900, 500, 500, 500, 500] {
+        assert_eq!(s.period(cart, 0), push(-0.3), "cart at {cart}");
+        assert_eq!(s.phase(), Phase::Homing);
+    }
+    // Stalled at 500: the centre is 2.4 m (49,152 counts) on. Away from the stop, capped.
+    assert_eq!(s.period(500, 0), push(0.3));
+    let near = 500 + 49_152 - 100;
+    // Within 5 mm (102 counts) of it for three periods: arrived.
+    for _ in 0..3 {
+        assert_eq!(s.phase(), Phase::Homing);
+        s.period(near, 0);
+    }
+    assert_eq!((s.phase(), s.transitions().homed), (Phase::Zeroing, 1));
+    assert!(feed(&mut s, near, [500; 12]));
+    assert_eq!(s.zero(), Some((500 + 49_152, 2548)));
+    // Homing is over: the cart's counts no longer drive anything until the catch.
+    assert_eq!(s.period(near - 5000, 500), Act::Hold(Command::Coast));
+}
+
+#[test]
 fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
     let refused = |s: Startup| Sequencer::new(s, &RIG).err();
     let above = ConfigError::AboveLimit;
@@ -240,6 +275,25 @@ fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
             ..START
         }),
         Some(above("startup.trim_max", "below startup.catch_angle"))
+    );
+    let homing = |duty, stall_periods| Startup {
+        homing: Some(Homing {
+            duty,
+            stall_periods,
+        }),
+        ..START
+    };
+    assert_eq!(
+        refused(homing(1.5, 10)),
+        Some(above("startup.homing.duty", "at most 1"))
+    );
+    assert_eq!(
+        refused(homing(0.0, 10)),
+        Some(ConfigError::NotPositive("startup.homing.duty"))
+    );
+    assert_eq!(
+        refused(homing(0.3, 1)),
+        Some(ConfigError::TooFew("startup.homing.stall_periods"))
     );
     let swing = Swing {
         energy_gain: 0.5,

@@ -16,10 +16,13 @@
 //! swing_overshoot = 0.015
 //! trim_deg_per_m_s = 0.69       # the zero refined while balancing (integral action); 0: off
 //! trim_max_deg = 2.0            # by at most this
+//! homing = false                # or drive the cart to the -x end stop, then to the centre
+//! homing_duty = 0.3             # at most this duty (firmware::startup::Homing)
+//! homing_stall_s = 0.25         # still this long: at the stop, or arrived
 //! ```
 
 use firmware::rig::Rig;
-use firmware::startup::Startup;
+use firmware::startup::{Homing, Startup};
 use serde::Deserialize;
 use weights::Result;
 
@@ -41,6 +44,9 @@ pub(super) struct Table {
     swing_overshoot: Option<f64>,
     trim_deg_per_m_s: Option<f64>,
     trim_max_deg: Option<f64>,
+    homing: Option<bool>,
+    homing_duty: Option<f64>,
+    homing_stall_s: Option<f64>,
 }
 
 impl Fields<'_> {
@@ -79,6 +85,22 @@ impl Fields<'_> {
         }
         if let Some(m) = trim("trim_max_deg", t.trim_max_deg)? {
             s.trim_max = radians(m) as f32;
+        }
+        let tuned = t.homing_duty.is_some() || t.homing_stall_s.is_some();
+        if tuned && t.homing != Some(true) {
+            return Err(self.refuse(
+                "startup.homing_duty, startup.homing_stall_s: given, but homing is not true".into(),
+            ));
+        }
+        if t.homing == Some(true) {
+            let mut h = Homing::suggested(rig.params.tau);
+            if let Some(d) = value("homing_duty", t.homing_duty, 1.0)? {
+                h.duty = d as f32;
+            }
+            if let Some(w) = value("homing_stall_s", t.homing_stall_s, 60.0)? {
+                h.stall_periods = (w / rig.params.tau).ceil().clamp(2.0, 65_535.0) as u16;
+            }
+            s.homing = Some(h);
         }
         s.swing = match (t.swing_up, s.swing) {
             (Some(false), _) | (_, None) => None,

@@ -25,6 +25,13 @@ fn a_startup_table_overrides_the_suggested_values_it_names() {
     assert_eq!(s.swing.unwrap().max_accel, 3.0);
     assert_eq!(s.catch_rate, suggested.catch_rate);
     assert_eq!(desk_with("swing_up = false").unwrap().swing, None);
+    assert_eq!(desk_with("").unwrap().homing, None);
+    let h = desk_with("homing = true\nhoming_duty = 0.25\nhoming_stall_s = 0.3")
+        .unwrap()
+        .homing
+        .unwrap();
+    // 0.3 s at 50 Hz: 15 periods.
+    assert_eq!((h.duty, h.stall_periods), (0.25, 15));
     let t = desk_with("trim_deg_per_m_s = 0\ntrim_max_deg = 1").unwrap();
     assert_eq!((t.trim_rate, t.trim_max), (0.0, 1f64.to_radians() as f32));
 }
@@ -64,6 +71,13 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
         e.contains("startup.trim_max: expected below startup.catch_angle"),
         "{e}"
     );
+    let e = refusal("homing = true\nhoming_duty = 1.5");
+    assert!(
+        e.contains("startup.homing_duty: expected a number in (0, 1], found 1.5"),
+        "{e}"
+    );
+    let e = refusal("homing_duty = 0.2");
+    assert!(e.contains("given, but homing is not true"), "{e}");
     let e = refusal("catch_region = 3");
     assert!(e.contains("unknown field `catch_region`"), "{e}");
 }
