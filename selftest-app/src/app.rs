@@ -74,7 +74,11 @@ fn paced<O: Estimate, P: Policy<O>>(
     let mut current = TICKS.load(Ordering::Acquire);
     let mut first = true;
     let mut out = loopback::run_with_encoders::<O, P>(policy, &mut plant, &RIG, || {
+        // The first period starts on a fresh tick, as a board's loop starts with its ticker:
+        // the controller's set-up (the observer's gain) takes ticks of its own, and a
+        // period begun part-way through one would be charged for them.
         let late = if first {
+            current = TICKS.load(Ordering::Acquire);
             0
         } else {
             TICKS.load(Ordering::Acquire).wrapping_sub(current)
