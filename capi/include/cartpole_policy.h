@@ -262,7 +262,9 @@ enum cartpole_status {
     CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative */
     CARTPOLE_ERR_LEVELS = -7,        /* duty levels not one per output, beyond [-1000, 1000]
                                         or not strictly increasing */
-    CARTPOLE_ERR_NO_STARTUP = -8     /* cartpole_controller_phase without a start-up */
+    CARTPOLE_ERR_NO_STARTUP = -8,    /* cartpole_controller_phase without a start-up */
+    CARTPOLE_ERR_FLAGS = -9          /* cartpole_controller_startup flags other than
+                                        CARTPOLE_STARTUP_* */
 };
 
 /* The shipped policies. */
@@ -453,16 +455,23 @@ int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *peri
 int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
                                 const struct cartpole_rig *rig);
 
+/* cartpole_controller_startup's flags, or'ed. */
+#define CARTPOLE_STARTUP_SWING_UP 1 /* swing the pole up rather than wait for a hand */
+#define CARTPOLE_STARTUP_HOME 2     /* first drive the cart gently against the -x end stop,
+                                       then to the centre, instead of centring it by hand */
+
 /* Runs *c's next steps inside the start-up from power-on (docs/STARTUP.md), its values
- * suggested for rig (the machine c was initialised for; NULL: the shipped policies'): motor
- * off while the pole's zero is taken hanging (at rest or swinging), then the pole swung up
- * (swing_up non-zero) or waited for until a hand lifts it into the catch region, caught,
- * balanced, and after a fall (past the release angle, the cart at its track's end) motor off
- * until the pole is down, then again. Steps then take counts as the encoders count from
- * power-on: centre the cart before it. Refused, writing nothing: CARTPOLE_ERR_RIG (a rig no
- * machine has, or not c's), CARTPOLE_ERR_INPUT (c has read states). */
+ * suggested for rig (the machine c was initialised for; NULL: the shipped policies'): the
+ * cart homed (CARTPOLE_STARTUP_HOME), motor off while the pole's zero is taken hanging (at
+ * rest or swinging), then the pole swung up (CARTPOLE_STARTUP_SWING_UP) or waited for until
+ * a hand lifts it into the catch region, caught, balanced, and after a fall (past the
+ * release angle, the cart at its track's end) motor off until the pole is down, then again.
+ * Steps then take counts as the encoders count from power-on: centre the cart before it,
+ * unless it homes. Refused, writing nothing: CARTPOLE_ERR_FLAGS (other bits),
+ * CARTPOLE_ERR_RIG (a rig no machine has, or not c's), CARTPOLE_ERR_INPUT (c has read
+ * states). */
 int cartpole_controller_startup(cartpole_controller_t *c, const struct cartpole_rig *rig,
-                                int swing_up);
+                                int flags);
 
 /* The start-up's phase and transitions in *out. Refused, writing nothing:
  * CARTPOLE_ERR_NO_STARTUP. */

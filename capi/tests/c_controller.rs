@@ -9,6 +9,8 @@
 //! nothing.
 
 mod common;
+#[path = "c_controller/startup.rs"]
+mod startup;
 #[path = "common/steps.rs"]
 mod steps;
 
@@ -18,9 +20,10 @@ use std::mem::{align_of, offset_of, size_of};
 use std::path::PathBuf;
 
 use cartpole_policy::{
-    CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_INPUT, CARTPOLE_ERR_NO_STARTUP, CARTPOLE_ERR_NULL,
-    CARTPOLE_ERR_POLICY_KIND, CARTPOLE_ERR_RIG, CARTPOLE_ERR_UNINITIALISED, CARTPOLE_OK,
-    CARTPOLE_POLICY_F32, CARTPOLE_POLICY_INT, CONTROLLER_SIZE, CartpoleCommand, CartpoleController,
+    CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_FLAGS, CARTPOLE_ERR_INPUT, CARTPOLE_ERR_NO_STARTUP,
+    CARTPOLE_ERR_NULL, CARTPOLE_ERR_POLICY_KIND, CARTPOLE_ERR_RIG, CARTPOLE_ERR_UNINITIALISED,
+    CARTPOLE_OK, CARTPOLE_POLICY_F32, CARTPOLE_POLICY_INT, CARTPOLE_STARTUP_HOME,
+    CARTPOLE_STARTUP_SWING_UP, CONTROLLER_SIZE, CartpoleCommand, CartpoleController,
     CartpoleCounters, CartpolePhase,
 };
 use common::{Compiler, EVERY, compile_and_run, manifest};
@@ -271,56 +274,14 @@ fn policy_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Copy>
     );
     epilogue(c, rig, "count 0 0", script);
     monitored_script(policy, rig, kind, script);
-    startup_script(policy, rig, kind, script);
-}
-
-/// Under the start-up: the pole hanging at power-on, swinging 10 degrees, zeroed, swung up
-/// and caught, the phase asked every 50 periods; states refused once it runs. Asserts that
-/// the loop reached the balance, so that every phase's periods were compared.
-fn startup_script<O: Format, P: Policy<O, Scores = <O as Scores>::Scores> + Copy>(
-    policy: P,
-    rig: &Rig,
-    kind: i32,
-    script: &mut Script,
-) {
-    script.call(&format!("init {kind}"), &format!("init {CARTPOLE_OK}"));
-    script.call(
-        "phase",
-        &format!("phase refused {CARTPOLE_ERR_NO_STARTUP} 1"),
+    startup::script(policy, rig, kind, script, CARTPOLE_STARTUP_SWING_UP);
+    startup::script(
+        policy,
+        rig,
+        kind,
+        script,
+        CARTPOLE_STARTUP_SWING_UP | CARTPOLE_STARTUP_HOME,
     );
-    script.call("startup 1", &format!("startup {CARTPOLE_OK}"));
-    let sensor = ObserverSensor::<_, O>::new(rig.observer().unwrap(), Latest::default());
-    let mut c = board(policy, sensor, rig);
-    let mut sequencer = Sequencer::new(Startup::suggested(rig).unwrap(), rig).unwrap();
-    let mut s = State::from_array([0.0, 0.0, std::f64::consts::PI - 0.17, 0.0]);
-    let origin = rig.encoders.counts(s.x, s.theta);
-    let fine = firmware::cartpole::Params {
-        tau: rig.params.tau / 20.0,
-        ..rig.params
-    };
-    for k in 0..1500 {
-        let (cart, pole) = rig.encoders.counts(s.x, s.theta);
-        let counts = (cart.wrapping_sub(origin.0), pole.wrapping_sub(origin.1));
-        c.sensor_mut().counter_mut().0 = counts;
-        sequencer.run(counts, &mut c);
-        script.call(&format!("count {} {}", counts.0, counts.1), &step_line(&c));
-        if k % 50 == 49 {
-            let t = sequencer.transitions();
-            let phase = sequencer.phase() as u32;
-            let (z, e, ca, m, f) = (t.zeroed, t.entered, t.caught, t.missed, t.fell);
-            let (trim, h) = (sequencer.trim().to_bits(), t.homed);
-            script.call(
-                "phase",
-                &format!("phase {CARTPOLE_OK} {phase} {z} {e} {ca} {m} {f} {trim:08x} {h}"),
-            );
-        }
-        // Euler's steps of a whole period feed a free swing energy: twenty shorter ones do not.
-        for _ in 0..20 {
-            s = advance(&fine, &s, loopback::duty(c.actuator()), 0.0);
-        }
-    }
-    assert_eq!(sequencer.phase(), Phase::Balancing);
-    script.call("state 0 0 0 0", &format!("refused {CARTPOLE_ERR_INPUT} 1"));
 }
 
 /// Under the runtime monitor with the shipped envelope, the encoders frozen for half a
@@ -465,7 +426,8 @@ fn refused_calls_return_their_codes_and_write_nothing() {
                 FaultFlags::MODEL_ONLY.0
             ),
             format!(
-                "startup-constants {CARTPOLE_ERR_NO_STARTUP} 0 1 2 3 4 5 6 {} {} {}",
+                "startup-constants {CARTPOLE_ERR_NO_STARTUP} {CARTPOLE_ERR_FLAGS} 0 1 2 3 4 5 6 \
+                 {CARTPOLE_STARTUP_SWING_UP} {CARTPOLE_STARTUP_HOME} {} {} {}",
                 size_of::<CartpolePhase>(),
                 offset_of!(CartpolePhase, fell),
                 offset_of!(CartpolePhase, trim)

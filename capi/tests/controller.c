@@ -152,10 +152,11 @@ static void layout(void) {
     printf("monitor-constants %d %d %lu %lu %lu\n", CARTPOLE_ERR_RIG, CARTPOLE_ERR_ENVELOPE,
            (unsigned long)CARTPOLE_FAULT_FALLBACK, (unsigned long)CARTPOLE_FAULT_STOPPED,
            (unsigned long)CARTPOLE_FAULT_MODEL_ONLY);
-    printf("startup-constants %d %d %d %d %d %d %d %d %lu %lu %lu\n", CARTPOLE_ERR_NO_STARTUP,
-           CARTPOLE_PHASE_ZEROING, CARTPOLE_PHASE_WAITING, CARTPOLE_PHASE_SWINGING_UP,
-           CARTPOLE_PHASE_CATCHING, CARTPOLE_PHASE_BALANCING, CARTPOLE_PHASE_FALLEN,
-           CARTPOLE_PHASE_HOMING,
+    printf("startup-constants %d %d %d %d %d %d %d %d %d %d %d %lu %lu %lu\n",
+           CARTPOLE_ERR_NO_STARTUP, CARTPOLE_ERR_FLAGS, CARTPOLE_PHASE_ZEROING,
+           CARTPOLE_PHASE_WAITING, CARTPOLE_PHASE_SWINGING_UP, CARTPOLE_PHASE_CATCHING,
+           CARTPOLE_PHASE_BALANCING, CARTPOLE_PHASE_FALLEN, CARTPOLE_PHASE_HOMING,
+           CARTPOLE_STARTUP_SWING_UP, CARTPOLE_STARTUP_HOME,
            (unsigned long)sizeof(cartpole_phase_t), (unsigned long)offsetof(cartpole_phase_t, fell),
            (unsigned long)offsetof(cartpole_phase_t, trim));
 }

@@ -78,6 +78,8 @@ pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 pub const CARTPOLE_ERR_LEVELS: c_int = -7;
 /// `cartpole_controller_phase` on an instance without a start-up.
 pub const CARTPOLE_ERR_NO_STARTUP: c_int = -8;
+/// `cartpole_controller_startup` flags other than `CARTPOLE_STARTUP_*`.
+pub const CARTPOLE_ERR_FLAGS: c_int = -9;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`shipped::policy`).
 pub const CARTPOLE_POLICY_F32: c_int = 1;

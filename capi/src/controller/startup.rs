@@ -3,17 +3,17 @@
 //!
 //! ```c
 //! int cartpole_controller_startup(cartpole_controller_t *c, const struct cartpole_rig *rig,
-//!                                 int swing_up);
+//!                                 int flags);
 //! int cartpole_controller_phase(const cartpole_controller_t *c, cartpole_phase_t *out);
 //! ```
 
 use core::ffi::c_int;
 
-use firmware::startup::{Phase, Startup};
+use firmware::startup::{Homing, Phase, Startup};
 
 use super::{
-    CARTPOLE_ERR_NO_STARTUP, CARTPOLE_ERR_NULL, CARTPOLE_ERR_RIG, CartpoleController, instance,
-    instance_mut, rig_or_shipped, status,
+    CARTPOLE_ERR_FLAGS, CARTPOLE_ERR_NO_STARTUP, CARTPOLE_ERR_NULL, CARTPOLE_ERR_RIG,
+    CartpoleController, instance, instance_mut, rig_or_shipped, status,
 };
 use crate::rig::CartpoleRig;
 
@@ -54,6 +54,11 @@ pub const CARTPOLE_PHASE_FALLEN: u32 = 5;
 /// [`Phase::Homing`]: the cart driven against the -x end stop, then to the centre.
 pub const CARTPOLE_PHASE_HOMING: u32 = 6;
 
+/// `cartpole_controller_startup`'s flag: swing the pole up rather than wait for a hand.
+pub const CARTPOLE_STARTUP_SWING_UP: c_int = 1;
+/// `cartpole_controller_startup`'s flag: home the cart first ([`Homing::suggested`]).
+pub const CARTPOLE_STARTUP_HOME: c_int = 2;
+
 /// The C constant of `phase`.
 fn code(phase: Phase) -> u32 {
     match phase {
@@ -69,11 +74,12 @@ fn code(phase: Phase) -> u32 {
 
 /// Runs `c`'s next periods inside the start-up suggested for `rig`
 /// ([`Startup::suggested`]; `rig` must be the machine `c` was initialised for, NULL the
-/// shipped policies'): from power-on the pole's zero is taken hanging, then the pole is
-/// swung up (`swing_up` non-zero) or waited for until a hand lifts it, caught, balanced,
-/// and after a fall swung up or waited for again. Its steps take counts (raw, as the
-/// encoders count from power-on). Refused, writing nothing: a rig no machine has or not
-/// the instance's ([`CARTPOLE_ERR_RIG`]), an instance that has read states
+/// shipped policies'): from power-on the cart homed ([`CARTPOLE_STARTUP_HOME`] in `flags`),
+/// the pole's zero taken hanging, then the pole swung up ([`CARTPOLE_STARTUP_SWING_UP`]) or
+/// waited for until a hand lifts it, caught, balanced, and after a fall swung up or waited
+/// for again. Its steps take counts (raw, as the encoders count from power-on). Refused,
+/// writing nothing: other bits in `flags` ([`CARTPOLE_ERR_FLAGS`]), a rig no machine has or
+/// not the instance's ([`CARTPOLE_ERR_RIG`]), an instance that has read states
 /// ([`super::CARTPOLE_ERR_INPUT`]).
 // SAFETY: as for `cartpole_controller_init`: one definition per C name.
 #[allow(unsafe_code)]
@@ -81,19 +87,25 @@ fn code(phase: Phase) -> u32 {
 pub extern "C" fn cartpole_controller_startup(
     c: Option<&mut CartpoleController>,
     rig: Option<&CartpoleRig>,
-    swing_up: c_int,
+    flags: c_int,
 ) -> c_int {
     let Some(c) = c else {
         return CARTPOLE_ERR_NULL;
     };
+    if flags & !(CARTPOLE_STARTUP_SWING_UP | CARTPOLE_STARTUP_HOME) != 0 {
+        return CARTPOLE_ERR_FLAGS;
+    }
     let Ok(rig) = rig_or_shipped(rig) else {
         return CARTPOLE_ERR_RIG;
     };
     let Ok(mut startup) = Startup::suggested(&rig) else {
         return CARTPOLE_ERR_RIG;
     };
-    if swing_up == 0 {
+    if flags & CARTPOLE_STARTUP_SWING_UP == 0 {
         startup.swing = None;
+    }
+    if flags & CARTPOLE_STARTUP_HOME != 0 {
+        startup.homing = Some(Homing::suggested(rig.params.tau));
     }
     status(instance_mut(c).and_then(|r| r.start_up(startup, &rig)))
 }

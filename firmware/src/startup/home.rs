@@ -13,7 +13,8 @@ pub struct Homing {
     /// friction, little enough that stalling against the stop is gentle.
     pub duty: f32,
     /// Periods the driven cart must stay within a count for the stop to be taken as found,
-    /// and within 5 mm of the centre for the cart to be taken as arrived.
+    /// and near the centre (a hundredth of the half-length) for the cart to be taken as
+    /// arrived.
     pub stall_periods: u16,
 }
 
@@ -52,8 +53,10 @@ pub(super) enum Homed {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct Home {
     homing: Homing,
-    /// Cart counts from the -x stop to the centre, and within which of it (5 mm) the cart
-    /// has arrived.
+    /// Cart counts from the -x stop to the centre, and within which of it (a hundredth of
+    /// that) the cart has arrived: wide enough for a hanging pole's swing, which rocks a light
+    /// cart however it is held. Where it then rests matters little: its zero is the centre
+    /// found, and the swing-up pulls it there.
     stop: i32,
     near: u32,
     /// The pull to the centre, a fraction of full duty per count from it and per count a
@@ -83,7 +86,7 @@ impl Home {
         Home {
             homing,
             stop: libm::round(p.x_threshold * per_m) as i32,
-            near: libm::round(0.005 * per_m).max(1.0) as u32,
+            near: libm::round(0.01 * p.x_threshold * per_m).max(1.0) as u32,
             gains: gains.map(|g| g as f32),
             centre: None,
             arrived: false,
@@ -118,8 +121,7 @@ impl Home {
             }
             return self.drive(-1.0);
         };
-        // Arrived: within `near` of the centre for as long, however the hanging pole rocks
-        // the cart there.
+        // Arrived: within `near` of the centre for as long.
         let x = cart.wrapping_sub(centre);
         if x.unsigned_abs() <= self.near {
             self.still = self.still.saturating_add(1);

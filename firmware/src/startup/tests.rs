@@ -208,7 +208,7 @@ fn homing_stalls_at_the_stop_then_centres_and_the_zero_is_the_homed_centre() {
     // Stalled at 500: the centre is 2.4 m (49,152 counts) on. Away from the stop, capped.
     assert_eq!(s.period(500, 0), push(0.3));
     let near = 500 + 49_152 - 100;
-    // Within 5 mm (102 counts) of it for three periods: arrived.
+    // Within a hundredth of the half-length (492 counts) for three periods: arrived.
     for _ in 0..3 {
         assert_eq!(s.phase(), Phase::Homing);
         s.period(near, 0);
