@@ -151,6 +151,27 @@ pub struct Outcome {
     pub steady: Option<Steady>,
 }
 
+impl Outcome {
+    /// Period `period` begun in `phase` with the cart at `x`.
+    fn began(&mut self, period: u32, phase: Phase, x: f64) {
+        if phase != Phase::Balancing {
+            self.balanced_from = None;
+            self.max_abs_x_swinging = self.max_abs_x_swinging.max(x.abs());
+        } else if self.balanced_from.is_none() {
+            self.balanced_from = Some(period);
+        }
+    }
+
+    /// A period run in `phase` ended with the cart at `x`, `stopped` at an end stop: homing
+    /// drives it there on purpose.
+    fn ended(&mut self, phase: Phase, x: f64, stopped: bool) {
+        if phase != Phase::Homing {
+            self.end_stop_periods += u32::from(stopped);
+            self.max_abs_x = self.max_abs_x.max(x.abs());
+        }
+    }
+}
+
 /// The balance at rest: the periods of an episode's second half that the balance
 /// controller drove, as a rig runs once it has settled.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -239,12 +260,7 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     for period in 0..events.periods {
         let command = sequencer.run(latest.get(), &mut controller);
         let phase = sequencer.phase();
-        if phase != Phase::Balancing {
-            out.balanced_from = None;
-            out.max_abs_x_swinging = out.max_abs_x_swinging.max(s.x.abs());
-        } else if out.balanced_from.is_none() {
-            out.balanced_from = Some(period);
-        }
+        out.began(period, phase, s.x);
         let commanded = duty(controller.actuator());
         if phase == Phase::Balancing && period >= events.periods / 2 {
             sums.add(s.x, commanded);
@@ -254,12 +270,8 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
         if let Some(lift) = &events.lift {
             lift.hold(period, &mut s, &mut grip, truth.params.tau);
         }
-        // Homing drives the cart to an end stop on purpose.
         let stopped = stopped_at_ends(&mut s, truth.params.x_threshold);
-        if phase != Phase::Homing {
-            out.end_stop_periods += u32::from(stopped);
-            out.max_abs_x = out.max_abs_x.max(s.x.abs());
-        }
+        out.ended(phase, s.x, stopped);
         let reading = [0.0; 4];
         each(
             &Frame {
@@ -269,24 +281,15 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
             },
             phase,
         );
+        // The board's counter started at `origin`; the pole's zero is read off once taken.
         let (cart, pole) = counts(&s);
-        let off = if sequencer.zero().is_some() {
-            events.zero_off
-        } else {
-            0
-        };
-        let pole = pole.wrapping_sub(origin.1).wrapping_add(off);
-        latest.set((cart.wrapping_sub(origin.0), pole));
+        let off = sequencer.zero().map_or(0, |_| events.zero_off);
+        latest.set((
+            cart.wrapping_sub(origin.0),
+            pole.wrapping_sub(origin.1).wrapping_add(off),
+        ));
     }
-    let truth_rev = truth.encoders.pole_counts_per_rev;
-    out.zero_error = sequencer.zero().map(|(_, upright)| {
-        let upright_true = i64::from(origin.1.wrapping_neg());
-        wrapped(i64::from(upright) - upright_true, truth_rev)
-    });
-    let centre_true = counts(&State::default()).0.wrapping_sub(origin.0);
-    out.centre_error = sequencer
-        .zero()
-        .map(|(cart0, _)| i64::from(cart0.wrapping_sub(centre_true)));
+    (out.zero_error, out.centre_error) = zero_errors(sequencer.zero(), origin, &truth);
     out.transitions = sequencer.transitions();
     out.faults = controller.faults();
     out.phase = sequencer.phase();
@@ -310,6 +313,26 @@ fn stopped_at_ends(s: &mut State, end: f64) -> bool {
         s.x_dot = 0.0;
     }
     at
+}
+
+/// The errors of the start-up's zero `zero` (raw counts of the cart's centre and the pole
+/// upright, the board's counter started at `origin` of `truth`'s encoders): pole counts off
+/// upright, and cart counts off the centre.
+fn zero_errors(
+    zero: Option<(i32, i32)>,
+    origin: (i32, i32),
+    truth: &Rig,
+) -> (Option<i64>, Option<i64>) {
+    let Some((cart0, upright)) = zero else {
+        return (None, None);
+    };
+    let upright_true = i64::from(origin.1.wrapping_neg());
+    let pole = wrapped(
+        i64::from(upright) - upright_true,
+        truth.encoders.pole_counts_per_rev,
+    );
+    let centre_true = truth.encoders.counts(0.0, 0.0).0.wrapping_sub(origin.0);
+    (Some(pole), Some(i64::from(cart0.wrapping_sub(centre_true))))
 }
 
 /// `c` counts moved by whole revolutions of `rev` counts to the nearest zero.
