@@ -68,6 +68,12 @@ pub enum Phase {
     Homing,
 }
 
+/// A window of `seconds` in whole periods of `tau` s, rounded up: at least two (a window
+/// compares periods), at most what a `u16` counts.
+pub fn periods(seconds: f64, tau: f64) -> u16 {
+    libm::ceil(seconds / tau).clamp(2.0, 65_535.0) as u16
+}
+
 /// [`Startup::suggested`]'s trim rate, rad per metre-second, and its bound, rad (2 degrees).
 const TRIM_RATE: f32 = 0.012;
 const TRIM_MAX: f32 = 0.035;
@@ -124,7 +130,7 @@ impl Startup {
         let failure = p.theta_threshold_radians as f32;
         let max_accel = (0.3 * track * w * w).min(0.5 * p.force_mag / p.total_mass());
         let startup = Startup {
-            zero_periods: libm::ceil(core::f64::consts::PI / w / p.tau).clamp(2.0, 65_535.0) as u16,
+            zero_periods: periods(core::f64::consts::PI / w, p.tau),
             catch_angle: 0.7 * failure,
             catch_rate: (w / 4.0) as f32,
             catch_periods: 3,

@@ -23,7 +23,7 @@ impl Homing {
     pub fn suggested(tau: f64) -> Homing {
         Homing {
             duty: 0.3,
-            stall_periods: libm::ceil(0.25 / tau).clamp(2.0, 65_535.0) as u16,
+            stall_periods: super::periods(0.25, tau),
         }
     }
 

@@ -22,7 +22,7 @@
 //! ```
 
 use firmware::rig::Rig;
-use firmware::startup::{Homing, Startup};
+use firmware::startup::{Homing, Startup, periods};
 use serde::Deserialize;
 use weights::Result;
 
@@ -63,7 +63,7 @@ impl Fields<'_> {
             None => Ok(None),
         };
         if let Some(w) = value("zero_window_s", t.zero_window_s, 60.0)? {
-            s.zero_periods = (w / rig.params.tau).ceil().clamp(2.0, 65_535.0) as u16;
+            s.zero_periods = periods(w, rig.params.tau);
         }
         if let Some(a) = value("catch_angle_deg", t.catch_angle_deg, 90.0)? {
             s.catch_angle = radians(a) as f32;
@@ -98,7 +98,7 @@ impl Fields<'_> {
                 h.duty = d as f32;
             }
             if let Some(w) = value("homing_stall_s", t.homing_stall_s, 60.0)? {
-                h.stall_periods = (w / rig.params.tau).ceil().clamp(2.0, 65_535.0) as u16;
+                h.stall_periods = periods(w, rig.params.tau);
             }
             s.homing = Some(h);
         }
