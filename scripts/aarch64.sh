@@ -7,11 +7,18 @@
 # fused multiply-adds, fails them. `--full` also retrains the shipped policy and requires it
 # bit for bit (about 7 minutes under emulation). Installs what it needs on Debian/Ubuntu: the
 # Rust target, gcc-aarch64-linux-gnu (the linker), the aarch64 C library and qemu-user.
-#   scripts/aarch64.sh [--full]
+# `--packages` installs those system packages and nothing else (CI, while other steps run).
+#   scripts/aarch64.sh [--full | --packages]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
-rustup target add --toolchain "$toolchain" aarch64-unknown-linux-gnu >/dev/null
+case ${1:-} in
+  --full | --packages | "") ;;
+  *) echo "usage: scripts/aarch64.sh [--full | --packages] (found: '$1')" >&2; exit 2 ;;
+esac
+if [ "${1:-}" != --packages ]; then
+  toolchain=$(sed -n 's/^channel *= *"\(.*\)"/\1/p' rust-toolchain.toml)
+  rustup target add --toolchain "$toolchain" aarch64-unknown-linux-gnu >/dev/null
+fi
 if ! command -v qemu-aarch64 >/dev/null || ! command -v aarch64-linux-gnu-gcc >/dev/null; then
   sudo_=""
   [ "$(id -u)" -eq 0 ] || sudo_="sudo"
@@ -20,6 +27,7 @@ if ! command -v qemu-aarch64 >/dev/null || ! command -v aarch64-linux-gnu-gcc >/
   DEBIAN_FRONTEND=noninteractive $sudo_ apt-get install -y -qq \
     gcc-aarch64-linux-gnu libc6-dev-arm64-cross qemu-user >/dev/null
 fi
+[ "${1:-}" != --packages ] || exit 0
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="qemu-aarch64 -L /usr/aarch64-linux-gnu"
 run() { cargo test -q --profile quick --target aarch64-unknown-linux-gnu "$@"; }

@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # Fuzzes with libFuzzer the host tools' parsers (the checkpoint importer, with its
 # restricted pickle reader and its ONNX reader on their own, the TOML configuration, the
-# trajectory parser, the scenario parser), the rendering of untrusted
-# text into exported source (names, comments) and the link's frame reader (what a target
-# reads from its serial port), SECONDS each (default 60), seeded with the repository's own
-# valid inputs. Prints each target's executions and
-# coverage, and for the checkpoint readers the largest peak memory an input cost them
-# (they abort past 4 bytes per input byte plus 8 MiB: fuzz/fuzz_targets/bound.rs); exits 1
-# on a crash (the input is kept in fuzz/artifacts/TARGET/).
+# trajectory parser, the scenario parser), the rendering of untrusted text into exported
+# source (names, comments) and the link's frame reader (what a target reads from its serial
+# port), SECONDS each (default 60), as many at once as the machine has cores, seeded with
+# the repository's own valid inputs. Prints each target's executions and coverage, and for
+# the checkpoint readers the largest peak memory an input cost them (they abort past 4
+# bytes per input byte plus 8 MiB: fuzz/fuzz_targets/bound.rs); exits 1 on a crash (the
+# input is kept in fuzz/artifacts/TARGET/).
 #
 # The targets (`fuzz/`, a workspace of its own) build with the pinned stable toolchain:
 # libfuzzer-sys brings libFuzzer, and the flags below are the coverage instrumentation
@@ -37,7 +37,10 @@ for path in sys.argv[2:]:
         with open(os.path.join(sys.argv[1], os.path.basename(path) + ".pkl"), "wb") as f:
             f.write(z.read(name))
 PY
-cargo run -q --profile quick -p policy-export -- train --preset robust --print-config \
+# Built with the workspace selected, as the test suite builds it: after the suite, nothing
+# to compile (tests/tests/features.rs).
+cargo build -q --profile quick --workspace --bin policy-export
+"${CARGO_TARGET_DIR:-target}/quick/policy-export" train --preset robust --print-config \
   >"$corpus/config_toml/robust.toml"
 head -n 3 tests/data/gym_traj_public.jsonl >"$corpus/replay_parse/three.jsonl"
 n=0
@@ -71,7 +74,8 @@ with open(sys.argv[1], "wb") as f:
                                                          *range(-4, 5))))
 PY
 log=$(mktemp)
-trap 'rm -f "$log"' EXIT
+logs=$(mktemp -d)
+trap 'rm -rf "$log" "$logs"' EXIT
 # The target triple keeps the instrumentation off build scripts and procedural macros.
 coverage="-Cpasses=sancov-module -Cllvm-args=-sanitizer-coverage-level=4 \
 -Cllvm-args=-sanitizer-coverage-inline-8bit-counters -Cllvm-args=-sanitizer-coverage-pc-table \
@@ -83,17 +87,31 @@ if ! RUSTFLAGS="$coverage" CARGO_TARGET_DIR="$target_dir" cargo build -q --relea
   echo "fuzz: the targets do not compile against the project's code"
   exit 1
 fi
-for t in "${targets[@]}"; do
-  echo "== fuzz $t for ${seconds} s"
+# One target per core at a time (each run is single-threaded), reported in the list's order.
+lanes=$(nproc)
+fuzz() { # TARGET: runs it, its libFuzzer output in $logs/TARGET, its status in $logs/TARGET.rc
+  local t=$1 status=0
   mkdir -p "fuzz/artifacts/$t"
-  if ! "$target_dir/$host/release/$t" "$corpus/$t" -artifact_prefix="fuzz/artifacts/$t/" \
-      -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
-      -print_final_stats=1 >"$log" 2>&1; then
-    tail -n 40 "$log"
+  "$target_dir/$host/release/$t" "$corpus/$t" -artifact_prefix="fuzz/artifacts/$t/" \
+    -max_total_time="$seconds" -max_len=65536 -rss_limit_mb=2048 \
+    -print_final_stats=1 >"$logs/$t" 2>&1 || status=$?
+  echo "$status" >"$logs/$t.rc"
+}
+report() { # TARGET: what its run found; fails if it crashed
+  local t=$1
+  echo "== fuzz $t for ${seconds} s"
+  if [ "$(cat "$logs/$t.rc")" != 0 ]; then
+    tail -n 40 "$logs/$t"
     echo "fuzz $t: failed (a crashing input is kept in fuzz/artifacts/$t/)"
     exit 1
   fi
-  grep -E 'DONE|^stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb)' "$log"
+  grep -E 'DONE|^stat::(number_of_executed_units|average_exec_per_sec|peak_rss_mb)' "$logs/$t"
   # The readers' targets print their largest peak of live bytes as it grows (bound.rs).
-  grep '^bound:' "$log" | tail -n 1 || true
+  grep '^bound:' "$logs/$t" | tail -n 1 || true
+}
+for ((i = 0; i < ${#targets[@]}; i += lanes)); do
+  batch=("${targets[@]:i:lanes}")
+  for t in "${batch[@]}"; do fuzz "$t" & done
+  wait
+  for t in "${batch[@]}"; do report "$t"; done
 done

@@ -2,17 +2,22 @@
 # Installs the toolchain parts rust-toolchain.toml names (rustup does not install them on
 # demand on machines with RUSTUP_AUTO_INSTALL=0) and, on Debian/Ubuntu, qemu-system-arm and
 # qemu-system-misc (RISC-V) for the firmware tests. Every entry point runs this first.
-#   scripts/setup.sh          everything: the tests, CI, the microcontroller scripts
-#   scripts/setup.sh --host   the toolchain alone in rustup's minimal profile (rustc, cargo,
-#                             the host's standard library): the main job, which builds and
-#                             runs the host tools and nothing else
+#   scripts/setup.sh              everything: the tests, CI, the microcontroller scripts
+#   scripts/setup.sh --host       the toolchain alone in rustup's minimal profile (rustc,
+#                                 cargo, the host's standard library): the main job, which
+#                                 builds and runs the host tools and nothing else
+#   scripts/setup.sh --toolchain  the toolchain with every part the tests use, no packages
+#   scripts/setup.sh --system     the system's packages alone (CI installs them while it lints)
 set -euo pipefail
 cd "$(dirname "$0")/.."
 . scripts/targets.sh
+toolchain=1 parts=1 system=1
 case ${1:-} in
-  --host) host_only=1 ;;
-  "") host_only=0 ;;
-  *) echo "usage: scripts/setup.sh [--host] (found: '$1')" >&2; exit 2 ;;
+  --host) parts=0 system=0 ;;
+  --toolchain) system=0 ;;
+  --system) toolchain=0 parts=0 ;;
+  "") ;;
+  *) echo "usage: scripts/setup.sh [--host | --toolchain | --system] (found: '$1')" >&2; exit 2 ;;
 esac
 
 # The addresses this machine's apt already fetches bookworm itself from, first choice first:
@@ -44,13 +49,16 @@ bookworm_uris() {
   done
 }
 
-toolchain=$(rust_channel)
-rustup toolchain install "$toolchain" --profile minimal >/dev/null
-[ "$host_only" = 0 ] || exit 0
-targets=$(mcu_targets)
-rustup component add --toolchain "$toolchain" clippy rustfmt llvm-tools >/dev/null
-# shellcheck disable=SC2086 # one word per target
-rustup target add --toolchain "$toolchain" $targets >/dev/null
+channel=$(rust_channel)
+if [ "$toolchain" = 1 ]; then
+  rustup toolchain install "$channel" --profile minimal >/dev/null
+fi
+if [ "$parts" = 1 ]; then
+  rustup component add --toolchain "$channel" clippy rustfmt llvm-tools >/dev/null
+  # shellcheck disable=SC2086 # one word per target
+  rustup target add --toolchain "$channel" $(mcu_targets) >/dev/null
+fi
+[ "$system" = 1 ] || exit 0
 missing=""
 command -v qemu-system-arm >/dev/null || missing="$missing qemu-system-arm"
 command -v qemu-system-riscv32 >/dev/null || missing="$missing qemu-system-misc"

@@ -2,10 +2,16 @@
 # The test suite, from a fresh machine: set-up, then every crate's tests optimised (the
 # end-to-end tests train a policy) but without link-time optimisation, which would be paid
 # once per test binary (profile `quick`, Cargo.toml), then the Python package's tests in a
-# fresh virtual environment (scripts/python.sh, built on the same artefacts).
+# fresh virtual environment (scripts/python.sh, built on the same artefacts, its
+# dependencies downloaded while the workspace compiles).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 scripts/setup.sh
+# The Python package's test dependencies download meanwhile.
+deps=$(mktemp)
+trap 'rm -f "$deps"' EXIT
+scripts/python.sh --deps >"$deps" 2>&1 &
+python_deps=$!
 # The scripts' own Python modules (the instruction counter's Unicorn, Capstone and
 # pyelftools) in an environment of their own, for tests/tests/scripts.rs, which fails
 # without them.
@@ -13,4 +19,5 @@ venv=${CARGO_TARGET_DIR:-$PWD/target}/scripts-venv
 python3 -m venv "$venv"
 "$venv/bin/pip" install --quiet -r scripts/requirements-dev.txt
 CARTPOLE_PYTHON="$venv/bin/python" cargo test --workspace --profile quick
+wait "$python_deps" || { cat "$deps"; exit 1; }
 scripts/python.sh
