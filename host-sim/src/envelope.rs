@@ -229,8 +229,9 @@ pub fn rust_module(envelope: [f32; 4], digest: u64, rig: &Rig, provenance: &[Str
     let _ = write!(
         s,
         "\nuse ::firmware::controller::{{Assurance, Limits}};\n\nuse super::policy::RIG;\n\n\
-         /// FNV-1a 64 digest of the policy the envelope was measured for\n\
-         /// ([`firmware::link::digest::mlp`] of [`super::policy::POLICY`]).\n\
+         /// FNV-1a 64 digest of the policy the envelope was measured for, as the link's\n\
+         /// handshake names it ([`firmware::link::digest::policy`] of\n\
+         /// [`super::policy::POLICY`] and [`super::policy::LEVELS`]).\n\
          pub const POLICY_DIGEST: u64 = {digest:#018x};\n\n\
          /// Per-channel bound on `|reading|`, `[x, x_dot, theta, theta_dot]`.\n\
          pub const ENVELOPE: Limits = match Limits::new({envelope:?}) {{\n    \

@@ -11,7 +11,7 @@ use host_common::provenance::Provenance;
 use host_sim::envelope::{Report, rust_module, visited};
 use host_sim::eval::ControllerKind;
 use indicatif::{ProgressBar, ProgressStyle};
-use shipped::policy::{POLICY, RIG};
+use shipped::policy::{LEVELS, POLICY, RIG};
 use weights::files::write_atomic;
 
 use crate::Subject;
@@ -113,7 +113,9 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
                 v.periods, v.balanced, v.episodes
             ),
         ];
-        let text = rust_module(report.envelope, digest::mlp(&POLICY), &RIG, &provenance);
+        // The policy as the link names it: its network and the duty of each output.
+        let policy = digest::policy(digest::mlp(&POLICY), &LEVELS);
+        let text = rust_module(report.envelope, policy, &RIG, &provenance);
         write_atomic(out, text.as_bytes())?;
         host_common::errln!("{}", out.display());
     }

@@ -9,9 +9,10 @@ use ::firmware::controller::{Assurance, Limits};
 
 use super::policy::RIG;
 
-/// FNV-1a 64 digest of the policy the envelope was measured for
-/// ([`firmware::link::digest::mlp`] of [`super::policy::POLICY`]).
-pub const POLICY_DIGEST: u64 = 0xab9d97b0e3bdd0ef;
+/// FNV-1a 64 digest of the policy the envelope was measured for, as the link's
+/// handshake names it ([`firmware::link::digest::policy`] of
+/// [`super::policy::POLICY`] and [`super::policy::LEVELS`]).
+pub const POLICY_DIGEST: u64 = 0x3fb265a591abfc0e;
 
 /// Per-channel bound on `|reading|`, `[x, x_dot, theta, theta_dot]`.
 pub const ENVELOPE: Limits = match Limits::new([2.2913086, 3.8618164, 0.24476074, 5.102539]) {

@@ -210,8 +210,9 @@ fn a_gain_that_is_no_number_is_refused() {
 /// The generated envelope belongs to the shipped policy and its fallback to the shipped rig.
 #[test]
 fn the_shipped_assurance_is_the_shipped_policys_and_rigs() {
-    use crate::shipped::policy::{POLICY, RIG};
-    assert_eq!(POLICY_DIGEST, crate::link::digest::mlp(&POLICY));
+    use crate::link::digest;
+    use crate::shipped::policy::{LEVELS, POLICY, RIG};
+    assert_eq!(POLICY_DIGEST, digest::policy(digest::mlp(&POLICY), &LEVELS));
     let k = crate::linear::balance_gain(&RIG.params).map(|k| k as f32);
     assert_eq!(FALLBACK_GAIN, k);
     assert_eq!(RIG.lqr_assurance(ENVELOPE), Ok(ASSURANCE));

@@ -7,7 +7,7 @@ use crate::controller::{Command, Duty, Levels};
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
-use crate::shipped::envelope::ENVELOPE;
+use crate::shipped::envelope::{ENVELOPE, POLICY_DIGEST};
 use crate::shipped::policy::{LEVELS, POLICY, RIG};
 use crate::shipped::policy_int::POLICY_INT;
 use crate::shipped::{desk, desk_int};
@@ -219,6 +219,8 @@ fn hello_says_what_the_target_holds_in_the_format_asked_for() {
         panic!("an Info was due");
     };
     assert_eq!(info.policy, digest::policy(digest::mlp(&POLICY), &LEVELS));
+    // The runtime monitor's envelope names the policy it was measured for alike.
+    assert_eq!(info.policy, POLICY_DIGEST);
 }
 
 /// The same networks driving other duties are another policy: a host that runs the
