@@ -16,7 +16,7 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::Serialize;
 use twin::Frame;
-use twin::startup::{Begin, Events, Outcome, power_on};
+use twin::startup::{Begin, Events, Knock, Outcome, power_on};
 use twin::{Integration, Machine};
 
 use crate::Subject;
@@ -65,6 +65,11 @@ pub struct StartupArgs {
     /// than centred by hand (within a centimetre): for a start-up that homes.
     #[arg(long, default_value_t = 0.0)]
     cart_start: f64,
+    /// A push that may drop the pole once it is up: NEWTONS held on the cart for one period,
+    /// SECONDS after power-on, towards a side drawn per episode. --within then counts from
+    /// the push: the pole must be back up (swung up again, or never down) within it.
+    #[arg(long, value_name = "NEWTONS@SECONDS")]
+    knock: Option<String>,
     /// Seed of the starts and lifts.
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -111,6 +116,8 @@ struct Row {
 #[derive(Serialize)]
 struct Report {
     start: Begin,
+    /// The push `--knock` gave: its force, N, and when, s after power-on.
+    knock: Option<[f64; 2]>,
     seed: u64,
     within_s: f64,
     hold_s: f64,
@@ -121,6 +128,7 @@ struct Report {
 /// Runs the episodes `a` asks for; the report is printed.
 pub fn run(a: &StartupArgs) -> Result<bool> {
     check(a)?;
+    let knock = knock(a)?;
     let (board, mut startup, net) = board(&a.subject)?;
     let world = match &a.world {
         Some(path) => twin::rigfile::load(path)?,
@@ -135,7 +143,13 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         startup.swing = None;
     }
     let tau = board.rig.params.tau;
-    let within = (a.within / tau).round() as u32;
+    // The clock of --within starts at the knock, if one comes.
+    let knock = knock.map(|[force, at]| Knock {
+        period: (at / tau).round() as u32,
+        force,
+    });
+    let from = knock.map_or(0, |k| k.period);
+    let within = from + (a.within / tau).round() as u32;
     let margin = f64::from(board.rig.limits().map_err(anyhow::Error::msg)?.max_abs()[0]);
     let bar = ProgressBar::new(2 * u64::from(a.episodes)).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed}<{eta}")
@@ -149,11 +163,13 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         periods: within + (a.hold / tau).round() as u32,
         zero_off: counts_off(a.zero_error, &world),
         cart_start: a.cart_start,
+        knock,
         seed: a.seed,
         episodes: a.episodes,
         bar: &bar,
     };
-    let summary = |name, outcomes: Vec<Outcome>| summarise(name, &outcomes, within, tau, margin);
+    let summary =
+        |name, outcomes: Vec<Outcome>| summarise(name, &outcomes, (from, within), tau, margin);
     let float = summary("f32", runs.all(&net)?);
     let int = IntNet::of(&net).context("the policy has no integer version")?;
     let int = summary("int8", runs.all(int)?);
@@ -165,6 +181,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         .transpose()?;
     let report = Report {
         start: begin,
+        knock: knock.map(|k| [k.force, f64::from(k.period) * tau]),
         seed: a.seed,
         within_s: a.within,
         hold_s: a.hold,
@@ -226,6 +243,38 @@ fn check(a: &StartupArgs) -> Result<()> {
     Ok(())
 }
 
+/// The force, N, and time, s, of the knock `a` asks for, if one.
+fn knock(a: &StartupArgs) -> Result<Option<[f64; 2]>> {
+    let Some(spec) = &a.knock else {
+        return Ok(None);
+    };
+    anyhow::ensure!(
+        a.start != StartArg::Lifted,
+        "--knock needs a swing-up to bring the pole back: --start hanging or swinging, found \
+         --start lifted"
+    );
+    let parsed = spec
+        .split_once('@')
+        .and_then(|(f, t)| Some([f.parse::<f64>().ok()?, t.parse::<f64>().ok()?]));
+    match parsed {
+        Some([force, at])
+            if force.is_finite()
+                && force > 0.0
+                && force <= 1000.0
+                && at.is_finite()
+                && at > 0.0
+                && at <= 3600.0 =>
+        {
+            Ok(Some([force, at]))
+        }
+        _ => anyhow::bail!(
+            "--knock expects NEWTONS@SECONDS, newtons in (0, 1000] and seconds in (0, 3600] \
+             (e.g. 40@20), found '{}'",
+            weights::excerpt(spec)
+        ),
+    }
+}
+
 /// Draws episode `k` of `runs` with the float network into `out`; the pictures' paths.
 fn draw(runs: &Runs<'_>, net: &Net, k: u32, out: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
     let mut frames = Vec::new();
@@ -250,6 +299,8 @@ struct Runs<'a> {
     zero_off: i32,
     /// The cart's start drawn within this of the centre, m (0: as the start draws it).
     cart_start: f64,
+    /// The push, towards +x; each episode draws its side.
+    knock: Option<Knock>,
     seed: u64,
     episodes: u32,
     bar: &'a ProgressBar,
@@ -288,10 +339,22 @@ impl Runs<'_> {
         if self.cart_start > 0.0 {
             start.x = self.cart_start * (2.0 * unit_f64(&mut rng) - 1.0);
         }
+        let knocks: Vec<Knock> = self
+            .knock
+            .iter()
+            .map(|k| Knock {
+                force: if unit_f64(&mut rng) < 0.5 {
+                    -k.force
+                } else {
+                    k.force
+                },
+                ..*k
+            })
+            .collect();
         let events = Events {
             periods: self.periods,
             lift,
-            knocks: &[],
+            knocks: &knocks,
             zero_off: self.zero_off,
         };
         let (world, rig) = (self.world, &self.board.rig);
@@ -301,18 +364,20 @@ impl Runs<'_> {
 }
 
 /// The row of one arithmetic's `outcomes`: success is a balance begun by period `within`
-/// that lasted to the end; the margin is the track's accepted half-length `margin`.
+/// that lasted to the end, its time counted from period `from` (power-on, or a knock: a
+/// balance the knock did not break counts as back at once); the margin is the track's
+/// accepted half-length `margin`.
 fn summarise(
     arithmetic: &'static str,
     outcomes: &[Outcome],
-    within: u32,
+    (from, within): (u32, u32),
     tau: f64,
     margin: f64,
 ) -> Row {
     let mut times: Vec<f64> = outcomes
         .iter()
         .filter_map(|o| o.balanced_from.filter(|&b| b <= within))
-        .map(|b| f64::from(b) * tau)
+        .map(|b| f64::from(b.saturating_sub(from)) * tau)
         .collect();
     times.sort_by(f64::total_cmp);
     let mut track: Vec<f64> = outcomes.iter().map(|o| o.max_abs_x).collect();
@@ -360,8 +425,12 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
 
 /// The report as a table.
 fn table(r: &Report) -> String {
+    let since = match r.knock {
+        Some([force, at]) => format!("of a {force} N knock at {at} s"),
+        None => "of power-on".into(),
+    };
     let mut out = format!(
-        "start-up from {:?}, seed {}: balanced within {} s of power-on and held {} s\n  {}\n\n  \
+        "start-up from {:?}, seed {}: balanced within {} s {since} and held {} s\n  {}\n\n  \
          {:<6} {:>8} {:>8} {:>25} {:>15} {:>7} {:>6} {:>5} {:>6} {:>18} {:>7} {:>16}\n",
         r.start,
         r.seed,
