@@ -14,7 +14,7 @@
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 
-use super::protobuf::{Fields, Wire, count, last, text, varints};
+use super::protobuf::{Fields, Wire, count, each_varint, last, text, varints};
 use super::state_dict::{Data, Dtype, Tensor, shape_text, to_f32};
 use super::{Format, Import, checked_weights, unchained};
 use crate::levels::{self, GivenLevels};
@@ -379,7 +379,9 @@ impl<'a> Init<'a> {
         })
     }
 
-    /// Its tensor: raw little-endian data borrowed, float or double values gathered.
+    /// Its tensor: raw little-endian data borrowed, float or double values gathered, and
+    /// float16 or bfloat16 values gathered from `int32_data`, where ONNX keeps each one's
+    /// 16 bits when they are not raw.
     fn tensor(&self) -> Result<Tensor<'a>> {
         let b = self.bytes;
         let dtype = match last(b, 2)? {
@@ -394,6 +396,7 @@ impl<'a> Init<'a> {
             (Some(Wire::Bytes(raw)), _) => Cow::Borrowed(raw),
             (None, Ok(Dtype::F32)) => Cow::Owned(fixed(b, 4, 4)?),
             (None, Ok(Dtype::F64)) => Cow::Owned(fixed(b, 10, 8)?),
+            (None, Ok(Dtype::F16 | Dtype::BF16)) => Cow::Owned(self.halves()?),
             _ => Cow::Borrowed(&[]),
         };
         Ok(Tensor {
@@ -401,6 +404,23 @@ impl<'a> Init<'a> {
             shape: self.dims.as_slice().into(),
             data: Data::Dense(data),
         })
+    }
+
+    /// The little-endian bytes of the 16-bit values in `int32_data` (field 5), refused
+    /// where one does not fit 16 bits.
+    fn halves(&self) -> Result<Vec<u8>> {
+        let mut out = Vec::new();
+        each_varint(self.bytes, 5, |x| match u16::try_from(x) {
+            Ok(h) => {
+                out.extend_from_slice(&h.to_le_bytes());
+                Ok(())
+            }
+            Err(_) => refuse(format!(
+                "initializer {}: int32_data holds {x} for a 16-bit float, expected at most 65535",
+                quote(self.name)
+            )),
+        })?;
+        Ok(out)
     }
 }
 

@@ -132,26 +132,33 @@ pub fn count(bytes: &[u8], n: u64) -> Result<usize> {
 pub fn varints(bytes: &[u8], n: u64, max: usize) -> Result<(Vec<u64>, usize)> {
     let mut out = Vec::new();
     let mut all = 0;
-    let mut keep = |x: u64| {
+    each_varint(bytes, n, |x| {
         all += 1;
         if out.len() < max {
             out.push(x);
         }
-    };
-    for f in Fields::new(bytes) {
-        match f? {
+        Ok(())
+    })?;
+    Ok((out, all))
+}
+
+/// `f` on each varint of the repeated integer field `n` of `bytes`, packed or not, in
+/// order, until it returns an error: for a field too long to hold as a list of `u64`s.
+pub fn each_varint(bytes: &[u8], n: u64, mut f: impl FnMut(u64) -> Result<()>) -> Result<()> {
+    for field in Fields::new(bytes) {
+        match field? {
             (k, _) if k != n => {}
-            (_, Wire::Varint(x)) => keep(x),
+            (_, Wire::Varint(x)) => f(x)?,
             (_, Wire::Bytes(b)) => {
-                let mut f = Fields::new(b);
-                while f.pos < b.len() {
-                    keep(f.varint()?);
+                let mut run = Fields::new(b);
+                while run.pos < b.len() {
+                    f(run.varint()?)?;
                 }
             }
             _ => return refuse("an integer field of another wire type", 0),
         }
     }
-    Ok((out, all))
+    Ok(())
 }
 
 /// Length-delimited bytes as UTF-8 text.

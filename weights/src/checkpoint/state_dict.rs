@@ -54,8 +54,11 @@ pub enum Data<'a> {
     /// `offset + sum(index[k] * stride[k])` of `storage`. A stride of 0 repeats a dimension
     /// (`expand`); a transposed view has its strides swapped.
     View {
-        /// The storage's little-endian elements.
+        /// The storage's elements, in the byte order `big_endian` says.
         storage: &'a [u8],
+        /// Whether each element's bytes are most significant first (a file written on a
+        /// big-endian machine): read, they are reversed into little-endian.
+        big_endian: bool,
         /// The view's first element.
         offset: usize,
         /// Elements to step per index, per dimension.
@@ -124,8 +127,9 @@ pub fn to_f32(name: &str, t: &Tensor) -> Result<(Vec<f32>, Option<String>)> {
     Ok((v, from))
 }
 
-/// The tensor's elements in row-major order: a dense tensor's bytes as they are, a view's
-/// read through its offset and strides, every index checked against the storage. At most
+/// The tensor's elements in row-major order, little-endian: a dense tensor's bytes as they
+/// are, a view's read through its offset and strides, every index checked against the
+/// storage. At most
 /// [`largest_tensor`] elements, so a view that repeats a small storage cannot make a large
 /// tensor.
 fn elements<'t>(t: &'t Tensor, dtype: Dtype) -> std::result::Result<Cow<'t, [u8]>, String> {
@@ -142,7 +146,7 @@ fn elements<'t>(t: &'t Tensor, dtype: Dtype) -> std::result::Result<Cow<'t, [u8]
             largest_tensor()
         ));
     };
-    let (storage, offset, stride) = match &t.data {
+    let (storage, (offset, big_endian), stride) = match &t.data {
         Data::Dense(bytes) if bytes.len() == count * size => return Ok(Cow::Borrowed(bytes)),
         Data::Dense(bytes) => {
             return Err(format!(
@@ -154,9 +158,10 @@ fn elements<'t>(t: &'t Tensor, dtype: Dtype) -> std::result::Result<Cow<'t, [u8]
         }
         Data::View {
             storage,
+            big_endian,
             offset,
             stride,
-        } => (*storage, *offset, stride),
+        } => (*storage, (*offset, *big_endian), stride),
     };
     let numel = storage.len() / size;
     // The farthest element the view reaches, checked once: every index lies below it.
@@ -180,7 +185,12 @@ fn elements<'t>(t: &'t Tensor, dtype: Dtype) -> std::result::Result<Cow<'t, [u8]
             .iter()
             .zip(stride.iter())
             .fold(offset, |a, (&i, &s)| a + i * s);
-        data.extend_from_slice(&storage[at * size..(at + 1) * size]);
+        let element = &storage[at * size..(at + 1) * size];
+        if big_endian {
+            data.extend(element.iter().rev());
+        } else {
+            data.extend_from_slice(element);
+        }
         // The next row-major index: the last dimension fastest.
         for (i, &d) in index.iter_mut().zip(t.shape.iter()).rev() {
             *i += 1;

@@ -67,15 +67,20 @@ fn pickle_dir<'a>(zip: &Zip<'a>) -> Result<Option<&'a str>> {
 }
 
 fn state_dict<'a>(zip: &Zip<'a>, dir: &str) -> Result<StateDict<'a>> {
-    if zip.has(&[dir, "byteorder"]) {
-        let b = zip.read(&[dir, "byteorder"])?;
-        if b != b"little" {
-            return refuse(format!(
-                "a PyTorch zip of byte order {}, expected \"little\"",
-                quote(&String::from_utf8_lossy(b))
-            ));
-        }
-    }
+    // A zip without the entry is read as little-endian.
+    let big_endian = match zip.has(&[dir, "byteorder"]) {
+        false => false,
+        true => match zip.read(&[dir, "byteorder"])? {
+            b"little" => false,
+            b"big" => true,
+            b => {
+                return refuse(format!(
+                    "a PyTorch zip of byte order {}, expected \"little\" or \"big\"",
+                    quote(&String::from_utf8_lossy(b))
+                ));
+            }
+        },
+    };
     let refs = pickle::state_dict(zip.read(&[dir, "data.pkl"])?)?;
     let mut dict = StateDict::new();
     for (name, r) in refs {
@@ -107,6 +112,7 @@ fn state_dict<'a>(zip: &Zip<'a>, dir: &str) -> Result<StateDict<'a>> {
             shape: r.shape,
             data: Data::View {
                 storage,
+                big_endian,
                 offset: usize::try_from(r.offset).unwrap_or(usize::MAX),
                 stride: r.stride,
             },

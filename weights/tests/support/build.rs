@@ -166,8 +166,13 @@ pub fn items_of(
 
 /// A `torch.save` zip of the pickle `pkl` and the storages.
 pub fn torch_zip(pkl: &[u8], storages: &[(String, Vec<u8>)]) -> Vec<u8> {
+    torch_zip_of_order(pkl, storages, b"little")
+}
+
+/// [`torch_zip`] whose `byteorder` entry is `order`.
+pub fn torch_zip_of_order(pkl: &[u8], storages: &[(String, Vec<u8>)], order: &[u8]) -> Vec<u8> {
     let mut entries: Vec<(&str, &[u8])> =
-        vec![("archive/data.pkl", pkl), ("archive/byteorder", b"little")];
+        vec![("archive/data.pkl", pkl), ("archive/byteorder", order)];
     entries.extend(storages.iter().map(|(n, b)| (n.as_str(), b.as_slice())));
     zip(&entries)
 }
@@ -246,6 +251,12 @@ pub fn onnx_network_fields() -> Vec<u8> {
 
 /// [`onnx_network_fields`] of the tensors `net` ([`network_of`]).
 pub fn onnx_fields_of(net: &[(Vec<f32>, Vec<u8>, Vec<usize>)]) -> Vec<u8> {
+    onnx_fields_by(|name, t| onnx_init(name, &net[t].2, &net[t].1))
+}
+
+/// [`onnx_network_fields`] with each initializer written by `init(name, t)`, `t` the
+/// tensor's index in PyTorch's order (`fc1.weight` is 0, `fc3.bias` 5).
+pub fn onnx_fields_by(init: impl Fn(&str, usize) -> Vec<u8>) -> Vec<u8> {
     let mut g = Vec::new();
     let mut cur = "x".to_string();
     for k in 0..3 {
@@ -263,12 +274,8 @@ pub fn onnx_fields_of(net: &[(Vec<f32>, Vec<u8>, Vec<usize>)]) -> Vec<u8> {
             &[("transB", 1)],
         );
         bytes_field(1, &gemm, &mut g);
-        bytes_field(5, &onnx_init(&w, &net[2 * k].2, &net[2 * k].1), &mut g);
-        bytes_field(
-            5,
-            &onnx_init(&b, &net[2 * k + 1].2, &net[2 * k + 1].1),
-            &mut g,
-        );
+        bytes_field(5, &init(&w, 2 * k), &mut g);
+        bytes_field(5, &init(&b, 2 * k + 1), &mut g);
         cur = out;
         if k < 2 {
             let r = format!("r{k}");
