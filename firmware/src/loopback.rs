@@ -7,6 +7,7 @@
 //! as sensors. Scenarios (noise, dead time, pushes) belong to the `twin` crate.
 
 use core::convert::Infallible;
+use core::marker::PhantomData;
 
 use embedded_hal::digital::{ErrorType as PinErrorType, OutputPin};
 use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
@@ -20,16 +21,16 @@ use crate::rig::Rig;
 /// Full scale of [`Duty`].
 pub const MAX_DUTY: u16 = 1000;
 
-/// Reads the plant's true state, rounded to f32 like its observation: the state the caller
-/// last put here.
-pub struct PlantSensor(pub State);
+/// Reads the plant's true state, rounded to f32 like its observation, in the reading format
+/// `O`: the state the caller last put here.
+pub struct PlantSensor<O = [f32; 4]>(pub State, PhantomData<O>);
 
-impl StateSensor for PlantSensor {
-    type Reading = [f32; 4];
+impl<O: Estimate> StateSensor for PlantSensor<O> {
+    type Reading = O;
     type Error = Infallible;
     #[inline]
-    fn read(&mut self) -> Result<[f32; 4], Infallible> {
-        Ok(self.0.observation())
+    fn read(&mut self) -> Result<O, Infallible> {
+        Ok(O::exact(&self.0.observation()))
     }
 }
 
@@ -120,16 +121,17 @@ pub struct Outcome {
 }
 
 /// Runs `policy` through a [`Controller`] against `plant` from its current state until it
-/// terminates or truncates, reading the exact state, with `limits`. `wait` runs before every
-/// period: a real-time loop sleeps there until its timer fires and returns how many ticks
-/// arrived while the previous step still ran (its overruns); a simulation passes `|| 0`.
-pub fn run<P: Policy>(
+/// terminates or truncates, reading the exact state in the format `O` its policy takes, with
+/// `limits`. `wait` runs before every period: a real-time loop sleeps there until its timer
+/// fires and returns how many ticks arrived while the previous step still ran (its
+/// overruns); a simulation passes `|| 0`.
+pub fn run<O: Estimate, P: Policy<O>>(
     policy: P,
     plant: &mut CartPole,
     limits: Limits,
     wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let sensor = PlantSensor(plant.state());
+    let sensor = PlantSensor(plant.state(), PhantomData);
     run_with(policy, plant, sensor, limits, |s, state| s.0 = state, wait)
 }
 

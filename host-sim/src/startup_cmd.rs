@@ -8,6 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
 use firmware::cartpole::unit_f64;
 use firmware::controller::Policy;
+use firmware::estimator::Estimate;
 use firmware::startup::Phase;
 use firmware::startup::Startup;
 use host_sim::eval::{ControllerKind, IntNet, Net};
@@ -313,12 +314,12 @@ fn counts_off(degrees: f64, world: &Machine) -> i32 {
 }
 
 impl Runs<'_> {
-    /// Every episode with `policy`, on all cores, in episode order.
-    fn all<P: Policy<[f32; 4]> + Copy + Send + Sync>(&self, policy: P) -> Result<Vec<Outcome>> {
+    /// Every episode with the policy `p`, on all cores, in episode order.
+    fn all<O: Estimate, P: Policy<O> + Copy + Send + Sync>(&self, p: P) -> Result<Vec<Outcome>> {
         (0..self.episodes)
             .into_par_iter()
             .map(|k| {
-                let o = self.episode(k, policy, |_, _| {});
+                let o = self.episode(k, p, |_, _| {});
                 self.bar.inc(1);
                 o
             })
@@ -327,7 +328,7 @@ impl Runs<'_> {
 
     /// Episode `k` with `policy`, `each` shown every period: the start drawn from the
     /// episode's own stream of the seed.
-    fn episode<P: Policy<[f32; 4]>>(
+    fn episode<O: Estimate, P: Policy<O>>(
         &self,
         k: u32,
         policy: P,
@@ -358,7 +359,7 @@ impl Runs<'_> {
             zero_off: self.zero_off,
         };
         let (world, rig) = (self.world, &self.board.rig);
-        power_on::<[f32; 4], _>(world, rig, self.startup, (policy, start), events, each)
+        power_on::<O, _>(world, rig, self.startup, (policy, start), events, each)
             .map_err(anyhow::Error::msg)
     }
 }

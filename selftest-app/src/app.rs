@@ -209,12 +209,13 @@ fn stack_report(board: &mut impl Board, forward: Forward, forward_int: ForwardIn
     let step_bytes = board.stack_used(|| {
         let mut plant = CartPole::new(Params::default(), 1);
         plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
-        core::hint::black_box(loopback::run(&POLICY, &mut plant, selftest::LIMITS, || 0));
+        let run = loopback::run::<[f32; 4], _>;
+        core::hint::black_box(run(&POLICY, &mut plant, selftest::LIMITS, || 0));
     });
     let step_int_bytes = board.stack_used(|| {
         let mut plant = CartPole::new(Params::default(), 1);
         plant.reset_to(State::from_array([0.01, 0.0, 0.02, 0.0]));
-        core::hint::black_box(loopback::run(
+        core::hint::black_box(loopback::run::<[i16; 4], _>(
             &POLICY_INT,
             &mut plant,
             selftest::LIMITS,

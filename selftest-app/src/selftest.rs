@@ -252,8 +252,9 @@ pub fn probe_line<W: core::fmt::Write>(
 }
 
 /// Episode `episode` of the self-test: a Gymnasium-style random start from a seeded PCG32,
-/// then `policy` through the controller until the pole falls or [`EPISODE_STEPS`] pass.
-pub fn episode<P: Policy>(policy: P, episode: u32) -> Outcome {
+/// then `policy` through the controller, reading the exact state in the format `O`, until
+/// the pole falls or [`EPISODE_STEPS`] pass.
+pub fn episode<O: Estimate, P: Policy<O>>(policy: P, episode: u32) -> Outcome {
     run(policy, &mut start(episode), LIMITS, || 0)
 }
 
@@ -339,14 +340,14 @@ pub fn report<const H: usize>(
 /// One format's closed-loop part of [`report`]: the seeded episodes on the exact state, the
 /// encoder episode in the reading format `O` a board with this policy reads, and their
 /// verdict line. Whether they all balanced.
-fn episodes<O: Estimate, P: Policy + Policy<O> + Copy>(
+fn episodes<O: Estimate, P: Policy<O> + Copy>(
     format: &str,
     policy: P,
     line: &mut impl FnMut(core::fmt::Arguments<'_>),
 ) -> bool {
     let mut balanced = 0;
     for e in 0..EPISODES {
-        let o = episode(policy, e);
+        let o = episode::<O, P>(policy, e);
         balanced += u32::from(o.success);
         line(format_args!(
             "{format} episode {e}: {} steps, {}, {} faults",
@@ -383,7 +384,8 @@ mod tests {
     #[test]
     fn the_shipped_policy_passes_the_self_test_on_the_host_in_both_formats() {
         for e in 0..EPISODES {
-            for o in [episode(&POLICY, e), episode(&POLICY_INT, e)] {
+            let int = episode::<[i16; 4], _>(&POLICY_INT, e);
+            for o in [episode::<[f32; 4], _>(&POLICY, e), int] {
                 assert!(
                     o.success && o.steps == EPISODE_STEPS && o.faults == 0,
                     "{e}: {o:?}"

@@ -279,13 +279,7 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
             assert_eq!(check.mismatches, 0, "{}: {check:?}", s.name);
             let pil = Row::from_episodes(&kind.to_string(), &s.name, (400, s.params.tau), 3, &eps);
             let here = eval::evaluate(kind, &net, s, 400, 3, 8);
-            // `eval`'s integer rows run the network behind a float reading; the board rounds
-            // the reading to Q3.12 first, predicts from the rounded one with dead time, and
-            // its monitor checks the envelope and computes LQR's fallback on it (docs/PIL.md):
-            // the same commands only without dead time and without the monitor.
-            if !kind.int() || (s.delay() == 0 && !kind.monitored()) {
-                assert_eq!(pil, here, "{kind} {}", s.name);
-            }
+            assert_eq!(pil, here, "{kind} {}", s.name);
         }
     }
 }

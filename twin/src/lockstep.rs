@@ -5,6 +5,7 @@
 
 use firmware::cartpole::{State, Transition};
 use firmware::controller::{Command, Policy};
+use firmware::estimator::Estimate;
 use firmware::loopback::duty;
 use rand_core::Rng;
 
@@ -21,12 +22,12 @@ pub const LANES: usize = 8;
 /// episode ends with its transition's `terminated` or `truncated`, and the next takes its
 /// place. Each episode's periods are the ones it has alone ([`Episode::decide`], then
 /// [`Episode::apply`]), bit for bit.
-pub fn run_lockstep<'s, P: Policy, R: Rng>(
+pub fn run_lockstep<'s, P: Policy<O>, R: Rng, O: Estimate>(
     n: usize,
-    mut start: impl FnMut(usize) -> Episode<'s, P, R>,
-    mut each: impl FnMut(usize, &Episode<'s, P, R>, Command, &Transition),
+    mut start: impl FnMut(usize) -> Episode<'s, P, R, O>,
+    mut each: impl FnMut(usize, &Episode<'s, P, R, O>, Command, &Transition),
 ) {
-    let mut slots: Vec<(usize, Episode<'s, P, R>)> = Vec::with_capacity(LANES.min(n));
+    let mut slots: Vec<(usize, Episode<'s, P, R, O>)> = Vec::with_capacity(LANES.min(n));
     let mut scratch = Scratch::default();
     let mut next = 0;
     loop {
@@ -67,7 +68,10 @@ struct Scratch {
 
 /// Every slot's world through its period: Euler worlds alone, Runge-Kutta worlds of one step
 /// count in blocks of lanes.
-fn apply<P: Policy, R: Rng>(slots: &mut [(usize, Episode<'_, P, R>)], s: &mut Scratch) {
+fn apply<P: Policy<O>, R: Rng, O: Estimate>(
+    slots: &mut [(usize, Episode<'_, P, R, O>)],
+    s: &mut Scratch,
+) {
     s.drives.clear();
     s.next.clear();
     s.rk4.clear();
@@ -105,10 +109,10 @@ fn apply<P: Policy, R: Rng>(slots: &mut [(usize, Episode<'_, P, R>)], s: &mut Sc
 
 /// The slots `group` (`(steps, slot)`, one step count `n`) integrated in blocks of 8, 4, 2
 /// and 1 lanes.
-fn integrate<P: Policy, R: Rng>(
+fn integrate<P: Policy<O>, R: Rng, O: Estimate>(
     group: &[(u32, usize)],
     n: u32,
-    slots: &[(usize, Episode<'_, P, R>)],
+    slots: &[(usize, Episode<'_, P, R, O>)],
     drives: &[Option<Drive>],
     next: &mut [Option<State>],
 ) {

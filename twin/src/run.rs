@@ -10,6 +10,7 @@
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params, State, Transition};
 use firmware::controller::{Command, Controller, FaultFlags, Limits, Policy, Sensed};
+use firmware::estimator::Estimate;
 use firmware::link::LinkSensor;
 use firmware::loopback::{Pins, duty, pins};
 use firmware::rig::Options;
@@ -91,13 +92,15 @@ pub fn start_state(seed: u64, episode: u64) -> State {
 }
 
 /// The twin's sensor: the link's, which reads what the world measured as the scenario's
-/// board does (the exact state, or counts through its observer or filter).
-pub type TwinSensor = LinkSensor<[f32; 4]>;
+/// board does (the exact state, or counts through its observer or filter), in the format
+/// `O` its network takes: `[f32; 4]`, or Q3.12 for an integer network, as a board hands
+/// its observer's estimate over.
+pub type TwinSensor<O = [f32; 4]> = LinkSensor<O>;
 
 /// The sensor of `scenario`'s board, refused as the firmware refuses its observer or
 /// filter; with `watch`, its observer watches for frozen encoders
 /// ([`firmware::estimator::Observer::watching`]).
-pub fn sensor(scenario: &Scenario, watch: bool) -> Result<TwinSensor, ConfigError> {
+pub fn sensor<O: Estimate>(scenario: &Scenario, watch: bool) -> Result<TwinSensor<O>, ConfigError> {
     let rig = &scenario.rig;
     LinkSensor::new(scenario.sensing, rig, || {
         let o = rig.observer()?;
@@ -135,22 +138,23 @@ impl Scenario {
     /// Whether the firmware builds this scenario's board: its sensor (the observer or
     /// filter of its encoders), its limits and its predictor.
     pub fn check_board(&self) -> Result<(), ConfigError> {
-        sensor(self, false)?;
+        sensor::<[f32; 4]>(self, false)?;
         self.rig.limits()?;
         self.rig.predictor()?;
         Ok(())
     }
 }
 
-/// An episode in progress: a world and the firmware's controller closed around it.
-pub struct Episode<'s, P: Policy, R> {
+/// An episode in progress: a world and the firmware's controller closed around it, its
+/// readings in the format `O`.
+pub struct Episode<'s, P: Policy<O>, R, O: Estimate = [f32; 4]> {
     pub(crate) world: World<'s, R>,
-    pub(crate) controller: Controller<P, TwinSensor, Pins>,
+    pub(crate) controller: Controller<P, TwinSensor<O>, Pins>,
     /// Whether the observer watches for frozen encoders (kept across a `reset` fault).
     watch: bool,
 }
 
-impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
+impl<'s, P: Policy<O>, R: Rng, O: Estimate> Episode<'s, P, R, O> {
     /// Starts `policy` on a world of `scenario` (see [`World::start`]), with the board's
     /// `aids` (a `bool` says whether it is told its dead time).
     pub fn start(
@@ -182,7 +186,7 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
 
     /// The first half of [`Episode::decide`]: the board restarted if a fault says so, the
     /// world measured, and the controller's reading of it (what its policy will be shown).
-    pub fn sense(&mut self) -> Sensed<[f32; 4]> {
+    pub fn sense(&mut self) -> Sensed<O> {
         let scenario = self.world.scenario();
         if scenario.faults.resets(self.world.steps()) {
             *self.controller.sensor_mut() = sensor(scenario, self.watch).expect(CHECKED);
@@ -196,11 +200,7 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     /// The second half of the period with the action decided outside the controller (a
     /// learner exploring, an agent): `decide` is asked only where the policy would drive
     /// ([`Controller::act_with`]).
-    pub fn act_with(
-        &mut self,
-        sensed: Sensed<[f32; 4]>,
-        decide: impl FnOnce(&[f32; 4]) -> usize,
-    ) -> Command {
+    pub fn act_with(&mut self, sensed: Sensed<O>, decide: impl FnOnce(&O) -> usize) -> Command {
         let command = self.controller.act_with(sensed, decide);
         self.overran();
         command
@@ -238,12 +238,12 @@ impl<'s, P: Policy, R: Rng> Episode<'s, P, R> {
     }
 
     /// The controller.
-    pub fn controller(&self) -> &Controller<P, TwinSensor, Pins> {
+    pub fn controller(&self) -> &Controller<P, TwinSensor<O>, Pins> {
         &self.controller
     }
 }
 
-impl<P: Policy, R: Rng> Episode<'_, P, R> {
+impl<P: Policy<O>, R: Rng, O: Estimate> Episode<'_, P, R, O> {
     /// The controller's period on this period's measurement: what it commands. A `reset`
     /// fault restarts the controller first; a `late` one counts an overrun after.
     pub fn decide(&mut self) -> Command {
@@ -252,7 +252,7 @@ impl<P: Policy, R: Rng> Episode<'_, P, R> {
     }
 
     /// The second half of [`Episode::decide`] on what [`Episode::sense`] found.
-    pub fn act(&mut self, sensed: Sensed<[f32; 4]>) -> Command {
+    pub fn act(&mut self, sensed: Sensed<O>) -> Command {
         let command = self.controller.act(sensed);
         self.overran();
         command
@@ -324,14 +324,14 @@ impl Tally {
 }
 
 /// Episode `episode` of `seed` started: its start, noise and push streams.
-pub fn start_episode<'s, P: Policy>(
+pub fn start_episode<'s, P: Policy<O>, O: Estimate>(
     policy: P,
     scenario: &'s Scenario,
     horizon: u32,
     seed: u64,
     episode: u64,
     aids: Aids,
-) -> Episode<'s, P, Pcg64Mcg> {
+) -> Episode<'s, P, Pcg64Mcg, O> {
     let streams = (
         episode_rng(seed, episode, Stream::Noise),
         episode_rng(seed, episode, Stream::Pushes),
@@ -345,7 +345,7 @@ pub fn start_episode<'s, P: Policy>(
 /// `bool` says whether the controller is told the scenario's dead time and decides on the
 /// state its command will meet, [`firmware::controller::predict`]). `on_frame` sees every
 /// period.
-pub fn run_episode<P: Policy>(
+pub fn run_episode<P: Policy<O>, O: Estimate>(
     policy: P,
     scenario: &Scenario,
     horizon: u32,
@@ -367,7 +367,7 @@ pub fn run_episode<P: Policy>(
             let state = ep.world().state();
             let p = &ep.world().scenario().params;
             tally.period(p, (command, ep.fallback()), &state, t);
-            let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs);
+            let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs.state());
             on_frame(Frame {
                 state,
                 command,
@@ -381,7 +381,7 @@ pub fn run_episode<P: Policy>(
 /// [`run_episode`] for every episode of `episodes`, side by side
 /// ([`crate::lockstep::run_lockstep`]), each
 /// with the policy `policy(episode)` makes; the statistics in the episodes' order.
-pub fn run_episodes<P: Policy>(
+pub fn run_episodes<P: Policy<O>, O: Estimate>(
     mut policy: impl FnMut(u64) -> P,
     scenario: &Scenario,
     horizon: u32,

@@ -15,13 +15,13 @@ pub trait Reading: Copy {
     fn flags(&self, limits: &Limits) -> FaultFlags;
     /// The reading advanced over `p`'s dead time.
     fn predicted(&self, p: &Predictor) -> Self;
-    /// Linear state feedback `u = -gain . self` (in SI units): the LQR's command.
-    fn lqr(&self, gain: &[f32; OBS_DIM]) -> f32;
-}
-
-/// `-gain . s`, summed in channel order.
-fn lqr(s: &[f32; OBS_DIM], gain: &[f32; OBS_DIM]) -> f32 {
-    s.iter().zip(gain).map(|(s, k)| -k * s).sum()
+    /// The reading in SI units.
+    fn state(&self) -> [f32; OBS_DIM];
+    /// Linear state feedback `u = -gain . self` (in SI units, summed in channel order): the
+    /// LQR's command.
+    fn lqr(&self, gain: &[f32; OBS_DIM]) -> f32 {
+        self.state().iter().zip(gain).map(|(s, k)| -k * s).sum()
+    }
 }
 
 impl Reading for [f32; OBS_DIM] {
@@ -44,8 +44,8 @@ impl Reading for [f32; OBS_DIM] {
         p.predict(self)
     }
 
-    fn lqr(&self, gain: &[f32; OBS_DIM]) -> f32 {
-        lqr(self, gain)
+    fn state(&self) -> [f32; OBS_DIM] {
+        *self
     }
 }
 
@@ -71,8 +71,8 @@ impl Reading for [i16; OBS_DIM] {
         fixed::from_state(&p.predict(&fixed::to_state(self)))
     }
 
-    /// In f32 (exact from Q3.12): four products once a period, and only in the fallback.
-    fn lqr(&self, gain: &[f32; OBS_DIM]) -> f32 {
-        lqr(&fixed::to_state(self), gain)
+    /// Exact: every Q3.12 value is an f32.
+    fn state(&self) -> [f32; OBS_DIM] {
+        fixed::to_state(self)
     }
 }

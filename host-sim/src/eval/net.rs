@@ -58,6 +58,18 @@ impl Scores for Outputs<f32> {
     }
 }
 
+/// As a board's integer network: its largest output, whatever the values.
+impl Scores for Outputs<i32> {
+    const UNSCORED: Outputs<i32> = Outputs {
+        q: [0; MAX_OUTPUTS],
+        n: 0,
+    };
+    fn choice(&self) -> Option<usize> {
+        let q = self.values();
+        (!q.is_empty()).then(|| argmax(q))
+    }
+}
+
 /// A [`QMlp`] of some shape, behind one type.
 trait IntForward: fmt::Debug + Send + Sync {
     fn forward(&self, obs: &[i16; 4]) -> Outputs<i32>;
@@ -192,8 +204,9 @@ impl Policy for &Net {
     }
 }
 
-/// The integer network of a [`Net`] as a controller's policy: the reading rounded to Q3.12,
-/// the scores the integer outputs (exact in f32, see `firmware::controller`).
+/// The integer network of a [`Net`] as a board's controller runs it: on the reading in
+/// Q3.12 (the observer's estimate rounded, then the predictor on it), its scores the
+/// integer outputs.
 #[derive(Clone, Copy, Debug)]
 pub struct IntNet<'a>(&'a dyn IntForward, &'a [Duty]);
 
@@ -204,15 +217,11 @@ impl<'a> IntNet<'a> {
     }
 }
 
-impl Policy for IntNet<'_> {
-    type Scores = Outputs<f32>;
+impl Policy<[i16; 4]> for IntNet<'_> {
+    type Scores = Outputs<i32>;
     #[inline]
-    fn scores(&mut self, obs: &[f32; 4]) -> Outputs<f32> {
-        let q = self.0.forward(&firmware::fixed::from_state(obs));
-        Outputs {
-            q: q.q.map(|v| v as f32),
-            n: q.n,
-        }
+    fn scores(&mut self, obs: &[i16; 4]) -> Outputs<i32> {
+        self.0.forward(obs)
     }
     fn duty(&self, i: usize) -> Option<Duty> {
         self.1.get(i).copied()
