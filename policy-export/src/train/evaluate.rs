@@ -340,8 +340,8 @@ mod tests {
             let rng = |i: usize| host_common::seed::rng(3, e, streams.streams[i] as u64);
             let scenario = domain.sample(&mut rng(0));
             let (start, pair) = (&mut rng(1), (rng(2), rng(3)));
-            let ep = Episode::<_, _, [f32; 4]>::start;
-            let mut ep = ep(&POLICY_INT, &scenario, max_steps, start, pair, false);
+            let mut ep: Episode<_, _, [f32; 4]> =
+                Episode::start(&POLICY_INT, &scenario, max_steps, start, pair, false);
             let mut previous = 0.0;
             loop {
                 let duty = f64::from(ep.decide().level());
