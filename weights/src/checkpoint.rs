@@ -37,7 +37,7 @@ use std::path::Path;
 
 use firmware::network::{OBS_DIM, TENSOR_NAMES};
 
-pub use safetensors_file::{LEVELS_KEY, MAX_HEADER_BYTES, to_safetensors};
+pub use safetensors_file::{MAX_HEADER_BYTES, to_safetensors};
 use state_dict::{StateDict, shape_text, to_f32};
 
 use crate::files::{MAX_POLICY_BYTES, read_capped};

@@ -11,8 +11,11 @@ use std::collections::BTreeMap;
 
 use firmware::controller::{Duty, check_levels};
 
-use crate::checkpoint::LEVELS_KEY;
 use crate::{BANG_BANG, Error, Result, few, quote};
+
+/// The safetensors `__metadata__` key of a policy's duty levels (a JSON list of fractions
+/// of the full push), written where they are not the paper's two ([`crate::BANG_BANG`]).
+pub const LEVELS_KEY: &str = "levels";
 
 /// Duty levels given for a policy file, and the argument that gave them (`--levels`,
 /// `levels`), which a refusal names.

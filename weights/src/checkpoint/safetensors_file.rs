@@ -7,6 +7,7 @@ use firmware::network::TENSOR_NAMES;
 use safetensors::tensor::{Dtype as StDtype, Metadata, SafeTensors, TensorView};
 
 use super::state_dict::{Data, Dtype, StateDict, Tensor};
+use crate::levels::LEVELS_KEY;
 use crate::{Error, Result, Weights, excerpt};
 
 /// Largest safetensors header read. The header is JSON listing every tensor; a few hundred
@@ -68,10 +69,6 @@ fn parse(bytes: &[u8]) -> Result<(usize, Metadata)> {
         ))
     })
 }
-
-/// The `__metadata__` key of a policy's duty levels (a JSON list of fractions of the full
-/// push), written where they are not the paper's two ([`crate::BANG_BANG`]).
-pub const LEVELS_KEY: &str = "levels";
 
 /// The trainer's canonical file: tensors `fc1.weight` ... `fc3.bias` in f32, `metadata` in
 /// the header's `__metadata__` with the levels under [`LEVELS_KEY`] where they are not the
