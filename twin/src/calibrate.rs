@@ -15,8 +15,8 @@ use weights::Weights;
 use weights::quant::{Granularity, Quantised, quantise};
 use weights::shape::{ForShape, by_shape};
 
+use crate::lockstep::run_episode;
 use crate::machine::Machine;
-use crate::run::run_episode;
 use crate::scenario::Scenario;
 
 /// Seed of the calibration episodes.

@@ -16,7 +16,8 @@
 //!   the actuator.
 //! - [`run`]: the unchanged firmware controller against a world, through pins and the
 //!   firmware's sensors, with per-episode statistics and seeded streams.
-//! - [`lockstep`]: episodes side by side, their worlds integrated together.
+//! - [`lockstep`]: episodes run to their end, one or side by side, their worlds integrated
+//!   together.
 //! - [`calibrate`]: the observations a policy visits, to quantise it on.
 //! - [`domain`]: distributions over scenarios for domain-randomised training.
 //!
@@ -38,7 +39,8 @@ pub mod startup;
 pub mod world;
 
 pub use domain::Domain;
+pub use lockstep::{run_episode, run_episodes};
 pub use machine::{Integration, Machine};
-pub use run::{Episode, EpisodeStats, Frame, run_episode, run_episodes};
+pub use run::{Episode, EpisodeStats, Frame};
 pub use scenario::{Push, Scenario};
 pub use world::World;

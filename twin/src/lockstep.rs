@@ -1,7 +1,8 @@
-//! Episodes side by side: several episodes advanced period by period together, so that their
-//! worlds' Runge-Kutta integrations, each one long chain of dependent operations, run
-//! interleaved ([`crate::machine::rk4_lanes`]). Every episode's periods are the ones it has
-//! alone, bit for bit; only the time changes.
+//! Episodes run to their end ([`run_episode`], [`run_episodes`]), side by side: several
+//! episodes advanced period by period together, so that their worlds' Runge-Kutta
+//! integrations, each one long chain of dependent operations, run interleaved
+//! ([`crate::machine::rk4_lanes`]). Every episode's periods are the ones it has alone, bit
+//! for bit; only the time changes.
 
 use firmware::cartpole::{State, Transition};
 use firmware::controller::{Command, Policy};
@@ -10,7 +11,8 @@ use firmware::loopback::duty;
 use rand_core::Rng;
 
 use crate::machine::{Lane, rk4_lanes};
-use crate::run::Episode;
+use crate::run::{Aids, Episode, EpisodeStats, Frame, Tally, start_episode};
+use crate::scenario::Scenario;
 use crate::world::Drive;
 
 /// How many episodes [`run_lockstep`] keeps in flight: enough worlds to fill the widest
@@ -148,4 +150,71 @@ fn integrate<P: Policy<O>, R: Rng, O: Estimate>(
         }
         rest = tail;
     }
+}
+
+/// Runs one episode of `policy` under `scenario` for at most `horizon` periods from the
+/// Gymnasium-style random start of (`seed`, `episode`), with the board's `aids` ([`Aids`]; a
+/// `bool` says whether the controller is told the scenario's dead time and decides on the
+/// state its command will meet, [`firmware::controller::predict`]). `on_frame` sees every
+/// period.
+pub fn run_episode<P: Policy<O>, O: Estimate>(
+    policy: P,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episode: u64,
+    aids: impl Into<Aids>,
+    mut on_frame: impl FnMut(Frame),
+) -> EpisodeStats {
+    let aids = aids.into();
+    let mut policy = Some(policy);
+    let mut tally = Tally::default();
+    run_lockstep(
+        1,
+        |_| {
+            let p = policy.take().expect("one episode");
+            start_episode(p, scenario, horizon, seed, episode, aids)
+        },
+        |_, ep, command, t| {
+            let state = ep.world().state();
+            let p = &ep.world().scenario().params;
+            tally.period(p, (command, ep.fallback()), &state, t);
+            let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs.state());
+            on_frame(Frame {
+                state,
+                command,
+                reading,
+            });
+        },
+    );
+    tally.stats()
+}
+
+/// [`run_episode`] for every episode of `episodes`, side by side
+/// ([`crate::lockstep::run_lockstep`]), each
+/// with the policy `policy(episode)` makes; the statistics in the episodes' order.
+pub fn run_episodes<P: Policy<O>, O: Estimate>(
+    mut policy: impl FnMut(u64) -> P,
+    scenario: &Scenario,
+    horizon: u32,
+    seed: u64,
+    episodes: core::ops::Range<u64>,
+    aids: impl Into<Aids>,
+) -> Vec<EpisodeStats> {
+    let aids = aids.into();
+    let first = episodes.start;
+    let n = (episodes.end.saturating_sub(first)) as usize;
+    let mut tallies: Vec<Tally> = (0..n).map(|_| Tally::default()).collect();
+    run_lockstep(
+        n,
+        |i| {
+            let e = first + i as u64;
+            start_episode(policy(e), scenario, horizon, seed, e, aids)
+        },
+        |i, ep, command, t| {
+            let (p, s) = (&ep.world().scenario().params, ep.world().state());
+            tallies[i].period(p, (command, ep.fallback()), &s, t)
+        },
+    );
+    tallies.into_iter().map(|t| t.stats()).collect()
 }

@@ -17,7 +17,6 @@ use firmware::rig::Options;
 use rand_core::Rng;
 use rand_pcg::Pcg64Mcg;
 
-use crate::lockstep::run_lockstep;
 use crate::scenario::Scenario;
 use crate::world::World;
 
@@ -84,7 +83,7 @@ pub fn episode_rng(seed: u64, episode: u64, stream: Stream) -> Pcg64Mcg {
     host_common::seed::rng(seed, episode, stream as u64)
 }
 
-/// The start state of episode `episode` of `seed`, as [`run_episode`] draws it.
+/// The start state of episode `episode` of `seed`, as [`crate::lockstep::run_episode`] draws it.
 pub fn start_state(seed: u64, episode: u64) -> State {
     let mut plant = CartPole::new(Default::default(), 1);
     plant.reset(&mut episode_rng(seed, episode, Stream::Start));
@@ -338,73 +337,6 @@ pub fn start_episode<'s, P: Policy<O>, O: Estimate>(
     );
     let mut start = episode_rng(seed, episode, Stream::Start);
     Episode::start(policy, scenario, horizon, &mut start, streams, aids)
-}
-
-/// Runs one episode of `policy` under `scenario` for at most `horizon` periods from the
-/// Gymnasium-style random start of (`seed`, `episode`), with the board's `aids` ([`Aids`]; a
-/// `bool` says whether the controller is told the scenario's dead time and decides on the
-/// state its command will meet, [`firmware::controller::predict`]). `on_frame` sees every
-/// period.
-pub fn run_episode<P: Policy<O>, O: Estimate>(
-    policy: P,
-    scenario: &Scenario,
-    horizon: u32,
-    seed: u64,
-    episode: u64,
-    aids: impl Into<Aids>,
-    mut on_frame: impl FnMut(Frame),
-) -> EpisodeStats {
-    let aids = aids.into();
-    let mut policy = Some(policy);
-    let mut tally = Tally::default();
-    run_lockstep(
-        1,
-        |_| {
-            let p = policy.take().expect("one episode");
-            start_episode(p, scenario, horizon, seed, episode, aids)
-        },
-        |_, ep, command, t| {
-            let state = ep.world().state();
-            let p = &ep.world().scenario().params;
-            tally.period(p, (command, ep.fallback()), &state, t);
-            let reading = ep.controller().last().map_or([0.0; 4], |r| r.obs.state());
-            on_frame(Frame {
-                state,
-                command,
-                reading,
-            });
-        },
-    );
-    tally.stats()
-}
-
-/// [`run_episode`] for every episode of `episodes`, side by side
-/// ([`crate::lockstep::run_lockstep`]), each
-/// with the policy `policy(episode)` makes; the statistics in the episodes' order.
-pub fn run_episodes<P: Policy<O>, O: Estimate>(
-    mut policy: impl FnMut(u64) -> P,
-    scenario: &Scenario,
-    horizon: u32,
-    seed: u64,
-    episodes: core::ops::Range<u64>,
-    aids: impl Into<Aids>,
-) -> Vec<EpisodeStats> {
-    let aids = aids.into();
-    let first = episodes.start;
-    let n = (episodes.end.saturating_sub(first)) as usize;
-    let mut tallies: Vec<Tally> = (0..n).map(|_| Tally::default()).collect();
-    run_lockstep(
-        n,
-        |i| {
-            let e = first + i as u64;
-            start_episode(policy(e), scenario, horizon, seed, e, aids)
-        },
-        |i, ep, command, t| {
-            let (p, s) = (&ep.world().scenario().params, ep.world().state());
-            tallies[i].period(p, (command, ep.fallback()), &s, t)
-        },
-    );
-    tallies.into_iter().map(|t| t.stats()).collect()
 }
 
 #[cfg(test)]

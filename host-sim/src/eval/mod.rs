@@ -15,8 +15,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::ops::Range;
 
-use twin::run::{Aids, Stream, episode_rng, run_episode, run_episodes};
+use twin::run::{Aids, Stream, episode_rng};
 use twin::{EpisodeStats, Frame, Scenario};
+use twin::{run_episode, run_episodes};
 
 use crate::baselines::{AngleRule, LinearLqr, Lqr, Random};
 

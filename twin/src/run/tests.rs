@@ -1,4 +1,5 @@
 use super::*;
+use crate::lockstep::{run_episode, run_episodes};
 use firmware::Action;
 use firmware::cartpole::{Params, advance};
 use firmware::controller::{Duty, Levels};
