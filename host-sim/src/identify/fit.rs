@@ -21,9 +21,9 @@ use std::ops::Range;
 use firmware::cartpole::Params;
 use twin::Machine;
 
+use super::channel::{Channel, ROUNDING_SD, WINDOW_S};
 use super::lm::{Problem, Residuals, Solution};
 use super::log::Log;
-use super::misfit::{Channel, ROUNDING_SD, WINDOW_S};
 use super::model::{self, CartData, SHARED, Setup, SwingData, Weights};
 use super::{pieces, start};
 

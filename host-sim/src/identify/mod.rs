@@ -18,10 +18,12 @@
 //!
 //! - [`log`]: the logs read and checked.
 //! - [`model`]: the experiments as the fit simulates them; [`pieces`], the cart logs' pieces.
+//! - [`channel`]: one encoder's residuals in a fitted log, and their figures.
 //! - [`misfit`]: whether the fit can be trusted, and the logs of a pole read inverted.
 //! - [`synthetic`]: the board's experiments run against a simulated machine.
 //! - [`report`]: the estimates printed, the identified rig file, the plots.
 
+pub mod channel;
 pub mod fit;
 pub mod lm;
 pub mod log;
