@@ -2,6 +2,8 @@
 //!
 //! - [`config`]: every hyperparameter, the paper and robust presets, validation.
 //! - [`nn`]: batched forward, backward, clipping and Adam for the 4-H-H-2 network.
+//! - [`reward`]: the learning reward's grammar and terms, and the prices the selection
+//!   judges snapshots at.
 //! - [`train`]: the Double DQN / DQN loop, replay buffer, learner and evaluation.
 //! - [`run`]: the run directory (metrics, summary, policy files).
 //! - [`export`]: a network as Rust or C source, float or int8, for its rig.
@@ -23,5 +25,6 @@ pub mod export;
 pub mod nn;
 pub mod outdir;
 pub mod reproduce;
+pub mod reward;
 pub mod run;
 pub mod train;

@@ -8,7 +8,7 @@ use super::Config;
 /// can only balance by full pushes reversed every few periods (`docs/RIGS.md`).
 pub const RIG_LEVELS: &str = "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1";
 
-/// What the recipe's learner pays for driving a rig's motor (`train::Reward`), beside the
+/// What the recipe's learner pays for driving a rig's motor (`reward::Reward`), beside the
 /// pole's lean and the cart's distance: the duty squared and its change from the previous
 /// period, priced for a rig run `rate` times as fast as Gymnasium's 50 Hz. Every other part
 /// is paid each period, so it adds up `rate` times as often in a second; a change of duty is

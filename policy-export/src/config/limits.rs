@@ -41,7 +41,7 @@ pub enum Limit {
     Clip,
     /// A domain spec `twin::Domain::parse` accepts.
     Domain,
-    /// A learning-reward spec `train::Reward::parse` accepts.
+    /// A learning-reward spec `reward::Reward::parse` accepts.
     Reward,
     /// A rig file's text `twin::rigfile::parse` accepts, or nothing.
     Rig,
@@ -172,7 +172,7 @@ impl Limit {
                 &format_args!("{x:?}"),
             ),
             (Limit::Domain, Value::Text(s)) => parsed(twin::Domain::parse(s).map(drop)),
-            (Limit::Reward, Value::Text(s)) => parsed(crate::train::Reward::parse(s).map(drop)),
+            (Limit::Reward, Value::Text(s)) => parsed(crate::reward::Reward::parse(s).map(drop)),
             (Limit::Rig, Value::Text("")) => Ok(()),
             (Limit::Rig, Value::Text(s)) => parsed(
                 twin::rigfile::parse(s, "rig")

@@ -284,7 +284,7 @@ config_keys! {
         /// the deployed controller does (`firmware::controller::predict`).
         #[serde(default)]
         compensate: bool = false;
-        /// The learning reward (`train::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
+        /// The learning reward (`reward::Reward`: `env`, `morvan`, `upright=W`, `centre=W`,
         /// `fail-penalty=V`, `scale=K`, joined by `+`); empty: the task's own +1 per step.
         #[serde(default)]
         reward: String = String::new(), limit Limit::Reward;

@@ -26,13 +26,13 @@ use twin::{Episode, Scenario};
 use weights::Weights;
 
 use super::evaluate::Judge;
-use super::reward::Drive;
 use super::select::Selection;
 use super::{
     EpisodeRecord, Learner, ReplayBuffer, Reward, RunResult, Stream, Training, domains, epsilon,
     rng,
 };
 use crate::config::{Config, TargetUpdate, Unit};
+use crate::reward::Drive;
 
 /// One run: episodes in worlds drawn from the training domain until the episode count or
 /// the step budget is reached, the learner's weights evaluated every `eval_every` episodes,

@@ -14,6 +14,7 @@ use weights::Weights;
 use weights::quant::Granularity;
 
 use super::Stream;
+use crate::reward::Prices;
 
 /// A greedy evaluation's outcome.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -71,26 +72,6 @@ pub struct Judge {
     pub compensate: bool,
     /// What [`EvalResult::cost`] charges.
     pub prices: Prices,
-}
-
-/// The weights of [`EvalResult::cost`]'s terms: the pole's lean, the cart's distance, the
-/// duty's square and its change between periods.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Prices {
-    pub lean: f64,
-    pub distance: f64,
-    pub duty: f64,
-    pub change: f64,
-}
-
-impl Prices {
-    /// Lean, distance and duty alike, changes free: the shipped recipe's selection.
-    pub const PLAIN: Prices = Prices {
-        lean: 1.0,
-        distance: 1.0,
-        duty: 1.0,
-        change: 0.0,
-    };
 }
 
 /// Episodes one task of an evaluation runs through [`twin::lockstep`] at most: enough to

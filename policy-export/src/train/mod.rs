@@ -30,15 +30,12 @@ mod dqn;
 mod evaluate;
 mod learner;
 mod replay;
-mod reward;
 mod select;
 
-pub use evaluate::{
-    EvalResult, EvalStreams, Judge, Prices, evaluate, solved_episode, trailing_means,
-};
+pub use crate::reward::{Prices, Reward};
+pub use evaluate::{EvalResult, EvalStreams, Judge, evaluate, solved_episode, trailing_means};
 pub use learner::{Learner, init_weights, td_targets};
 pub use replay::ReplayBuffer;
-pub use reward::Reward;
 pub use select::TrialRun;
 
 /// Independent random streams of a run, so that changing how often one is drawn from (say,

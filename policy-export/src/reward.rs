@@ -21,7 +21,27 @@
 
 use firmware::cartpole::{Params, State};
 
-use super::evaluate::Prices;
+/// The weights of an evaluation's cost's terms ([`crate::train::EvalResult::cost`]): the
+/// pole's lean, the cart's distance, the duty's square and its change between periods. A
+/// rig's learning reward sets them (`Reward::prices`), so that the selection judges
+/// snapshots at the learner's prices.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Prices {
+    pub lean: f64,
+    pub distance: f64,
+    pub duty: f64,
+    pub change: f64,
+}
+
+impl Prices {
+    /// Lean, distance and duty alike, changes free: the shipped recipe's selection.
+    pub const PLAIN: Prices = Prices {
+        lean: 1.0,
+        distance: 1.0,
+        duty: 1.0,
+        change: 0.0,
+    };
+}
 
 /// What the motor was told in a step, for the effort parts: the period's duty, the previous
 /// period's (0 before the first) and the cart's speed as the period started.
