@@ -2,6 +2,7 @@
 //! on a run's returns.
 
 use firmware::controller::{Greedy, Levels, Policy};
+use firmware::estimator::Estimate;
 use firmware::network::Mlp;
 use firmware::network::int::QMlp;
 use host_common::wide::WideMlp;
@@ -90,13 +91,12 @@ pub fn evaluate<const H: usize, const A: usize>(
     streams: EvalStreams,
 ) -> EvalResult {
     let wide = WideMlp::new(net, levels);
-    evaluate_policy(&*wide, episodes, max_steps, domain, judge, streams)
+    evaluate_policy::<_, [f32; 4]>(&*wide, episodes, max_steps, domain, judge, streams)
 }
 
 /// `net` quantised as `policy-export export --quant int8` quantises the policy file of it for
 /// `machine` (the default granularity, calibrated on `machine`'s worlds): the integers an
-/// int8 board runs. `Greedy { net: &*q, levels }` is then that board's policy on a float
-/// reading, rounded to Q3.12 as the board's sensor rounds it (`firmware::controller`).
+/// int8 board runs.
 pub fn quantised<const H: usize, const A: usize>(
     (net, levels): (&Mlp<H, A>, Levels<A>),
     machine: &Machine,
@@ -105,8 +105,10 @@ pub fn quantised<const H: usize, const A: usize>(
     twin::calibrate::quantise_policy(&w, Granularity::default(), machine)?.to_qmlp::<H, A>()
 }
 
-/// [`evaluate`] with the integer network `q` on `levels`, on the same episodes: the same
-/// streams give the same worlds, starts, noise and pushes as the float network met.
+/// [`evaluate`] with the integer network `q` on `levels`, on the same episodes, as an
+/// integer board runs it: its sensor hands over the estimate in Q3.12, and the predictor
+/// and the network run on that reading. The same streams give the same worlds, starts,
+/// noise and pushes as the float network met.
 pub fn evaluate_int<const H: usize, const A: usize>(
     (q, levels): (&QMlp<H, A>, Levels<A>),
     episodes: usize,
@@ -116,11 +118,11 @@ pub fn evaluate_int<const H: usize, const A: usize>(
     streams: EvalStreams,
 ) -> EvalResult {
     let policy = Greedy { net: q, levels };
-    evaluate_policy(policy, episodes, max_steps, domain, judge, streams)
+    evaluate_policy::<_, [i16; 4]>(policy, episodes, max_steps, domain, judge, streams)
 }
 
-/// [`evaluate`]'s episodes with any policy a controller runs.
-fn evaluate_policy<P: Policy + Copy + Send + Sync>(
+/// [`evaluate`]'s episodes with any policy a controller runs, on readings of format `O`.
+fn evaluate_policy<P: Policy<O> + Copy + Send + Sync, O: Estimate>(
     policy: P,
     episodes: usize,
     max_steps: u32,
@@ -212,13 +214,51 @@ mod tests {
         assert!(*q == POLICY_INT);
     }
 
+    /// The returns of the committed int8 network's episodes of `streams`, one at a time, on
+    /// readings of format `O`.
+    fn by_hand<O: Estimate>(
+        domain: &Domain,
+        streams: EvalStreams,
+        episodes: usize,
+        max_steps: u32,
+    ) -> Vec<f64>
+    where
+        &'static QMlp<64>: Policy<O>,
+    {
+        (0..episodes as u64)
+            .map(|e| {
+                let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
+                let scenario = domain.sample(&mut rng(0));
+                let mut ep = Episode::<_, _, O>::start(
+                    &POLICY_INT,
+                    &scenario,
+                    max_steps,
+                    &mut rng(1),
+                    (rng(2), rng(3)),
+                    true,
+                );
+                let mut ret = 0.0;
+                loop {
+                    ep.decide();
+                    let t = ep.apply();
+                    ret += f64::from(t.reward);
+                    if t.terminated || t.truncated {
+                        return ret;
+                    }
+                }
+            })
+            .collect()
+    }
+
     /// The int8 trial's episodes, one at a time and by hand: each world, start, noise and
     /// pushes drawn from the streams the float network's trial draws them from, the
-    /// committed int8 network deciding on the reading rounded to Q3.12.
+    /// committed int8 network deciding on the estimate its sensor hands over in Q3.12.
     #[test]
     fn the_int8_trial_runs_the_integer_board_on_the_float_trials_worlds() {
         let cfg = crate::config::Config::deploy();
-        let domain = Domain::parse_on(&cfg.finalist_domain, &Machine::GYMNASIUM).unwrap();
+        // With a period of dead time, so that the predictor runs on the reading.
+        let spec = format!("{}+delay=1", cfg.finalist_domain);
+        let domain = Domain::parse_on(&spec, &Machine::GYMNASIUM).unwrap();
         let streams = EvalStreams {
             seed: 7,
             streams: [
@@ -238,29 +278,7 @@ mod tests {
         // Cut into other chunks (33 episodes run as 17 and 16), the first 33 episodes give
         // the figures of the same 33 run one at a time below.
         let first = evaluate_int(int, 33, max_steps, &domain, judge, streams);
-        let returns: Vec<f64> = (0..episodes as u64)
-            .map(|e| {
-                let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
-                let scenario = domain.sample(&mut rng(0));
-                let mut ep = Episode::<_, _, [f32; 4]>::start(
-                    &POLICY_INT,
-                    &scenario,
-                    max_steps,
-                    &mut rng(1),
-                    (rng(2), rng(3)),
-                    true,
-                );
-                let mut ret = 0.0;
-                loop {
-                    ep.decide();
-                    let t = ep.apply();
-                    ret += f64::from(t.reward);
-                    if t.terminated || t.truncated {
-                        return ret;
-                    }
-                }
-            })
-            .collect();
+        let returns = by_hand::<[i16; 4]>(&domain, streams, episodes, max_steps);
         let figures = |r: &[f64]| {
             let mean = r.iter().sum::<f64>() / r.len() as f64;
             (mean, r.iter().copied().fold(f64::INFINITY, f64::min))
@@ -286,6 +304,12 @@ mod tests {
             streams,
         );
         assert_ne!(float, res);
+        // A reading rounded after the predictor, as a float board hands it over, is not
+        // what the integer board decides on.
+        assert_ne!(
+            by_hand::<[f32; 4]>(&domain, streams, episodes, max_steps),
+            returns
+        );
     }
 
     /// A change of duty costs what the judge prices it at: the cost with a price of 2 is the
@@ -321,7 +345,7 @@ mod tests {
             let rng = |i: usize| host_common::seed::rng(3, e, streams.streams[i] as u64);
             let scenario = domain.sample(&mut rng(0));
             let (start, pair) = (&mut rng(1), (rng(2), rng(3)));
-            let mut ep: Episode<_, _, [f32; 4]> =
+            let mut ep: Episode<_, _, [i16; 4]> =
                 Episode::start(&POLICY_INT, &scenario, max_steps, start, pair, false);
             let mut previous = 0.0;
             loop {
