@@ -241,6 +241,11 @@ config_keys! {
         /// than the best so far: the selection says the policy is done; 0 never stops so.
         #[serde(default)]
         patience: usize = 0, limit Limit::Count(0..=1_000_000);
+        /// Stop early once this many periodic evaluations in a row were perfect: the
+        /// policy has held every episode of the worlds it is chosen on for a while; 0 never
+        /// stops so.
+        #[serde(default)]
+        settle: usize = 0, limit Limit::Count(0..=1_000_000);
         /// Fresh greedy episodes that score the exported policy at the end of a run.
         final_eval_episodes: usize = 100, limit Limit::Count(1..=100_000);
         /// How many of the best periodic snapshots a longer trial chooses the policy among, so
@@ -320,8 +325,9 @@ impl Config {
     }
 
     /// The configuration as the project's files record it (policy files, the reproduction's
-    /// results): every key, but `board_int8` and `trial_margin` while they are off, so the
-    /// files of runs that use neither keep the bytes they had before the keys existed.
+    /// results): every key, but `board_int8`, `trial_margin` and `settle` while they are
+    /// off, so the files of runs that use none of them keep the bytes they had before the
+    /// keys existed.
     pub fn recorded(&self) -> serde_json::Result<serde_json::Value> {
         let mut v = serde_json::to_value(self)?;
         if let Some(map) = v.as_object_mut() {
@@ -330,6 +336,9 @@ impl Config {
             }
             if self.trial_margin == 0.0 {
                 map.remove("trial_margin");
+            }
+            if self.settle == 0 {
+                map.remove("settle");
             }
         }
         Ok(v)

@@ -66,6 +66,8 @@ pub(super) fn run<const H: usize, const A: usize>(
     };
     let mut selection = Selection::new(cfg, seed, &d, levels, judge);
     let mut records = Vec::with_capacity(cfg.episodes);
+    // Periodic evaluations in a row that were perfect.
+    let mut settled = 0;
     for ep in 0..cfg.episodes {
         let scenario = d.train.sample(&mut domain_rng);
         let (mut rec, spent) = r.episode(&mut worlds, ep, &scenario)?;
@@ -76,7 +78,9 @@ pub(super) fn run<const H: usize, const A: usize>(
         let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
         if due {
             let perfect = selection.periodic(&r.learner, ep + 1);
-            let done = cfg.patience > 0 && selection.stale() >= cfg.patience;
+            settled = if perfect { settled + 1 } else { 0 };
+            let done = (cfg.patience > 0 && selection.stale() >= cfg.patience)
+                || (cfg.settle > 0 && settled >= cfg.settle);
             if (perfect && cfg.stop_when_perfect) || done {
                 break;
             }

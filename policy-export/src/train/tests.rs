@@ -2,6 +2,8 @@ use super::*;
 use crate::config::{KernelChoice, Unit};
 use firmware::network::Mlp;
 
+mod stopping;
+
 #[test]
 fn epsilon_follows_the_papers_schedule() {
     let c = Config::paper();
@@ -11,7 +13,7 @@ fn epsilon_follows_the_papers_schedule() {
     assert!((epsilon(&c, 1e5) - 0.01).abs() < 1e-15);
 }
 
-fn small(kernel: KernelChoice) -> Config {
+pub(super) fn small(kernel: KernelChoice) -> Config {
     Config {
         episodes: 40,
         kernel,
@@ -453,36 +455,4 @@ fn the_tail_is_the_online_nets_and_a_failed_episode_has_none() {
     for e in r.episodes.iter().filter(|e| e.length < 200) {
         assert_eq!(e.mean_discounted_return, (f64::from(e.length) + 1.0) / 2.0);
     }
-}
-
-#[test]
-fn patience_stops_the_run_when_the_evaluations_stop_finding_better() {
-    let cfg = Config {
-        eval_every: 1,
-        eval_episodes: 2,
-        eval_max_steps: 60,
-        patience: 3,
-        episodes: 200,
-        ..small(KernelChoice::Auto)
-    };
-    let run = train(&cfg, 5, &mut |_| {}).unwrap();
-    // Replayed from the recorded evaluations: the first one three after the last best.
-    let mut best: Option<&EvalResult> = None;
-    let mut stale = 0;
-    let mut stop = None;
-    for (i, (_, res)) in run.evals.iter().enumerate() {
-        if best.is_none_or(|b| res.beats(b)) {
-            (best, stale) = (Some(res), 0);
-        } else {
-            stale += 1;
-        }
-        if stale == 3 {
-            stop = Some(i);
-            break;
-        }
-    }
-    let stop = stop.expect("the evaluations went stale within the run");
-    assert_eq!(run.evals.len(), stop + 1);
-    assert_eq!(run.episodes.len(), run.evals[stop].0);
-    assert!(run.episodes.len() < 200);
 }
