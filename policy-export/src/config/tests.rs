@@ -384,11 +384,14 @@ fn the_deploy_recipe_is_made_for_its_machine() {
     // second as at 50 Hz: a change of duty weighs twice beside the per-period parts, and
     // the discount reaches as many seconds ahead (0.99 per 20 ms).
     assert_eq!(d.levels, "-1,-0.4,-0.15,-0.05,0,0.05,0.15,0.4,1");
-    assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=4");
+    assert_eq!(d.reward, "upright=20+centre=5+effort=1+smooth=40");
     assert!((d.gamma * d.gamma - 0.99).abs() < 1e-15, "{}", d.gamma);
     assert_eq!(g.gamma, 0.99);
-    // And judged as each of its boards runs it.
+    // And judged as each of its boards runs it, stopping once settled, on a shorter trial
+    // than the shipped policy's.
     assert!(d.board_int8);
+    assert_eq!((d.settle, d.finalists, d.finalist_episodes), (5, 8, 25));
+    assert_eq!((g.settle, g.finalists, g.finalist_episodes), (0, 20, 50));
     d.validate().unwrap();
 }
 
