@@ -227,7 +227,7 @@ mod tests {
     {
         (0..episodes as u64)
             .map(|e| {
-                let rng = |i: usize| host_common::seed::rng(7, e, streams.streams[i] as u64);
+                let rng = |i: usize| streams.rng(e, i);
                 let scenario = domain.sample(&mut rng(0));
                 let mut ep = Episode::<_, _, O>::start(
                     &POLICY_INT,
