@@ -18,7 +18,7 @@ use firmware::cartpole::{State, Transition};
 use firmware::controller::{Command, Duty, Policy, Sensed};
 use rand_pcg::Pcg64Mcg;
 use self_cell::self_cell;
-use twin::run::{Aids, Episode, Tally, start_episode};
+use twin::run::{Aids, Draws, Episode, Tally};
 use twin::{Domain, EpisodeStats, Scenario};
 
 /// The seeded stream a domain's world is drawn from, after the four of `twin::run::Stream`.
@@ -123,7 +123,7 @@ impl Lane {
     ) -> Lane {
         let scenario = worlds.scenario(seed, episode);
         let mut live = Live::new(scenario, |s| {
-            start_episode(levels.clone(), s, horizon, seed, episode, aids)
+            Draws::of(seed).episode(levels.clone(), s, horizon, episode, aids)
         });
         let sensed = live.with_dependent_mut(|_, e| e.sense());
         Lane {

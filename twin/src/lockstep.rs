@@ -11,7 +11,7 @@ use firmware::loopback::duty;
 use rand_core::Rng;
 
 use crate::machine::{Lane, rk4_lanes};
-use crate::run::{Aids, Episode, EpisodeStats, Frame, Tally, start_episode};
+use crate::run::{Aids, Draws, Episode, EpisodeStats, Frame, Tally};
 use crate::scenario::Scenario;
 use crate::world::Drive;
 
@@ -173,7 +173,7 @@ pub fn run_episode<P: Policy<O>, O: Estimate>(
         1,
         |_| {
             let p = policy.take().expect("one episode");
-            start_episode(p, scenario, horizon, seed, episode, aids)
+            Draws::of(seed).episode(p, scenario, horizon, episode, aids)
         },
         |_, ep, command, t| {
             let state = ep.world().state();
@@ -209,7 +209,7 @@ pub fn run_episodes<P: Policy<O>, O: Estimate>(
         n,
         |i| {
             let e = first + i as u64;
-            start_episode(policy(e), scenario, horizon, seed, e, aids)
+            Draws::of(seed).episode(policy(e), scenario, horizon, e, aids)
         },
         |i, ep, command, t| {
             let (p, s) = (&ep.world().scenario().params, ep.world().state());

@@ -78,9 +78,9 @@ pub enum Stream {
     Policy = 4,
 }
 
-/// Stream `stream` of episode `episode` of `seed`.
+/// Stream `stream` of episode `episode` of `seed`, as [`Draws::of`] draws it.
 pub fn episode_rng(seed: u64, episode: u64, stream: Stream) -> Pcg64Mcg {
-    host_common::seed::rng(seed, episode, stream as u64)
+    Draws::of(seed).rng(episode, stream as u64)
 }
 
 /// The start state of episode `episode` of `seed`, as [`crate::lockstep::run_episode`] draws it.
@@ -322,21 +322,64 @@ impl Tally {
     }
 }
 
-/// Episode `episode` of `seed` started: its start, noise and push streams.
-pub fn start_episode<'s, P: Policy<O>, O: Estimate>(
-    policy: P,
-    scenario: &'s Scenario,
-    horizon: u32,
-    seed: u64,
-    episode: u64,
-    aids: Aids,
-) -> Episode<'s, P, Pcg64Mcg, O> {
-    let streams = (
-        episode_rng(seed, episode, Stream::Noise),
-        episode_rng(seed, episode, Stream::Pushes),
-    );
-    let mut start = episode_rng(seed, episode, Stream::Start);
-    Episode::start(policy, scenario, horizon, &mut start, streams, aids)
+/// Where episodes' random draws come from: under a seed, three streams of each episode's
+/// own (its start, its sensor noise, its push sides), indexed by the episode in the
+/// project's one mixer (`host_common::seed`). An episode's draws then do not depend on the
+/// episodes before it, episodes run in any order and in parallel, and every controller given
+/// the same draws meets the same episodes. `host-sim eval`, PIL and the Python environments
+/// draw [`Draws::of`] their seed; training's evaluations draw streams of their own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Draws {
+    /// The seed.
+    pub seed: u64,
+    /// The mixer's stream numbers of the start, the noise and the pushes.
+    pub streams: [u64; 3],
+}
+
+impl Draws {
+    /// The episodes of `seed` that `host-sim eval` runs: [`Stream::Start`],
+    /// [`Stream::Noise`] and [`Stream::Pushes`].
+    pub const fn of(seed: u64) -> Draws {
+        Draws {
+            seed,
+            streams: [
+                Stream::Start as u64,
+                Stream::Noise as u64,
+                Stream::Pushes as u64,
+            ],
+        }
+    }
+
+    /// Stream `stream` of episode `episode`.
+    pub fn rng(&self, episode: u64, stream: u64) -> Pcg64Mcg {
+        host_common::seed::rng(self.seed, episode, stream)
+    }
+
+    /// Episode `episode`'s world of `scenario` (see [`World::start`]), for a controller that
+    /// runs elsewhere.
+    pub fn world<'s>(
+        &self,
+        scenario: &'s Scenario,
+        horizon: u32,
+        episode: u64,
+    ) -> World<'s, Pcg64Mcg> {
+        let [mut start, noise, pushes] = self.streams.map(|s| self.rng(episode, s));
+        World::start(scenario, horizon, &mut start, noise, pushes)
+    }
+
+    /// Episode `episode` started: `policy` on its world of `scenario`, with the board's
+    /// `aids` (see [`Episode::start`]).
+    pub fn episode<'s, P: Policy<O>, O: Estimate>(
+        &self,
+        policy: P,
+        scenario: &'s Scenario,
+        horizon: u32,
+        episode: u64,
+        aids: impl Into<Aids>,
+    ) -> Episode<'s, P, Pcg64Mcg, O> {
+        let [mut start, noise, pushes] = self.streams.map(|s| self.rng(episode, s));
+        Episode::start(policy, scenario, horizon, &mut start, (noise, pushes), aids)
+    }
 }
 
 #[cfg(test)]

@@ -7,8 +7,8 @@ use firmware::controller::FaultFlags;
 use firmware::link::{Format, Info, Reply, Scores, Start, digest};
 use firmware::rig::Rig;
 use serde::Serialize;
-use twin::run::{Stream, Tally, episode_rng};
-use twin::{EpisodeStats, Scenario, World};
+use twin::run::{Draws, Tally};
+use twin::{EpisodeStats, Scenario};
 
 use super::Board;
 use super::link::{Remote, Session};
@@ -134,12 +134,7 @@ pub fn run_row(
     let mut times = Vec::new();
     let mut stats = Vec::with_capacity(episodes as usize);
     for e in 0..episodes {
-        let mut start_rng = episode_rng(seed, e, Stream::Start);
-        let (noise, pushes) = (
-            episode_rng(seed, e, Stream::Noise),
-            episode_rng(seed, e, Stream::Pushes),
-        );
-        let mut world = World::start(scenario, horizon, &mut start_rng, noise, pushes);
+        let mut world = Draws::of(seed).world(scenario, horizon, e);
         let mut tally = Tally::default();
         for k in 0.. {
             let at = || format!("{}, episode {e}, period {k}", scenario.name);

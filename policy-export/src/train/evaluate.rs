@@ -10,7 +10,8 @@ use rand_pcg::Pcg64Mcg;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use twin::lockstep::run_lockstep;
-use twin::{Domain, Episode, Machine, Scenario};
+use twin::run::Draws;
+use twin::{Domain, Machine, Scenario};
 use weights::Weights;
 use weights::quant::Granularity;
 
@@ -47,22 +48,32 @@ impl EvalResult {
     }
 }
 
-/// Where one evaluation's random draws come from: episode `e` draws its world, start, sensor
-/// noise and push sides from four streams of its own, indexed by `e` under the run's seed.
-/// So an episode's draws do not depend on the episodes before it, the episodes can run in
-/// any order (in parallel), and every snapshot evaluated with the same streams meets the same
-/// worlds.
+/// Where one evaluation's random draws come from: episode `e` draws its world from a stream
+/// of its own, and its start, sensor noise and push sides as [`Draws`] say, each indexed by
+/// `e` under the run's seed. So every snapshot evaluated with the same streams meets the same
+/// worlds, in any order of episodes (in parallel).
 #[derive(Clone, Copy, Debug)]
 pub struct EvalStreams {
-    /// The run's seed.
-    pub seed: u64,
-    /// The streams of the world, the start, the noise and the pushes.
-    pub streams: [Stream; 4],
+    /// The stream of the episodes' worlds.
+    pub world: Stream,
+    /// The run's seed and the streams of the starts, the noise and the pushes.
+    pub draws: Draws,
 }
 
 impl EvalStreams {
-    fn rng(&self, episode: u64, which: usize) -> Pcg64Mcg {
-        host_common::seed::rng(self.seed, episode, self.streams[which] as u64)
+    /// The streams of `world`, `start`, `noise` and `pushes` under `seed`.
+    pub fn new(seed: u64, [world, start, noise, pushes]: [Stream; 4]) -> EvalStreams {
+        EvalStreams {
+            world,
+            draws: Draws {
+                seed,
+                streams: [start, noise, pushes].map(|s| s as u64),
+            },
+        }
+    }
+
+    fn world(&self, episode: u64) -> Pcg64Mcg {
+        self.draws.rng(episode, self.world as u64)
     }
 }
 
@@ -140,17 +151,15 @@ fn evaluate_policy<P: Policy<O> + Copy + Send + Sync, O: Estimate>(
             let n = size.min(episodes - first);
             let e = |i: usize| (first + i) as u64;
             let scenarios: Vec<Scenario> = (0..n)
-                .map(|i| domain.sample(&mut streams.rng(e(i), 0)))
+                .map(|i| domain.sample(&mut streams.world(e(i))))
                 .collect();
             // Each episode's return, cost, steps and previous duty.
             let mut sums = vec![(0.0, 0.0, 0u64, 0.0); n];
             run_lockstep(
                 n,
                 |i| {
-                    let pair = (streams.rng(e(i), 2), streams.rng(e(i), 3));
-                    let mut start = streams.rng(e(i), 1);
-                    let s = &scenarios[i];
-                    Episode::start(policy, s, max_steps, &mut start, pair, judge.compensate)
+                    let draws = &streams.draws;
+                    draws.episode(policy, &scenarios[i], max_steps, e(i), judge.compensate)
                 },
                 |i, ep, command, t| {
                     let (p, s) = (&scenarios[i].params, ep.world().state());
@@ -204,6 +213,7 @@ mod tests {
     use super::*;
     use shipped::policy::POLICY;
     use shipped::policy_int::POLICY_INT;
+    use twin::Episode;
 
     /// The trial's quantisation is the exporter's: the shipped policy's committed int8 module
     /// (`policy-export export --quant int8` of it on Gymnasium's machine) is what the trial
@@ -227,14 +237,15 @@ mod tests {
     {
         (0..episodes as u64)
             .map(|e| {
-                let rng = |i: usize| streams.rng(e, i);
-                let scenario = domain.sample(&mut rng(0));
+                let rng = |stream: u64| streams.draws.rng(e, stream);
+                let scenario = domain.sample(&mut rng(streams.world as u64));
+                let [start, noise, pushes] = streams.draws.streams.map(rng);
                 let mut ep = Episode::<_, _, O>::start(
                     &POLICY_INT,
                     &scenario,
                     max_steps,
-                    &mut rng(1),
-                    (rng(2), rng(3)),
+                    &mut { start },
+                    (noise, pushes),
                     true,
                 );
                 let mut ret = 0.0;
@@ -259,15 +270,15 @@ mod tests {
         // With a period of dead time, so that the predictor runs on the reading.
         let spec = format!("{}+delay=1", cfg.finalist_domain);
         let domain = Domain::parse_on(&spec, &Machine::GYMNASIUM).unwrap();
-        let streams = EvalStreams {
-            seed: 7,
-            streams: [
+        let streams = EvalStreams::new(
+            7,
+            [
                 Stream::TrialWorld,
                 Stream::Trial,
                 Stream::TrialNoise,
                 Stream::TrialPushes,
             ],
-        };
+        );
         let (episodes, max_steps) = (40, 400);
         let int = (&POLICY_INT, Levels::BANG_BANG);
         let judge = Judge {
@@ -318,15 +329,13 @@ mod tests {
     #[test]
     fn the_cost_prices_each_change_of_duty() {
         let domain = Domain::parse_on("noise=0..1+push=1.1/50", &Machine::GYMNASIUM).unwrap();
-        let streams = EvalStreams {
-            seed: 3,
-            streams: [
-                Stream::EvalWorld,
-                Stream::Eval,
-                Stream::EvalNoise,
-                Stream::EvalPushes,
-            ],
-        };
+        let order = [
+            Stream::EvalWorld,
+            Stream::Eval,
+            Stream::EvalNoise,
+            Stream::EvalPushes,
+        ];
+        let streams = EvalStreams::new(3, order);
         let (episodes, max_steps) = (20, 300);
         let int = (&POLICY_INT, Levels::BANG_BANG);
         let judged = |change| {
@@ -342,7 +351,7 @@ mod tests {
         let (free, priced) = (judged(0.0), judged(2.0));
         let (mut changes, mut steps) = (0.0, 0u64);
         for e in 0..episodes as u64 {
-            let rng = |i: usize| host_common::seed::rng(3, e, streams.streams[i] as u64);
+            let rng = |i: usize| host_common::seed::rng(3, e, order[i] as u64);
             let scenario = domain.sample(&mut rng(0));
             let (start, pair) = (&mut rng(1), (rng(2), rng(3)));
             let mut ep: Episode<_, _, [i16; 4]> =

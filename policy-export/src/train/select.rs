@@ -99,7 +99,7 @@ fn eval_streams(seed: u64, which: Eval) -> EvalStreams {
             Stream::FinalPushes,
         ],
     };
-    EvalStreams { seed, streams }
+    EvalStreams::new(seed, streams)
 }
 
 /// The environment steps an evaluation ran: its return counts one per step.
