@@ -18,7 +18,7 @@ use firmware::rig::{Options, Rig};
 use firmware::startup::{Phase, Sequencer, Startup, Transitions};
 use rand_core::Rng;
 
-use crate::machine::{self, Machine};
+use crate::machine::{self, Integration, Machine};
 use crate::run::Frame;
 
 /// A hand lifting the pole from where it hangs along a smooth path, and letting go. The
@@ -230,7 +230,6 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     mut each: impl FnMut(&Frame, Phase),
 ) -> Result<Outcome, ConfigError> {
     let (rig, truth) = (board, world.rig);
-    let plant = Plant::new(&truth.params);
     let counts = |s: &State| truth.encoders.counts(s.x, s.theta);
     let origin = counts(&start);
     let latest = Cell::new((0, 0));
@@ -241,8 +240,7 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     };
     let mut controller = rig.controller(policy, sensor, pins(), options)?;
     let mut sequencer = Sequencer::new(startup, rig)?;
-    let mut line = DeadTime::new(truth.dead_time as usize);
-    let mut s = start;
+    let mut circle = FullCircle::new(world, start);
     let mut out = Outcome {
         balanced_from: None,
         zero_error: None,
@@ -260,17 +258,17 @@ pub fn power_on<O: Estimate, P: Policy<O>>(
     for period in 0..events.periods {
         let command = sequencer.run(latest.get(), &mut controller);
         let phase = sequencer.phase();
-        out.began(period, phase, s.x);
+        out.began(period, phase, circle.state().x);
         let commanded = duty(controller.actuator());
         if phase == Phase::Balancing && period >= events.periods / 2 {
-            sums.add(s.x, commanded);
+            sums.add(circle.state().x, commanded);
         }
-        let acting = line.send(commanded);
-        s = machine::advance(&plant, world.integration, &s, acting, events.push(period));
-        if let Some(lift) = &events.lift {
-            lift.hold(period, &mut s, &mut grip, truth.params.tau);
-        }
-        let stopped = stopped_at_ends(&mut s, truth.params.x_threshold);
+        let stopped = circle.step(commanded, events.push(period), |s| {
+            if let Some(lift) = &events.lift {
+                lift.hold(period, s, &mut grip, truth.params.tau);
+            }
+        });
+        let s = circle.state();
         out.ended(phase, s.x, stopped);
         let reading = [0.0; 4];
         each(
@@ -302,6 +300,47 @@ impl Events<'_> {
     fn push(&self, period: u32) -> f64 {
         let now = self.knocks.iter().filter(|k| k.period == period);
         now.map(|k| k.force).sum()
+    }
+}
+
+/// A machine's true world over the full circle, as an episode from power-on runs it: its
+/// physics, the dead time between a command and the motor, and the track's end stops (see
+/// [the module](self)).
+#[derive(Clone, Debug)]
+pub struct FullCircle {
+    plant: Plant<f64>,
+    integration: Integration,
+    end: f64,
+    line: DeadTime<f64>,
+    state: State,
+}
+
+impl FullCircle {
+    /// `world`'s physics from `start`, the motor off until a command has crossed the dead time.
+    pub fn new(world: &Machine, start: State) -> FullCircle {
+        let truth = &world.rig;
+        FullCircle {
+            plant: Plant::new(&truth.params),
+            integration: world.integration,
+            end: truth.params.x_threshold,
+            line: DeadTime::new(truth.dead_time as usize),
+            state: start,
+        }
+    }
+
+    /// The true state.
+    pub fn state(&self) -> State {
+        self.state
+    }
+
+    /// One period: `duty` sent to the motor (the command of the dead time ago acts), a
+    /// force of `push` N on the cart, then `hold` (a hand on the pole, if one is) and the end
+    /// stops. Whether the cart ended the period against one.
+    pub fn step(&mut self, duty: f64, push: f64, hold: impl FnOnce(&mut State)) -> bool {
+        let acting = self.line.send(duty);
+        self.state = machine::advance(&self.plant, self.integration, &self.state, acting, push);
+        hold(&mut self.state);
+        stopped_at_ends(&mut self.state, self.end)
     }
 }
 
