@@ -32,7 +32,7 @@ fn worlds(scenario: Option<&str>, domain: Option<&str>, rig: Option<PathBuf>) ->
 
 /// `max_episode_steps` as a horizon: at least one period and at most `host-sim eval`'s
 /// longest; none, no truncation.
-fn horizon(max_episode_steps: Option<i64>) -> PyResult<u32> {
+pub(crate) fn horizon(max_episode_steps: Option<i64>) -> PyResult<u32> {
     match max_episode_steps {
         None => Ok(u32::MAX),
         Some(n) => u32::try_from(n)
@@ -47,7 +47,7 @@ fn horizon(max_episode_steps: Option<i64>) -> PyResult<u32> {
 }
 
 /// The duty levels `levels=` gives (checked as `--levels`), or the paper's two.
-fn levels(levels: Option<Vec<f32>>) -> PyResult<Handed> {
+pub(crate) fn levels(levels: Option<Vec<f32>>) -> PyResult<Handed> {
     match crate::given_levels(levels)? {
         Some(given) => Handed::new(&given).map_err(value_error),
         None => Ok(Handed::bang_bang()),
@@ -55,7 +55,7 @@ fn levels(levels: Option<Vec<f32>>) -> PyResult<Handed> {
 }
 
 /// Gymnasium's action: the index of one of `levels`.
-fn action(a: i64, levels: &Handed) -> PyResult<usize> {
+pub(crate) fn action(a: i64, levels: &Handed) -> PyResult<usize> {
     usize::try_from(a)
         .ok()
         .filter(|&i| i < levels.len())

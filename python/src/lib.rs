@@ -18,6 +18,7 @@ mod evaluate;
 mod export;
 mod lane;
 mod policy;
+mod swing;
 
 /// A refused argument, as the `ValueError` Python callers expect, with the message that
 /// says what was expected and what was found.
@@ -116,4 +117,6 @@ mod _native {
     use super::policy::{Policy, load, shipped};
     #[pymodule_export]
     use super::provenance_json;
+    #[pymodule_export]
+    use super::swing::SwingUp;
 }

@@ -78,13 +78,8 @@ impl Begin {
     /// A start of this kind drawn from `rng`, for a rig run at `tau` seconds a period and
     /// started by `startup`: the state at power-on, and the lift.
     pub fn draw(self, rng: &mut impl Rng, startup: &Startup, tau: f64) -> (State, Option<Lift>) {
+        let state = self.state(rng);
         let mut u = || 2.0 * unit_f64(rng) - 1.0;
-        let swing = match self {
-            Begin::Swinging => 30f64.to_radians(),
-            Begin::Hanging | Begin::Lifted => 0.02,
-        };
-        let (x, theta, theta_dot) = (0.01 * u(), std::f64::consts::PI + swing * u(), 0.05 * u());
-        let state = State::from_array([x, 0.0, theta, theta_dot]);
         let lift = (self == Begin::Lifted).then(|| {
             let seconds = |s: f64| (s / tau).round() as u32;
             Lift {
@@ -97,6 +92,18 @@ impl Begin {
             }
         });
         (state, lift)
+    }
+
+    /// The state at power-on of a start of this kind drawn from `rng` (the first draws of
+    /// [`Begin::draw`]).
+    pub fn state(self, rng: &mut impl Rng) -> State {
+        let mut u = || 2.0 * unit_f64(rng) - 1.0;
+        let swing = match self {
+            Begin::Swinging => 30f64.to_radians(),
+            Begin::Hanging | Begin::Lifted => 0.02,
+        };
+        let (x, theta, theta_dot) = (0.01 * u(), std::f64::consts::PI + swing * u(), 0.05 * u());
+        State::from_array([x, 0.0, theta, theta_dot])
     }
 }
 

@@ -1,4 +1,5 @@
-"""Gymnasium environments over the twin's worlds: one, and many stepped in one native call.
+"""Gymnasium environments over the twin's worlds: one, and many stepped in one native call;
+and the swing-up task over a rig's full circle (``SwingUpEnv``).
 
 The observation is what the board's controller decides on in the scenario (the exact state
 rounded to float32 on Gymnasium's machine; with noise, encoders or dead time, the reading
@@ -187,3 +188,48 @@ class TwinVectorEnv(VectorEnv):
     def states(self):
         """The plants' true states ``[num_envs, 4]`` (float64)."""
         return self._twin.states()
+
+
+class SwingUpEnv(gymnasium.Env):
+    """The swing-up task on Gymnasium's machine or a rig file's (``rig=``): the machine's true
+    world over the full circle (its physics, the dead time between a command and the motor,
+    the track's end stops), the world ``host-sim startup`` runs its board in. Each episode
+    starts with the pole hanging nearly at rest and the cart near the centre.
+
+    The observation is ``[x, x_dot, cos(theta), sin(theta), theta_dot]`` (float32), the
+    angle counted from upright; the reward is the pole's height as a share,
+    ``(1 + cos(theta)) / 2`` (1 upright, 0 hanging). An episode terminates when the cart
+    ends a period inside the rig's end-stop margin (or against an end stop), and is
+    truncated at ``max_episode_steps``. ``levels=`` as for ``TwinEnv``; ``info["duty"]`` is
+    the duty the period sent."""
+
+    metadata = {"render_modes": []}
+
+    def __init__(self, rig=None, max_episode_steps=None, levels=None):
+        self._world = _native.SwingUp(rig, max_episode_steps, _levels(levels))
+        self.tau, reach = self._world.world
+        big = np.finfo(np.float32).max
+        high = np.array([reach, big, 1.0, 1.0, big], dtype=np.float32)
+        self.observation_space = spaces.Box(-high, high, dtype=np.float32)
+        self.action_space = spaces.Discrete(len(self._world.levels))
+
+    def reset(self, *, seed=None, options=None):
+        super().reset(seed=seed)
+        if seed is None:
+            seed = _seed_from(self.np_random)
+        return self._world.reset(int(seed)), {}
+
+    def step(self, action):
+        obs, reward, terminated, truncated, duty = self._world.step(int(action))
+        return obs, reward, terminated, truncated, {"duty": duty}
+
+    @property
+    def levels(self):
+        """The duty level each action drives, a fraction of the full push."""
+        return self._world.levels
+
+    @property
+    def state(self):
+        """The plant's true state ``[x, x_dot, theta, theta_dot]`` (float64), the angle
+        counted over whole turns."""
+        return np.array(self._world.state)
