@@ -68,7 +68,7 @@ impl Domain {
         };
         // Every low end, every high end, and the stiffest corner: the most damping and
         // friction on the lightest, shortest pole and cart.
-        let stiff = |p: &Part| matches!(p.spec.key, "damping" | "friction");
+        let stiff = |p: &Part| p.spec.stiff_high;
         let corners: [&dyn Fn(&Part) -> bool; 3] = [&|_| false, &|_| true, &stiff];
         for high in corners {
             let mut s = Scenario::nominal_on(machine);

@@ -70,6 +70,10 @@ pub struct PartSpec {
     pub syntax: &'static str,
     /// What it does.
     pub doc: &'static str,
+    /// Whether its high end makes a world stiffer to integrate (more damping, more
+    /// friction), where the other parts' low ends do (a lighter, shorter pole and cart):
+    /// a domain checks that corner too.
+    pub stiff_high: bool,
 }
 
 /// A part is known by its key.
@@ -128,6 +132,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "noise[=SCALE]",
         doc: "Gaussian sensor noise, SCALE times 1 cm, 5 cm/s, 0.3 degrees, 0.05 rad/s \
               (on the positions before quantisation when read through encoders)",
+        stiff_high: false,
     },
     PartSpec {
         key: "delay",
@@ -141,6 +146,7 @@ pub const PARTS: &[PartSpec] = &[
         )],
         syntax: "delay[=N]",
         doc: "N periods of actuator dead time, known to the controller",
+        stiff_high: false,
     },
     PartSpec {
         key: "force",
@@ -148,6 +154,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[FACTOR],
         syntax: "force=F",
         doc: "F times the motor's stall force",
+        stiff_high: false,
     },
     PartSpec {
         key: "damping",
@@ -156,6 +163,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "damping=F",
         doc: "F times the motor's damping (back-EMF and drag, N s/m; none on Gymnasium's \
               machine, so nothing to scale there)",
+        stiff_high: true,
     },
     PartSpec {
         key: "length",
@@ -163,6 +171,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[FACTOR],
         syntax: "length=F",
         doc: "F times the pole's length to its centre of mass",
+        stiff_high: false,
     },
     PartSpec {
         key: "polemass",
@@ -170,6 +179,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[FACTOR],
         syntax: "polemass=F",
         doc: "F times the pole's mass",
+        stiff_high: false,
     },
     PartSpec {
         key: "cartmass",
@@ -177,6 +187,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[FACTOR],
         syntax: "cartmass=F",
         doc: "F times the cart's mass",
+        stiff_high: false,
     },
     PartSpec {
         key: "friction",
@@ -200,6 +211,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "friction=C[/P]",
         doc: "Coulomb friction C of the cart on the track and viscous friction P (N m s/rad) \
               at the pivot (Florian 2007's corrected equations)",
+        stiff_high: true,
     },
     PartSpec {
         key: "encoder",
@@ -225,6 +237,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "positions read by encoders of N counts per revolution and M per metre (the \
               rig's own if both are omitted) through the board's observer, or with D through \
               the model-free alpha-beta filter of discount D",
+        stiff_high: false,
     },
     PartSpec {
         key: "jitter",
@@ -234,6 +247,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "the encoders are read up to F of a period early or late (an interrupt's \
               latency), uniformly: the positions move on over the offset at the state's \
               velocities; only readings through encoders",
+        stiff_high: false,
     },
     PartSpec {
         key: "push",
@@ -250,6 +264,7 @@ pub const PARTS: &[PartSpec] = &[
         ],
         syntax: "push[=IMPULSE[/EVERY]]",
         doc: "a push of IMPULSE N s every EVERY periods, to a random side",
+        stiff_high: false,
     },
     PartSpec {
         key: "zero",
@@ -261,6 +276,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "zero=DEG[/MM]",
         doc: "the encoders' zeros are off for the whole episode: the pole reads DEG degrees \
               and the cart MM mm more than they are (through encoders, in whole counts)",
+        stiff_high: false,
     },
     PartSpec {
         key: "glitch",
@@ -272,6 +288,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "glitch[=N[/EVERY]]",
         doc: "the pole encoder reads N counts off for one period every EVERY periods (with \
               exact sensing, the angle is off by N of the rig's pole counts)",
+        stiff_high: false,
     },
     PartSpec {
         key: "stuck",
@@ -282,6 +299,7 @@ pub const PARTS: &[PartSpec] = &[
         ],
         syntax: "stuck[=K[/EVERY]]",
         doc: "the readings freeze for K periods of every EVERY: the last one before repeats",
+        stiff_high: false,
     },
     PartSpec {
         key: "drop",
@@ -289,6 +307,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[interval(20.0)],
         syntax: "drop[=EVERY]",
         doc: "every EVERY-th reading never arrives: the sensor returns an error",
+        stiff_high: false,
     },
     PartSpec {
         key: "late",
@@ -297,6 +316,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "late[=EVERY]",
         doc: "every EVERY-th period overruns (counted): its command misses the period and the \
               motor holds the one before",
+        stiff_high: false,
     },
     PartSpec {
         key: "weak",
@@ -308,6 +328,7 @@ pub const PARTS: &[PartSpec] = &[
         ],
         syntax: "weak=F[/K[/EVERY]]",
         doc: "the motor gives F times its force for K periods of every EVERY",
+        stiff_high: false,
     },
     PartSpec {
         key: "reset",
@@ -316,6 +337,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "reset[=EVERY]",
         doc: "the controller restarts every EVERY periods: its observer starts again from the \
               counts, its predictor empty (its counters go on)",
+        stiff_high: false,
     },
 ];
 
