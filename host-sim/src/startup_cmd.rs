@@ -93,7 +93,11 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     let knock = knock(a)?;
     let (board, mut startup, net) = board(&a.subject)?;
     let world = match &a.world {
-        Some(path) => twin::rigfile::load(path)?,
+        Some(path) => {
+            let world = twin::rigfile::load(path)?;
+            crate::same_period(&world, path, &board, a.subject.rig.as_deref())?;
+            world
+        }
         None => board,
     };
     let begin = match a.start {

@@ -122,3 +122,52 @@ fn eval_warns_when_rig_is_not_the_rig_the_policy_records_and_only_then() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
+    let desk = repo().join("rigs/desk.toml");
+    let fast = repo().join("rigs/desk-100hz-identified.toml");
+    let (desk, fast) = (desk.to_str().unwrap(), fast.to_str().unwrap());
+    let fast_world = repo().join("rigs/desk-100hz.toml");
+    let cases: [(&[&str], &str); 3] = [
+        (
+            &[
+                "eval",
+                "--controller",
+                "lqr",
+                "--episodes",
+                "1",
+                "--rig",
+                fast,
+                "--world",
+                desk,
+            ],
+            "--rig",
+        ),
+        (
+            &["startup", "--episodes", "1", "--rig", fast, "--world", desk],
+            "--rig",
+        ),
+        // The shipped policy records Gymnasium's machine, at 50 Hz.
+        (
+            &[
+                "eval",
+                "--episodes",
+                "1",
+                "--world",
+                fast_world.to_str().unwrap(),
+            ],
+            "the rig the policy records",
+        ),
+    ];
+    for (args, board) in cases {
+        let o = run(args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("--world") && err.contains(board),
+            "{args:?}: {err}"
+        );
+        assert!(o.stdout.is_empty(), "{args:?} printed on stdout");
+    }
+}

@@ -76,7 +76,7 @@ fn a_board_of_another_period_or_a_wild_jitter_is_refused_and_nothing_written() {
         (
             "rigs/desk-100hz-measured.toml",
             "0.5",
-            "expected the period of --world",
+            "runs a period of 0.02 s, --rig",
         ),
         (
             "rigs/desk-measured.toml",

@@ -119,6 +119,15 @@ impl Scenario {
     /// `machine`. Factors of one quantity multiply; every quantity must end within
     /// [`FACTOR_RANGE`] of the rig's.
     pub fn parse_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
+        if spec.is_empty() {
+            // An empty `--scenario` (or a comma with nothing after it) is a slip, not a
+            // request for the nominal world, which has a name.
+            return Err(
+                "scenario: expected a spec (`nominal` for the nominal world); found \
+                        an empty one"
+                    .into(),
+            );
+        }
         let shown = weights::quote(spec);
         let rig = &machine.rig;
         let mut s = Scenario::nominal_on(machine);

@@ -33,6 +33,9 @@ pub fn bad_specs() -> Vec<Case> {
         "noise=1e-320",
         // A pivot friction the steps cannot follow: NaN worlds counted as balanced.
         "friction=0/0.1+polemass=0.001+length=0.001",
+        // Nothing, or nothing after a comma: not the nominal world, which has a name.
+        "",
+        "nominal,",
     ];
     for spec in specs {
         for cmd in [
