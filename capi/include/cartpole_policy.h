@@ -6,8 +6,10 @@
  * theta (rad), theta_dot (rad/s)}; push the cart right (+x) with the full force iff
  * q[1] > q[0]. Allocation-free, no global state, safe to call from an interrupt; a few
  * hundred bytes of stack (measured per target in docs/QUANTISATION.md). The caller checks
- * its readings: a NaN gives NaN Q-values (and "left"). A NULL argument makes a call write
- * nothing.
+ * its readings: a NaN anywhere in one gives finite Q-values that answer the network's biases
+ * alone (ReLU takes each first-layer unit's NaN to 0), a push either way that means nothing;
+ * cartpole_controller_step checks its readings itself and coasts on one that is not finite.
+ * A NULL argument makes a call write nothing.
  *
  * cartpole_policy_forward runs the policy compiled into the library. cartpole_mlpH_forward
  * runs any weights of width H, such as the `static const struct cartpole_mlpH` that

@@ -66,6 +66,47 @@ fn a_c_program_gets_the_shipped_policys_q_values_through_the_header() {
     assert_eq!(out, expected);
 }
 
+/// A NaN anywhere in a reading gives finite Q-values, as the header says: every first-layer
+/// unit's input is NaN, which ReLU takes to 0, so the scores are the second and third layers'
+/// answer to the second layer's biases alone (computed here in f64 from the tensors).
+#[test]
+fn a_nan_reading_gives_the_biases_answer_through_the_header() {
+    let args: Vec<String> = ["nan", "0", "0", "0", "0", "0", "0", "nan"]
+        .map(String::from)
+        .to_vec();
+    let out = compile_and_run(
+        &C99,
+        "nan",
+        &[&manifest().join("tests/main.c")],
+        &[&manifest().join("include")],
+        &args,
+    );
+    let p = &POLICY;
+    let h2: Vec<f64> = p.fc2_bias.iter().map(|&b| f64::from(b).max(0.0)).collect();
+    let q: Vec<f64> = (0..2)
+        .map(|a| {
+            let dot: f64 = (p.fc3_weight[a].iter().zip(&h2))
+                .map(|(&w, h)| f64::from(w) * h)
+                .sum();
+            dot + f64::from(p.fc3_bias[a])
+        })
+        .collect();
+    for line in out.lines() {
+        let bits: Vec<u32> = line
+            .split(' ')
+            .map(|h| u32::from_str_radix(h, 16).unwrap())
+            .collect();
+        for (a, b) in bits.iter().enumerate() {
+            let got = f64::from(f32::from_bits(*b));
+            assert!(
+                got.is_finite() && (got - q[a]).abs() < 1e-4,
+                "{line}: {q:?}"
+            );
+        }
+    }
+    assert_eq!(out.lines().count(), 2);
+}
+
 /// The tokens `compiler`'s preprocessor makes of `source`, after `stdint.h` (which the
 /// headers include) and with the library's header on the include path.
 fn preprocessed(compiler: &Compiler, source: &str) -> Vec<String> {
