@@ -61,6 +61,18 @@ def test_torch_like_tensors_are_detached_and_copied_to_the_cpu(tmp_path):
     assert a.read_bytes() == b.read_bytes()
 
 
+@pytest.mark.parametrize("order", [">f4", ">f8", ">f2"])
+def test_big_endian_arrays_export_as_their_values_do(tmp_path, order):
+    tensors = read_safetensors(REPO / "shipped" / "policy.safetensors")
+    native = {k: v.astype(order.replace(">", "<")) for k, v in tensors.items()}
+    swapped = {k: v.astype(order) for k, v in tensors.items()}
+    assert all(v.dtype.byteorder == ">" for v in swapped.values())
+    a, b = tmp_path / "a.rs", tmp_path / "b.rs"
+    cartpole_ddqn.export(native, out=a)
+    cartpole_ddqn.export(swapped, out=b)
+    assert a.read_bytes() == b.read_bytes()
+
+
 @pytest.mark.parametrize(
     "kwargs, words",
     [

@@ -95,7 +95,8 @@ def _tensors(source):
                 value = value.float()
             value = value.numpy()
         array = np.ascontiguousarray(value)
-        dtype = _DTYPES.get(array.dtype)
+        # Big-endian values are the same numbers: looked up in native order, written little.
+        dtype = _DTYPES.get(array.dtype.newbyteorder("="))
         if dtype is None:
             raise ValueError(
                 f"tensor {name!r}: expected float32, float64 or float16 values; found {array.dtype}"
