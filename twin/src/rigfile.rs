@@ -213,8 +213,8 @@ impl Fields<'_> {
         let half = self.check(
             "track_half_length_m",
             f.track_half_length_m,
-            (0.0, 100.0),
-            true,
+            (1e-3, 100.0),
+            false,
         )?;
         let margin = self.check(
             "end_stop_margin_m",
@@ -234,8 +234,8 @@ impl Fields<'_> {
     /// The pivot to the pole's centre of mass, given as such or by a uniform pole's length.
     fn pole_com(self, f: &File) -> Result<f64> {
         match (f.pole_com_m, f.pole_length_m) {
-            (Some(com), None) => self.check("pole_com_m", com, (0.0, 100.0), true),
-            (None, Some(len)) => Ok(self.check("pole_length_m", len, (0.0, 200.0), true)? / 2.0),
+            (Some(com), None) => self.check("pole_com_m", com, (1e-3, 100.0), false),
+            (None, Some(len)) => Ok(self.check("pole_length_m", len, (2e-3, 200.0), false)? / 2.0),
             (com, _) => Err(self.refuse(format!(
                 "expected one of pole_com_m and pole_length_m, found {}",
                 if com.is_some() { "both" } else { "neither" }
@@ -243,7 +243,10 @@ impl Fields<'_> {
         }
     }
 
-    /// The physics, on a track of half-length `half`.
+    /// The physics, on a track of half-length `half`. Each value within what a bench rig
+    /// could have: no lighter than a gram (a tenth of one for the pole), no shorter than a
+    /// millimetre, a motor of a millinewton at least, gravity and the failure angle a tenth at
+    /// least; below those a value is a slip (`1e-300` for `0.3`), and the physics divides by it.
     fn params(self, f: &File, half: f64) -> Result<Params> {
         let length = self.pole_com(f)?;
         let c =
@@ -252,17 +255,17 @@ impl Fields<'_> {
             gravity: c(
                 "gravity_m_s2",
                 f.gravity_m_s2.unwrap_or(9.8),
-                (0.0, 100.0),
-                true,
+                (0.1, 100.0),
+                false,
             )?,
-            masscart: c("cart_mass_kg", f.cart_mass_kg, (0.0, 1000.0), true)?,
-            masspole: c("pole_mass_kg", f.pole_mass_kg, (0.0, 1000.0), true)?,
+            masscart: c("cart_mass_kg", f.cart_mass_kg, (1e-3, 1000.0), false)?,
+            masspole: c("pole_mass_kg", f.pole_mass_kg, (1e-4, 1000.0), false)?,
             length,
             force_mag: c(
                 "actuator.stall_force_n",
                 f.actuator.stall_force_n,
-                (0.0, 1e4),
-                true,
+                (1e-3, 1e4),
+                false,
             )?,
             motor_damping: c(
                 "actuator.damping_n_s_per_m",
@@ -274,8 +277,8 @@ impl Fields<'_> {
             theta_threshold_radians: radians(c(
                 "failure_angle_deg",
                 f.failure_angle_deg.unwrap_or(12.0),
-                (0.0, 90.0),
-                true,
+                (0.1, 90.0),
+                false,
             )?),
             x_threshold: half,
             cart_friction: c(

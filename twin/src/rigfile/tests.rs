@@ -87,7 +87,7 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
     (
         "pole_mass_kg = 0.08",
         "pole_mass_kg = 2000.0",
-        "pole_mass_kg: expected a number in (0, 1000], found 2000",
+        "pole_mass_kg: expected a number in [0.0001, 1000], found 2000",
     ),
     (
         "period_s = 0.02",
@@ -107,7 +107,18 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
     (
         "cart_mass_kg = 0.6",
         "cart_mass_kg = -1.0",
-        "cart_mass_kg: expected a number in (0, 1000], found -1",
+        "cart_mass_kg: expected a number in [0.001, 1000], found -1",
+    ),
+    // A slip for 0.3: the physics would divide by it.
+    (
+        "cart_mass_kg = 0.6",
+        "cart_mass_kg = 1e-300",
+        "cart_mass_kg: expected a number in [0.001, 1000], found 1e-300",
+    ),
+    (
+        "track_half_length_m = 0.4",
+        "track_half_length_m = 1e-200",
+        "track_half_length_m: expected a number in [0.001, 100]",
     ),
     (
         "cart_mass_kg = 0.6",
@@ -122,7 +133,7 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
     (
         "stall_force_n = 5.0",
         "stall_force_n = 0.0",
-        "actuator.stall_force_n: expected a number in (0,",
+        "actuator.stall_force_n: expected a number in [0.001,",
     ),
     (
         "damping_n_s_per_m = 3.0",
