@@ -23,6 +23,7 @@ mod results_cmd;
 mod soak_cmd;
 mod startup_cmd;
 mod tables_cmd;
+mod world_arg;
 
 /// Most states `agree` compares: a hundred million take minutes.
 const MAX_AGREE_STATES: u64 = 100_000_000;
@@ -306,29 +307,6 @@ fn check_io(inputs: &[(&str, PathBuf)], outputs: &[(&str, &Path)]) -> Result<()>
     Ok(weights::files::check_io(&inputs, outputs)?)
 }
 
-/// Refuses a world (`--world`, at `world_path`) whose control period is not its board's,
-/// naming both: the board's rig is `--rig` where one was given, else the policy's own.
-fn same_period(
-    world: &Machine,
-    world_path: &Path,
-    board: &Machine,
-    rig: Option<&Path>,
-) -> Result<()> {
-    let (w, b) = (world.rig.params.tau, board.rig.params.tau);
-    if w == b {
-        return Ok(());
-    }
-    let board = rig.map_or("the rig the policy records".into(), |r| {
-        format!("--rig {}", weights::shown(r))
-    });
-    Err(weights::Error::Input(format!(
-        "--world {} runs a period of {w} s, {board} one of {b} s: a board runs at its \
-         world's period",
-        weights::shown(world_path)
-    ))
-    .into())
-}
-
 fn parse_scenarios(specs: &[String], machine: &Machine) -> Result<Vec<Scenario>> {
     Scenario::words_on(specs, machine).map_err(anyhow::Error::msg)
 }
@@ -386,7 +364,7 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let (machine, net) = a.subject.load_for(&controllers)?;
     let scenarios = match (&world, &a.world) {
         (Some(w), Some(path)) => {
-            same_period(w, path, &machine, a.subject.rig.as_deref())?;
+            world_arg::same_period(w, path, &machine, a.subject.rig.as_deref())?;
             parse_scenarios(&a.scenario, w)?
                 .into_iter()
                 .map(|s| s.known_as(&machine.rig).map_err(anyhow::Error::msg))

@@ -87,19 +87,22 @@ pub struct StartupArgs {
     episode: u32,
 }
 
+/// The true world: `--world`, at the board's period, or the board's own rig.
+fn world(a: &StartupArgs, board: Machine) -> Result<Machine> {
+    let Some(path) = &a.world else {
+        return Ok(board);
+    };
+    let world = twin::rigfile::load(path)?;
+    crate::world_arg::same_period(&world, path, &board, a.subject.rig.as_deref())?;
+    Ok(world)
+}
+
 /// Runs the episodes `a` asks for; the report is printed.
 pub fn run(a: &StartupArgs) -> Result<bool> {
     check(a)?;
     let knock = knock(a)?;
     let (board, mut startup, net) = board(&a.subject)?;
-    let world = match &a.world {
-        Some(path) => {
-            let world = twin::rigfile::load(path)?;
-            crate::same_period(&world, path, &board, a.subject.rig.as_deref())?;
-            world
-        }
-        None => board,
-    };
+    let world = world(a, board)?;
     let begin = match a.start {
         StartArg::Hanging => Begin::Hanging,
         StartArg::Swinging => Begin::Swinging,

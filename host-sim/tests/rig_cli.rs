@@ -129,28 +129,31 @@ fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
     let fast = repo().join("rigs/desk-100hz-identified.toml");
     let (desk, fast) = (desk.to_str().unwrap(), fast.to_str().unwrap());
     let fast_world = repo().join("rigs/desk-100hz.toml");
-    let cases: [(&[&str], &str); 3] = [
+    let slow_board = "its world's, 0.02 s; found 0.01 s";
+    let eval_fast: &[&str] = &[
+        "eval",
+        "--controller",
+        "lqr",
+        "--episodes",
+        "1",
+        "--rig",
+        fast,
+    ];
+    let startup_fast: &[&str] = &["startup", "--episodes", "1", "--rig", fast];
+    let cases = [
         (
-            &[
-                "eval",
-                "--controller",
-                "lqr",
-                "--episodes",
-                "1",
-                "--rig",
-                fast,
-                "--world",
-                desk,
-            ],
+            [eval_fast, &["--world", desk]].concat(),
             "--rig",
+            slow_board,
         ),
         (
-            &["startup", "--episodes", "1", "--rig", fast, "--world", desk],
+            [startup_fast, &["--world", desk]].concat(),
             "--rig",
+            slow_board,
         ),
         // The shipped policy records Gymnasium's machine, at 50 Hz.
         (
-            &[
+            vec![
                 "eval",
                 "--episodes",
                 "1",
@@ -158,16 +161,15 @@ fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
                 fast_world.to_str().unwrap(),
             ],
             "the rig the policy records",
+            "its world's, 0.01 s; found 0.02 s",
         ),
     ];
-    for (args, board) in cases {
-        let o = run(args);
+    for (args, board, periods) in cases {
+        let o = run(&args);
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
-        assert!(
-            err.contains("--world") && err.contains(board),
-            "{args:?}: {err}"
-        );
+        let named = err.contains("--world") && err.contains(board);
+        assert!(named && err.contains(periods), "{args:?}: {err}");
         assert!(o.stdout.is_empty(), "{args:?} printed on stdout");
     }
 }

@@ -76,7 +76,7 @@ fn a_board_of_another_period_or_a_wild_jitter_is_refused_and_nothing_written() {
         (
             "rigs/desk-100hz-measured.toml",
             "0.5",
-            "runs a period of 0.02 s, --rig",
+            "control period to be its world's, 0.02 s; found 0.01 s",
         ),
         (
             "rigs/desk-measured.toml",

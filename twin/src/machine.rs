@@ -57,6 +57,19 @@ pub struct Machine {
     pub uncertainty: Uncertainty,
 }
 
+/// Refuses a board whose control period is not its world's: a board runs at its world's
+/// period, and every count of periods (dead time, windows, horizons) means the world's.
+pub fn same_period(world: &Rig, board: &Rig) -> Result<(), String> {
+    let (w, b) = (world.params.tau, board.params.tau);
+    if w == b {
+        Ok(())
+    } else {
+        Err(format!(
+            "expected the board's control period to be its world's, {w} s; found {b} s"
+        ))
+    }
+}
+
 impl Machine {
     /// Gymnasium's machine, advanced by Gymnasium's Euler steps.
     pub const GYMNASIUM: Machine = Machine {

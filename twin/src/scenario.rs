@@ -98,12 +98,7 @@ impl Scenario {
     /// The encoders and the dead time stay the world's: the board has them exactly. A board
     /// whose period is not the world's is refused.
     pub fn known_as(mut self, board: &Rig) -> Result<Scenario, String> {
-        if board.params.tau != self.rig.params.tau {
-            return Err(format!(
-                "the board's control period must be the world's, {} s; found {} s",
-                self.rig.params.tau, board.params.tau
-            ));
-        }
+        crate::machine::same_period(&self.rig, board)?;
         self.rig.params = board.params;
         self.rig.tuning = board.tuning;
         self.rig.end_stop_margin = board.end_stop_margin;
