@@ -374,7 +374,8 @@ int cartpole_controller_init(cartpole_controller_t *c, int policy_kind);
  * exported headers' static const ones do). *rig is read during the call only.
  *
  * Refused with CARTPOLE_ERR_RIG, writing nothing, unless every field of *rig is finite and
- * within the ranges of a rig file: gravity (0, 100], masscart and masspole (0, 1000],
+ * within these ranges (a rig file's are narrower at their low ends: a gram, a millimetre):
+ * gravity (0, 100], masscart and masspole (0, 1000],
  * length (0, 100], force_mag (0, 1e4], motor_damping [0, 1e4], tau [0.002, 0.05],
  * theta_threshold_radians (0, pi/2], x_threshold (0, 100], cart_friction [0, 1],
  * pole_friction [0, 0.1], cart_counts_per_m [16, 2^26], pole_counts_per_rev [16, 2^24],

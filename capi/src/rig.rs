@@ -57,9 +57,11 @@ fn counts(n: u32, (lo, hi): (u32, u32)) -> bool {
 }
 
 impl CartpoleRig {
-    /// The rig, if every field is one a machine can have: the ranges of a rig file
-    /// (`twin::rigfile`; the header lists them). Outside them the observer's gain may not
-    /// exist, and its solver would spin through all its iterations at start-up on NaNs.
+    /// The rig, if every field is one a machine can have: the ranges the header lists, a rig
+    /// file's (`twin::rigfile`) but open at zero where a rig file asks for a gram or a
+    /// millimetre at least, since a board's own constants are no typing slip. Outside them the
+    /// observer's gain may not exist, and its solver would spin through all its iterations
+    /// at start-up on NaNs.
     pub fn to_rig(&self) -> Option<Rig> {
         let positive = |v: f64, hi: f64| within(v, (0.0, hi), false);
         let non_negative = |v: f64, hi: f64| within(v, (0.0, hi), true);
