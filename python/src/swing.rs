@@ -17,8 +17,8 @@ use crate::lane::Handed;
 use crate::value_error;
 
 /// What the agent is shown: the cart's position and speed, the cosine and sine of the
-/// pole's angle from upright (continuous over the full circle, where the angle itself jumps
-/// at the bottom) and its rate.
+/// pole's angle from upright (the same for the same pose after any number of turns, where
+/// the angle grows by 2 pi a turn) and its rate.
 fn observation(s: &State) -> [f32; 5] {
     let (sin, cos) = s.theta.sin_cos();
     [s.x, s.x_dot, cos, sin, s.theta_dot].map(|v| v as f32)
@@ -41,16 +41,11 @@ pub struct SwingUp {
     machine: Machine,
     levels: Handed,
     horizon: u32,
-    running: Option<Running>,
-}
-
-impl SwingUp {
     /// How far the cart may go from the centre before the episode ends: the track's end
-    /// stops less the rig's end-stop margin.
-    fn reach(&self) -> f64 {
-        let rig = &self.machine.rig;
-        rig.params.x_threshold - rig.end_stop_margin
-    }
+    /// stops less the rig's end-stop margin, as the board's limits and `host-sim startup`
+    /// count it.
+    reach: f64,
+    running: Option<Running>,
 }
 
 #[pymethods]
@@ -62,17 +57,20 @@ impl SwingUp {
         max_episode_steps: Option<i64>,
         levels: Option<Vec<f32>>,
     ) -> PyResult<SwingUp> {
+        let machine = crate::machine(rig.as_deref())?;
+        let limits = machine.rig.limits().map_err(value_error)?;
         Ok(SwingUp {
-            machine: crate::machine(rig.as_deref())?,
+            machine,
             levels: self::levels(levels)?,
             horizon: horizon(max_episode_steps)?,
+            reach: f64::from(limits.max_abs()[0]),
             running: None,
         })
     }
 
     /// Starts the episode of `seed`: the pole hanging nearly at rest (within 0.02 rad and
-    /// 0.05 rad/s), the cart within a centimetre of the centre, as `host-sim startup
-    /// --start hanging` draws it; the first observation.
+    /// 0.05 rad/s), the cart within a centimetre of the centre, drawn as `host-sim startup
+    /// --start hanging` draws its starts (from its own seeds); the first observation.
     fn reset<'py>(&mut self, py: Python<'py>, seed: u64) -> Bound<'py, PyArray1<f32>> {
         let start = Begin::Hanging.state(&mut episode_rng(seed, 0, Stream::Start));
         self.running = Some(Running {
@@ -89,7 +87,7 @@ impl SwingUp {
     /// after the rig's dead time).
     fn step<'py>(&mut self, py: Python<'py>, action: i64) -> PyResult<Stepped<'py>> {
         let duty = self.levels.fractions()[self::action(action, &self.levels)?];
-        let (reach, horizon) = (self.reach(), self.horizon);
+        let (reach, horizon) = (self.reach, self.horizon);
         let run = self.running.as_mut().filter(|r| !r.over).ok_or_else(|| {
             value_error("step() needs a running episode: call reset() first, and after its end")
         })?;
@@ -104,10 +102,12 @@ impl SwingUp {
         Ok((obs, reward, terminated, truncated, duty))
     }
 
-    /// The period, s; how far the cart may go from the centre, m.
+    /// The period, s; how far the cart may go from the centre before the episode ends, and
+    /// where the end stops hold it, m.
     #[getter]
-    fn world(&self) -> (f64, f64) {
-        (self.machine.rig.params.tau, self.reach())
+    fn world(&self) -> (f64, f64, f64) {
+        let p = &self.machine.rig.params;
+        (p.tau, self.reach, p.x_threshold)
     }
 
     /// The duty level each action drives, a fraction of the full push.

@@ -93,7 +93,8 @@ def test_the_episode_ends_as_the_cart_enters_the_end_stop_margin():
     env = cartpole_ddqn.SwingUpEnv(rig=str(DESK))
     env.reset(seed=1)
     for k in range(500):
-        _, _, terminated, truncated, _ = env.step(1)  # full push towards +x
+        obs, _, terminated, truncated, _ = env.step(1)  # full push towards +x
+        assert env.observation_space.contains(obs), obs
         x = env.state[0]
         assert terminated == (abs(x) > reach), (k, x)
         assert not truncated

@@ -1,11 +1,11 @@
 """Gymnasium environments over the twin's worlds: one, and many stepped in one native call;
-and the swing-up task over a rig's full circle (``SwingUpEnv``).
+and the swing-up task over a rig's full circle (``SwingUpEnv``, described in its class).
 
-The observation is what the board's controller decides on in the scenario (the exact state
-rounded to float32 on Gymnasium's machine; with noise, encoders or dead time, the reading
-its sensor gives and its predictor advances), the reward 1.0 per period, and an episode
-terminates where the true plant leaves the track or the angle limit. Action ``i`` drives the
-``i``-th duty level (``levels=``, fractions of the full push; the paper's two, full push left
+For ``TwinEnv`` and ``TwinVectorEnv``, the observation is what the board's controller decides
+on in the scenario (the exact state rounded to float32 on Gymnasium's machine; with noise,
+encoders or dead time, the reading its sensor gives and its predictor advances), the reward
+1.0 per period, and an episode terminates where the true plant leaves the track or the angle
+limit. Action ``i`` drives the ``i``-th duty level (``levels=``, fractions of the full push; the paper's two, full push left
 and right, by default) through the period.
 
 ``info["duty"]`` is the duty the period drove; at an episode's end ``info`` also has its
@@ -207,9 +207,10 @@ class SwingUpEnv(gymnasium.Env):
 
     def __init__(self, rig=None, max_episode_steps=None, levels=None):
         self._world = _native.SwingUp(rig, max_episode_steps, _levels(levels))
-        self.tau, reach = self._world.world
+        self.tau, _, end = self._world.world
         big = np.finfo(np.float32).max
-        high = np.array([reach, big, 1.0, 1.0, big], dtype=np.float32)
+        # The episode ends past the margin, but the end stops hold the cart.
+        high = np.array([end, big, 1.0, 1.0, big], dtype=np.float32)
         self.observation_space = spaces.Box(-high, high, dtype=np.float32)
         self.action_space = spaces.Discrete(len(self._world.levels))
 
