@@ -224,8 +224,8 @@ mod tests {
         assert!(*q == POLICY_INT);
     }
 
-    /// The returns of the committed int8 network's episodes of `streams`, one at a time, on
-    /// readings of format `O`.
+    /// The returns of the committed int8 network's episodes of the trial's streams under
+    /// `streams`' seed, one at a time, on readings of format `O`.
     fn by_hand<O: Estimate>(
         domain: &Domain,
         streams: EvalStreams,
@@ -237,9 +237,11 @@ mod tests {
     {
         (0..episodes as u64)
             .map(|e| {
-                let rng = |stream: u64| streams.draws.rng(e, stream);
-                let scenario = domain.sample(&mut rng(streams.world as u64));
-                let [start, noise, pushes] = streams.draws.streams.map(rng);
+                // The trial's streams by name, not read back from the streams under test.
+                let rng = |s: Stream| host_common::seed::rng(streams.draws.seed, e, s as u64);
+                let scenario = domain.sample(&mut rng(Stream::TrialWorld));
+                let [start, noise, pushes] =
+                    [Stream::Trial, Stream::TrialNoise, Stream::TrialPushes].map(rng);
                 let mut ep = Episode::<_, _, O>::start(
                     &POLICY_INT,
                     &scenario,
