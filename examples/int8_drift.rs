@@ -1,7 +1,7 @@
 //! Which step of the integer board's pipeline makes an int8 policy fail where its float
 //! policy holds: the same episodes (the deploy recipe's trial worlds for the rig, drawn from
-//! the trial's streams of `--seed`, 10,000 periods each) run by four boards that differ in one
-//! step at a time:
+//! the trial's streams of `--seed`, as long as the trial's) run by four boards that differ in
+//! one step at a time:
 //!
 //! - the float network on the observer's float estimate (the float board);
 //! - the float network on the estimate rounded to Q3.12 before the predictor (the integer
@@ -32,9 +32,8 @@ use firmware::estimator::Estimate;
 use firmware::network::int::QMlp;
 use firmware::network::{Mlp, argmax};
 use policy_export::config::Config;
-use policy_export::train::{EvalStreams, Stream};
+use policy_export::train::{Eval, EvalStreams, quantised};
 use twin::{Domain, Episode, Machine, Scenario};
-use weights::quant::Granularity;
 
 #[derive(Parser)]
 struct Args {
@@ -55,8 +54,6 @@ struct Args {
     domain: Option<String>,
 }
 
-const PERIODS: u32 = 10_000;
-
 /// The float network deciding on the integer board's Q3.12 reading.
 #[derive(Clone, Copy)]
 struct Rounded<'n, const A: usize>(Greedy<&'n Mlp<64, A>, A>);
@@ -71,85 +68,64 @@ impl<const A: usize> Policy<[i16; 4]> for Rounded<'_, A> {
     }
 }
 
-/// Whether `policy` held episode `e` of `streams` in `world` to the end, and the sum of the
-/// cart's position over the periods it ran, with their count.
-fn held<P: Policy<O>, O: Estimate>(
-    policy: P,
-    world: &Scenario,
-    streams: &EvalStreams,
-    e: u64,
-) -> (bool, f64, u64) {
-    let mut ep: Episode<_, _, O> = streams.draws.episode(policy, world, PERIODS, e, true);
-    let (mut sum_x, mut n) = (0.0, 0);
-    loop {
-        ep.decide();
-        let t = ep.apply();
-        sum_x += ep.world().state().x;
-        n += 1;
-        if t.terminated || t.truncated {
-            return (!t.terminated, sum_x, n);
-        }
-    }
+/// The trial's episodes: their streams, and the periods each lasts at most (the recipe's
+/// `finalist_max_steps`, 10,000 at 50 Hz).
+struct Trial {
+    streams: EvalStreams,
+    periods: u32,
 }
 
-/// On the float board's periods of episode `e`: periods, where the int8 network chooses
-/// another level, and the sum of its duty less the float network's.
-fn differences<const A: usize>(
-    (f, q): (Greedy<&Mlp<64, A>, A>, Greedy<&QMlp<64, A>, A>),
-    world: &Scenario,
-    streams: &EvalStreams,
-    e: u64,
-) -> (u64, u64, f64) {
-    let mut ep: Episode<_, _, [f32; 4]> = streams.draws.episode(f, world, PERIODS, e, true);
-    let (mut n, mut differ, mut sum) = (0, 0, 0.0);
-    loop {
-        let float = f64::from(ep.decide().level());
-        if let Some(r) = ep.controller().last() {
-            let choice = argmax(&q.net.forward(&firmware::fixed::from_state(&r.obs.state())));
-            let int = f64::from(q.levels.duty(choice).map_or(0.0, |d| d.fraction()));
+impl Trial {
+    /// Whether `policy` held episode `e` in `world` to the end, and the sum of the cart's
+    /// position over the periods it ran, with their count.
+    fn held<P: Policy<O>, O: Estimate>(&self, p: P, world: &Scenario, e: u64) -> (bool, f64, u64) {
+        let mut ep: Episode<_, _, O> = self.streams.draws.episode(p, world, self.periods, e, true);
+        let (mut sum_x, mut n) = (0.0, 0);
+        loop {
+            ep.decide();
+            let t = ep.apply();
+            sum_x += ep.world().state().x;
             n += 1;
-            differ += u64::from(int != float);
-            sum += int - float;
+            if t.terminated || t.truncated {
+                return (!t.terminated, sum_x, n);
+            }
         }
-        let t = ep.apply();
-        if t.terminated || t.truncated {
-            return (n, differ, sum);
+    }
+
+    /// On the float board's periods of episode `e`: periods, where the int8 network chooses
+    /// another level, and the sum of its duty less the float network's.
+    fn differences<const A: usize>(
+        &self,
+        (f, q): (Greedy<&Mlp<64, A>, A>, Greedy<&QMlp<64, A>, A>),
+        world: &Scenario,
+        e: u64,
+    ) -> (u64, u64, f64) {
+        let mut ep: Episode<_, _, [f32; 4]> =
+            self.streams.draws.episode(f, world, self.periods, e, true);
+        let (mut n, mut differ, mut sum) = (0, 0, 0.0);
+        loop {
+            let float = f64::from(ep.decide().level());
+            if let Some(r) = ep.controller().last() {
+                let choice = argmax(&q.net.forward(&firmware::fixed::from_state(&r.obs.state())));
+                let int = f64::from(q.levels.duty(choice).map_or(0.0, |d| d.fraction()));
+                n += 1;
+                differ += u64::from(int != float);
+                sum += int - float;
+            }
+            let t = ep.apply();
+            if t.terminated || t.truncated {
+                return (n, differ, sum);
+            }
         }
     }
 }
 
-fn diagnose<const A: usize>(w: &weights::Weights, machine: &Machine, args: &Args) -> Result<()> {
-    let levels: Levels<A> = w.to_levels()?;
-    let net = w.to_mlp::<64, A>()?;
-    let q = twin::calibrate::quantise_policy(w, Granularity::default(), machine)?.to_qmlp()?;
-    let (f, qi) = (Greedy { net: &*net, levels }, Greedy { net: &*q, levels });
-    let spec = (args.domain.clone()).unwrap_or_else(|| Config::deploy_on(machine).finalist_domain);
-    let domain = Domain::parse_on(&spec, machine).map_err(anyhow::Error::msg)?;
-    let order = [
-        Stream::TrialWorld,
-        Stream::Trial,
-        Stream::TrialNoise,
-        Stream::TrialPushes,
-    ];
-    let streams = EvalStreams::new(args.seed, order);
-    let (mut boards, mut n, mut differ, mut sum) = ([(0u64, 0.0, 0u64); 4], 0, 0, 0.0);
-    for e in 0..args.episodes {
-        let world = domain.sample(&mut streams.draws.rng(e, Stream::TrialWorld as u64));
-        let held = [
-            held::<_, [f32; 4]>(f, &world, &streams, e),
-            held::<_, [i16; 4]>(Rounded(f), &world, &streams, e),
-            held::<_, [f32; 4]>(qi, &world, &streams, e),
-            held::<_, [i16; 4]>(qi, &world, &streams, e),
-        ];
-        for (b, h) in boards.iter_mut().zip(held) {
-            *b = (b.0 + u64::from(h.0), b.1 + h.1, b.2 + h.2);
-        }
-        let d = differences((f, qi), &world, &streams, e);
-        (n, differ, sum) = (n + d.0, differ + d.1, sum + d.2);
-    }
+/// The four boards' figures: episodes held, the sum of the cart's position and the periods
+/// run, each.
+fn print(trial: &Trial, (spec, episodes, seed): (&str, u64, u64), boards: [(u64, f64, u64); 4]) {
     println!(
-        "{} episodes of {PERIODS} periods in {spec}, seed {}",
-        args.episodes, args.seed
+        "{episodes} episodes of {} periods in {spec}, seed {seed}",
+        trial.periods
     );
     let names = [
         "float network, float reading (the float board)",
@@ -159,11 +135,38 @@ fn diagnose<const A: usize>(w: &weights::Weights, machine: &Machine, args: &Args
     ];
     for (name, (held, sum_x, periods)) in names.iter().zip(boards) {
         let mean_x = sum_x / periods.max(1) as f64;
-        println!(
-            "{name:<50} held {held:>5} of {}, mean x {mean_x:+.4} m",
-            args.episodes
-        );
+        println!("{name:<50} held {held:>5} of {episodes}, mean x {mean_x:+.4} m");
     }
+}
+
+fn diagnose<const A: usize>(w: &weights::Weights, machine: &Machine, args: &Args) -> Result<()> {
+    let levels: Levels<A> = w.to_levels()?;
+    let net = w.to_mlp::<64, A>()?;
+    let q = quantised((&*net, levels), machine)?;
+    let (f, qi) = (Greedy { net: &*net, levels }, Greedy { net: &*q, levels });
+    let recipe = Config::deploy_on(machine);
+    let spec = args.domain.clone().unwrap_or(recipe.finalist_domain);
+    let domain = Domain::parse_on(&spec, machine).map_err(anyhow::Error::msg)?;
+    let trial = Trial {
+        streams: EvalStreams::of(args.seed, Eval::Trial),
+        periods: recipe.finalist_max_steps,
+    };
+    let (mut boards, mut n, mut differ, mut sum) = ([(0u64, 0.0, 0u64); 4], 0, 0, 0.0);
+    for e in 0..args.episodes {
+        let world = domain.sample(&mut trial.streams.world(e));
+        let held = [
+            trial.held::<_, [f32; 4]>(f, &world, e),
+            trial.held::<_, [i16; 4]>(Rounded(f), &world, e),
+            trial.held::<_, [f32; 4]>(qi, &world, e),
+            trial.held::<_, [i16; 4]>(qi, &world, e),
+        ];
+        for (b, h) in boards.iter_mut().zip(held) {
+            *b = (b.0 + u64::from(h.0), b.1 + h.1, b.2 + h.2);
+        }
+        let d = trial.differences((f, qi), &world, e);
+        (n, differ, sum) = (n + d.0, differ + d.1, sum + d.2);
+    }
+    print(&trial, (&spec, args.episodes, args.seed), boards);
     println!(
         "on the float board's {n} periods, the int8 network chooses another level in {:.2}%; \
          its duty less the float network's, mean per period: {:+.5} of full",

@@ -62,7 +62,7 @@ pub struct EvalStreams {
 
 impl EvalStreams {
     /// The streams of `world`, `start`, `noise` and `pushes` under `seed`.
-    pub fn new(seed: u64, [world, start, noise, pushes]: [Stream; 4]) -> EvalStreams {
+    fn new(seed: u64, [world, start, noise, pushes]: [Stream; 4]) -> EvalStreams {
         EvalStreams {
             world,
             draws: Draws {
@@ -72,9 +72,46 @@ impl EvalStreams {
         }
     }
 
-    fn world(&self, episode: u64) -> Pcg64Mcg {
+    /// The generator of episode `episode`'s world.
+    pub fn world(&self, episode: u64) -> Pcg64Mcg {
         self.draws.rng(episode, self.world as u64)
     }
+
+    /// The streams of evaluation `which` of the run of `seed`.
+    pub fn of(seed: u64, which: Eval) -> EvalStreams {
+        let streams = match which {
+            Eval::Periodic => [
+                Stream::EvalWorld,
+                Stream::Eval,
+                Stream::EvalNoise,
+                Stream::EvalPushes,
+            ],
+            Eval::Trial => [
+                Stream::TrialWorld,
+                Stream::Trial,
+                Stream::TrialNoise,
+                Stream::TrialPushes,
+            ],
+            Eval::Final => [
+                Stream::FinalWorld,
+                Stream::Final,
+                Stream::FinalNoise,
+                Stream::FinalPushes,
+            ],
+        };
+        EvalStreams::new(seed, streams)
+    }
+}
+
+/// Which evaluation a set of streams serves.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Eval {
+    /// The periodic ones: the same streams every time within a run.
+    Periodic,
+    /// The finalists' trial: the same streams for every finalist.
+    Trial,
+    /// The final one, disjoint from everything the run trained or selected on.
+    Final,
 }
 
 /// How an evaluation runs its episodes and prices their driving.
@@ -272,15 +309,7 @@ mod tests {
         // With a period of dead time, so that the predictor runs on the reading.
         let spec = format!("{}+delay=1", cfg.finalist_domain);
         let domain = Domain::parse_on(&spec, &Machine::GYMNASIUM).unwrap();
-        let streams = EvalStreams::new(
-            7,
-            [
-                Stream::TrialWorld,
-                Stream::Trial,
-                Stream::TrialNoise,
-                Stream::TrialPushes,
-            ],
-        );
+        let streams = EvalStreams::of(7, Eval::Trial);
         let (episodes, max_steps) = (40, 400);
         let int = (&POLICY_INT, Levels::BANG_BANG);
         let judge = Judge {

@@ -33,7 +33,9 @@ mod replay;
 mod select;
 
 pub use crate::reward::{Prices, Reward};
-pub use evaluate::{EvalResult, EvalStreams, Judge, evaluate, solved_episode, trailing_means};
+pub use evaluate::{
+    Eval, EvalResult, EvalStreams, Judge, evaluate, quantised, solved_episode, trailing_means,
+};
 pub use learner::{Learner, init_weights, td_targets};
 pub use replay::ReplayBuffer;
 pub use select::TrialRun;

@@ -8,7 +8,7 @@ use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use super::evaluate::{Judge, evaluate_int, quantised};
-use super::{Domains, EpisodeRecord, EvalResult, EvalStreams, Learner, Stream, evaluate};
+use super::{Domains, EpisodeRecord, Eval, EvalResult, EvalStreams, Learner, evaluate};
 use crate::config::Config;
 
 /// One finalist's trial: its float network's result, and with `board_int8` its integer
@@ -65,41 +65,6 @@ pub(super) fn pick(trial: &[TrialRun], margin: f64) -> Option<usize> {
     costs
         .min_by(|(_, x), (_, y)| x.cost().total_cmp(&y.cost()))
         .map(|(i, _)| i)
-}
-
-/// Which evaluation a set of streams serves.
-#[derive(Clone, Copy)]
-enum Eval {
-    /// The periodic ones: the same streams every time within a run.
-    Periodic,
-    /// The finalists' trial: the same streams for every finalist.
-    Trial,
-    /// The final one, disjoint from everything the run trained or selected on.
-    Final,
-}
-
-fn eval_streams(seed: u64, which: Eval) -> EvalStreams {
-    let streams = match which {
-        Eval::Periodic => [
-            Stream::EvalWorld,
-            Stream::Eval,
-            Stream::EvalNoise,
-            Stream::EvalPushes,
-        ],
-        Eval::Trial => [
-            Stream::TrialWorld,
-            Stream::Trial,
-            Stream::TrialNoise,
-            Stream::TrialPushes,
-        ],
-        Eval::Final => [
-            Stream::FinalWorld,
-            Stream::Final,
-            Stream::FinalNoise,
-            Stream::FinalPushes,
-        ],
-    };
-    EvalStreams::new(seed, streams)
 }
 
 /// The environment steps an evaluation ran: its return counts one per step.
@@ -185,7 +150,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
     /// `net`'s evaluation `which`, not yet counted.
     fn run(&self, net: &Mlp<H, A>, which: Eval) -> EvalResult {
         let (episodes, steps, domain) = self.plan(which);
-        let (policy, streams) = ((net, self.levels), eval_streams(self.seed, which));
+        let (policy, streams) = ((net, self.levels), EvalStreams::of(self.seed, which));
         evaluate(policy, episodes, steps, domain, self.judge, streams)
     }
 
@@ -194,7 +159,7 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
     fn trial_int8(&self, net: &Mlp<H, A>) -> Option<EvalResult> {
         let (episodes, steps, domain) = self.plan(Eval::Trial);
         let q = quantised((net, self.levels), &self.domains.machine).ok()?;
-        let streams = eval_streams(self.seed, Eval::Trial);
+        let streams = EvalStreams::of(self.seed, Eval::Trial);
         let policy = (&*q, self.levels);
         Some(evaluate_int(
             policy, episodes, steps, domain, self.judge, streams,
