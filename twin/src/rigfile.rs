@@ -327,7 +327,9 @@ impl Fields<'_> {
         let Some(o) = o else {
             return Ok(Tuning::DEFAULT);
         };
-        let sd = |field: &str, v: f64| self.check(field, v, (0.0, 1e4), true);
+        // A thousandth of a newton or of a metre per second squared at least: below that the
+        // observer would trust its model over every reading, and a value is a slip.
+        let sd = |field: &str, v: f64| self.check(field, v, (1e-3, 1e4), false);
         if o.accel_sd.len() != 2 {
             return Err(self.refuse(format!(
                 "observer.accel_sd: expected 2 numbers (the cart's and the pole's), found {}",

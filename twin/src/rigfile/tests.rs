@@ -121,6 +121,31 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
         "track_half_length_m: expected a number in [0.001, 100]",
     ),
     (
+        "pole_com_m = 0.22",
+        "pole_com_m = 0.0009",
+        "pole_com_m: expected a number in [0.001, 100]",
+    ),
+    (
+        "pole_mass_kg = 0.08",
+        "pole_mass_kg = 0.00009",
+        "pole_mass_kg: expected a number in [0.0001, 1000]",
+    ),
+    (
+        "cart_mass_kg = 0.6",
+        "gravity_m_s2 = 0.09\ncart_mass_kg = 0.6",
+        "gravity_m_s2: expected a number in [0.1, 100]",
+    ),
+    (
+        "cart_mass_kg = 0.6",
+        "failure_angle_deg = 0.05\ncart_mass_kg = 0.6",
+        "failure_angle_deg: expected a number in [0.1, 90]",
+    ),
+    (
+        "pivot_viscous_n_m_s = 0.0",
+        "pivot_viscous_n_m_s = 0.0\n\n[observer]\nforce_sd = 1e-300\naccel_sd = [1.0, 2.0]",
+        "observer.force_sd: expected a number in [0.001, 10000]",
+    ),
+    (
         "cart_mass_kg = 0.6",
         "cart_mass_kg = nan",
         "cart_mass_kg: expected a number",
