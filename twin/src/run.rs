@@ -327,7 +327,7 @@ impl Tally {
 /// project's one mixer (`host_common::seed`). An episode's draws then do not depend on the
 /// episodes before it, episodes run in any order and in parallel, and every controller given
 /// the same draws meets the same episodes. `host-sim eval`, PIL and the Python environments
-/// draw [`Draws::of`] their seed; training's evaluations draw streams of their own.
+/// draw [`Draws::of`]`(seed)`; training's evaluations, streams of their own (`EvalStreams`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Draws {
     /// The seed.
