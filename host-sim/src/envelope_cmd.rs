@@ -39,9 +39,10 @@ pub struct EnvelopeArgs {
     /// largest reading seen).
     #[arg(long, default_value_t = 1.0)]
     quantile: f64,
-    /// The factor on each channel's quantile.
+    /// The factor on each channel's quantile. Read and checked in f64, so a value just past a
+    /// bound is refused rather than rounded into it.
     #[arg(long, default_value_t = 1.1)]
-    margin: f32,
+    margin: f64,
     /// Write the shipped crate's module (`shipped/src/envelope.rs`) here: the shipped policy's
     /// only.
     #[arg(long)]
@@ -93,7 +94,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         names,
         (a.episodes, a.horizon),
         a.quantile,
-        a.margin,
+        a.margin as f32,
         provenance,
     );
     if let Some(out) = &a.out {

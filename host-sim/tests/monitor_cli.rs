@@ -160,6 +160,11 @@ fn bad_input_exits_2_before_any_work() {
             vec!["envelope", "--margin", "NaN"],
             "--margin must be in [1, 10]",
         ),
+        // Past the bound by less than an f32 can tell: refused, not rounded into it.
+        (
+            vec!["envelope", "--margin", "10.0000001"],
+            "--margin must be in [1, 10], got 10.0000001",
+        ),
         (
             vec!["envelope", "--episodes", "0"],
             "--episodes must be in [1, 100000]",
