@@ -151,12 +151,14 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     })?;
     let bad =
         |why: String| weights::Error::Input(format!("envelope {}: {why}", weights::shown(path)));
-    let e: Envelope = serde_json::from_slice(&bytes).map_err(|e| {
-        bad(format!(
-            "expected the JSON `host-sim envelope --json` prints, {}",
-            weights::excerpt(&e.to_string())
-        ))
-    })?;
+    let e: Envelope = std::str::from_utf8(&bytes)
+        .map_err(|e| e.to_string())
+        .and_then(weights::json::parse)
+        .map_err(|e| {
+            bad(format!(
+                "expected the JSON `host-sim envelope --json` prints, {e}"
+            ))
+        })?;
     Limits::new(e.envelope).map_err(|e| bad(e.to_string()))
 }
 

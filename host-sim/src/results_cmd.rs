@@ -3,7 +3,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{Result, anyhow};
 use clap::{Args, Subcommand};
 use host_sim::manifest::Manifest;
 use host_sim::moved;
@@ -73,8 +73,8 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
         Action::Moved { old, new, name } => {
             let json = |p: &PathBuf| -> Result<serde_json::Value> {
                 let text = read_text(p)?;
-                serde_json::from_str(&text).with_context(|| {
-                    format!("{}: expected a results file's JSON", weights::shown(p))
+                weights::json::parse(&text).map_err(|e| {
+                    anyhow!("{}: expected a results file's JSON, {e}", weights::shown(p))
                 })
             };
             let (was, now) = (json(old)?, json(new)?);

@@ -262,13 +262,8 @@ struct Mean {
 
 /// The Markdown table `spec` asks for from `json`, `eval --json`'s output.
 pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
-    let results: Results = serde_json::from_str(json).map_err(|e| {
-        format!(
-            "{} is not `eval --json` output: {}",
-            spec.file,
-            weights::excerpt(&e.to_string())
-        )
-    })?;
+    let results: Results = weights::json::parse(json)
+        .map_err(|e| format!("{} is not `eval --json` output: {e}", spec.file))?;
     let horizon = match spec.horizon {
         Some(h) => h,
         None => only_horizon(&results.rows)

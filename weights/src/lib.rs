@@ -26,6 +26,7 @@
 pub mod checkpoint;
 pub mod feedback;
 pub mod files;
+pub mod json;
 pub mod levels;
 pub mod quant;
 pub mod shape;

@@ -338,7 +338,7 @@ impl Rows {
 }
 
 fn parse_rows(text: &str) -> Option<Vec<Json>> {
-    let mut json: Json = serde_json::from_str(text).ok()?;
+    let mut json: Json = weights::json::parse(text).ok()?;
     match json.get_mut("rows")?.take() {
         Json::Array(rows) => Some(rows),
         _ => None,

@@ -1,5 +1,6 @@
-//! A global allocator that counts: the peak of live bytes during one import, for the
-//! memory bounds of `memory_bound.rs`.
+//! A global allocator that counts: the peak of live bytes during one import or one read,
+//! for the memory bounds of `memory_bound.rs` (through `import_bound.rs`) and
+//! `json_memory.rs`.
 //!
 //! The allocator is the one `unsafe` of the crate's tests: `GlobalAlloc` is an unsafe trait.
 //! It forwards every call to the system allocator unchanged and only counts.
@@ -7,8 +8,6 @@
 use std::alloc::{GlobalAlloc, Layout, System};
 use std::sync::atomic::{AtomicUsize, Ordering::SeqCst};
 use std::sync::{Mutex, MutexGuard};
-
-use weights::checkpoint::import;
 
 struct Counting;
 
@@ -50,12 +49,6 @@ unsafe impl GlobalAlloc for Counting {
 #[global_allocator]
 static ALLOCATOR: Counting = Counting;
 
-/// Peak memory per input byte allowed.
-const FACTOR: usize = 2;
-/// And beyond it: the pickle machine's stack and memo at its 65,536 opcodes, the six
-/// tensors converted, a width-256 network for the Q-value check.
-pub const SLACK: usize = 8 << 20;
-
 /// Tests run one at a time here, so that one's allocations (making its files, say) are not
 /// counted in another's measurement.
 static ONE: Mutex<()> = Mutex::new(());
@@ -65,50 +58,10 @@ pub fn alone() -> MutexGuard<'static, ()> {
     ONE.lock().unwrap_or_else(|p| p.into_inner())
 }
 
-/// Imports `bytes` with `prefix`, checks the peak memory of the import and returns its
-/// message (or `ok`). The caller holds [`alone`].
-pub fn bounded(what: &str, bytes: &[u8], prefix: Option<&str>) -> String {
-    bounded_within(what, bytes, prefix, SLACK)
-}
-
-/// [`bounded`] for `weights::checkpoint::load` of the file at `path` (of `len` bytes),
-/// which holds the file's bytes besides what the import holds.
-pub fn loaded(what: &str, path: &std::path::Path, len: usize, prefix: Option<&str>) -> String {
+/// What `f` returns, and the peak of live bytes while it ran above those live before.
+pub fn peak_of<R>(f: impl FnOnce() -> R) -> (R, usize) {
     let base = LIVE.load(SeqCst);
     PEAK.store(base, SeqCst);
-    let said = match weights::checkpoint::load(path, prefix) {
-        Ok(_) => "ok".to_string(),
-        Err(e) => e.to_string(),
-    };
-    let peak = PEAK.load(SeqCst) - base;
-    eprintln!("{what}: {len} bytes, peak {peak} bytes: {said}");
-    assert!(
-        peak <= (FACTOR + 1) * len + SLACK,
-        "{what}: peak {peak} bytes for a file of {len}"
-    );
-    said
-}
-
-/// [`bounded`] with another constant than [`SLACK`].
-pub fn bounded_within(what: &str, bytes: &[u8], prefix: Option<&str>, slack: usize) -> String {
-    let base = LIVE.load(SeqCst);
-    PEAK.store(base, SeqCst);
-    let got = import(bytes, prefix);
-    let peak = PEAK.load(SeqCst) - base;
-    let said = match got {
-        Ok(_) => "ok".to_string(),
-        Err(e) => e.to_string(),
-    };
-    eprintln!("{what}: {} bytes, peak {peak} bytes: {said}", bytes.len());
-    assert!(
-        peak <= FACTOR * bytes.len() + slack,
-        "{what}: peak {peak} bytes for a file of {}",
-        bytes.len()
-    );
-    assert!(
-        said.len() < 2_000,
-        "{what}: a message of {} bytes",
-        said.len()
-    );
-    said
+    let r = f();
+    (r, PEAK.load(SeqCst) - base)
 }
