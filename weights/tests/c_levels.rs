@@ -1,7 +1,8 @@
 //! A policy of five duty levels through the C headers, float and int8, compiled by the
 //! system's C compiler (`CC`, else `cc`): the program computes the network from the
 //! header's arrays and takes `NAME_duty`, and the duty it chooses is the one an f64
-//! forward pass of the same weights chooses, for thousands of observations.
+//! forward pass of the same weights chooses, for thousands of observations; and headers
+//! named just outside the names the C library takes compile beside its headers and a `main`.
 
 use std::fmt::Write;
 use std::path::Path;
@@ -229,4 +230,56 @@ fn a_five_level_header_carries_its_duties_and_names_the_library_functions() {
     assert!(h.contains(
         "cartpole_controller_init_mlp64x5(&ctl, &gentle, gentle_levels, 5, &gentle_rig)"
     ));
+}
+
+/// Names just outside each class the C library takes: of `<stdint.h>` (`INT` or `UINT` with
+/// `_MAX`, `_MIN`, `_WIDTH` or `_C` needs both), of `<stddef.h>`, `errno` and `main`.
+const NEAR_NAMES: [&str; 12] = [
+    "MY_INT8_MAX",
+    "INT8_MAXIMUM",
+    "UINT64_CONST",
+    "INT_WIDTHS",
+    "SIZE_MAX_",
+    "MY_SIZE_MAX",
+    "Null",
+    "offset_of",
+    "unreachable_",
+    "Errno",
+    "errno_",
+    "main_",
+];
+
+#[test]
+fn names_just_outside_those_the_c_library_takes_compile_beside_it() {
+    let w = weights::feedback::state_feedback(64, &LEVELS, GAIN).unwrap();
+    let q = quant::quantise(&w, &observations(100), Granularity::PerChannel).unwrap();
+    let dir = std::env::temp_dir().join(format!("weights-c-names-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let mut main = String::from(
+        "#include <stdint.h>\n#include <stddef.h>\n#include <errno.h>\n#include <stdio.h>\n\
+         #include <stdlib.h>\n#include <string.h>\n",
+    );
+    let mut sum = String::new();
+    for (i, name) in NEAR_NAMES.iter().enumerate() {
+        // Float and int8 headers in turn: both writers check the name alike.
+        let header = if i % 2 == 0 {
+            weights::source::c_header(&w, name, &[], &Rig::GYMNASIUM)
+        } else {
+            quant::c_header(&q, name, &[], &Rig::GYMNASIUM)
+        };
+        std::fs::write(dir.join(format!("{name}.h")), header.unwrap()).unwrap();
+        let _ = writeln!(main, "#include \"{name}.h\"");
+        let _ = write!(
+            sum,
+            " + (long){name}.fc3_bias[0] + {name}_levels[0] + (long){name}_rig.dead_time"
+        );
+    }
+    let _ = write!(
+        main,
+        "int main(void) {{\n    printf(\"%ld\\n\", 0L{sum});\n    return 0;\n}}\n"
+    );
+    std::fs::write(dir.join("main.c"), main).unwrap();
+    let out = compile_and_run(&dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(out.lines().count(), 1, "{out}");
 }

@@ -1,7 +1,10 @@
 //! The names an export gives its items: checked so that the generated source compiles, alone
 //! and beside the C API and other exports.
 
-use crate::{Error, Result, quote};
+use firmware::rig::Rig;
+
+use super::{levels_item, rig_item};
+use crate::{BANG_BANG, Error, Result, quote};
 
 /// Longest name: C guarantees 63 significant characters of an identifier, and the include
 /// guard puts 18 before it ([`c_guard`]).
@@ -19,9 +22,9 @@ fn check_length(name: &str) -> Result<()> {
     )))
 }
 
-/// Checks a Rust static's name: at most [`MAX_NAME_CHARS`] characters of upper case, digits and underscores, not starting with a
-/// digit (what `non_upper_case_globals` accepts), not a keyword, and not `RIG`, the
-/// module's other item.
+/// Checks a Rust static's name: at most [`MAX_NAME_CHARS`] characters of upper case, digits
+/// and underscores, not starting with a digit (what `non_upper_case_globals` accepts), not a
+/// keyword, and none of the module's other items ([`rust_module_items`]).
 pub fn check_rust_name(name: &str) -> Result<()> {
     check_length(name)?;
     let ok = name.starts_with(|c: char| c.is_ascii_uppercase() || c == '_')
@@ -29,21 +32,43 @@ pub fn check_rust_name(name: &str) -> Result<()> {
             .chars()
             .all(|c| c.is_ascii_uppercase() || c.is_ascii_digit() || c == '_')
         && name != "_"
-        && name != "Self"
-        && name != "RIG";
-    if ok {
-        Ok(())
-    } else {
-        Err(Error::Input(format!(
-            "--name: expected a Rust static's name (upper case, digits, `_`, e.g. POLICY; not \
-             RIG), found {}",
+        && name != "Self";
+    if !ok {
+        return Err(Error::Input(format!(
+            "--name: expected a Rust static's name (upper case, digits, `_`, e.g. POLICY), \
+             found {}",
             quote(name)
-        )))
+        )));
     }
+    let items = rust_module_items();
+    if items.iter().any(|item| item == name) {
+        return Err(Error::Input(format!(
+            "--name: expected a name the module does not define itself, found {} (the module \
+             defines {} beside the static: a second definition does not compile)",
+            quote(name),
+            items.join(" and ")
+        )));
+    }
+    Ok(())
 }
 
-/// C's keywords.
-const C_KEYWORDS: [&str; 44] = [
+/// The items a Rust module defines beside its static, `LEVELS` and `RIG`: read from what
+/// their writers write, so that the names refused cannot fall out of step with the module.
+fn rust_module_items() -> Vec<String> {
+    let items = levels_item(&BANG_BANG) + &rig_item(&Rig::GYMNASIUM);
+    items
+        .lines()
+        .filter_map(|line| {
+            let rest = line
+                .strip_prefix("pub const ")
+                .or_else(|| line.strip_prefix("pub static "))?;
+            rest.split_once(':').map(|(item, _)| item.to_string())
+        })
+        .collect()
+}
+
+/// C's keywords, C23's among them: `typeof` is one in GCC's default dialect too.
+const C_KEYWORDS: [&str; 46] = [
     "auto",
     "break",
     "case",
@@ -88,6 +113,8 @@ const C_KEYWORDS: [&str; 44] = [
     "_Noreturn",
     "_Static_assert",
     "_Thread_local",
+    "typeof",
+    "typeof_unqual",
 ];
 
 /// C++'s keywords beyond C's: the headers are included from C++ too (Arduino sketches).
@@ -152,13 +179,13 @@ const CXX_KEYWORDS: [&str; 58] = [
     "thread_local",
 ];
 
-/// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits and underscores, not
-/// starting with a digit, not a C or C++ keyword, not reserved (`_` followed by a capital or `_`,
-/// or ending in `_t`, POSIX's), not ending in `_rig`, `_levels` or `_duty` (so that no
-/// header's `NAME_rig`, `NAME_levels` or `NAME_duty` is another's `NAME`), and such that none
-/// of `NAME`, `NAME_rig`, `NAME_levels`, `NAME_duty` and the include guard
-/// ([`c_guard`]) is an identifier of the C API (`cartpole_policy.h`), which a board
-/// includes beside it.
+/// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits
+/// and underscores, not starting with a digit, not a C or C++ keyword, not reserved (`_`
+/// followed by a capital or `_`, or ending in `_t`, POSIX's), not a name the C library takes
+/// ([`c_library_use`]), not ending in `_rig`, `_levels` or `_duty` (so that no header's
+/// `NAME_rig`, `NAME_levels` or `NAME_duty` is another's `NAME`), and such that none of
+/// `NAME`, `NAME_rig`, `NAME_levels`, `NAME_duty` and the include guard ([`c_guard`]) is an
+/// identifier of the C API (`cartpole_policy.h`), which a board includes beside it.
 pub fn check_c_name(name: &str) -> Result<()> {
     check_length(name)?;
     let b = name.as_bytes();
@@ -180,6 +207,12 @@ pub fn check_c_name(name: &str) -> Result<()> {
             quote(name)
         )));
     }
+    if let Some(why) = c_library_use(name) {
+        return Err(Error::Input(format!(
+            "--name: expected a name the C library leaves to programs, found {} ({why})",
+            quote(name)
+        )));
+    }
     let api = api_identifiers();
     let items = [
         name.to_string(),
@@ -197,6 +230,51 @@ pub fn check_c_name(name: &str) -> Result<()> {
         ))),
     }
 }
+
+/// Why the C library takes `name`, if it does: a macro would replace the object's name
+/// before the compiler saw it, and a function `main` would clash with it. Macros of
+/// `<stdint.h>`, which the header includes itself (C11 7.31.10 reserves names of `INT` or
+/// `UINT` and `_MAX`, `_MIN` or `_C`, C23 adds `_WIDTH`), and of the headers a program
+/// commonly includes beside it (`unreachable` is C23's).
+fn c_library_use(name: &str) -> Option<&'static str> {
+    let int_limit = (name.starts_with("INT") || name.starts_with("UINT"))
+        && ["_MAX", "_MIN", "_WIDTH", "_C"]
+            .iter()
+            .any(|end| name.ends_with(end));
+    if int_limit || STDINT_MACROS.contains(&name) {
+        Some("a macro name of <stdint.h>, which the header includes")
+    } else if ["NULL", "offsetof", "unreachable"].contains(&name) {
+        Some(
+            "a macro of <stddef.h>, which a program may include beside the header; NULL is \
+             one of <stdio.h>, <stdlib.h> and <string.h> too",
+        )
+    } else if name == "errno" {
+        Some("the macro of <errno.h>, which a program may include beside the header")
+    } else if name == "main" {
+        Some("the function every C program defines, which the object would clash with")
+    } else {
+        None
+    }
+}
+
+/// The macros of `<stdint.h>` outside its `INT` and `UINT` names: the limits of the types
+/// other headers define, with C23's widths.
+const STDINT_MACROS: [&str; 14] = [
+    "PTRDIFF_MIN",
+    "PTRDIFF_MAX",
+    "PTRDIFF_WIDTH",
+    "SIG_ATOMIC_MIN",
+    "SIG_ATOMIC_MAX",
+    "SIG_ATOMIC_WIDTH",
+    "SIZE_MAX",
+    "SIZE_WIDTH",
+    "WCHAR_MIN",
+    "WCHAR_MAX",
+    "WCHAR_WIDTH",
+    "WINT_MIN",
+    "WINT_MAX",
+    "WINT_WIDTH",
+];
 
 /// The include guard of the header for the object `name`: the name as it is, so that names
 /// differing only in case (C's are case-sensitive) give headers that compile together.

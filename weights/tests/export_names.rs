@@ -1,0 +1,164 @@
+//! The names an export refuses because its own source or the C library already uses them:
+//! every item a written Rust module defines beside its static, and every name the C library
+//! takes from a header's object, checked against the macros the system's C compiler
+//! (`CC`, else `cc`) defines, an implementation nobody here wrote.
+
+use std::collections::BTreeSet;
+use std::process::Command;
+
+use firmware::rig::Rig;
+use weights::quant::{self, Granularity, Quantised};
+use weights::source::{c_header, check_c_name, check_rust_name, rust_module};
+use weights::{BANG_BANG, Weights};
+
+/// Float and int8 policies of two and of five levels: every branch of the writers.
+fn policies() -> Vec<(Weights, Quantised)> {
+    let five = [-1.0, -0.4, 0.0, 0.3, 1.0];
+    [(16, &BANG_BANG[..]), (64, &five[..])]
+        .into_iter()
+        .map(|(h, levels)| {
+            let w = weights::feedback::state_feedback(h, levels, [-0.5, -1.0, -20.0, -3.0]);
+            let w = w.unwrap();
+            let states = [[0.1, -0.2, 0.05, 0.3], [-0.1, 0.2, -0.05, -0.3]];
+            let q = quant::quantise(&w, &states, Granularity::PerChannel).unwrap();
+            (w, q)
+        })
+        .collect()
+}
+
+/// The names a Rust module defines at its top level: each item starts in the first column
+/// (comments, attributes and closing brackets do not start with a letter), its name the
+/// first word after its keywords.
+fn top_level_items(module: &str) -> Vec<&str> {
+    let keywords = [
+        "pub", "const", "static", "mut", "fn", "struct", "enum", "type",
+    ];
+    module
+        .lines()
+        .filter(|line| line.starts_with(|c: char| c.is_ascii_alphabetic()))
+        .map(|line| {
+            line.split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+                .find(|w| !w.is_empty() && !keywords.contains(w))
+                .unwrap_or_else(|| panic!("no name in {line:?}"))
+        })
+        .collect()
+}
+
+#[test]
+fn every_item_a_rust_module_defines_beside_its_static_is_refused_as_its_name() {
+    let mut refused = BTreeSet::new();
+    for (w, q) in policies() {
+        for module in [
+            rust_module(&w, "GENTLE", &[], &Rig::GYMNASIUM).unwrap(),
+            quant::rust_module(&q, "GENTLE", &[], &Rig::GYMNASIUM).unwrap(),
+        ] {
+            let items = top_level_items(&module);
+            assert!(items.contains(&"GENTLE"), "{items:?}");
+            for item in items.into_iter().filter(|item| *item != "GENTLE") {
+                let e = check_rust_name(item).unwrap_err();
+                assert!(
+                    e.is_input() && e.to_string().contains("the module defines"),
+                    "{item}: {e}"
+                );
+                refused.insert(item.to_string());
+            }
+        }
+    }
+    // The items the hostile tester's LEVELS clashed with, and RIG, found by the parse.
+    assert!(
+        refused.contains("LEVELS") && refused.contains("RIG"),
+        "{refused:?}"
+    );
+    for ok in ["LEVELS_2", "POLICY_LEVELS", "RIGS"] {
+        check_rust_name(ok).unwrap();
+    }
+}
+
+#[test]
+fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
+    let classes: [(&str, &[&str]); 4] = [
+        (
+            "a macro name of <stdint.h>, which the header includes",
+            &[
+                "INT8_MAX",
+                "UINT64_C",
+                "INT_LEAST16_MIN",
+                "UINTPTR_WIDTH",
+                "INTERVAL_MAX",
+                "INTMAX_C",
+                "UINTMAX_C",
+                "SIZE_MAX",
+                "PTRDIFF_MIN",
+                "PTRDIFF_MAX",
+                "SIG_ATOMIC_MIN",
+                "SIG_ATOMIC_MAX",
+                "WCHAR_MIN",
+                "WCHAR_MAX",
+                "WINT_MIN",
+                "WINT_MAX",
+                "SIZE_WIDTH",
+            ],
+        ),
+        (
+            "a macro of <stddef.h>",
+            &["NULL", "offsetof", "unreachable"],
+        ),
+        ("the macro of <errno.h>", &["errno"]),
+        ("the function every C program defines", &["main"]),
+    ];
+    for (why, names) in classes {
+        for name in names {
+            let e = check_c_name(name).unwrap_err().to_string();
+            assert!(
+                e.contains("expected a name the C library leaves to programs") && e.contains(why),
+                "{name}: {e}"
+            );
+        }
+    }
+    // C23's keywords beyond C++'s: `typeof` is one in GCC's default dialect too.
+    for keyword in ["typeof", "typeof_unqual"] {
+        check_c_name(keyword).unwrap_err();
+    }
+}
+
+#[test]
+fn every_macro_of_the_headers_a_header_includes_is_refused_as_its_name() {
+    let mut includes = BTreeSet::new();
+    for (w, q) in policies() {
+        for header in [
+            c_header(&w, "gentle", &[], &Rig::GYMNASIUM).unwrap(),
+            quant::c_header(&q, "gentle", &[], &Rig::GYMNASIUM).unwrap(),
+        ] {
+            let found = header.lines().filter_map(|l| l.strip_prefix("#include "));
+            includes.extend(found.map(String::from));
+        }
+    }
+    // A header the writers come to include brings macros `check_c_name` must refuse.
+    assert_eq!(includes, BTreeSet::from(["<stdint.h>".to_string()]));
+    let dir = std::env::temp_dir().join(format!("weights-names-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("macros.c");
+    std::fs::write(&file, "#include <stdint.h>\n#include <stddef.h>\n").unwrap();
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    // C23, whose <stdint.h> adds the widths; strict, so no `linux` or `unix` of GNU's dialects.
+    let out = Command::new(&cc)
+        .args(["-std=c2x", "-dM", "-E"])
+        .arg(&file)
+        .output()
+        .unwrap_or_else(|e| panic!("running {cc}: {e}"));
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let macros: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("#define "))
+        .map(|l| l.split(['(', ' ']).next().unwrap())
+        .collect();
+    assert!(macros.contains(&"SIZE_MAX") && macros.contains(&"NULL"));
+    let accepted: Vec<&&str> = macros.iter().filter(|m| check_c_name(m).is_ok()).collect();
+    assert!(accepted.is_empty(), "accepted as names: {accepted:?}");
+}
