@@ -1,5 +1,5 @@
-//! `host-sim eval`'s checks of its flags, before any work: the counts, and each row asked
-//! for once.
+//! `host-sim eval`'s checks of its flags, before any work: the counts (the rows are
+//! `host_sim::eval::check_rows`'s).
 
 use anyhow::Result;
 use host_sim::eval::{MAX_EPISODES, MAX_HORIZON};
@@ -21,21 +21,6 @@ pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
     );
     if let Some(h) = a.horizon.iter().find(|&&h| !(1..=MAX_HORIZON).contains(&h)) {
         anyhow::bail!("--horizon must be in [1, {MAX_HORIZON}], got {h}");
-    }
-    Ok(())
-}
-
-/// Refuses a value of `flag` given twice among `values`.
-pub(super) fn once(flag: &str, values: impl Iterator<Item = String>) -> Result<()> {
-    let mut seen = std::collections::BTreeSet::new();
-    for v in values {
-        if seen.contains(&v) {
-            anyhow::bail!(
-                "{flag}: expected each row once, found {} twice",
-                weights::quote(&v)
-            );
-        }
-        seen.insert(v);
     }
     Ok(())
 }

@@ -8,7 +8,7 @@ use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use firmware::cartpole::Params;
 use host_common::provenance::Provenance;
-use host_sim::eval::{self, ControllerKind, MAX_ROWS, Net, Row};
+use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::replay;
 use indicatif::{ProgressBar, ProgressStyle};
 use twin::{Machine, Scenario};
@@ -345,22 +345,8 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     // The scenarios are checked before the policy loads; built on the machine it is run on.
     let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
     let probed = parse_scenarios(&a.scenario, &probe)?;
-    // A row asked for twice is a slip (`--scenario all,noise`, `--controller lqr,lqr`): the
-    // table would show one row twice.
-    eval_cmd::once("--horizon", a.horizon.iter().map(u32::to_string))?;
-    eval_cmd::once("--scenario", probed.iter().map(|s| s.name.clone()))?;
-    eval_cmd::once(
-        "--controller",
-        controllers.iter().map(|c| {
-            let name = clap::ValueEnum::to_possible_value(c);
-            name.map_or_else(|| format!("{c:?}"), |n| n.get_name().to_string())
-        }),
-    )?;
-    let rows = a.horizon.len() * probed.len() * controllers.len();
-    anyhow::ensure!(
-        rows <= MAX_ROWS,
-        "--horizon x --scenario x --controller must make at most {MAX_ROWS} rows, got {rows}"
-    );
+    let flags = ["--horizon", "--scenario", "--controller"];
+    eval::check_rows(&a.horizon, &probed, &controllers, flags).map_err(anyhow::Error::msg)?;
     let (machine, net) = a.subject.load_for(&controllers)?;
     let scenarios = match (&world, &a.world) {
         (Some(w), Some(path)) => {

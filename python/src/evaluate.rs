@@ -12,7 +12,7 @@ use std::sync::{Arc, mpsc};
 use std::time::Duration;
 
 use clap::ValueEnum;
-use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, MAX_ROWS, Net};
+use host_sim::eval::{self, ControllerKind, MAX_EPISODES, MAX_HORIZON, Net};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 use twin::{EpisodeStats, Machine, Scenario};
@@ -64,13 +64,12 @@ pub fn evaluate_json(
     };
     same_levels(policy, levels)?;
     let machine = given.unwrap_or(policy.machine);
+    // Counted before the specs are parsed, each a row at least: a parse costs far more.
+    eval::check_count(horizons.len(), scenarios.len(), kinds.len()).map_err(value_error)?;
     let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
+    let names = ["horizon", "scenario", "controller"];
+    eval::check_rows(&horizons, &scenarios, &kinds, names).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
-    if rows > MAX_ROWS {
-        return Err(value_error(format!(
-            "horizons x scenarios x controllers must make at most {MAX_ROWS} rows; found {rows}"
-        )));
-    }
     let net = network(policy, &kinds, &machine)?.unwrap_or_else(|| policy.net.clone());
     let mut out = Vec::with_capacity(rows);
     for &h in &horizons {

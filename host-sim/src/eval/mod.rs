@@ -22,9 +22,11 @@ use twin::{run_episode, run_episodes};
 use crate::baselines::{AngleRule, LinearLqr, Lqr, Random};
 
 mod net;
+mod rows;
 mod table;
 
 pub use net::{IntNet, Net};
+pub use rows::{MAX_ROWS, check_count, check_rows};
 pub(crate) use table::group;
 pub use table::{Motor, Row, WORST, Worst, format_failures, format_table};
 
@@ -197,8 +199,6 @@ fn monitored(net: &Net) -> Aids {
 pub const MAX_EPISODES: u64 = 10_000_000;
 /// Longest episode `eval` runs, in periods (about 5.6 hours of control).
 pub const MAX_HORIZON: u32 = 1_000_000;
-/// Most rows of one `eval`.
-pub const MAX_ROWS: usize = 10_000;
 
 const NO_ENVELOPE: &str = "the caller refused `monitored` for a network without an envelope";
 

@@ -1,0 +1,115 @@
+//! The rows one evaluation asks for, checked before any work by `host-sim eval` and Python's
+//! `evaluate` alike: at most [`MAX_ROWS`], and each once (a table showing one row twice is a
+//! slip: `--scenario all,noise`, `--controller lqr,lqr`, `noise+delay,delay+noise`).
+
+use twin::Scenario;
+
+use super::ControllerKind;
+
+/// Most rows of one `eval`.
+pub const MAX_ROWS: usize = 10_000;
+
+/// Refuses more than [`MAX_ROWS`] rows of `horizons` x `scenarios` x `controllers` (counts
+/// only, so that it can run before the scenarios are parsed: each spec is a row at least).
+pub fn check_count(horizons: usize, scenarios: usize, controllers: usize) -> Result<(), String> {
+    let rows = horizons
+        .saturating_mul(scenarios)
+        .saturating_mul(controllers);
+    if rows > MAX_ROWS {
+        return Err(format!(
+            "horizons x scenarios x controllers must make at most {MAX_ROWS} rows; found {rows}"
+        ));
+    }
+    Ok(())
+}
+
+/// Refuses rows asked for twice, or more than [`MAX_ROWS`]: a horizon by its value, a
+/// scenario by the world it builds (whatever its spec's order or spelling), a controller
+/// by its kind. `names` are the caller's for the three lists (its flags, or keywords).
+pub fn check_rows(
+    horizons: &[u32],
+    scenarios: &[Scenario],
+    controllers: &[ControllerKind],
+    names: [&str; 3],
+) -> Result<(), String> {
+    check_count(horizons.len(), scenarios.len(), controllers.len())?;
+    let [horizon, scenario, controller] = names;
+    if let Some(h) = twice(horizons, |a, b| a == b) {
+        return Err(format!(
+            "{horizon}: expected each row once, found {h} twice"
+        ));
+    }
+    if let Some((a, b)) = twice_pair(scenarios, Scenario::same_world) {
+        let (a, b) = (weights::quote(&a.name), weights::quote(&b.name));
+        let what = if a == b {
+            format!("{a} twice")
+        } else {
+            format!("{a} and {b}, the same world")
+        };
+        return Err(format!("{scenario}: expected each row once, found {what}"));
+    }
+    if let Some(c) = twice(controllers, |a, b| a == b) {
+        return Err(format!(
+            "{controller}: expected each row once, found {c} twice"
+        ));
+    }
+    Ok(())
+}
+
+/// The first item equal to an earlier one by `same`.
+fn twice<T: Copy>(items: &[T], same: impl Fn(&T, &T) -> bool) -> Option<T> {
+    twice_pair(items, same).map(|(_, b)| *b)
+}
+
+/// The first item equal to an earlier one by `same`, with that earlier one. Quadratic, on
+/// lists whose product is at most [`MAX_ROWS`].
+fn twice_pair<T>(items: &[T], same: impl Fn(&T, &T) -> bool) -> Option<(&T, &T)> {
+    items
+        .iter()
+        .enumerate()
+        .find_map(|(i, b)| items[..i].iter().find(|a| same(a, b)).map(|a| (a, b)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use twin::Machine;
+
+    fn parsed(specs: &[&str]) -> Vec<Scenario> {
+        let specs: Vec<String> = specs.iter().map(|s| s.to_string()).collect();
+        Scenario::words_on(&specs, &Machine::GYMNASIUM).unwrap()
+    }
+
+    const NAMES: [&str; 3] = ["horizon", "scenario", "controller"];
+
+    #[test]
+    fn a_world_asked_for_twice_is_refused_however_it_is_spelt() {
+        use ControllerKind::*;
+        let ok = parsed(&["nominal", "noise", "noise+delay", "noise=2"]);
+        assert_eq!(
+            check_rows(&[500, 10_000], &ok, &[Policy, Lqr], NAMES),
+            Ok(())
+        );
+        for (specs, found) in [
+            (
+                &["noise+delay", "delay+noise"][..],
+                "\"noise+delay\" and \"delay+noise\"",
+            ),
+            (&["noise", "noise=1"], "\"noise\" and \"noise=1\""),
+            (
+                &["length=2", "length=2.0"],
+                "\"length=2\" and \"length=2.0\"",
+            ),
+        ] {
+            let e = check_rows(&[500], &parsed(specs), &[Policy], NAMES).unwrap_err();
+            assert!(e.contains(found) && e.contains("the same world"), "{e}");
+        }
+        let e = check_rows(&[500, 500], &ok, &[Policy], NAMES).unwrap_err();
+        assert_eq!(e, "horizon: expected each row once, found 500 twice");
+        let e = check_rows(&[500], &ok, &[Lqr, Policy, Lqr], NAMES).unwrap_err();
+        assert_eq!(e, "controller: expected each row once, found lqr twice");
+        let e = check_count(10_001, 1, 1).unwrap_err();
+        assert!(e.ends_with("at most 10000 rows; found 10001"), "{e}");
+        assert!(check_count(usize::MAX, 2, 2).is_err());
+    }
+}
