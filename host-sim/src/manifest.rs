@@ -84,7 +84,8 @@ impl Manifest {
     /// The manifest in `text`, checked: names unique and plain, one line per command, a
     /// printed output written by one step alone, known tools, a cost.
     pub fn parse(text: &str) -> Result<Manifest, String> {
-        let m: Manifest = toml::from_str(text).map_err(|e| e.to_string())?;
+        let m: Manifest =
+            toml::from_str(text).map_err(|e| weights::located(text, e.span(), e.message()))?;
         for (i, s) in m.steps.iter().enumerate() {
             let at = format!("step `{}`", s.name);
             let named = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c);

@@ -96,6 +96,13 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
     if let Some((text, _)) = rig {
         cfg.rig = text;
     }
-    cfg.validate()?;
+    // A value from the file is named by the file; the flags name their own.
+    cfg.validate().map_err(|e| match &args.config {
+        Some(path) => ConfigError(format!(
+            "--config {} with the flags: {e}",
+            weights::shown(path)
+        )),
+        None => e,
+    })?;
     Ok(cfg)
 }

@@ -414,12 +414,27 @@ pub fn load_startup(path: &Path) -> Result<(Machine, Startup)> {
 
 /// [`parse`] with the start-up, as [`load_startup`] reads it.
 pub fn parse_startup(text: &str, origin: &str) -> Result<(Machine, Startup)> {
-    let f: File = toml::from_str(text)
-        .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
+    let f: File = from_toml(text, origin)?;
     let fields = Fields { origin };
     let machine = machine(&f, fields)?;
     let startup = fields.startup(&f.startup, &machine.rig)?;
     Ok((machine, startup))
+}
+
+/// A rig file's text as TOML, refused past a rig file's size wherever the text comes from
+/// (a file, a policy file's metadata, a training configuration's `rig`), so that none costs
+/// more than a rig file may.
+fn from_toml<T: serde::de::DeserializeOwned>(text: &str, origin: &str) -> Result<T> {
+    if text.len() as u64 > MAX_RIG_BYTES {
+        return Err(Error::Input(format!(
+            "{origin}: expected a rig file's text of at most {MAX_RIG_BYTES} bytes, found {}",
+            text.len()
+        )));
+    }
+    toml::from_str(text).map_err(|e| {
+        let why = weights::located(text, e.span(), e.message());
+        Error::Input(format!("{origin}: {why}"))
+    })
 }
 
 /// The machine file `f` describes.

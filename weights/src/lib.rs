@@ -85,6 +85,30 @@ pub fn shown(path: &std::path::Path) -> String {
     excerpt(&path.to_string_lossy())
 }
 
+/// A parser's refusal of `text` (a TOML file's, say) as `line L, column C: MESSAGE`, from
+/// the byte range `at` it points to and its own `message` (cut and escaped): the reason comes
+/// first, where a parser's display quotes the offending source line before it, and a long
+/// line cut to [`QUOTE_MAX`] lost the reason.
+pub fn located(text: &str, at: Option<std::ops::Range<usize>>, message: &str) -> String {
+    // A parser quotes the offending value inside its reason (`invalid type: string "...",
+    // expected f64`): a long one is cut in its middle, so both ends of the reason show.
+    let chars: Vec<char> = message.trim().chars().collect();
+    let message = if chars.len() > QUOTE_MAX {
+        let (head, tail) = (&chars[..QUOTE_MAX / 2], &chars[chars.len() - QUOTE_MAX / 4..]);
+        let (head, tail): (String, String) = (head.iter().collect(), tail.iter().collect());
+        format!("{} ... {}", excerpt(&head), excerpt(&tail))
+    } else {
+        excerpt(&chars.iter().collect::<String>())
+    };
+    let Some(at) = at.filter(|r| text.is_char_boundary(r.start)) else {
+        return message;
+    };
+    let before = &text[..at.start];
+    let line = before.matches('\n').count() + 1;
+    let column = before.rsplit('\n').next().map_or(0, |l| l.chars().count()) + 1;
+    format!("line {line}, column {column}: {message}")
+}
+
 /// The escaped beginning of `s`, at most [`QUOTE_MAX`] characters, and whether it was cut.
 /// An escape is never split, and only what is shown is read: a 64 MiB name costs as much as a
 /// short one.
@@ -354,6 +378,27 @@ mod tests {
             "{e}"
         );
         assert_eq!(probe_states().count(), 97);
+    }
+
+    #[test]
+    fn a_parsers_refusal_is_located_with_its_reason_first() {
+        let text = "a = 1\nbé = \"xx\"\n";
+        let at = text.find('"').unwrap();
+        assert_eq!(
+            located(
+                text,
+                Some(at..at + 4),
+                " invalid type: string \"xx\", expected f64\n"
+            ),
+            "line 2, column 6: invalid type: string \"xx\", expected f64"
+        );
+        assert_eq!(located(text, None, "\u{1b}[2J"), "\\u{1b}[2J");
+        // A range inside a character is not a place; the message stays.
+        assert_eq!(located("é", Some(1..2), "m"), "m");
+        let long = format!("invalid type: string \"{}\", expected f64", "x".repeat(5000));
+        let m = located("", None, &long);
+        assert!(m.starts_with("invalid type: string \"xx") && m.ends_with("x\", expected f64"));
+        assert!(m.len() < 2 * QUOTE_MAX, "{m}");
     }
 
     #[test]

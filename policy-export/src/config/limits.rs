@@ -175,7 +175,7 @@ impl Limit {
             (Limit::Reward, Value::Text(s)) => parsed(crate::reward::Reward::parse(s).map(drop)),
             (Limit::Rig, Value::Text("")) => Ok(()),
             (Limit::Rig, Value::Text(s)) => parsed(
-                twin::rigfile::parse(s, "rig")
+                twin::rigfile::parse(s, super::RIG_TEXT)
                     .map(drop)
                     .map_err(|e| e.to_string()),
             ),

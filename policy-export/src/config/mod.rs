@@ -58,6 +58,10 @@ pub use deploy::{
 };
 
 use keys::config_keys;
+
+/// How a configuration's `rig` is named in its refusals: it holds a rig file's text (the
+/// command line's `--rig` reads the file into it), so a path there is a slip.
+const RIG_TEXT: &str = "`rig` (a rig file's text, not a path)";
 pub use limits::{KeyLimit, Limit, MAX_CONFIG_BYTES, MAX_SEEDS, Value};
 
 /// Which TD target the learner regresses on.
@@ -321,7 +325,7 @@ impl Config {
         if self.rig.is_empty() {
             return Ok(twin::Machine::GYMNASIUM);
         }
-        twin::rigfile::parse(&self.rig, "rig").map_err(|e| ConfigError(e.to_string()))
+        twin::rigfile::parse(&self.rig, RIG_TEXT).map_err(|e| ConfigError(e.to_string()))
     }
 
     /// The configuration as the project's files record it (policy files, the reproduction's
@@ -438,8 +442,10 @@ impl Config {
     /// Overlays the keys of a TOML document; an unknown key or a wrongly typed value is an
     /// error that names it.
     pub fn overlay_toml(&self, text: &str, origin: &str) -> Result<Config, ConfigError> {
-        let file: toml::Table = toml::from_str(text)
-            .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))?;
+        let file: toml::Table = toml::from_str(text).map_err(|e| {
+            let why = weights::located(text, e.span(), e.message());
+            ConfigError(format!("{origin}: {why}"))
+        })?;
         let mut merged = toml::Table::try_from(self)
             .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))?;
         for (k, v) in file {

@@ -1,7 +1,7 @@
 //! The `[identified.misfit]` table of a rig file.
 
 use serde::Deserialize;
-use weights::{Error, Result};
+use weights::Result;
 
 use super::{Fields, File, parse};
 
@@ -54,7 +54,6 @@ impl Misfit {
 /// checks it), if it has one; `origin` names it in errors.
 pub fn misfit(text: &str, origin: &str) -> Result<Option<Misfit>> {
     parse(text, origin)?;
-    let f: File = toml::from_str(text)
-        .map_err(|e| Error::Input(format!("{origin}: {}", weights::excerpt(&e.to_string()))))?;
+    let f: File = super::from_toml(text, origin)?;
     Ok(f.identified.misfit)
 }

@@ -267,3 +267,24 @@ fn a_misfit_reads_back_as_written_and_widens_the_intervals() {
         );
     }
 }
+
+#[test]
+fn rig_text_from_anywhere_is_held_to_a_rig_files_size_and_refused_with_its_reason() {
+    let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
+    // A policy file's metadata or a configuration's `rig` carries the text, not a file: it
+    // is held to the same size (an array of half a million numbers took 79 MB).
+    let big = format!("{desk}\nx = [{}]\n", vec!["1"; 40_000].join(","));
+    let e = parse(&big, "the recorded rig").unwrap_err().to_string();
+    assert!(
+        e.contains("expected a rig file's text of at most 65536 bytes, found 80"),
+        "{e}"
+    );
+    // The parser's reason comes first, not cut off behind the offending line's quote.
+    let long = desk.replace(
+        "cart_mass_kg = 0.6",
+        &format!("cart_mass_kg = \"{}\"", "x".repeat(300)),
+    );
+    assert_ne!(long, desk, "the desk rig's cart mass is written as 0.6");
+    let e = parse(&long, "rig t").unwrap_err().to_string();
+    assert!(e.starts_with("rig t: line ") && e.contains("expected f64"), "{e}");
+}
