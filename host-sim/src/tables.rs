@@ -19,6 +19,7 @@
 use std::ops::Range;
 
 use serde::Deserialize;
+use weights::quote;
 
 use crate::eval::group;
 
@@ -163,14 +164,17 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
     for word in words {
         let (key, value) = word.split_once('=').unwrap_or((word, ""));
         if seen.contains(&key) {
-            return Err(format!("option `{key}` given twice"));
+            return Err(format!("option {} given twice", quote(key)));
         }
         seen.push(key);
         match (key, word.contains('=')) {
             ("brief", false) => spec.brief = true,
             ("horizon", true) => {
                 let h = value.parse().map_err(|_| {
-                    format!("horizon= expects a number of periods, found `{value}`")
+                    format!(
+                        "horizon= expects a number of periods, found {}",
+                        quote(value)
+                    )
                 })?;
                 spec.horizon = Some(h);
             }
@@ -181,8 +185,9 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
             ("pil", true) => spec.pil = Some(list(key, value)?.join(",")),
             _ => {
                 return Err(format!(
-                    "unknown option `{word}` (known: horizon=N, scenarios=A,B, \
-                     success=C,D, brief, below=A,B, compare=A,B, pil=C)"
+                    "unknown option {} (known: horizon=N, scenarios=A,B, \
+                     success=C,D, brief, below=A,B, compare=A,B, pil=C)",
+                    quote(word)
                 ));
             }
         }
@@ -208,7 +213,8 @@ fn parse_results_file(file: &str) -> Result<&str, String> {
     let name = file.strip_prefix(RESULTS_DIR).unwrap_or_default();
     if !name.ends_with(".json") || name.contains('/') || name.starts_with('.') {
         return Err(format!(
-            "expected a file {RESULTS_DIR}NAME.json, found `{file}`"
+            "expected a file {RESULTS_DIR}NAME.json, found {}",
+            quote(file)
         ));
     }
     Ok(file)
@@ -218,7 +224,8 @@ fn list(key: &str, value: &str) -> Result<Vec<String>, String> {
     let items: Vec<String> = value.split(',').map(str::to_string).collect();
     if items.iter().any(String::is_empty) {
         return Err(format!(
-            "{key}= expects names separated by commas, found `{value}`"
+            "{key}= expects names separated by commas, found {}",
+            quote(value)
         ));
     }
     Ok(items)
@@ -282,7 +289,11 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
     }
     if let Some(wanted) = &spec.scenarios {
         if let Some(w) = wanted.iter().find(|w| !names.contains(&w.as_str())) {
-            return Err(format!("{} has no `{w}` at horizon {horizon}", spec.file));
+            return Err(format!(
+                "{} has no {} at horizon {horizon}",
+                spec.file,
+                quote(w)
+            ));
         }
         names.retain(|n| wanted.iter().any(|w| w == n));
     }
@@ -297,8 +308,10 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
                 .copied()
                 .ok_or_else(|| {
                     format!(
-                        "{} has no `{c}` on `{name}` at horizon {horizon}",
-                        spec.file
+                        "{} has no {} on {} at horizon {horizon}",
+                        spec.file,
+                        quote(c),
+                        quote(name)
                     )
                 })
         };
@@ -319,11 +332,22 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
             cells.push(format!("{sa:.1} / {sb:.1}"));
         }
         if let Some(c) = &spec.pil {
-            let check = pil::find(&results.pil, c, name, horizon)
-                .ok_or_else(|| format!("{} has no pil check of `{c}` on `{name}`", spec.file))?;
-            let period = find(c)?
-                .period_s
-                .ok_or_else(|| format!("{} gives no period_s for `{c}` on `{name}`", spec.file))?;
+            let check = pil::find(&results.pil, c, name, horizon).ok_or_else(|| {
+                format!(
+                    "{} has no pil check of {} on {}",
+                    spec.file,
+                    quote(c),
+                    quote(name)
+                )
+            })?;
+            let period = find(c)?.period_s.ok_or_else(|| {
+                format!(
+                    "{} gives no period_s for {} on {}",
+                    spec.file,
+                    quote(c),
+                    quote(name)
+                )
+            })?;
             cells.extend(pil::cells(check, period));
         }
         out += &format!("| {} |\n", cells.join(" | "));
@@ -416,8 +440,8 @@ pub fn update(
             .render(&v.spec, &mut load)
             .map_err(|m| refuse(v.line, m))?;
         let what = format!(
-            "the value `{}` differs from {}'s `{figure}` ({}, {})",
-            &text[v.body.clone()],
+            "the value {} differs from {}'s `{figure}` ({}, {})",
+            quote(&text[v.body.clone()]),
             v.spec.file,
             v.spec.field,
             values::selectors(&v.spec)

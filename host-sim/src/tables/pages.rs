@@ -249,7 +249,10 @@ fn pil_checks(checks: &Json, rows: &[Json]) -> Result<String, String> {
                     && r.get("scenario").and_then(Json::as_str) == Some(scenario)
             })
             .and_then(|r| num(r, "period_s"))
-            .ok_or_else(|| format!("no row with the period of `{controller}` on `{scenario}`"))?;
+            .ok_or_else(|| {
+                let (c, s) = (weights::quote(controller), weights::quote(scenario));
+                format!("no row with the period of {c} on {s}")
+            })?;
         let cells = pil::cells(c, period).join(" | ");
         s += &format!("| `{scenario}` | {controller} | {horizon} | {cells} |\n");
     }

@@ -66,14 +66,17 @@ fn renders_nothing_it_cannot_find() {
     let cases = [
         (
             "horizon=500 success=rule",
-            "no `rule` on `nominal` at horizon 500",
+            "no \"rule\" on \"nominal\" at horizon 500",
         ),
         (
             "horizon=500 scenarios=delay success=policy",
-            "no `delay` at horizon 500",
+            "no \"delay\" at horizon 500",
         ),
         ("horizon=20 success=policy", "no rows at horizon 20"),
-        ("horizon=500 compare=policy,rule", "no `rule` on `nominal`"),
+        (
+            "horizon=500 compare=policy,rule",
+            "no \"rule\" on \"nominal\"",
+        ),
     ];
     for (options, want) in cases {
         let err = render(&spec(options), JSON).unwrap_err();
@@ -104,7 +107,7 @@ fn the_marker_parser_refuses() {
         ),
         (
             "docs/results/x.json success=a success=b -->",
-            "`success` given twice",
+            "\"success\" given twice",
         ),
         (
             "docs/results/x.json success=a horizon=ten -->",
@@ -124,16 +127,30 @@ fn the_marker_parser_refuses() {
         ),
         (
             "docs/results/x.json success=a colour=red -->",
-            "unknown option `colour=red`",
+            "unknown option \"colour=red\"",
         ),
         (
             "docs/results/x.json success=a brief=yes -->",
-            "unknown option `brief=yes`",
+            "unknown option \"brief=yes\"",
         ),
     ];
     for (rest, want) in cases {
         let err = parse_spec(&format!(" {rest}")).unwrap_err();
         assert!(err.contains(want), "{rest}: {err}");
+    }
+    // A marker's words reach a message quoted: escaped, and cut however long.
+    let long = "Z".repeat(20_000);
+    for word in [
+        "\u{1b}[5mopt=1",
+        "\u{1b}]0;t\u{7}",
+        &long,
+        &format!("success={long}"),
+    ] {
+        let err = parse_spec(&format!(" docs/results/x.json success=a {word} -->")).unwrap_err();
+        assert!(
+            !err.contains(['\u{1b}', '\u{7}']) && err.len() < 600,
+            "{err}"
+        );
     }
 }
 
@@ -232,7 +249,10 @@ fn renders_the_processor_in_the_loop_columns() {
 ";
     assert_eq!(table, want);
     let lqr = render(&spec("horizon=500 pil=lqr"), &json).unwrap_err();
-    assert!(lqr.contains("no pil check of `lqr` on `nominal`"), "{lqr}");
+    assert!(
+        lqr.contains("no pil check of \"lqr\" on \"nominal\""),
+        "{lqr}"
+    );
     let old = render(&spec("horizon=500 pil=policy"), &without_period).unwrap_err();
     assert!(old.contains("gives no period_s"), "{old}");
 }

@@ -17,6 +17,7 @@ use std::collections::HashMap;
 use std::ops::Range;
 
 use serde_json::Value as Json;
+use weights::quote;
 
 use super::{Refusal, parse_results_file, refuse};
 use crate::eval::group;
@@ -231,7 +232,7 @@ fn parse_spec(inner: &str) -> Result<Spec, String> {
     for word in words {
         let Some((key, value)) = word.split_once('=') else {
             if field.is_some() {
-                return Err(format!("a second field `{word}`: a value shows one"));
+                return Err(format!("a second field {}: a value shows one", quote(word)));
             }
             field = Some(parse_field(word)?);
             continue;
@@ -241,7 +242,10 @@ fn parse_spec(inner: &str) -> Result<Spec, String> {
             "controller" => &mut controller,
             "horizon" => {
                 let h = value.parse().map_err(|_| {
-                    format!("horizon= expects a number of periods, found `{value}`")
+                    format!(
+                        "horizon= expects a number of periods, found {}",
+                        quote(value)
+                    )
                 })?;
                 if horizon.replace(h).is_some() {
                     return Err("selector `horizon` given twice".into());
@@ -250,12 +254,13 @@ fn parse_spec(inner: &str) -> Result<Spec, String> {
             }
             _ => {
                 return Err(format!(
-                    "unknown selector `{word}` (known: scenario=SPEC, horizon=N, controller=C)"
+                    "unknown selector {} (known: scenario=SPEC, horizon=N, controller=C)",
+                    quote(word)
                 ));
             }
         };
         if value.is_empty() || slot.replace(value.to_string()).is_some() {
-            return Err(format!("selector `{key}` empty or given twice"));
+            return Err(format!("selector {} empty or given twice", quote(key)));
         }
     }
     let (field, format) = field.ok_or("the value marker names no field")?;
@@ -277,7 +282,11 @@ fn parse_field(word: &str) -> Result<(&'static str, Format), String> {
     };
     let &(field, default) = FIELDS.iter().find(|(f, _)| *f == name).ok_or_else(|| {
         let known: Vec<&str> = FIELDS.iter().map(|(f, _)| *f).collect();
-        format!("unknown field `{name}` (known: {})", known.join(", "))
+        format!(
+            "unknown field {} (known: {})",
+            quote(name),
+            known.join(", ")
+        )
     })?;
     let format = match format {
         None => default,
@@ -289,7 +298,7 @@ fn parse_field(word: &str) -> Result<(&'static str, Format), String> {
                 (_, Some(d)) => decimals(d).map(Format::Fixed),
                 _ => None,
             }
-            .ok_or_else(|| format!("unknown format `{f}` (known: %N, .N, int; N 0 to 9)"))?
+            .ok_or_else(|| format!("unknown format {} (known: %N, .N, int; N 0 to 9)", quote(f)))?
         }
     };
     Ok((field, format))
@@ -393,7 +402,7 @@ pub fn selectors(spec: &Spec) -> String {
     if out.is_empty() {
         return "no selector".into();
     }
-    format!("`{}`", out.join(" "))
+    quote(&out.join(" "))
 }
 
 /// A field of a row: a number, a `{mean, ci95}`'s mean, or successes, derived.

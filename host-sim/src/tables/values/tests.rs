@@ -78,11 +78,11 @@ fn a_value_must_be_one_rows_number() {
     let cases = [
         (
             "scenario=delay success_rate",
-            "no row of docs/results/x.json matches `scenario=delay`",
+            "no row of docs/results/x.json matches \"scenario=delay\"",
         ),
         (
             "scenario=push=1.1/50 controller=lqr failures",
-            "2 rows of docs/results/x.json match `scenario=push=1.1/50 controller=lqr`",
+            "2 rows of docs/results/x.json match \"scenario=push=1.1/50 controller=lqr\"",
         ),
         (
             "failures",
@@ -109,7 +109,7 @@ fn the_marker_parser_refuses() {
         ("", "names no results file"),
         ("x.json failures", "expected a file docs/results/NAME.json"),
         ("docs/results/x.json scenario=nominal", "names no field"),
-        ("docs/results/x.json rms_y", "unknown field `rms_y`"),
+        ("docs/results/x.json rms_y", "unknown field \"rms_y\""),
         ("docs/results/x.json failures episodes", "a second field"),
         (
             "docs/results/x.json colour=red failures",
@@ -125,15 +125,15 @@ fn the_marker_parser_refuses() {
         ),
         (
             "docs/results/x.json controller=a controller=b failures",
-            "`controller` empty or given twice",
+            "\"controller\" empty or given twice",
         ),
         ("docs/results/x.json scenario= failures", "empty or given"),
-        ("docs/results/x.json rms_x_m:.x", "unknown format `.x`"),
+        ("docs/results/x.json rms_x_m:.x", "unknown format \".x\""),
         (
             "docs/results/x.json success_rate:%10",
-            "unknown format `%10`",
+            "unknown format \"%10\"",
         ),
-        ("docs/results/x.json failures:sci", "unknown format `sci`"),
+        ("docs/results/x.json failures:sci", "unknown format \"sci\""),
     ];
     for (inner, want) in cases {
         let err = parse_spec(inner).unwrap_err();
@@ -246,8 +246,8 @@ RMS x {lqr} rms_x_m -->0.632<!-- /value --> m.
         [
             (
                 3,
-                "the value `250` differs from docs/results/x.json's `251` \
-                 (failures, `horizon=10000 controller=lqr`)"
+                "the value \"250\" differs from docs/results/x.json's `251` \
+                 (failures, \"horizon=10000 controller=lqr\")"
             ),
             (4, "the table differs from docs/results/x.json"),
         ]
