@@ -159,7 +159,8 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
                 "expected the JSON `host-sim envelope --json` prints, {e}"
             ))
         })?;
-    Limits::new(e.envelope).map_err(|e| bad(e.to_string()))
+    // The firmware's refusal names the channel; the values are the file's.
+    Limits::new(e.envelope).map_err(|why| bad(format!("{why}, found {:?}", e.envelope)))
 }
 
 /// What `host-sim envelope --json` reports.
