@@ -16,7 +16,7 @@ use crate::cartpole::{CartPole, State};
 use crate::config::ConfigError;
 use crate::controller::{Bridge, Controller, Limits, Policy, StateSensor};
 use crate::estimator::{Counter, Estimate, ObserverSensor};
-use crate::rig::Rig;
+use crate::rig::{Options, Rig};
 
 /// Full scale of [`Duty`].
 pub const MAX_DUTY: u16 = 1000;
@@ -132,7 +132,10 @@ pub fn run<O: Estimate, P: Policy<O>>(
     wait: impl FnMut() -> u32,
 ) -> Outcome {
     let sensor = PlantSensor(plant.state(), PhantomData);
-    run_with(policy, plant, sensor, limits, |s, state| s.0 = state, wait)
+    // No rig here, only its limits (a board's `static`, built as it compiles): the plant's
+    // own state needs neither an observer nor a predictor.
+    let c = Controller::new(policy, sensor, pins(), limits);
+    run_with(c, plant, |s, state| s.0 = state, wait)
 }
 
 /// [`run`], reading the plant through `rig`'s encoders and observer (a board's pipeline, in
@@ -148,18 +151,19 @@ pub fn run_with_encoders<O: Estimate, P: Policy<O>>(
     let counts = |s: State| enc.counts(s.x, s.theta);
     let sensor = ObserverSensor::<_, O>::new(rig.observer()?, Latest(counts(plant.state())));
     let set = |s: &mut ObserverSensor<Latest, O>, state| s.counter_mut().0 = counts(state);
-    Ok(run_with(policy, plant, sensor, rig.limits()?, set, wait))
+    // The plant answers at once (no dead time), so there is nothing to predict.
+    let c = rig.controller(policy, sensor, pins(), Options::default())?;
+    Ok(run_with(c, plant, set, wait))
 }
 
+/// Runs controller `c` against `plant` as [`run`] does, `set` handing each new state to its
+/// sensor.
 fn run_with<P: Policy<S::Reading>, S: StateSensor>(
-    policy: P,
+    mut c: Controller<P, S, Pins>,
     plant: &mut CartPole,
-    sensor: S,
-    limits: Limits,
     set: impl Fn(&mut S, State),
     mut wait: impl FnMut() -> u32,
 ) -> Outcome {
-    let mut c = Controller::new(policy, sensor, pins(), limits);
     loop {
         let late = wait();
         c.record_overruns(late);
