@@ -24,6 +24,60 @@ pub struct Moved {
     pub gone: Vec<String>,
 }
 
+/// Refuses a results file no tool writes: a row named twice (which of the two would a
+/// comparison mean?), episodes or failures that are not whole counts, more failures than
+/// episodes, a rate outside [0, 1].
+pub fn check(doc: &Json) -> Result<(), String> {
+    let mut names = BTreeSet::new();
+    for (name, row) in &entries(doc) {
+        let at = weights::quote(name);
+        if !names.insert(name.as_str()) {
+            return Err(format!("expected each row once, found {at} twice"));
+        }
+        let count = |k: &str| match row.get(k) {
+            None => Ok(None),
+            Some(v) => v.as_u64().map(Some).ok_or_else(|| {
+                format!("row {at}: expected `{k}` a whole count, found {}", shown(v))
+            }),
+        };
+        if let (Some(e), Some(f)) = (count("episodes")?, count("failures")?) {
+            if f > e {
+                return Err(format!(
+                    "row {at}: expected at most {e} failures, found {f}"
+                ));
+            }
+        }
+        let fields = row.as_object().into_iter().flatten();
+        for (k, v) in fields.filter(|(k, _)| k.ends_with("_rate")) {
+            if !v.as_f64().is_some_and(|r| (0.0..=1.0).contains(&r)) {
+                let k = weights::quote(k);
+                return Err(format!(
+                    "row {at}: expected {k} in [0, 1], found {}",
+                    shown(v)
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A figure as the report shows it: four decimals, or an exponent where those would be
+/// hundreds of digits or none (`1e308`); any other value quoted.
+fn shown(v: &Json) -> String {
+    match v.as_f64() {
+        Some(x) => fig(x),
+        None => weights::quote(&v.to_string()),
+    }
+}
+
+fn fig(x: f64) -> String {
+    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
+        format!("{x:.4e}")
+    } else {
+        format!("{x:.4}")
+    }
+}
+
 /// The comparison of `old` with `new`, two versions of one results file.
 pub fn compare(old: &Json, new: &Json) -> Moved {
     let (old, new) = (entries(old), entries(new));
@@ -87,7 +141,9 @@ fn entries(doc: &Json) -> Vec<(String, &Json)> {
 
 /// `controller on scenario at horizon`, or `study: label`.
 fn name(row: &Json) -> String {
-    let s = |k: &str| row.get(k).and_then(Json::as_str).unwrap_or("?").to_string();
+    // A row's names come from the file: escaped and cut, so that a name cannot move the
+    // cursor or forge a line of the report.
+    let s = |k: &str| weights::excerpt(row.get(k).and_then(Json::as_str).unwrap_or("?"));
     if row.get("study").is_some() {
         return format!("{}: {}", s("study"), s("label"));
     }
@@ -109,14 +165,14 @@ fn fields(old: &Json, new: &Json) -> (Vec<String>, Vec<String>) {
         match o.get(key) {
             Some(ov) if ov == nv => {}
             Some(ov) => {
-                changed.push(key.clone());
+                changed.push(weights::excerpt(key));
                 beyond.extend(outside(key, ov, nv, o));
             }
-            None => changed.push(format!("{key} (new)")),
+            None => changed.push(format!("{} (new)", weights::excerpt(key))),
         }
     }
     let gone = o.keys().filter(|k| !skip(k) && !n.contains_key(*k));
-    changed.extend(gone.map(|k| format!("{k} (gone)")));
+    changed.extend(gone.map(|k| format!("{} (gone)", weights::excerpt(k))));
     (beyond, changed)
 }
 
@@ -125,23 +181,32 @@ fn fields(old: &Json, new: &Json) -> (Vec<String>, Vec<String>) {
 /// or `[low, high]`).
 fn outside(key: &str, old: &Json, new: &Json, row: &Map<String, Json>) -> Option<String> {
     let num = |v: &Json, k: &str| v.get(k).and_then(Json::as_f64);
+    let (field, key) = (key, weights::excerpt(key));
     if let (Some(a), Some(h), Some(b)) = (num(old, "mean"), num(old, "ci95"), num(new, "mean")) {
-        return ((b - a).abs() > h).then(|| format!("{key} {a:.4} -> {b:.4} (+-{h:.4})"));
+        return ((b - a).abs() > h)
+            .then(|| format!("{key} {} -> {} (+-{})", fig(a), fig(b), fig(h)));
     }
     let (a, b) = (old.as_f64()?, new.as_f64()?);
     // `eval`'s success rate keeps its interval as `success_ci95`.
-    let stem = key.strip_suffix("_rate").unwrap_or(key);
+    let stem = field.strip_suffix("_rate").unwrap_or(field);
     let interval = row
-        .get(&format!("{key}_ci95"))
+        .get(&format!("{field}_ci95"))
         .or_else(|| row.get(&format!("{stem}_ci95")))?;
     match interval {
         Json::Array(lh) => {
             let (lo, hi) = (lh.first()?.as_f64()?, lh.get(1)?.as_f64()?);
-            (b < lo || b > hi).then(|| format!("{key} {a:.4} -> {b:.4} ([{lo:.4}, {hi:.4}])"))
+            let shown = format!(
+                "{key} {} -> {} ([{}, {}])",
+                fig(a),
+                fig(b),
+                fig(lo),
+                fig(hi)
+            );
+            (b < lo || b > hi).then_some(shown)
         }
         h => {
             let h = h.as_f64()?;
-            ((b - a).abs() > h).then(|| format!("{key} {a:.4} -> {b:.4} (+-{h:.4})"))
+            ((b - a).abs() > h).then(|| format!("{key} {} -> {} (+-{})", fig(a), fig(b), fig(h)))
         }
     }
 }
@@ -236,5 +301,31 @@ mod tests {
         let env = |e: f64| json!({"envelope": [2.4, e], "periods": 10, "provenance": {}});
         assert_eq!(compare(&env(1.0), &env(1.0)).within.len(), 0);
         assert_eq!(compare(&env(1.0), &env(1.5)).within, ["the file's figures"]);
+    }
+
+    #[test]
+    fn files_no_tool_writes_are_refused_and_names_are_escaped() {
+        let r = |extra: Json| {
+            let mut row = row(0.9, [0.88, 0.92], 0.5, 100);
+            row.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+            json!({ "rows": [row] })
+        };
+        assert_eq!(check(&r(json!({"episodes": 1000}))), Ok(()));
+        for (extra, why) in [
+            (json!({"episodes": -5}), "expected `episodes` a whole count, found -5.0000"),
+            (json!({"episodes": 10}), "expected at most 10 failures, found 100"),
+            (json!({"success_rate": 1e308}), "in [0, 1], found 1.0000e308"),
+        ] {
+            let e = check(&r(extra)).unwrap_err();
+            assert!(e.contains(why), "{e}");
+        }
+        let twice = json!({"rows": [row(0.9, [0.8, 1.0], 0.5, 1), row(0.9, [0.8, 1.0], 0.5, 1)]});
+        let e = check(&twice).unwrap_err();
+        assert!(e.contains("\"policy on noise at 500\" twice"), "{e}");
+        let mut forged = row(0.9, [0.8, 1.0], 0.5, 1);
+        forged["scenario"] = json!("\u{1b}[2J\nerror: fake");
+        let m = compare(&json!({"rows": []}), &json!({"rows": [forged]}));
+        let text = report("x", &m);
+        assert!(text.contains("new: policy on \\u{1b}[2J\\nerror: fake at 500"), "{text}");
     }
 }

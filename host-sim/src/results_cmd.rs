@@ -78,7 +78,12 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
                 })
             };
             let (was, now) = (json(old)?, json(new)?);
-            let name = name.clone().unwrap_or_else(|| new.display().to_string());
+            for (doc, path) in [(&was, old), (&now, new)] {
+                moved::check(doc).map_err(|e| anyhow!("{}: {e}", weights::shown(path)))?;
+            }
+            let name = name
+                .as_deref()
+                .map_or_else(|| weights::shown(new), weights::excerpt);
             host_common::out!("{}", moved::report(&name, &moved::compare(&was, &now)));
         }
     }
