@@ -40,12 +40,12 @@ pub fn check(doc: &Json) -> Result<(), String> {
                 format!("row {at}: expected `{k}` a whole count, found {}", shown(v))
             }),
         };
-        if let (Some(e), Some(f)) = (count("episodes")?, count("failures")?) {
-            if f > e {
-                return Err(format!(
-                    "row {at}: expected at most {e} failures, found {f}"
-                ));
-            }
+        if let (Some(e), Some(f)) = (count("episodes")?, count("failures")?)
+            && f > e
+        {
+            return Err(format!(
+                "row {at}: expected at most {e} failures, found {f}"
+            ));
         }
         let fields = row.as_object().into_iter().flatten();
         for (k, v) in fields.filter(|(k, _)| k.ends_with("_rate")) {
@@ -307,14 +307,25 @@ mod tests {
     fn files_no_tool_writes_are_refused_and_names_are_escaped() {
         let r = |extra: Json| {
             let mut row = row(0.9, [0.88, 0.92], 0.5, 100);
-            row.as_object_mut().unwrap().extend(extra.as_object().unwrap().clone());
+            row.as_object_mut()
+                .unwrap()
+                .extend(extra.as_object().unwrap().clone());
             json!({ "rows": [row] })
         };
         assert_eq!(check(&r(json!({"episodes": 1000}))), Ok(()));
         for (extra, why) in [
-            (json!({"episodes": -5}), "expected `episodes` a whole count, found -5.0000"),
-            (json!({"episodes": 10}), "expected at most 10 failures, found 100"),
-            (json!({"success_rate": 1e308}), "in [0, 1], found 1.0000e308"),
+            (
+                json!({"episodes": -5}),
+                "expected `episodes` a whole count, found -5.0000",
+            ),
+            (
+                json!({"episodes": 10}),
+                "expected at most 10 failures, found 100",
+            ),
+            (
+                json!({"success_rate": 1e308}),
+                "in [0, 1], found 1.0000e308",
+            ),
         ] {
             let e = check(&r(extra)).unwrap_err();
             assert!(e.contains(why), "{e}");
@@ -326,6 +337,9 @@ mod tests {
         forged["scenario"] = json!("\u{1b}[2J\nerror: fake");
         let m = compare(&json!({"rows": []}), &json!({"rows": [forged]}));
         let text = report("x", &m);
-        assert!(text.contains("new: policy on \\u{1b}[2J\\nerror: fake at 500"), "{text}");
+        assert!(
+            text.contains("new: policy on \\u{1b}[2J\\nerror: fake at 500"),
+            "{text}"
+        );
     }
 }

@@ -94,7 +94,10 @@ pub fn located(text: &str, at: Option<std::ops::Range<usize>>, message: &str) ->
     // expected f64`): a long one is cut in its middle, so both ends of the reason show.
     let chars: Vec<char> = message.trim().chars().collect();
     let message = if chars.len() > QUOTE_MAX {
-        let (head, tail) = (&chars[..QUOTE_MAX / 2], &chars[chars.len() - QUOTE_MAX / 4..]);
+        let (head, tail) = (
+            &chars[..QUOTE_MAX / 2],
+            &chars[chars.len() - QUOTE_MAX / 4..],
+        );
         let (head, tail): (String, String) = (head.iter().collect(), tail.iter().collect());
         format!("{} ... {}", excerpt(&head), excerpt(&tail))
     } else {
@@ -395,7 +398,10 @@ mod tests {
         assert_eq!(located(text, None, "\u{1b}[2J"), "\\u{1b}[2J");
         // A range inside a character is not a place; the message stays.
         assert_eq!(located("é", Some(1..2), "m"), "m");
-        let long = format!("invalid type: string \"{}\", expected f64", "x".repeat(5000));
+        let long = format!(
+            "invalid type: string \"{}\", expected f64",
+            "x".repeat(5000)
+        );
         let m = located("", None, &long);
         assert!(m.starts_with("invalid type: string \"xx") && m.ends_with("x\", expected f64"));
         assert!(m.len() < 2 * QUOTE_MAX, "{m}");
