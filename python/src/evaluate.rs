@@ -91,6 +91,13 @@ pub fn evaluate_json(
     serde_json::to_string(&out).map_err(value_error)
 }
 
+/// Refuses more than `MAX_ROWS` rows of `horizons` x `scenarios` x `controllers` lists:
+/// the command's check, on the lists' lengths, which Python knows before it builds them.
+#[pyfunction]
+pub fn check_count(horizons: usize, scenarios: usize, controllers: usize) -> PyResult<()> {
+    eval::check_count(horizons, scenarios, controllers).map_err(value_error)
+}
+
 /// One row's controller, network, scenario, horizon and seed, owned, so that a range of its
 /// episodes may run on past an interrupted call.
 struct Job {

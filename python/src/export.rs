@@ -1,6 +1,8 @@
 //! `policy-export export` for Python: the same steps as the command, from a policy file or
 //! from tensors handed over in memory (a state dict's arrays, serialised as safetensors and
-//! read by the same `weights::checkpoint` code as a file), written atomically.
+//! read by the same `weights::checkpoint` code as a file), written atomically. Of a state
+//! dict only the network's six tensors are converted: the importer chooses them from the
+//! names and shapes alone.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -18,21 +20,26 @@ use crate::value_error;
 /// One tensor handed over from Python: safetensors dtype name, shape, little-endian bytes.
 type Tensor = (String, Vec<usize>, Vec<u8>);
 
-/// Writes the network of `path` (a policy file or run directory) or of `tensors` to `out`
-/// as Rust (`fmt` `rust`) or C (`c`) source, int8-quantised with `quant` `int8`, under
+/// A state dict's tensors' shapes, by name.
+type Shapes = BTreeMap<String, Vec<usize>>;
+
+/// Writes the network of `path` (a policy file or run directory) or of a state dict to
+/// `out` as Rust (`fmt` `rust`) or C (`c`) source, int8-quantised with `quant` `int8`, under
 /// `name` (the command's defaults), for the rig file `rig` (without one, the rig the file
-/// records, or Gymnasium's). `label` names in-memory tensors in the provenance comment, as a
+/// records, or Gymnasium's). A state dict is its tensors' `shapes`, and `tensor`, which gives
+/// one by name as a [`Tensor`]. `label` names a state dict in the provenance comment, as a
 /// file's name does; `levels` are the duty levels of a network whose source records none
 /// (`weights::levels`). Returns the provenance's description of the network.
 #[pyfunction]
-#[pyo3(signature = (out, fmt, path=None, tensors=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None, levels=None))]
+#[pyo3(signature = (out, fmt, path=None, shapes=None, tensor=None, label=None, quant=None, name=None, rig=None, prefix=None, granularity=None, levels=None))]
 // One argument per keyword of the Python function (`cartpole_ddqn.export`).
 #[allow(clippy::too_many_arguments)]
 pub fn export(
     out: PathBuf,
     fmt: &str,
     path: Option<PathBuf>,
-    tensors: Option<BTreeMap<String, Tensor>>,
+    shapes: Option<Shapes>,
+    tensor: Option<Bound<'_, PyAny>>,
     label: Option<&str>,
     quant: Option<&str>,
     name: Option<String>,
@@ -78,9 +85,9 @@ pub fn export(
         rig: rig.as_deref(),
         out: &out,
     };
-    let (import, provenance) = match (path, tensors) {
-        (Some(p), None) => from_file(&p, &found)?,
-        (None, Some(t)) => from_tensors(&t, label.unwrap_or("state dict"), &found)?,
+    let (import, provenance) = match (path, shapes, tensor) {
+        (Some(p), None, None) => from_file(&p, &found)?,
+        (None, Some(s), Some(t)) => from_tensors(&s, &t, label.unwrap_or("state dict"), &found)?,
         _ => {
             return Err(value_error(
                 "expected a policy file's path or a state dict as the source",
@@ -121,14 +128,39 @@ fn from_file(src: &Path, f: &Found) -> PyResult<(Import, Vec<String>)> {
     Ok((import, provenance))
 }
 
-/// The network of in-memory tensors and its provenance, as a file named `label` would give.
+/// The network of a state dict and its provenance, as a file named `label` would give. The
+/// importer's own rules choose the network from the names and shapes alone
+/// (`weights::checkpoint::choose`); only its six tensors are asked of `tensor` and imported,
+/// so a tensor outside the network is never converted, however large.
 fn from_tensors(
-    tensors: &BTreeMap<String, Tensor>,
+    shapes: &Shapes,
+    tensor: &Bound<'_, PyAny>,
     label: &str,
     f: &Found,
 ) -> PyResult<(Import, Vec<String>)> {
     let inputs: Vec<(&str, &Path)> = f.rig.map(|r| ("rig", r)).into_iter().collect();
     check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
+    let names: Vec<&str> = shapes.keys().map(String::as_str).collect();
+    let chosen =
+        checkpoint::choose(&names, |n| shapes[n].as_slice(), f.prefix).map_err(value_error)?;
+    let mut tensors = BTreeMap::new();
+    for name in chosen.tensors {
+        let t: Tensor = tensor.call1((name,))?.extract()?;
+        tensors.insert(name.to_string(), t);
+    }
+    let import = checkpoint::import_with(&safetensors(&tensors)?, Some(chosen.prefix), f.levels)
+        .map_err(value_error)?;
+    // The tensors outside the network were left out of the second choice, not of the first.
+    let import = Import {
+        ignored: chosen.ignored,
+        ..import
+    };
+    let provenance = vec![format!("source: {label} ({})", import.describe())];
+    Ok((import, provenance))
+}
+
+/// `tensors` as a safetensors file, which the importer reads as it reads one from disk.
+fn safetensors(tensors: &BTreeMap<String, Tensor>) -> PyResult<Vec<u8>> {
     let views = tensors
         .iter()
         .map(|(n, (dtype, shape, data))| {
@@ -155,9 +187,6 @@ fn from_tensors(
             Ok((n.as_str(), view))
         })
         .collect::<PyResult<Vec<_>>>()?;
-    let bytes = safetensors::tensor::serialize(views, None)
-        .map_err(|e| value_error(weights::excerpt(&e.to_string())))?;
-    let import = checkpoint::import_with(&bytes, f.prefix, f.levels).map_err(value_error)?;
-    let provenance = vec![format!("source: {label} ({})", import.describe())];
-    Ok((import, provenance))
+    safetensors::tensor::serialize(views, None)
+        .map_err(|e| value_error(weights::excerpt(&e.to_string())))
 }

@@ -110,7 +110,7 @@ mod _native {
     #[pymodule_export]
     use super::env::{Twin, VecTwin};
     #[pymodule_export]
-    use super::evaluate::evaluate_json;
+    use super::evaluate::{check_count, evaluate_json};
     #[pymodule_export]
     use super::export::export;
     #[pymodule_export]

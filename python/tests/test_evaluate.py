@@ -1,5 +1,7 @@
 """Evaluation: the rows `host-sim eval --json` prints for the same arguments."""
 
+import itertools
+import re
 import json
 
 import pytest
@@ -49,3 +51,47 @@ def test_provenance_is_the_tools_record(tools):
     for key in ("revision", "dirty", "nproc", "cpu"):
         assert ours[key] == theirs[key], key
     assert ours["date"][:10] == theirs["date"][:10] or ours["date"] >= theirs["date"]
+
+
+class Counted:
+    """A list of `n` items that may be counted but not read: reading it fails the test."""
+
+    def __init__(self, n):
+        self.n = n
+
+    def __len__(self):
+        return self.n
+
+    def __iter__(self):
+        raise AssertionError("a list was built")
+
+
+ROWS = "horizons x scenarios x controllers must make at most 10000 rows; found"
+
+
+def test_too_many_rows_are_refused_before_any_list_is_built():
+    with pytest.raises(ValueError, match=f"^{ROWS} 20000000$"):
+        cartpole_ddqn.evaluate(scenario=Counted(20_000_000), controller="lqr", episodes=1, horizon=10)
+    with pytest.raises(ValueError, match=f"^{ROWS} 30000000$"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=range(1, 30_000_001))
+    with pytest.raises(ValueError, match=f"^{ROWS} 20000$"):
+        cartpole_ddqn.evaluate(scenario=Counted(200), horizon=Counted(100), episodes=1)
+    # Counted only by reading it, a list is read one item past the limit and no further.
+    endless = itertools.count(1)
+    with pytest.raises(ValueError, match=f"^{ROWS} 10001$"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=endless)
+    assert next(endless) == cartpole_ddqn.MAX_ROWS + 2
+    rows = cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=(h for h in (10, 20)))
+    assert [r["horizon"] for r in rows] == [10, 20]
+
+
+def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
+    """Each row once, as eval's rows: by the world a scenario builds, not its spelling."""
+    cases = [
+        (dict(controller=["lqr", "lqr"]), "controller: expected each row once, found lqr twice"),
+        (dict(horizon=[10, 10]), "horizon: expected each row once, found 10 twice"),
+        (dict(scenario=["noise+delay", "delay+noise"]), '"noise+delay" and "delay+noise", the same world'),
+    ]
+    for kwargs, why in cases:
+        with pytest.raises(ValueError, match=re.escape(why)):
+            cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 10, **kwargs})

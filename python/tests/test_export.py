@@ -1,6 +1,9 @@
 """Export: the files `policy-export export` writes, byte for byte, from a path and from
 in-memory state dicts; nothing written on a refusal."""
 
+import tracemalloc
+
+import numpy as np
 import pytest
 
 import cartpole_ddqn
@@ -109,3 +112,48 @@ def test_five_outputs_export_with_their_levels_as_the_command_does(tools, tmp_pa
     with pytest.raises(ValueError, match="expected one level per output of the network, 5; found 3"):
         cartpole_ddqn.export(src, out=tmp_path / "never.rs", levels=[-1, 0, 1])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cli.out", "five.safetensors"]
+
+
+class Unconvertible:
+    """A tensor's shape and dtype whose values cannot be read: converting it fails the test."""
+
+    def __init__(self, shape):
+        self.shape, self.dtype = shape, np.dtype(np.float32)
+
+    def __array__(self, *args, **kwargs):
+        raise AssertionError("a tensor outside the network was converted")
+
+
+def test_tensors_outside_the_network_are_never_converted(tmp_path):
+    """A tensor beside the network is refused without a prefix and ignored with one, as in a
+    file; either way it is read by its shape alone, never converted: an object that cannot
+    be converted is not, and a broadcast view of 10^8 float64 stays a view."""
+    tensors = read_safetensors(FIXTURES / "cleanrl.safetensors")
+    small = tmp_path / "small.rs"
+    cartpole_ddqn.export({**tensors, "junk": np.zeros(3, np.float32)}, out=small, prefix="network.")
+    for junk in (Unconvertible((10000, 10000)), np.broadcast_to(np.zeros(1), (10000, 10000))):
+        source = {**tensors, "junk": junk}
+        with pytest.raises(ValueError, match='1 tensors are not part of the network under prefix "network."'):
+            cartpole_ddqn.export(source, out=tmp_path / "never.rs")
+        tracemalloc.start()
+        try:
+            out = cartpole_ddqn.export(source, out=tmp_path / "big.rs", prefix="network.")
+            peak = tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+        assert peak < 1 << 20, peak
+        assert out.read_bytes() == small.read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["big.rs", "small.rs"]
+
+
+def test_many_tensors_beside_the_network_are_ignored_by_shape(tmp_path):
+    """The network is chosen by names and shapes: thirty thousand tensors of one shape, or
+    ten thousand each of its own, are ignored under a chosen prefix, and never converted."""
+    tensors = read_safetensors(FIXTURES / "cleanrl.safetensors")
+    many = {**tensors, **{f"aux.{i}.weight": np.zeros(3, np.float32) for i in range(30_000)}}
+    out = cartpole_ddqn.export(many, out=tmp_path / "many.rs", prefix="network.")
+    assert "30000 other tensors ignored" in out.read_text()
+    shapes = {**tensors, **{f"aux.{i}.weight": np.zeros(i, np.float32) for i in range(10_000)}}
+    out = cartpole_ddqn.export(shapes, out=tmp_path / "shapes.rs", prefix="network.")
+    assert "10000 other tensors ignored" in out.read_text()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["many.rs", "shapes.rs"]

@@ -1,8 +1,11 @@
 """Policies, export and evaluation: the arguments Python users pass, turned into what the
 native module (the commands' own code) takes."""
 
+import itertools
 import json
+import operator
 import os
+import sys
 
 import numpy as np
 
@@ -82,27 +85,61 @@ def _levels(levels):
         ) from None
 
 
-def _tensors(source):
-    """A state dict's tensors as (safetensors dtype, shape, bytes); PyTorch tensors are
-    detached and copied to the CPU first, bfloat16 widened to float32 (exactly)."""
-    out = {}
-    for name, value in source.items():
-        if not isinstance(name, str):
-            raise ValueError(f"expected tensor names as str; found {type(name).__name__}")
-        if hasattr(value, "detach"):
-            value = value.detach().cpu()
-            if str(getattr(value, "dtype", "")) == "torch.bfloat16":
-                value = value.float()
-            value = value.numpy()
-        array = np.ascontiguousarray(value)
-        # Big-endian values are the same numbers: looked up in native order, written little.
-        dtype = _DTYPES.get(array.dtype.newbyteorder("="))
-        if dtype is None:
-            raise ValueError(
-                f"tensor {name!r}: expected float32, float64 or float16 values; found {array.dtype}"
-            )
-        out[name] = (dtype, list(array.shape), array.astype(array.dtype.newbyteorder("<")).tobytes())
-    return out
+def _array(value):
+    """A tensor as a NumPy array: PyTorch tensors detached and copied to the CPU first,
+    bfloat16 widened to float32 (exactly)."""
+    if hasattr(value, "detach"):
+        value = value.detach().cpu()
+        if str(getattr(value, "dtype", "")) == "torch.bfloat16":
+            value = value.float()
+        value = value.numpy()
+    return np.asarray(value)
+
+
+def _check_dtype(name, dtype):
+    """Refuses a tensor whose dtype, NumPy's or PyTorch's (named as NumPy's after
+    ``torch.``), is not a float the importer reads; PyTorch's bfloat16 is read widened."""
+    text = str(dtype)
+    if text == "torch.bfloat16":
+        return
+    try:
+        found = np.dtype(text.removeprefix("torch.") if text.startswith("torch.") else dtype)
+        ok = found.newbyteorder("=") in _DTYPES
+    except (TypeError, ValueError):
+        ok = False
+    if not ok:
+        raise ValueError(f"tensor {name!r:.200}: expected float32, float64 or float16 values; found {text!r:.200}")
+
+
+def _shape(name, value):
+    """A state dict tensor's shape, its name and dtype checked, read from its ``shape`` and
+    ``dtype`` without converting its values: the importer chooses the network's tensors by
+    name and shape, and only those are converted (``_tensor``)."""
+    if not isinstance(name, str):
+        raise ValueError(f"expected tensor names as str; found {type(name).__name__}")
+    dtype, shape = getattr(value, "dtype", None), getattr(value, "shape", None)
+    if dtype is None or shape is None:
+        # A list, or an object only NumPy reads: it cannot be measured but by converting it.
+        value = _array(value)
+        dtype, shape = value.dtype, value.shape
+    _check_dtype(name, dtype)
+    try:
+        dims = [operator.index(d) for d in shape]
+    except TypeError:
+        dims = None
+    # No NumPy or PyTorch dimension passes sys.maxsize, and the native side takes none that does.
+    if dims is None or not all(0 <= d <= sys.maxsize for d in dims):
+        raise ValueError(f"tensor {name!r:.200}: expected a shape of whole numbers; found {shape!r:.200}")
+    return dims
+
+
+def _tensor(name, value):
+    """One tensor as the importer reads it: (safetensors dtype, shape, little-endian bytes)."""
+    array = np.ascontiguousarray(_array(value))
+    _check_dtype(name, array.dtype)
+    # Big-endian values are the same numbers: looked up in native order, written little.
+    dtype = _DTYPES[array.dtype.newbyteorder("=")]
+    return dtype, list(array.shape), array.astype(array.dtype.newbyteorder("<")).tobytes()
 
 
 def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None, granularity=None, label=None, levels=None):
@@ -116,7 +153,9 @@ def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None
         quant=quant, name=name, rig=_path(rig), prefix=prefix, granularity=granularity, levels=_levels(levels)
     )
     if isinstance(source, dict):
-        _native.export(os.fspath(out), fmt, tensors=_tensors(source), label=label, **kwargs)
+        shapes = {key: _shape(key, value) for key, value in source.items()}
+        _native.export(os.fspath(out), fmt, shapes=shapes, tensor=lambda key: _tensor(key, source[key]),
+                       label=label, **kwargs)
     elif isinstance(source, (str, os.PathLike)):
         if label is not None:
             raise ValueError("expected no label for a file source (its name is the label); found one")
@@ -128,10 +167,24 @@ def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None
     return out
 
 
+def _count(value):
+    """How many items a list argument holds (a str or a whole number alone is one), by
+    ``len()`` where it has one; None where only iterating would tell."""
+    if isinstance(value, (str, int, np.integer)):
+        return 1
+    try:
+        return len(value)
+    # OverflowError: a length past sys.maxsize, which iterating bounds as well.
+    except (TypeError, OverflowError):
+        return None
+
+
 def _list(value, what):
-    if isinstance(value, (str, int)):
+    """A list argument's items, at most one more than ``MAX_ROWS``: more make too many rows
+    whatever the other lists hold, and a ``len()`` that lies builds no more."""
+    if isinstance(value, (str, int, np.integer)):
         return [value]
-    values = list(value)
+    values = list(itertools.islice(value, MAX_ROWS + 1))
     if not values:
         raise ValueError(f"expected at least one {what}; found none")
     return values
@@ -153,12 +206,20 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     for what, value in (("episodes", episodes), ("seed", seed)):
         if not isinstance(value, (int, np.integer)) or value < 0:
             raise ValueError(f"{what} must be a whole number of at least 0; found {value!r}")
+    # Counted before any list is built: a range of thirty million horizons is refused as
+    # it is, not as a list of them. A list counted only by iterating holds one item at least
+    # (none is refused), and is read to one item past the limit at most.
+    counts = [_count(v) for v in (horizon, scenario, controller)]
+    _native.check_count(*[1 if c is None else c for c in counts])
+    lists = [_list(v, w) for v, w in ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))]
+    _native.check_count(*[len(v) for v in lists])
+    horizons, scenarios, controllers = lists
     rows = _native.evaluate_json(
         None if policy is None else policy._native,
-        [str(s) for s in _list(scenario, "scenario")],
-        [str(c) for c in _list(controller, "controller")],
+        [str(s) for s in scenarios],
+        [str(c) for c in controllers],
         int(episodes),
-        [int(h) for h in _list(horizon, "horizon")],
+        [int(h) for h in horizons],
         int(seed),
         _path(rig),
         _levels(levels),

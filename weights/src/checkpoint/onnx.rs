@@ -14,9 +14,10 @@
 use std::borrow::Cow;
 use std::collections::BTreeMap;
 
+use super::choose::unchained;
 use super::protobuf::{Fields, Wire, count, each_varint, last, text, varints};
 use super::state_dict::{Data, Dtype, Tensor, shape_text, to_f32};
-use super::{Format, Import, checked_weights, unchained};
+use super::{Format, Import, checked_weights};
 use crate::levels::{self, GivenLevels};
 use crate::{Error, Result, check_shape, quote};
 

@@ -1,4 +1,7 @@
 use super::*;
+use std::cmp::Ordering;
+
+use super::choose::natural;
 use firmware::network::shapes;
 use safetensors::tensor::{Dtype, SafeTensors, TensorView};
 use state_dict::f16_to_f32;
