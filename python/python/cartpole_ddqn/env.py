@@ -13,6 +13,7 @@ motor figures, by the names ``host-sim eval --json`` gives their means over epis
 ``reversals_per_s``, ``mean_abs_duty``, ``duty_tv_per_s`` and ``heat``.
 """
 
+import operator
 import os
 
 import numpy as np
@@ -57,6 +58,38 @@ def _envelope(envelope):
     )
 
 
+def _refused_action(n, found):
+    return ValueError(f"an action must be the index of a duty level, 0 to {n - 1}; found {found:.200}")
+
+
+def _action(action, n):
+    """An action as Gymnasium's ``Discrete(n)`` takes one: a Python int (a bool among them)
+    or a NumPy integer, a 0-d integer array too (what ``operator.index`` takes). A float is
+    refused: truncated, 1.7 would drive level 1 and -0.5 level 0."""
+    try:
+        index = operator.index(action)
+    except TypeError:
+        raise _refused_action(n, repr(action)) from None
+    # Checked here as well as natively: an int past 64 bits would reach the native step as
+    # an OverflowError.
+    if not 0 <= index < n:
+        raise _refused_action(n, str(index))
+    return index
+
+
+def _actions(actions, n):
+    """One action per world as ``int64``, from an integer array (or a list of ints): float
+    actions are refused, not truncated (NaN would become the most negative int64)."""
+    a = np.asarray(actions)
+    if not np.issubdtype(a.dtype, np.integer):
+        raise _refused_action(n, f"{a.dtype} actions {np.array2string(a.reshape(-1), threshold=8)}")
+    # Checked before the cast: an unsigned index past int64's range would wrap.
+    outside = a[(a < 0) | (a >= n)]
+    if outside.size:
+        raise _refused_action(n, str(outside[0]))
+    return np.ascontiguousarray(a, dtype=np.int64).reshape(-1)
+
+
 class TwinEnv(gymnasium.Env):
     """One world of a scenario (``scenario="noise+delay=2+push"``) or of a domain
     (``domain="length=0.5..1.6"``), on Gymnasium's machine or a rig file's (``rig=``).
@@ -90,7 +123,7 @@ class TwinEnv(gymnasium.Env):
         return obs, {}
 
     def step(self, action):
-        obs, terminated, truncated, duty = self._twin.step(int(action))
+        obs, terminated, truncated, duty = self._twin.step(_action(action, self.action_space.n))
         info = {"duty": duty}
         if self._monitored:
             info["fallback"] = self._twin.fallback
@@ -173,8 +206,7 @@ class TwinVectorEnv(VectorEnv):
         return self._twin.reset(seeds), {}
 
     def step(self, actions):
-        actions = np.ascontiguousarray(actions, dtype=np.int64).reshape(-1)
-        obs, reward, terminated, truncated, duty = self._twin.step(actions)
+        obs, reward, terminated, truncated, duty = self._twin.step(_actions(actions, self.single_action_space.n))
         info = {"duty": duty, "_duty": self._every}
         if self._monitored:
             info.update(fallback=self._twin.fallbacks(), _fallback=self._every)
@@ -221,7 +253,7 @@ class SwingUpEnv(gymnasium.Env):
         return self._world.reset(int(seed)), {}
 
     def step(self, action):
-        obs, reward, terminated, truncated, duty = self._world.step(int(action))
+        obs, reward, terminated, truncated, duty = self._world.step(_action(action, self.action_space.n))
         return obs, reward, terminated, truncated, {"duty": duty}
 
     @property
