@@ -141,8 +141,8 @@ fn check(a: &EnvelopeArgs) -> Result<()> {
         a.horizon
     );
     ensure!(
-        a.quantile > 0.0 && a.quantile <= 1.0,
-        "--quantile must be in (0, 1], got {:?}",
+        a.quantile > 0.0 && weights::plain(a.quantile) && a.quantile <= 1.0,
+        "--quantile must be a normal number in (0, 1], got {:?}",
         a.quantile
     );
     ensure!(

@@ -10,8 +10,8 @@ use super::EvalArgs;
 pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
     if let Some(m) = a.min_success {
         anyhow::ensure!(
-            (0.0..=1.0).contains(&m),
-            "--min-success must lie in [0, 1], got {m:?}"
+            (0.0..=1.0).contains(&m) && weights::plain(m),
+            "--min-success must lie in [0, 1], zero or normal, got {m:?}"
         );
     }
     anyhow::ensure!(

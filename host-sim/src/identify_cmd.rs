@@ -156,9 +156,9 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     let truth = twin::rigfile::load(&a.world)?;
     let board = twin::rigfile::load(&a.rig)?;
     crate::world_arg::same_period(&truth, &a.world, &board, Some(&a.rig))?;
-    if !(a.jitter.is_finite() && (0.0..=100.0).contains(&a.jitter)) {
+    if !((0.0..=100.0).contains(&a.jitter) && weights::plain(a.jitter)) {
         return Err(weights::Error::Input(format!(
-            "--jitter: expected counts in [0, 100], found {:?}",
+            "--jitter: expected counts in [0, 100], zero or normal, found {:?}",
             a.jitter
         ))
         .into());

@@ -61,8 +61,8 @@ struct Soak {
 /// Runs the soak `a` asks for; whether the controller balanced to the end.
 pub fn run(a: &SoakArgs) -> Result<bool> {
     anyhow::ensure!(
-        a.hours > 0.0 && a.hours <= MAX_HOURS,
-        "--hours must be a number of simulated hours in (0, {MAX_HOURS}], found {:?}",
+        a.hours > 0.0 && weights::plain(a.hours) && a.hours <= MAX_HOURS,
+        "--hours must be a normal number of simulated hours in (0, {MAX_HOURS}], found {:?}",
         a.hours
     );
     let (machine, net) = a.subject.load_for(&[a.controller])?;

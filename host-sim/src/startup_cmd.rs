@@ -191,10 +191,11 @@ fn check(a: &StartupArgs) -> Result<()> {
         "--cart-start must be metres in [0, 10], found {:?}",
         a.cart_start
     );
+    // A millisecond at least: less is no duration a board's period can count.
     for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
         anyhow::ensure!(
-            s.is_finite() && s > 0.0 && s <= 3600.0,
-            "{flag} must be seconds in (0, 3600], found {s:?}"
+            (0.001..=3600.0).contains(&s),
+            "{flag} must be seconds in [0.001, 3600], found {s:?}"
         );
     }
     if let Some(out) = &a.render {

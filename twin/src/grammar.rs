@@ -180,10 +180,10 @@ fn parse_part(raw: &str) -> Result<Part, String> {
     let (body, share) = match raw.split_once('@') {
         None => (raw, 1.0),
         Some((b, s)) => match s.parse::<f64>() {
-            Ok(v) if (0.0..=1.0).contains(&v) => (b, v),
+            Ok(v) if (0.0..=1.0).contains(&v) && weights::plain(v) => (b, v),
             _ => {
                 return Err(format!(
-                    "{} needs a share in [0, 1] after @, found {}",
+                    "{} needs a share in [0, 1], zero or normal, after @, found {}",
                     weights::quote(raw),
                     weights::quote(s)
                 ));
@@ -240,8 +240,7 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
     let (a, b) = text.split_once("..").unwrap_or((text, text));
     let read = |t: &str| -> Result<f64, String> {
         let v = match f.kind {
-            // A subnormal is no setting anyone means: a slip, lost in the physics.
-            Kind::Real => t.parse::<f64>().ok().filter(|v| *v == 0.0 || v.is_normal()),
+            Kind::Real => t.parse::<f64>().ok().filter(|v| weights::plain(*v)),
             Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
         };
         v.filter(|v| (f.lo..=f.hi).contains(v)).ok_or_else(|| {

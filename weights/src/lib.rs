@@ -85,6 +85,12 @@ pub fn shown(path: &std::path::Path) -> String {
     excerpt(&path.to_string_lossy())
 }
 
+/// Whether an input number is one a person means: finite, and zero or normal. A subnormal
+/// (`5e-324`) is a slip, lost in the arithmetic, wherever a number comes in.
+pub fn plain(x: f64) -> bool {
+    x == 0.0 || x.is_normal()
+}
+
 /// A parser's refusal of `text` (a TOML file's, say) as `line L, column C: MESSAGE`, from
 /// the byte range `at` it points to and its own `message` (cut and escaped): the reason comes
 /// first, where a parser's display quotes the offending source line before it, and a long

@@ -78,20 +78,24 @@ pub fn tiny_reals(s: &Scratch) -> Vec<Case> {
         &"--out",
         &out,
     ]);
-    let reals: [(Vec<OsString>, &str); 6] = [
+    let reals: [(Vec<OsString>, &str); 9] = [
         (os(&[&"envelope"]), "--quantile"),
+        (os(&[&"envelope"]), "--margin"),
         (os(&[&"eval", &"--episodes", &"1"]), "--min-success"),
         (os(&[&"soak"]), "--hours"),
+        (os(&[&"startup"]), "--within"),
+        (os(&[&"startup"]), "--hold"),
         (simulate.clone(), "--cart-s"),
         (simulate.clone(), "--swing-s"),
         (simulate, "--jitter"),
     ];
+    // A tiny negative number, and a subnormal: a slip either way, which the refusal shows as
+    // typed (shortest), not with 324 decimal places.
     for (cmd, flag) in reals {
-        let args = [cmd, os(&[&format!("{flag}=-1e-300")])].concat();
-        cases.push(Case::new(format!("{flag} -1e-300"), &args, &["-1e-300"]));
+        for tiny in ["-1e-300", "5e-324"] {
+            let args = [cmd.clone(), os(&[&format!("{flag}={tiny}")])].concat();
+            cases.push(Case::new(format!("{flag} {tiny}"), &args, &[tiny]));
+        }
     }
-    // An f32 flag: the smallest normal one.
-    let margin = os(&[&"envelope", &"--margin=-1e-30"]);
-    cases.push(Case::new("--margin -1e-30".into(), &margin, &["-1e-30"]));
     cases
 }
