@@ -260,13 +260,14 @@ struct AgreeArgs {
 }
 
 fn main() -> ExitCode {
-    let help = twin::grammar::scenario_help();
+    let (rows, one) = (
+        twin::grammar::scenario_help(true),
+        twin::grammar::scenario_help(false),
+    );
     let cli: Cli = host_common::cli::parse_with(|c| {
-        c.mut_subcommand("eval", |e| e.mut_arg("scenario", |a| a.help(help.clone())))
-            .mut_subcommand("render", |r| {
-                r.mut_arg("scenario", |a| a.help(help.clone()))
-            })
-            .mut_subcommand("soak", |r| r.mut_arg("scenario", |a| a.help(help.clone())))
+        c.mut_subcommand("eval", |e| e.mut_arg("scenario", |a| a.help(rows)))
+            .mut_subcommand("render", |r| r.mut_arg("scenario", |a| a.help(one.clone())))
+            .mut_subcommand("soak", |r| r.mut_arg("scenario", |a| a.help(one)))
     });
     let result = match cli.command {
         Command::Replay { files } => run_replay(&files),

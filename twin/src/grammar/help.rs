@@ -8,13 +8,16 @@ pub fn syntax_list() -> String {
     all.join(", ")
 }
 
-/// The help of a `--scenario` flag.
-pub fn scenario_help() -> String {
+/// The help of a `--scenario` flag: of a list of scenarios, one row each, which the sets
+/// may name, or (`rows` false) of one.
+pub fn scenario_help(rows: bool) -> String {
+    let one = format!("`nominal`, or parts joined by `+` from {}", syntax_list());
+    if !rows {
+        return format!("One scenario: {one}");
+    }
     format!(
-        "Scenarios, one row each: `nominal`, or parts joined by `+` from {}; `all` is the \
-         robustness set, `hard` the set beyond it, `hard-candidates` what that set is chosen \
-         from, `faults` one row per fault",
-        syntax_list()
+        "Scenarios, one row each: {one}; `all` is the robustness set, `hard` the set beyond \
+         it, `hard-candidates` what that set is chosen from, `faults` one row per fault"
     )
 }
 
