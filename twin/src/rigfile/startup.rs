@@ -22,11 +22,15 @@
 //! ```
 
 use firmware::rig::Rig;
-use firmware::startup::{Homing, Startup, periods};
+use firmware::startup::{Homing, Startup, Swing, periods};
 use serde::Deserialize;
 use weights::Result;
 
 use super::{Fields, radians};
+
+/// Most periods a reading may be asked to stay in the catch region: ten seconds at 50 Hz.
+/// More would leave the pole to fall while the board waited.
+const MAX_CATCH_PERIODS: u16 = 500;
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
@@ -56,24 +60,27 @@ impl Fields<'_> {
     pub(super) fn startup(self, t: &Table, rig: &Rig) -> Result<Startup> {
         let refused = |e| self.refuse(format!("the board refuses its start-up: {e}"));
         let mut s = Startup::suggested(rig).map_err(refused)?;
-        let value = |field: &str, v: Option<f64>, hi: f64| match v {
-            Some(v) => self
-                .check(&format!("startup.{field}"), v, (0.0, hi), true)
-                .map(Some),
-            None => Ok(None),
-        };
+        let value = |field: &str, v: Option<f64>, hi: f64| self.start_value(field, v, hi);
+        let narrow = |field: &str, v: f64| self.narrow(field, v);
         if let Some(w) = value("zero_window_s", t.zero_window_s, 60.0)? {
             s.zero_periods = periods(w, rig.params.tau);
         }
         if let Some(a) = value("catch_angle_deg", t.catch_angle_deg, 90.0)? {
-            s.catch_angle = radians(a) as f32;
+            s.catch_angle = narrow("catch_angle_deg", radians(a))?;
         }
         if let Some(r) = value("catch_rate_deg_s", t.catch_rate_deg_s, 1e4)? {
-            s.catch_rate = radians(r) as f32;
+            s.catch_rate = narrow("catch_rate_deg_s", radians(r))?;
         }
-        s.catch_periods = t.catch_periods.unwrap_or(s.catch_periods);
+        if let Some(n) = t.catch_periods {
+            if !(1..=MAX_CATCH_PERIODS).contains(&n) {
+                return Err(self.refuse(format!(
+                    "startup.catch_periods: expected 1 to {MAX_CATCH_PERIODS} periods, found {n}"
+                )));
+            }
+            s.catch_periods = n;
+        }
         if let Some(a) = value("release_angle_deg", t.release_angle_deg, 90.0)? {
-            s.release_angle = radians(a) as f32;
+            s.release_angle = narrow("release_angle_deg", radians(a))?;
         }
         // Zero turns the trim off.
         let trim = |field: &str, v: Option<f64>| {
@@ -81,10 +88,10 @@ impl Fields<'_> {
                 .transpose()
         };
         if let Some(r) = trim("trim_deg_per_m_s", t.trim_deg_per_m_s)? {
-            s.trim_rate = radians(r) as f32;
+            s.trim_rate = narrow("trim_deg_per_m_s", radians(r))?;
         }
         if let Some(m) = trim("trim_max_deg", t.trim_max_deg)? {
-            s.trim_max = radians(m) as f32;
+            s.trim_max = narrow("trim_max_deg", radians(m))?;
         }
         let tuned = t.homing_duty.is_some() || t.homing_stall_s.is_some();
         if tuned && t.homing != Some(true) {
@@ -95,30 +102,82 @@ impl Fields<'_> {
         if t.homing == Some(true) {
             let mut h = Homing::suggested(rig.params.tau);
             if let Some(d) = value("homing_duty", t.homing_duty, 1.0)? {
-                h.duty = d as f32;
+                h.duty = narrow("homing_duty", d)?;
             }
             if let Some(w) = value("homing_stall_s", t.homing_stall_s, 60.0)? {
                 h.stall_periods = periods(w, rig.params.tau);
             }
             s.homing = Some(h);
         }
-        s.swing = match (t.swing_up, s.swing) {
-            (Some(false), _) | (_, None) => None,
+        s.swing = self.swing(t, s.swing)?;
+        s.check(rig).map_err(refused)
+    }
+
+    /// `startup.FIELD`'s value `v`, if given: in (0, `hi`].
+    fn start_value(self, field: &str, v: Option<f64>, hi: f64) -> Result<Option<f64>> {
+        v.map(|v| self.check(&format!("startup.{field}"), v, (0.0, hi), true))
+            .transpose()
+    }
+
+    /// `v` as the board holds it, in f32: a value that narrows to a subnormal there (`1e-40`)
+    /// is as much a slip as one in f64.
+    fn narrow(self, field: &str, v: f64) -> Result<f32> {
+        let x = v as f32;
+        if x == 0.0 || x.is_normal() {
+            return Ok(x);
+        }
+        Err(self.refuse(format!(
+            "startup.{field}: expected zero or a number the board's f32 holds as a normal \
+             one, found {v:e}"
+        )))
+    }
+
+    /// The swing-up `t` asks for, from the one the rig's physics suggests (`None` where its
+    /// motor cannot swing the pole up).
+    fn swing(self, t: &Table, suggested: Option<Swing>) -> Result<Option<Swing>> {
+        let value = |field: &str, v: Option<f64>, hi: f64| self.start_value(field, v, hi);
+        let narrow = |field: &str, v: f64| self.narrow(field, v);
+        let swing_values = [
+            ("swing_energy_gain_s", t.swing_energy_gain_s, 1e3),
+            ("swing_max_accel_m_s2", t.swing_max_accel_m_s2, 1e3),
+            ("swing_centring_per_s2", t.swing_centring_per_s2, 1e3),
+            ("swing_centring_per_s", t.swing_centring_per_s, 1e3),
+            ("swing_overshoot", t.swing_overshoot, 2.0),
+        ];
+        Ok(match (t.swing_up, suggested) {
+            (Some(false), _) | (_, None) => {
+                // As homing's: a value of a swing-up that will not run is a slip, not a
+                // setting to drop without a word.
+                let given: Vec<&str> = swing_values
+                    .iter()
+                    .filter(|v| v.1.is_some())
+                    .map(|v| v.0)
+                    .collect();
+                if !given.is_empty() {
+                    return Err(self.refuse(format!(
+                        "startup.{}: given, but no swing-up runs (swing_up is false, or the \
+                         motor cannot swing the pole up)",
+                        given.join(", startup.")
+                    )));
+                }
+                None
+            }
             (_, Some(mut w)) => {
-                let gain = value("swing_energy_gain_s", t.swing_energy_gain_s, 1e3)?;
-                let accel = value("swing_max_accel_m_s2", t.swing_max_accel_m_s2, 1e3)?;
-                let spring = value("swing_centring_per_s2", t.swing_centring_per_s2, 1e3)?;
-                let damper = value("swing_centring_per_s", t.swing_centring_per_s, 1e3)?;
-                let over = value("swing_overshoot", t.swing_overshoot, 2.0)?;
-                w.energy_gain = gain.map_or(w.energy_gain, |v| v as f32);
-                w.max_accel = accel.map_or(w.max_accel, |v| v as f32);
-                w.centring[0] = spring.map_or(w.centring[0], |v| v as f32);
-                w.centring[1] = damper.map_or(w.centring[1], |v| v as f32);
-                w.overshoot = over.map_or(w.overshoot, |v| v as f32);
+                let mut set = [None; 5];
+                for (slot, (field, v, hi)) in set.iter_mut().zip(swing_values) {
+                    if let Some(v) = value(field, v, hi)? {
+                        *slot = Some(narrow(field, v)?);
+                    }
+                }
+                let [gain, accel, spring, damper, over] = set;
+                w.energy_gain = gain.unwrap_or(w.energy_gain);
+                w.max_accel = accel.unwrap_or(w.max_accel);
+                w.centring[0] = spring.unwrap_or(w.centring[0]);
+                w.centring[1] = damper.unwrap_or(w.centring[1]);
+                w.overshoot = over.unwrap_or(w.overshoot);
                 Some(w)
             }
-        };
-        s.check(rig).map_err(refused)
+        })
     }
 }
 

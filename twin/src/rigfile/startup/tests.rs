@@ -56,9 +56,27 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
     );
     let e = refusal("catch_angle_deg = -1.0");
     assert!(e.contains("startup.catch_angle_deg"), "{e}");
-    let e = refusal("catch_periods = 0");
+    for n in [0, 501, 65535] {
+        let e = refusal(&format!("catch_periods = {n}"));
+        assert!(
+            e.contains(&format!(
+                "startup.catch_periods: expected 1 to 500 periods, found {n}"
+            )),
+            "{e}"
+        );
+    }
+    // The board holds these in f32: 1e-40 is a subnormal there.
+    let e = refusal("catch_rate_deg_s = 1e-40");
     assert!(
-        e.contains("startup.catch_periods: expected more than zero"),
+        e.contains("startup.catch_rate_deg_s: expected zero or a number the board's f32"),
+        "{e}"
+    );
+    // A swing-up's values where none runs are refused, as homing's are.
+    let e = refusal("swing_up = false\nswing_energy_gain_s = 1e-300\nswing_overshoot = 5");
+    assert!(
+        e.contains(
+            "startup.swing_energy_gain_s, startup.swing_overshoot: given, but no swing-up runs"
+        ),
         "{e}"
     );
     let e = refusal("trim_deg_per_m_s = -0.1");
