@@ -286,5 +286,8 @@ fn rig_text_from_anywhere_is_held_to_a_rig_files_size_and_refused_with_its_reaso
     );
     assert_ne!(long, desk, "the desk rig's cart mass is written as 0.6");
     let e = parse(&long, "rig t").unwrap_err().to_string();
-    assert!(e.starts_with("rig t: line ") && e.contains("expected f64"), "{e}");
+    assert!(
+        e.starts_with("rig t: line ") && e.contains("expected f64"),
+        "{e}"
+    );
 }
