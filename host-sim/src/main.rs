@@ -191,7 +191,9 @@ impl Subject {
         };
         let import =
             weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
-        let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
+        let source = format!("policy {}", weights::shown(path));
+        let recorded = twin::rigfile::recorded(&import.metadata, &source)?;
+        let machine = twin::rigfile::choose(given, recorded);
         let net = Net::from_weights(&import.weights, int.then_some(&machine))
             .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))

@@ -44,11 +44,12 @@ pub struct Rendered {
     pub int8: Option<(usize, String)>,
 }
 
-/// The network of `import` as `lang` source under `name`, int8-quantised with `quant`,
-/// with `provenance` in its header, for the rig file at `rig` (without one, the rig the
-/// policy file records, or Gymnasium's machine).
+/// The network of `import` (named `source` in refusals) as `lang` source under `name`,
+/// int8-quantised with `quant`, with `provenance` in its header, for the rig file at `rig`
+/// (without one, the rig the policy file records, or Gymnasium's machine).
 pub fn render(
     import: &Import,
+    source: &str,
     provenance: &[String],
     rig: Option<&Path>,
     lang: Language,
@@ -56,7 +57,7 @@ pub fn render(
     name: &str,
 ) -> Result<Rendered> {
     let given = rig.map(twin::rigfile::load).transpose()?;
-    let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata)?);
+    let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata, source)?);
     let r = &machine.rig;
     let Some(g) = quant else {
         let text = match lang {

@@ -469,7 +469,16 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         Some(GranularityArg::PerChannel) => Granularity::PerChannel,
         Some(GranularityArg::PerTensor) => Granularity::PerTensor,
     });
-    let r = export::render(&import, &prov, a.rig.as_deref(), lang, granularity, &name)?;
+    let source = format!("SRC {}", weights::shown(&a.src));
+    let r = export::render(
+        &import,
+        &source,
+        &prov,
+        a.rig.as_deref(),
+        lang,
+        granularity,
+        &name,
+    )?;
     write_atomic(&a.out, r.text.as_bytes())?;
     let (out, params, how) = (
         weights::shown(&a.out),

@@ -85,9 +85,16 @@ pub fn export(
         rig: rig.as_deref(),
         out: &out,
     };
-    let (import, provenance) = match (path, shapes, tensor) {
-        (Some(p), None, None) => from_file(&p, &found)?,
-        (None, Some(s), Some(t)) => from_tensors(&s, &t, label.unwrap_or("state dict"), &found)?,
+    let label = label.unwrap_or("state dict");
+    let (import, provenance, source) = match (path, shapes, tensor) {
+        (Some(p), None, None) => {
+            let (import, provenance) = from_file(&p, &found)?;
+            (import, provenance, format!("source {}", weights::shown(&p)))
+        }
+        (None, Some(s), Some(t)) => {
+            let (import, provenance) = from_tensors(&s, &t, label, &found)?;
+            (import, provenance, weights::quote(label))
+        }
         _ => {
             return Err(value_error(
                 "expected a policy file's path or a state dict as the source",
@@ -96,6 +103,7 @@ pub fn export(
     };
     let r = exporter::render(
         &import,
+        &source,
         &provenance,
         rig.as_deref(),
         lang,

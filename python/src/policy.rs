@@ -40,7 +40,8 @@ pub fn load(
     let given = crate::given_machine(rig.as_deref())?;
     let levels = crate::given_levels(levels)?;
     let import = checkpoint::load_with(&path, prefix, levels.as_ref()).map_err(value_error)?;
-    let recorded = twin::rigfile::recorded(&import.metadata).map_err(value_error)?;
+    let source = format!("policy {}", weights::shown(&path));
+    let recorded = twin::rigfile::recorded(&import.metadata, &source).map_err(value_error)?;
     let machine = twin::rigfile::choose(given, recorded);
     let net = Net::from_weights(&import.weights, None)
         .map_err(|e| value_error(format!("policy {}: {e:#}", path.display())))?;

@@ -53,11 +53,14 @@ use crate::machine::{Integration, Machine, Uncertainty};
 pub const METADATA_KEY: &str = "rig";
 
 /// The machine a policy file's metadata records (`None` for a file without one: a PyTorch
-/// checkpoint).
-pub fn recorded(metadata: &std::collections::BTreeMap<String, String>) -> Result<Option<Machine>> {
+/// checkpoint); `source` names the policy in a refusal (`policy runs/x`).
+pub fn recorded(
+    metadata: &std::collections::BTreeMap<String, String>,
+    source: &str,
+) -> Result<Option<Machine>> {
     metadata
         .get(METADATA_KEY)
-        .map(|text| parse(text, "the policy file's recorded rig"))
+        .map(|text| parse(text, &format!("{source}: its recorded rig")))
         .transpose()
 }
 
