@@ -92,6 +92,7 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
         (dict(horizon=[10, 10]), "horizon: expected each row once, found 10 twice"),
         (dict(scenario=["noise+delay", "delay+noise"]), '"noise+delay" and "delay+noise", the same world'),
     ]
+    cases.append((dict(horizon=[10, 10.9]), "horizon must be a whole number of periods; found 10.9"))
     for kwargs, why in cases:
         with pytest.raises(ValueError, match=re.escape(why)):
             cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 10, **kwargs})

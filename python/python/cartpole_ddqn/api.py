@@ -190,6 +190,14 @@ def _list(value, what):
     return values
 
 
+def _horizon(h):
+    """A horizon as a whole number of periods: 200.7 is refused, not cut to 200."""
+    try:
+        return operator.index(h)
+    except TypeError:
+        raise ValueError(f"horizon must be a whole number of periods; found {h!r:.200}") from None
+
+
 def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,
              levels=None):
     """The rows ``host-sim eval --json`` prints for the same arguments, as dicts: success
@@ -219,7 +227,7 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
         [str(s) for s in scenarios],
         [str(c) for c in controllers],
         int(episodes),
-        [int(h) for h in horizons],
+        [_horizon(h) for h in horizons],
         int(seed),
         _path(rig),
         _levels(levels),
