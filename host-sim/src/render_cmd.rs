@@ -16,6 +16,9 @@ use crate::Subject;
 /// Longest episode `render` draws: it keeps every period (40 bytes) and draws each
 /// `--stride`-th into the GIF.
 const MAX_RENDER_HORIZON: u32 = 100_000;
+/// Most frames of one animation: drawing them is the costly part (`docs/HOSTILE_INPUT.md`),
+/// so the most periods need a stride of 10.
+const MAX_FRAMES: usize = 10_000;
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -53,6 +56,12 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     anyhow::ensure!(
         (1..=1000).contains(&stride),
         "--stride must be in [1, 1000], got {stride}"
+    );
+    let frames = horizon as usize / stride;
+    anyhow::ensure!(
+        frames <= MAX_FRAMES,
+        "--horizon / --stride must make at most {MAX_FRAMES} frames of the animation, got \
+         {frames} ({horizon} / {stride})"
     );
     let given = a
         .subject

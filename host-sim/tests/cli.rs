@@ -97,7 +97,7 @@ fn refused(args: &[&str], want: &str) {
 fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     let max = "18446744073709551615";
     let noise = "noise+".repeat(10_000);
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 8] = [
         (
             &["eval", "--episodes", max],
             "--episodes must be in [1, 10000000]",
@@ -109,6 +109,10 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
         (
             &["render", "--horizon", "4294967295"],
             "--horizon must be in [1, 100000]",
+        ),
+        (
+            &["render", "--horizon", "100000", "--stride", "9"],
+            "at most 10000 frames of the animation, got 11111 (100000 / 9)",
         ),
         // Each factor is finite; their product would not be, and 1e300 is refused on its own.
         (
