@@ -10,6 +10,9 @@ use serde::Deserialize;
 
 /// Where the manifest lives, from the repository's root.
 pub const PATH: &str = "docs/results/manifest.toml";
+/// Where every results file lives: the steps' outputs there, and every file a document's
+/// marker names.
+pub const RESULTS_DIR: &str = "docs/results/";
 
 /// The tools a step may need beyond cargo, as `scripts/regenerate.sh` checks them.
 pub const NEEDS: [&str; 3] = ["qemu", "arm-gcc", "sb3"];
@@ -66,7 +69,7 @@ impl Step {
     /// Whether it writes a results file: one under `docs/results/` or a reproduction.
     pub fn results(&self) -> Option<&str> {
         let out = self.output.as_deref()?;
-        let json = out.starts_with(crate::tables::RESULTS_DIR) && out.ends_with(".json");
+        let json = out.starts_with(RESULTS_DIR) && out.ends_with(".json");
         (json || out == "docs/reproduction").then_some(out)
     }
 }

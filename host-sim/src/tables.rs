@@ -31,8 +31,7 @@ pub mod values;
 pub const OPEN: &str = "<!-- results:";
 /// The line that closes a block.
 pub const CLOSE: &str = "<!-- /results -->";
-/// Where every results file a marker names lives.
-pub const RESULTS_DIR: &str = "docs/results/";
+pub use crate::manifest::RESULTS_DIR;
 
 /// The options of a marker, as `host-sim tables --help` shows them.
 pub const OPTIONS_HELP: &str = "\
