@@ -296,7 +296,12 @@ fn rig_text_from_anywhere_is_held_to_a_rig_files_size_and_refused_with_its_reaso
 fn a_policys_recorded_rig_is_refused_naming_the_policy() {
     let mut metadata = std::collections::BTreeMap::new();
     metadata.insert(METADATA_KEY.to_string(), "cart_mass_kg = nan".to_string());
-    let e = recorded(&metadata, "policy runs/x").unwrap_err().to_string();
+    let e = recorded(&metadata, "policy runs/x")
+        .unwrap_err()
+        .to_string();
     assert!(e.starts_with("policy runs/x: its recorded rig: "), "{e}");
-    assert_eq!(recorded(&Default::default(), "policy runs/x").unwrap(), None);
+    assert_eq!(
+        recorded(&Default::default(), "policy runs/x").unwrap(),
+        None
+    );
 }
