@@ -355,6 +355,11 @@ impl Draws {
         host_common::seed::rng(self.seed, episode, stream)
     }
 
+    /// Episode `episode`'s start, noise and pushes streams.
+    fn streams_of(&self, episode: u64) -> [Pcg64Mcg; 3] {
+        self.streams.map(|s| self.rng(episode, s))
+    }
+
     /// Episode `episode`'s world of `scenario` (see [`World::start`]), for a controller that
     /// runs elsewhere.
     pub fn world<'s>(
@@ -363,7 +368,7 @@ impl Draws {
         horizon: u32,
         episode: u64,
     ) -> World<'s, Pcg64Mcg> {
-        let [mut start, noise, pushes] = self.streams.map(|s| self.rng(episode, s));
+        let [mut start, noise, pushes] = self.streams_of(episode);
         World::start(scenario, horizon, &mut start, noise, pushes)
     }
 
@@ -377,7 +382,7 @@ impl Draws {
         episode: u64,
         aids: impl Into<Aids>,
     ) -> Episode<'s, P, Pcg64Mcg, O> {
-        let [mut start, noise, pushes] = self.streams.map(|s| self.rng(episode, s));
+        let [mut start, noise, pushes] = self.streams_of(episode);
         Episode::start(policy, scenario, horizon, &mut start, (noise, pushes), aids)
     }
 }
