@@ -1,43 +1,70 @@
-//! JSON the tools read back (results files, run summaries, envelopes, markers), parsed in two
-//! passes so that its memory is bounded before any is taken: the values are counted first,
-//! allocating nothing, and a text of more than [`MAX_VALUES`] is refused; only then is it
-//! parsed. A parsed value costs tens of bytes whatever its text's length (`0,` is two bytes
-//! and a 32-byte value), so a count, not the file's size, is what bounds the memory.
+//! JSON the tools read back. Into a type ([`parse`]: run summaries, envelopes, markers,
+//! `eval`'s rows for the tables) the memory is the type's, which ignores what it does not
+//! name. Into a generic value ([`value`]: results files compared, figures looked up) every
+//! value is kept, and costs tens of bytes however short its text (`0,` is two bytes and a
+//! 32-byte value; an object of one key, a whole map node): so the text is read twice, its
+//! values weighed first, keeping nothing, and one heavier than [`MAX_WEIGHT`] is refused
+//! before any is kept.
 
 use std::cell::Cell;
 use std::fmt;
 
 use serde::de::{DeserializeOwned, DeserializeSeed, Error, IgnoredAny, MapAccess, SeqAccess};
 use serde::de::{Deserializer, Visitor};
+use serde_json::Value;
 
-/// Most values (numbers, strings, arrays, objects, each counted once) a JSON file the tools
-/// read may hold: 15 times the largest results file here (an `eval` of 2,000 rows).
-pub const MAX_VALUES: u64 = 100_000;
+/// What an object weighs against a number or a string: a map node's memory.
+pub const OBJECT_WEIGHT: u64 = 16;
+/// What an array weighs: the four values a list first makes room for.
+pub const ARRAY_WEIGHT: u64 = 4;
+/// What an object's key weighs beside its value: its string and its slot in the map.
+pub const KEY_WEIGHT: u64 = 2;
 
-/// `text` parsed as a `T`, or why not: not JSON, more than [`MAX_VALUES`] values, or not
-/// a `T`. The message is serde's, cut and escaped.
+/// The heaviest JSON text [`value`] reads: `eval --json` at its most rows (10,000, a row of
+/// figures weighing a few hundred), with room to spare.
+pub const MAX_WEIGHT: u64 = 5_000_000;
+
+/// `text` parsed as a `T`, or why not (serde's message, cut and escaped).
 pub fn parse<T: DeserializeOwned>(text: &str) -> Result<T, String> {
+    serde_json::from_str(text).map_err(|e| crate::excerpt(&e.to_string()))
+}
+
+/// `text` parsed whole, once [`weight`] has found it within [`MAX_WEIGHT`].
+pub fn value(text: &str) -> Result<Value, String> {
+    weight(text)?;
+    parse(text)
+}
+
+/// What `text`'s values weigh ([`OBJECT_WEIGHT`] an object, [`KEY_WEIGHT`] each of its keys,
+/// [`ARRAY_WEIGHT`] an array, 1 any other value), read
+/// without keeping any; refused past [`MAX_WEIGHT`], or if it is not JSON.
+pub fn weight(text: &str) -> Result<u64, String> {
     let mut de = serde_json::Deserializer::from_str(text);
     let seen = Cell::new(0);
     Counter(&seen)
         .deserialize(&mut de)
         .and_then(|()| de.end())
         .map_err(|e| crate::excerpt(&e.to_string()))?;
-    serde_json::from_str(text).map_err(|e| crate::excerpt(&e.to_string()))
+    Ok(seen.get())
 }
 
-/// Counts the values of one JSON value into its cell, refusing past [`MAX_VALUES`].
+/// Weighs one JSON value into its cell, refusing past [`MAX_WEIGHT`].
 struct Counter<'a>(&'a Cell<u64>);
 
 impl Counter<'_> {
-    fn one<E: Error>(&self) -> Result<(), E> {
-        self.0.set(self.0.get() + 1);
-        if self.0.get() > MAX_VALUES {
+    fn add<E: Error>(&self, weight: u64) -> Result<(), E> {
+        self.0.set(self.0.get() + weight);
+        if self.0.get() > MAX_WEIGHT {
             return Err(E::custom(format!(
-                "expected at most {MAX_VALUES} values, found more"
+                "expected values weighing at most {MAX_WEIGHT} (an object {OBJECT_WEIGHT}, a key \
+                 {KEY_WEIGHT}, an array {ARRAY_WEIGHT}, any other value 1), found more"
             )));
         }
         Ok(())
+    }
+
+    fn one<E: Error>(&self) -> Result<(), E> {
+        self.add(1)
     }
 }
 
@@ -81,14 +108,15 @@ impl<'de> Visitor<'de> for Counter<'_> {
     }
 
     fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
-        self.one()?;
+        self.add(ARRAY_WEIGHT)?;
         while seq.next_element_seed(Counter(self.0))?.is_some() {}
         Ok(())
     }
 
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
-        self.one()?;
+        self.add(OBJECT_WEIGHT)?;
         while map.next_key::<IgnoredAny>()?.is_some() {
+            self.add(KEY_WEIGHT)?;
             map.next_value_seed(Counter(self.0))?;
         }
         Ok(())
@@ -98,19 +126,27 @@ impl<'de> Visitor<'de> for Counter<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use serde_json::Value;
 
     #[test]
-    fn values_are_counted_as_parsed_and_one_past_the_limit_is_refused() {
-        let at = |n: u64| format!("[{}]", vec!["0"; n as usize - 1].join(","));
-        let v: Value = parse(&at(MAX_VALUES)).unwrap();
-        assert_eq!(v.as_array().unwrap().len() as u64, MAX_VALUES - 1);
-        let e = parse::<Value>(&at(MAX_VALUES + 1)).unwrap_err();
-        assert!(e.contains("expected at most 100000 values"), "{e}");
-        // Keys are not values; every other kind is.
-        let n: Value = parse(r#"{"a": [true, null, "s", -1, 2.5, {}]}"#).unwrap();
-        assert_eq!(n["a"][3], -1);
-        let e = parse::<Value>("[1] x").unwrap_err();
+    fn values_are_weighed_as_parsed_and_past_the_limit_refused() {
+        let numbers = |n: u64| format!("[{}]", vec!["0"; n as usize].join(","));
+        let most = MAX_WEIGHT - ARRAY_WEIGHT;
+        assert_eq!(weight(&numbers(most)), Ok(MAX_WEIGHT));
+        let v = value(&numbers(most)).unwrap();
+        assert_eq!(v.as_array().unwrap().len() as u64, most);
+        let e = value(&numbers(most + 1)).unwrap_err();
+        assert!(
+            e.contains("expected values weighing at most 5000000"),
+            "{e}"
+        );
+        // An object 16, a key 2, an array 4, every other value 1.
+        let n = r#"{"a": [true, null, "s", -1, 2.5, {}]}"#;
+        assert_eq!(
+            weight(n),
+            Ok(2 * OBJECT_WEIGHT + KEY_WEIGHT + ARRAY_WEIGHT + 5)
+        );
+        assert_eq!(value(n).unwrap()["a"][3], -1);
+        let e = value("[1] x").unwrap_err();
         assert!(e.contains("trailing characters"), "{e}");
         let e = parse::<Vec<u8>>("[1, 300]").unwrap_err();
         assert!(e.contains("u8"), "{e}");

@@ -9,14 +9,16 @@ use super::{exe, os};
 /// Work and memory that grew faster than the input: `results moved` searched the old rows
 /// once per new row (10 MB files of 150,000 rows took 104 s of processor time), and a
 /// value parsed costs tens of bytes however short its text (16 MB of `0,` took 1.7 GB).
-/// Rows are looked up by name now, and a file of more values than a results file holds is
-/// refused before any is kept: at the limit the comparison stays within a refusal's budget of
-/// processor time, the harness's measure; one row more is refused.
+/// Rows are looked up by name now, and a file whose values weigh more than `eval`'s largest
+/// output is refused before any is kept: at the limit the comparison stays within a refusal's
+/// budget of processor time, the harness's measure; one row more is refused.
 #[test]
-fn comparing_results_files_at_their_count_limit_is_linear_and_one_row_more_is_refused() {
+fn comparing_results_files_at_their_weight_limit_is_linear_and_one_row_more_is_refused() {
     let s = Scratch::new("hs-moved");
-    // Five values a row, and two for the file and its list.
-    let at_limit = ((weights::json::MAX_VALUES - 2) / 5) as usize;
+    // A row is an object of four keys and values; the file an object with a key and a list.
+    use weights::json::{ARRAY_WEIGHT, KEY_WEIGHT, MAX_WEIGHT, OBJECT_WEIGHT};
+    let row_weight = OBJECT_WEIGHT + 4 * (KEY_WEIGHT + 1);
+    let at_limit = ((MAX_WEIGHT - OBJECT_WEIGHT - KEY_WEIGHT - ARRAY_WEIGHT) / row_weight) as usize;
     let rows = |tag: &str, n: usize| {
         let row =
             |i: usize| format!(r#"{{"controller":"c","scenario":"{tag}{i}","horizon":1,"x":{i}}}"#);
@@ -42,8 +44,7 @@ fn comparing_results_files_at_their_count_limit_is_linear_and_one_row_more_is_re
     let ran = moved(&over);
     assert_eq!(ran.code, Some(2), "{}", ran.stderr);
     assert!(
-        ran.stderr
-            .contains("expected at most 100000 values, found more"),
+        ran.stderr.contains("expected values weighing at most"),
         "{}",
         ran.stderr
     );
