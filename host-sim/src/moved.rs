@@ -95,9 +95,12 @@ pub fn compare(old: &Json, new: &Json) -> Moved {
     }
     let new_names: BTreeSet<&str> = new.iter().map(|(k, _)| k.as_str()).collect();
     let mut seen = BTreeSet::new();
+    // Rows are matched by their whole names, and shown escaped and cut: a name from the file
+    // cannot move the cursor or forge a line of the report.
+    let shown = |k: &String| weights::excerpt(k);
     for (key, row) in &new {
         match was_named.get(key.as_str()) {
-            None => m.new.push(key.clone()),
+            None => m.new.push(shown(key)),
             Some(was) => {
                 let (beyond, changed) = fields(was, row);
                 for f in &changed {
@@ -106,9 +109,9 @@ pub fn compare(old: &Json, new: &Json) -> Moved {
                     }
                 }
                 if !beyond.is_empty() {
-                    m.moved.push((key.clone(), beyond));
+                    m.moved.push((shown(key), beyond));
                 } else if !changed.is_empty() {
-                    m.within.push(key.clone());
+                    m.within.push(shown(key));
                 }
             }
         }
@@ -116,7 +119,7 @@ pub fn compare(old: &Json, new: &Json) -> Moved {
     m.gone = old
         .iter()
         .filter(|(k, _)| !new_names.contains(k.as_str()))
-        .map(|(k, _)| k.clone())
+        .map(|(k, _)| shown(k))
         .collect();
     m
 }
@@ -141,9 +144,7 @@ fn entries(doc: &Json) -> Vec<(String, &Json)> {
 
 /// `controller on scenario at horizon`, or `study: label`.
 fn name(row: &Json) -> String {
-    // A row's names come from the file: escaped and cut, so that a name cannot move the
-    // cursor or forge a line of the report.
-    let s = |k: &str| weights::excerpt(row.get(k).and_then(Json::as_str).unwrap_or("?"));
+    let s = |k: &str| row.get(k).and_then(Json::as_str).unwrap_or("?").to_string();
     if row.get("study").is_some() {
         return format!("{}: {}", s("study"), s("label"));
     }
@@ -333,6 +334,13 @@ mod tests {
         let twice = json!({"rows": [row(0.9, [0.8, 1.0], 0.5, 1), row(0.9, [0.8, 1.0], 0.5, 1)]});
         let e = check(&twice).unwrap_err();
         assert!(e.contains("\"policy on noise at 500\" twice"), "{e}");
+        // Names alike for their first 200 characters are still two rows.
+        let long = |end: &str| {
+            let mut r = row(0.9, [0.8, 1.0], 0.5, 1);
+            r["scenario"] = json!(format!("{}{end}", "noise+".repeat(40)));
+            r
+        };
+        assert_eq!(check(&json!({"rows": [long("a"), long("b")]})), Ok(()));
         let mut forged = row(0.9, [0.8, 1.0], 0.5, 1);
         forged["scenario"] = json!("\u{1b}[2J\nerror: fake");
         let m = compare(&json!({"rows": []}), &json!({"rows": [forged]}));

@@ -16,6 +16,8 @@
 //! inside fenced code are text, so a document can show the syntax. Each results file has a
 //! page of its own, every row with where the file came from ([`pages`]).
 
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::ops::Range;
 
 use serde::Deserialize;
@@ -207,10 +209,12 @@ fn parse_spec(rest: &str) -> Result<Spec, String> {
     Ok(spec)
 }
 
-/// `file` if it names a file directly in [`RESULTS_DIR`].
+/// `file` if it names a file directly in [`RESULTS_DIR`], of letters, digits, `.`, `-` and
+/// `_`: the name then reaches every message as it is, with nothing to escape.
 fn parse_results_file(file: &str) -> Result<&str, String> {
     let name = file.strip_prefix(RESULTS_DIR).unwrap_or_default();
-    if !name.ends_with(".json") || name.contains('/') || name.starts_with('.') {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "._-".contains(c);
+    if !name.ends_with(".json") || !name.chars().all(plain) || name.starts_with('.') {
         return Err(format!(
             "expected a file {RESULTS_DIR}NAME.json, found {}",
             quote(file)
@@ -233,6 +237,30 @@ fn list(key: &str, value: &str) -> Result<Vec<String>, String> {
 fn pair(key: &str, value: &str) -> Result<[String; 2], String> {
     <[String; 2]>::try_from(list(key, value)?)
         .map_err(|v| format!("{key}= expects two controllers, found {}", v.len()))
+}
+
+/// The scenarios of `rows` in the file's order, those `spec` asks for if it names them.
+fn scenarios<'a>(rows: &[&'a Row], spec: &Spec, horizon: u32) -> Result<Vec<&'a str>, String> {
+    let mut names: Vec<&str> = Vec::new();
+    for r in rows {
+        if !names.contains(&r.scenario.as_str()) {
+            names.push(&r.scenario);
+        }
+    }
+    if let Some(wanted) = &spec.scenarios {
+        if let Some(w) = wanted.iter().find(|w| !names.contains(&w.as_str())) {
+            return Err(format!(
+                "{} has no {} at horizon {horizon}",
+                spec.file,
+                quote(w)
+            ));
+        }
+        names.retain(|n| wanted.iter().any(|w| w == n));
+    }
+    if names.is_empty() {
+        return Err(format!("{} has no rows at horizon {horizon}", spec.file));
+    }
+    Ok(names)
 }
 
 /// The part of `eval --json`'s output the tables show.
@@ -268,8 +296,17 @@ struct Mean {
 
 /// The Markdown table `spec` asks for from `json`, `eval --json`'s output.
 pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
-    let results: Results = weights::json::parse(json)
-        .map_err(|e| format!("{} is not `eval --json` output: {e}", spec.file))?;
+    render_from(spec, &parse_results(spec, json)?)
+}
+
+/// `json` as `eval --json` output, or why not.
+fn parse_results(spec: &Spec, json: &str) -> Result<Results, String> {
+    weights::json::parse(json)
+        .map_err(|e| format!("{} is not `eval --json` output: {e}", spec.file))
+}
+
+/// [`render`] from the parsed file.
+fn render_from(spec: &Spec, results: &Results) -> Result<String, String> {
     let horizon = match spec.horizon {
         Some(h) => h,
         None => only_horizon(&results.rows)
@@ -280,25 +317,7 @@ pub fn render(spec: &Spec, json: &str) -> Result<String, String> {
         .iter()
         .filter(|r| r.horizon == horizon)
         .collect();
-    let mut names: Vec<&str> = Vec::new();
-    for r in &rows {
-        if !names.contains(&r.scenario.as_str()) {
-            names.push(&r.scenario);
-        }
-    }
-    if let Some(wanted) = &spec.scenarios {
-        if let Some(w) = wanted.iter().find(|w| !names.contains(&w.as_str())) {
-            return Err(format!(
-                "{} has no {} at horizon {horizon}",
-                spec.file,
-                quote(w)
-            ));
-        }
-        names.retain(|n| wanted.iter().any(|w| w == n));
-    }
-    if names.is_empty() {
-        return Err(format!("{} has no rows at horizon {horizon}", spec.file));
-    }
+    let names = scenarios(&rows, spec, horizon)?;
     let mut out = header(spec);
     for name in names {
         let find = |c: &str| {
@@ -420,9 +439,18 @@ pub fn update(
     let marked = values::values(text)?;
     // Each edit: the bytes replaced, their new text, and the stale entry if they differ.
     let mut edits: Vec<(Range<usize>, String, Stale)> = Vec::new();
+    // Each file read and parsed once, however many blocks name it: a document of a thousand
+    // blocks on one file parsed it a thousand times.
+    let mut parsed: HashMap<&str, Results> = HashMap::new();
     for b in &found {
-        let json = load(&b.spec.file).map_err(|m| refuse(b.line, m))?;
-        let table = render(&b.spec, &json).map_err(|m| refuse(b.line, m))?;
+        let results = match parsed.entry(&b.spec.file) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => {
+                let json = load(&b.spec.file).map_err(|m| refuse(b.line, m))?;
+                e.insert(parse_results(&b.spec, &json).map_err(|m| refuse(b.line, m))?)
+            }
+        };
+        let table = render_from(&b.spec, results).map_err(|m| refuse(b.line, m))?;
         let what = format!("the table differs from {}", b.spec.file);
         edits.push((b.body.clone(), table, Stale { line: b.line, what }));
     }

@@ -138,6 +138,12 @@ fn the_marker_parser_refuses() {
         let err = parse_spec(&format!(" {rest}")).unwrap_err();
         assert!(err.contains(want), "{rest}: {err}");
     }
+    // A results file's name is plain, so it reaches every message as it is.
+    let e = parse_spec(" docs/results/\u{1b}[2Jx.json success=a -->").unwrap_err();
+    assert!(
+        e.contains("expected a file docs/results/NAME.json") && !e.contains('\u{1b}'),
+        "{e}"
+    );
     // A marker's words reach a message quoted: escaped, and cut however long.
     let long = "Z".repeat(20_000);
     for word in [
