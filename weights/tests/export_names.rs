@@ -115,6 +115,18 @@ fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
             );
         }
     }
+    // The names the C API's macros paste together for some shape, which its header's text
+    // spells only in part.
+    for name in [
+        "cartpole_mlp64x9_forward",
+        "cartpole_mlp64_forward",
+        "cartpole_qmlp64x9_forward",
+        "cartpole_controller_init_mlp64x9",
+    ] {
+        let e = check_c_name(name).unwrap_err().to_string();
+        assert!(e.contains("macros declare names beginning"), "{name}: {e}");
+    }
+    check_c_name("cartpole_policy").unwrap();
     // C23's keywords beyond C++'s: `typeof` is one in GCC's default dialect too.
     for keyword in ["typeof", "typeof_unqual"] {
         check_c_name(keyword).unwrap_err();

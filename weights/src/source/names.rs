@@ -221,6 +221,15 @@ pub fn check_c_name(name: &str) -> Result<()> {
         format!("{name}_duty"),
         c_guard(name),
     ];
+    // The API's macros make names by pasting a shape on (`cartpole_mlp##S##_forward`): a name
+    // in such a family is one of its declarations for some shape.
+    if let Some(family) = api_families().find(|f| name.starts_with(f)) {
+        return Err(Error::Input(format!(
+            "--name: expected a name outside the C API's, found {} (cartpole_policy.h's macros \
+             declare names beginning {family} for each network shape)",
+            quote(name)
+        )));
+    }
     match items.into_iter().find(|id| api.contains(&id.as_str())) {
         None => Ok(()),
         Some(id) => Err(Error::Input(format!(
@@ -284,6 +293,19 @@ pub fn c_guard(name: &str) -> String {
 
 /// The C API's header, whose identifiers an exported header must not define.
 const API_HEADER: &str = include_str!("../../../capi/include/cartpole_policy.h");
+
+/// The beginnings of the C API's pasted names: each identifier in its namespace that a `##`
+/// follows in the header (`cartpole_mlp` of `cartpole_mlp##S##_forward`).
+fn api_families() -> impl Iterator<Item = &'static str> {
+    API_HEADER.match_indices("##").filter_map(|(at, _)| {
+        let before = &API_HEADER[..at];
+        let start = before
+            .rfind(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+            .map_or(0, |i| i + 1);
+        let id = &before[start..];
+        (id.starts_with("cartpole_") || id.starts_with("CARTPOLE_")).then_some(id)
+    })
+}
 
 /// The identifiers of the C API in its namespace (those starting `cartpole_` or `CARTPOLE_`,
 /// outside comments): its functions, types, struct tags, macros and constants.
