@@ -33,7 +33,8 @@ fn export(
 ) -> Result<String> {
     let provenance = policy_export::run::source_provenance(src, import)?;
     let name = default_name(lang, quant.is_some());
-    let r = render(import, &provenance, None, lang, quant, name)?;
+    let source = format!("policy {}", src.display());
+    let r = render(import, &source, &provenance, None, lang, quant, name)?;
     write_atomic(&dir.join(file), r.text.as_bytes())?;
     println!("wrote {file}: {name}, {} bytes of source", r.text.len());
     Ok(r.text)
