@@ -73,7 +73,7 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
         Action::Moved { old, new, name } => {
             let json = |p: &PathBuf| -> Result<serde_json::Value> {
                 let text = read_text(p)?;
-                weights::json::parse(&text).map_err(|e| {
+                weights::json::value(&text).map_err(|e| {
                     anyhow!("{}: expected a results file's JSON, {e}", weights::shown(p))
                 })
             };

@@ -20,7 +20,7 @@ pub fn path(file: &str) -> String {
 /// The page of the results file `file` whose text is `json`, made by `steps` of the
 /// manifest.
 pub fn page(file: &str, json: &str, steps: &[&Step]) -> Result<String, String> {
-    let doc: Json = weights::json::parse(json).map_err(|e| format!("{file} is not JSON: {e}"))?;
+    let doc: Json = weights::json::value(json).map_err(|e| format!("{file} is not JSON: {e}"))?;
     let name = file.rsplit('/').next().unwrap_or(file);
     let mut s = format!("# {}\n\n", name.trim_end_matches(".json"));
     match steps {
@@ -62,7 +62,7 @@ pub fn index(files: &[(String, String, Vec<&Step>)]) -> Result<String, String> {
     );
     for (name, json, steps) in files {
         let doc: Json =
-            weights::json::parse(json).map_err(|e| format!("{name} is not JSON: {e}"))?;
+            weights::json::value(json).map_err(|e| format!("{name} is not JSON: {e}"))?;
         let first = match doc.get("provenance") {
             Some(Json::Array(runs)) => runs.first(),
             other => other,

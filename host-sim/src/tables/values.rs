@@ -347,7 +347,7 @@ impl Rows {
 }
 
 fn parse_rows(text: &str) -> Option<Vec<Json>> {
-    let mut json: Json = weights::json::parse(text).ok()?;
+    let mut json: Json = weights::json::value(text).ok()?;
     match json.get_mut("rows")?.take() {
         Json::Array(rows) => Some(rows),
         _ => None,
