@@ -29,7 +29,7 @@ impl GivenLevels {
     /// `levels` (fractions of the full push, one per output) given by the argument `by`;
     /// refused as the firmware refuses levels ([`check_levels`]).
     pub fn new(levels: Vec<f32>, by: &'static str) -> Result<GivenLevels> {
-        check_levels(&levels).map_err(|e| Error::Input(format!("{by} {}: {e}", show(&levels))))?;
+        check(&levels).map_err(|e| Error::Input(format!("{by} {}: {e}", show(&levels))))?;
         Ok(GivenLevels { levels, by })
     }
 
@@ -86,8 +86,20 @@ pub fn parse_levels(spec: &str, by: &str) -> Result<Vec<f32>> {
             })
         })
         .collect::<Result<Vec<f32>>>()?;
-    check_levels(&levels).map_err(|e| refuse(e.to_string()))?;
+    check(&levels).map_err(refuse)?;
     Ok(levels)
+}
+
+/// Why `levels` are not ones the firmware takes ([`check_levels`]), each zero or normal: a
+/// subnormal (`1e-40`) is a slip the board rounds to off, while the file would keep it.
+fn check(levels: &[f32]) -> std::result::Result<(), String> {
+    check_levels(levels).map_err(|e| e.to_string())?;
+    match levels.iter().find(|l| **l != 0.0 && !l.is_normal()) {
+        Some(l) => Err(format!(
+            "levels: expected each zero or a normal number, found {l:e}"
+        )),
+        None => Ok(()),
+    }
 }
 
 /// `levels` for a message: `[-1, -0.2, 0, 0.2, 1]`, a long list cut.
@@ -149,7 +161,7 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
             levels.len()
         )));
     }
-    check_levels(&levels)
+    check(&levels)
         .map_err(|e| Error::Input(format!("the file's duty levels {}: {e}", show(&levels))))?;
     Ok(Some(levels))
 }
@@ -194,6 +206,10 @@ mod tests {
             ("-1,half,1", "found \"half\""),
             ("0x10,1", "found \"0x10\""),
             ("1,0", "expected strictly increasing"),
+            (
+                "-1,1e-40,1",
+                "expected each zero or a normal number, found 1e-40",
+            ),
             ("0.2,0.2004", "expected strictly increasing"),
             ("-1,0,1.5", "expected within [-1, 1]"),
             ("-1,NaN", "expected a finite number"),
