@@ -159,6 +159,12 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
                 "expected the JSON `host-sim envelope --json` prints, {e}"
             ))
         })?;
+    // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
+    if let Some(x) = e.envelope.iter().find(|x| **x != 0.0 && !x.is_normal()) {
+        return Err(bad(format!(
+            "expected each limit zero or a normal number, found {x:e}"
+        )));
+    }
     // The firmware's refusal names the channel; the values are the file's.
     Limits::new(e.envelope).map_err(|why| bad(format!("{why}, found {:?}", e.envelope)))
 }

@@ -182,12 +182,12 @@ fn check(a: &StartupArgs) -> Result<()> {
         a.episodes
     );
     anyhow::ensure!(
-        a.zero_error.is_finite() && a.zero_error.abs() <= 10.0,
+        a.zero_error.abs() <= 10.0 && weights::plain(a.zero_error),
         "--zero-error must be degrees in [-10, 10], found {:?}",
         a.zero_error
     );
     anyhow::ensure!(
-        a.cart_start.is_finite() && (0.0..=10.0).contains(&a.cart_start),
+        (0.0..=10.0).contains(&a.cart_start) && weights::plain(a.cart_start),
         "--cart-start must be metres in [0, 10], found {:?}",
         a.cart_start
     );

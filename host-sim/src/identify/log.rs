@@ -194,8 +194,8 @@ impl Log {
         let duty = fields[1]
             .parse::<f64>()
             .ok()
-            .filter(|d| (-1.0..=1.0).contains(d));
-        let duty = duty.ok_or_else(|| field(1, "duty", "a number from -1 to 1"))?;
+            .filter(|d| (-1.0..=1.0).contains(d) && weights::plain(*d));
+        let duty = duty.ok_or_else(|| field(1, "duty", "a number from -1 to 1, zero or normal"))?;
         let cart: i32 = fields[2]
             .parse()
             .map_err(|_| field(2, "cart_counts", "a whole number of counts"))?;
@@ -402,7 +402,7 @@ impl Log {
             return Err(self.fail(
                 Some(k),
                 format!(
-                    "duty: expected 0 (no motor) in a swing log, found {}",
+                    "duty: expected 0 (no motor) in a swing log, found {:?}",
                     self.duty[k]
                 ),
             ));

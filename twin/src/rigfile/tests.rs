@@ -64,6 +64,12 @@ fn a_rig_written_reads_back_bit_for_bit() {
 
 /// A change to the desk rig's file, `(from, to)`, and what its refusal must say.
 const BAD_RIGS: &[(&str, &str, &str)] = &[
+    // Normal in f64, a subnormal in the board's f32.
+    (
+        "cart_coulomb = 0.0",
+        "cart_coulomb = 1e-40",
+        "cart_coulomb: expected zero or a normal number (in the board's f32 too), found 1e-40",
+    ),
     (
         "pivot_viscous_n_m_s = 0.0",
         "pivot_viscous_n_m_s = 0.0\n[identified]\nstall_force = -0.01",

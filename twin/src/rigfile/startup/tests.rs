@@ -65,8 +65,8 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
             "{e}"
         );
     }
-    // The board holds these in f32: 1e-40 is a subnormal there.
-    let e = refusal("catch_rate_deg_s = 1e-40");
+    // The board holds these in f32 radians: 1e-37 degrees is a subnormal there.
+    let e = refusal("catch_rate_deg_s = 1e-37");
     assert!(
         e.contains("startup.catch_rate_deg_s: expected zero or a number the board's f32"),
         "{e}"
