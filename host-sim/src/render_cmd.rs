@@ -57,7 +57,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         (1..=1000).contains(&stride),
         "--stride must be in [1, 1000], got {stride}"
     );
-    let frames = horizon as usize / stride;
+    let frames = (horizon as usize).div_ceil(stride);
     anyhow::ensure!(
         frames <= MAX_FRAMES,
         "--horizon / --stride must make at most {MAX_FRAMES} frames of the animation, got \

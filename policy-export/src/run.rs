@@ -237,8 +237,8 @@ pub fn board_warnings(src: &Path) -> Vec<String> {
         return Vec::new();
     }
     vec![format!(
-        "warning: {shown}: board_trial.int8.mean is {:.1} periods against board_trial.f32.mean \
-         {:.1} (of {}): the int8 board falls sooner than the float one in the finalists' trial; \
+        "warning: {shown}: board_trial.int8.mean is {:?} periods against board_trial.f32.mean \
+         {:?} (of {}): the int8 board falls sooner than the float one in the finalists' trial; \
          prefer the f32 export on a core with an FPU",
         b.int8.mean, b.f32.mean, b.int8.max_steps
     )]
