@@ -93,6 +93,7 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
         (dict(scenario=["noise+delay", "delay+noise"]), '"noise+delay" and "delay+noise", the same world'),
     ]
     cases.append((dict(horizon=[10, 10.9]), "horizon must be a whole number of periods; found 10.9"))
+    cases.append((dict(horizon=10.0), "horizon must be a whole number of periods; found 10.0"))
     for kwargs, why in cases:
         with pytest.raises(ValueError, match=re.escape(why)):
             cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 10, **kwargs})

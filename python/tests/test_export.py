@@ -46,7 +46,7 @@ def test_dict_source_is_the_commands_output_for_its_file(tools, tmp_path, fixtur
 def test_torch_like_tensors_are_detached_and_copied_to_the_cpu(tmp_path):
     class Tensor:
         def __init__(self, a):
-            self.a, self.dtype = a, "torch.float32"
+            self.a, self.dtype, self.shape = a, "torch.float32", a.shape
 
         def detach(self):
             return self
@@ -157,3 +157,15 @@ def test_many_tensors_beside_the_network_are_ignored_by_shape(tmp_path):
     out = cartpole_ddqn.export(shapes, out=tmp_path / "shapes.rs", prefix="network.")
     assert "10000 other tensors ignored" in out.read_text()
     assert sorted(p.name for p in tmp_path.iterdir()) == ["many.rs", "shapes.rs"]
+
+
+def test_entries_that_are_not_arrays_are_refused_unconverted(tmp_path):
+    """A list sharing one inner list a thousand times would convert to a thousand copies."""
+    tensors = read_safetensors(FIXTURES / "cleanrl.safetensors")
+    inner = [0.0] * 1000
+    with pytest.raises(ValueError, match="'junk': expected an array or a tensor .*; found list"):
+        cartpole_ddqn.export({**tensors, "junk": [inner] * 1000}, out=tmp_path / "x.rs", prefix="network.")
+    # A range of ten billion levels is read to one past the most there can be, not built.
+    with pytest.raises(ValueError):
+        cartpole_ddqn.export(tensors, out=tmp_path / "y.rs", prefix="network.", levels=range(10**10))
+    assert list(tmp_path.iterdir()) == []

@@ -74,11 +74,16 @@ def _path(p):
     return None if p is None else os.fspath(p)
 
 
+# The most levels there can be: they rise by a thousandth at least within [-1, 1].
+_MAX_LEVELS = 2001
+
+
 def _levels(levels):
     if levels is None:
         return None
     try:
-        return [float(v) for v in levels]
+        # Read to one past the most there can be: a range of ten billion builds no list.
+        return [float(v) for v in itertools.islice(levels, _MAX_LEVELS + 1)]
     except (TypeError, ValueError):
         raise ValueError(
             f"levels must be a list of duty levels, fractions of the full push; found {levels!r:.200}"
@@ -119,9 +124,12 @@ def _shape(name, value):
         raise ValueError(f"expected tensor names as str; found {type(name).__name__}")
     dtype, shape = getattr(value, "dtype", None), getattr(value, "shape", None)
     if dtype is None or shape is None:
-        # A list, or an object only NumPy reads: it cannot be measured but by converting it.
-        value = _array(value)
-        dtype, shape = value.dtype, value.shape
+        # A list could be measured only by converting it, and a list sharing one inner list
+        # a thousand times converts to a thousand copies: a state dict holds arrays.
+        raise ValueError(
+            f"tensor {name!r:.200}: expected an array or a tensor (with a dtype and a shape); "
+            f"found {type(value).__name__}"
+        )
     _check_dtype(name, dtype)
     try:
         dims = [operator.index(d) for d in shape]
@@ -170,7 +178,7 @@ def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None
 def _count(value):
     """How many items a list argument holds (a str or a whole number alone is one), by
     ``len()`` where it has one; None where only iterating would tell."""
-    if isinstance(value, (str, int, np.integer)):
+    if isinstance(value, (str, int, float, np.integer, np.floating)):
         return 1
     try:
         return len(value)
@@ -182,7 +190,8 @@ def _count(value):
 def _list(value, what):
     """A list argument's items, at most one more than ``MAX_ROWS``: more make too many rows
     whatever the other lists hold, and a ``len()`` that lies builds no more."""
-    if isinstance(value, (str, int, np.integer)):
+    # A float alone is one horizon too, refused by name where horizons are read (_horizon).
+    if isinstance(value, (str, int, float, np.integer, np.floating)):
         return [value]
     values = list(itertools.islice(value, MAX_ROWS + 1))
     if not values:

@@ -13,6 +13,7 @@ motor figures, by the names ``host-sim eval --json`` gives their means over epis
 ``reversals_per_s``, ``mean_abs_duty``, ``duty_tv_per_s`` and ``heat``.
 """
 
+import itertools
 import operator
 import os
 
@@ -200,7 +201,8 @@ class TwinVectorEnv(VectorEnv):
         elif isinstance(seed, (int, np.integer)):
             seeds = [int(seed) + i for i in range(self.num_envs)]
         else:
-            seeds = [int(s) for s in seed]
+            # Read to one past the worlds at most: a range of ten billion builds no list.
+            seeds = [int(s) for s in itertools.islice(seed, self.num_envs + 1)]
             if len(seeds) != self.num_envs:
                 raise ValueError(f"expected {self.num_envs} seeds, one per world; found {len(seeds)}")
         return self._twin.reset(seeds), {}
