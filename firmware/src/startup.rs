@@ -75,6 +75,10 @@ pub fn periods(seconds: f64, tau: f64) -> u16 {
 }
 
 /// [`Startup::suggested`]'s trim rate, rad per metre-second, and its bound, rad (2 degrees).
+/// Most periods a reading may be asked to stay in the catch region: ten seconds at 50 Hz.
+/// More would leave the pole to fall while the board waited for a catch.
+pub const MAX_CATCH_PERIODS: u16 = 500;
+
 const TRIM_RATE: f32 = 0.012;
 const TRIM_MAX: f32 = 0.035;
 
@@ -158,6 +162,12 @@ impl Startup {
         }
         if self.catch_periods == 0 {
             return Err(ConfigError::NotPositive("startup.catch_periods"));
+        }
+        if self.catch_periods > MAX_CATCH_PERIODS {
+            return Err(ConfigError::AboveLimit(
+                "startup.catch_periods",
+                "at most MAX_CATCH_PERIODS periods",
+            ));
         }
         check!(positive(self.catch_angle as f64, "startup.catch_angle"));
         check!(positive(self.catch_rate as f64, "startup.catch_rate"));

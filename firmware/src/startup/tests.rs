@@ -262,6 +262,17 @@ fn regions_a_rig_cannot_run_are_refused_naming_the_field() {
         }),
         Some(ConfigError::TooFew("startup.zero_periods"))
     );
+    // A catch the board would wait minutes for: refused on the board as in a rig file.
+    assert_eq!(
+        refused(Startup {
+            catch_periods: MAX_CATCH_PERIODS + 1,
+            ..START
+        }),
+        Some(above(
+            "startup.catch_periods",
+            "at most MAX_CATCH_PERIODS periods"
+        ))
+    );
     assert_eq!(
         refused(Startup {
             trim_rate: -1e-3,

@@ -22,15 +22,11 @@
 //! ```
 
 use firmware::rig::Rig;
-use firmware::startup::{Homing, Startup, Swing, periods};
+use firmware::startup::{Homing, MAX_CATCH_PERIODS, Startup, Swing, periods};
 use serde::Deserialize;
 use weights::Result;
 
 use super::{Fields, radians};
-
-/// Most periods a reading may be asked to stay in the catch region: ten seconds at 50 Hz.
-/// More would leave the pole to fall while the board waited.
-const MAX_CATCH_PERIODS: u16 = 500;
 
 #[derive(Deserialize, Default)]
 #[serde(deny_unknown_fields)]
