@@ -112,7 +112,7 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
         ),
         (
             &["render", "--horizon", "100000", "--stride", "9"],
-            "at most 10000 frames of the animation, got 11111 (100000 / 9)",
+            "at most 10000 frames of the animation, got 11112 (100000 / 9)",
         ),
         // Each factor is finite; their product would not be, and 1e300 is refused on its own.
         (

@@ -154,7 +154,7 @@ fn bad_input_exits_2_before_any_work() {
         (vec!["envelope", "--envelope", negative], "takes none"),
         (
             vec!["envelope", "--quantile", "0"],
-            "--quantile must be in (0, 1]",
+            "--quantile must be a normal number in (0, 1]",
         ),
         (
             vec!["envelope", "--margin", "NaN"],

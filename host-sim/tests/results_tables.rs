@@ -67,7 +67,7 @@ fn a_stale_table_or_value_fails_the_check_and_writing_repairs_it() {
         err.contains("docs/A.md:3: the table differs from docs/results/r.json\n"),
         "{err}"
     );
-    let value = "docs/A.md:6: the value `25` differs from docs/results/r.json's `250` (failures, no selector)\n";
+    let value = "docs/A.md:6: the value \"25\" differs from docs/results/r.json's `250` (failures, no selector)\n";
     assert!(err.contains(value), "{err}");
     let page = "docs/results/r.md:1: the page differs from docs/results/r.json\n";
     assert!(err.contains(page), "{err}");
@@ -106,7 +106,7 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
         ),
         (
             "<!-- results: docs/results/r.json colour=red -->\n<!-- /results -->\n",
-            "docs/B.md:2: unknown option `colour=red`",
+            "docs/B.md:2: unknown option \"colour=red\"",
         ),
         (
             "<!-- results: docs/results/r.json success=policy -->\n",
@@ -114,7 +114,7 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
         ),
         (
             "It fails <!-- value: docs/results/r.json controller=lqr failures -->1<!-- /value -->.\n",
-            "docs/B.md:2: no row of docs/results/r.json matches `controller=lqr`",
+            "docs/B.md:2: no row of docs/results/r.json matches \"controller=lqr\"",
         ),
         (
             "It fails <!-- value: docs/results/r.json failures -->1 times.\n",

@@ -118,7 +118,7 @@ fn bad_input_exits_2_naming_what_was_expected() {
     );
     refused(
         &["--hold=-1"],
-        "--hold must be seconds in (0, 3600], found -1.0",
+        "--hold must be seconds in [0.001, 3600], found -1.0",
     );
     refused(
         &["--zero-error", "-12"],

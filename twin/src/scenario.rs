@@ -65,15 +65,6 @@ pub struct Scenario {
 }
 
 impl Scenario {
-    /// Whether `other` builds the same world, whatever its spec's order or spelling.
-    pub fn same_world(&self, other: &Scenario) -> bool {
-        let unnamed = |s: &Scenario| Scenario {
-            name: String::new(),
-            ..s.clone()
-        };
-        unnamed(self) == unnamed(other)
-    }
-
     /// Gymnasium's machine: exact sensors, no dead time, no pushes.
     pub fn nominal() -> Scenario {
         Scenario::nominal_on(&Machine::GYMNASIUM)
