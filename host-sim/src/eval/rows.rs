@@ -27,7 +27,8 @@ pub fn check_count(horizons: usize, scenarios: usize, controllers: usize) -> Res
 }
 
 /// Refuses rows asked for twice, or more than [`MAX_ROWS`]: a horizon by its value, a
-/// scenario by its spec ([`spelt_alike`]), a controller by its kind. `names` are the caller's for the three lists (its flags, or keywords).
+/// scenario by its spec ([`canonical`]: its parts in any order, its numbers however
+/// written), a controller by its kind. `names` are the caller's for the three lists (its flags, or keywords).
 pub fn check_rows(
     horizons: &[u32],
     scenarios: &[Scenario],
@@ -36,12 +37,12 @@ pub fn check_rows(
 ) -> Result<(), String> {
     check_count(horizons.len(), scenarios.len(), controllers.len())?;
     let [horizon, scenario, controller] = names;
-    if let Some(h) = twice(horizons, |a, b| a == b) {
+    if let Some((_, h)) = twice(horizons, |h| *h) {
         return Err(format!(
             "{horizon}: expected each row once, found {h} twice"
         ));
     }
-    if let Some((a, b)) = twice_pair(scenarios, |a, b| spelt_alike(&a.name, &b.name)) {
+    if let Some((a, b)) = twice(scenarios, |s| canonical(&s.name)) {
         let (a, b) = (weights::quote(&a.name), weights::quote(&b.name));
         let what = if a == b {
             format!("{a} twice")
@@ -50,18 +51,12 @@ pub fn check_rows(
         };
         return Err(format!("{scenario}: expected each row once, found {what}"));
     }
-    if let Some(c) = twice(controllers, |a, b| a == b) {
+    if let Some((_, c)) = twice(controllers, |c| *c) {
         return Err(format!(
             "{controller}: expected each row once, found {c} twice"
         ));
     }
     Ok(())
-}
-
-/// Whether two specs name one scenario: the same parts in any order, their numbers equal
-/// however written (`length=2` and `length=2.0`).
-fn spelt_alike(a: &str, b: &str) -> bool {
-    canonical(a) == canonical(b)
 }
 
 /// A spec's parts, each with its numbers as `f64` writes them, in order.
@@ -81,18 +76,13 @@ fn canonical(spec: &str) -> Vec<String> {
     parts
 }
 
-/// The first item equal to an earlier one by `same`.
-fn twice<T: Copy>(items: &[T], same: impl Fn(&T, &T) -> bool) -> Option<T> {
-    twice_pair(items, same).map(|(_, b)| *b)
-}
-
-/// The first item equal to an earlier one by `same`, with that earlier one. Quadratic, on
-/// lists whose product is at most [`MAX_ROWS`].
-fn twice_pair<T>(items: &[T], same: impl Fn(&T, &T) -> bool) -> Option<(&T, &T)> {
+/// The first item whose `key` an earlier one has, with that earlier one: one lookup an item,
+/// so ten thousand scenarios from Python cost ten thousand keys, not fifty million pairs.
+fn twice<T, K: std::hash::Hash + Eq>(items: &[T], key: impl Fn(&T) -> K) -> Option<(&T, &T)> {
+    let mut seen = std::collections::HashMap::new();
     items
         .iter()
-        .enumerate()
-        .find_map(|(i, b)| items[..i].iter().find(|a| same(a, b)).map(|a| (a, b)))
+        .find_map(|b| seen.insert(key(b), b).map(|a| (a, b)))
 }
 
 #[cfg(test)]
