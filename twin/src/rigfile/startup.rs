@@ -151,8 +151,7 @@ impl Fields<'_> {
                     .collect();
                 if !given.is_empty() {
                     return Err(self.refuse(format!(
-                        "startup.{}: given, but no swing-up runs (swing_up is false, or the \
-                         motor cannot swing the pole up)",
+                        "startup.{}: given, but no swing-up runs (swing_up is false)",
                         given.join(", startup.")
                     )));
                 }
