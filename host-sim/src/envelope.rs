@@ -166,7 +166,7 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
         )));
     }
     // The firmware's refusal names the channel; the values are the file's.
-    Limits::new(e.envelope).map_err(|why| bad(format!("{why}, found {:?}", e.envelope)))
+    Limits::new(e.envelope).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
 }
 
 /// What `host-sim envelope --json` reports.
