@@ -17,7 +17,8 @@
 //!   the host (every answer compared, period by period, with no mismatch: `pil.rs` holds the
 //!   target to that code). The rows are re-derived with that code on both ends of the link
 //!   in this process; the target's time per period (QEMU's instruction count) is not.
-//! - `rig-*-trained.json`, `rig-desk-bang-bang.json`: each policy is trained for the
+//! - the rig study's files (`rig-*-trained`, `rig-*-bang-bang`, `rig-desk-zero`: their
+//!   commands name `runs/rig-study/`): each policy is trained for the
 //!   identified rig by a step of about a minute (`runs/rig-study/`, not committed) and
 //!   evaluated for 10,000,000 periods a row: too long here. What it was trained for is re-derived instead: the identified rig file,
 //!   from the board's experiments simulated on the true rig.
@@ -449,5 +450,17 @@ fn the_reproductions_cheapest_runs_are_todays() {
             "{}: {}, seed 0",
             v.study, v.label
         );
+    }
+}
+
+/// Every committed results file is one the tools read back: within the generic reader's
+/// weight (`weights::json::MAX_WEIGHT`) and as `results moved` checks it (no row twice,
+/// whole counts, no more failures than episodes, rates in [0, 1]).
+#[test]
+fn the_committed_results_files_are_ones_the_readers_take() {
+    for file in results_files() {
+        let text = std::fs::read_to_string(repo().join(&file)).unwrap();
+        let doc = weights::json::value(&text).unwrap_or_else(|e| panic!("{file}: {e}"));
+        host_sim::moved::check(&doc).unwrap_or_else(|e| panic!("{file}: {e}"));
     }
 }
