@@ -153,7 +153,6 @@ fn rows(doc: &Json) -> Result<String, String> {
         .get("rows")
         .and_then(Json::as_array)
         .ok_or("expected `eval --json` output (a `rows` array) or an envelope")?;
-    let text = |r: &Json, k: &str| r.get(k).and_then(Json::as_str).map(str::to_string);
     let mut horizons: Vec<u64> = Vec::new();
     for r in rows {
         let h = r
@@ -185,43 +184,7 @@ fn rows(doc: &Json) -> Result<String, String> {
             .iter()
             .filter(|r| r.get("horizon").and_then(Json::as_u64) == Some(h))
         {
-            let (Some(scenario), Some(controller)) = (text(r, "scenario"), text(r, "controller"))
-            else {
-                return Err("a row without a scenario or controller".into());
-            };
-            let count = |k: &str| num(r, k).map_or("-".into(), |x| show(x, Format::Int));
-            let ci = r.get("success_ci95").and_then(Json::as_array);
-            let bound = |i: usize| ci.and_then(|c| c.get(i)?.as_f64()).unwrap_or(f64::NAN);
-            let success = num(r, "success_rate").ok_or("a row without a success_rate")?;
-            let mut cells = vec![
-                format!("`{scenario}`"),
-                controller,
-                count("episodes"),
-                format!(
-                    "{:.1}% [{:.1}, {:.1}]",
-                    100.0 * success,
-                    100.0 * bound(0),
-                    100.0 * bound(1)
-                ),
-                count("failures"),
-                num(r, "mean_steps").map_or("-".into(), |m| format!("{m:.1}")),
-                estimate(r, "rms_theta_deg", 3),
-                estimate(r, "rms_x_m", 3),
-                estimate(r, "mean_abs_x_m", 3),
-                estimate(r, "switches_per_s", 1),
-                count("faults"),
-            ];
-            if motor {
-                cells.push(estimate(r, "reversals_per_s", 1));
-                cells.push(mean(r, "mean_abs_duty", Format::Percent(1)));
-                cells.push(estimate(r, "duty_tv_per_s", 2));
-                cells.push(mean(r, "heat", Format::Percent(2)));
-            }
-            if fallback {
-                let f = num(r, "fallback_share").unwrap_or(0.0);
-                cells.push(show(f, Format::Percent(2)));
-            }
-            s += &format!("| {} |\n", cells.join(" | "));
+            s += &row_line(r, motor, fallback)?;
         }
         s += "\n";
     }
@@ -229,6 +192,48 @@ fn rows(doc: &Json) -> Result<String, String> {
         s += &pil_checks(checks, rows)?;
     }
     Ok(s)
+}
+
+/// One row of a results page: its figures, the motor's and the fallback's if the page has
+/// them.
+fn row_line(r: &Json, motor: bool, fallback: bool) -> Result<String, String> {
+    let text = |r: &Json, k: &str| r.get(k).and_then(Json::as_str).map(str::to_string);
+    let (Some(scenario), Some(controller)) = (text(r, "scenario"), text(r, "controller")) else {
+        return Err("a row without a scenario or controller".into());
+    };
+    let count = |k: &str| num(r, k).map_or("-".into(), |x| show(x, Format::Int));
+    let ci = r.get("success_ci95").and_then(Json::as_array);
+    let bound = |i: usize| ci.and_then(|c| c.get(i)?.as_f64()).unwrap_or(f64::NAN);
+    let success = num(r, "success_rate").ok_or("a row without a success_rate")?;
+    let mut cells = vec![
+        format!("`{scenario}`"),
+        controller,
+        count("episodes"),
+        format!(
+            "{:.1}% [{:.1}, {:.1}]",
+            100.0 * success,
+            100.0 * bound(0),
+            100.0 * bound(1)
+        ),
+        count("failures"),
+        num(r, "mean_steps").map_or("-".into(), |m| format!("{m:.1}")),
+        estimate(r, "rms_theta_deg", 3),
+        estimate(r, "rms_x_m", 3),
+        estimate(r, "mean_abs_x_m", 3),
+        estimate(r, "switches_per_s", 1),
+        count("faults"),
+    ];
+    if motor {
+        cells.push(estimate(r, "reversals_per_s", 1));
+        cells.push(mean(r, "mean_abs_duty", Format::Percent(1)));
+        cells.push(estimate(r, "duty_tv_per_s", 2));
+        cells.push(mean(r, "heat", Format::Percent(2)));
+    }
+    if fallback {
+        let f = num(r, "fallback_share").unwrap_or(0.0);
+        cells.push(show(f, Format::Percent(2)));
+    }
+    Ok(format!("| {} |\n", cells.join(" | ")))
 }
 
 /// The processor-in-the-loop checks beside the rows.
