@@ -145,7 +145,7 @@ fn bad_input_exits_2_before_any_work() {
         ),
         (
             [&monitored[..], &["--envelope", negative]].concat(),
-            "limits.max_abs[1]: expected zero or more, found [",
+            "limits.max_abs[1]: expected zero or more, found the limits [",
         ),
         (
             vec!["envelope", "--policy", fixture, "--out", "x.rs"],
