@@ -77,6 +77,21 @@ pub struct PartSpec {
     /// friction), where the other parts' low ends do (a lighter, shorter pole and cart):
     /// a domain checks that corner too.
     pub stiff_high: bool,
+    /// The values at which it changes nothing.
+    pub idle: Idle,
+}
+
+/// The values at which a part changes nothing (`noise=0`, `length=1`, `zero=0/0`): written,
+/// such a part is a slip, a spec that reads as a world it is not (and beside `nominal`, one
+/// row asked for twice), so it is refused.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Idle {
+    /// It always changes something.
+    Never,
+    /// Its first field at this value makes the rest moot (a push of no impulse).
+    First(f64),
+    /// Every field at this value.
+    Every(f64),
 }
 
 /// A part is known by its key.
@@ -223,11 +238,35 @@ fn parse_part(raw: &str) -> Result<Part, String> {
             None => None,
         });
     }
+    refuse_idle(spec, &values)?;
     Ok(Part {
         spec,
         values,
         share,
     })
+}
+
+/// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]).
+fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
+    let point = |i: usize| match (values.get(i).copied().flatten(), spec.fields[i].fallback) {
+        (Some(s), _) if s.is_point() => Some(s.lo),
+        (None, Fallback::Value(v)) => Some(v),
+        _ => None,
+    };
+    let (fields, at) = match spec.idle {
+        Idle::Never => return Ok(()),
+        Idle::First(v) => (&spec.fields[..1], v),
+        Idle::Every(v) => (spec.fields, v),
+    };
+    if !(0..fields.len()).all(|i| point(i) == Some(at)) {
+        return Ok(());
+    }
+    let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
+    Err(format!(
+        "{} changes nothing with {} {at}: expected another value, or the part left out",
+        spec.key,
+        names.join(" and ")
+    ))
 }
 
 /// One value or range of field `f` of part `key`.

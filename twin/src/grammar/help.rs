@@ -1,6 +1,6 @@
 //! The parts' table as people read it: the syntax list, a flag's help, the Markdown table.
 
-use super::{Fallback, Field, PARTS};
+use super::{Fallback, Field, Idle, PARTS, PartSpec};
 
 /// Every part's syntax, comma-separated: what an error lists and the help shows.
 pub fn syntax_list() -> String {
@@ -28,9 +28,10 @@ pub fn markdown_table() -> String {
     for p in PARTS {
         let values: Vec<String> = p.fields.iter().map(describe).collect();
         out.push_str(&format!(
-            "| `{}` | {} | {} |\n",
+            "| `{}` | {}{} | {} |\n",
             p.syntax,
             values.join("; "),
+            idle(p),
             p.doc
         ));
     }
@@ -46,4 +47,15 @@ fn describe(f: &Field) -> String {
         Fallback::Absent => ", optional".into(),
     };
     format!("{} {} to {}{left_out}", f.name, f.lo, f.hi)
+}
+
+/// The values a part is refused at, as the table shows them.
+fn idle(p: &PartSpec) -> String {
+    let (fields, at) = match p.idle {
+        Idle::Never => return String::new(),
+        Idle::First(v) => (&p.fields[..1], v),
+        Idle::Every(v) => (p.fields, v),
+    };
+    let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
+    format!("; not {} {at} (it would change nothing)", names.join(" and "))
 }

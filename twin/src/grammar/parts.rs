@@ -2,7 +2,7 @@
 //! meaning, and what it does to a scenario.
 
 use super::{
-    CART_COUNTS_RANGE, CART_FRICTION_RANGE, FACTOR_RANGE, Fallback, Field, Kind,
+    CART_COUNTS_RANGE, CART_FRICTION_RANGE, FACTOR_RANGE, Fallback, Field, Idle, Kind,
     PIVOT_FRICTION_RANGE, POLE_COUNTS_RANGE, PartSpec, field,
 };
 
@@ -31,6 +31,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "Gaussian sensor noise, SCALE times 1 cm, 5 cm/s, 0.3 degrees, 0.05 rad/s \
               (on the positions before quantisation when read through encoders)",
         stiff_high: false,
+        idle: Idle::First(0.0),
     },
     PartSpec {
         key: "delay",
@@ -45,6 +46,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "delay[=N]",
         doc: "N periods of actuator dead time, known to the controller",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "force",
@@ -53,6 +55,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "force=F",
         doc: "F times the motor's stall force",
         stiff_high: false,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "damping",
@@ -62,6 +65,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the motor's damping (back-EMF and drag, N s/m; none on Gymnasium's \
               machine, so nothing to scale there)",
         stiff_high: true,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "length",
@@ -70,6 +74,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "length=F",
         doc: "F times the pole's length to its centre of mass",
         stiff_high: false,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "polemass",
@@ -78,6 +83,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "polemass=F",
         doc: "F times the pole's mass",
         stiff_high: false,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "cartmass",
@@ -86,6 +92,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "cartmass=F",
         doc: "F times the cart's mass",
         stiff_high: false,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "friction",
@@ -110,6 +117,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "Coulomb friction C of the cart on the track and viscous friction P (N m s/rad) \
               at the pivot (Florian 2007's corrected equations)",
         stiff_high: true,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "encoder",
@@ -136,6 +144,7 @@ pub const PARTS: &[PartSpec] = &[
               rig's own if both are omitted) through the board's observer, or with D through \
               the model-free alpha-beta filter of discount D",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "jitter",
@@ -146,6 +155,7 @@ pub const PARTS: &[PartSpec] = &[
               latency), uniformly: the positions move on over the offset at the state's \
               velocities; only readings through encoders",
         stiff_high: false,
+        idle: Idle::First(0.0),
     },
     PartSpec {
         key: "push",
@@ -163,6 +173,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "push[=IMPULSE[/EVERY]]",
         doc: "a push of IMPULSE N s every EVERY periods, to a random side",
         stiff_high: false,
+        idle: Idle::First(0.0),
     },
     PartSpec {
         key: "zero",
@@ -175,6 +186,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "the encoders' zeros are off for the whole episode: the pole reads DEG degrees \
               and the cart MM mm more than they are (through encoders, in whole counts)",
         stiff_high: false,
+        idle: Idle::Every(0.0),
     },
     PartSpec {
         key: "glitch",
@@ -187,6 +199,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "the pole encoder reads N counts off for one period every EVERY periods (with \
               exact sensing, the angle is off by N of the rig's pole counts)",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "stuck",
@@ -198,6 +211,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "stuck[=K[/EVERY]]",
         doc: "the readings freeze for K periods of every EVERY: the last one before repeats",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "drop",
@@ -206,6 +220,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "drop[=EVERY]",
         doc: "every EVERY-th reading never arrives: the sensor returns an error",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "late",
@@ -215,6 +230,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "every EVERY-th period overruns (counted): its command misses the period and the \
               motor holds the one before",
         stiff_high: false,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "weak",
@@ -227,6 +243,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "weak=F[/K[/EVERY]]",
         doc: "the motor gives F times its force for K periods of every EVERY",
         stiff_high: false,
+        idle: Idle::First(1.0),
     },
     PartSpec {
         key: "reset",
@@ -236,6 +253,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "the controller restarts every EVERY periods: its observer starts again from the \
               counts, its predictor empty (its counters go on)",
         stiff_high: false,
+        idle: Idle::Never,
     },
 ];
 

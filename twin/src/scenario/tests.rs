@@ -186,3 +186,64 @@ fn every_part_of_the_table_changes_the_world_it_is_applied_to() {
         assert_ne!(unnamed, nominal, "{spec} changed nothing");
     }
 }
+
+#[test]
+fn a_part_at_values_that_change_nothing_is_refused_and_those_values_do_change_nothing() {
+    use crate::grammar::{Idle, PARTS, Part, Span};
+    let desk = crate::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
+    let read = Scenario::parse_on("encoder+noise", &desk).unwrap();
+    for part in PARTS {
+        let (at, every) = match part.idle {
+            Idle::Never => continue,
+            Idle::First(v) => (v, false),
+            Idle::Every(v) => (v, true),
+        };
+        if part.key == "noise" {
+            assert_eq!(Scenario::nominal_on(&desk).noise_std, [0.0; 4]);
+            continue;
+        }
+        // The part applied at its idle values, past the parser: the same readings and
+        // states as without it, period by period.
+        let values: Vec<Option<f64>> = (0..part.fields.len())
+            .map(|i| (i == 0 || every).then_some(at))
+            .collect();
+        let spans = values.iter().map(|v| v.map(|x| Span { lo: x, hi: x }));
+        let idle = Part {
+            spec: part,
+            values: spans.collect(),
+            share: 1.0,
+        };
+        let mut s = read.clone();
+        s.apply(&idle, &values);
+        assert!(
+            periods(&s) == periods(&read),
+            "{} at {at} changed the world",
+            part.key
+        );
+        let spec = format!("{}={at}", part.key);
+        let e = Scenario::parse_on(&spec, &desk).unwrap_err();
+        assert!(e.contains("changes nothing"), "{spec}: {e}");
+    }
+    // A part idle in one field only still acts through the others; a range is not idle.
+    for spec in ["zero=0/5", "push=0.5/7", "weak=0.5/3"] {
+        assert!(Scenario::parse_on(spec, &desk).is_ok(), "{spec}");
+    }
+    for spec in ["push=0/7", "weak=1/3/9", "zero=0/0", "noise+zero=0"] {
+        assert!(Scenario::parse_on(spec, &desk).is_err(), "{spec}");
+    }
+    let e = crate::grammar::parse("noise=0@0.5", "domain").unwrap_err();
+    assert!(e.contains("noise changes nothing with scale 0"), "{e}");
+    assert!(crate::grammar::parse("noise=0..0.5", "domain").is_ok());
+}
+
+/// 300 periods of `s` under a fixed sequence of duties: each period's reading and state.
+fn periods(s: &Scenario) -> Vec<(firmware::link::Measurement, firmware::cartpole::State)> {
+    let mut world = crate::run::Draws::of(7).world(s, 300, 0);
+    (0..300u32)
+        .map(|k| {
+            let m = world.measure();
+            world.apply(f64::from(k * 7919 % 11) / 5.0 - 1.0);
+            (m, world.state())
+        })
+        .collect()
+}
