@@ -25,8 +25,11 @@ pub struct Moved {
 }
 
 /// Refuses a results file no tool writes: a row named twice (which of the two would a
-/// comparison mean?), episodes or failures that are not whole counts, more failures than
-/// episodes, a rate outside [0, 1].
+/// comparison mean?), and in a row a subnormal number, episodes, failures or a horizon that
+/// are not whole counts (episodes and horizon at least 1), more failures than episodes, a
+/// success rate other than the share the counts give, steps beyond the horizon, a rate
+/// outside [0, 1], a magnitude below 0, an interval neither a half-width of at least 0 nor
+/// `[low, high]` with low <= high, a period not above 0.
 pub fn check(doc: &Json) -> Result<(), String> {
     let mut names = BTreeSet::new();
     for (name, row) in &entries(doc) {
@@ -34,31 +37,114 @@ pub fn check(doc: &Json) -> Result<(), String> {
         if !names.insert(name.as_str()) {
             return Err(format!("expected each row once, found {at} twice"));
         }
-        let count = |k: &str| match row.get(k) {
-            None => Ok(None),
-            Some(v) => v.as_u64().map(Some).ok_or_else(|| {
-                format!("row {at}: expected `{k}` a whole count, found {}", shown(v))
-            }),
-        };
-        if let (Some(e), Some(f)) = (count("episodes")?, count("failures")?)
-            && f > e
-        {
-            return Err(format!(
-                "row {at}: expected at most {e} failures, found {f}"
-            ));
-        }
-        let fields = row.as_object().into_iter().flatten();
-        for (k, v) in fields.filter(|(k, _)| k.ends_with("_rate")) {
-            if !v.as_f64().is_some_and(|r| (0.0..=1.0).contains(&r)) {
-                let k = weights::quote(k);
-                return Err(format!(
-                    "row {at}: expected {k} in [0, 1], found {}",
-                    shown(v)
-                ));
-            }
-        }
+        check_row(row).map_err(|e| format!("row {at}: {e}"))?;
     }
     Ok(())
+}
+
+/// Figures that are sizes (a deviation, a share, a rate of events, steps): never below 0.
+const MAGNITUDES: [&str; 11] = [
+    "rms_",
+    "mean_abs_",
+    "heat",
+    "reversals_per_s",
+    "switches_per_s",
+    "duty_tv_per_s",
+    "mean_steps",
+    "p5_steps",
+    "min_steps",
+    "fallback_share",
+    "time_ns",
+];
+
+/// One row's figures, as [`check`] holds them.
+fn check_row(row: &Json) -> Result<(), String> {
+    numbers("", row)?;
+    let count = |k: &str| match row.get(k) {
+        None => Ok(None),
+        Some(v) => v
+            .as_u64()
+            .map(Some)
+            .ok_or_else(|| format!("expected `{k}` a whole count, found {}", shown(v))),
+    };
+    let (episodes, failures, horizon) = (count("episodes")?, count("failures")?, count("horizon")?);
+    for (k, n) in [("episodes", episodes), ("horizon", horizon)] {
+        if n == Some(0) {
+            return Err(format!("expected `{k}` at least 1, found 0"));
+        }
+    }
+    if let (Some(e), Some(f)) = (episodes, failures) {
+        if f > e {
+            return Err(format!("expected at most {e} failures, found {f}"));
+        }
+        let share = (e - f) as f64 / e as f64;
+        if let Some(r) = row.get("success_rate").and_then(Json::as_f64)
+            && (r - share).abs() > 1e-9
+        {
+            return Err(format!(
+                "expected `success_rate` {} ({f} failures of {e}), found {}",
+                fig(share),
+                fig(r)
+            ));
+        }
+    }
+    let Some(fields) = row.as_object() else {
+        return Ok(());
+    };
+    for (k, v) in fields {
+        figure(k, v, horizon).map_err(|e| format!("expected {} {e}", weights::quote(k)))?;
+    }
+    Ok(())
+}
+
+/// One field of a row: `Err` completes "expected FIELD ...".
+fn figure(k: &str, v: &Json, horizon: Option<u64>) -> Result<(), String> {
+    let mean = v.get("mean").and_then(Json::as_f64).or(v.as_f64());
+    let found = |x: &Json| format!("found {}", shown(x));
+    if k.ends_with("_rate") && !mean.is_some_and(|r| (0.0..=1.0).contains(&r)) {
+        return Err(format!("in [0, 1], {}", found(v)));
+    }
+    if MAGNITUDES.iter().any(|m| k.starts_with(m)) && mean.is_some_and(|x| x < 0.0) {
+        return Err(format!("at least 0, {}", found(v)));
+    }
+    if k.ends_with("_steps")
+        && let (Some(x), Some(h)) = (mean, horizon)
+        && x > h as f64
+    {
+        return Err(format!("at most the horizon {h}, {}", found(v)));
+    }
+    if k == "period_s" && !mean.is_some_and(|x| x > 0.0) {
+        return Err(format!("above 0, {}", found(v)));
+    }
+    let interval = match v.get("ci95") {
+        Some(ci) if v.is_object() => Some(ci),
+        _ => k.ends_with("_ci95").then_some(v),
+    };
+    match interval.map(|ci| (ci, ci.as_f64(), ci.as_array().map(Vec::as_slice))) {
+        None | Some((_, Some(0.0..), _)) => Ok(()),
+        Some((_, _, Some([lo, hi]))) if lo.as_f64() <= hi.as_f64() && lo.is_number() => Ok(()),
+        Some((ci, _, _)) => Err(format!(
+            "an interval: a half-width of at least 0, or [low, high] with low <= high; {}",
+            found(ci)
+        )),
+    }
+}
+
+/// Refuses a subnormal number anywhere in `v` (a slip, as everywhere a number comes in).
+fn numbers(path: &str, v: &Json) -> Result<(), String> {
+    match v {
+        Json::Number(n) => match n.as_f64() {
+            Some(x) if weights::plain(x) => Ok(()),
+            _ => Err(format!(
+                "expected {} zero or a normal number, found {}",
+                weights::quote(path),
+                shown(v)
+            )),
+        },
+        Json::Array(a) => a.iter().try_for_each(|x| numbers(path, x)),
+        Json::Object(o) => o.iter().try_for_each(|(k, x)| numbers(k, x)),
+        _ => Ok(()),
+    }
 }
 
 /// A figure as the report shows it: four decimals, or an exponent where those would be
@@ -310,6 +396,10 @@ mod tests {
             json!({ "rows": [row] })
         };
         assert_eq!(check(&r(json!({"episodes": 1000}))), Ok(()));
+        // Figures that may be negative, and both shapes of an interval.
+        let fine = json!({"overestimation": {"mean": -0.5, "ci95": 0.2}, "mean_steps_ci95": 0.0,
+                          "success_ci95": [0.0, 0.0], "worst": {"start": [-0.01, 0.02]}});
+        assert_eq!(check(&r(fine)), Ok(()));
         for (extra, why) in [
             (
                 json!({"episodes": -5}),
@@ -322,6 +412,37 @@ mod tests {
             (
                 json!({"success_rate": 1e308}),
                 "in [0, 1], found 1.0000e308",
+            ),
+            (
+                json!({"episodes": 0, "failures": 0}),
+                "`episodes` at least 1",
+            ),
+            (json!({"horizon": 0}), "`horizon` at least 1, found 0"),
+            (
+                json!({"episodes": 1000, "success_rate": 1.0}),
+                "expected `success_rate` 0.9000 (100 failures of 1000), found 1.0000",
+            ),
+            (
+                json!({"mean_steps": 501.0}),
+                "at most the horizon 500, found 501",
+            ),
+            (
+                json!({"rms_theta_deg": {"mean": -3.0, "ci95": 0.1}}),
+                "\"rms_theta_deg\" at least 0",
+            ),
+            (
+                json!({"rms_x_m": {"mean": 0.1, "ci95": -1.0}}),
+                "\"rms_x_m\" an interval",
+            ),
+            (
+                json!({"success_ci95": [0.92, 0.88]}),
+                "found \"[0.92,0.88]\"",
+            ),
+            (json!({"success_ci95": [0.1, 0.2, 0.3]}), "an interval"),
+            (json!({"period_s": -0.02}), "\"period_s\" above 0"),
+            (
+                json!({"heat": {"mean": 5e-324, "ci95": 0.0}}),
+                "expected \"mean\" zero or a normal number, found 4.9407e-324",
             ),
         ] {
             let e = check(&r(extra)).unwrap_err();

@@ -7,9 +7,10 @@
 //! before any is kept.
 
 use std::cell::Cell;
+use std::collections::BTreeSet;
 use std::fmt;
 
-use serde::de::{DeserializeOwned, DeserializeSeed, Error, IgnoredAny, MapAccess, SeqAccess};
+use serde::de::{DeserializeOwned, DeserializeSeed, Error, MapAccess, SeqAccess};
 use serde::de::{Deserializer, Visitor};
 use serde_json::Value;
 
@@ -37,7 +38,8 @@ pub fn value(text: &str) -> Result<Value, String> {
 
 /// What `text`'s values weigh ([`OBJECT_WEIGHT`] an object, [`KEY_WEIGHT`] each of its keys,
 /// [`ARRAY_WEIGHT`] an array, 1 any other value), read
-/// without keeping any; refused past [`MAX_WEIGHT`], or if it is not JSON.
+/// without keeping any but one object's keys at a time; refused past [`MAX_WEIGHT`], with a
+/// key given twice in one object, or if it is not JSON.
 pub fn weight(text: &str) -> Result<u64, String> {
     let mut de = serde_json::Deserializer::from_str(text);
     let seen = Cell::new(0);
@@ -113,11 +115,20 @@ impl<'de> Visitor<'de> for Counter<'_> {
         Ok(())
     }
 
+    // A key given twice is refused here, where the typed readers' serde refuses a field
+    // twice: kept whole, the last would win without a word.
     fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
         self.add(OBJECT_WEIGHT)?;
-        while map.next_key::<IgnoredAny>()?.is_some() {
+        let mut keys = BTreeSet::new();
+        while let Some(key) = map.next_key::<String>()? {
             self.add(KEY_WEIGHT)?;
             map.next_value_seed(Counter(self.0))?;
+            if let Some(again) = keys.replace(key) {
+                let again = crate::quote(&again);
+                return Err(A::Error::custom(format!(
+                    "expected each key of an object once, found {again} twice"
+                )));
+            }
         }
         Ok(())
     }
@@ -146,6 +157,12 @@ mod tests {
             Ok(2 * OBJECT_WEIGHT + KEY_WEIGHT + ARRAY_WEIGHT + 5)
         );
         assert_eq!(value(n).unwrap()["a"][3], -1);
+        let e = value(r#"{"a": 1, "b": {"a": 2}, "a": 3}"#).unwrap_err();
+        assert!(
+            e.contains("expected each key of an object once, found \"a\" twice"),
+            "{e}"
+        );
+        assert!(value(r#"{"a": 1, "b": {"a": 2}}"#).is_ok());
         let e = value("[1] x").unwrap_err();
         assert!(e.contains("trailing characters"), "{e}");
         let e = parse::<Vec<u8>>("[1, 300]").unwrap_err();
