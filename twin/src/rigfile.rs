@@ -192,9 +192,8 @@ impl Fields<'_> {
         let ok =
             value.is_finite() && (if open_lo { value > lo } else { value >= lo }) && value <= hi;
         // No measurement is a subnormal number: one is a typing slip, and the physics would
-        // lose it, or divide by it; nor one the board's f32 holds as one.
-        let narrow = value as f32;
-        if ok && !(weights::plain(value) && (narrow == 0.0 || narrow.is_normal())) {
+        // lose it, or divide by it.
+        if ok && !weights::plain(value) {
             return Err(self.refuse(format!(
                 "{field}: expected zero or a normal number (in the board's f32 too), found \
                  {value:e}"

@@ -36,6 +36,13 @@ pub fn bad_specs() -> Vec<Case> {
         // Nothing, or nothing after a comma: not the nominal world, which has a name.
         "",
         "nominal,",
+        // Parts at values that change nothing: the nominal world under another name.
+        "nominal,zero=0",
+        "push=0/9",
+        "weak=1/5",
+        "jitter=0",
+        // A discount the board's f32 holds as a subnormal.
+        "encoder=2400/15000/1e-40",
     ];
     for spec in specs {
         for cmd in [
@@ -51,7 +58,14 @@ pub fn bad_specs() -> Vec<Case> {
             cases.push(Case::new(
                 label,
                 &args,
-                &["expected", "unknown part", "needs", "must be", "comes to"],
+                &[
+                    "expected",
+                    "unknown part",
+                    "needs",
+                    "must be",
+                    "comes to",
+                    "changes nothing",
+                ],
             ));
         }
     }

@@ -112,9 +112,6 @@ impl Limit {
     pub fn check(&self, key: &str, v: Value<'_>) -> Result<(), String> {
         // The kernels compute in f32: a value must stay positive and finite there.
         let f32_positive = |v: f64| v.is_finite() && v > 0.0 && (v as f32).is_normal();
-        // Nor may a value the kernels see be subnormal there: `gamma = 1e-40` or `grad_clip =
-        // 5e-324` is a slip, which f32 loses or keeps as a clip of nothing.
-        let f32_plain = |v: f64| v == 0.0 || (v as f32).is_normal();
         // Reals are shown as Rust reads them back, shortest (`{x:?}`): `1e-320`, where
         // `{x}` writes its 320 decimal places out.
         let must = |ok: bool, be: &dyn fmt::Display, got: &dyn fmt::Display| {
@@ -147,12 +144,12 @@ impl Limit {
                 &format_args!("{x:?}"),
             ),
             (Limit::BelowOne, Value::Real(x)) => must(
-                (0.0..1.0).contains(&x) && f32_plain(x),
+                (0.0..1.0).contains(&x) && weights::plain(x),
                 &"in [0, 1), zero or normal in f32",
                 &format_args!("{x:?}"),
             ),
             (Limit::ZeroToOne, Value::Real(x)) => must(
-                (0.0..=1.0).contains(&x) && f32_plain(x),
+                (0.0..=1.0).contains(&x) && weights::plain(x),
                 &"in [0, 1], zero or normal in f32",
                 &format_args!("{x:?}"),
             ),
@@ -167,7 +164,7 @@ impl Limit {
                 &format_args!("{x:?}"),
             ),
             (Limit::Clip, Value::Real(x)) => must(
-                x >= 0.0 && (x as f32).is_finite() && f32_plain(x),
+                x >= 0.0 && (x as f32).is_finite() && weights::plain(x),
                 &">= 0 and finite in f32, zero or normal there (0 disables it)",
                 &format_args!("{x:?}"),
             ),

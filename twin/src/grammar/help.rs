@@ -57,5 +57,8 @@ fn idle(p: &PartSpec) -> String {
         Idle::Every(v) => (p.fields, v),
     };
     let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
-    format!("; not {} {at} (it would change nothing)", names.join(" and "))
+    format!(
+        "; not {} {at} (it would change nothing)",
+        names.join(" and ")
+    )
 }

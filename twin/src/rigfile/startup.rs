@@ -118,9 +118,8 @@ impl Fields<'_> {
     /// `v` as the board holds it, in f32: a value that narrows to a subnormal there (`1e-40`)
     /// is as much a slip as one in f64.
     fn narrow(self, field: &str, v: f64) -> Result<f32> {
-        let x = v as f32;
-        if x == 0.0 || x.is_normal() {
-            return Ok(x);
+        if weights::plain(v) {
+            return Ok(v as f32);
         }
         Err(self.refuse(format!(
             "startup.{field}: expected zero or a number the board's f32 holds as a normal \

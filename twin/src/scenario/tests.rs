@@ -155,6 +155,11 @@ fn bad_specs_are_rejected_with_the_reason() {
             "takes single values, not ranges or shares",
         ),
         ("noise@0.5", "takes single values, not ranges or shares"),
+        // A discount the board's f32 would hold as a subnormal.
+        (
+            "encoder=2400/15000/1e-40",
+            "discount must be zero or a normal number in [0, 0.99], found \"1e-40\"",
+        ),
     ] {
         let e = Scenario::parse(spec).unwrap_err();
         assert!(e.contains(needle), "{spec}: {e}");
