@@ -46,6 +46,8 @@ fn replace(mut g: Vec<u8>, from: &[u8], to: &[u8]) -> Vec<u8> {
 
 #[test]
 fn graphs_that_are_not_the_chain_are_refused_naming_the_node() {
+    let net = network();
+    let init = |name: &str, t: usize| onnx_init(name, &net[t].2, &net[t].1);
     for (what, bytes, says) in [
         (
             "another operator",
@@ -74,6 +76,17 @@ fn graphs_that_are_not_the_chain_are_refused_naming_the_node() {
             "a transposed input",
             graph(|g| replace(g, b"transB", b"transA"), &[]),
             "node \"gemm2\" (\"Gemm\") scales or transposes its input",
+        ),
+        (
+            "an attribute its operator does not take",
+            graph(|g| replace(g, b"transB", b"transX"), &[]),
+            "node \"gemm2\" (\"Gemm\") has an attribute \"transX\" that \"Gemm\" does not \
+             take (expected alpha, beta, transA, transB)",
+        ),
+        (
+            "an attribute given twice, the last the plain layer's",
+            onnx_model(onnx_fields_with(init, &[("transB", 0), ("transB", 1)])),
+            "node \"gemm2\" (\"Gemm\") gives its attribute \"transB\" twice",
         ),
         (
             "a weight that is not an initializer",

@@ -47,7 +47,39 @@ impl<'a> Node<'a> {
         format!("node {} ({})", quote(self.name), quote(self.op))
     }
 
-    /// The value of the node's last attribute `name` (an int's field 3, a float's field 2).
+    /// Refuses an attribute its operator does not take (`known`: a Relu's `alpha` is a leaky
+    /// one's slope) or one given twice (which of the two would the author mean?).
+    fn check_attributes(&self, known: &[&str]) -> Result<()> {
+        let mut seen: Vec<&str> = Vec::new();
+        for f in Fields::new(self.bytes) {
+            let (5, w) = f? else { continue };
+            let name = string(message(w, "an attribute")?, 1)?;
+            if !known.contains(&name) {
+                return refuse(format!(
+                    "{} has an attribute {} that {} does not take (expected {})",
+                    self.shown(),
+                    quote(name),
+                    quote(self.op),
+                    if known.is_empty() {
+                        "none".into()
+                    } else {
+                        known.join(", ")
+                    }
+                ));
+            }
+            if seen.contains(&name) {
+                return refuse(format!(
+                    "{} gives its attribute {} twice",
+                    self.shown(),
+                    quote(name)
+                ));
+            }
+            seen.push(name);
+        }
+        Ok(())
+    }
+
+    /// The value of the node's attribute `name` (an int's field 3, a float's field 2).
     fn attribute(&self, name: &str) -> Result<Option<Wire<'a>>> {
         let mut found = None;
         for f in Fields::new(self.bytes) {

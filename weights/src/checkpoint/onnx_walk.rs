@@ -85,6 +85,15 @@ impl<'a> Path<'a> {
                 quote(value)
             ));
         };
+        // Another operator is refused by its name, where the walk reaches it.
+        let known: Option<&[&str]> = match n.op {
+            "Gemm" => Some(&["alpha", "beta", "transA", "transB"]),
+            "Relu" | "MatMul" | "Add" => Some(&[]),
+            _ => None,
+        };
+        if let Some(known) = known {
+            n.check_attributes(known)?;
+        }
         self.ops.push(n.op);
         self.at.push(g.at(&n));
         Ok(n)

@@ -62,6 +62,14 @@ fn parse(bytes: &[u8]) -> Result<(usize, Metadata)> {
             "not a policy checkpoint: its header declares {len} bytes, expected at most {MAX_HEADER_BYTES}"
         )));
     }
+    // The header is JSON, which the safetensors crate reads into maps where the last of a
+    // key given twice (a tensor, `levels`, `rig`) wins without a word: weighed first, such
+    // a header is refused.
+    let text = bytes.get(8..8 + len as usize).map(std::str::from_utf8);
+    if let Some(Ok(text)) = text {
+        crate::json::weight(text)
+            .map_err(|e| Error::Input(format!("not a safetensors file: its header: {e}")))?;
+    }
     SafeTensors::read_metadata(bytes).map_err(|e| {
         Error::Input(format!(
             "not a safetensors file: {}",

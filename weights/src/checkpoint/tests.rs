@@ -301,6 +301,31 @@ fn headers_and_garbage_are_refused_before_parsing() {
 }
 
 #[test]
+fn a_header_key_given_twice_is_refused_not_the_last_taken() {
+    let bytes = named("", ["fc1", "fc2", "fc3"], &[]);
+    let n = u64::from_le_bytes(bytes[..8].try_into().unwrap()) as usize;
+    let header = std::str::from_utf8(&bytes[8..8 + n]).unwrap();
+    let with = |header: String| {
+        let mut out = (header.len() as u64).to_le_bytes().to_vec();
+        out.extend(header.as_bytes());
+        out.extend(&bytes[8 + n..]);
+        out
+    };
+    let at = header.find("\"fc1.bias\"").unwrap();
+    let end = at + header[at..].find('}').unwrap() + 1;
+    let tensor_twice = format!("{{{},{}", &header[at..end], &header[1..]);
+    let meta_twice = format!(
+        "{{\"__metadata__\":{{\"rig\":\"a\",\"rig\":\"b\"}},{}",
+        &header[1..]
+    );
+    for (edited, key) in [(tensor_twice, "fc1.bias"), (meta_twice, "rig")] {
+        let e = err(&with(edited), None);
+        assert!(e.contains(&format!("found \"{key}\" twice")), "{e}");
+    }
+    assert!(import(&with(header.to_string()), None).is_ok());
+}
+
+#[test]
 fn the_canonical_file_round_trips_and_is_byte_deterministic() {
     let w = Weights::new(16, crate::BANG_BANG.to_vec(), values()).unwrap();
     let meta: BTreeMap<String, String> =

@@ -257,6 +257,11 @@ pub fn onnx_fields_of(net: &[(Vec<f32>, Vec<u8>, Vec<usize>)]) -> Vec<u8> {
 /// [`onnx_network_fields`] with each initializer written by `init(name, t)`, `t` the
 /// tensor's index in PyTorch's order (`fc1.weight` is 0, `fc3.bias` 5).
 pub fn onnx_fields_by(init: impl Fn(&str, usize) -> Vec<u8>) -> Vec<u8> {
+    onnx_fields_with(init, &[("transB", 1)])
+}
+
+/// [`onnx_fields_by`] with each Gemm's int attributes `gemm`.
+pub fn onnx_fields_with(init: impl Fn(&str, usize) -> Vec<u8>, gemm: &[(&str, u64)]) -> Vec<u8> {
     let mut g = Vec::new();
     let mut cur = "x".to_string();
     for k in 0..3 {
@@ -266,13 +271,7 @@ pub fn onnx_fields_by(init: impl Fn(&str, usize) -> Vec<u8>) -> Vec<u8> {
         } else {
             format!("h{k}")
         };
-        let gemm = onnx_node(
-            "Gemm",
-            &format!("gemm{k}"),
-            &[&cur, &w, &b],
-            &out,
-            &[("transB", 1)],
-        );
+        let gemm = onnx_node("Gemm", &format!("gemm{k}"), &[&cur, &w, &b], &out, gemm);
         bytes_field(1, &gemm, &mut g);
         bytes_field(5, &init(&w, 2 * k), &mut g);
         bytes_field(5, &init(&b, 2 * k + 1), &mut g);
