@@ -4,6 +4,7 @@
 //! tests re-run a sample of each file's rows from its step's command. The file's header
 //! describes the fields.
 
+use std::collections::{HashMap, HashSet};
 use std::path::Path;
 
 use serde::Deserialize;
@@ -89,13 +90,23 @@ impl Manifest {
     pub fn parse(text: &str) -> Result<Manifest, String> {
         let m: Manifest =
             toml::from_str(text).map_err(|e| weights::located(text, e.span(), e.message()))?;
-        for (i, s) in m.steps.iter().enumerate() {
-            let at = format!("step `{}`", s.name);
+        // Each output's writers and whether one prints it, counted once: a check per step
+        // over all steps was quadratic in the manifest's length.
+        let mut outputs: HashMap<&str, (usize, bool)> = HashMap::new();
+        for t in &m.steps {
+            if let Some(o) = &t.output {
+                let e = outputs.entry(o.as_str()).or_default();
+                *e = (e.0 + 1, e.1 || t.stdout);
+            }
+        }
+        let mut names = HashSet::new();
+        for s in &m.steps {
+            let at = format!("step {}", weights::quote(&s.name));
             let named = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c);
             if s.name.is_empty() || !s.name.chars().all(named) {
                 return Err(format!("{at}: expected a name of a-z, 0-9, `-` and `.`"));
             }
-            if m.steps[..i].iter().any(|t| t.name == s.name) {
+            if !names.insert(s.name.as_str()) {
                 return Err(format!("{at}: a second step of that name"));
             }
             let lines = [Some(&s.run), s.prepare.as_ref(), Some(&s.about)];
@@ -107,10 +118,9 @@ impl Manifest {
             if s.stdout && s.output.is_none() {
                 return Err(format!("{at}: stdout = true names no output"));
             }
-            let printed = |t: &Step| t.stdout && t.output == s.output;
-            if s.output.is_some()
-                && m.steps.iter().filter(|t| t.output == s.output).count() > 1
-                && m.steps.iter().any(printed)
+            if let Some((writers, printed)) = s.output.as_deref().and_then(|o| outputs.get(o))
+                && *writers > 1
+                && *printed
             {
                 return Err(format!(
                     "{at}: its output is printed by one step and written by another"
@@ -118,7 +128,8 @@ impl Manifest {
             }
             if let Some(n) = s.needs.iter().find(|n| !NEEDS.contains(&n.as_str())) {
                 return Err(format!(
-                    "{at}: needs `{n}`, expected one of {}",
+                    "{at}: needs {}, expected one of {}",
+                    weights::quote(n),
                     NEEDS.join(", ")
                 ));
             }
@@ -181,8 +192,8 @@ cost = 0
                 "a second step of that name",
             ),
             (
-                TWO.replace("\"tables\"", "\"Tables\""),
-                "expected a name of a-z",
+                TWO.replace("\"tables\"", "\"T\\u001b\""),
+                "step \"T\\u{1b}\": expected a name of a-z",
             ),
             (
                 TWO.replace("cost = 0\n", "cost = -1\n"),
@@ -190,7 +201,7 @@ cost = 0
             ),
             (
                 TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"gpu\"]\n"),
-                "needs `gpu`",
+                "needs \"gpu\"",
             ),
             (
                 TWO.replace(
