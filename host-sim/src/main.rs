@@ -443,7 +443,7 @@ fn run_replay(files: &[PathBuf]) -> anyhow::Result<bool> {
     let mut all_ok = true;
     for file in files {
         let cases = replay::load(file)?;
-        host_common::outln!("{}", file.display());
+        host_common::outln!("{}", weights::shown(file));
         host_common::outln!(
             "{:>4} {:>6} {:>6} {:>12} {:>10} {:>10} {:>11}  result",
             "case",

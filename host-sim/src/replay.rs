@@ -16,6 +16,8 @@ use anyhow::{Context, Result, bail, ensure};
 use firmware::cartpole::{self, Action, Params, State};
 use serde::Deserialize;
 
+mod bounded;
+
 /// One recorded trajectory.
 #[derive(Clone, Debug, Deserialize)]
 pub struct Case {
@@ -28,13 +30,17 @@ pub struct Case {
     /// `[x, x_dot, theta, theta_dot]` before the first action.
     pub initial_state: [f64; 4],
     /// Gymnasium action indices: 0 = left, 1 = right.
+    #[serde(deserialize_with = "bounded::actions")]
     pub actions: Vec<u8>,
     /// `states[i]` before `actions[i]`, `states[i + 1]` after it.
+    #[serde(deserialize_with = "bounded::states")]
     pub states: Vec<[f64; 4]>,
-    /// `states` as exact hexadecimal floats.
-    #[serde(default)]
-    pub states_hex: Vec<[String; 4]>,
+    /// `states` exactly, read from `float.hex()` strings (exact whatever the decimal
+    /// parser); empty where the file has none.
+    #[serde(default, deserialize_with = "bounded::hex_states")]
+    pub states_hex: Vec<[f64; 4]>,
     /// Per step: did Gymnasium flag termination after it?
+    #[serde(deserialize_with = "bounded::flags")]
     pub terminated: Vec<bool>,
     /// 1-based step that terminated, or `None`.
     pub terminated_at: Option<u32>,
@@ -42,26 +48,12 @@ pub struct Case {
 
 impl Case {
     /// The recorded states, exactly: from `states_hex` when present, else the decimals.
-    pub fn exact_states(&self) -> Result<Vec<[f64; 4]>> {
+    pub fn exact_states(&self) -> &[[f64; 4]] {
         if self.states_hex.is_empty() {
-            return Ok(self.states.clone());
+            &self.states
+        } else {
+            &self.states_hex
         }
-        ensure!(
-            self.states_hex.len() == self.states.len(),
-            "states_hex has {} rows but states has {}",
-            self.states_hex.len(),
-            self.states.len()
-        );
-        self.states_hex
-            .iter()
-            .map(|row| {
-                let mut out = [0.0; 4];
-                for (o, h) in out.iter_mut().zip(row) {
-                    *o = parse_hex_f64(h)?;
-                }
-                Ok(out)
-            })
-            .collect()
     }
 
     fn validate(&self) -> Result<()> {
@@ -87,7 +79,12 @@ impl Case {
             "expected at most {MAX_ACTIONS} actions, found {}",
             self.actions.len()
         );
-        self.exact_states()?;
+        ensure!(
+            self.states_hex.is_empty() || self.states_hex.len() == self.states.len(),
+            "states_hex has {} rows but states has {}",
+            self.states_hex.len(),
+            self.states.len()
+        );
         Ok(())
     }
 }
@@ -155,7 +152,7 @@ impl CaseReport {
 
 /// Replays one case through the plant with `params` (Gymnasium's for a faithful check).
 pub fn replay_case(case: &Case, params: &Params) -> Result<CaseReport> {
-    let recorded = case.exact_states()?;
+    let recorded = case.exact_states();
     let mut state = State::from_array(case.initial_state);
     let mut report = CaseReport {
         steps: case.actions.len(),
@@ -300,6 +297,31 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_list_is_refused_at_its_first_row_past_a_cases_bound() {
+        let case = |states: &str, hex: &str| {
+            format!(
+                r#"{{"initial_state": [0, 0, 0, 0], "actions": [1], "terminated": [false], "terminated_at": null, "states": {states}, "states_hex": {hex}}}"#
+            )
+        };
+        let two = "[[0, 0, 0, 0], [0, 0, 0, 0]]";
+        let zero = r#"["0x0.0p+0", "0x0.0p+0", "0x0.0p+0", "0x0.0p+0"]"#;
+        let hex = format!("[{zero}, {zero}]");
+        assert_eq!(
+            parse(&case(two, &hex), "f").unwrap()[0].exact_states(),
+            [[0.0; 4]; 2]
+        );
+        let bad = format!(r#"[{zero}, ["a", "0x0.0p+0", "0x0.0p+0", "0x0.0p+0"]]"#);
+        let e = parse(&case(two, &bad), "f").unwrap_err().to_string();
+        assert!(e.contains("\"a\" is not a hexadecimal float"), "{e}");
+        let many = format!("[{}[0, 0, 0, 0]]", "[0, 0, 0, 0], ".repeat(MAX_ACTIONS + 1));
+        let e = parse(&case(&many, "[]"), "f").unwrap_err().to_string();
+        assert!(
+            e.contains("expected at most 1000001 states, found more"),
+            "{e}"
+        );
     }
 
     #[test]
