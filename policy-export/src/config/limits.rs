@@ -12,8 +12,9 @@ use std::ops::RangeInclusive;
 
 use super::{Config, ConfigError};
 
-/// Largest TOML file `--config` reads.
-pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+/// Largest TOML file `--config` reads: room for a rig's text (64 KiB) and every key beside
+/// it. A TOML document costs about 80 bytes a byte while it is parsed, whatever the keys.
+pub const MAX_CONFIG_BYTES: u64 = 128 << 10;
 /// Most seeds one `train --seeds` runs.
 pub const MAX_SEEDS: u64 = 10_000;
 
