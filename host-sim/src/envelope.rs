@@ -151,16 +151,13 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     })?;
     let bad =
         |why: String| weights::Error::Input(format!("envelope {}: {why}", weights::shown(path)));
-    let e: Envelope = std::str::from_utf8(&bytes)
-        .map_err(|e| e.to_string())
-        .and_then(weights::json::parse)
-        .map_err(|e| {
-            bad(format!(
-                "expected the JSON `host-sim envelope --json` prints, {e}"
-            ))
-        })?;
+    let e: Envelope = weights::json::parse_bytes(&bytes).map_err(|e| {
+        bad(format!(
+            "expected the JSON `host-sim envelope --json` prints, {e}"
+        ))
+    })?;
     // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
-    if let Some(x) = e.envelope.iter().find(|x| **x != 0.0 && !x.is_normal()) {
+    if let Some(x) = e.envelope.iter().find(|x| !weights::plain(f64::from(**x))) {
         return Err(bad(format!(
             "expected each limit zero or a normal number, found {x:e}"
         )));

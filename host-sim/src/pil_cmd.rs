@@ -77,9 +77,12 @@ impl PilArgs {
                  its runtime monitor; found --controller {c} (run policy or policy-int)"
             );
         }
-        if !(self.pil_timeout > 0.0 && self.pil_timeout <= MAX_TIMEOUT_S) {
+        if !(self.pil_timeout > 0.0
+            && self.pil_timeout <= MAX_TIMEOUT_S
+            && weights::plain(self.pil_timeout))
+        {
             bail!(
-                "--pil-timeout must lie in (0, {MAX_TIMEOUT_S}] s, found {:?}",
+                "--pil-timeout must lie in (0, {MAX_TIMEOUT_S}] s, a normal number, found {:?}",
                 self.pil_timeout
             );
         }

@@ -162,6 +162,11 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
             &["must lie in"],
         ),
         Case::new(
+            "a subnormal timeout, no time at all".into(),
+            &eval(&[&"--pil", &echo, &"--pil-timeout", &"5e-324"]),
+            &["a normal number"],
+        ),
+        Case::new(
             "an echo".into(),
             &eval(&[&"--pil", &echo, &"--pil-timeout", &"600"]),
             &["where Info was due"],

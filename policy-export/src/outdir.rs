@@ -57,9 +57,7 @@ impl Marker {
             ));
         }
         let bytes = read_capped(&path, MAX_MARKER_BYTES).map_err(|e| e.to_string())?;
-        let mut m: Marker = std::str::from_utf8(&bytes)
-            .map_err(|e| e.to_string())
-            .and_then(weights::json::parse)
+        let mut m: Marker = weights::json::parse_bytes(&bytes)
             .map_err(|_| format!("its {MARKER} is not a marker this tool wrote"))?;
         m.files.sort();
         if m.tool != env!("CARGO_PKG_NAME") || m.kind != kind {

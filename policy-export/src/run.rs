@@ -185,20 +185,13 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
         )]);
     }
     let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
-    let s: Summary = summary(&bytes).map_err(|e| {
+    let s: Summary = weights::json::parse_bytes(&bytes).map_err(|e| {
         weights::Error::Input(format!(
             "{}: not a run summary: {e}",
             weights::shown(&summary_path)
         ))
     })?;
     Ok(provenance(&s))
-}
-
-/// A run's summary from its file's bytes, or why not.
-fn summary(bytes: &[u8]) -> std::result::Result<Summary, String> {
-    std::str::from_utf8(bytes)
-        .map_err(|e| e.to_string())
-        .and_then(weights::json::parse)
 }
 
 /// The `summary.json` of the policy at `src`: in a run directory, or beside a policy file.
@@ -220,7 +213,7 @@ pub fn board_warnings(src: &Path) -> Vec<String> {
     let shown = weights::shown(&path);
     let summary = read_capped(&path, MAX_POLICY_BYTES)
         .ok()
-        .and_then(|b| summary(&b).ok());
+        .and_then(|b| weights::json::parse_bytes::<Summary>(&b).ok());
     let Some(summary) = summary else {
         return vec![format!(
             "warning: {shown} is not a run summary, so the policy has no board-level trial \

@@ -65,10 +65,9 @@ pub fn evaluate_json(
     same_levels(policy, levels)?;
     let machine = given.unwrap_or(policy.machine);
     // Counted before the specs are parsed, each a row at least: a parse costs far more.
-    eval::check_count(horizons.len(), scenarios.len(), kinds.len()).map_err(value_error)?;
+    check_count(horizons.len(), scenarios.len(), kinds.len())?;
     let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
-    let names = ["horizon", "scenario", "controller"];
-    eval::check_rows(&horizons, &scenarios, &kinds, names).map_err(value_error)?;
+    eval::check_rows(&horizons, &scenarios, &kinds, NAMES).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
     let net = network(policy, &kinds, &machine)?.unwrap_or_else(|| policy.net.clone());
     let mut out = Vec::with_capacity(rows);
@@ -95,8 +94,11 @@ pub fn evaluate_json(
 /// the command's check, on the lists' lengths, which Python knows before it builds them.
 #[pyfunction]
 pub fn check_count(horizons: usize, scenarios: usize, controllers: usize) -> PyResult<()> {
-    eval::check_count(horizons, scenarios, controllers).map_err(value_error)
+    eval::check_count([horizons, scenarios, controllers], NAMES).map_err(value_error)
 }
+
+/// The lists as `evaluate`'s refusals name them: its keywords.
+const NAMES: [&str; 3] = ["horizon", "scenario", "controller"];
 
 /// One row's controller, network, scenario, horizon and seed, owned, so that a range of its
 /// episodes may run on past an interrupted call.

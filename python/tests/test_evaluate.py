@@ -66,7 +66,7 @@ class Counted:
         raise AssertionError("a list was built")
 
 
-ROWS = "horizons x scenarios x controllers must make at most 10000 rows; found"
+ROWS = "horizon x scenario x controller must make at most 10000 rows; found"
 
 
 def test_too_many_rows_are_refused_before_any_list_is_built():

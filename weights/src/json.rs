@@ -30,6 +30,13 @@ pub fn parse<T: DeserializeOwned>(text: &str) -> Result<T, String> {
     serde_json::from_str(text).map_err(|e| crate::excerpt(&e.to_string()))
 }
 
+/// `bytes` as UTF-8 text parsed as a `T` ([`parse`]), or why not.
+pub fn parse_bytes<T: DeserializeOwned>(bytes: &[u8]) -> Result<T, String> {
+    std::str::from_utf8(bytes)
+        .map_err(|e| e.to_string())
+        .and_then(parse)
+}
+
 /// `text` parsed whole, once [`weight`] has found it within [`MAX_WEIGHT`].
 pub fn value(text: &str) -> Result<Value, String> {
     weight(text)?;

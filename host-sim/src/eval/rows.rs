@@ -12,15 +12,15 @@ use super::ControllerKind;
 /// Most rows of one `eval`.
 pub const MAX_ROWS: usize = 10_000;
 
-/// Refuses more than [`MAX_ROWS`] rows of `horizons` x `scenarios` x `controllers` (counts
-/// only, so that it can run before the scenarios are parsed: each spec is a row at least).
-pub fn check_count(horizons: usize, scenarios: usize, controllers: usize) -> Result<(), String> {
-    let rows = horizons
-        .saturating_mul(scenarios)
-        .saturating_mul(controllers);
+/// Refuses more than [`MAX_ROWS`] rows of `counts` horizons x scenarios x controllers
+/// (counts only, so that it can run before the scenarios are parsed: each spec is a row at
+/// least); `names` are the caller's for the three lists (its flags, or keywords).
+pub fn check_count(counts: [usize; 3], names: [&str; 3]) -> Result<(), String> {
+    let rows = counts.iter().fold(1usize, |n, c| n.saturating_mul(*c));
     if rows > MAX_ROWS {
         return Err(format!(
-            "horizons x scenarios x controllers must make at most {MAX_ROWS} rows; found {rows}"
+            "{} must make at most {MAX_ROWS} rows; found {rows}",
+            names.join(" x ")
         ));
     }
     Ok(())
@@ -35,7 +35,7 @@ pub fn check_rows(
     controllers: &[ControllerKind],
     names: [&str; 3],
 ) -> Result<(), String> {
-    check_count(horizons.len(), scenarios.len(), controllers.len())?;
+    check_count([horizons.len(), scenarios.len(), controllers.len()], names)?;
     let [horizon, scenario, controller] = names;
     if let Some((_, h)) = twice(horizons, |h| *h) {
         return Err(format!(
@@ -130,8 +130,11 @@ mod tests {
         assert_eq!(e, "horizon: expected each row once, found 500 twice");
         let e = check_rows(&[500], &ok, &[Lqr, Policy, Lqr], NAMES).unwrap_err();
         assert_eq!(e, "controller: expected each row once, found lqr twice");
-        let e = check_count(10_001, 1, 1).unwrap_err();
-        assert!(e.ends_with("at most 10000 rows; found 10001"), "{e}");
-        assert!(check_count(usize::MAX, 2, 2).is_err());
+        let e = check_count([10_001, 1, 1], NAMES).unwrap_err();
+        assert_eq!(
+            e,
+            "horizon x scenario x controller must make at most 10000 rows; found 10001"
+        );
+        assert!(check_count([usize::MAX, 2, 2], NAMES).is_err());
     }
 }
