@@ -61,13 +61,41 @@ macro_rules! errln {
 /// a success whose standard output could not be written for another reason than a reader
 /// that left (a closed pipe) becomes 1, with the reason.
 pub fn exit(status: u8) -> ExitCode {
+    ExitCode::from(status_after(status))
+}
+
+/// [`exit`]'s status, as a number.
+fn status_after(status: u8) -> u8 {
     let failed = STDOUT_FAILED.lock().unwrap_or_else(|p| p.into_inner());
     match failed.as_ref() {
         Some(e) if status == 0 && e.kind() != std::io::ErrorKind::BrokenPipe => {
             write_stderr(format_args!("error: writing standard output: {e}\n"));
-            ExitCode::from(1)
+            1
         }
-        _ => ExitCode::from(status),
+        _ => status,
+    }
+}
+
+/// Most threads a pool may be given, by `--threads` or by `RAYON_NUM_THREADS`.
+pub const MAX_THREADS: usize = 256;
+
+/// Refuses a `RAYON_NUM_THREADS` the thread pools would take unchecked: a whole number
+/// from 0 (one a processor) to [`MAX_THREADS`], or unset. 100,000 spent 20 s starting
+/// threads and then panicked.
+pub fn check_threads_env() -> Result<(), String> {
+    let Some(v) = std::env::var_os("RAYON_NUM_THREADS") else {
+        return Ok(());
+    };
+    match v.to_str().and_then(|t| t.parse::<usize>().ok()) {
+        Some(n) if n <= MAX_THREADS => Ok(()),
+        _ => {
+            // Debug-quoted, so escaped; and cut, as every input a message shows.
+            let shown: String = v.to_string_lossy().chars().take(100).collect();
+            Err(format!(
+                "RAYON_NUM_THREADS: expected a whole number of threads from 0 (one a \
+                 processor) to {MAX_THREADS}, or unset; found {shown:?}"
+            ))
+        }
     }
 }
 
@@ -86,14 +114,20 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
         .try_get_matches()
         .and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
     match parsed {
-        Ok(t) => t,
+        Ok(t) => {
+            if let Err(e) = check_threads_env() {
+                crate::errln!("error: {e}");
+                std::process::exit(2)
+            }
+            t
+        }
         Err(e) => {
-            if matches!(
-                e.kind(),
-                ErrorKind::DisplayHelp
-                    | ErrorKind::DisplayVersion
-                    | ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand
-            ) {
+            // Printed through this module, so that a full disk is exit status 1 here too.
+            if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+                write_stdout(format_args!("{}", e.render()));
+                std::process::exit(i32::from(status_after(0)))
+            }
+            if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
                 e.exit()
             }
             for line in e.render().to_string().lines() {

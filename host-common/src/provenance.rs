@@ -36,9 +36,15 @@ pub struct Provenance {
 }
 
 impl Provenance {
-    /// This process's run of `tool`, with the arguments it was given.
+    /// This process's run of `tool`, with the arguments it was given: a path need not be
+    /// UTF-8, so one that is not is recorded with U+FFFD for its stray bytes (`args()`
+    /// panicked there, after the work).
     pub fn of_this_run(tool: &str) -> Provenance {
-        Provenance::new(tool, std::env::args().skip(1).collect())
+        let argv = std::env::args_os().skip(1);
+        Provenance::new(
+            tool,
+            argv.map(|a| a.to_string_lossy().into_owned()).collect(),
+        )
     }
 
     /// A run of `tool` with `argv`, now, on this machine, in the current directory's

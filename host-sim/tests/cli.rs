@@ -249,3 +249,53 @@ fn the_integer_policy_is_evaluated_and_compared_with_the_float_one() {
         String::from_utf8_lossy(&o.stderr).contains("--states must be in [1, 100000000], got 0")
     );
 }
+
+#[test]
+fn a_path_that_is_not_utf8_is_recorded_in_the_provenance_not_panicked_on() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = std::env::temp_dir().join(format!("hs-nonutf8-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let policy = dir.join(std::ffi::OsStr::from_bytes(b"p\xff.safetensors"));
+    std::fs::copy(fixture("cleanrl.safetensors"), &policy).unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args([
+            "eval",
+            "--scenario",
+            "nominal",
+            "--episodes",
+            "2",
+            "--horizon",
+            "20",
+        ])
+        .args(["--controller", "policy", "--json", "--policy"])
+        .arg(&policy)
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let json = String::from_utf8(o.stdout).unwrap();
+    assert!(json.contains("p\u{fffd}.safetensors"), "{json}");
+}
+
+#[test]
+fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fails() {
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let lqr = ["eval", "--episodes", "2", "--horizon", "5", "--controller", "lqr"];
+    for (threads, code) in [("100000", 2), ("x", 2), ("2", 0)] {
+        let o = Command::new(exe)
+            .args(lqr)
+            .env("RAYON_NUM_THREADS", threads)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(code), "{threads}: {err}");
+        assert!(code == 0 || err.contains("RAYON_NUM_THREADS: expected"), "{err}");
+    }
+    for args in [&["eval", "--help"][..], &["--version"]] {
+        let full = std::fs::File::create("/dev/full").unwrap();
+        let o = Command::new(exe).args(args).stdout(full).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(err.contains("writing standard output"), "{err}");
+    }
+}

@@ -34,7 +34,7 @@ pub struct TrainArgs {
     pub print_config: bool,
     /// Threads to use (default: one per core): with one, a run learns on one core instead
     /// of splitting each batch over two. Only the time changes, never a result.
-    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=256))]
+    #[arg(long, value_parser = clap::value_parser!(u16).range(1..=host_common::cli::MAX_THREADS as i64))]
     pub threads: Option<u16>,
     #[command(flatten)]
     pub set: Overrides,

@@ -39,6 +39,7 @@ pub fn evaluate_json(
     rig: Option<PathBuf>,
     levels: Option<Vec<f32>>,
 ) -> PyResult<String> {
+    host_common::cli::check_threads_env().map_err(value_error)?;
     if !(1..=MAX_EPISODES).contains(&episodes) {
         return Err(value_error(format!(
             "episodes must be in [1, {MAX_EPISODES}]; found {episodes}"
