@@ -206,8 +206,11 @@ impl Staging {
                 let _ = std::fs::remove_dir_all(&old);
             }
         }
-        let name = dest.file_name().unwrap_or_default().to_string_lossy();
-        let tmp = parent.join(format!(".{name}.{}.partial", std::process::id()));
+        let tmp = parent.join(weights::files::hidden_name(
+            dest,
+            std::process::id(),
+            "partial",
+        ));
         std::fs::create_dir(&tmp).map_err(|e| {
             Error::Input(format!(
                 "--out {}: creating {}: {e}",

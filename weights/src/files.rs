@@ -5,7 +5,7 @@
 //! never replaced.
 
 use std::fs::File;
-use std::io::Read;
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 use crate::{Error, Result};
@@ -128,7 +128,6 @@ pub fn check_input(path: &Path) -> Result<()> {
 /// ignores them; a read-only mount or `/proc` refuses anyway), so it is tried: a hidden
 /// `.NAME.PID.probe` is created there and removed at once.
 pub fn check_place(path: &Path) -> Result<()> {
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
     for dir in path.ancestors().skip(1) {
         let dir = if dir.as_os_str().is_empty() {
             Path::new(".")
@@ -155,7 +154,7 @@ pub fn check_place(path: &Path) -> Result<()> {
                 kind(&meta.file_type())
             )));
         }
-        let probe = dir.join(format!(".{name}.{}.probe", std::process::id()));
+        let probe = dir.join(hidden_name(path, std::process::id(), "probe"));
         return std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)
@@ -228,11 +227,42 @@ fn same_file(a: &Path, b: &Path) -> bool {
     )
 }
 
+/// Most bytes of an output's name its hidden siblings keep: with a process id and a suffix
+/// they stay within a file system's 255, where a name of 243 bytes or more made the probe
+/// fail and a valid output refused.
+const HIDDEN_STEM_MAX: usize = 200;
+
+/// The hidden sibling `.NAME.PID.SUFFIX` of `path` (a temporary, a probe, a staging
+/// directory), its name cut to [`HIDDEN_STEM_MAX`] bytes; [`stale`] finds those of writers
+/// that are gone.
+pub fn hidden_name(path: &Path, pid: u32, suffix: &str) -> String {
+    format!(".{}.{pid}.{suffix}", hidden_stem(path))
+}
+
+fn hidden_stem(path: &Path) -> String {
+    let name = path.file_name().unwrap_or_default().to_string_lossy();
+    let mut end = name.len().min(HIDDEN_STEM_MAX);
+    while !name.is_char_boundary(end) {
+        end -= 1;
+    }
+    name[..end].to_string()
+}
+
 /// The temporary name `write_atomic` uses for `path`: hidden, beside it, unique to this
 /// process: `.NAME.PID.tmp`.
 pub fn temp_path(path: &Path) -> PathBuf {
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    path.with_file_name(format!(".{name}.{}.tmp", std::process::id()))
+    path.with_file_name(hidden_name(path, std::process::id(), "tmp"))
+}
+
+/// Makes way for this process's own temporary `tmp`. Whatever is there (a file, a symbolic
+/// link, a FIFO) was left by an earlier process of the same id, or planted: never a live
+/// writer's. A symbolic link there was followed (a file elsewhere overwritten, the output
+/// made a link to it) and a FIFO blocked the write for ever; a directory is left, and the
+/// create that follows fails.
+pub fn clear_own(tmp: &Path) {
+    if std::fs::symlink_metadata(tmp).is_ok_and(|m| !m.is_dir()) {
+        let _ = std::fs::remove_file(tmp);
+    }
 }
 
 /// [`temp_path`] with `path`'s extension kept at the end (`.NAME.PID.tmp.EXT`), for writers
@@ -277,7 +307,7 @@ pub fn stale(path: &Path, suffixes: &[&str]) -> Vec<PathBuf> {
     } else {
         dir
     };
-    let prefix = format!(".{}.", name.to_string_lossy());
+    let prefix = format!(".{}.", hidden_stem(Path::new(name)));
     let Ok(entries) = std::fs::read_dir(dir) else {
         return found;
     };
@@ -307,7 +337,13 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     // A killed writer's temporary, or a probe of check_place.
     remove_stale(path, &["tmp", "probe"]);
     let tmp = temp_path(path);
-    std::fs::write(&tmp, bytes)
+    clear_own(&tmp);
+    // Created new (`O_EXCL`): never through a link or into a FIFO put there since.
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&tmp)
+        .and_then(|mut f| f.write_all(bytes))
         .and_then(|()| std::fs::rename(&tmp, path))
         .map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
@@ -334,6 +370,33 @@ mod tests {
         write_atomic(&p, b"second").unwrap();
         assert_eq!(std::fs::read(&p).unwrap(), b"second");
         assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_link_or_fifo_at_the_temporary_name_is_never_written_through() {
+        let dir = scratch("planted");
+        let victim = dir.join("victim.txt");
+        std::fs::write(&victim, b"precious").unwrap();
+        let out = dir.join("x.rs");
+        let tmp = temp_path(&out);
+        std::os::unix::fs::symlink(&victim, &tmp).unwrap();
+        write_atomic(&out, b"module").unwrap();
+        assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+        assert!(std::fs::symlink_metadata(&out).unwrap().is_file());
+        let made = std::process::Command::new("mkfifo")
+            .arg(&tmp)
+            .status()
+            .unwrap();
+        assert!(made.success());
+        write_atomic(&out, b"again").unwrap();
+        assert_eq!(std::fs::read(&out).unwrap(), b"again");
+        assert!(std::fs::symlink_metadata(&tmp).is_err());
+        // A name the file system takes whole, its hidden siblings' cut to fit beside it.
+        let long = dir.join("c".repeat(250));
+        write_atomic(&long, b"long").unwrap();
+        assert_eq!(std::fs::read(&long).unwrap(), b"long");
+        assert!(hidden_name(&long, u32::MAX, "tmp.gif").len() <= 255);
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
