@@ -195,7 +195,7 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
 }
 
 /// The `summary.json` of the policy at `src`: in a run directory, or beside a policy file.
-fn summary_of(src: &Path) -> Option<PathBuf> {
+pub fn summary_of(src: &Path) -> Option<PathBuf> {
     let dir = if src.is_dir() { src } else { src.parent()? };
     let path = dir.join("summary.json");
     path.is_file().then_some(path)
