@@ -42,6 +42,15 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
         updates.push((doc, new, stale));
     }
     updates.extend(results_pages(&root)?);
+    // Every place is checked before the first is written: a page that could not be
+    // replaced was refused after the README had been.
+    if !a.check {
+        for (doc, _, stale) in &updates {
+            if !stale.is_empty() {
+                weights::files::check_output(&root.join(doc), &[])?;
+            }
+        }
+    }
     let mut found = 0;
     for (doc, new, stale) in &updates {
         if a.check {

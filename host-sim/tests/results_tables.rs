@@ -135,4 +135,13 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
         assert_eq!(a, stale, "a refusal in one document left another rewritten");
         let _ = std::fs::remove_dir_all(&root);
     }
+    // A page that cannot be replaced: refused before any document is written.
+    let root = scratch("page", &[("docs/A.md", stale)]);
+    std::fs::create_dir(root.join("docs/results/r.md")).unwrap();
+    let o = tables(&[], &root);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("found a directory"), "{}", stderr(&o));
+    let a = std::fs::read_to_string(root.join("docs/A.md")).unwrap();
+    assert_eq!(a, stale, "a refused page left a document rewritten");
+    let _ = std::fs::remove_dir_all(&root);
 }
