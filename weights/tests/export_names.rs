@@ -127,6 +127,19 @@ fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
         assert!(e.contains("macros declare names beginning"), "{name}: {e}");
     }
     check_c_name("cartpole_policy").unwrap();
+    // Every macro an exported header defines, another export's include guard included.
+    for (w, q) in policies() {
+        for header in [
+            c_header(&w, "cartpole_policy", &[], &Rig::GYMNASIUM).unwrap(),
+            quant::c_header(&q, "cartpole_policy_int", &[], &Rig::GYMNASIUM).unwrap(),
+        ] {
+            let defined = header.lines().filter_map(|l| l.strip_prefix("#define "));
+            for name in defined.map(|l| l.split(['(', ' ']).next().unwrap()) {
+                let e = check_c_name(name).unwrap_err().to_string();
+                assert!(e.contains("outside the headers' macros"), "{name}: {e}");
+            }
+        }
+    }
     // C23's keywords beyond C++'s: `typeof` is one in GCC's default dialect too.
     for keyword in ["typeof", "typeof_unqual"] {
         check_c_name(keyword).unwrap_err();

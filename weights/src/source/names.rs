@@ -213,6 +213,15 @@ pub fn check_c_name(name: &str) -> Result<()> {
             quote(name)
         )));
     }
+    // Every header's macros (include guards `CARTPOLE_POLICY_H_NAME`, `CARTPOLE_*_DEFINED`)
+    // share the prefix: another export's guard as a name made the two headers fail together.
+    if name.starts_with(MACRO_PREFIX) {
+        return Err(Error::Input(format!(
+            "--name: expected a name outside the headers' macros, found {} (exported headers \
+             and cartpole_policy.h define macros beginning {MACRO_PREFIX})",
+            quote(name)
+        )));
+    }
     let api = api_identifiers();
     let items = [
         name.to_string(),
@@ -284,6 +293,9 @@ const STDINT_MACROS: [&str; 14] = [
     "WINT_MAX",
     "WINT_WIDTH",
 ];
+
+/// What every macro of the exported headers and of the C API's begins with.
+const MACRO_PREFIX: &str = "CARTPOLE_";
 
 /// The include guard of the header for the object `name`: the name as it is, so that names
 /// differing only in case (C's are case-sensitive) give headers that compile together.
