@@ -1,5 +1,6 @@
 //! `host-sim render`: one episode drawn as an animated GIF and a time-series PNG, written
-//! under temporary names and renamed, so a failure leaves no half-written picture.
+//! under temporary names and put in place together, so a failure leaves no half-written
+//! picture, and never a new one beside an old one.
 
 use std::path::{Path, PathBuf};
 
@@ -108,8 +109,9 @@ pub fn pictures(out: &Path) -> Result<(PathBuf, PathBuf)> {
 }
 
 /// Draws `frames` into `out`'s `episode.gif` (every `stride`-th period, titled `title`)
-/// and `episode.png` (titled `caption`), each under a temporary name and renamed, so a
-/// failure leaves no half-written picture; their paths.
+/// and `episode.png` (titled `caption`), each under a temporary name, and puts both in
+/// place together ([`render::Batch`]): a failure leaves the old pair (or none, and no
+/// directory it created) and names the picture that failed; their paths.
 pub fn draw(
     out: &Path,
     frames: &[Frame],
@@ -118,8 +120,8 @@ pub fn draw(
     (title, caption): (&str, &str),
 ) -> Result<(PathBuf, PathBuf)> {
     let (gif, png) = pictures(out)?;
-    std::fs::create_dir_all(out)
-        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(out))))?;
+    let mut batch = render::Batch::default();
+    batch.dir(out)?;
     // The names end in the real extension because the encoders choose the format by it.
     remove_stale(&gif, &["tmp.gif"]);
     remove_stale(&png, &["tmp.png"]);
@@ -127,16 +129,12 @@ pub fn draw(
         temp_path_keeping_extension(&gif),
         temp_path_keeping_extension(&png),
     );
-    let drawn = render::gif(&gif_tmp, frames, params, stride, title)
-        .and_then(|()| render::timeseries(&png_tmp, frames, params, caption));
-    if let Err(e) = drawn {
-        let _ = std::fs::remove_file(&gif_tmp);
-        let _ = std::fs::remove_file(&png_tmp);
-        return Err(e);
-    }
-    for (tmp, path) in [(&gif_tmp, &gif), (&png_tmp, &png)] {
-        std::fs::rename(tmp, path)
-            .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(path))))?;
-    }
+    batch.add(gif_tmp.clone(), gif.clone());
+    render::gif(&gif_tmp, frames, params, stride, title)
+        .map_err(|e| render::failed_writing(&gif, &e))?;
+    batch.add(png_tmp.clone(), png.clone());
+    render::timeseries(&png_tmp, frames, params, caption)
+        .map_err(|e| render::failed_writing(&png, &e))?;
+    batch.commit()?;
     Ok((gif, png))
 }

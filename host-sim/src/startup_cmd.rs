@@ -143,11 +143,6 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     let int = IntNet::of(&net).context("the policy has no integer version")?;
     let int = summary("int8", runs.all(int)?);
     bar.finish_and_clear();
-    let drawn = a
-        .render
-        .as_deref()
-        .map(|out| draw(&runs, &net, a.episode, out))
-        .transpose()?;
     let report = Report {
         start: begin,
         knock: knock.map(|k| [k.force, f64::from(k.period) * tau]),
@@ -162,7 +157,9 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     } else {
         host_common::out!("{}", table(&report));
     }
-    if let Some((gif, png)) = drawn {
+    // Drawn once the report is out: pictures that cannot be written lose no episodes.
+    if let Some(out) = &a.render {
+        let (gif, png) = draw(&runs, &net, a.episode, out)?;
         // Beside the JSON, the pictures are named on standard error.
         let names = format!("{}\n{}", gif.display(), png.display());
         if a.json {

@@ -280,7 +280,15 @@ fn a_path_that_is_not_utf8_is_recorded_in_the_provenance_not_panicked_on() {
 #[test]
 fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fails() {
     let exe = env!("CARGO_BIN_EXE_host-sim");
-    let lqr = ["eval", "--episodes", "2", "--horizon", "5", "--controller", "lqr"];
+    let lqr = [
+        "eval",
+        "--episodes",
+        "2",
+        "--horizon",
+        "5",
+        "--controller",
+        "lqr",
+    ];
     for (threads, code) in [("100000", 2), ("x", 2), ("2", 0)] {
         let o = Command::new(exe)
             .args(lqr)
@@ -289,7 +297,10 @@ fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fail
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(code), "{threads}: {err}");
-        assert!(code == 0 || err.contains("RAYON_NUM_THREADS: expected"), "{err}");
+        assert!(
+            code == 0 || err.contains("RAYON_NUM_THREADS: expected"),
+            "{err}"
+        );
     }
     for args in [&["eval", "--help"][..], &["--version"]] {
         let full = std::fs::File::create("/dev/full").unwrap();

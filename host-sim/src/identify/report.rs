@@ -12,6 +12,7 @@ use weights::files::{check_output, remove_stale};
 use super::fit::{Fit, MAX_DEAD_TIME};
 use super::log::Log;
 use super::misfit;
+use crate::render::Batch;
 
 /// Each shared unknown's rig-file field and unit, in the fit's order.
 pub const FIELDS: [(&str, &str); 5] = [
@@ -168,33 +169,43 @@ fn curve(label: String, mean: Vec<f64>, dashed: bool) -> Curve {
     }
 }
 
-/// Draws `curves` into `png` (and its `.svg`) under temporary names, renamed once both are
-/// drawn, so that a failure leaves no half-drawn picture.
-fn draw(png: &Path, title: &str, y_label: &str, curves: &[Curve]) -> anyhow::Result<()> {
+/// Draws `curves` into temporaries of `png` and its `.svg`, which `batch` puts in place
+/// with everything else it writes.
+fn draw(
+    batch: &mut Batch,
+    png: &Path,
+    title: &str,
+    y_label: &str,
+    curves: &[Curve],
+) -> anyhow::Result<()> {
     remove_stale(png, &["png", "svg"]);
     let tmp = weights::files::temp_path(png);
-    let drawn = line_chart(&tmp, title, "period", y_label, curves);
-    let renamed = drawn.and_then(|()| {
-        for ext in ["png", "svg"] {
-            let to = png.with_extension(ext);
-            std::fs::rename(tmp.with_extension(ext), &to)
-                .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(&to))))?;
-        }
-        Ok(())
-    });
-    if renamed.is_err() {
-        for ext in ["png", "svg"] {
-            let _ = std::fs::remove_file(tmp.with_extension(ext));
-        }
+    let svg = png.with_extension("svg");
+    for (ext, path) in [("svg", svg.as_path()), ("png", png)] {
+        batch.add(tmp.with_extension(ext), path.to_path_buf());
     }
-    renamed
+    line_chart(&tmp, title, "period", y_label, curves).map_err(|e| {
+        // The chart draws its SVG first: a PNG begun means that the SVG was written.
+        let failed = if tmp.with_extension("png").exists() {
+            png
+        } else {
+            &svg
+        };
+        let reason = anyhow::anyhow!(crate::render::reason(&e.to_string()));
+        crate::render::failed_writing(failed, &reason).into()
+    })
 }
 
 /// Draws each log's measured and simulated counts into `dir`, and their differences beside
-/// the band a fit that holds stays in ([`misfit::MAX_RMS_COUNTS`]).
-pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>> {
-    std::fs::create_dir_all(dir)
-        .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(dir))))?;
+/// the band a fit that holds stays in ([`misfit::MAX_RMS_COUNTS`]): under temporary names,
+/// put in place by `batch`'s commit (`dir` created through it); the plots' paths.
+pub fn plots(
+    batch: &mut Batch,
+    dir: &Path,
+    fit: &Fit,
+    logs: &[Log],
+) -> anyhow::Result<Vec<PathBuf>> {
+    batch.dir(dir)?;
     let paths = plot_paths(dir, logs);
     for trace in &fit.traces {
         let (log, [counts, residuals]) = (&logs[trace.log], &paths[trace.log]);
@@ -214,7 +225,7 @@ pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>
                 ]
             })
             .collect();
-        draw(counts, &title, "counts", &curves)?;
+        draw(batch, counts, &title, "counts", &curves)?;
         let n = trace.channels.first().map_or(0, |c| c.measured.len());
         let limit = misfit::MAX_RMS_COUNTS;
         let mut differences = vec![Curve {
@@ -232,6 +243,7 @@ pub fn plots(dir: &Path, fit: &Fit, logs: &[Log]) -> anyhow::Result<Vec<PathBuf>
             )
         }));
         draw(
+            batch,
             residuals,
             &format!("{title}: residuals"),
             "counts",

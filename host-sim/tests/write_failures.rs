@@ -1,0 +1,308 @@
+//! Outputs that cannot be written (`docs/HOSTILE_INPUT.md`): `render`, `identify` and
+//! `startup --render` run with their files limited in size, so that a write fails as on a
+//! full disk (EFBIG), and with a picture's place taken while they draw. Each exits 1 naming
+//! the file it could not write, in the system's words and never plotters' Debug text, and
+//! leaves every old output as it was (all of a command's outputs or none), no temporary and
+//! no directory it created; `startup` prints its report first. And `host_sim::render::Batch`,
+//! which puts the files in place together, on its own.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+use host_sim::render::Batch;
+
+fn exe() -> &'static str {
+    env!("CARGO_BIN_EXE_host-sim")
+}
+
+fn repo(path: &str) -> String {
+    format!("{}/../{path}", env!("CARGO_MANIFEST_DIR"))
+}
+
+/// A directory of the test's own, removed when the test passes.
+struct Scratch(PathBuf);
+
+impl Scratch {
+    fn new(name: &str) -> Scratch {
+        let d = std::env::temp_dir().join(format!("write-failures-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        Scratch(d)
+    }
+
+    fn join(&self, p: &str) -> PathBuf {
+        self.0.join(p)
+    }
+}
+
+impl Drop for Scratch {
+    fn drop(&mut self) {
+        if !std::thread::panicking() {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn run(args: &[&str]) -> Output {
+    let o = Command::new(exe()).args(args).output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
+/// host-sim with `args`, no file it writes larger than `bytes`: a write past it fails with
+/// EFBIG, as on a full disk (SIGXFSZ ignored, which the command inherits).
+fn limited(bytes: u64, args: &[&str]) -> Output {
+    Command::new("bash")
+        .args(["-c", r#"trap "" XFSZ; exec prlimit --fsize="$0" -- "$@""#])
+        .arg(bytes.to_string())
+        .arg(exe())
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// Exit 1, `file` named with what failed (`what`), no Debug text.
+fn failed_writing(o: &Output, file: &Path, what: &str) {
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    let said = format!("error: writing {}: {what}", file.display());
+    assert!(err.contains(&said), "{said:?} not in {err}");
+    for debug in ["BackendError", "Os {", "kind:", "Error("] {
+        assert!(!err.contains(debug), "{err}");
+    }
+}
+
+/// The names in `dir`, sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+fn read(p: &Path) -> Vec<u8> {
+    std::fs::read(p).unwrap()
+}
+
+const PAIR: [&str; 2] = ["episode.gif", "episode.png"];
+
+/// `render` into `out` from the start of `seed`.
+fn render<'a>(out: &'a Path, horizon: &'static str, seed: &'static str) -> [&'a str; 7] {
+    [
+        "render",
+        "--out",
+        s(out),
+        "--horizon",
+        horizon,
+        "--seed",
+        seed,
+    ]
+}
+
+#[test]
+fn render_on_a_full_disk_keeps_the_old_pair_whichever_picture_fails() {
+    let t = Scratch::new("render");
+    let (pics, sizes) = (t.join("pics"), t.join("sizes"));
+    run(&render(&pics, "20", "1"));
+    run(&render(&sizes, "20", "2"));
+    let old = PAIR.map(|p| read(&pics.join(p)));
+    let fresh = PAIR.map(|p| read(&sizes.join(p)));
+    assert_ne!(old, fresh);
+    // The PNG is the larger: a limit of the GIF's size fails the second picture only.
+    assert!(fresh[1].len() > fresh[0].len());
+    for (limit, failing) in [
+        (4096, "episode.gif"),
+        (fresh[0].len() as u64, "episode.png"),
+    ] {
+        let o = limited(limit, &render(&pics, "20", "2"));
+        failed_writing(&o, &pics.join(failing), "File too large");
+        assert_eq!(PAIR.map(|p| read(&pics.join(p))), old, "{failing}");
+        assert_eq!(entries(&pics), PAIR);
+    }
+}
+
+#[test]
+fn render_into_new_directories_on_a_full_disk_leaves_none() {
+    let t = Scratch::new("render-new");
+    let out = t.join("new/pics");
+    let o = limited(4096, &["render", "--out", s(&out), "--horizon", "4"]);
+    failed_writing(&o, &out.join("episode.gif"), "File too large");
+    assert!(entries(&t.0).is_empty());
+}
+
+/// A picture's place made a directory while the pictures are drawn (the child stopped
+/// while it is done): nothing is renamed, the old GIF stays, no temporary is left.
+#[test]
+fn render_over_a_place_taken_while_drawing_keeps_the_old_picture() {
+    let t = Scratch::new("render-taken");
+    let pics = t.join("pics");
+    run(&render(&pics, "20", "1"));
+    let old_gif = read(&pics.join("episode.gif"));
+    let mut child = Command::new(exe())
+        .args(render(&pics, "40", "2"))
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The GIF's temporary appears as the drawing begins; the drawing takes its frames.
+    while !entries(&pics).iter().any(|n| n.ends_with(".tmp.gif")) {
+        assert!(child.try_wait().unwrap().is_none(), "render ended first");
+        std::thread::yield_now();
+    }
+    let signal = |sig: &str| {
+        let pid = child.id().to_string();
+        assert!(
+            Command::new("kill")
+                .args([sig, &pid])
+                .status()
+                .unwrap()
+                .success()
+        );
+    };
+    signal("-STOP");
+    std::fs::remove_file(pics.join("episode.png")).unwrap();
+    std::fs::create_dir(pics.join("episode.png")).unwrap();
+    signal("-CONT");
+    let o = child.wait_with_output().unwrap();
+    let found = "expected a regular file (or nothing), found a directory";
+    failed_writing(&o, &pics.join("episode.png"), found);
+    assert_eq!(read(&pics.join("episode.gif")), old_gif);
+    assert_eq!(entries(&pics), PAIR);
+}
+
+/// `identify` of `log` on the measured desk rig, writing `out` and `plots`.
+fn identify<'a>(log: &'a Path, out: &'a Path, plots: &'a Path) -> [&'a str; 8] {
+    let measured = concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs/desk-measured.toml");
+    let (out, plots) = (s(out), s(plots));
+    [
+        "identify",
+        "--rig",
+        measured,
+        "--out",
+        out,
+        "--plots",
+        plots,
+        s(log),
+    ]
+}
+
+#[test]
+fn identify_on_a_full_disk_writes_neither_its_rig_file_nor_its_plots() {
+    let t = Scratch::new("identify");
+    let log = t.join("sim.log");
+    let (desk, measured) = (repo("rigs/desk.toml"), repo("rigs/desk-measured.toml"));
+    let world = ["--world", &desk, "--rig", &measured];
+    let short = ["--cart-s", "3", "--swing-s", "3", "--out", s(&log)];
+    run(&[&["simulate-logs"][..], &world, &short].concat());
+    // Every plot's size, to fail the first PNG only once its SVG is written.
+    let sizes = t.join("sizes");
+    run(&identify(&log, &sizes.join("x.toml"), &sizes));
+    let [svg, png] = ["svg", "png"].map(|e| {
+        let plot = sizes.join(format!("identify-1-cart.{e}"));
+        std::fs::metadata(plot).unwrap().len()
+    });
+    assert!(png > svg);
+    std::fs::remove_dir_all(&sizes).unwrap();
+    // Old outputs, and new places two directories deep.
+    let (rig, plots) = (t.join("old.toml"), t.join("plots"));
+    std::fs::create_dir(&plots).unwrap();
+    std::fs::write(&rig, "old rig\n").unwrap();
+    std::fs::write(plots.join("identify-1-cart.png"), "old plot").unwrap();
+    let (new_rig, new_plots) = (t.join("new/deeper/x.toml"), t.join("new/plots"));
+    for (limit, failing) in [
+        (20_000, "identify-1-cart.svg"),
+        (svg, "identify-1-cart.png"),
+    ] {
+        let o = limited(limit, &identify(&log, &rig, &plots));
+        failed_writing(&o, &plots.join(failing), "File too large");
+        assert_eq!(read(&rig), b"old rig\n");
+        assert_eq!(entries(&plots), ["identify-1-cart.png"]);
+        assert_eq!(read(&plots.join("identify-1-cart.png")), b"old plot");
+        let o = limited(limit, &identify(&log, &new_rig, &new_plots));
+        failed_writing(&o, &new_plots.join(failing), "File too large");
+        assert_eq!(entries(&t.0), ["old.toml", "plots", "sim.log"]);
+    }
+}
+
+#[test]
+fn startup_on_a_full_disk_prints_its_report_then_fails_naming_the_picture() {
+    let t = Scratch::new("startup");
+    let out = t.join("new/pics");
+    let args = ["startup", "--episodes", "2", "--within", "5", "--hold", "1"];
+    let o = limited(4096, &[&args[..], &["--render", s(&out)]].concat());
+    failed_writing(&o, &out.join("episode.gif"), "File too large");
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        report.contains("start-up from Hanging") && report.contains("int8"),
+        "{report}"
+    );
+    assert!(entries(&t.0).is_empty());
+}
+
+/// Files `dir/NAME` holding `text`, for each (NAME, text).
+fn files(dir: &Path, named: &[(&str, &str)]) -> Vec<PathBuf> {
+    named
+        .iter()
+        .map(|(n, text)| {
+            let p = dir.join(n);
+            std::fs::write(&p, text).unwrap();
+            p
+        })
+        .collect()
+}
+
+#[test]
+fn a_batch_puts_every_file_in_place_or_every_old_one_back() {
+    let t = Scratch::new("batch");
+    let old = files(&t.0, &[("a", "old a"), ("b", "old b")]);
+    let (a, b) = (&old[0], &old[1]);
+    let (ta, tb) = (t.join(".a.new"), t.join(".b.new"));
+    let batch = |second: &Path| {
+        let mut batch = Batch::default();
+        batch.add(ta.clone(), a.clone());
+        batch.add(second.to_path_buf(), b.clone());
+        files(&t.0, &[(".a.new", "new a")]);
+        if second == tb {
+            files(&t.0, &[(".b.new", "new b")]);
+        }
+        batch.commit()
+    };
+    // The second rename fails (its temporary is missing) once the first is done.
+    let e = batch(&t.join(".gone")).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("writing {}: ", b.display())), "{e}");
+    assert_eq!([read(a), read(b)], [b"old a", b"old b"]);
+    assert_eq!(entries(&t.0), ["a", "b"]);
+    // A place taken by a directory: nothing is renamed.
+    std::fs::remove_file(b).unwrap();
+    std::fs::create_dir(b).unwrap();
+    let e = batch(&tb).unwrap_err().to_string();
+    let found = "expected a regular file (or nothing), found a directory";
+    assert!(e.ends_with(found), "{e}");
+    assert_eq!(read(a), b"old a");
+    assert_eq!(entries(&t.0), ["a", "b"]);
+    std::fs::remove_dir(b).unwrap();
+    batch(&tb).unwrap();
+    assert_eq!([read(a), read(b)], [b"new a", b"new b"]);
+    assert_eq!(entries(&t.0), ["a", "b"]);
+}
+
+#[test]
+fn a_batch_dropped_uncommitted_removes_its_temporaries_and_its_directories() {
+    let t = Scratch::new("batch-drop");
+    std::fs::create_dir(t.join("kept")).unwrap();
+    let mut batch = Batch::default();
+    let inner = t.join("made/deeper");
+    batch.dir(&inner).unwrap();
+    batch.dir(&t.join("kept/made")).unwrap();
+    batch.add(inner.join(".x.tmp"), inner.join("x"));
+    files(&inner, &[(".x.tmp", "x")]);
+    drop(batch);
+    assert_eq!(entries(&t.0), ["kept"]);
+    assert!(entries(&t.join("kept")).is_empty());
+}
