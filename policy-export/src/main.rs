@@ -458,11 +458,8 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         .as_deref()
         .map(|l| GivenLevels::parse(l, "--levels"))
         .transpose()?;
-    let src_file = checkpoint::policy_file(&a.src);
-    // The run's summary is read for the provenance: an input too, which --out may not be.
-    let summary = run::summary_of(&a.src);
-    let mut inputs = vec![("SRC", src_file.as_path())];
-    inputs.extend(summary.as_deref().map(|s| ("SRC's summary", s)));
+    let read = run::export_inputs(&a.src);
+    let mut inputs: Vec<(&str, &Path)> = read.iter().map(|p| ("SRC", p.as_path())).collect();
     inputs.extend(a.rig.as_deref().map(|r| ("--rig", r)));
     check_io(&inputs, &[("--out", &a.out)])?;
     let import = checkpoint::load_with(&a.src, a.prefix.as_deref(), levels.as_ref())?;

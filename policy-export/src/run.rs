@@ -194,8 +194,16 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     Ok(provenance(&s))
 }
 
+/// The files `export` reads of the policy at `src`: its policy file, and its run's summary
+/// for the provenance, if it has one. An output may be neither (`--out RUN/summary.json`
+/// replaced the summary with the module).
+pub fn export_inputs(src: &Path) -> Vec<PathBuf> {
+    let file = weights::checkpoint::policy_file(src);
+    std::iter::once(file).chain(summary_of(src)).collect()
+}
+
 /// The `summary.json` of the policy at `src`: in a run directory, or beside a policy file.
-pub fn summary_of(src: &Path) -> Option<PathBuf> {
+fn summary_of(src: &Path) -> Option<PathBuf> {
     let dir = if src.is_dir() { src } else { src.parent()? };
     let path = dir.join("summary.json");
     path.is_file().then_some(path)

@@ -126,10 +126,8 @@ struct Found<'a> {
 
 /// The network of a policy file and its provenance, the inputs and `out` checked first.
 fn from_file(src: &Path, f: &Found) -> PyResult<(Import, Vec<String>)> {
-    let file = checkpoint::policy_file(src);
-    let summary = policy_export::run::summary_of(src);
-    let mut inputs = vec![("source", file.as_path())];
-    inputs.extend(summary.as_deref().map(|s| ("source's summary", s)));
+    let read = policy_export::run::export_inputs(src);
+    let mut inputs: Vec<(&str, &Path)> = read.iter().map(|p| ("source", p.as_path())).collect();
     inputs.extend(f.rig.map(|r| ("rig", r)));
     check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
     let import = checkpoint::load_with(src, f.prefix, f.levels).map_err(value_error)?;
