@@ -36,13 +36,25 @@ pub struct IdentifyArgs {
 }
 
 /// The logs in `paths`, each read whole (up to [`log::MAX_LOG_BYTES`], and
-/// [`log::MAX_TOTAL_LOG_BYTES`] all together) and parsed.
+/// [`log::MAX_TOTAL_LOG_BYTES`] all together) and parsed, each once: a log given twice (or
+/// through a link, or copied) would count its experiments twice and narrow every interval
+/// by the square root of two.
 fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
     let mut logs = Vec::new();
     let mut total = 0;
+    let mut seen = std::collections::HashMap::new();
     for path in paths {
         let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
         let origin = weights::shown(path);
+        let mut text_hash = std::hash::DefaultHasher::new();
+        std::hash::Hash::hash(&bytes, &mut text_hash);
+        if let Some(first) = seen.insert(std::hash::Hasher::finish(&text_hash), path) {
+            return Err(weights::Error::Input(format!(
+                "LOG {origin}: expected each log once, found the same text as {}",
+                weights::shown(first)
+            ))
+            .into());
+        }
         total += bytes.len() as u64;
         if total > log::MAX_TOTAL_LOG_BYTES {
             return Err(weights::Error::Input(format!(

@@ -225,18 +225,18 @@ fn knock(a: &StartupArgs) -> Result<Option<[f64; 2]>> {
         .and_then(|(f, t)| Some([f.parse::<f64>().ok()?, t.parse::<f64>().ok()?]));
     match parsed {
         Some([force, at])
-            if force.is_finite()
-                && force > 0.0
+            if force > 0.0
                 && force <= 1000.0
-                && at.is_finite()
                 && at > 0.0
-                && at <= 3600.0 =>
+                && at <= 3600.0
+                && weights::plain(force)
+                && weights::plain(at) =>
         {
             Ok(Some([force, at]))
         }
         _ => anyhow::bail!(
-            "--knock expects NEWTONS@SECONDS, newtons in (0, 1000] and seconds in (0, 3600] \
-             (e.g. 40@20), found '{}'",
+            "--knock expects NEWTONS@SECONDS, newtons in (0, 1000] and seconds in (0, 3600], \
+             normal numbers (e.g. 40@20), found '{}'",
             weights::excerpt(spec)
         ),
     }

@@ -237,14 +237,23 @@ fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path
         &many,
         &["LOG: expected at most 64 log files, found 65"],
     );
-    let big = format!(
-        "# {}\n{}",
-        "x".repeat(22 << 20),
-        std::fs::read_to_string(cart).unwrap()
+    // One experiment given twice, here through a link: counted twice, it narrowed every
+    // interval by the square root of two.
+    let link = dir.join("cart-again.log");
+    std::os::unix::fs::symlink(cart, &link).unwrap();
+    refused(
+        dir,
+        &[cart, swing, &link, &rig_flag, rig, &out_flag, out],
+        &["cart-again.log: expected each log once, found the same text as"],
     );
+    std::fs::remove_file(&link).unwrap();
+    let big = |n: &str| {
+        let log = std::fs::read_to_string(cart).unwrap();
+        format!("# {n} {}\n{log}", "x".repeat(22 << 20))
+    };
     let bigs = ["big1.log", "big2.log", "big3.log"].map(|n| dir.join(n));
     for b in &bigs {
-        std::fs::write(b, &big).unwrap();
+        std::fs::write(b, big(&b.to_string_lossy())).unwrap();
     }
     refused(
         dir,

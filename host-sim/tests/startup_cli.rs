@@ -141,6 +141,8 @@ fn bad_input_exits_2_naming_what_was_expected() {
         "40@nan",
         "1e9@3",
         "40@5@6",
+        "5e-324@1",
+        "1@1e-40",
     ] {
         let arg = if bad.starts_with("--") {
             bad.to_owned()
