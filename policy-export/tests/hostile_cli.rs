@@ -283,7 +283,7 @@ fn endless_or_huge_inputs_are_refused_without_reading_them() {
     std::fs::write(&big, format!("gamma = [{}]\n", "1, ".repeat(1_000_000))).unwrap();
     refused(
         &["train", "--config", big.to_str().unwrap()],
-        "expected at most 1048576 bytes",
+        "expected at most 131072 bytes",
     );
     // A header that declares far more than any checkpoint needs.
     let header = dir.join("header.safetensors");
