@@ -104,3 +104,16 @@ def test_gymnasium_does_not_import_the_namespace_itself():
     """Gymnasium 1.4 imports a module named before a colon in the id, and nothing else."""
     env = gym.make("cartpole_ddqn:cartpole_ddqn/Twin-v0")
     assert env.reset(seed=0)[0].shape == (4,)
+
+
+@pytest.mark.parametrize("make", [cartpole_ddqn.TwinEnv, cartpole_ddqn.SwingUpEnv])
+def test_a_seed_past_64_bits_or_a_float_is_refused_naming_seed(make):
+    """Gymnasium takes any int of at least 0; the worlds take 64 bits (2**64 raised an
+    OverflowError naming nothing)."""
+    env = make()
+    with pytest.raises(ValueError, match=r"seed must be in \[0, 18446744073709551615\]; found 18446744073709551616"):
+        env.reset(seed=2**64)
+    with pytest.raises(TypeError, match="seed must be an int"):
+        env.reset(seed=1.7)
+    assert np.array_equal(env.reset(seed=np.int64(7))[0], env.reset(seed=7)[0])
+    assert env.reset(seed=2**64 - 1)[0].shape == env.observation_space.shape

@@ -2,6 +2,8 @@
 Gymnasium's CartPole pushed with the level's force), the checks `--levels` makes, and a
 policy of five levels acting through the environment as `evaluate` runs it."""
 
+import re
+
 import gymnasium as gym
 import numpy as np
 import pytest
@@ -59,13 +61,44 @@ def test_action_i_drives_level_i_as_gymnasiums_cartpole_pushed_with_its_force(se
         ([0.5, 0.2], "levels"),
         ([-1.5, 1.0], "levels"),
         ([float("nan"), 1.0], "levels"),
-        ("left,right", "levels"),
     ],
 )
 def test_bad_levels_raise_value_error_naming_levels(levels, words):
     for make in (lambda: cartpole_ddqn.TwinEnv(levels=levels), lambda: cartpole_ddqn.TwinVectorEnv(2, levels=levels)):
         with pytest.raises(ValueError, match=words):
             make()
+
+
+@pytest.mark.parametrize(
+    "levels, found",
+    [
+        ("01", "found str '01'"),
+        ("left,right", "found str"),
+        (b"\x00\x01", "found bytes"),
+        ({-1, 1}, "found set"),
+        ({-1: "left", 1: "right"}, "found dict"),
+        (1, "found int 1"),
+        (["-1", "1"], "found the item '-1' (str)"),
+        ([np.complex128(-1), 1], "(complex128)"),
+    ],
+)
+def test_levels_that_are_no_list_of_numbers_raise_type_error_naming_levels(tmp_path, levels, found):
+    """A str or bytes was read character by character ("01" gave the levels 0 and 1), a
+    dict by its keys, a set in no order, and a str level parsed: refused by every entry
+    point that takes levels, before anything is read or written."""
+    out = tmp_path / "never.rs"
+    calls = [
+        lambda: cartpole_ddqn.TwinEnv(levels=levels),
+        lambda: cartpole_ddqn.TwinVectorEnv(2, levels=levels),
+        lambda: cartpole_ddqn.SwingUpEnv(levels=levels),
+        lambda: cartpole_ddqn.load(tmp_path / "missing.safetensors", levels=levels),
+        lambda: cartpole_ddqn.export(tmp_path / "missing.safetensors", out, levels=levels),
+        lambda: cartpole_ddqn.evaluate(episodes=1, horizon=10, levels=levels),
+    ]
+    for call in calls:
+        with pytest.raises(TypeError, match=r"^levels must be a list of duty levels, numbers .*" + re.escape(found)):
+            call()
+    assert not out.exists()
 
 
 def test_an_action_beyond_the_levels_is_refused():

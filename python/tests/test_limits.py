@@ -3,6 +3,7 @@ Ctrl-C in the middle of native work, MemoryError for results that cannot fit, an
 refusal a Python exception (never a Rust panic)."""
 
 import os
+import re
 import signal
 import subprocess
 import threading
@@ -146,3 +147,24 @@ def test_every_refusal_is_a_python_exception_not_a_panic(tmp_path):
     many = cartpole_ddqn.TwinEnv(levels=np.linspace(-1, 1, 2001), max_episode_steps=5)
     many.reset(seed=0)
     assert many.step(2000)[4]["duty"] == 1.0
+
+
+def test_provenance_reads_argv_no_further_than_a_command_line_holds():
+    """A range of ten billion arguments was converted whole, to a MemoryError after 3.7 GB:
+    past what Linux's execve takes (6 MiB, each argument's NUL and pointer counted) no
+    process was given it, and it is refused after reading that much at most."""
+    with pytest.raises(ValueError, match=r"^argv must fit a command line: at most 6291456 bytes"):
+        cartpole_ddqn.provenance("x", range(10**10))
+    with pytest.raises(ValueError, match=r"^argv must fit a command line: .*found more by argument 1$"):
+        cartpole_ddqn.provenance("x", ["a" * 10**7])
+    # The most there can be: one argument of 6 MiB less its NUL and pointer.
+    most = 6 * 2**20 - 9
+    assert cartpole_ddqn.provenance("x", ["a" * most])["argv"] == ["a" * most]
+    with pytest.raises(ValueError, match="argv"):
+        cartpole_ddqn.provenance("x", ["a" * (most + 1)])
+    # A str is no list of arguments; bytes would be recorded as their repr.
+    for argv, found in (("--steps 10", "found str"), (10, "found int"), ([b"--steps"], "found the item b'--steps'")):
+        with pytest.raises(TypeError, match=r"^argv must be .*" + re.escape(found)):
+            cartpole_ddqn.provenance("x", argv)
+    # A byte sys.argv escapes (not UTF-8) is recorded as U+FFFD, as the tools record theirs.
+    assert cartpole_ddqn.provenance("x", ["runs/\udcff", 10])["argv"] == ["runs/\ufffd", "10"]

@@ -1,8 +1,11 @@
 """The vector environment: Gymnasium's VectorEnv API with next-step autoreset, each world
 the single environment's episodes of its seed."""
 
+import re
+
 import gymnasium as gym
 import numpy as np
+import pytest
 from gymnasium.utils.env_checker import check_env  # noqa: F401
 from gymnasium.vector import AutoresetMode
 
@@ -67,3 +70,26 @@ def test_wrong_number_of_actions_is_refused():
         assert "2" in str(e) and "3" in str(e)
     else:
         raise AssertionError("three actions for two worlds were taken")
+
+
+def test_seeds_are_ints_as_gymnasium_takes_them_never_truncated():
+    """Float seeds would replay the episodes of the seeds they truncate to, and str seeds
+    parse: each is refused naming `seed`, as is a float alone (not a list of seeds) and
+    a seed the worlds cannot take."""
+    env = cartpole_ddqn.TwinVectorEnv(num_envs=2)
+    refused = [([1.7, 2.9], "seed[0] must be an int"), (["5", "6"], "seed[0] must be an int")]
+    refused.append(([3, np.float64(4.0)], "seed[1] must be an int"))
+    refused += [(s, "seed must be None, an int or a list of 2 ints") for s in (1.7, "56", b"56", {5, 6})]
+    for seed, found in refused:
+        with pytest.raises(TypeError, match=re.escape(found)):
+            env.reset(seed=seed)
+    base = "seed (world i takes seed + i) must be in [0, 18446744073709551614]; found "
+    for seed, found in ((-1, base + "-1"), (2**64 - 1, base + str(2**64 - 1)), ([0, 2**64], "seed[1] must be in")):
+        with pytest.raises(ValueError, match=re.escape(found)):
+            env.reset(seed=seed)
+    # Exact integers are taken, NumPy's among them; None in a list draws that world's seed.
+    want = env.reset(seed=[3, 4])[0]
+    for seed in (3, np.int64(3), np.array([3, 4]), [np.uint64(3), 4], range(3, 5)):
+        assert np.array_equal(env.reset(seed=seed)[0], want)
+    assert np.array_equal(env.reset(seed=[None, 4])[0][1], want[1])
+    assert env.reset(seed=2**64 - 2)[0].shape == (2, 4)

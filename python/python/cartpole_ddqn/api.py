@@ -1,8 +1,10 @@
 """Policies, export and evaluation: the arguments Python users pass, turned into what the
 native module (the commands' own code) takes."""
 
+import collections.abc
 import itertools
 import json
+import numbers
 import operator
 import os
 import sys
@@ -78,16 +80,39 @@ def _path(p):
 _MAX_LEVELS = 2001
 
 
+def _items(value, name, expected):
+    """An iterator over a list argument's items, refusing with TypeError what iterates but
+    is no list of them: a str or bytes would be read character by character ("01" as the
+    levels 0 and 1), a set in no order, a dict by its keys."""
+    text = isinstance(value, (str, bytes, bytearray, memoryview))
+    if not text and not isinstance(value, (collections.abc.Set, collections.abc.Mapping)):
+        try:
+            return iter(value)
+        except TypeError:
+            pass
+    raise TypeError(f"{name} must be {expected}; found {type(value).__name__} {value!r:.200}")
+
+
+_LEVELS = "a list of duty levels, numbers (fractions of the full push)"
+
+
+def _level(v):
+    # float() would parse a str ("0.5") and drop a NumPy complex's imaginary part.
+    text = isinstance(v, (str, bytes, bytearray))
+    if not text and not (isinstance(v, numbers.Complex) and not isinstance(v, numbers.Real)):
+        try:
+            return float(v)
+        except (TypeError, ValueError):
+            pass
+    raise TypeError(f"levels must be {_LEVELS}; found the item {v!r:.200} ({type(v).__name__})")
+
+
 def _levels(levels):
     if levels is None:
         return None
-    try:
-        # Read to one past the most there can be: a range of ten billion builds no list.
-        return [float(v) for v in itertools.islice(levels, _MAX_LEVELS + 1)]
-    except (TypeError, ValueError):
-        raise ValueError(
-            f"levels must be a list of duty levels, fractions of the full push; found {levels!r:.200}"
-        ) from None
+    items = _items(levels, "levels", _LEVELS)
+    # Read to one past the most there can be: a range of ten billion builds no list.
+    return [_level(v) for v in itertools.islice(items, _MAX_LEVELS + 1)]
 
 
 def _array(value):
@@ -244,8 +269,52 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     return json.loads(rows)
 
 
+# The most a command line can hold: Linux's execve takes 6 MiB of arguments at most (three
+# quarters of its 8 MiB stack limit; 2 MiB under the default stack rlimit), each counted
+# with its NUL and its 8-byte pointer, so no process was ever given more arguments than
+# _MAX_ARGS. Past them an argv records no run, and reading it whole could take gigabytes.
+_ARGV_BYTES = 6 * 2**20
+_ARG_OVERHEAD = 9
+_MAX_ARGS = _ARGV_BYTES // _ARG_OVERHEAD
+
+
+def _argument(a):
+    """One argument as text: sys.argv holds a byte that is not UTF-8 as a lone surrogate,
+    which JSON cannot carry; it is recorded as U+FFFD, as the tools record their own."""
+    if isinstance(a, (bytes, bytearray)):
+        # str() would record the repr, b'...', not the argument.
+        raise TypeError(f"argv must be a list of arguments as str; found the item {a!r:.200}")
+    text = a if isinstance(a, str) else str(a)
+    try:
+        return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
+    except UnicodeEncodeError:
+        raise ValueError(
+            f"argv: expected arguments as text, a surrogate only for a byte sys.argv escapes; found {text!r:.200}"
+        ) from None
+
+
+def _argv(argv):
+    """The arguments, refused with ValueError once they pass what a command line holds,
+    read no further than one past the most there can be (``range(10**10)`` builds no list)."""
+    items = _items(argv, "argv", "a list of arguments (str)")
+    args, size = [], 0
+    for a in itertools.islice(items, _MAX_ARGS + 1):
+        text = _argument(a)
+        # A str's characters bound its bytes from below: a gigabyte is refused unencoded.
+        size += _ARG_OVERHEAD + (len(text) if len(text) > _ARGV_BYTES else len(text.encode("utf-8")))
+        args.append(text)
+        if len(args) > _MAX_ARGS or size > _ARGV_BYTES:
+            found = f"over {_MAX_ARGS} arguments" if len(args) > _MAX_ARGS else f"more by argument {len(args)}"
+            raise ValueError(
+                f"argv must fit a command line: at most {_ARGV_BYTES} bytes, each argument's UTF-8 and "
+                f"{_ARG_OVERHEAD} more (its NUL and pointer), so at most {_MAX_ARGS} arguments; found {found}"
+            )
+    return args
+
+
 def provenance(tool, argv):
     """The record a results file keeps of the run that wrote it, as the command-line tools
     write it: ``tool`` (a script's path from the repository's root) and ``argv`` (its
-    arguments), the date, the git revision, ``nproc`` and the CPU model."""
-    return json.loads(_native.provenance_json(str(tool), [str(a) for a in argv]))
+    arguments, at most what a Linux command line holds), the date, the git revision,
+    ``nproc`` and the CPU model."""
+    return json.loads(_native.provenance_json(str(tool), _argv(argv)))

@@ -24,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from .api import _levels
+from .api import _items, _levels
 
 # The most worlds a vector environment holds.
 MAX_ENVS = _native.MAX_ENVS
@@ -43,9 +43,29 @@ def _observation_space(x_threshold, theta_threshold):
     return spaces.Box(-high, high, dtype=np.float32)
 
 
+# The native worlds take a seed as an unsigned 64-bit integer.
+_SEEDS = 2**64
+
+
 def _seed_from(rng):
     """A 64-bit seed drawn from Gymnasium's generator, for an unseeded reset."""
     return int(rng.integers(0, 2**63))
+
+
+def _seed(seed, most=_SEEDS - 1, name="seed"):
+    """A seed as Gymnasium's ``reset(seed=)`` takes one, a Python int of at least 0 (a bool
+    among them), or a NumPy integer, returned as a Python int for Gymnasium's seeding. A
+    float is refused, not truncated: 1.7 would replay seed 1's episodes."""
+    try:
+        value = operator.index(seed)
+    except TypeError:
+        raise TypeError(
+            f"{name} must be an int (a whole number, as Gymnasium takes one); found {seed!r:.200} "
+            f"({type(seed).__name__})"
+        ) from None
+    if not 0 <= value <= most:
+        raise ValueError(f"{name} must be in [0, {most}]; found {value}")
+    return value
 
 
 def _envelope(envelope):
@@ -116,6 +136,7 @@ class TwinEnv(gymnasium.Env):
         self._seeded = False
 
     def reset(self, *, seed=None, options=None):
+        seed = None if seed is None else _seed(seed)
         super().reset(seed=seed)
         if seed is None and not self._seeded:
             seed = _seed_from(self.np_random)
@@ -191,20 +212,28 @@ class TwinVectorEnv(VectorEnv):
         self._seeded = False
 
     def reset(self, *, seed=None, options=None):
-        """World ``i`` starts episode 0 of ``seed + i`` (``seed`` may be a list of one
-        seed per world)."""
+        """World ``i`` starts episode 0 of ``seed + i``. ``seed`` is None (drawn from the
+        environment's generator), an int as Gymnasium takes one (or a NumPy integer), or a
+        list of ``num_envs`` of them, one per world, None among them drawing that world's
+        as Gymnasium's ``SyncVectorEnv`` does. Every seed is below 2**64."""
+        n = self.num_envs
+        if isinstance(seed, (int, np.integer)):
+            seed = _seed(seed, _SEEDS - n, name="seed (world i takes seed + i)")
+            super().reset(seed=seed)
+            return self._twin.reset([seed + i for i in range(n)]), {}
         # Gymnasium's own seeding takes one seed; a list seeds the worlds alone.
-        super().reset(seed=seed if seed is None or isinstance(seed, (int, np.integer)) else None)
+        super().reset(seed=None)
         if seed is None:
             base = _seed_from(self.np_random)
-            seeds = [base + i for i in range(self.num_envs)]
-        elif isinstance(seed, (int, np.integer)):
-            seeds = [int(seed) + i for i in range(self.num_envs)]
-        else:
-            # Read to one past the worlds at most: a range of ten billion builds no list.
-            seeds = [int(s) for s in itertools.islice(seed, self.num_envs + 1)]
-            if len(seeds) != self.num_envs:
-                raise ValueError(f"expected {self.num_envs} seeds, one per world; found {len(seeds)}")
+            return self._twin.reset([base + i for i in range(n)]), {}
+        items = _items(seed, "seed", f"None, an int or a list of {n} ints, one per world")
+        # Read to one past the worlds at most: a range of ten billion builds no list.
+        given = list(itertools.islice(items, n + 1))
+        if len(given) != n:
+            raise ValueError(f"seed: expected {n} seeds, one per world; found {len(given)}")
+        seeds = [
+            _seed_from(self.np_random) if s is None else _seed(s, name=f"seed[{i}]") for i, s in enumerate(given)
+        ]
         return self._twin.reset(seeds), {}
 
     def step(self, actions):
@@ -249,10 +278,11 @@ class SwingUpEnv(gymnasium.Env):
         self.action_space = spaces.Discrete(len(self._world.levels))
 
     def reset(self, *, seed=None, options=None):
+        seed = None if seed is None else _seed(seed)
         super().reset(seed=seed)
         if seed is None:
             seed = _seed_from(self.np_random)
-        return self._world.reset(int(seed)), {}
+        return self._world.reset(seed), {}
 
     def step(self, action):
         obs, reward, terminated, truncated, duty = self._world.step(_action(action, self.action_space.n))
