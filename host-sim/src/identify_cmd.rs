@@ -4,16 +4,15 @@
 //! `host-sim simulate-logs`: the logs a board would stream from a machine the twin simulates,
 //! to try the identification (and what follows it) on a rig whose truth is known.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Result;
 use clap::Args;
+use host_sim::batch::Batch;
 use host_sim::identify::{self, Log, fit, log, report};
-use host_sim::render;
 use indicatif::{ProgressBar, ProgressStyle};
-use weights::files::{read_capped, remove_stale, temp_path, write_atomic};
+use weights::files::{read_capped, remove_stale, write_atomic};
 
 #[derive(Args)]
 pub struct IdentifyArgs {
@@ -130,7 +129,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
 
 /// Writes the rig file `text` to `--out` and the plots of `found` into `--plots`, all or
 /// none: the plots drawn first, the rig file last, each under a temporary name, then all
-/// put in place together ([`render::Batch`]), so a failure (a full disk) leaves no rig file
+/// put in place together ([`Batch`]), so a failure (a full disk) leaves no rig file
 /// without its plots, nor plots of a fit whose rig file is the old one; the plots' paths.
 fn write(
     a: &IdentifyArgs,
@@ -138,7 +137,7 @@ fn write(
     found: &identify::Fit,
     logs: &[Log],
 ) -> Result<Vec<PathBuf>> {
-    let mut batch = render::Batch::default();
+    let mut batch = Batch::default();
     let plots = match &a.plots {
         Some(dir) => report::plots(&mut batch, dir, found, logs)?,
         None => Vec::new(),
@@ -147,16 +146,10 @@ fn write(
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         batch.dir(dir)?;
     }
-    // A killed writer's temporary, or a probe of the place's check (as `write_atomic`).
-    remove_stale(out, &["tmp", "probe"]);
-    let tmp = temp_path(out);
-    batch.add(tmp.clone(), out.to_path_buf());
-    // Created new (`O_EXCL`): never written through a link or into a FIFO put there since.
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .and_then(|mut f| f.write_all(text.as_bytes()))
+    // A killed writer's probe of the place's check.
+    remove_stale(out, &["probe"]);
+    let tmp = batch.file(out)?;
+    weights::files::write_new(&tmp, text.as_bytes())
         .map_err(|e| weights::Error::Io(format!("writing {}: {e}", weights::shown(out))))?;
     batch.commit()?;
     Ok(plots)

@@ -24,6 +24,7 @@
 
 pub mod agree;
 pub mod baselines;
+pub mod batch;
 pub mod envelope;
 pub mod eval;
 pub mod identify;

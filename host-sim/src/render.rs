@@ -1,8 +1,7 @@
 //! Pictures of one episode: an animated GIF of the cart and pole, and a PNG of x, theta and
-//! the commands over time. And [`Batch`]: how a command's pictures (and the files written
-//! beside them) are put in place all together or not at all.
+//! the commands over time ([`crate::batch`] puts a command's pictures in place).
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use anyhow::{Result, anyhow};
 use firmware::cartpole::Params;
@@ -25,10 +24,10 @@ fn err<E: std::fmt::Debug>(e: E) -> anyhow::Error {
 
 /// The system's own words for the failure `text` tells of (`File too large (os error 27)`),
 /// found by its error number, as Debug text (`Os { code: 27, .. }`) or Display text shows
-/// it; a plain statement where it names none.
+/// it (the last such: a path before it may spell one); a plain statement where it names none.
 pub fn reason(text: &str) -> String {
     let code = ["Os { code: ", "(os error "].iter().find_map(|mark| {
-        let rest = &text[text.find(mark)? + mark.len()..];
+        let rest = &text[text.rfind(mark)? + mark.len()..];
         let end = rest
             .find(|c: char| !c.is_ascii_digit())
             .unwrap_or(rest.len());
@@ -267,164 +266,6 @@ fn turns(points: Vec<(f64, f64)>) -> Vec<Vec<(f64, f64)>> {
         }
     }
     lines
-}
-
-/// Files written together, all or none: each under a temporary name beside its place
-/// ([`Batch::add`] before it is written), then put in place together by [`Batch::commit`].
-/// Dropped uncommitted (a failure on the way), it removes the temporaries and the
-/// directories it created ([`Batch::dir`]), so a failed command leaves what was there.
-#[derive(Default)]
-pub struct Batch {
-    /// Each temporary and its place.
-    files: Vec<(PathBuf, PathBuf)>,
-    /// The directories created, outermost first.
-    created: Vec<PathBuf>,
-    committed: bool,
-}
-
-/// One place of a commit under way: the old file's other name, if there was one.
-struct Placing<'a> {
-    path: &'a Path,
-    aside: Option<PathBuf>,
-    placed: bool,
-}
-
-impl Batch {
-    /// Creates `dir` and the directories above it that are missing, to be removed again
-    /// (if still empty) should the batch fail.
-    pub fn dir(&mut self, dir: &Path) -> weights::Result<()> {
-        let missing = dir
-            .ancestors()
-            .take_while(|d| !d.as_os_str().is_empty() && std::fs::symlink_metadata(d).is_err());
-        // Recorded first: a creation that fails half-way leaves the outer ones behind.
-        let mut missing: Vec<PathBuf> = missing.map(Path::to_path_buf).collect();
-        missing.reverse();
-        self.created.extend(missing);
-        std::fs::create_dir_all(dir)
-            .map_err(|e| weights::Error::Io(format!("creating {}: {e}", weights::shown(dir))))
-    }
-
-    /// `tmp`, about to be written, to be renamed to `path` by [`Batch::commit`]; whatever
-    /// is at `tmp` but a directory is removed first.
-    pub fn add(&mut self, tmp: PathBuf, path: PathBuf) {
-        // A name of this process's own: only an earlier process of the same id, or someone
-        // planting a link to be written through, put anything there.
-        if std::fs::symlink_metadata(&tmp).is_ok_and(|m| !m.is_dir()) {
-            let _ = std::fs::remove_file(&tmp);
-        }
-        // A killed commit's old file: this run replaces that place whole.
-        weights::files::remove_stale(&path, &["old"]);
-        self.files.push((tmp, path));
-    }
-
-    /// Puts every file in place, or none: each old file is first given a second name
-    /// (`.NAME.PID.old`, a hard link, so the place is never empty), every place checked to
-    /// hold a regular file or nothing, then each temporary renamed over its place. A failure
-    /// puts back the old files, removes the new ones and the temporaries, and says which
-    /// file failed.
-    pub fn commit(mut self) -> weights::Result<()> {
-        let mut placing = Vec::new();
-        let done = set_aside(&self.files, &mut placing).and_then(|()| {
-            for ((tmp, path), p) in self.files.iter().zip(&mut placing) {
-                std::fs::rename(tmp, path).map_err(|e| failed(path, &e))?;
-                p.placed = true;
-            }
-            Ok(())
-        });
-        if let Err(m) = done {
-            return Err(weights::Error::Io(m + &restore(&placing)));
-        }
-        for aside in placing.iter().filter_map(|p| p.aside.as_ref()) {
-            let _ = std::fs::remove_file(aside);
-        }
-        self.committed = true;
-        Ok(())
-    }
-}
-
-fn failed(path: &Path, e: &dyn std::fmt::Display) -> String {
-    format!("writing {}: {e}", weights::shown(path))
-}
-
-/// Gives each old file among `files`' places a second name, recording each place in
-/// `placing`; refuses a place that holds anything but a regular file.
-fn set_aside<'a>(
-    files: &'a [(PathBuf, PathBuf)],
-    placing: &mut Vec<Placing<'a>>,
-) -> std::result::Result<(), String> {
-    for (_, path) in files {
-        let old = match std::fs::symlink_metadata(path) {
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
-            Err(e) => return Err(failed(path, &e)),
-            Ok(m) if m.is_file() => true,
-            // Taken while the work ran (it was checked before).
-            Ok(m) => {
-                let found = weights::files::kind(&m.file_type());
-                return Err(failed(
-                    path,
-                    &format!("expected a regular file (or nothing), found {found}"),
-                ));
-            }
-        };
-        let mut p = Placing {
-            path,
-            aside: None,
-            placed: false,
-        };
-        if old {
-            let aside = weights::files::temp_path(path).with_extension("old");
-            // Moved where the file system has no hard links.
-            std::fs::hard_link(path, &aside)
-                .or_else(|_| std::fs::rename(path, &aside))
-                .map_err(|e| failed(path, &e))?;
-            p.aside = Some(aside);
-        }
-        placing.push(p);
-    }
-    Ok(())
-}
-
-/// Undoes a commit that failed: each old file back in its place (a hard link's rename
-/// onto the same file does nothing, so the second name is then removed), each new file
-/// that had none removed; what could not be put back, said.
-fn restore(placing: &[Placing<'_>]) -> String {
-    let mut kept = String::new();
-    for p in placing.iter().rev() {
-        match &p.aside {
-            Some(aside) => match std::fs::rename(aside, p.path) {
-                Ok(()) => {
-                    let _ = std::fs::remove_file(aside);
-                }
-                Err(e) => {
-                    kept += &format!(
-                        "; the old {} is kept as {} ({e})",
-                        weights::shown(p.path),
-                        weights::shown(aside)
-                    );
-                }
-            },
-            None if p.placed => {
-                let _ = std::fs::remove_file(p.path);
-            }
-            None => {}
-        }
-    }
-    kept
-}
-
-impl Drop for Batch {
-    fn drop(&mut self) {
-        if self.committed {
-            return;
-        }
-        for (tmp, _) in &self.files {
-            let _ = std::fs::remove_file(tmp);
-        }
-        // Innermost first; one that holds anything else stays.
-        for dir in self.created.iter().rev() {
-            let _ = std::fs::remove_dir(dir);
-        }
-    }
 }
 
 #[cfg(test)]

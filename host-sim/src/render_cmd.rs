@@ -7,10 +7,10 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use clap::Args;
 use firmware::cartpole::Params;
+use host_sim::batch::Batch;
 use host_sim::eval::{self, ControllerKind};
 use host_sim::render;
 use twin::{Frame, Scenario};
-use weights::files::{remove_stale, temp_path_keeping_extension};
 
 use crate::Subject;
 
@@ -110,7 +110,7 @@ pub fn pictures(out: &Path) -> Result<(PathBuf, PathBuf)> {
 
 /// Draws `frames` into `out`'s `episode.gif` (every `stride`-th period, titled `title`)
 /// and `episode.png` (titled `caption`), each under a temporary name, and puts both in
-/// place together ([`render::Batch`]): a failure leaves the old pair (or none, and no
+/// place together ([`Batch`]): a failure leaves the old pair (or none, and no
 /// directory it created) and names the picture that failed; their paths.
 pub fn draw(
     out: &Path,
@@ -120,19 +120,12 @@ pub fn draw(
     (title, caption): (&str, &str),
 ) -> Result<(PathBuf, PathBuf)> {
     let (gif, png) = pictures(out)?;
-    let mut batch = render::Batch::default();
+    let mut batch = Batch::default();
     batch.dir(out)?;
-    // The names end in the real extension because the encoders choose the format by it.
-    remove_stale(&gif, &["tmp.gif"]);
-    remove_stale(&png, &["tmp.png"]);
-    let (gif_tmp, png_tmp) = (
-        temp_path_keeping_extension(&gif),
-        temp_path_keeping_extension(&png),
-    );
-    batch.add(gif_tmp.clone(), gif.clone());
+    let gif_tmp = batch.file(&gif)?;
     render::gif(&gif_tmp, frames, params, stride, title)
         .map_err(|e| render::failed_writing(&gif, &e))?;
-    batch.add(png_tmp.clone(), png.clone());
+    let png_tmp = batch.file(&png)?;
     render::timeseries(&png_tmp, frames, params, caption)
         .map_err(|e| render::failed_writing(&png, &e))?;
     batch.commit()?;

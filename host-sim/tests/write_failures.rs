@@ -1,15 +1,15 @@
 //! Outputs that cannot be written (`docs/HOSTILE_INPUT.md`): `render`, `identify` and
 //! `startup --render` run with their files limited in size, so that a write fails as on a
-//! full disk (EFBIG), and with a picture's place taken while they draw. Each exits 1 naming
+//! full disk (EFBIG). Each exits 1 naming
 //! the file it could not write, in the system's words and never plotters' Debug text, and
 //! leaves every old output as it was (all of a command's outputs or none), no temporary and
-//! no directory it created; `startup` prints its report first. And `host_sim::render::Batch`,
+//! no directory it created; `startup` prints its report first. And `host_sim::batch::Batch`,
 //! which puts the files in place together, on its own.
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Output};
 
-use host_sim::render::Batch;
+use host_sim::batch::Batch;
 
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_host-sim")
@@ -138,44 +138,6 @@ fn render_into_new_directories_on_a_full_disk_leaves_none() {
 
 /// A picture's place made a directory while the pictures are drawn (the child stopped
 /// while it is done): nothing is renamed, the old GIF stays, no temporary is left.
-#[test]
-fn render_over_a_place_taken_while_drawing_keeps_the_old_picture() {
-    let t = Scratch::new("render-taken");
-    let pics = t.join("pics");
-    run(&render(&pics, "20", "1"));
-    let old_gif = read(&pics.join("episode.gif"));
-    let mut child = Command::new(exe())
-        .args(render(&pics, "40", "2"))
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    // The GIF's temporary appears as the drawing begins; the drawing takes its frames.
-    while !entries(&pics).iter().any(|n| n.ends_with(".tmp.gif")) {
-        assert!(child.try_wait().unwrap().is_none(), "render ended first");
-        std::thread::yield_now();
-    }
-    let signal = |sig: &str| {
-        let pid = child.id().to_string();
-        assert!(
-            Command::new("kill")
-                .args([sig, &pid])
-                .status()
-                .unwrap()
-                .success()
-        );
-    };
-    signal("-STOP");
-    std::fs::remove_file(pics.join("episode.png")).unwrap();
-    std::fs::create_dir(pics.join("episode.png")).unwrap();
-    signal("-CONT");
-    let o = child.wait_with_output().unwrap();
-    let found = "expected a regular file (or nothing), found a directory";
-    failed_writing(&o, &pics.join("episode.png"), found);
-    assert_eq!(read(&pics.join("episode.gif")), old_gif);
-    assert_eq!(entries(&pics), PAIR);
-}
-
 /// `identify` of `log` on the measured desk rig, writing `out` and `plots`.
 fn identify<'a>(log: &'a Path, out: &'a Path, plots: &'a Path) -> [&'a str; 8] {
     let measured = concat!(env!("CARGO_MANIFEST_DIR"), "/../rigs/desk-measured.toml");
@@ -262,34 +224,58 @@ fn a_batch_puts_every_file_in_place_or_every_old_one_back() {
     let t = Scratch::new("batch");
     let old = files(&t.0, &[("a", "old a"), ("b", "old b")]);
     let (a, b) = (&old[0], &old[1]);
-    let (ta, tb) = (t.join(".a.new"), t.join(".b.new"));
-    let batch = |second: &Path| {
+    let batch = |write_second: bool| {
         let mut batch = Batch::default();
-        batch.add(ta.clone(), a.clone());
-        batch.add(second.to_path_buf(), b.clone());
-        files(&t.0, &[(".a.new", "new a")]);
-        if second == tb {
-            files(&t.0, &[(".b.new", "new b")]);
+        std::fs::write(batch.file(a).unwrap(), "new a").unwrap();
+        let tb = batch.file(b).unwrap();
+        if write_second {
+            std::fs::write(tb, "new b").unwrap();
         }
         batch.commit()
     };
     // The second rename fails (its temporary is missing) once the first is done.
-    let e = batch(&t.join(".gone")).unwrap_err().to_string();
+    let e = batch(false).unwrap_err().to_string();
     assert!(e.starts_with(&format!("writing {}: ", b.display())), "{e}");
     assert_eq!([read(a), read(b)], [b"old a", b"old b"]);
     assert_eq!(entries(&t.0), ["a", "b"]);
     // A place taken by a directory: nothing is renamed.
     std::fs::remove_file(b).unwrap();
     std::fs::create_dir(b).unwrap();
-    let e = batch(&tb).unwrap_err().to_string();
+    let e = batch(true).unwrap_err().to_string();
     let found = "expected a regular file (or nothing), found a directory";
     assert!(e.ends_with(found), "{e}");
     assert_eq!(read(a), b"old a");
     assert_eq!(entries(&t.0), ["a", "b"]);
     std::fs::remove_dir(b).unwrap();
-    batch(&tb).unwrap();
+    batch(true).unwrap();
     assert_eq!([read(a), read(b)], [b"new a", b"new b"]);
     assert_eq!(entries(&t.0), ["a", "b"]);
+}
+
+#[test]
+fn a_batch_writes_through_nothing_planted_and_puts_back_what_a_killed_commit_set_aside() {
+    let t = Scratch::new("batch-planted");
+    let victim = t.join("victim");
+    std::fs::create_dir(&victim).unwrap();
+    let a = t.join("a");
+    // A link at the private directory's name, to a directory elsewhere.
+    let private = t.join(&format!(".a.{}.d", std::process::id()));
+    std::os::unix::fs::symlink(&victim, &private).unwrap();
+    let mut batch = Batch::default();
+    let tmp = batch.file(&a).unwrap();
+    std::fs::write(&tmp, "new").unwrap();
+    assert!(std::fs::symlink_metadata(&private).unwrap().is_dir());
+    assert!(entries(&victim).is_empty());
+    batch.commit().unwrap();
+    assert_eq!(read(&a), b"new");
+    assert_eq!(entries(&t.0), ["a", "victim"]);
+    // A commit killed after moving the old file aside: the place is empty, the old file
+    // under its second name; the next batch puts it back before anything else.
+    std::fs::rename(&a, t.join(".a.4000000000.old")).unwrap();
+    let batch = Batch::default().file(&a).map(drop);
+    batch.unwrap();
+    assert_eq!(read(&a), b"new");
+    assert_eq!(entries(&t.0), ["a", "victim"]);
 }
 
 #[test]
@@ -300,8 +286,7 @@ fn a_batch_dropped_uncommitted_removes_its_temporaries_and_its_directories() {
     let inner = t.join("made/deeper");
     batch.dir(&inner).unwrap();
     batch.dir(&t.join("kept/made")).unwrap();
-    batch.add(inner.join(".x.tmp"), inner.join("x"));
-    files(&inner, &[(".x.tmp", "x")]);
+    std::fs::write(batch.file(&inner.join("x")).unwrap(), "x").unwrap();
     drop(batch);
     assert_eq!(entries(&t.0), ["kept"]);
     assert!(entries(&t.join("kept")).is_empty());

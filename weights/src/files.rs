@@ -323,6 +323,16 @@ pub fn stale(path: &Path, suffixes: &[&str]) -> Vec<PathBuf> {
     found
 }
 
+/// Writes `bytes` to a file created new at `tmp` (`O_EXCL`): never through a link, or into
+/// a FIFO, put there since the name was cleared.
+pub fn write_new(tmp: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(tmp)
+        .and_then(|mut f| f.write_all(bytes))
+}
+
 /// Writes `bytes` to `path` through a temporary file in the same directory and a rename, so
 /// a crash leaves either the old file or the new one, never half of one. Refuses (before
 /// writing anything) a `path` that exists and is not a regular file.
@@ -338,12 +348,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<()> {
     remove_stale(path, &["tmp", "probe"]);
     let tmp = temp_path(path);
     clear_own(&tmp);
-    // Created new (`O_EXCL`): never through a link or into a FIFO put there since.
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&tmp)
-        .and_then(|mut f| f.write_all(bytes))
+    write_new(&tmp, bytes)
         .and_then(|()| std::fs::rename(&tmp, path))
         .map_err(|e| {
             let _ = std::fs::remove_file(&tmp);

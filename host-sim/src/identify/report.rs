@@ -7,12 +7,12 @@ use std::path::{Path, PathBuf};
 
 use host_common::plot::{Curve, line_chart};
 use twin::Machine;
-use weights::files::{check_output, remove_stale};
+use weights::files::check_output;
 
 use super::fit::{Fit, MAX_DEAD_TIME};
 use super::log::Log;
 use super::misfit;
-use crate::render::Batch;
+use crate::batch::Batch;
 
 /// Each shared unknown's rig-file field and unit, in the fit's order.
 pub const FIELDS: [(&str, &str); 5] = [
@@ -178,12 +178,9 @@ fn draw(
     y_label: &str,
     curves: &[Curve],
 ) -> anyhow::Result<()> {
-    remove_stale(png, &["png", "svg"]);
-    let tmp = weights::files::temp_path(png);
     let svg = png.with_extension("svg");
-    for (ext, path) in [("svg", svg.as_path()), ("png", png)] {
-        batch.add(tmp.with_extension(ext), path.to_path_buf());
-    }
+    let tmp = batch.file(png)?;
+    batch.beside(&tmp, &svg);
     line_chart(&tmp, title, "period", y_label, curves).map_err(|e| {
         // The chart draws its SVG first: a PNG begun means that the SVG was written.
         let failed = if tmp.with_extension("png").exists() {
