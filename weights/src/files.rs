@@ -265,17 +265,6 @@ pub fn clear_own(tmp: &Path) {
     }
 }
 
-/// [`temp_path`] with `path`'s extension kept at the end (`.NAME.PID.tmp.EXT`), for writers
-/// that choose a format by the extension (image encoders); [`remove_stale`] with suffix
-/// `tmp.EXT` finds what a killed one left.
-pub fn temp_path_keeping_extension(path: &Path) -> PathBuf {
-    let tmp = temp_path(path);
-    match path.extension() {
-        Some(ext) => tmp.with_extension(format!("tmp.{}", ext.to_string_lossy())),
-        None => tmp,
-    }
-}
-
 /// Whether process `pid` is still running. Only Linux can tell (`/proc`); elsewhere every
 /// process counts as running, so nothing a live writer owns is ever removed.
 pub fn pid_alive(pid: u32) -> bool {

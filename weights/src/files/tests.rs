@@ -51,8 +51,8 @@ fn a_killed_writers_temporary_is_removed_and_a_live_ones_kept() {
     let p = dir.join("policy.rs");
     // No process has PID 4,000,000,000 (Linux caps PIDs at 2^22).
     assert_eq!(
-        temp_path_keeping_extension(Path::new("d/episode.png")),
-        Path::new(&format!("d/.episode.png.{}.tmp.png", std::process::id()))
+        temp_path(Path::new("d/episode.png")),
+        Path::new(&format!("d/.episode.png.{}.tmp", std::process::id()))
     );
     let dead = dir.join(".policy.rs.4000000000.tmp");
     let probe = dir.join(".policy.rs.4000000000.probe");
