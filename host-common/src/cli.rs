@@ -79,24 +79,29 @@ fn status_after(status: u8) -> u8 {
 /// Most threads a pool may be given, by `--threads` or by `RAYON_NUM_THREADS`.
 pub const MAX_THREADS: usize = 256;
 
-/// Refuses a `RAYON_NUM_THREADS` the thread pools would take unchecked: a whole number
+/// Refuses a thread count from the environment the thread pools would take unchecked
+/// (`RAYON_NUM_THREADS`, or the older `RAYON_RS_NUM_CPUS` they still read): a whole number
 /// from 0 (one a processor) to [`MAX_THREADS`], or unset. 100,000 spent 20 s starting
 /// threads and then panicked.
 pub fn check_threads_env() -> Result<(), String> {
-    let Some(v) = std::env::var_os("RAYON_NUM_THREADS") else {
-        return Ok(());
-    };
-    match v.to_str().and_then(|t| t.parse::<usize>().ok()) {
-        Some(n) if n <= MAX_THREADS => Ok(()),
-        _ => {
-            // Debug-quoted, so escaped; and cut, as every input a message shows.
-            let shown: String = v.to_string_lossy().chars().take(100).collect();
-            Err(format!(
-                "RAYON_NUM_THREADS: expected a whole number of threads from 0 (one a \
-                 processor) to {MAX_THREADS}, or unset; found {shown:?}"
-            ))
+    for var in ["RAYON_NUM_THREADS", "RAYON_RS_NUM_CPUS"] {
+        let Some(v) = std::env::var_os(var) else {
+            continue;
+        };
+        if v.to_str()
+            .and_then(|t| t.parse::<usize>().ok())
+            .is_some_and(|n| n <= MAX_THREADS)
+        {
+            continue;
         }
+        // Debug-quoted, so escaped; and cut, as every input a message shows.
+        let shown: String = v.to_string_lossy().chars().take(200).collect();
+        return Err(format!(
+            "{var}: expected a whole number of threads from 0 (one a processor) to \
+             {MAX_THREADS}, or unset; found {shown:?}"
+        ));
     }
+    Ok(())
 }
 
 /// Longest line of a refusal printed.

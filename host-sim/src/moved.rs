@@ -120,8 +120,9 @@ fn figure(k: &str, v: &Json, horizon: Option<u64>) -> Result<(), String> {
         Some(ci) if v.is_object() => Some(ci),
         _ => k.ends_with("_ci95").then_some(v),
     };
+    // `null`: no interval (a figure of fewer than two episodes, whose NaN JSON writes so).
     match interval.map(|ci| (ci, ci.as_f64(), ci.as_array().map(Vec::as_slice))) {
-        None | Some((_, Some(0.0..), _)) => Ok(()),
+        None | Some((Json::Null, _, _)) | Some((_, Some(0.0..), _)) => Ok(()),
         Some((_, _, Some([lo, hi]))) if lo.as_f64() <= hi.as_f64() && lo.is_number() => Ok(()),
         Some((ci, _, _)) => Err(format!(
             "an interval: a half-width of at least 0, or [low, high] with low <= high; {}",
@@ -130,11 +131,12 @@ fn figure(k: &str, v: &Json, horizon: Option<u64>) -> Result<(), String> {
     }
 }
 
-/// Refuses a subnormal number anywhere in `v` (a slip, as everywhere a number comes in).
+/// Refuses a subnormal number anywhere in `v` (a slip, as everywhere a number comes in): in
+/// f64, which the figures stay in (they never reach a board's f32).
 fn numbers(path: &str, v: &Json) -> Result<(), String> {
     match v {
         Json::Number(n) => match n.as_f64() {
-            Some(x) if weights::plain(x) => Ok(()),
+            Some(x) if x == 0.0 || x.is_normal() => Ok(()),
             _ => Err(format!(
                 "expected {} zero or a normal number, found {}",
                 weights::quote(path),
@@ -397,8 +399,9 @@ mod tests {
         };
         assert_eq!(check(&r(json!({"episodes": 1000}))), Ok(()));
         // Figures that may be negative, and both shapes of an interval.
-        let fine = json!({"overestimation": {"mean": -0.5, "ci95": 0.2}, "mean_steps_ci95": 0.0,
-                          "success_ci95": [0.0, 0.0], "worst": {"start": [-0.01, 0.02]}});
+        let fine = json!({"overestimation": {"mean": -0.5, "ci95": 0.2}, "mean_steps_ci95": null,
+                          "success_ci95": [0.0, 0.0], "worst": {"start": [-0.01, 0.02]},
+                          "rms_x_m": {"mean": 1e-39, "ci95": null}});
         assert_eq!(check(&r(fine)), Ok(()));
         for (extra, why) in [
             (

@@ -289,16 +289,21 @@ fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fail
         "--controller",
         "lqr",
     ];
-    for (threads, code) in [("100000", 2), ("x", 2), ("2", 0)] {
+    for (var, threads, code) in [
+        ("RAYON_NUM_THREADS", "100000", 2),
+        ("RAYON_NUM_THREADS", "x", 2),
+        ("RAYON_RS_NUM_CPUS", "100000", 2),
+        ("RAYON_NUM_THREADS", "2", 0),
+    ] {
         let o = Command::new(exe)
             .args(lqr)
-            .env("RAYON_NUM_THREADS", threads)
+            .env(var, threads)
             .output()
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(code), "{threads}: {err}");
         assert!(
-            code == 0 || err.contains("RAYON_NUM_THREADS: expected"),
+            code == 0 || err.contains(&format!("{var}: expected")),
             "{err}"
         );
     }
