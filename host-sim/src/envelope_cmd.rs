@@ -118,7 +118,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
         let policy = digest::policy(digest::mlp(&POLICY), &LEVELS);
         let text = rust_module(report.envelope, policy, &RIG, &provenance);
         write_atomic(out, text.as_bytes())?;
-        host_common::errln!("{}", out.display());
+        host_common::errln!("{}", weights::shown(out));
     }
     if a.json {
         host_common::outln!("{}", serde_json::to_string_pretty(&report)?);

@@ -117,13 +117,13 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     twin::rigfile::parse(&text, "the identified rig")?;
     let plots = write(a, &text, &found, &logs)?;
     for path in plots {
-        host_common::errln!("{}", path.display());
+        host_common::errln!("{}", weights::shown(&path));
     }
     host_common::out!("{}", report::format(&found, &logs));
     for w in report::warnings(&found, &logs) {
         host_common::errln!("warning: {w}");
     }
-    host_common::errln!("{}", a.out.display());
+    host_common::errln!("{}", weights::shown(&a.out));
     Ok(())
 }
 
@@ -223,6 +223,6 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
         [a.cart_s, a.swing_s],
     );
     write_atomic(&a.out, logs.concat().as_bytes())?;
-    host_common::errln!("{}", a.out.display());
+    host_common::errln!("{}", weights::shown(&a.out));
     Ok(())
 }

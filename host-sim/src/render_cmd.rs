@@ -88,7 +88,7 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         if stats.success { "balanced" } else { "fell" }
     );
     let (gif, png) = draw(out, &frames, &scenario.params, stride, (&title, &caption))?;
-    host_common::outln!("{}\n{}", gif.display(), png.display());
+    host_common::outln!("{}\n{}", weights::shown(&gif), weights::shown(&png));
     Ok(())
 }
 

@@ -161,7 +161,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     if let Some(out) = &a.render {
         let (gif, png) = draw(&runs, &net, a.episode, out)?;
         // Beside the JSON, the pictures are named on standard error.
-        let names = format!("{}\n{}", gif.display(), png.display());
+        let names = format!("{}\n{}", weights::shown(&gif), weights::shown(&png));
         if a.json {
             host_common::errln!("{names}");
         } else {

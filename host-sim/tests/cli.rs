@@ -315,3 +315,30 @@ fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fail
         assert!(err.contains("writing standard output"), "{err}");
     }
 }
+
+#[test]
+fn the_names_of_outputs_and_pil_places_are_printed_escaped() {
+    let dir = std::env::temp_dir().join(format!("hs-names-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("r\u{1b}[2J\nerror: fake");
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["render", "--controller", "lqr", "--horizon", "5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&o.stdout).into_owned();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        text.contains("r\\u{1b}[2J\\nerror: fake/episode.gif"),
+        "{text}"
+    );
+    assert!(!text.lines().any(|l| l.starts_with("error")), "{text}");
+    let o = eval(&["--pil", "exec:nowhere\u{1b}[31m"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("no program at \"nowhere\\u{1b}[31m\""),
+        "{err}"
+    );
+}

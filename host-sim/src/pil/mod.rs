@@ -107,20 +107,23 @@ impl Place {
     /// holds `board`); refused, naming what was expected, when the target is unknown or the
     /// file is missing.
     pub fn parse(spec: &str, elf: Option<&Path>, board: Board) -> Result<Place> {
+        // Quoted (escaped and cut) wherever a message shows them.
+        let (q, shown) = (weights::quote, weights::quote(spec));
         let targets = || MACHINES.map(|m| m.target).join(", ");
         let place = match spec.split_once(':') {
             Some(("qemu", target)) => {
                 let Some(machine) = MACHINES.iter().find(|m| m.target == target) else {
                     bail!(
-                        "--pil qemu:TARGET: TARGET must be one of {}, found '{target}'",
-                        targets()
+                        "--pil qemu:TARGET: TARGET must be one of {}, found {}",
+                        targets(),
+                        q(target)
                     );
                 };
                 let app = board.app();
                 let elf = elf.map_or_else(|| default_elf(target, app), Path::to_path_buf);
                 if !elf.is_file() {
                     bail!(
-                        "--pil {spec}: no application at {} (build it with `cargo build --release \
+                        "--pil {shown}: no application at {} (build it with `cargo build --release \
                          -p selftest-app --bin {app} --target {target}`, or give --pil-elf)",
                         weights::shown(&elf)
                     );
@@ -128,19 +131,22 @@ impl Place {
                 Place::Qemu { machine, elf }
             }
             Some(("exec", path)) if Path::new(path).is_file() => Place::Exec(path.into()),
-            Some(("exec", path)) => bail!("--pil exec:PATH: no program at '{path}'"),
+            Some(("exec", path)) => bail!("--pil exec:PATH: no program at {}", q(path)),
             Some(("serial", path)) if is_char_device(Path::new(path)) => Place::Serial(path.into()),
             Some(("serial", path)) => {
-                bail!("--pil serial:PATH: expected a serial port (a character device) at '{path}'")
+                bail!(
+                    "--pil serial:PATH: expected a serial port (a character device) at {}",
+                    q(path)
+                )
             }
             _ => bail!(
                 "--pil must be qemu:TARGET (TARGET one of {}), serial:PATH or exec:PATH, found \
-                 '{spec}'",
+                 {shown}",
                 targets()
             ),
         };
         if elf.is_some() && !matches!(place, Place::Qemu { .. }) {
-            bail!("--pil-elf goes with --pil qemu:TARGET, found --pil {spec}");
+            bail!("--pil-elf goes with --pil qemu:TARGET, found --pil {shown}");
         }
         Ok(place)
     }
@@ -154,7 +160,7 @@ impl Place {
                 c.args(machine.args).args(QEMU_ARGS).arg("-kernel").arg(elf);
                 (c, format!("QEMU ({})", machine.target))
             }
-            Place::Exec(path) => (Command::new(path), path.display().to_string()),
+            Place::Exec(path) => (Command::new(path), weights::shown(path)),
             Place::Serial(path) => return Ok(Box::new(serial::Serial::open(path, timeout)?)),
         };
         Ok(Box::new(link::Process::spawn(command, what, timeout)?))
@@ -164,8 +170,8 @@ impl Place {
     pub fn name(&self) -> String {
         match self {
             Place::Qemu { machine, .. } => format!("qemu:{}", machine.target),
-            Place::Exec(path) => format!("exec:{}", path.display()),
-            Place::Serial(path) => format!("serial:{}", path.display()),
+            Place::Exec(path) => format!("exec:{}", weights::shown(path)),
+            Place::Serial(path) => format!("serial:{}", weights::shown(path)),
         }
     }
 }
