@@ -76,7 +76,7 @@ fn every_item_a_rust_module_defines_beside_its_static_is_refused_as_its_name() {
 
 #[test]
 fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
-    let classes: [(&str, &[&str]); 4] = [
+    let classes: [(&str, &[&str]); 6] = [
         (
             "a macro name of <stdint.h>, which the header includes",
             &[
@@ -105,6 +105,8 @@ fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
         ),
         ("the macro of <errno.h>", &["errno"]),
         ("the function every C program defines", &["main"]),
+        ("default GNU dialects predefine", &["unix", "linux", "i386"]),
+        ("a release build defines", &["NDEBUG"]),
     ];
     for (why, names) in classes {
         for name in names {

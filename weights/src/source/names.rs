@@ -270,6 +270,10 @@ fn c_library_use(name: &str) -> Option<&'static str> {
         Some("the macro of <errno.h>, which a program may include beside the header")
     } else if name == "main" {
         Some("the function every C program defines, which the object would clash with")
+    } else if ["unix", "linux", "i386"].contains(&name) {
+        Some("a macro the compilers' default GNU dialects predefine (-std=gnu11, gnu++17)")
+    } else if name == "NDEBUG" {
+        Some("the macro a release build defines (-DNDEBUG: every CMake Release build)")
     } else {
         None
     }
