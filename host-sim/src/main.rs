@@ -153,6 +153,14 @@ impl Subject {
     /// --policy without an --envelope measured for it.
     fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
         let monitored = kinds.iter().any(|k| k.monitored());
+        if self.envelope.is_some() && !monitored {
+            let found: Vec<String> = kinds.iter().map(ToString::to_string).collect();
+            anyhow::bail!(
+                "--envelope is read by --controller monitored or monitored-int alone; expected \
+                 one of them, found {}",
+                found.join(", ")
+            );
+        }
         if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
             anyhow::bail!(
                 "--controller monitored needs the envelope measured for --policy {}: give \
@@ -403,18 +411,22 @@ fn report(a: &EvalArgs, rows: &[Row]) -> Result<bool> {
     Ok(met_min_success(a, rows))
 }
 
-/// Whether the policy met `--min-success` in every row; the rows it did not are named.
+/// Whether the network met `--min-success` in every row it drove (as float, integer or
+/// monitored policy: `policy-int` at 0% passed); the rows it did not are named.
 fn met_min_success(a: &EvalArgs, rows: &[Row]) -> bool {
     let failing: Vec<&Row> = rows
         .iter()
         .filter(|r| {
-            r.controller == ControllerKind::Policy.to_string()
+            a.controllers()
+                .iter()
+                .any(|k| k.runs_policy() && r.controller == k.to_string())
                 && a.min_success.is_some_and(|m| r.success_rate < m)
         })
         .collect();
     for r in &failing {
         host_common::errln!(
-            "policy below --min-success on {} at horizon {}: {:.1}%",
+            "{} below --min-success on {} at horizon {}: {:.1}%",
+            r.controller,
             r.scenario,
             r.horizon,
             100.0 * r.success_rate

@@ -342,3 +342,34 @@ fn the_names_of_outputs_and_pil_places_are_printed_escaped() {
         "{err}"
     );
 }
+
+#[test]
+fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_monitor() {
+    let exe = env!("CARGO_BIN_EXE_host-sim");
+    let run = |args: &[&str]| Command::new(exe).arg("eval").args(args).output().unwrap();
+    // Pushes no controller survives: the integer network's rows fail too.
+    let o = run(&[
+        "--controller",
+        "policy-int",
+        "--scenario",
+        "push=50/5",
+        "--episodes",
+        "3",
+        "--min-success",
+        "1",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("policy-int below --min-success on push=50/5"),
+        "{err}"
+    );
+    let envelope = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results/envelope.json");
+    let o = run(&["--controller", "lqr", "--envelope", envelope]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--envelope is read by --controller monitored"),
+        "{err}"
+    );
+}

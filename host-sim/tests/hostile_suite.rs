@@ -103,10 +103,17 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
         s.join("render"),
     );
     let eval = |flag: &str| {
-        let nominal: Vec<OsString> = "eval --episodes 1 --scenario nominal --controller policy"
-            .split(' ')
-            .map(OsString::from)
-            .collect();
+        // The envelope is read by the monitored controller alone.
+        let controller = if flag == "--envelope" {
+            "monitored"
+        } else {
+            "policy"
+        };
+        let nominal: Vec<OsString> =
+            format!("eval --episodes 1 --scenario nominal --controller {controller}")
+                .split(' ')
+                .map(OsString::from)
+                .collect();
         with_bad([nominal, os(&[&flag, &BAD_PATH])].concat())
     };
     let agree = |flag: &str| with_bad(os(&[&"agree", &"--states", &"1", &flag, &BAD_PATH]));
