@@ -135,6 +135,13 @@ impl Scenario {
                     part.spec.key
                 ));
             }
+            // A factor on a damping the machine does not have scales nothing (Gymnasium's).
+            if part.spec.key == "damping" && rig.params.motor_damping == 0.0 {
+                return Err(format!(
+                    "scenario {shown}: damping changes nothing on a machine without motor \
+                     damping; expected another part, or a rig that has some"
+                ));
+            }
             let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
             s.apply(&part, &values);
         }

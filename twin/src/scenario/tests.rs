@@ -155,6 +155,11 @@ fn bad_specs_are_rejected_with_the_reason() {
             "takes single values, not ranges or shares",
         ),
         ("noise@0.5", "takes single values, not ranges or shares"),
+        // Gymnasium's machine has no motor damping to scale.
+        (
+            "damping=2",
+            "damping changes nothing on a machine without motor damping",
+        ),
         // A discount the board's f32 would hold as a subnormal.
         (
             "encoder=2400/15000/1e-40",
