@@ -63,7 +63,7 @@ pub const PARTS: &[PartSpec] = &[
         fields: &[FACTOR],
         syntax: "damping=F",
         doc: "F times the motor's damping (back-EMF and drag, N s/m; none on Gymnasium's \
-              machine, so nothing to scale there)",
+              machine, where it is refused)",
         stiff_high: true,
         idle: Idle::First(1.0),
     },
