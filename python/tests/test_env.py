@@ -117,3 +117,15 @@ def test_a_seed_past_64_bits_or_a_float_is_refused_naming_seed(make):
         env.reset(seed=1.7)
     assert np.array_equal(env.reset(seed=np.int64(7))[0], env.reset(seed=7)[0])
     assert env.reset(seed=2**64 - 1)[0].shape == env.observation_space.shape
+
+
+@pytest.mark.parametrize(
+    "make",
+    [cartpole_ddqn.TwinEnv, cartpole_ddqn.SwingUpEnv, lambda: cartpole_ddqn.TwinVectorEnv(2)],
+)
+def test_reset_options_are_refused_not_ignored(make):
+    env = make()
+    with pytest.raises(ValueError, match="^options: expected None"):
+        env.reset(seed=1, options={"low": -0.01, "high": 0.01})
+    env.reset(seed=1, options=None)
+    env.reset(seed=1, options={})

@@ -7,11 +7,22 @@ import json
 import numbers
 import operator
 import os
+import reprlib
 import sys
 
 import numpy as np
 
 from . import _native
+
+_SHORT = reprlib.Repr()
+_SHORT.maxstring = _SHORT.maxother = _SHORT.maxlong = 200
+
+
+def _short(value):
+    """``repr(value)`` cut to about 200 characters, never built whole: a refusal of a huge
+    argument (a set of 10**8 levels) would build a repr of a gigabyte to show 200 of it."""
+    return _SHORT.repr(value)
+
 
 # The most episodes of a row, periods of an episode and rows of one evaluation: `host-sim eval`'s.
 MAX_EPISODES = _native.MAX_EPISODES
@@ -90,7 +101,7 @@ def _items(value, name, expected):
             return iter(value)
         except TypeError:
             pass
-    raise TypeError(f"{name} must be {expected}; found {type(value).__name__} {value!r:.200}")
+    raise TypeError(f"{name} must be {expected}; found {type(value).__name__} {_short(value)}")
 
 
 _LEVELS = "a list of duty levels, numbers (fractions of the full push)"
@@ -104,7 +115,7 @@ def _level(v):
             return float(v)
         except (TypeError, ValueError):
             pass
-    raise TypeError(f"levels must be {_LEVELS}; found the item {v!r:.200} ({type(v).__name__})")
+    raise TypeError(f"levels must be {_LEVELS}; found the item {_short(v)} ({type(v).__name__})")
 
 
 def _levels(levels):
@@ -138,7 +149,7 @@ def _check_dtype(name, dtype):
     except (TypeError, ValueError):
         ok = False
     if not ok:
-        raise ValueError(f"tensor {name!r:.200}: expected float32, float64 or float16 values; found {text!r:.200}")
+        raise ValueError(f"tensor {_short(name)}: expected float32, float64 or float16 values; found {_short(text)}")
 
 
 def _shape(name, value):
@@ -152,7 +163,7 @@ def _shape(name, value):
         # A list could be measured only by converting it, and a list sharing one inner list
         # a thousand times converts to a thousand copies: a state dict holds arrays.
         raise ValueError(
-            f"tensor {name!r:.200}: expected an array or a tensor (with a dtype and a shape); "
+            f"tensor {_short(name)}: expected an array or a tensor (with a dtype and a shape); "
             f"found {type(value).__name__}"
         )
     _check_dtype(name, dtype)
@@ -162,7 +173,7 @@ def _shape(name, value):
         dims = None
     # No NumPy or PyTorch dimension passes sys.maxsize, and the native side takes none that does.
     if dims is None or not all(0 <= d <= sys.maxsize for d in dims):
-        raise ValueError(f"tensor {name!r:.200}: expected a shape of whole numbers; found {shape!r:.200}")
+        raise ValueError(f"tensor {_short(name)}: expected a shape of whole numbers; found {_short(shape)}")
     return dims
 
 
@@ -229,7 +240,7 @@ def _horizon(h):
     try:
         return operator.index(h)
     except TypeError:
-        raise ValueError(f"horizon must be a whole number of periods; found {h!r:.200}") from None
+        raise ValueError(f"horizon must be a whole number of periods; found {_short(h)}") from None
 
 
 def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,
@@ -283,13 +294,13 @@ def _argument(a):
     which JSON cannot carry; it is recorded as U+FFFD, as the tools record their own."""
     if isinstance(a, (bytes, bytearray)):
         # str() would record the repr, b'...', not the argument.
-        raise TypeError(f"argv must be a list of arguments as str; found the item {a!r:.200}")
+        raise TypeError(f"argv must be a list of arguments as str; found the item {_short(a)}")
     text = a if isinstance(a, str) else str(a)
     try:
         return text.encode("utf-8", "surrogateescape").decode("utf-8", "replace")
     except UnicodeEncodeError:
         raise ValueError(
-            f"argv: expected arguments as text, a surrogate only for a byte sys.argv escapes; found {text!r:.200}"
+            f"argv: expected arguments as text, a surrogate only for a byte sys.argv escapes; found {_short(text)}"
         ) from None
 
 

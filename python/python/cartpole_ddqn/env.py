@@ -24,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from .api import _items, _levels
+from .api import _items, _levels, _short
 
 # The most worlds a vector environment holds.
 MAX_ENVS = _native.MAX_ENVS
@@ -52,6 +52,18 @@ def _seed_from(rng):
     return int(rng.integers(0, 2**63))
 
 
+def _no_options(options):
+    """Refuses reset options: Gymnasium's CartPole takes a start range there (``low``,
+    ``high``), but the twin draws its starts from the seed's own streams, so options would
+    be ignored without a word. None or an empty dict (Gymnasium's checker passes one) ask
+    for nothing."""
+    if not (options is None or (isinstance(options, dict) and not options)):
+        raise ValueError(
+            "options: expected None or {} (the twin draws its starts from the seed), found "
+            f"{type(options).__name__} {_short(options)}"
+        )
+
+
 def _seed(seed, most=_SEEDS - 1, name="seed"):
     """A seed as Gymnasium's ``reset(seed=)`` takes one, a Python int of at least 0 (a bool
     among them), or a NumPy integer, returned as a Python int for Gymnasium's seeding. A
@@ -60,7 +72,7 @@ def _seed(seed, most=_SEEDS - 1, name="seed"):
         value = operator.index(seed)
     except TypeError:
         raise TypeError(
-            f"{name} must be an int (a whole number, as Gymnasium takes one); found {seed!r:.200} "
+            f"{name} must be an int (a whole number, as Gymnasium takes one); found {_short(seed)} "
             f"({type(seed).__name__})"
         ) from None
     if not 0 <= value <= most:
@@ -136,6 +148,7 @@ class TwinEnv(gymnasium.Env):
         self._seeded = False
 
     def reset(self, *, seed=None, options=None):
+        _no_options(options)
         seed = None if seed is None else _seed(seed)
         super().reset(seed=seed)
         if seed is None and not self._seeded:
@@ -216,6 +229,7 @@ class TwinVectorEnv(VectorEnv):
         environment's generator), an int as Gymnasium takes one (or a NumPy integer), or a
         list of ``num_envs`` of them, one per world, None among them drawing that world's
         as Gymnasium's ``SyncVectorEnv`` does. Every seed is below 2**64."""
+        _no_options(options)
         n = self.num_envs
         if isinstance(seed, (int, np.integer)):
             seed = _seed(seed, _SEEDS - n, name="seed (world i takes seed + i)")
@@ -278,6 +292,7 @@ class SwingUpEnv(gymnasium.Env):
         self.action_space = spaces.Discrete(len(self._world.levels))
 
     def reset(self, *, seed=None, options=None):
+        _no_options(options)
         seed = None if seed is None else _seed(seed)
         super().reset(seed=seed)
         if seed is None:
