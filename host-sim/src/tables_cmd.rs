@@ -9,9 +9,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, anyhow};
 use clap::Args;
+use host_sim::batch::Batch;
 use host_sim::manifest::{self, Manifest};
 use host_sim::tables::{self, RESULTS_DIR, Stale, pages, values};
-use weights::files::write_atomic;
 
 #[derive(Args)]
 #[command(after_help = format!("{}\n\n{}", tables::OPTIONS_HELP, values::HELP))]
@@ -51,6 +51,9 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
             }
         }
     }
+    // Every document and page put in place together, or none (a full disk half-way left
+    // one page rewritten).
+    let mut batch = Batch::default();
     let mut found = 0;
     for (doc, new, stale) in &updates {
         if a.check {
@@ -58,14 +61,22 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
                 host_common::errln!("{}:{}: {}", weights::shown(doc), s.line, s.what);
             }
         } else if !stale.is_empty() {
-            write_atomic(&root.join(doc), new.as_bytes())?;
+            let place = root.join(doc);
+            weights::files::write_new(&batch.file(&place)?, new.as_bytes()).map_err(|e| {
+                weights::Error::Io(format!("writing {}: {e}", weights::shown(&place)))
+            })?;
+        }
+        found += stale.len();
+    }
+    batch.commit()?;
+    if !a.check {
+        for (doc, _, stale) in updates.iter().filter(|u| !u.2.is_empty()) {
             host_common::outln!(
                 "{}: {} tables, values or pages written",
                 weights::shown(doc),
                 stale.len()
             );
         }
-        found += stale.len();
     }
     if a.check && found > 0 {
         host_common::errln!(

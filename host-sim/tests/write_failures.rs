@@ -291,3 +291,24 @@ fn a_batch_dropped_uncommitted_removes_its_temporaries_and_its_directories() {
     assert_eq!(entries(&t.0), ["kept"]);
     assert!(entries(&t.join("kept")).is_empty());
 }
+
+#[test]
+fn tables_on_a_full_disk_rewrites_no_document() {
+    let t = Scratch::new("tables");
+    std::fs::create_dir_all(t.join("docs/results")).unwrap();
+    std::fs::write(t.join("Cargo.toml"), "[workspace]\n").unwrap();
+    std::fs::copy(
+        repo("docs/results/eval-shipped.json"),
+        t.join("docs/results/r.json"),
+    )
+    .unwrap();
+    // A small stale document, then a page of the results file far over the limit.
+    let doc = "It fails <!-- value: docs/results/r.json scenario=nominal horizon=500 \
+               controller=policy failures -->99<!-- /value --> times.\n";
+    let a = t.join("docs/A.md");
+    std::fs::write(&a, doc).unwrap();
+    let o = limited(4096, &["tables", "--root", s(&t.0)]);
+    failed_writing(&o, &t.join("docs/results/r.md"), "File too large");
+    assert_eq!(read(&a), doc.as_bytes());
+    assert_eq!(entries(&t.join("docs/results")), ["r.json"]);
+}
