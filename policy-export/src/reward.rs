@@ -85,17 +85,32 @@ impl Reward {
             return Ok(r);
         }
         let shown = weights::quote(spec);
+        let mut seen = Vec::new();
         for part in spec.split('+') {
             let (key, value) = match part.split_once('=') {
                 Some((k, v)) => (k, Some(v)),
                 None => (part, None),
             };
+            // A part given again would replace the first, which a reader of the spec cannot
+            // tell; a weight of 0 or a scale of 1 changes nothing.
+            if seen.contains(&key) {
+                return Err(format!(
+                    "reward {shown}: expected each part once, found {} again",
+                    weights::quote(key)
+                ));
+            }
+            seen.push(key);
+            let idle = if key == "scale" { 1.0 } else { 0.0 };
             let number = || -> Result<f64, String> {
                 value
                     .and_then(|v| v.parse::<f64>().ok())
-                    .filter(|v| v.is_finite() && v.abs() <= 1e6)
+                    .filter(|v| v.is_finite() && v.abs() <= 1e6 && weights::plain(*v))
+                    .filter(|v| key == "fail-penalty" || *v != idle)
                     .ok_or_else(|| {
-                        format!("reward {shown}: {key} needs a number in [-1e6, 1e6], e.g. {key}=1")
+                        format!(
+                            "reward {shown}: {key} needs a number in [-1e6, 1e6], zero or \
+                             normal, other than {idle} (which changes nothing), e.g. {key}=2"
+                        )
                     })
             };
             match key {
@@ -245,6 +260,17 @@ mod tests {
             ("scale", "scale needs a number"),
             ("upright=nan", "upright needs a number"),
             ("morvan=2", "unknown part"),
+            // Given again, the last replaced the first; at a value that changes nothing, or a
+            // subnormal, it was a slip taken without a word.
+            (
+                "upright=1+upright=2",
+                "expected each part once, found \"upright\" again",
+            ),
+            ("env+env", "found \"env\" again"),
+            ("smooth=0", "other than 0 (which changes nothing)"),
+            ("scale=1", "other than 1"),
+            ("fail-penalty=5e-324", "zero or normal"),
+            ("upright=1e-40", "zero or normal"),
         ] {
             let e = Reward::parse(spec).unwrap_err();
             assert!(e.contains(want), "{spec}: {e}");
