@@ -94,6 +94,18 @@ pub enum Idle {
     Every(f64),
 }
 
+impl PartSpec {
+    /// The fields that decide whether the part changes nothing, and the value at which each
+    /// does ([`Idle`]); `None` for a part that always changes something.
+    pub fn idle_fields(&self) -> Option<(&'static [Field], f64)> {
+        match self.idle {
+            Idle::Never => None,
+            Idle::First(v) => Some((&self.fields[..1], v)),
+            Idle::Every(v) => Some((self.fields, v)),
+        }
+    }
+}
+
 /// A part is known by its key.
 impl PartialEq for PartSpec {
     fn eq(&self, other: &PartSpec) -> bool {
@@ -253,10 +265,8 @@ fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
         (None, Fallback::Value(v)) => Some(v),
         _ => None,
     };
-    let (fields, at) = match spec.idle {
-        Idle::Never => return Ok(()),
-        Idle::First(v) => (&spec.fields[..1], v),
-        Idle::Every(v) => (spec.fields, v),
+    let Some((fields, at)) = spec.idle_fields() else {
+        return Ok(());
     };
     if !(0..fields.len()).all(|i| point(i) == Some(at)) {
         return Ok(());

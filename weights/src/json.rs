@@ -3,8 +3,9 @@
 //! name. Into a generic value ([`value`]: results files compared, figures looked up) every
 //! value is kept, and costs tens of bytes however short its text (`0,` is two bytes and a
 //! 32-byte value; an object of one key, a whole map node): so the text is read twice, its
-//! values weighed first, keeping nothing, and one heavier than [`MAX_WEIGHT`] is refused
-//! before any is kept.
+//! values weighed first, keeping no value (only the keys of the objects being weighed, to
+//! refuse one given twice), and one heavier than [`MAX_WEIGHT`] is refused before any is
+//! kept.
 
 use std::cell::Cell;
 use std::collections::BTreeSet;
@@ -45,7 +46,8 @@ pub fn value(text: &str) -> Result<Value, String> {
 
 /// What `text`'s values weigh ([`OBJECT_WEIGHT`] an object, [`KEY_WEIGHT`] each of its keys,
 /// [`ARRAY_WEIGHT`] an array, 1 any other value), read
-/// without keeping any but one object's keys at a time; refused past [`MAX_WEIGHT`], with a
+/// without keeping any (only the keys of the objects being weighed: an object's, and its
+/// enclosing objects', while its values are); refused past [`MAX_WEIGHT`], with a
 /// key given twice in one object, or if it is not JSON.
 pub fn weight(text: &str) -> Result<u64, String> {
     let mut de = serde_json::Deserializer::from_str(text);

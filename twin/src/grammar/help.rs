@@ -1,6 +1,6 @@
 //! The parts' table as people read it: the syntax list, a flag's help, the Markdown table.
 
-use super::{Fallback, Field, Idle, PARTS, PartSpec};
+use super::{Fallback, Field, PARTS, PartSpec};
 
 /// Every part's syntax, comma-separated: what an error lists and the help shows.
 pub fn syntax_list() -> String {
@@ -51,10 +51,8 @@ fn describe(f: &Field) -> String {
 
 /// The values a part is refused at, as the table shows them.
 fn idle(p: &PartSpec) -> String {
-    let (fields, at) = match p.idle {
-        Idle::Never => return String::new(),
-        Idle::First(v) => (&p.fields[..1], v),
-        Idle::Every(v) => (p.fields, v),
+    let Some((fields, at)) = p.idle_fields() else {
+        return String::new();
     };
     let names: Vec<&str> = fields.iter().map(|f| f.name).collect();
     format!(
