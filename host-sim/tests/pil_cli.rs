@@ -86,19 +86,20 @@ fn answers() -> Vec<(&'static str, Vec<u8>, &'static str)> {
     ]
 }
 
-#[test]
-fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
-    let s = Scratch::new("pil-cli");
-    let eval = |rest: &[&dyn AsRef<std::ffi::OsStr>]| -> Vec<OsString> {
-        let head: [&dyn AsRef<std::ffi::OsStr>; 5] =
-            [&"eval", &"--episodes", &"1", &"--scenario", &"nominal"];
-        head.iter()
-            .chain(rest)
-            .map(|a| a.as_ref().to_owned())
-            .collect()
-    };
+/// `eval` of one nominal episode, then `rest`.
+fn eval(rest: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
+    let head: [&dyn AsRef<std::ffi::OsStr>; 5] =
+        [&"eval", &"--episodes", &"1", &"--scenario", &"nominal"];
+    head.iter()
+        .chain(rest)
+        .map(|a| a.as_ref().to_owned())
+        .collect()
+}
+
+/// Places and flags the rules refuse before any target answers.
+fn bad_places(s: &Scratch) -> Vec<Case> {
     let echo = "exec:/bin/cat";
-    let mut cases = vec![
+    vec![
         Case::new(
             "no place".into(),
             &eval(&[&"--pil", &"usb"]),
@@ -177,7 +178,13 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
             // Which the host sees first: the exit, or its output closing.
             &["ended", "closed the link"],
         ),
-    ];
+    ]
+}
+
+#[test]
+fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
+    let s = Scratch::new("pil-cli");
+    let mut cases = bad_places(&s);
     let dir = s.join("targets");
     std::fs::create_dir(&dir).unwrap();
     for (name, bytes, want) in answers() {
