@@ -9,6 +9,13 @@ use std::process::{Command, Output};
 use host_sim::identify::synthetic::{self, Reading, Zero};
 use twin::Machine;
 
+// The shared harness: its listings.
+#[allow(dead_code)]
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
+
+use hostile::entries;
+
 fn scratch(name: &str) -> PathBuf {
     let dir = std::env::temp_dir().join(format!("identify-cli-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -61,15 +68,6 @@ fn inputs(dir: &Path) -> [PathBuf; 3] {
     std::fs::write(&paths[1], swing).unwrap();
     std::fs::write(&paths[2], twin::rigfile::to_toml(&measured)).unwrap();
     paths
-}
-
-fn entries(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 #[test]

@@ -11,36 +11,19 @@ use std::process::{Command, Output};
 
 use host_sim::batch::Batch;
 
+// The shared harness: its scratch directories and listings.
+#[allow(dead_code)]
+#[path = "../../host-common/tests/support/hostile.rs"]
+mod hostile;
+
+use hostile::{Scratch, entries};
+
 fn exe() -> &'static str {
     env!("CARGO_BIN_EXE_host-sim")
 }
 
 fn repo(path: &str) -> String {
     format!("{}/../{path}", env!("CARGO_MANIFEST_DIR"))
-}
-
-/// A directory of the test's own, removed when the test passes.
-struct Scratch(PathBuf);
-
-impl Scratch {
-    fn new(name: &str) -> Scratch {
-        let d = std::env::temp_dir().join(format!("write-failures-{name}-{}", std::process::id()));
-        let _ = std::fs::remove_dir_all(&d);
-        std::fs::create_dir_all(&d).unwrap();
-        Scratch(d)
-    }
-
-    fn join(&self, p: &str) -> PathBuf {
-        self.0.join(p)
-    }
-}
-
-impl Drop for Scratch {
-    fn drop(&mut self) {
-        if !std::thread::panicking() {
-            let _ = std::fs::remove_dir_all(&self.0);
-        }
-    }
 }
 
 fn s(p: &Path) -> &str {
@@ -74,16 +57,6 @@ fn failed_writing(o: &Output, file: &Path, what: &str) {
     for debug in ["BackendError", "Os {", "kind:", "Error("] {
         assert!(!err.contains(debug), "{err}");
     }
-}
-
-/// The names in `dir`, sorted.
-fn entries(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
 }
 
 fn read(p: &Path) -> Vec<u8> {

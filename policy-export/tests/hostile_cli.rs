@@ -2,7 +2,7 @@
 //! that never end, runs that diverge. Every refusal exits 2 before any work, names what was
 //! expected and what was found, quotes little of the input, and touches nothing.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::{Command, Output};
 
 // The shared harness: its runner of refusals and its FIFOs.
@@ -10,7 +10,7 @@ use std::process::{Command, Output};
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::mkfifo;
+use hostile::{entries, mkfifo};
 
 fn exe() -> Command {
     Command::new(env!("CARGO_BIN_EXE_policy-export"))
@@ -157,15 +157,6 @@ fn outputs_that_are_not_the_tools_are_refused_before_the_work() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-fn names(dir: &Path) -> Vec<String> {
-    let mut names: Vec<String> = std::fs::read_dir(dir)
-        .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-        .collect();
-    names.sort();
-    names
-}
-
 #[test]
 fn a_run_directory_is_replaced_whole_only_while_it_holds_only_the_runs_files() {
     let dir = scratch("whole");
@@ -201,7 +192,7 @@ fn a_run_directory_is_replaced_whole_only_while_it_holds_only_the_runs_files() {
     assert_ne!(first, second);
     // The second run replaced the whole directory.
     assert_eq!(
-        names(&out),
+        entries(&out),
         [
             ".cartpole-run",
             "metrics.csv",
@@ -213,7 +204,7 @@ fn a_run_directory_is_replaced_whole_only_while_it_holds_only_the_runs_files() {
     let summary: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("summary.json")).unwrap()).unwrap();
     assert_eq!(summary["seed"], 2);
-    assert_eq!(names(&dir), [".run.4000000001.partial", "run"]);
+    assert_eq!(entries(&dir), [".run.4000000001.partial", "run"]);
     // Another tool's marker, or another kind's, is not this run's.
     std::fs::write(
         out.join(".cartpole-run"),

@@ -127,6 +127,17 @@ impl Drop for Scratch {
     }
 }
 
+/// The names in `dir`, sorted (the file-writing suites', not the hostile suites').
+#[allow(dead_code)]
+pub fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
 /// Every entry under `dir` (not following links), with its kind, length and contents for
 /// regular files: what a refused command must leave exactly as it was.
 fn snapshot(dir: &Path) -> BTreeMap<PathBuf, (String, Vec<u8>)> {
