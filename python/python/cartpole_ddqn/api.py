@@ -310,9 +310,11 @@ def _argv(argv):
     items = _items(argv, "argv", "a list of arguments (str)")
     args, size = [], 0
     for a in itertools.islice(items, _MAX_ARGS + 1):
-        text = _argument(a)
-        # A str's characters bound its bytes from below: a gigabyte is refused unencoded.
-        size += _ARG_OVERHEAD + (len(text) if len(text) > _ARGV_BYTES else len(text.encode("utf-8")))
+        # A str's characters bound its bytes from below: one longer than a command line is
+        # refused before it is copied to be encoded.
+        long = isinstance(a, str) and len(a) > _ARGV_BYTES
+        text = "" if long else _argument(a)
+        size = _ARGV_BYTES + 1 if long else size + _ARG_OVERHEAD + len(text.encode("utf-8"))
         args.append(text)
         if len(args) > _MAX_ARGS or size > _ARGV_BYTES:
             found = f"over {_MAX_ARGS} arguments" if len(args) > _MAX_ARGS else f"more by argument {len(args)}"
