@@ -57,12 +57,12 @@ fn target_dir() -> PathBuf {
 fn main() {
     let mut places = Vec::new();
     let host = target_dir().join("release/pil");
-    match Place::parse(&format!("exec:{}", host.display()), None, Board::Shipped) {
+    match Place::parse(format!("exec:{}", host.display()), None, Board::Shipped) {
         Ok(p) => places.push(p),
         Err(e) => println!("skipped: {e}"),
     }
     for m in &MACHINES {
-        match Place::parse(&format!("qemu:{}", m.target), None, Board::Shipped) {
+        match Place::parse(format!("qemu:{}", m.target), None, Board::Shipped) {
             Ok(p) => places.push(p),
             Err(e) => println!("skipped: {e}"),
         }

@@ -31,7 +31,7 @@ pub struct PilArgs {
     /// Each period is compared with the same controller code run here; exits 1 on any
     /// difference.
     #[arg(long, value_name = "SPEC")]
-    pub pil: Option<String>,
+    pub pil: Option<std::ffi::OsString>,
     /// The `pil` application's ELF for `--pil qemu:TARGET` [default: cargo's release build
     /// of it for TARGET].
     #[arg(long, value_name = "PATH", requires = "pil")]

@@ -6,6 +6,7 @@
 //! within the timeout given.
 
 use std::ffi::OsString;
+use std::os::unix::ffi::OsStrExt;
 use std::os::unix::fs::PermissionsExt;
 use std::path::{Path, PathBuf};
 
@@ -99,7 +100,19 @@ fn eval(rest: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
 /// Places and flags the rules refuse before any target answers.
 fn bad_places(s: &Scratch) -> Vec<Case> {
     let echo = "exec:/bin/cat";
+    // A program whose name is not UTF-8 is started (and ends at once), not refused unread.
+    let odd = s
+        .join("t")
+        .with_file_name(std::ffi::OsStr::from_bytes(b"t\xff"));
+    std::fs::copy("/bin/true", &odd).unwrap();
+    let mut odd_place = OsString::from("exec:");
+    odd_place.push(&odd);
     vec![
+        Case::new(
+            "a program named in bytes that are not UTF-8".into(),
+            &eval(&[&"--pil", &odd_place]),
+            &["ended", "closed the link"],
+        ),
         Case::new(
             "no place".into(),
             &eval(&[&"--pil", &"usb"]),

@@ -76,7 +76,7 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     let scenarios = scenarios();
     for target in mcu_targets() {
         let elf = build_app("pil", Some(&target));
-        let place = Place::parse(&format!("qemu:{target}"), Some(&elf), Board::Shipped).unwrap();
+        let place = Place::parse(format!("qemu:{target}"), Some(&elf), Board::Shipped).unwrap();
         let mut remote = Session::new(place.start(WATCHDOG).unwrap());
         let mut here = reference();
         for format in [Format::F32, Format::Int8] {
@@ -173,7 +173,7 @@ fn on_every_target_a_policy_of_nine_levels_answers_as_the_controller_here() {
     assert_eq!(levels.len(), 9);
     for target in mcu_targets() {
         let elf = build_app(Board::Desk.app(), Some(&target));
-        let place = Place::parse(&format!("qemu:{target}"), Some(&elf), Board::Desk).unwrap();
+        let place = Place::parse(format!("qemu:{target}"), Some(&elf), Board::Desk).unwrap();
         let seen = Rc::new(RefCell::new(Seen::default()));
         let remote = place.start(WATCHDOG).unwrap();
         let mut remote = Session::new(Noting {
@@ -260,7 +260,7 @@ fn the_c_application_answers_as_the_rust_one() {
 #[test]
 fn the_host_build_of_the_pil_application_gives_evals_rows() {
     let exe = build_app("pil", None);
-    let place = Place::parse(&format!("exec:{}", exe.display()), None, Board::Shipped).unwrap();
+    let place = Place::parse(format!("exec:{}", exe.display()), None, Board::Shipped).unwrap();
     let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let mut scenarios = scenarios();
@@ -310,7 +310,7 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
     let (board, host) = serialport::TTYPort::pair().unwrap();
     let path = host.name().expect("the host's end of the pair has a name");
     let _board = std::thread::spawn(move || board_on(board));
-    let place = Place::parse(&format!("serial:{path}"), None, Board::Shipped).unwrap();
+    let place = Place::parse(format!("serial:{path}"), None, Board::Shipped).unwrap();
     let mut remote = Session::new(place.start(WATCHDOG).unwrap());
     let mut here = reference();
     let s = Scenario::parse("encoder+drop=40+reset=150+noise+push").unwrap();

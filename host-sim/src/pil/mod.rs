@@ -10,6 +10,8 @@
 //! - `serial`: a board on a serial port.
 //! - `run`: episodes over the link, their statistics, the comparison and the target's time.
 
+use std::ffi::OsStr;
+use std::os::unix::ffi::OsStrExt;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
@@ -106,12 +108,20 @@ impl Place {
     /// `elf` for QEMU (by default the release build for the target of the application that
     /// holds `board`); refused, naming what was expected, when the target is unknown or the
     /// file is missing.
-    pub fn parse(spec: &str, elf: Option<&Path>, board: Board) -> Result<Place> {
-        // Quoted (escaped and cut) wherever a message shows them.
-        let (q, shown) = (weights::quote, weights::quote(spec));
+    pub fn parse(spec: impl AsRef<OsStr>, elf: Option<&Path>, board: Board) -> Result<Place> {
+        let spec = spec.as_ref();
+        // Quoted (escaped and cut) wherever a message shows them; a path need not be UTF-8,
+        // so the place is split from the spec's bytes.
+        let (q, shown) = (weights::quote, weights::quote(&spec.to_string_lossy()));
         let targets = || MACHINES.map(|m| m.target).join(", ");
-        let place = match spec.split_once(':') {
+        let bytes = spec.as_bytes();
+        let split = bytes.iter().position(|&b| b == b':').map(|i| {
+            let kind = std::str::from_utf8(&bytes[..i]).unwrap_or("");
+            (kind, Path::new(OsStr::from_bytes(&bytes[i + 1..])))
+        });
+        let place = match split {
             Some(("qemu", target)) => {
+                let target = target.to_str().unwrap_or("");
                 let Some(machine) = MACHINES.iter().find(|m| m.target == target) else {
                     bail!(
                         "--pil qemu:TARGET: TARGET must be one of {}, found {}",
@@ -130,13 +140,15 @@ impl Place {
                 }
                 Place::Qemu { machine, elf }
             }
-            Some(("exec", path)) if Path::new(path).is_file() => Place::Exec(path.into()),
-            Some(("exec", path)) => bail!("--pil exec:PATH: no program at {}", q(path)),
-            Some(("serial", path)) if is_char_device(Path::new(path)) => Place::Serial(path.into()),
+            Some(("exec", path)) if path.is_file() => Place::Exec(path.into()),
+            Some(("exec", path)) => {
+                bail!("--pil exec:PATH: no program at {}", weights::shown(path))
+            }
+            Some(("serial", path)) if is_char_device(path) => Place::Serial(path.into()),
             Some(("serial", path)) => {
                 bail!(
                     "--pil serial:PATH: expected a serial port (a character device) at {}",
-                    q(path)
+                    weights::shown(path)
                 )
             }
             _ => bail!(
