@@ -66,11 +66,19 @@ pub fn export(
             )));
         }
     };
-    let granularity = match granularity {
-        None => Granularity::default(),
-        Some("per-channel") => Granularity::PerChannel,
-        Some("per-tensor") => Granularity::PerTensor,
-        Some(g) => {
+    let granularity = match (granularity, int) {
+        (None, _) => Granularity::default(),
+        // It chooses how int8 weights share a scale: without quant it would change nothing,
+        // and the command refuses --granularity without --quant.
+        (Some(g), false) => {
+            return Err(value_error(format!(
+                "granularity needs quant=\"int8\" (it chooses how int8 weights share a \
+                 scale); found granularity={g:?} without quant"
+            )));
+        }
+        (Some("per-channel"), true) => Granularity::PerChannel,
+        (Some("per-tensor"), true) => Granularity::PerTensor,
+        (Some(g), true) => {
             return Err(value_error(format!(
                 "granularity must be \"per-channel\" or \"per-tensor\"; found {g:?}"
             )));

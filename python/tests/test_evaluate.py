@@ -97,3 +97,19 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
     for kwargs, why in cases:
         with pytest.raises(ValueError, match=re.escape(why)):
             cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 10, **kwargs})
+
+
+@pytest.mark.parametrize(
+    "what, value",
+    [("scenario", {"noise": 5, "delay": 3}), ("scenario", {"noise", "delay"}), ("controller", {"lqr", "rule"}),
+     ("controller", {"lqr": 1}), ("horizon", {10, 20})],
+)
+def test_a_dict_or_a_set_as_a_list_raises_type_error(what, value):
+    """A dict would be read by its keys, its values dropped; a set's order would be the rows'."""
+    kind = type(value).__name__
+    with pytest.raises(TypeError, match=f"^{what} must be a {what} or a list of them; found {kind} "):
+        cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 2, what: value})
+    rows = cartpole_ddqn.evaluate(scenario=("noise", "delay"), controller=["lqr", "rule"], episodes=1, horizon=2)
+    assert [(r["scenario"], r["controller"]) for r in rows] == [
+        ("noise", "lqr"), ("noise", "rule"), ("delay", "lqr"), ("delay", "rule")
+    ]

@@ -83,6 +83,8 @@ def test_big_endian_arrays_export_as_their_values_do(tmp_path, order):
         (dict(quant="int4"), "quant"),
         (dict(name="not an identifier"), "name"),
         (dict(granularity="per-row", quant="int8"), "granularity"),
+        # Without quant it would be dropped; the command refuses --granularity without --quant.
+        (dict(granularity="per-tensor"), 'granularity needs quant="int8"'),
     ],
 )
 def test_refusals_raise_value_error_and_write_nothing(tmp_path, kwargs, words):

@@ -91,17 +91,27 @@ def _path(p):
 _MAX_LEVELS = 2001
 
 
+def _listlike(value, name, expected):
+    """``value``, refused with TypeError if it iterates but is no list of items: a str or
+    bytes would be read character by character ("01" as the levels 0 and 1), a set in no
+    order, a dict by its keys (its values dropped)."""
+    if isinstance(value, (str, bytes, bytearray, memoryview, collections.abc.Set, collections.abc.Mapping)):
+        raise _not_a_list(value, name, expected)
+    return value
+
+
+def _not_a_list(value, name, expected):
+    return TypeError(f"{name} must be {expected}; found {type(value).__name__} {_short(value)}")
+
+
 def _items(value, name, expected):
-    """An iterator over a list argument's items, refusing with TypeError what iterates but
-    is no list of them: a str or bytes would be read character by character ("01" as the
-    levels 0 and 1), a set in no order, a dict by its keys."""
-    text = isinstance(value, (str, bytes, bytearray, memoryview))
-    if not text and not isinstance(value, (collections.abc.Set, collections.abc.Mapping)):
-        try:
-            return iter(value)
-        except TypeError:
-            pass
-    raise TypeError(f"{name} must be {expected}; found {type(value).__name__} {_short(value)}")
+    """An iterator over a list argument's items (``_listlike``); TypeError for what does not
+    iterate at all."""
+    value = _listlike(value, name, expected)
+    try:
+        return iter(value)
+    except TypeError:
+        raise _not_a_list(value, name, expected) from None
 
 
 _LEVELS = "a list of duty levels, numbers (fractions of the full push)"
@@ -211,10 +221,15 @@ def export(source, out, fmt="rust", quant=None, name=None, rig=None, prefix=None
     return out
 
 
+# What a list argument of evaluate's may be alone, one item. A float alone is one horizon
+# too, refused by name where horizons are read (_horizon).
+_ONE = (str, int, float, np.integer, np.floating)
+
+
 def _count(value):
     """How many items a list argument holds (a str or a whole number alone is one), by
     ``len()`` where it has one; None where only iterating would tell."""
-    if isinstance(value, (str, int, float, np.integer, np.floating)):
+    if isinstance(value, _ONE):
         return 1
     try:
         return len(value)
@@ -223,11 +238,16 @@ def _count(value):
         return None
 
 
+def _listed(value, what):
+    """A list argument of evaluate's as given: one item alone, or a list refused as
+    ``_listlike`` refuses (a set's order would be the rows')."""
+    return value if isinstance(value, _ONE) else _listlike(value, what, f"a {what} or a list of them")
+
+
 def _list(value, what):
     """A list argument's items, at most one more than ``MAX_ROWS``: more make too many rows
     whatever the other lists hold, and a ``len()`` that lies builds no more."""
-    # A float alone is one horizon too, refused by name where horizons are read (_horizon).
-    if isinstance(value, (str, int, float, np.integer, np.floating)):
+    if isinstance(value, _ONE):
         return [value]
     values = list(itertools.islice(value, MAX_ROWS + 1))
     if not values:
@@ -259,12 +279,14 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     for what, value in (("episodes", episodes), ("seed", seed)):
         if not isinstance(value, (int, np.integer)) or value < 0:
             raise ValueError(f"{what} must be a whole number of at least 0; found {value!r}")
+    given = ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))
+    named = [(_listed(v, w), w) for v, w in given]
     # Counted before any list is built: a range of thirty million horizons is refused as
     # it is, not as a list of them. A list counted only by iterating holds one item at least
     # (none is refused), and is read to one item past the limit at most.
-    counts = [_count(v) for v in (horizon, scenario, controller)]
+    counts = [_count(v) for v, _ in named]
     _native.check_count(*[1 if c is None else c for c in counts])
-    lists = [_list(v, w) for v, w in ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))]
+    lists = [_list(v, w) for v, w in named]
     _native.check_count(*[len(v) for v in lists])
     horizons, scenarios, controllers = lists
     rows = _native.evaluate_json(
