@@ -15,7 +15,7 @@ use weights::files::{check_io, write_atomic};
 use weights::levels::GivenLevels;
 use weights::quant::Granularity;
 
-use crate::value_error;
+use crate::{file_error, value_error};
 
 /// One tensor handed over from Python: safetensors dtype name, shape, little-endian bytes.
 type Tensor = (String, Vec<usize>, Vec<u8>);
@@ -119,7 +119,7 @@ pub fn export(
         &name,
     )
     .map_err(|e| value_error(format!("{e:#}")))?;
-    write_atomic(&out, r.text.as_bytes()).map_err(value_error)?;
+    write_atomic(&out, r.text.as_bytes()).map_err(file_error)?;
     Ok(import.describe())
 }
 
@@ -137,8 +137,8 @@ fn from_file(src: &Path, f: &Found) -> PyResult<(Import, Vec<String>)> {
     let read = policy_export::run::export_inputs(src);
     let mut inputs: Vec<(&str, &Path)> = read.iter().map(|p| ("source", p.as_path())).collect();
     inputs.extend(f.rig.map(|r| ("rig", r)));
-    check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
-    let import = checkpoint::load_with(src, f.prefix, f.levels).map_err(value_error)?;
+    check_io(&inputs, &[("out", f.out)]).map_err(file_error)?;
+    let import = checkpoint::load_with(src, f.prefix, f.levels).map_err(file_error)?;
     let provenance = policy_export::run::source_provenance(src, &import)
         .map_err(|e| value_error(format!("{e:#}")))?;
     Ok((import, provenance))
@@ -155,7 +155,7 @@ fn from_tensors(
     f: &Found,
 ) -> PyResult<(Import, Vec<String>)> {
     let inputs: Vec<(&str, &Path)> = f.rig.map(|r| ("rig", r)).into_iter().collect();
-    check_io(&inputs, &[("out", f.out)]).map_err(value_error)?;
+    check_io(&inputs, &[("out", f.out)]).map_err(file_error)?;
     let names: Vec<&str> = shapes.keys().map(String::as_str).collect();
     let chosen =
         checkpoint::choose(&names, |n| shapes[n].as_slice(), f.prefix).map_err(value_error)?;

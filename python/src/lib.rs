@@ -8,7 +8,7 @@ use std::fmt::Display;
 use std::ops::Range;
 use std::path::Path;
 
-use pyo3::exceptions::{PyMemoryError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use twin::Machine;
 use weights::levels::GivenLevels;
@@ -24,6 +24,17 @@ mod swing;
 /// says what was expected and what was found.
 pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// A file refused or not written, as the tools tell them apart: bad input as `ValueError`
+/// (their exit status 2), a failure of the system's (a full disk) as `OSError` (their 1), so
+/// a caller catching `OSError` for a full disk sees it.
+pub(crate) fn file_error(e: weights::Error) -> PyErr {
+    if e.is_input() {
+        value_error(e)
+    } else {
+        PyOSError::new_err(e.to_string())
+    }
 }
 
 /// An allocation that failed, as the `MemoryError` Python callers expect, saying what it

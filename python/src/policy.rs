@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use twin::Machine;
 use weights::checkpoint::{self, Import};
 
-use crate::{interruptible, reserve, value_error};
+use crate::{file_error, interruptible, reserve, value_error};
 
 /// A Q-network and the machine it runs on.
 #[pyclass(module = "cartpole_ddqn._native", frozen)]
@@ -39,7 +39,7 @@ pub fn load(
 ) -> PyResult<Policy> {
     let given = crate::given_machine(rig.as_deref())?;
     let levels = crate::given_levels(levels)?;
-    let import = checkpoint::load_with(&path, prefix, levels.as_ref()).map_err(value_error)?;
+    let import = checkpoint::load_with(&path, prefix, levels.as_ref()).map_err(file_error)?;
     let source = format!("policy {}", weights::shown(&path));
     let recorded = twin::rigfile::recorded(&import.metadata, &source).map_err(value_error)?;
     let machine = twin::rigfile::choose(given, recorded);

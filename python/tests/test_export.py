@@ -1,6 +1,8 @@
 """Export: the files `policy-export export` writes, byte for byte, from a path and from
 in-memory state dicts; nothing written on a refusal."""
 
+import subprocess
+import sys
 import tracemalloc
 
 import numpy as np
@@ -92,6 +94,34 @@ def test_refusals_raise_value_error_and_write_nothing(tmp_path, kwargs, words):
     with pytest.raises(ValueError, match=words):
         cartpole_ddqn.export(REPO / "shipped" / "policy.safetensors", out=out, **kwargs)
     assert list(tmp_path.iterdir()) == []
+
+
+# Writes under a file size limit of 1000 bytes (a module is some 20 KB), SIGXFSZ ignored so
+# the write fails with EFBIG as on a full disk; set after the import, whose caches it spares.
+FULL_DISK = """
+import resource, signal, sys
+import cartpole_ddqn
+from conftest import read_safetensors
+source = sys.argv[1] if sys.argv[3] == "path" else read_safetensors(sys.argv[1])
+signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
+resource.setrlimit(resource.RLIMIT_FSIZE, (1000, 1000))
+try:
+    cartpole_ddqn.export(source, out=sys.argv[2])
+except OSError as e:
+    print(type(e).__name__, e)
+"""
+
+
+@pytest.mark.parametrize("source", ["path", "state dict"])
+def test_a_write_that_fails_raises_os_error_not_value_error(tmp_path, source):
+    """A full disk is the system's failure, not bad input: OSError, as the command exits 1
+    there (2 for bad input); nothing is left behind."""
+    out = tmp_path / "out" / "policy.rs"
+    args = [sys.executable, "-c", FULL_DISK, REPO / "shipped" / "policy.safetensors", out, source]
+    done = subprocess.run(args, cwd=REPO / "python" / "tests", capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.startswith(f"OSError writing {out}: File too large"), done.stdout
+    assert list(out.parent.iterdir()) == []
 
 
 def test_a_dict_without_the_network_is_refused(tmp_path):
