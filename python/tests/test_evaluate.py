@@ -113,3 +113,23 @@ def test_a_dict_or_a_set_as_a_list_raises_type_error(what, value):
     assert [(r["scenario"], r["controller"]) for r in rows] == [
         ("noise", "lqr"), ("noise", "rule"), ("delay", "lqr"), ("delay", "rule")
     ]
+
+
+def test_a_seed_past_64_bits_or_a_name_as_bytes_is_refused_naming_the_argument():
+    """As reset(seed=) takes a seed; bytes were read byte by byte ("108" for b"lqr") or
+    named by their repr."""
+    run = dict(controller="lqr", episodes=1, horizon=2)
+    cases = [
+        (dict(seed=2**64), ValueError, "seed must be in [0, 18446744073709551615]; found 18446744073709551616"),
+        (dict(seed=-1), ValueError, "seed must be in [0, 18446744073709551615]; found -1"),
+        (dict(seed=1.5), TypeError, "seed must be an int (a whole number, as Gymnasium takes one); found 1.5"),
+        (dict(controller=b"lqr"), TypeError, "controller must be a controller or a list of them; found bytes b'lqr'"),
+        (dict(scenario=bytearray(b"noise")), TypeError, "scenario must be a scenario or a list of them; found"),
+    ]
+    for what, item in (("controller", b"lqr"), ("scenario", b"noise")):
+        why = f"{what} must be a {what} or a list of them (str); found the item {item!r}"
+        cases.append(({what: [item]}, TypeError, why))
+    for kwargs, kind, why in cases:
+        with pytest.raises(kind, match="^" + re.escape(why)):
+            cartpole_ddqn.evaluate(**{**run, **kwargs})
+    assert len(cartpole_ddqn.evaluate(seed=2**64 - 1, **run)) == 1

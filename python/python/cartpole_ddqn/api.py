@@ -255,12 +255,40 @@ def _list(value, what):
     return values
 
 
+def _names(values, what):
+    """A list of names, each a str: str() would name bytes by their repr (b'lqr')."""
+    for v in values:
+        if not isinstance(v, str):
+            raise TypeError(f"{what} must be a {what} or a list of them (str); found the item {_short(v)}")
+    return values
+
+
 def _horizon(h):
     """A horizon as a whole number of periods: 200.7 is refused, not cut to 200."""
     try:
         return operator.index(h)
     except TypeError:
         raise ValueError(f"horizon must be a whole number of periods; found {_short(h)}") from None
+
+
+# The native worlds take a seed as an unsigned 64-bit integer.
+_SEEDS = 2**64
+
+
+def _seed(seed, most=_SEEDS - 1, name="seed"):
+    """A seed as Gymnasium's ``reset(seed=)`` takes one, a Python int of at least 0 (a bool
+    among them), or a NumPy integer, returned as a Python int for Gymnasium's seeding. A
+    float is refused, not truncated: 1.7 would replay seed 1's episodes."""
+    try:
+        value = operator.index(seed)
+    except TypeError:
+        raise TypeError(
+            f"{name} must be an int (a whole number, as Gymnasium takes one); found {_short(seed)} "
+            f"({type(seed).__name__})"
+        ) from None
+    if not 0 <= value <= most:
+        raise ValueError(f"{name} must be in [0, {most}]; found {value}")
+    return value
 
 
 def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,
@@ -276,9 +304,9 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     a second."""
     if policy is not None and not isinstance(policy, Policy):
         raise ValueError(f"expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
-    for what, value in (("episodes", episodes), ("seed", seed)):
-        if not isinstance(value, (int, np.integer)) or value < 0:
-            raise ValueError(f"{what} must be a whole number of at least 0; found {value!r}")
+    if not isinstance(episodes, (int, np.integer)) or episodes < 0:
+        raise ValueError(f"episodes must be a whole number of at least 0; found {episodes!r}")
+    seed = _seed(seed)
     given = ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))
     named = [(_listed(v, w), w) for v, w in given]
     # Counted before any list is built: a range of thirty million horizons is refused as
@@ -291,11 +319,11 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     horizons, scenarios, controllers = lists
     rows = _native.evaluate_json(
         None if policy is None else policy._native,
-        [str(s) for s in scenarios],
-        [str(c) for c in controllers],
+        _names(scenarios, "scenario"),
+        _names(controllers, "controller"),
         int(episodes),
         [_horizon(h) for h in horizons],
-        int(seed),
+        seed,
         _path(rig),
         _levels(levels),
     )

@@ -24,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from .api import _items, _levels, _short
+from .api import _SEEDS, _items, _levels, _seed, _short
 
 # The most worlds a vector environment holds.
 MAX_ENVS = _native.MAX_ENVS
@@ -43,10 +43,6 @@ def _observation_space(x_threshold, theta_threshold):
     return spaces.Box(-high, high, dtype=np.float32)
 
 
-# The native worlds take a seed as an unsigned 64-bit integer.
-_SEEDS = 2**64
-
-
 def _seed_from(rng):
     """A 64-bit seed drawn from Gymnasium's generator, for an unseeded reset."""
     return int(rng.integers(0, 2**63))
@@ -62,22 +58,6 @@ def _no_options(options):
             "options: expected None or {} (the twin draws its starts from the seed), found "
             f"{type(options).__name__} {_short(options)}"
         )
-
-
-def _seed(seed, most=_SEEDS - 1, name="seed"):
-    """A seed as Gymnasium's ``reset(seed=)`` takes one, a Python int of at least 0 (a bool
-    among them), or a NumPy integer, returned as a Python int for Gymnasium's seeding. A
-    float is refused, not truncated: 1.7 would replay seed 1's episodes."""
-    try:
-        value = operator.index(seed)
-    except TypeError:
-        raise TypeError(
-            f"{name} must be an int (a whole number, as Gymnasium takes one); found {_short(seed)} "
-            f"({type(seed).__name__})"
-        ) from None
-    if not 0 <= value <= most:
-        raise ValueError(f"{name} must be in [0, {most}]; found {value}")
-    return value
 
 
 def _envelope(envelope):
