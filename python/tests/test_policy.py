@@ -2,6 +2,7 @@
 NumPy forward pass and the simulator's command line."""
 
 import json
+import re
 
 import numpy as np
 import pytest
@@ -44,6 +45,42 @@ def test_q_values_agree_with_numpy_and_act_takes_the_larger():
     assert np.array_equal(policy.act(obs)[clear], np.argmax(want, axis=1)[clear])
     assert policy.q_values(obs.reshape(40, 50, 4)).shape == (40, 50, 2)
     assert policy.act(obs[0]) in (0, 1)
+
+
+def with_value(value, at=(1, 2), dtype=np.float32):
+    obs = states(3).astype(dtype)
+    obs[at] = value
+    return obs
+
+
+@pytest.mark.parametrize(
+    "obs, found",
+    [
+        (with_value(np.nan), "finite in float32; found nan at [1, 2]"),
+        (with_value(-np.inf), "finite in float32; found -inf at [1, 2]"),
+        (with_value(1e300, dtype=np.float64), "finite in float32; found 1e+300 at [1, 2]"),
+        (with_value(1e39, at=(2, 0), dtype=np.float64), "finite in float32; found 1e+39 at [2, 0]"),
+        (np.array([0.1, None, 0.0, 0.0]), "that are real numbers; found None at [1]"),
+        ([[0, 0, 0, 0], [0, 0, 0, 2**128]], f"finite in float32; found {2**128} at [1, 3]"),
+        ([0, 0, 10**400, 0], "finite in float32; found 1000000000000"),
+        ([[0, 0, 0, 0], [0, 0, 0, "x"]], "that are real numbers; found <U21 readings, the first '0' at [0, 0]"),
+        (np.array([1 + 2j, 0, 0, 0]), "that are real numbers; found complex128 readings, the first (1+2j) at [0]"),
+    ],
+)
+def test_readings_that_are_no_finite_real_numbers_are_refused_naming_obs(obs, found):
+    """NaN turns every ReLU off, so the network answered a constant no state chose; None
+    became NaN, 1e300 an infinity in float32, a complex number lost its imaginary part."""
+    policy = cartpole_ddqn.shipped()
+    for call in (policy.q_values, policy.act):
+        with pytest.raises(ValueError, match="^" + re.escape(f"obs: expected readings {found}")):
+            call(obs)
+    # Valid readings beside them: float64, Python numbers, a strided view, a batch of batches.
+    obs = states(6)
+    assert np.array_equal(policy.q_values(obs.astype(np.float64)), policy.q_values(obs))
+    assert np.array_equal(policy.q_values(np.array([*obs[0].tolist()[:3], 0], dtype=object)),
+                          policy.q_values([*obs[0][:3], 0]))
+    assert np.array_equal(policy.act(np.repeat(obs, 2, axis=1)[:, ::2]), policy.act(obs))
+    assert policy.q_values(obs.reshape(2, 3, 4)).shape == (2, 3, 2)
 
 
 def test_loaded_policy_evaluates_as_the_command_line_does(tools):

@@ -60,13 +60,56 @@ class Policy:
         return f"Policy({self._native.describe})"
 
 
+_NOT_REAL = "obs: expected readings that are real numbers; found"
+
+
 def _readings(obs):
-    obs = np.ascontiguousarray(obs, dtype=np.float32)
-    if obs.ndim == 0 or obs.shape[-1] != 4:
+    """Readings as the network takes them, float32 ``[..., 4]``, refused with ValueError
+    naming ``obs`` where they are no real numbers (None, text, complex) or not finite in
+    float32 (NaN, an infinity, 1e300): the network answered them all the same, and NaN
+    turns every ReLU off, so its answer was a constant no state chose."""
+    source = np.asarray(obs)
+    if source.ndim == 0 or source.shape[-1] != 4:
         raise ValueError(
-            f"expected readings shaped [..., 4] ([x, x_dot, theta, theta_dot]); found shape {obs.shape}"
+            f"obs: expected readings shaped [..., 4] ([x, x_dot, theta, theta_dot]); found shape {source.shape}"
         )
-    return obs
+    given = _real_items(source) if source.dtype == object else source
+    if given.dtype.kind not in "biuf":
+        first = f", the first {_item(given, 0)} at {[0] * given.ndim}" if given.size else ""
+        raise ValueError(f"{_NOT_REAL} {given.dtype} readings{first}")
+    # Past float32's range a value becomes an infinity: refused below, shown as given.
+    with np.errstate(over="ignore"):
+        readings = np.ascontiguousarray(given, dtype=np.float32)
+    finite = np.isfinite(readings)
+    if not finite.all():
+        k = int(np.argmin(finite))
+        raise ValueError(f"obs: expected readings finite in float32; found {_item(source, k)} at {_at(source, k)}")
+    return readings
+
+
+def _item(array, k):
+    """The ``k``-th item of ``array`` (in C order) as Python shows it, cut."""
+    v = array.flat[k]
+    return _short(v.item() if isinstance(v, np.generic) else v)
+
+
+def _at(array, k):
+    return list(map(int, np.unravel_index(k, array.shape)))
+
+
+def _real_items(source):
+    """An object array's items as float64, each a real number (None became NaN); an int
+    past float64's range as an infinity, refused as past float32's."""
+    values = np.empty(source.shape, dtype=np.float64)
+    flat = values.reshape(-1)
+    for k, v in enumerate(source.flat):
+        if not isinstance(v, numbers.Real):
+            raise ValueError(f"{_NOT_REAL} {_item(source, k)} at {_at(source, k)}")
+        try:
+            flat[k] = v
+        except OverflowError:
+            flat[k] = np.inf
+    return values
 
 
 def load(path, prefix=None, rig=None, levels=None):
