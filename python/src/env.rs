@@ -186,6 +186,12 @@ impl Twin {
         ))
     }
 
+    /// Ends the episode: the next step() needs a reset() first, as before the first one
+    /// (it stepped on from the last state).
+    fn close(&mut self) {
+        self.lane = None;
+    }
+
     /// The duty level each action drives, a fraction of the full push.
     #[getter]
     fn levels(&self) -> Vec<f32> {
@@ -386,6 +392,11 @@ impl VecTwin {
         (Motor::NAMES.iter().enumerate())
             .map(|(k, &name)| (name, PyArray1::from_vec(py, column(k))))
             .collect()
+    }
+
+    /// Ends every world's episode: the next step() needs a reset() first.
+    fn close(&mut self) {
+        self.lanes.clear();
     }
 
     /// The plants' true states `[n, 4]` (f64).

@@ -102,6 +102,11 @@ impl SwingUp {
         Ok((obs, reward, terminated, truncated, duty))
     }
 
+    /// Ends the episode: the next step() needs a reset() first.
+    fn close(&mut self) {
+        self.running = None;
+    }
+
     /// The period, s; how far the cart may go from the centre before the episode ends, and
     /// where the end stops hold it, m.
     #[getter]

@@ -129,3 +129,26 @@ def test_reset_options_are_refused_not_ignored(make):
         env.reset(seed=1, options={"low": -0.01, "high": 0.01})
     env.reset(seed=1, options=None)
     env.reset(seed=1, options={})
+
+
+@pytest.mark.parametrize(
+    "make, action",
+    [
+        (cartpole_ddqn.TwinEnv, 0),
+        (cartpole_ddqn.SwingUpEnv, 0),
+        (lambda: cartpole_ddqn.TwinVectorEnv(2), np.zeros(2, dtype=np.int64)),
+    ],
+)
+def test_a_step_before_reset_or_after_close_is_refused(make, action):
+    """As Gymnasium's CartPole asks for reset() first: the twin stepped on from the episode
+    its constructor read the world from, or from the last state after close()."""
+    env = make()
+    with pytest.raises((RuntimeError, ValueError), match="reset"):
+        env.step(action)
+    env.reset(seed=0)
+    env.step(action)
+    env.close()
+    with pytest.raises((RuntimeError, ValueError), match="reset"):
+        env.step(action)
+    env.reset(seed=0)
+    env.step(action)

@@ -123,6 +123,9 @@ class TwinEnv(gymnasium.Env):
         self._monitored = envelope is not None
         self._twin.reset(0)
         name, self.tau, x_limit, theta_limit = self._twin.world
+        # The world is read from an episode that is no caller's: stepping it would step from
+        # its start, where Gymnasium's CartPole asks for reset() first.
+        self._twin.close()
         self.observation_space = _observation_space(x_limit, theta_limit)
         self.action_space = spaces.Discrete(len(self._twin.levels))
         self._seeded = False
@@ -145,6 +148,11 @@ class TwinEnv(gymnasium.Env):
         if terminated or truncated:
             info.update(self._twin.motor())
         return obs, 1.0, terminated, truncated, info
+
+    def close(self):
+        """Ends the episode: step() then needs a reset() first."""
+        self._twin.close()
+        super().close()
 
     @property
     def levels(self):
@@ -241,6 +249,10 @@ class TwinVectorEnv(VectorEnv):
                 info[name], info["_" + name] = values, ended
         return obs, reward, terminated, truncated, info
 
+    def close_extras(self, **kwargs):
+        """Ends every world's episode: step() then needs a reset() first."""
+        self._twin.close()
+
     @property
     def states(self):
         """The plants' true states ``[num_envs, 4]`` (float64)."""
@@ -282,6 +294,11 @@ class SwingUpEnv(gymnasium.Env):
     def step(self, action):
         obs, reward, terminated, truncated, duty = self._world.step(_action(action, self.action_space.n))
         return obs, reward, terminated, truncated, {"duty": duty}
+
+    def close(self):
+        """Ends the episode: step() then needs a reset() first."""
+        self._world.close()
+        super().close()
 
     @property
     def levels(self):
