@@ -83,6 +83,9 @@ fn an_episode_is_drawn_beside_the_json_and_an_episode_past_the_run_is_refused() 
     let v = desk(&[
         "--episodes",
         "2",
+        // Every period of the drawn episode is a frame: a short hold keeps it a few hundred.
+        "--hold",
+        "2",
         "--render",
         dir.to_str().unwrap(),
         "--episode",
