@@ -134,6 +134,11 @@ fn levels_missing_miscounted_contradicted_or_malformed_exit_2_naming_the_flag() 
         ),
         ("1,0,-1", "expected strictly increasing"),
         ("", "found none"),
+        // Below f32's least subnormal: read as f32, a zero that passed.
+        (
+            "-1,5e-324,1",
+            "expected each zero or a normal number, found 5e-324",
+        ),
     ] {
         refused(&onnx_file, &["--levels", spec], &[says]);
     }

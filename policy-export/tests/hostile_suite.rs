@@ -273,6 +273,20 @@ fn bad_policies(s: &Scratch) -> Vec<Case> {
             &["prefix"],
         ));
     }
+    // Levels below f32's least subnormal were read as f32 first: a zero that passed.
+    for (levels, found) in [
+        ("-1,5e-324", "found 5e-324"),
+        ("-5e-324,1", "found -5e-324"),
+        ("-1,1e-46", "found 1e-46"),
+        ("-1,1e-50", "found 1e-50"),
+    ] {
+        let flag = format!("--levels={levels}");
+        let export = os(&[&"export", &p, &flag, &"--out", &out]);
+        let train = os(&[&"train", &"--preset", &"fast", &"--print-config", &flag]);
+        for (what, args) in [("export", export), ("train", train)] {
+            cases.push(Case::new(format!("{what} {flag}"), &args, &[found]));
+        }
+    }
     // Every weight finite, every output infinite.
     let huge = s.join("huge.safetensors");
     uniform_policy(&huge, 1e30, "");

@@ -47,7 +47,7 @@ pub(crate) fn horizon(max_episode_steps: Option<i64>) -> PyResult<u32> {
 }
 
 /// The duty levels `levels=` gives (checked as `--levels`), or the paper's two.
-pub(crate) fn levels(levels: Option<Vec<f32>>) -> PyResult<Handed> {
+pub(crate) fn levels(levels: Option<Vec<f64>>) -> PyResult<Handed> {
     match crate::given_levels(levels)? {
         Some(given) => Handed::new(&given).map_err(value_error),
         None => Ok(Handed::bang_bang()),
@@ -102,7 +102,7 @@ type WorldArgs<'a> = (Option<&'a str>, Option<&'a str>, Option<PathBuf>);
 impl Setup {
     fn new(
         (scenario, domain, rig): WorldArgs<'_>,
-        (levels, max_episode_steps): (Option<Vec<f32>>, Option<i64>),
+        (levels, max_episode_steps): (Option<Vec<f64>>, Option<i64>),
         predict: bool,
         envelope: Option<PathBuf>,
     ) -> PyResult<Setup> {
@@ -144,7 +144,7 @@ impl Twin {
         max_episode_steps: Option<i64>,
         predict: bool,
         envelope: Option<PathBuf>,
-        levels: Option<Vec<f32>>,
+        levels: Option<Vec<f64>>,
     ) -> PyResult<Twin> {
         let (world, run) = ((scenario, domain, rig), (levels, max_episode_steps));
         Ok(Twin {
@@ -289,7 +289,7 @@ impl VecTwin {
         max_episode_steps: Option<i64>,
         predict: bool,
         envelope: Option<PathBuf>,
-        levels: Option<Vec<f32>>,
+        levels: Option<Vec<f64>>,
     ) -> PyResult<VecTwin> {
         let (world, run) = ((scenario, domain, rig), (levels, max_episode_steps));
         Ok(VecTwin {

@@ -37,7 +37,7 @@ pub fn evaluate_json(
     horizons: Vec<u32>,
     seed: u64,
     rig: Option<PathBuf>,
-    levels: Option<Vec<f32>>,
+    levels: Option<Vec<f64>>,
 ) -> PyResult<String> {
     host_common::cli::check_threads_env().map_err(value_error)?;
     if !(1..=MAX_EPISODES).contains(&episodes) {
@@ -168,7 +168,7 @@ impl Job {
 }
 
 /// Refuses `levels` other than the policy's (to the thousandth, as the bridge drives them).
-fn same_levels(policy: &Policy, levels: Option<Vec<f32>>) -> PyResult<()> {
+fn same_levels(policy: &Policy, levels: Option<Vec<f64>>) -> PyResult<()> {
     let Some(given) = crate::given_levels(levels)? else {
         return Ok(());
     };

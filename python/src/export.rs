@@ -46,7 +46,7 @@ pub fn export(
     rig: Option<PathBuf>,
     prefix: Option<&str>,
     granularity: Option<&str>,
-    levels: Option<Vec<f32>>,
+    levels: Option<Vec<f64>>,
 ) -> PyResult<String> {
     let lang = match fmt {
         "rust" => Language::Rust,

@@ -77,9 +77,9 @@ pub(crate) fn interruptible(
 }
 
 /// The duty levels a caller gave as `levels=`, checked as the firmware checks them.
-pub(crate) fn given_levels(levels: Option<Vec<f32>>) -> PyResult<Option<GivenLevels>> {
+pub(crate) fn given_levels(levels: Option<Vec<f64>>) -> PyResult<Option<GivenLevels>> {
     levels
-        .map(|l| GivenLevels::new(l, "levels"))
+        .map(|l| GivenLevels::new(&l, "levels"))
         .transpose()
         .map_err(value_error)
 }

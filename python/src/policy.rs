@@ -35,7 +35,7 @@ pub fn load(
     path: PathBuf,
     prefix: Option<&str>,
     rig: Option<PathBuf>,
-    levels: Option<Vec<f32>>,
+    levels: Option<Vec<f64>>,
 ) -> PyResult<Policy> {
     let given = crate::given_machine(rig.as_deref())?;
     let levels = crate::given_levels(levels)?;

@@ -55,7 +55,7 @@ impl SwingUp {
     fn new(
         rig: Option<PathBuf>,
         max_episode_steps: Option<i64>,
-        levels: Option<Vec<f32>>,
+        levels: Option<Vec<f64>>,
     ) -> PyResult<SwingUp> {
         let machine = crate::machine(rig.as_deref())?;
         let limits = machine.rig.limits().map_err(value_error)?;

@@ -61,6 +61,9 @@ def test_action_i_drives_level_i_as_gymnasiums_cartpole_pushed_with_its_force(se
         ([0.5, 0.2], "levels"),
         ([-1.5, 1.0], "levels"),
         ([float("nan"), 1.0], "levels"),
+        # Below float32's least subnormal: narrowed first, a zero that passed.
+        ([-1.0, 5e-324], "found 5e-324"),
+        ([-1.0, 1e-46], "found 1e-46"),
     ],
 )
 def test_bad_levels_raise_value_error_naming_levels(levels, words):

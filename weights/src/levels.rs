@@ -28,8 +28,9 @@ pub struct GivenLevels {
 impl GivenLevels {
     /// `levels` (fractions of the full push, one per output) given by the argument `by`;
     /// refused as the firmware refuses levels ([`check_levels`]).
-    pub fn new(levels: Vec<f32>, by: &'static str) -> Result<GivenLevels> {
-        check(&levels).map_err(|e| Error::Input(format!("{by} {}: {e}", show(&levels))))?;
+    pub fn new(levels: &[f64], by: &'static str) -> Result<GivenLevels> {
+        let levels =
+            narrow(levels).map_err(|e| Error::Input(format!("{by} {}: {e}", show(levels))))?;
         Ok(GivenLevels { levels, by })
     }
 
@@ -78,33 +79,41 @@ pub fn parse_levels(spec: &str, by: &str) -> Result<Vec<f32>> {
     let levels = spec
         .split(',')
         .map(|v| {
-            v.trim().parse::<f32>().map_err(|_| {
+            v.trim().parse::<f64>().map_err(|_| {
                 refuse(format!(
                     "expected comma-separated numbers, found {}",
                     quote(v)
                 ))
             })
         })
-        .collect::<Result<Vec<f32>>>()?;
-    check(&levels).map_err(refuse)?;
-    Ok(levels)
+        .collect::<Result<Vec<f64>>>()?;
+    narrow(&levels).map_err(refuse)
 }
 
-/// Why `levels` are not ones the firmware takes ([`check_levels`]), each zero or normal: a
-/// subnormal (`1e-40`) is a slip the board rounds to off, while the file would keep it.
-fn check(levels: &[f32]) -> std::result::Result<(), String> {
-    check_levels(levels).map_err(|e| e.to_string())?;
-    match levels.iter().find(|l| **l != 0.0 && !l.is_normal()) {
-        Some(l) => Err(format!(
+/// `levels` as the board holds them, or why they are not ones the firmware takes
+/// ([`check_levels`]) or not each zero or normal ([`crate::plain`]). They are checked before
+/// narrowing: a subnormal is a slip the board rounds to off, and one below f32's least
+/// (`5e-324`) would become a zero that passes.
+fn narrow(levels: &[f64]) -> std::result::Result<Vec<f32>, String> {
+    if let Some(l) = levels.iter().find(|l| l.is_finite() && !crate::plain(**l)) {
+        return Err(format!(
             "levels: expected each zero or a normal number, found {l:e}"
-        )),
-        None => Ok(()),
+        ));
     }
+    let narrowed: Vec<f32> = levels.iter().map(|&l| l as f32).collect();
+    check_levels(&narrowed).map_err(|e| e.to_string())?;
+    Ok(narrowed)
 }
 
-/// `levels` for a message: `[-1, -0.2, 0, 0.2, 1]`, a long list cut.
-fn show(levels: &[f32]) -> String {
-    format!("[{}]", few(levels.iter().map(f32::to_string), 12))
+/// `levels` for a message: `[-1, -0.2, 0, 0.2, 1]`, each shortest (`5e-324`, not its 324
+/// digits), a long list cut.
+fn show<T: std::fmt::Debug>(levels: &[T]) -> String {
+    let one = |l: &T| {
+        let s = format!("{l:?}");
+        s.strip_suffix(".0")
+            .map_or_else(|| s.clone(), str::to_string)
+    };
+    format!("[{}]", few(levels.iter().map(one), 12))
 }
 
 /// The duty levels of a network of `outputs` outputs read from a file with `metadata`: the
@@ -148,7 +157,7 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
     let Some(text) = metadata.get(LEVELS_KEY) else {
         return Ok(None);
     };
-    let levels: Vec<f32> = serde_json::from_str(text).map_err(|e| {
+    let levels: Vec<f64> = serde_json::from_str(text).map_err(|e| {
         Error::Input(format!(
             "the file's duty levels {}: expected a list of numbers ({})",
             quote(text),
@@ -161,9 +170,9 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
             levels.len()
         )));
     }
-    check(&levels)
-        .map_err(|e| Error::Input(format!("the file's duty levels {}: {e}", show(&levels))))?;
-    Ok(Some(levels))
+    narrow(&levels)
+        .map(Some)
+        .map_err(|e| Error::Input(format!("the file's duty levels {}: {e}", show(&levels))))
 }
 
 /// Whether two lists of levels drive the same duties.
@@ -180,7 +189,7 @@ mod tests {
 
     #[test]
     fn given_levels_agree_with_a_policys_to_the_thousandth() {
-        let given = GivenLevels::new(vec![-1.0, 0.2, 1.0], "levels").unwrap();
+        let given = GivenLevels::new(&[-1.0, 0.2, 1.0], "levels").unwrap();
         assert!(given.agree(&[-1.0, 0.2004, 1.0]).is_ok());
         let e = given.agree(&[-1.0, 1.0]).unwrap_err().to_string();
         assert!(
@@ -210,6 +219,14 @@ mod tests {
                 "-1,1e-40,1",
                 "expected each zero or a normal number, found 1e-40",
             ),
+            // Below f32's least subnormal: read as f32 first, these were a zero that passed.
+            (
+                "-1,5e-324",
+                "expected each zero or a normal number, found 5e-324",
+            ),
+            ("-5e-324,1", "found -5e-324"),
+            ("-1,1e-46,1", "found 1e-46"),
+            ("-1,1e-50,1", "found 1e-50"),
             ("0.2,0.2004", "expected strictly increasing"),
             ("-1,0,1.5", "expected within [-1, 1]"),
             ("-1,NaN", "expected a finite number"),
@@ -228,20 +245,25 @@ mod tests {
 
     #[test]
     fn given_levels_are_checked_as_the_firmware_checks_them() {
-        let ok = GivenLevels::new(vec![-1.0, 0.0, 1.0], "levels").unwrap();
+        let ok = GivenLevels::new(&[-1.0, 0.0, 1.0], "levels").unwrap();
         assert_eq!(ok.levels(), [-1.0, 0.0, 1.0]);
-        let e = GivenLevels::new(vec![0.5, -0.5], "levels").unwrap_err();
+        let e = GivenLevels::new(&[0.5, -0.5], "levels").unwrap_err();
         assert_eq!(
             e.to_string(),
             "levels [0.5, -0.5]: levels: expected strictly increasing"
         );
-        let e = GivenLevels::new(vec![], "levels").unwrap_err().to_string();
+        let e = GivenLevels::new(&[-1.0, 5e-324], "levels").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "levels [-1, 5e-324]: levels: expected each zero or a normal number, found 5e-324"
+        );
+        let e = GivenLevels::new(&[], "levels").unwrap_err().to_string();
         assert!(e.contains("expected at least two"), "{e}");
-        let many: Vec<f32> = (0..1000).map(|i| i as f32 / 1000.0).collect();
-        assert!(GivenLevels::new(many.clone(), "levels").is_ok());
+        let many: Vec<f64> = (0..1000).map(|i| f64::from(i) / 1000.0).collect();
+        assert!(GivenLevels::new(&many, "levels").is_ok());
         let mut bad = many;
         bad.push(2.0);
-        let e = GivenLevels::new(bad, "levels").unwrap_err().to_string();
+        let e = GivenLevels::new(&bad, "levels").unwrap_err().to_string();
         assert!(e.contains("and 989 more") && e.len() < 300, "{e}");
     }
 
@@ -317,6 +339,11 @@ mod tests {
             ),
             ("[1, -1]", 2, "expected strictly increasing"),
             ("[-2, 1]", 2, "expected within [-1, 1]"),
+            (
+                "[-1, 5e-324]",
+                2,
+                "expected each zero or a normal number, found 5e-324",
+            ),
         ] {
             let e = of_file(&meta(Some(text)), n, None).unwrap_err();
             assert!(e.is_input() && e.to_string().contains(says), "{text}: {e}");

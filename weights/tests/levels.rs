@@ -60,7 +60,8 @@ fn files(outputs: usize) -> [(Vec<u8>, Option<&'static str>, Format); 3] {
 }
 
 fn given(levels: &[f32]) -> GivenLevels {
-    GivenLevels::new(levels.to_vec(), "--levels").unwrap()
+    let wide: Vec<f64> = levels.iter().copied().map(f64::from).collect();
+    GivenLevels::new(&wide, "--levels").unwrap()
 }
 
 /// The network's Q-values in f64, from its tensors (weight `[out][in]`, ReLU between).
