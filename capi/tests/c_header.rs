@@ -284,6 +284,10 @@ fn awkward(width: usize) -> Weights {
     Weights::new(width, weights::BANG_BANG.to_vec(), tensors).unwrap()
 }
 
+/// A name beside the standard headers' reserved patterns (`str` and a lowercase letter),
+/// outside them: it compiles beside the headers that reserve them.
+const NEAR_RESERVED: &str = "strPolicy";
+
 fn exported_header_case<const H: usize>() {
     let w = awkward(H);
     let dir = std::env::temp_dir().join(format!("cartpole-export-c-{H}-{}", std::process::id()));
@@ -292,7 +296,7 @@ fn exported_header_case<const H: usize>() {
         dir.join("exported.h"),
         c_header(
             &w,
-            "test_policy",
+            NEAR_RESERVED,
             &["source: the capi test".into()],
             &Rig::GYMNASIUM,
         )
@@ -302,19 +306,21 @@ fn exported_header_case<const H: usize>() {
     // Both headers in one translation unit: their shared definitions are guarded.
     let main = format!(
         "#include <stdio.h>\n#include <stdlib.h>\n#include <string.h>\n\
+         #include <math.h>\n#include <limits.h>\n#include <float.h>\n#include <errno.h>\n\
+         #include <signal.h>\n#include <time.h>\n#include <ctype.h>\n\
          #include \"cartpole_policy.h\"\n#include \"exported.h\"\n\
          int main(int argc, char **argv) {{\n\
-         \x20   unsigned int bits[sizeof test_policy / 4];\n\
+         \x20   unsigned int bits[sizeof {NEAR_RESERVED} / 4];\n\
          \x20   size_t i;\n\
          \x20   int k;\n\
-         \x20   memcpy(bits, &test_policy, sizeof bits);\n\
+         \x20   memcpy(bits, &{NEAR_RESERVED}, sizeof bits);\n\
          \x20   for (i = 0; i < sizeof bits / 4; i++) printf(\"%08x\\n\", bits[i]);\n\
          \x20   for (k = 1; k + 3 < argc; k += 4) {{\n\
          \x20       float obs[4], q[2];\n\
          \x20       unsigned int qb[2];\n\
          \x20       int j;\n\
          \x20       for (j = 0; j < 4; j++) obs[j] = strtof(argv[k + j], NULL);\n\
-         \x20       cartpole_mlp{H}_forward(&test_policy, obs, q);\n\
+         \x20       cartpole_mlp{H}_forward(&{NEAR_RESERVED}, obs, q);\n\
          \x20       memcpy(qb, q, sizeof qb);\n\
          \x20       printf(\"%08x %08x\\n\", qb[0], qb[1]);\n\
          \x20   }}\n\

@@ -237,6 +237,21 @@ fn bad_names(s: &Scratch) -> Vec<Case> {
         "class",
         "namespace",
         &long,
+        // Names the standard headers beside the header define or reserve.
+        "EOF",
+        "stdout",
+        "INFINITY",
+        "round",
+        "abs",
+        "LLONG_MAX",
+        "SIGINT",
+        "FLT_MAX",
+        "CLOCKS_PER_SEC",
+        "I",
+        "noreturn",
+        "setjmp",
+        "isnan",
+        "M_PI",
     ];
     for name in c_names {
         for quant in [&[][..], &["--quant", "int8"]] {

@@ -76,7 +76,7 @@ fn every_item_a_rust_module_defines_beside_its_static_is_refused_as_its_name() {
 
 #[test]
 fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
-    let classes: [(&str, &[&str]); 6] = [
+    let classes: [(&str, &[&str]); 21] = [
         (
             "a macro name of <stdint.h>, which the header includes",
             &[
@@ -107,6 +107,41 @@ fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
         ("the function every C program defines", &["main"]),
         ("default GNU dialects predefine", &["unix", "linux", "i386"]),
         ("a release build defines", &["NDEBUG"]),
+        // The standard headers a program includes beside the header: each name failed to
+        // compile there, in strict C99 and C++17.
+        (
+            "<stdio.h>",
+            &[
+                "EOF", "stdout", "stdin", "stderr", "BUFSIZ", "SEEK_SET", "printf",
+            ],
+        ),
+        (
+            "<math.h>",
+            &["INFINITY", "NAN", "HUGE_VAL", "round", "roundf", "sqrtl"],
+        ),
+        (
+            "<math.h>",
+            &["math_errhandling", "FP_NAN", "isnan", "isinf"],
+        ),
+        ("<stdlib.h>", &["abs", "EXIT_SUCCESS", "RAND_MAX", "malloc"]),
+        (
+            "<limits.h>",
+            &["CHAR_BIT", "LLONG_MAX", "MB_LEN_MAX", "SCHAR_MIN"],
+        ),
+        ("<signal.h>", &["SIGINT", "signal", "SIGTERM", "SIG_DFL"]),
+        (
+            "<float.h>",
+            &["FLT_MAX", "DBL_MAX", "LDBL_EPSILON", "DECIMAL_DIG"],
+        ),
+        ("<time.h>", &["CLOCKS_PER_SEC", "time"]),
+        ("<complex.h>", &["I", "complex", "cabsf"]),
+        ("<stdnoreturn.h>", &["noreturn"]),
+        ("<setjmp.h>", &["setjmp", "longjmp"]),
+        ("POSIX's <math.h>", &["M_PI", "M_2_PI"]),
+        // What C11 7.31 reserves for the library's future, by pattern.
+        ("<errno.h>", &["ENOMEM", "E2BIG", "EVERYTHING"]),
+        ("<ctype.h>", &["isready", "total", "toupper"]),
+        ("<string.h>", &["string", "memory", "strlen"]),
     ];
     for (why, names) in classes {
         for name in names {
@@ -128,7 +163,20 @@ fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
         let e = check_c_name(name).unwrap_err().to_string();
         assert!(e.contains("macros declare names beginning"), "{name}: {e}");
     }
-    check_c_name("cartpole_policy").unwrap();
+    // Beside the patterns, outside them: no lowercase letter after is, to or str, no
+    // capital after E, an M_ constant's form with a lowercase letter.
+    for ok in [
+        "cartpole_policy",
+        "is_up",
+        "toBalance",
+        "strPolicy",
+        "E",
+        "Eval",
+        "M_pi",
+        "PI",
+    ] {
+        check_c_name(ok).unwrap_or_else(|e| panic!("{ok}: {e}"));
+    }
     // Every macro an exported header defines, another export's include guard included.
     for (w, q) in policies() {
         for header in [
@@ -162,14 +210,40 @@ fn every_macro_of_the_headers_a_header_includes_is_refused_as_its_name() {
     }
     // A header the writers come to include brings macros `check_c_name` must refuse.
     assert_eq!(includes, BTreeSet::from(["<stdint.h>".to_string()]));
-    let dir = std::env::temp_dir().join(format!("weights-names-{}", std::process::id()));
+    // C23, whose <stdint.h> adds the widths; strict, so no `linux` or `unix` of GNU's dialects.
+    let macros = macros_of("c2x", "stdint stddef");
+    assert!(macros.iter().any(|m| m == "SIZE_MAX") && macros.iter().any(|m| m == "NULL"));
+    let accepted: Vec<&String> = macros.iter().filter(|m| check_c_name(m).is_ok()).collect();
+    assert!(accepted.is_empty(), "accepted as names: {accepted:?}");
+}
+
+/// Every C11 header a program may include beside an exported one.
+const C11_HEADERS: &str = "assert complex ctype errno fenv float inttypes iso646 limits locale \
+    math setjmp signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib \
+    stdnoreturn string tgmath threads time uchar wchar wctype";
+
+#[test]
+fn every_macro_of_the_c11_headers_is_refused_as_a_name() {
+    let macros = macros_of("c11", C11_HEADERS);
+    assert!(macros.iter().any(|m| m == "EOF") && macros.iter().any(|m| m == "CHAR_BIT"));
+    let accepted: Vec<&String> = macros.iter().filter(|m| check_c_name(m).is_ok()).collect();
+    assert!(accepted.is_empty(), "accepted as names: {accepted:?}");
+}
+
+/// The macros the C compiler's preprocessor defines in the dialect `std` (strict) with each
+/// of `headers` (`stdio` for `<stdio.h>`) included.
+fn macros_of(std: &str, headers: &str) -> Vec<String> {
+    let dir = std::env::temp_dir().join(format!("weights-names-{std}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let file = dir.join("macros.c");
-    std::fs::write(&file, "#include <stdint.h>\n#include <stddef.h>\n").unwrap();
+    let includes: String = headers
+        .split_whitespace()
+        .map(|h| format!("#include <{h}.h>\n"))
+        .collect();
+    std::fs::write(&file, includes).unwrap();
     let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-    // C23, whose <stdint.h> adds the widths; strict, so no `linux` or `unix` of GNU's dialects.
     let out = Command::new(&cc)
-        .args(["-std=c2x", "-dM", "-E"])
+        .args([&format!("-std={std}"), "-dM", "-E"])
         .arg(&file)
         .output()
         .unwrap_or_else(|e| panic!("running {cc}: {e}"));
@@ -179,13 +253,10 @@ fn every_macro_of_the_headers_a_header_includes_is_refused_as_its_name() {
         "{}",
         String::from_utf8_lossy(&out.stderr)
     );
-    let text = String::from_utf8(out.stdout).unwrap();
-    let macros: Vec<&str> = text
+    String::from_utf8(out.stdout)
+        .unwrap()
         .lines()
         .filter_map(|l| l.strip_prefix("#define "))
-        .map(|l| l.split(['(', ' ']).next().unwrap())
-        .collect();
-    assert!(macros.contains(&"SIZE_MAX") && macros.contains(&"NULL"));
-    let accepted: Vec<&&str> = macros.iter().filter(|m| check_c_name(m).is_ok()).collect();
-    assert!(accepted.is_empty(), "accepted as names: {accepted:?}");
+        .map(|l| l.split(['(', ' ']).next().unwrap().to_string())
+        .collect()
 }

@@ -5,6 +5,9 @@ use firmware::rig::Rig;
 
 use super::{levels_item, rig_item};
 use crate::{BANG_BANG, Error, Result, quote};
+use c_library::c_library_use;
+
+mod c_library;
 
 /// Longest name: C guarantees 63 significant characters of an identifier, and the include
 /// guard puts 18 before it ([`c_guard`]).
@@ -207,18 +210,18 @@ pub fn check_c_name(name: &str) -> Result<()> {
             quote(name)
         )));
     }
-    if let Some(why) = c_library_use(name) {
-        return Err(Error::Input(format!(
-            "--name: expected a name the C library leaves to programs, found {} ({why})",
-            quote(name)
-        )));
-    }
     // Every header's macros (include guards `CARTPOLE_POLICY_H_NAME`, `CARTPOLE_*_DEFINED`)
     // share the prefix: another export's guard as a name made the two headers fail together.
     if name.starts_with(MACRO_PREFIX) {
         return Err(Error::Input(format!(
             "--name: expected a name outside the headers' macros, found {} (exported headers \
              and cartpole_policy.h define macros beginning {MACRO_PREFIX})",
+            quote(name)
+        )));
+    }
+    if let Some(why) = c_library_use(name) {
+        return Err(Error::Input(format!(
+            "--name: expected a name the C library leaves to programs, found {} ({why})",
             quote(name)
         )));
     }
@@ -248,55 +251,6 @@ pub fn check_c_name(name: &str) -> Result<()> {
         ))),
     }
 }
-
-/// Why the C library takes `name`, if it does: a macro would replace the object's name
-/// before the compiler saw it, and a function `main` would clash with it. Macros of
-/// `<stdint.h>`, which the header includes itself (C11 7.31.10 reserves names of `INT` or
-/// `UINT` and `_MAX`, `_MIN` or `_C`, C23 adds `_WIDTH`), and of the headers a program
-/// commonly includes beside it (`unreachable` is C23's).
-fn c_library_use(name: &str) -> Option<&'static str> {
-    let int_limit = (name.starts_with("INT") || name.starts_with("UINT"))
-        && ["_MAX", "_MIN", "_WIDTH", "_C"]
-            .iter()
-            .any(|end| name.ends_with(end));
-    if int_limit || STDINT_MACROS.contains(&name) {
-        Some("a macro name of <stdint.h>, which the header includes")
-    } else if ["NULL", "offsetof", "unreachable"].contains(&name) {
-        Some(
-            "a macro of <stddef.h>, which a program may include beside the header; NULL is \
-             one of <stdio.h>, <stdlib.h> and <string.h> too",
-        )
-    } else if name == "errno" {
-        Some("the macro of <errno.h>, which a program may include beside the header")
-    } else if name == "main" {
-        Some("the function every C program defines, which the object would clash with")
-    } else if ["unix", "linux", "i386"].contains(&name) {
-        Some("a macro the compilers' default GNU dialects predefine (-std=gnu11, gnu++17)")
-    } else if name == "NDEBUG" {
-        Some("the macro a release build defines (-DNDEBUG: every CMake Release build)")
-    } else {
-        None
-    }
-}
-
-/// The macros of `<stdint.h>` outside its `INT` and `UINT` names: the limits of the types
-/// other headers define, with C23's widths.
-const STDINT_MACROS: [&str; 14] = [
-    "PTRDIFF_MIN",
-    "PTRDIFF_MAX",
-    "PTRDIFF_WIDTH",
-    "SIG_ATOMIC_MIN",
-    "SIG_ATOMIC_MAX",
-    "SIG_ATOMIC_WIDTH",
-    "SIZE_MAX",
-    "SIZE_WIDTH",
-    "WCHAR_MIN",
-    "WCHAR_MAX",
-    "WCHAR_WIDTH",
-    "WINT_MIN",
-    "WINT_MAX",
-    "WINT_WIDTH",
-];
 
 /// What every macro of the exported headers and of the C API's begins with.
 const MACRO_PREFIX: &str = "CARTPOLE_";
