@@ -168,7 +168,7 @@ pub fn provenance(s: &Summary) -> Vec<String> {
             c.algo, s.seed, s.episodes_run, s.env_steps, c.max_steps
         ),
         format!(
-            "greedy evaluation: mean {:.1}, min {} over {} fresh {}-step episodes",
+            "greedy evaluation: mean {:?}, min {:?} over {} fresh {}-step episodes",
             s.final_eval.mean, s.final_eval.min, s.final_eval.episodes, s.final_eval.max_steps
         ),
     ]
@@ -191,7 +191,74 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
             weights::shown(&summary_path)
         ))
     })?;
+    check_figures(&s).map_err(|e| {
+        weights::Error::Input(format!(
+            "{}: not a run summary: {e}",
+            weights::shown(&summary_path)
+        ))
+    })?;
     Ok(provenance(&s))
+}
+
+/// Why the figures a summary gives for the provenance cannot be a run's, if they cannot:
+/// an export copies them into generated code as fact, where a worst return above the mean,
+/// an evaluation of no episodes or a subnormal mean went unread.
+fn check_figures(s: &Summary) -> std::result::Result<(), String> {
+    let (e, c) = (&s.final_eval, &s.config);
+    let count = |field: &str, n: u64, most: u64, what: &str| {
+        if (1..=most).contains(&n) {
+            Ok(())
+        } else {
+            Err(format!("{field}: expected 1 to {most} ({what}), found {n}"))
+        }
+    };
+    count(
+        "final_eval.episodes",
+        e.episodes as u64,
+        u64::MAX,
+        "episodes run",
+    )?;
+    count(
+        "final_eval.max_steps",
+        u64::from(e.max_steps),
+        u64::MAX,
+        "a step limit",
+    )?;
+    count(
+        "episodes_run",
+        s.episodes_run as u64,
+        c.episodes as u64,
+        "at most the configured episodes",
+    )?;
+    let most_steps = (s.episodes_run as u64).saturating_mul(u64::from(c.max_steps));
+    let least_steps = s.episodes_run as u64;
+    if !(least_steps..=most_steps).contains(&s.env_steps) {
+        return Err(format!(
+            "env_steps: expected {least_steps} to {most_steps} ({} episodes of 1 to {} steps), \
+             found {}",
+            s.episodes_run, c.max_steps, s.env_steps
+        ));
+    }
+    let returns = [("final_eval.min", e.min), ("final_eval.mean", e.mean)];
+    if let Some((field, x)) = returns.iter().find(|(_, x)| !weights::plain(*x)) {
+        return Err(format!(
+            "{field}: expected zero or a normal number, found {x:?}"
+        ));
+    }
+    let order = [
+        ("final_eval.min", 0.0, e.min, e.mean),
+        ("final_eval.mean", e.min, e.mean, f64::from(e.max_steps)),
+    ];
+    match order
+        .iter()
+        .find(|(_, low, x, high)| !(low <= x && x <= high))
+    {
+        Some((field, low, x, high)) => Err(format!(
+            "{field}: expected a return from {low:?} to {high:?} (0 <= min <= mean <= \
+             max_steps), found {x:?}"
+        )),
+        None => Ok(()),
+    }
 }
 
 /// The files `export` reads of the policy at `src`: its policy file, and its run's summary

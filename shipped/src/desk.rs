@@ -8,7 +8,7 @@
 //! observer, predictor and limits of the machine it was trained for.
 //!
 //! - trained: Ddqn, seed 5, 1230 episodes (189372 env steps) of at most 500 steps
-//! - greedy evaluation: mean 499.3, min 428 over 100 fresh 500-step episodes
+//! - greedy evaluation: mean 499.28, min 428.0 over 100 fresh 500-step episodes
 
 /// The weights in PyTorch's `nn.Linear` layout: 5065 parameters, 20260 bytes of flash.
 #[rustfmt::skip]
