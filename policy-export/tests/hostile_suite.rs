@@ -362,6 +362,21 @@ fn bad_numbers() -> Vec<Case> {
             &["-1e-300"],
         ));
     }
+    // A share of 0 applies a part in no episode: the recorded domain claimed a randomisation
+    // never drawn.
+    for flag in ["--domain", "--eval-domain", "--finalist-domain"] {
+        for v in ["noise=0..1@0", "length=0.5..0.5@-0"] {
+            let args = os(&[&"train", &"--print-config", &flag, &v]);
+            cases.push(Case::new(
+                format!("train {flag} {v}"),
+                &args,
+                &[
+                    "needs a share in (0, 1], normal, after @, found \"0\"",
+                    "found \"-0\"",
+                ],
+            ));
+        }
+    }
     for v in ["0", "1", "1001", "-3", "x", "99999999999999999999"] {
         let args = os(&[&"reproduce", &"--seeds", &v]);
         cases.push(Case::new(

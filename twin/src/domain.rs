@@ -64,7 +64,7 @@ impl Domain {
         let d = Domain {
             spec: spec.to_string(),
             machine: *machine,
-            parts: grammar::parse(spec, "domain")?,
+            parts: grammar::parse(spec, "domain", machine)?,
         };
         // Every low end, every high end, and the stiffest corner: the most damping and
         // friction on the lightest, shortest pole and cart.
@@ -216,7 +216,9 @@ mod tests {
                 "nominal+length=1.1",
                 "expected nominal alone (no parts) or parts joined by +",
             ),
-            ("noise=0..1@2", "needs a share in [0, 1]"),
+            ("noise=0..1@2", "needs a share in (0, 1]"),
+            ("noise=0..1@0", "needs a share in (0, 1]"),
+            ("noise=1@-0", "needs a share in (0, 1]"),
             (
                 "delay=0..40",
                 "delay must be a whole number in [0, 16], found \"40\"",

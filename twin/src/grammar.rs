@@ -9,6 +9,7 @@
 //! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
 //! share P of samples only.
 
+use crate::machine::Machine;
 use crate::scenario::{MAX_SPEC_BYTES, Scenario};
 
 mod help;
@@ -92,6 +93,11 @@ pub enum Idle {
     First(f64),
     /// Every field at this value.
     Every(f64),
+    /// Values that set its quantities to the machine's own (`friction=0` or `delay=0` on
+    /// Gymnasium's machine): it sets them outright, so what is idle depends on the machine.
+    /// Its key alone is not refused: it asks for the part's standard level, which the
+    /// built-in sets name on every machine (`delay` on a rig with a period of dead time).
+    Own,
 }
 
 impl PartSpec {
@@ -99,7 +105,7 @@ impl PartSpec {
     /// does ([`Idle`]); `None` for a part that always changes something.
     pub fn idle_fields(&self) -> Option<(&'static [Field], f64)> {
         match self.idle {
-            Idle::Never => None,
+            Idle::Never | Idle::Own => None,
             Idle::First(v) => Some((&self.fields[..1], v)),
             Idle::Every(v) => Some((self.fields, v)),
         }
@@ -166,9 +172,10 @@ pub struct Part {
     pub share: f64,
 }
 
-/// Splits `spec` into parts (`nominal` and `""` are none), checking every value against its
-/// field. `what` names the spec in errors (`scenario` or `domain`).
-pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
+/// Splits `spec` into parts (`nominal` and `""` are none) of worlds around `machine`,
+/// checking every value against its field. `what` names the spec in errors (`scenario` or
+/// `domain`).
+pub fn parse(spec: &str, what: &str, machine: &Machine) -> Result<Vec<Part>, String> {
     let shown = weights::quote(spec);
     if spec.len() > MAX_SPEC_BYTES {
         return Err(format!(
@@ -187,7 +194,7 @@ pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
     }
     let parts: Vec<Part> = spec
         .split('+')
-        .map(|raw| parse_part(raw).map_err(|e| format!("{what} {shown}: {e}")))
+        .map(|raw| parse_part(raw, machine).map_err(|e| format!("{what} {shown}: {e}")))
         .collect::<Result<_, _>>()?;
     // A factor given twice multiplies; any other part given again would replace the first,
     // which a reader of the spec cannot tell.
@@ -203,14 +210,16 @@ pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
     Ok(parts)
 }
 
-fn parse_part(raw: &str) -> Result<Part, String> {
+fn parse_part(raw: &str, machine: &Machine) -> Result<Part, String> {
     let (body, share) = match raw.split_once('@') {
         None => (raw, 1.0),
+        // A share of 0 applies the part in no sample: the domain would claim a
+        // randomisation it never draws.
         Some((b, s)) => match s.parse::<f64>() {
-            Ok(v) if (0.0..=1.0).contains(&v) && weights::plain(v) => (b, v),
+            Ok(v) if v > 0.0 && v <= 1.0 && weights::plain(v) => (b, v),
             _ => {
                 return Err(format!(
-                    "{} needs a share in [0, 1], zero or normal, after @, found {}",
+                    "{} needs a share in (0, 1], normal, after @, found {}",
                     weights::quote(raw),
                     weights::quote(s)
                 ));
@@ -250,7 +259,7 @@ fn parse_part(raw: &str) -> Result<Part, String> {
             None => None,
         });
     }
-    refuse_idle(spec, &values)?;
+    refuse_idle(spec, &values, machine)?;
     Ok(Part {
         spec,
         values,
@@ -258,13 +267,39 @@ fn parse_part(raw: &str) -> Result<Part, String> {
     })
 }
 
-/// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]).
-fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
+/// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]) on
+/// `machine`.
+fn refuse_idle(
+    spec: &'static PartSpec,
+    values: &[Option<Span>],
+    machine: &Machine,
+) -> Result<(), String> {
     let point = |i: usize| match (values.get(i).copied().flatten(), spec.fields[i].fallback) {
         (Some(s), _) if s.is_point() => Some(s.lo),
         (None, Fallback::Value(v)) => Some(v),
         _ => None,
     };
+    if spec.idle == Idle::Own {
+        if values.iter().all(Option::is_none) || values.iter().flatten().any(|s| !s.is_point()) {
+            return Ok(());
+        }
+        let given: Vec<Option<f64>> = values.iter().map(|v| v.map(|s| s.lo)).collect();
+        let nominal = Scenario::nominal_on(machine);
+        let mut s = nominal.clone();
+        (spec.effect)(&mut s, &Values::new(spec, &given));
+        if s != nominal {
+            return Ok(());
+        }
+        let shown: Vec<String> = (0..spec.fields.len())
+            .filter_map(|i| point(i).map(|v| format!("{} {v}", spec.fields[i].name)))
+            .collect();
+        return Err(format!(
+            "{} changes nothing with {}, the machine's own: expected another value, or the \
+             part left out",
+            spec.key,
+            shown.join(" and ")
+        ));
+    }
     let Some((fields, at)) = spec.idle_fields() else {
         return Ok(());
     };
