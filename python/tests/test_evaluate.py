@@ -91,6 +91,7 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
         (dict(controller=["lqr", "lqr"]), "controller: expected each row once, found lqr twice"),
         (dict(horizon=[10, 10]), "horizon: expected each row once, found 10 twice"),
         (dict(scenario=["noise+delay", "delay+noise"]), '"noise+delay" and "delay+noise", one scenario spelt twice'),
+        (dict(scenario=["noise", "noise=1"]), '"noise" and "noise=1", one scenario spelt twice'),
     ]
     cases.append((dict(horizon=[10, 10.9]), "horizon must be a whole number of periods; found 10.9"))
     cases.append((dict(horizon=10.0), "horizon must be a whole number of periods; found 10.0"))

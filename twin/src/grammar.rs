@@ -101,6 +101,12 @@ pub enum Idle {
 }
 
 impl PartSpec {
+    /// Whether it is a factor, which multiplies when given again (`length=2+length=2` is
+    /// `length=4`); any other part is taken once.
+    pub fn multiplies(&self) -> bool {
+        self.fields == [FACTOR]
+    }
+
     /// The fields that decide whether the part changes nothing, and the value at which each
     /// does ([`Idle`]); `None` for a part that always changes something.
     pub fn idle_fields(&self) -> Option<(&'static [Field], f64)> {
@@ -173,9 +179,18 @@ pub struct Part {
 }
 
 /// Splits `spec` into parts (`nominal` and `""` are none) of worlds around `machine`,
-/// checking every value against its field. `what` names the spec in errors (`scenario` or
-/// `domain`).
+/// checking every value against its field and the machine. `what` names the spec in errors
+/// (`scenario` or `domain`).
 pub fn parse(spec: &str, what: &str, machine: &Machine) -> Result<Vec<Part>, String> {
+    let parts = read(spec, what)?;
+    for part in &parts {
+        refuse_own(part, machine).map_err(|e| format!("{what} {}: {e}", weights::quote(spec)))?;
+    }
+    Ok(parts)
+}
+
+/// [`parse`] short of the checks that need a machine: what a spec says, wherever it is run.
+pub fn read(spec: &str, what: &str) -> Result<Vec<Part>, String> {
     let shown = weights::quote(spec);
     if spec.len() > MAX_SPEC_BYTES {
         return Err(format!(
@@ -194,12 +209,12 @@ pub fn parse(spec: &str, what: &str, machine: &Machine) -> Result<Vec<Part>, Str
     }
     let parts: Vec<Part> = spec
         .split('+')
-        .map(|raw| parse_part(raw, machine).map_err(|e| format!("{what} {shown}: {e}")))
+        .map(|raw| parse_part(raw).map_err(|e| format!("{what} {shown}: {e}")))
         .collect::<Result<_, _>>()?;
     // A factor given twice multiplies; any other part given again would replace the first,
     // which a reader of the spec cannot tell.
     for (k, p) in parts.iter().enumerate() {
-        if p.spec.fields != [FACTOR] && parts[..k].iter().any(|q| q.spec == p.spec) {
+        if !p.spec.multiplies() && parts[..k].iter().any(|q| q.spec == p.spec) {
             return Err(format!(
                 "{what} {shown}: expected each part once (only factors multiply), found {} \
                  again",
@@ -210,7 +225,7 @@ pub fn parse(spec: &str, what: &str, machine: &Machine) -> Result<Vec<Part>, Str
     Ok(parts)
 }
 
-fn parse_part(raw: &str, machine: &Machine) -> Result<Part, String> {
+fn parse_part(raw: &str) -> Result<Part, String> {
     let (body, share) = match raw.split_once('@') {
         None => (raw, 1.0),
         // A share of 0 applies the part in no sample: the domain would claim a
@@ -259,7 +274,7 @@ fn parse_part(raw: &str, machine: &Machine) -> Result<Part, String> {
             None => None,
         });
     }
-    refuse_idle(spec, &values, machine)?;
+    refuse_idle(spec, &values)?;
     Ok(Part {
         spec,
         values,
@@ -267,39 +282,13 @@ fn parse_part(raw: &str, machine: &Machine) -> Result<Part, String> {
     })
 }
 
-/// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]) on
-/// `machine`.
-fn refuse_idle(
-    spec: &'static PartSpec,
-    values: &[Option<Span>],
-    machine: &Machine,
-) -> Result<(), String> {
+/// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]).
+fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
     let point = |i: usize| match (values.get(i).copied().flatten(), spec.fields[i].fallback) {
         (Some(s), _) if s.is_point() => Some(s.lo),
         (None, Fallback::Value(v)) => Some(v),
         _ => None,
     };
-    if spec.idle == Idle::Own {
-        if values.iter().all(Option::is_none) || values.iter().flatten().any(|s| !s.is_point()) {
-            return Ok(());
-        }
-        let given: Vec<Option<f64>> = values.iter().map(|v| v.map(|s| s.lo)).collect();
-        let nominal = Scenario::nominal_on(machine);
-        let mut s = nominal.clone();
-        (spec.effect)(&mut s, &Values::new(spec, &given));
-        if s != nominal {
-            return Ok(());
-        }
-        let shown: Vec<String> = (0..spec.fields.len())
-            .filter_map(|i| point(i).map(|v| format!("{} {v}", spec.fields[i].name)))
-            .collect();
-        return Err(format!(
-            "{} changes nothing with {}, the machine's own: expected another value, or the \
-             part left out",
-            spec.key,
-            shown.join(" and ")
-        ));
-    }
     let Some((fields, at)) = spec.idle_fields() else {
         return Ok(());
     };
@@ -311,6 +300,39 @@ fn refuse_idle(
         "{} changes nothing with {} {at}: expected another value, or the part left out",
         spec.key,
         names.join(" and ")
+    ))
+}
+
+/// Refuses a part written at `machine`'s own values ([`Idle::Own`]).
+fn refuse_own(part: &Part, machine: &Machine) -> Result<(), String> {
+    let spec = part.spec;
+    let values = &part.values;
+    if spec.idle != Idle::Own
+        || values.iter().all(Option::is_none)
+        || values.iter().flatten().any(|s| !s.is_point())
+    {
+        return Ok(());
+    }
+    let given: Vec<Option<f64>> = values.iter().map(|v| v.map(|s| s.lo)).collect();
+    let nominal = Scenario::nominal_on(machine);
+    let mut s = nominal.clone();
+    (spec.effect)(&mut s, &Values::new(spec, &given));
+    if s != nominal {
+        return Ok(());
+    }
+    let filled = Values::new(spec, &given);
+    let shown: Vec<String> = (0..spec.fields.len())
+        .filter_map(|i| {
+            filled
+                .get(i)
+                .map(|v| format!("{} {v}", spec.fields[i].name))
+        })
+        .collect();
+    Err(format!(
+        "{} changes nothing with {}, the machine's own: expected another value, or the part \
+         left out",
+        spec.key,
+        shown.join(" and ")
     ))
 }
 

@@ -1,9 +1,11 @@
 //! The rows one evaluation asks for, checked before any work by `host-sim eval` and Python's
 //! `evaluate` alike: at most [`MAX_ROWS`], and each once (a table showing one row twice is a
 //! slip: `--scenario all,noise`, `--controller lqr,lqr`, `noise+delay,delay+noise`). A
-//! scenario is compared by its spec, its parts in any order and its numbers however written,
-//! not by the world it builds: on a rig with a period of dead time, `delay` builds the
-//! nominal world, and the robustness set shows both rows.
+//! scenario is compared by what its spec sets: its parts in any order, its numbers however
+//! written, a value left at its default or written out (`noise`, `noise=1`), `-0` as 0, a
+//! factor given twice as its product (`length=2+length=2`, `length=4`); not by the world it
+//! builds: on a rig with a period of dead time, `delay` builds the nominal world, and the
+//! robustness set shows both rows.
 
 use twin::Scenario;
 
@@ -27,8 +29,7 @@ pub fn check_count(counts: [usize; 3], names: [&str; 3]) -> Result<(), String> {
 }
 
 /// Refuses rows asked for twice, or more than [`MAX_ROWS`]: a horizon by its value, a
-/// scenario by its spec ([`canonical`]: its parts in any order, its numbers however
-/// written), a controller by its kind. `names` are the caller's for the three lists (its flags, or keywords).
+/// scenario by what its spec sets ([`canonical`]), a controller by its kind. `names` are the caller's for the three lists (its flags, or keywords).
 pub fn check_rows(
     horizons: &[u32],
     scenarios: &[Scenario],
@@ -59,21 +60,36 @@ pub fn check_rows(
     Ok(())
 }
 
-/// A spec's parts, each with its numbers as `f64` writes them, in order.
-fn canonical(spec: &str) -> Vec<String> {
-    let number = |v: &str| v.parse::<f64>().map_or(v.to_string(), |x| x.to_string());
-    let mut parts: Vec<String> = spec
-        .split('+')
-        .map(|part| match part.split_once('=') {
-            None => part.to_string(),
-            Some((key, values)) => {
-                let values: Vec<String> = values.split('/').map(number).collect();
-                format!("{key}={}", values.join("/"))
+/// What a spec sets, as the grammar reads it: each part's values with their defaults filled
+/// in and `-0` as 0 (by their bits, to be hashed), a factor given twice as its product, in
+/// the order of the keys. A name that is no spec (none the tools make) is its text.
+fn canonical(spec: &str) -> Vec<(String, Vec<Option<u64>>)> {
+    let Ok(parts) = twin::grammar::read(spec, "scenario") else {
+        return vec![(spec.to_string(), Vec::new())];
+    };
+    let mut set: std::collections::BTreeMap<String, Vec<Option<f64>>> = Default::default();
+    for part in &parts {
+        let given: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|s| s.lo)).collect();
+        let filled = twin::grammar::Values::new(part.spec, &given);
+        let values: Vec<Option<f64>> = (0..given.len()).map(|i| filled.get(i)).collect();
+        let entry = set.entry(part.spec.key.to_string());
+        match entry {
+            std::collections::btree_map::Entry::Occupied(mut e) if part.spec.multiplies() => {
+                for (had, v) in e.get_mut().iter_mut().zip(values) {
+                    *had = had.zip(v).map(|(a, b)| a * b);
+                }
             }
+            e => {
+                e.or_insert(values);
+            }
+        }
+    }
+    set.into_iter()
+        .map(|(key, values)| {
+            let bits = values.iter().map(|v| v.map(|x| (x + 0.0).to_bits()));
+            (key, bits.collect())
         })
-        .collect();
-    parts.sort();
-    parts
+        .collect()
 }
 
 /// The first item whose `key` an earlier one has, with that earlier one: one lookup an item,
@@ -100,7 +116,19 @@ mod tests {
     #[test]
     fn a_world_asked_for_twice_is_refused_however_it_is_spelt() {
         use ControllerKind::*;
-        let ok = parsed(&["nominal", "noise", "noise+delay", "noise=2"]);
+        let ok = parsed(&[
+            "nominal",
+            "noise",
+            "noise+delay",
+            "noise=2",
+            "length=2+length=3",
+            "length=2",
+            "zero=0/1",
+            "zero=0/-1",
+            "encoder",
+            "encoder=64",
+            "encoder=64/64",
+        ]);
         assert_eq!(
             check_rows(&[500, 10_000], &ok, &[Policy, Lqr], NAMES),
             Ok(())
@@ -113,6 +141,22 @@ mod tests {
             (
                 &["length=2", "length=2.0"],
                 "\"length=2\" and \"length=2.0\"",
+            ),
+            (&["noise", "noise=1"], "\"noise\" and \"noise=1\""),
+            (&["delay", "delay=1"], "\"delay\" and \"delay=1\""),
+            (&["push", "push=0.5/100"], "\"push\" and \"push=0.5/100\""),
+            (
+                &["friction=0.1", "friction=0.1/0"],
+                "\"friction=0.1\" and \"friction=0.1/0\"",
+            ),
+            (&["zero=0/1", "zero=-0/1"], "\"zero=0/1\" and \"zero=-0/1\""),
+            (
+                &["length=2+length=2", "length=4"],
+                "\"length=2+length=2\" and \"length=4\"",
+            ),
+            (
+                &["encoder=64", "encoder=64/320"],
+                "\"encoder=64\" and \"encoder=64/320\"",
             ),
         ] {
             let e = check_rows(&[500], &parsed(specs), &[Policy], NAMES).unwrap_err();

@@ -169,11 +169,26 @@ pub fn bad_rows() -> Vec<Case> {
         &["--scenario", "nominal", "--controller", "lqr,rule,lqr"],
         &["--scenario", "nominal", "--horizon", "3"],
     ];
-    twice
+    let mut cases: Vec<Case> = twice
         .iter()
         .map(|extra| {
             let args: Vec<&str> = base.iter().chain(extra.iter()).copied().collect();
             Case::new(format!("{args:?}"), &args, &["expected each row once"])
         })
-        .collect()
+        .collect();
+    // One world however its spec is written: a default written out, -0, a factor's product.
+    for specs in [
+        "noise,noise=1",
+        "push=0.5/100,push",
+        "zero=0/1,zero=-0/1",
+        "length=2+length=2,length=4",
+    ] {
+        let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
+        cases.push(Case::new(
+            format!("{args:?}"),
+            &args,
+            &["one scenario spelt twice"],
+        ));
+    }
+    cases
 }
