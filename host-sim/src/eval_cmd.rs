@@ -13,6 +13,17 @@ pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
             (0.0..=1.0).contains(&m) && weights::plain(m),
             "--min-success must lie in [0, 1], zero or normal, got {m:?}"
         );
+        // It judges the network's rows alone: without one it checked nothing and exited 0,
+        // a gate that always passes.
+        let controllers = a.controllers();
+        if !controllers.iter().any(|k| k.runs_policy()) {
+            let found: Vec<String> = controllers.iter().map(ToString::to_string).collect();
+            anyhow::bail!(
+                "--min-success judges the rows the network drives; expected a controller \
+                 among policy, policy-int, monitored, monitored-int, found {}",
+                found.join(", ")
+            );
+        }
     }
     anyhow::ensure!(
         (1..=MAX_EPISODES).contains(&a.episodes),

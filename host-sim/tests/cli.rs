@@ -361,6 +361,29 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
         err.contains("policy-int below --min-success on push=50/5"),
         "{err}"
     );
+    // With no row of the network's, the gate checked nothing and passed.
+    for controllers in ["lqr", "lqr,rule"] {
+        let o = run(&[
+            "--controller",
+            controllers,
+            "--scenario",
+            "push=3",
+            "--episodes",
+            "1",
+            "--min-success",
+            "0.9",
+        ]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(&format!(
+                "--min-success judges the rows the network drives; expected a controller \
+                 among policy, policy-int, monitored, monitored-int, found {}",
+                controllers.replace(',', ", ")
+            )),
+            "{err}"
+        );
+    }
     let envelope = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results/envelope.json");
     let o = run(&["--controller", "lqr", "--envelope", envelope]);
     let err = String::from_utf8_lossy(&o.stderr);
