@@ -85,6 +85,18 @@ impl Case {
             self.states_hex.len(),
             self.states.len()
         );
+        // Replay reads the hex strings; decimals that say otherwise would be ignored, so the
+        // file contradicts itself (the decimals parse exactly: serde_json's float_roundtrip).
+        let differs = |(a, b): &(&[f64; 4], &[f64; 4])| {
+            a.iter().zip(*b).any(|(x, y)| x.to_bits() != y.to_bits())
+        };
+        let mut pairs = self.states.iter().zip(&self.states_hex).enumerate();
+        if let Some((row, (dec, hex))) = pairs.find(|(_, p)| differs(p)) {
+            bail!(
+                "states row {row} is {dec:?} but states_hex row {row} is {hex:?}; expected \
+                 the same states in both"
+            );
+        }
         Ok(())
     }
 }
@@ -312,6 +324,14 @@ mod tests {
         assert_eq!(
             parse(&case(two, &hex), "f").unwrap()[0].exact_states(),
             [[0.0; 4]; 2]
+        );
+        // The decimals must say what the hex strings say: replay reads the hex alone.
+        let other = "[[0, 0, 0, 0], [0, 0, 1e-3, 0]]";
+        let e = parse(&format!("\n{}", case(other, &hex)), "f").unwrap_err();
+        assert_eq!(
+            format!("{e:#}"),
+            "f:2: states row 1 is [0.0, 0.0, 0.001, 0.0] but states_hex row 1 is \
+             [0.0, 0.0, 0.0, 0.0]; expected the same states in both"
         );
         let bad = format!(r#"[{zero}, ["a", "0x0.0p+0", "0x0.0p+0", "0x0.0p+0"]]"#);
         let e = parse(&case(two, &bad), "f").unwrap_err().to_string();

@@ -359,6 +359,21 @@ fn bad_tables(s: &Scratch) -> Vec<Case> {
     cases
 }
 
+/// A trajectory whose decimal states contradict its exact ones: replay read the hex strings
+/// and ignored the decimals, whatever they held.
+fn bad_replays(s: &Scratch) -> Vec<Case> {
+    let text = std::fs::read_to_string(repo("tests/data/gym_traj_public.jsonl")).unwrap();
+    let mut case: serde_json::Value = serde_json::from_str(text.lines().next().unwrap()).unwrap();
+    case["states"][3] = serde_json::json!([0.0, 0.0, 0.0, 0.0]);
+    let file = s.join("contradicts.jsonl");
+    std::fs::write(&file, format!("\n{case}\n")).unwrap();
+    vec![Case::new(
+        "replay states against states_hex".into(),
+        &os(&[&"replay", &file]),
+        &[":2: states row 3 is [0.0, 0.0, 0.0, 0.0] but states_hex row 3 is ["],
+    )]
+}
+
 #[test]
 fn every_hostile_command_line_is_refused_by_the_rules() {
     let s = Scratch::new("hs-suite");
@@ -370,6 +385,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     cases.extend(bad_tables(&s));
     cases.extend(bad_rigs(&s));
     cases.extend(bad_rows());
+    cases.extend(bad_replays(&s));
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }
