@@ -35,29 +35,14 @@ pub struct IdentifyArgs {
 }
 
 /// The logs in `paths`, each read whole (up to [`log::MAX_LOG_BYTES`], and
-/// [`log::MAX_TOTAL_LOG_BYTES`] all together) and parsed, each once: a log given twice (or
-/// through a link, or copied) would count its experiments twice and narrow every interval
-/// by the square root of two.
+/// [`log::MAX_TOTAL_LOG_BYTES`] all together) and parsed, each experiment once
+/// ([`log::check_each_once`]).
 fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
     let mut logs = Vec::new();
     let mut total = 0;
-    let mut seen = std::collections::HashMap::new();
     for path in paths {
         let bytes = read_capped(path, log::MAX_LOG_BYTES)?;
         let origin = weights::shown(path);
-        let mut text_hash = std::hash::DefaultHasher::new();
-        std::hash::Hash::hash(&bytes, &mut text_hash);
-        // A hash's match is confirmed by the bytes: two logs can be made to share one.
-        let again = seen.insert(std::hash::Hasher::finish(&text_hash), path);
-        let same =
-            |f: &&PathBuf| read_capped(f, log::MAX_LOG_BYTES).ok().as_deref() == Some(&bytes[..]);
-        if let Some(first) = again.filter(same) {
-            return Err(weights::Error::Input(format!(
-                "LOG {origin}: expected each log once, found the same text as {}",
-                weights::shown(first)
-            ))
-            .into());
-        }
         total += bytes.len() as u64;
         if total > log::MAX_TOTAL_LOG_BYTES {
             return Err(weights::Error::Input(format!(
@@ -71,6 +56,7 @@ fn read_logs(paths: &[PathBuf]) -> Result<Vec<Log>> {
             .map_err(|e| weights::Error::Input(format!("{origin}: expected UTF-8 text, {e}")))?;
         logs.extend(log::parse(text, &origin)?);
     }
+    log::check_each_once(&logs)?;
     Ok(logs)
 }
 

@@ -239,12 +239,40 @@ fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path
     // interval by the square root of two.
     let link = dir.join("cart-again.log");
     std::os::unix::fs::symlink(cart, &link).unwrap();
+    let cart_text = std::fs::read_to_string(cart).unwrap();
+    let once = format!("{}:1", cart.display());
     refused(
         dir,
         &[cart, swing, &link, &rig_flag, rig, &out_flag, out],
-        &["cart-again.log: expected each log once, found the same text as"],
+        &[&format!(
+            "cart-again.log:1: expected each experiment once, found the same samples as {once}"
+        )],
     );
     std::fs::remove_file(&link).unwrap();
+    // The same samples under other bytes: CRLF line ends, or one file holding them twice.
+    let crlf = dir.join("cart-crlf.log");
+    std::fs::write(&crlf, cart_text.replace('\n', "\r\n")).unwrap();
+    refused(
+        dir,
+        &[cart, swing, &crlf, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-crlf.log:1: expected each experiment once, found the same samples as {once}"
+        )],
+    );
+    std::fs::remove_file(&crlf).unwrap();
+    let double = dir.join("cart-double.log");
+    std::fs::write(&double, cart_text.repeat(2)).unwrap();
+    let second = cart_text.lines().count() + 1;
+    refused(
+        dir,
+        &[&double, swing, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-double.log:{second}: expected each experiment once, found the same samples \
+             as {}:1",
+            double.display()
+        )],
+    );
+    std::fs::remove_file(&double).unwrap();
     let big = |n: &str| {
         let log = std::fs::read_to_string(cart).unwrap();
         format!("# {n} {}\n{log}", "x".repeat(22 << 20))

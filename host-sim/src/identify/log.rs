@@ -276,6 +276,36 @@ pub fn parse(text: &str, origin: &str) -> Result<Vec<Log>> {
     Ok(logs)
 }
 
+/// Refuses an experiment given twice, in one file or across files: counted twice, it
+/// narrowed every interval by the square root of two. Experiments are compared by what was
+/// measured, their samples, not by their text: a copy with other line ends or another
+/// comment, or a file holding the same experiments twice, is the same measurement.
+pub fn check_each_once(logs: &[Log]) -> Result<()> {
+    use std::hash::{Hash, Hasher};
+    let mut seen: std::collections::HashMap<u64, Vec<&Log>> = Default::default();
+    for log in logs {
+        let mut h = std::hash::DefaultHasher::new();
+        (&log.cart, &log.pole).hash(&mut h);
+        log.duty
+            .iter()
+            .for_each(|d| (d + 0.0).to_bits().hash(&mut h));
+        let same = |a: &&&Log| (&a.duty, &a.cart, &a.pole) == (&log.duty, &log.cart, &log.pole);
+        let bucket = seen.entry(h.finish()).or_default();
+        if let Some(first) = bucket.iter().find(same) {
+            return Err(input(
+                &log.origin,
+                log.line,
+                format!(
+                    "expected each experiment once, found the same samples as {}:{}",
+                    first.origin, first.line
+                ),
+            ));
+        }
+        bucket.push(log);
+    }
+    Ok(())
+}
+
 /// The pole's count as its offset from the hanging position nearest to where the log
 /// starts (a pole that went over the top in an earlier experiment hangs a revolution on),
 /// doubled and made odd: twice the midpoint of the count, never zero, so its sign is the
