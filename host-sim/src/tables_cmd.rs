@@ -31,6 +31,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
         Some(r) => r.clone(),
         None => find_root(&std::env::current_dir()?)?,
     };
+    check_pages_apart(&root)?;
     let mut updates: Vec<(PathBuf, String, Vec<Stale>)> = Vec::new();
     for doc in documents(&root)? {
         let text = read_text(&root.join(&doc))
@@ -110,6 +111,26 @@ fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
     let what = format!("the list of results pages differs from {RESULTS_DIR}");
     out.push(generated(root, pages::INDEX, index, what));
     Ok(out)
+}
+
+/// Refuses, before any work, a results file whose page is another output's place
+/// (`README.json`'s is the list of pages): the two were drawn, then the batch failed at
+/// its commit with exit 1, naming a file that did not exist.
+fn check_pages_apart(root: &Path) -> Result<()> {
+    let pages: Vec<(String, PathBuf)> = results_files(root)?
+        .into_iter()
+        .map(|file| {
+            let name = format!("{RESULTS_DIR}{file}");
+            (format!("the page of {name}"), root.join(pages::path(&name)))
+        })
+        .collect();
+    let mut files: Vec<(&str, &Path)> = pages
+        .iter()
+        .map(|(l, p)| (l.as_str(), p.as_path()))
+        .collect();
+    let index = root.join(pages::INDEX);
+    files.push(("the list of results pages", &index));
+    Ok(weights::files::check_apart(&files, &[])?)
 }
 
 /// A generated file's new text, with a stale entry (`what`) if the file on disk differs.

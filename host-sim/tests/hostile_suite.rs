@@ -356,6 +356,24 @@ fn bad_tables(s: &Scratch) -> Vec<Case> {
             ));
         }
     }
+    // A results file whose page is the list of pages: refused after the drawing, exit 1.
+    let root = s.join("tables-readme");
+    std::fs::create_dir_all(root.join("docs/results")).unwrap();
+    std::fs::write(root.join("Cargo.toml"), b"").unwrap();
+    std::fs::copy(
+        repo("docs/results/eval-shipped.json"),
+        root.join("docs/results/README.json"),
+    )
+    .unwrap();
+    for check in [&["--check"][..], &[]] {
+        let mut args = os(&[&"tables", &"--root", &root]);
+        args.extend(check.iter().map(OsString::from));
+        cases.push(Case::new(
+            format!("tables README.json {check:?}"),
+            &args,
+            &["the page of docs/results/README.json"],
+        ));
+    }
     cases
 }
 
