@@ -141,7 +141,8 @@ const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
 pub fn read(path: &Path) -> weights::Result<Limits> {
     #[derive(Deserialize)]
     struct Envelope {
-        envelope: [f32; 4],
+        // Read in f64: in f32, `5e-324` would be a zero before it could be refused.
+        envelope: [f64; 4],
     }
     // Every message names the file as an envelope's: the command line and the Python
     // package both read it, and a bare path says nothing of which argument it was.
@@ -157,13 +158,16 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
         ))
     })?;
     // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
-    if let Some(x) = e.envelope.iter().find(|x| !weights::plain(f64::from(**x))) {
+    if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
         return Err(bad(format!(
-            "expected each limit zero or a normal number, found {x:e}"
+            "expected each limit zero or a normal number, found {x:?}"
         )));
     }
+    // `plain` holds in f32 too, so each narrows to a zero or a normal f32 (or an infinity,
+    // which the firmware refuses).
+    let limits = e.envelope.map(|x| x as f32);
     // The firmware's refusal names the channel; the values are the file's.
-    Limits::new(e.envelope).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
+    Limits::new(limits).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
 }
 
 /// What `host-sim envelope --json` reports.

@@ -129,10 +129,19 @@ fn bad_input_exits_2_before_any_work() {
     let fixture = fixture.to_str().unwrap();
     let dir = std::env::temp_dir().join(format!("hs-envelope-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
-    let (not_json, negative) = (dir.join("a.json"), dir.join("b.json"));
-    std::fs::write(&not_json, br#"{"envelope": [1, 2, "x", 3]}"#).unwrap();
-    std::fs::write(&negative, br#"{"envelope": [1, -2, 3, 3]}"#).unwrap();
-    let (not_json, negative) = (not_json.to_str().unwrap(), negative.to_str().unwrap());
+    let files = [
+        ("a.json", r#"{"envelope": [1, 2, "x", 3]}"#),
+        ("b.json", r#"{"envelope": [1, -2, 3, 3]}"#),
+        // Below f32's least subnormal: a zero once narrowed, so refused before.
+        ("c.json", r#"{"envelope": [1, 1, 5e-324, 1]}"#),
+        ("d.json", r#"{"envelope": [1, 1e-50, 1, 1]}"#),
+    ]
+    .map(|(name, text)| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).unwrap();
+        path.to_str().unwrap().to_owned()
+    });
+    let [not_json, negative, tiny, tinier] = files.each_ref().map(String::as_str);
     let monitored = ["eval", "--controller", "monitored"];
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
@@ -146,6 +155,14 @@ fn bad_input_exits_2_before_any_work() {
         (
             [&monitored[..], &["--envelope", negative]].concat(),
             "limits.max_abs[1]: expected zero or more, found the limits [",
+        ),
+        (
+            [&monitored[..], &["--envelope", tiny]].concat(),
+            "expected each limit zero or a normal number, found 5e-324",
+        ),
+        (
+            [&monitored[..], &["--envelope", tinier]].concat(),
+            "expected each limit zero or a normal number, found 1e-50",
         ),
         (
             vec!["envelope", "--policy", fixture, "--out", "x.rs"],
