@@ -109,10 +109,20 @@ impl Manifest {
             if !names.insert(s.name.as_str()) {
                 return Err(format!("{at}: a second step of that name"));
             }
-            let lines = [Some(&s.run), s.prepare.as_ref(), Some(&s.about)];
-            if s.run.trim().is_empty() || lines.iter().flatten().any(|l| l.contains(['\n', '\t'])) {
+            // `results steps` prints them one step a line, tab-separated, to a terminal or a
+            // script: a control character would break the line or drive the terminal.
+            let lines = [
+                Some(&s.run),
+                s.prepare.as_ref(),
+                Some(&s.about),
+                s.output.as_ref(),
+            ];
+            if s.run.trim().is_empty()
+                || lines.iter().flatten().any(|l| l.contains(char::is_control))
+            {
                 return Err(format!(
-                    "{at}: expected a command, and no tab or line break in run, prepare or about"
+                    "{at}: expected a command, and no control character (a tab, a line break, \
+                     an escape) in run, prepare, about or output"
                 ));
             }
             if s.stdout && s.output.is_none() {
@@ -133,8 +143,24 @@ impl Manifest {
                     NEEDS.join(", ")
                 ));
             }
-            if !(s.cost.is_finite() && s.cost >= 0.0) {
-                return Err(format!("{at}: expected a cost of 0 or more CPU minutes"));
+            if let Some((k, n)) = s
+                .needs
+                .iter()
+                .enumerate()
+                .find(|(k, n)| s.needs[..*k].contains(n))
+            {
+                return Err(format!(
+                    "{at}: needs {} twice (items {} and {k})",
+                    weights::quote(n),
+                    s.needs[..k].iter().position(|m| m == n).unwrap_or(0)
+                ));
+            }
+            if !(s.cost.is_finite() && s.cost >= 0.0 && weights::plain(s.cost)) {
+                return Err(format!(
+                    "{at}: expected a cost of 0 or more CPU minutes, zero or a normal number, \
+                     found {:?}",
+                    s.cost
+                ));
             }
         }
         Ok(m)
@@ -216,7 +242,23 @@ cost = 0
             ),
             (
                 TWO.replace("run = \"host-sim tables", "run = \"\\thost-sim tables"),
-                "no tab",
+                "no control character",
+            ),
+            (
+                TWO.replace("about = \"x\"", "about = \"x\\u001b[2J\\u0007y\""),
+                "no control character",
+            ),
+            (
+                TWO.replace("eval-x.json\"", "eval-x\\u001b.json\""),
+                "no control character",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = 5e-324\n"),
+                "zero or a normal number, found 5e-324",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"qemu\", \"qemu\"]\n"),
+                "needs \"qemu\" twice (items 0 and 1)",
             ),
             (
                 TWO.replace(

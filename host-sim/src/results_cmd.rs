@@ -58,7 +58,8 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
                 };
                 let fields = [
                     s.name.clone(),
-                    s.cost.to_string(),
+                    // Shortest: `{}` writes 1e300 out in 301 digits.
+                    format!("{:?}", s.cost),
                     needs,
                     u8::from(s.rebuild).to_string(),
                     or(printed),
