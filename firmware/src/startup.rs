@@ -120,13 +120,20 @@ impl Startup {
     /// periods inside, the release at 0.95 of the failure angle. The swing-up's acceleration
     /// sways the cart by about `a / w^2` at the pendulum's frequency: it asks for the most
     /// that keeps that sway within 0.3 of the track's accepted half-length, and at most half
-    /// the cart's stall acceleration (`F / (M + m)`). Its centring (a spring of 2.4 rad/s,
-    /// damped at 0.8), its energy gain and its overshoot are the ones measured on the desk
-    /// rig (`docs/STARTUP.md`). The trim refines the zero by up to 2 degrees, at 0.012 rad
+    /// the cart's stall acceleration (`F / (M + m)`). Its centring, a spring of
+    /// `w^2 (SPRING_M / T)` and a damper of `w (DAMPER_M / T)` on the accepted half-length
+    /// `T`, pulls the cart back more gently the longer its track, since part of that pull is
+    /// in phase with the pump and takes energy out of the swing; its energy gain and its
+    /// overshoot are the ones measured on the desk rig (`docs/STARTUP.md`). The trim refines the zero by up to 2 degrees, at 0.012 rad
     /// per metre-second: slow beside the balance (a cart parked 0.1 m off moves the reading by
     /// a count of a 2,400-count encoder in about 2 s), fast enough to centre the cart within
     /// half a minute of a zero a degree off, measured on the desk and lab rigs.
     pub fn suggested(rig: &Rig) -> Result<Startup, ConfigError> {
+        // The lengths that give the centring measured on the desk rig's track; the same
+        // spring and damper on the lab rig's longer track drained its slower swing
+        // (docs/STARTUP.md).
+        const SPRING_M: f64 = 0.063;
+        const DAMPER_M: f64 = 0.24;
         let rig = check!(rig.check());
         let p = &rig.params;
         let w = libm::sqrt(3.0 * p.gravity / (4.0 * p.length));
@@ -142,7 +149,7 @@ impl Startup {
             swing: Some(Swing {
                 energy_gain: 3.0,
                 max_accel: max_accel as f32,
-                centring: [6.0, 4.0],
+                centring: [w * w * SPRING_M / track, w * DAMPER_M / track].map(|c| c as f32),
                 overshoot: 0.015,
             }),
             trim_rate: TRIM_RATE,
