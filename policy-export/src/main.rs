@@ -142,25 +142,10 @@ fn cmd_reproduce(seeds: u64, out: &Path, studies: &[String], kernel: KernelChoic
         kernel,
         ..Config::paper()
     };
-    let all = reproduce::variants(&base);
-    for s in studies {
-        if !all.iter().any(|v| v.study == s) {
-            let known: Vec<&str> = reproduce::STUDIES.iter().map(|(s, _)| *s).collect();
-            return Err(ConfigError(format!(
-                "--study: expected one of {}, found {}",
-                known.join(", "),
-                weights::quote(s)
-            ))
-            .into());
-        }
-    }
+    let variants = reproduce::chosen(reproduce::variants(&base), studies)?;
     base.validate()?;
     // The output is checked now and written beside, then renamed: all of it or none.
     let staging = Staging::new(out, "reproduce")?;
-    let variants: Vec<_> = all
-        .into_iter()
-        .filter(|v| studies.is_empty() || studies.iter().any(|s| s == v.study))
-        .collect();
     let total = reproduce::distinct_runs(&variants, seeds);
     let bar = if std::io::stderr().is_terminal() {
         ProgressBar::new(total).with_style(

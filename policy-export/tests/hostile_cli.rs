@@ -53,7 +53,7 @@ fn huge_counts_are_refused_before_any_allocation() {
     let max = "18446744073709551615";
     let seeds = format!("0..{max}");
     let long = "x".repeat(100_000);
-    let cases: [(&[&str], &str); 17] = [
+    let cases: [(&[&str], &str); 18] = [
         (
             &["train", "--episodes", max],
             "episodes must be in [1, 1000000]",
@@ -114,6 +114,10 @@ fn huge_counts_are_refused_before_any_allocation() {
         (
             &["reproduce", "--study", &long],
             "--study: expected one of table1, table4",
+        ),
+        (
+            &["reproduce", "--study", "table1,table4,table1"],
+            "--study: expected each study once, found table1 twice",
         ),
         (&["train", "--seeds", &long], "expected START..END"),
     ];

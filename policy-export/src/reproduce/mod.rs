@@ -11,7 +11,7 @@
 use anyhow::{Context, Result};
 use rayon::prelude::*;
 
-use crate::config::Config;
+use crate::config::{Config, ConfigError};
 use crate::train;
 
 mod report;
@@ -21,6 +21,31 @@ mod variants;
 pub use report::{seed_json, tables_md, write};
 pub use stats::{Row, RunStats, max_drop, row};
 pub use variants::{STUDIES, Variant, variants};
+
+/// The rows of `all` in `studies` (every row if none is named). A study not in [`STUDIES`]
+/// is refused, and so is one named twice: its rows would be run and tabled once, a slip
+/// merged without a word.
+pub fn chosen(all: Vec<Variant>, studies: &[String]) -> Result<Vec<Variant>, ConfigError> {
+    for (i, s) in studies.iter().enumerate() {
+        if !STUDIES.iter().any(|(known, _)| known == s) {
+            let known: Vec<&str> = STUDIES.iter().map(|(s, _)| *s).collect();
+            return Err(ConfigError(format!(
+                "--study: expected one of {}, found {}",
+                known.join(", "),
+                weights::quote(s)
+            )));
+        }
+        if studies[..i].contains(s) {
+            return Err(ConfigError(format!(
+                "--study: expected each study once, found {s} twice"
+            )));
+        }
+    }
+    Ok(all
+        .into_iter()
+        .filter(|v| studies.is_empty() || studies.iter().any(|s| s == v.study))
+        .collect())
+}
 
 /// Runs every distinct configuration of `variants` for `seeds` seeds in parallel; rows that
 /// share a configuration (the paper preset appears in every study) share its runs.
@@ -87,6 +112,19 @@ mod tests {
 
     fn provenance() -> Provenance {
         Provenance::new("policy-export", vec!["reproduce".into()])
+    }
+
+    #[test]
+    fn studies_are_chosen_each_once() {
+        let studies =
+            |names: &[&str]| -> Vec<String> { names.iter().map(|s| s.to_string()).collect() };
+        let all = variants(&Config::paper());
+        let some = chosen(all.clone(), &studies(&["table4", "init"])).unwrap();
+        assert!(some.iter().all(|v| ["table4", "init"].contains(&v.study)));
+        assert!(some.iter().any(|v| v.study == "init") && some.iter().any(|v| v.study == "table4"));
+        assert_eq!(chosen(all.clone(), &[]).unwrap().len(), all.len());
+        let e = chosen(all, &studies(&["table1", "table4", "table1"])).unwrap_err();
+        assert_eq!(e.0, "--study: expected each study once, found table1 twice");
     }
 
     #[test]
