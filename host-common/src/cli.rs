@@ -2,6 +2,9 @@
 //! flag, but with no line longer than a few hundred characters (clap quotes the offending
 //! value whole, and a value can be 128 KB), and exit status 2.
 //!
+//! A text flag given bytes that are not UTF-8 is refused naming the flag and showing what was
+//! found, its stray bytes as U+FFFD, where clap's message named neither.
+//!
 //! And the tools' one way to print: [`out!`](crate::out), [`outln!`](crate::outln) and
 //! [`errln!`](crate::errln) never panic, where `print!` panics once its reader has gone
 //! (`host-sim eval --json | head -c 100`). A closed standard output ends the printing, not
@@ -10,11 +13,12 @@
 //! it (a full disk) turns success into exit status 1. Both binaries deny `print!` and
 //! `eprint!` (clippy's `print_stdout`, `print_stderr`), so nothing prints another way.
 
+use std::ffi::OsString;
 use std::io::Write;
 use std::process::ExitCode;
 use std::sync::Mutex;
 
-use clap::error::ErrorKind;
+use clap::error::{ContextKind, ContextValue, ErrorKind};
 
 /// The first error writing standard output, after which nothing more is written to it.
 static STDOUT_FAILED: Mutex<Option<std::io::Error>> = Mutex::new(None);
@@ -94,11 +98,10 @@ pub fn check_threads_env() -> Result<(), String> {
         {
             continue;
         }
-        // Debug-quoted, so escaped; and cut, as every input a message shows.
-        let shown: String = v.to_string_lossy().chars().take(200).collect();
         return Err(format!(
             "{var}: expected a whole number of threads from 0 (one a processor) to \
-             {MAX_THREADS}, or unset; found {shown:?}"
+             {MAX_THREADS}, or unset; found {}",
+            shown(&v.to_string_lossy())
         ));
     }
     Ok(())
@@ -115,8 +118,11 @@ pub fn parse<T: clap::Parser>() -> T {
 /// [`parse`], with the command changed by `edit` first: help made at run time (from a table
 /// of the parts a flag takes, say).
 pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Command) -> T {
-    let parsed = edit(T::command())
-        .try_get_matches()
+    let cmd = edit(T::command());
+    let args: Vec<OsString> = std::env::args_os().collect();
+    let parsed = cmd
+        .clone()
+        .try_get_matches_from(&args)
         .and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
     match parsed {
         Ok(t) => {
@@ -135,11 +141,143 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
             if e.kind() == ErrorKind::DisplayHelpOnMissingArgumentOrSubcommand {
                 e.exit()
             }
+            if e.kind() == ErrorKind::InvalidUtf8 {
+                crate::errln!("error: {}", not_utf8(&cmd, &args));
+                std::process::exit(2)
+            }
             for line in e.render().to_string().lines() {
                 crate::errln!("{}", cut(line));
             }
             std::process::exit(2)
         }
+    }
+}
+
+/// Input text as a message shows it: Debug-quoted, so escaped, and cut at 200 characters.
+fn shown(text: &str) -> String {
+    format!("{:?}", text.chars().take(200).collect::<String>())
+}
+
+/// Stands for the stray bytes of the one argument being traced, in the parse that finds the
+/// flag holding it (a private-use character nobody types).
+const MARK: &str = "\u{10FFFD}";
+
+/// The refusal of `args`, which `cmd` refuses as not UTF-8: the flag that takes text and
+/// what it was given, stray bytes as U+FFFD. clap names neither, and the first argument
+/// that is not UTF-8 need not be it: a path may hold any bytes.
+fn not_utf8(cmd: &clap::Command, args: &[OsString]) -> String {
+    let bad: Vec<usize> = (1..args.len())
+        .filter(|&i| args[i].to_str().is_none())
+        .collect();
+    let lossy = |i: usize, mark: bool| -> OsString {
+        let text = args[i].to_string_lossy();
+        if mark {
+            text.replace('\u{fffd}', MARK).into()
+        } else {
+            text.into_owned().into()
+        }
+    };
+    let Some(at) = first_refused(cmd, args, &bad, |i| lossy(i, false)) else {
+        return "expected UTF-8 text in every argument but paths".into();
+    };
+    let mut traced = args.to_vec();
+    for &i in &bad {
+        traced[i] = lossy(i, i == at);
+    }
+    let given = args[at].to_string_lossy();
+    match holder(cmd, &traced) {
+        Some(flag) => {
+            let value = given.strip_prefix(&format!("{flag}=")).unwrap_or(&given);
+            format!("{flag}: expected UTF-8 text, found {}", shown(value))
+        }
+        None => format!(
+            "argument {at}: expected UTF-8 text, found {}",
+            shown(&given)
+        ),
+    }
+}
+
+/// Which of the arguments at `bad` clap refuses first as not UTF-8. clap reads the
+/// arguments in order and stops at the first it refuses, so with those from `bad[k]` on
+/// read through `lossy`, it still refuses one exactly when that one lies before `bad[k]`:
+/// a search by halves, a parse a step.
+fn first_refused(
+    cmd: &clap::Command,
+    args: &[OsString],
+    bad: &[usize],
+    lossy: impl Fn(usize) -> OsString,
+) -> Option<usize> {
+    let refused = |k: usize| {
+        let mut a = args.to_vec();
+        for &i in &bad[k..] {
+            a[i] = lossy(i);
+        }
+        cmd.clone()
+            .try_get_matches_from(a)
+            .is_err_and(|e| e.kind() == ErrorKind::InvalidUtf8)
+    };
+    let (mut low, mut high) = (1, bad.len());
+    while low < high {
+        let mid = low + (high - low) / 2;
+        if refused(mid) {
+            high = mid;
+        } else {
+            low = mid + 1;
+        }
+    }
+    bad.get(low.checked_sub(1)?).copied()
+}
+
+/// A flag as a person types it, or a positional as clap's usage shows it.
+fn named(arg: &clap::Arg) -> String {
+    if let Some(long) = arg.get_long() {
+        format!("--{long}")
+    } else if let Some(short) = arg.get_short() {
+        format!("-{short}")
+    } else {
+        let names = arg.get_value_names().unwrap_or_default();
+        let name = names.first().map_or(arg.get_id().as_str(), |n| n.as_str());
+        format!("<{}>", name.to_uppercase())
+    }
+}
+
+/// The flag (or positional, `<NAME>`) whose value holds [`MARK`] in `args`: the one clap
+/// names refusing the value, or else the one holding it in what clap matched.
+fn holder(cmd: &clap::Command, args: &[OsString]) -> Option<String> {
+    let first = |shown: &str| shown.split(' ').next().unwrap_or_default().to_string();
+    if let Err(e) = cmd.clone().try_get_matches_from(args) {
+        let text = |kind| match e.get(kind) {
+            Some(ContextValue::String(s)) => Some(s.clone()),
+            _ => None,
+        };
+        if let (Some(arg), Some(value)) = (
+            text(ContextKind::InvalidArg),
+            text(ContextKind::InvalidValue),
+        ) && value.contains(MARK)
+        {
+            return Some(first(&arg));
+        }
+    }
+    let matched = cmd
+        .clone()
+        .ignore_errors(true)
+        .try_get_matches_from(args)
+        .ok()?;
+    let mut at = (cmd, &matched);
+    loop {
+        let (cmd, m) = at;
+        let holds = |arg: &&clap::Arg| {
+            m.try_get_raw(arg.get_id().as_str()).is_ok_and(|raw| {
+                raw.into_iter()
+                    .flatten()
+                    .any(|v| v.to_string_lossy().contains(MARK))
+            })
+        };
+        if let Some(arg) = cmd.get_arguments().find(holds) {
+            return Some(named(arg));
+        }
+        let (name, sub) = m.subcommand()?;
+        at = (cmd.find_subcommand(name)?, sub);
     }
 }
 
@@ -159,6 +297,54 @@ fn cut(line: &str) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn text_that_is_not_utf8_is_refused_naming_its_flag_past_paths_that_are_not() {
+        use clap::{Arg, Command};
+        use std::os::unix::ffi::OsStrExt;
+        let path = || Arg::new("path").value_parser(clap::value_parser!(std::path::PathBuf));
+        let cmd = Command::new("tool").subcommand(
+            Command::new("run")
+                .arg(path().long("policy"))
+                .arg(Arg::new("name").long("name"))
+                .arg(
+                    Arg::new("count")
+                        .long("count")
+                        .value_parser(clap::value_parser!(u32)),
+                )
+                .arg(Arg::new("label").value_name("LABEL")),
+        );
+        let refusal = |argv: &[&[u8]]| {
+            let args: Vec<OsString> = argv
+                .iter()
+                .map(|a| std::ffi::OsStr::from_bytes(a).to_owned())
+                .collect();
+            let e = cmd.clone().try_get_matches_from(&args).unwrap_err();
+            assert_eq!(e.kind(), ErrorKind::InvalidUtf8, "{argv:?}");
+            not_utf8(&cmd, &args)
+        };
+        let bad_path: &[u8] = b"p\xff.safetensors";
+        assert_eq!(
+            refusal(&[b"tool", b"run", b"--policy", bad_path, b"--name", b"a\xffb"]),
+            "--name: expected UTF-8 text, found \"a\u{fffd}b\""
+        );
+        assert_eq!(
+            refusal(&[b"tool", b"run", b"--name=\x1b\xfe", b"--policy", bad_path]),
+            "--name: expected UTF-8 text, found \"\\u{1b}\u{fffd}\""
+        );
+        assert_eq!(
+            refusal(&[b"tool", b"run", b"--count", b"1\xff", b"--name", b"\xff"]),
+            "--count: expected UTF-8 text, found \"1\u{fffd}\""
+        );
+        assert_eq!(
+            refusal(&[b"tool", b"run", b"--policy", bad_path, b"x\xff"]),
+            "<LABEL>: expected UTF-8 text, found \"x\u{fffd}\""
+        );
+        // A path alone is no refusal.
+        let args = [b"tool".as_slice(), b"run", b"--policy", bad_path]
+            .map(|a| std::ffi::OsStr::from_bytes(a).to_owned());
+        assert!(cmd.clone().try_get_matches_from(args).is_ok());
+    }
 
     #[test]
     fn long_lines_are_cut_short_ones_kept() {

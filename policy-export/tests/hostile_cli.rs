@@ -127,6 +127,62 @@ fn huge_counts_are_refused_before_any_allocation() {
 }
 
 #[test]
+fn text_that_is_not_utf8_is_refused_naming_its_flag_and_a_path_that_is_not_is_taken() {
+    use std::ffi::{OsStr, OsString};
+    use std::os::unix::ffi::OsStrExt;
+    let dir = scratch("utf8");
+    let out = dir.join(OsStr::from_bytes(b"o\xff.rs"));
+    let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../shipped/policy.safetensors");
+    let os = |a: &[&[u8]]| -> Vec<OsString> {
+        a.iter().map(|b| OsStr::from_bytes(b).to_owned()).collect()
+    };
+    let export = |rest: &[&[u8]]| -> Vec<OsString> {
+        let mut args = os(&[b"export", policy.as_bytes(), b"--out"]);
+        args.push(out.clone().into());
+        args.extend(os(rest));
+        args
+    };
+    let cases: [(Vec<OsString>, &str); 5] = [
+        (
+            export(&[b"--name", b"P\xff"]),
+            "--name: expected UTF-8 text, found \"P\u{fffd}\"",
+        ),
+        (
+            export(&[b"--prefix=a\xfe"]),
+            "--prefix: expected UTF-8 text, found \"a\u{fffd}\"",
+        ),
+        (
+            os(&[b"train", b"--print-config", b"--domain", b"noise\xff"]),
+            "--domain: expected UTF-8 text, found \"noise\u{fffd}\"",
+        ),
+        (
+            os(&[b"train", b"--print-config", b"--levels=-1,\xc3"]),
+            "--levels: expected UTF-8 text, found \"-1,\u{fffd}\"",
+        ),
+        (
+            os(&[b"reproduce", b"--study", b"table1,\xff"]),
+            "--study: expected UTF-8 text, found \"table1,\u{fffd}\"",
+        ),
+    ];
+    for (args, want) in cases {
+        let ran = hostile::run_counted(exe().args(&args));
+        let seen = format!("{args:?}: exit {:?}: {}", ran.code, ran.stderr);
+        assert_eq!(ran.code, Some(2), "{seen}");
+        assert_eq!(ran.stderr.trim_end(), format!("error: {want}"), "{seen}");
+        assert!(ran.late().is_none(), "{seen}");
+    }
+    assert_eq!(entries(&dir), Vec::<String>::new());
+    let o = exe().args(export(&[b"--name", b"P"])).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        std::fs::read_to_string(&out)
+            .unwrap()
+            .contains("pub static P:")
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn outputs_that_are_not_the_tools_are_refused_before_the_work() {
     let dir = scratch("outs");
     let file = dir.join("notes.txt");

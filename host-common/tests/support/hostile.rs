@@ -261,7 +261,7 @@ impl Bad {
         match self {
             Bad::Missing | Bad::DanglingLink => vec!["No such file"],
             // A flag that takes text refuses a name that is not UTF-8 outright.
-            Bad::NonUtf8Name => vec!["No such file", "invalid UTF-8"],
+            Bad::NonUtf8Name => vec!["No such file", "expected UTF-8 text"],
             // A policy argument takes a run directory, whose policy file is then missing.
             Bad::Directory => vec!["found a directory", "No such file"],
             Bad::Fifo => vec!["found a FIFO"],
