@@ -81,7 +81,8 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
         }
     };
     let machine = rig.as_ref().map_or(twin::Machine::GYMNASIUM, |r| r.1);
-    let mut cfg = Config::preset_on(args.preset, &machine);
+    let preset = Config::preset_on(args.preset, &machine);
+    let mut cfg = preset.clone();
     if let Some(path) = &args.config {
         let bytes = read_capped(path, MAX_CONFIG_BYTES)?;
         let text = String::from_utf8(bytes).map_err(|e| {
@@ -97,7 +98,8 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
         cfg.rig = text;
     }
     // A value from the file is named by the file; the flags name their own.
-    cfg.validate().map_err(|e| match &args.config {
+    let checked = cfg.validate().and_then(|()| cfg.unread(&preset));
+    checked.map_err(|e| match &args.config {
         Some(path) => ConfigError(format!(
             "--config {} with the flags: {e}",
             weights::shown(path)

@@ -12,6 +12,9 @@ mod hostile;
 
 use hostile::{entries, mkfifo};
 
+#[path = "hostile_cli/modes.rs"]
+mod modes;
+
 fn exe() -> Command {
     Command::new(env!("CARGO_BIN_EXE_policy-export"))
 }

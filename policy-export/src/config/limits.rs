@@ -5,12 +5,13 @@
 //!
 //! A key's own limit is declared with the key (`config_keys!` in the parent module) and lands
 //! in [`LIMITS`]; what involves several keys, and whether this CPU has the kernel, is checked
-//! here in [`Config::validate`].
+//! here in [`Config::validate`]; a key changed where the mode that would read it is off, in
+//! [`Config::unread`].
 
 use std::fmt;
 use std::ops::RangeInclusive;
 
-use super::{Config, ConfigError};
+use super::{Config, ConfigError, TargetUpdate};
 
 /// Largest TOML file `--config` reads: room for a rig's text (64 KiB) and every key beside
 /// it. A TOML document costs about 80 bytes a byte while it is parsed, whatever the keys.
@@ -227,5 +228,105 @@ impl Config {
             ));
         }
         errs
+    }
+}
+
+/// A key read only in one mode of another's.
+struct Modal {
+    key: &'static str,
+    /// The key that sets the mode.
+    mode: &'static str,
+    /// What the mode must be, in words.
+    needs: &'static str,
+    /// Whether the mode is on.
+    reads: fn(&Config) -> bool,
+}
+
+const fn modal(
+    key: &'static str,
+    mode: &'static str,
+    needs: &'static str,
+    reads: fn(&Config) -> bool,
+) -> Modal {
+    Modal {
+        key,
+        mode,
+        needs,
+        reads,
+    }
+}
+
+/// The keys read in one mode alone. Hard target updates never read `tau` (the weights came
+/// out identical for any), soft ones never the period; without periodic evaluations nothing
+/// stops a run early or has snapshots for finalists; without finalists there is no trial.
+const MODAL: &[Modal] = &[
+    modal("tau", "target_update", "soft", soft),
+    modal("target_period", "target_update", "hard", hard),
+    modal("target_period_unit", "target_update", "hard", hard),
+    modal("eval_episodes", "eval_every", "above 0", evaluates),
+    modal("stop_when_perfect", "eval_every", "above 0", evaluates),
+    modal("patience", "eval_every", "above 0", evaluates),
+    modal("settle", "eval_every", "above 0", evaluates),
+    modal("finalists", "eval_every", "above 0", evaluates),
+    modal("finalist_episodes", "finalists", "above 0", trials),
+    modal("finalist_max_steps", "finalists", "above 0", trials),
+    modal("finalist_domain", "finalists", "above 0", trials),
+    modal("board_int8", "finalists", "above 0", trials),
+    modal("trial_margin", "finalists", "above 0", trials),
+];
+
+fn soft(c: &Config) -> bool {
+    c.target_update == TargetUpdate::Soft
+}
+
+fn hard(c: &Config) -> bool {
+    c.target_update == TargetUpdate::Hard
+}
+
+fn evaluates(c: &Config) -> bool {
+    c.eval_every > 0
+}
+
+fn trials(c: &Config) -> bool {
+    c.finalists > 0
+}
+
+impl Config {
+    /// Refuses a key changed from `preset` (by a `--config` file or a flag) where the mode
+    /// that reads it is off: the value would be recorded and dropped. A key at its preset's
+    /// value, or at its declared default ([`Config::paper`], where every preset leaves the
+    /// keys its modes do not read), asks for nothing and passes: so a preset's own values,
+    /// and a configuration `--print-config` wrote, read back whole over any preset, are never
+    /// refused.
+    pub fn unread(&self, preset: &Config) -> Result<(), ConfigError> {
+        let table = |c: &Config| {
+            toml::Table::try_from(c)
+                .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))
+        };
+        let (now, before, default) = (table(self)?, table(preset)?, table(&Config::paper())?);
+        let shown = |key: &str| match &now[key] {
+            toml::Value::String(s) => weights::quote(s),
+            v => v.to_string(),
+        };
+        let errs: Vec<String> = MODAL
+            .iter()
+            .filter(|m| {
+                let key = m.key;
+                now[key] != before[key] && now[key] != default[key] && !(m.reads)(self)
+            })
+            .map(|m| {
+                let (key, mode, needs) = (m.key, m.mode, m.needs);
+                format!(
+                    "{key} = {} is read only when {mode} is {needs}; {mode} = {} ignores it",
+                    shown(key),
+                    shown(mode)
+                )
+            })
+            .collect();
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(ConfigError(errs.join("; ")))
+        }
     }
 }

@@ -126,6 +126,25 @@ fn bad_values_are_named() {
 }
 
 #[test]
+fn every_preset_read_whole_over_any_other_asks_for_nothing_unread() {
+    use clap::ValueEnum;
+    let on = |p: &Preset| Config::preset_on(*p, &twin::Machine::GYMNASIUM);
+    for p in Preset::value_variants() {
+        for q in Preset::value_variants() {
+            assert_eq!(on(p).unread(&on(q)), Ok(()), "{p:?} over {q:?}");
+        }
+    }
+    let hard = Config {
+        tau: 0.5,
+        ..Config::paper()
+    };
+    assert_eq!(
+        hard.unread(&Config::fast()).unwrap_err().0,
+        "tau = 0.5 is read only when target_update is soft; target_update = \"hard\" ignores it"
+    );
+}
+
+#[test]
 fn the_documented_limits_are_the_checked_ones() {
     let doc = include_str!("../../../docs/HOSTILE_INPUT.md");
     for l in LIMITS {

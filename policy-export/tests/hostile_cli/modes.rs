@@ -1,0 +1,118 @@
+//! Training keys that the chosen mode never reads (a soft update's period, a hard one's tau,
+//! finalists' keys without finalists, early stops without periodic evaluations): refused when
+//! given, where they were recorded and dropped; a preset's own values pass.
+
+use super::{refused, run, scratch, stderr};
+
+#[test]
+fn a_key_its_mode_never_reads_is_refused_and_a_presets_own_are_not() {
+    let fast = ["train", "--preset", "fast", "--print-config"];
+    let with = |rest: &[&'static str]| [&fast[..], rest].concat();
+    let cases: [(Vec<&str>, &str); 5] = [
+        (
+            with(&["--target-update", "hard", "--tau", "0.5"]),
+            "tau = 0.5 is read only when target_update is soft; target_update = \"hard\" ignores it",
+        ),
+        (
+            with(&["--target-period", "7"]),
+            "target_period = 7 is read only when target_update is hard; target_update = \"soft\"",
+        ),
+        (
+            with(&[
+                "--finalists",
+                "0",
+                "--trial-margin",
+                "0.5",
+                "--finalist-domain",
+                "noise",
+            ]),
+            "finalist_domain = \"noise\" is read only when finalists is above 0; finalists = 0 \
+             ignores it; trial_margin = 0.5 is read only when finalists is above 0",
+        ),
+        (
+            with(&["--eval-every", "0", "--settle", "5", "--patience", "5"]),
+            "patience = 5 is read only when eval_every is above 0; eval_every = 0 ignores it; \
+             settle = 5",
+        ),
+        (
+            vec![
+                "train",
+                "--print-config",
+                "--finalists",
+                "3",
+                "--finalist-episodes",
+                "2",
+                "--finalist-max-steps",
+                "9",
+            ],
+            "finalists = 3 is read only when eval_every is above 0",
+        ),
+    ];
+    for (args, want) in cases {
+        refused(&args, want);
+    }
+    // A preset's own values pass with their mode turned off, and so does every preset's
+    // configuration read back whole over another.
+    let dir = scratch("modes");
+    for preset in [
+        &["--preset", "paper"][..],
+        &["--preset", "deploy"],
+        &["--preset", "fast"],
+    ] {
+        let mut args = vec!["train", "--print-config"];
+        args.extend(preset);
+        let o = run(&args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        let file = dir.join("all.toml");
+        std::fs::write(&file, &o.stdout).unwrap();
+        let again = run(&[
+            "train",
+            "--preset",
+            "robust",
+            "--print-config",
+            "--config",
+            file.to_str().unwrap(),
+        ]);
+        assert_eq!(again.stdout, o.stdout, "{args:?}: {}", stderr(&again));
+    }
+    for args in [
+        &[
+            "train",
+            "--preset",
+            "deploy",
+            "--print-config",
+            "--eval-every",
+            "0",
+        ][..],
+        &[
+            "train",
+            "--preset",
+            "deploy",
+            "--print-config",
+            "--finalists",
+            "0",
+        ],
+        &[
+            "train",
+            "--rig",
+            "../rigs/desk-identified.toml",
+            "--preset",
+            "deploy",
+            "--print-config",
+        ],
+        &with(&[
+            "--eval-every",
+            "0",
+            "--settle",
+            "0",
+            "--target-update",
+            "hard",
+            "--tau",
+            "0.005",
+        ]),
+    ] {
+        let o = run(args);
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
