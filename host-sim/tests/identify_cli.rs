@@ -186,6 +186,48 @@ fn malformed_rows_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &
     std::fs::remove_file(&bad).unwrap();
 }
 
+/// One experiment given twice, through a link, under other bytes (CRLF line ends) or twice
+/// in one file: counted twice, it narrowed every interval by the square root of two.
+fn a_repeated_experiment_is_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &Path) {
+    let (rig_flag, out_flag) = (PathBuf::from("--rig"), PathBuf::from("--out"));
+    let link = dir.join("cart-again.log");
+    std::os::unix::fs::symlink(cart, &link).unwrap();
+    let cart_text = std::fs::read_to_string(cart).unwrap();
+    let once = format!("{}:1", cart.display());
+    refused(
+        dir,
+        &[cart, swing, &link, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-again.log:1: expected each experiment once, found the same samples as {once}"
+        )],
+    );
+    std::fs::remove_file(&link).unwrap();
+    // The same samples under other bytes: CRLF line ends, or one file holding them twice.
+    let crlf = dir.join("cart-crlf.log");
+    std::fs::write(&crlf, cart_text.replace('\n', "\r\n")).unwrap();
+    refused(
+        dir,
+        &[cart, swing, &crlf, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-crlf.log:1: expected each experiment once, found the same samples as {once}"
+        )],
+    );
+    std::fs::remove_file(&crlf).unwrap();
+    let double = dir.join("cart-double.log");
+    std::fs::write(&double, cart_text.repeat(2)).unwrap();
+    let second = cart_text.lines().count() + 1;
+    refused(
+        dir,
+        &[&double, swing, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-double.log:{second}: expected each experiment once, found the same samples \
+             as {}:1",
+            double.display()
+        )],
+    );
+    std::fs::remove_file(&double).unwrap();
+}
+
 /// The pole's counts of `cart` and `swing` as an encoder wired the other way reads them;
 /// then more log files than the fit takes, and more bytes of them.
 fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &Path) {
@@ -235,44 +277,6 @@ fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path
         &many,
         &["LOG: expected at most 64 log files, found 65"],
     );
-    // One experiment given twice, here through a link: counted twice, it narrowed every
-    // interval by the square root of two.
-    let link = dir.join("cart-again.log");
-    std::os::unix::fs::symlink(cart, &link).unwrap();
-    let cart_text = std::fs::read_to_string(cart).unwrap();
-    let once = format!("{}:1", cart.display());
-    refused(
-        dir,
-        &[cart, swing, &link, &rig_flag, rig, &out_flag, out],
-        &[&format!(
-            "cart-again.log:1: expected each experiment once, found the same samples as {once}"
-        )],
-    );
-    std::fs::remove_file(&link).unwrap();
-    // The same samples under other bytes: CRLF line ends, or one file holding them twice.
-    let crlf = dir.join("cart-crlf.log");
-    std::fs::write(&crlf, cart_text.replace('\n', "\r\n")).unwrap();
-    refused(
-        dir,
-        &[cart, swing, &crlf, &rig_flag, rig, &out_flag, out],
-        &[&format!(
-            "cart-crlf.log:1: expected each experiment once, found the same samples as {once}"
-        )],
-    );
-    std::fs::remove_file(&crlf).unwrap();
-    let double = dir.join("cart-double.log");
-    std::fs::write(&double, cart_text.repeat(2)).unwrap();
-    let second = cart_text.lines().count() + 1;
-    refused(
-        dir,
-        &[&double, swing, &rig_flag, rig, &out_flag, out],
-        &[&format!(
-            "cart-double.log:{second}: expected each experiment once, found the same samples \
-             as {}:1",
-            double.display()
-        )],
-    );
-    std::fs::remove_file(&double).unwrap();
     let big = |n: &str| {
         let log = std::fs::read_to_string(cart).unwrap();
         format!("# {n} {}\n{log}", "x".repeat(22 << 20))
@@ -325,6 +329,7 @@ fn bad_logs_and_rigs_are_refused_and_nothing_is_written() {
         &["period_s: expected the rig's period_s 0.01, found 0.02"],
     );
     inverted_and_too_many_logs_are_refused(&dir, [&cart, &swing, &rig], &out);
+    a_repeated_experiment_is_refused(&dir, [&cart, &swing, &rig], &out);
     // Only one experiment, and an output that is an input.
     refused(
         &dir,

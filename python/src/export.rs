@@ -48,42 +48,7 @@ pub fn export(
     granularity: Option<&str>,
     levels: Option<Vec<f64>>,
 ) -> PyResult<String> {
-    let lang = match fmt {
-        "rust" => Language::Rust,
-        "c" => Language::C,
-        _ => {
-            return Err(value_error(format!(
-                "fmt must be \"rust\" or \"c\"; found {fmt:?}"
-            )));
-        }
-    };
-    let int = match quant {
-        None => false,
-        Some("int8") => true,
-        Some(q) => {
-            return Err(value_error(format!(
-                "quant must be None or \"int8\"; found {q:?}"
-            )));
-        }
-    };
-    let granularity = match (granularity, int) {
-        (None, _) => Granularity::default(),
-        // It chooses how int8 weights share a scale: without quant it would change nothing,
-        // and the command refuses --granularity without --quant.
-        (Some(g), false) => {
-            return Err(value_error(format!(
-                "granularity needs quant=\"int8\" (it chooses how int8 weights share a \
-                 scale); found granularity={g:?} without quant"
-            )));
-        }
-        (Some("per-channel"), true) => Granularity::PerChannel,
-        (Some("per-tensor"), true) => Granularity::PerTensor,
-        (Some(g), true) => {
-            return Err(value_error(format!(
-                "granularity must be \"per-channel\" or \"per-tensor\"; found {g:?}"
-            )));
-        }
-    };
+    let (lang, int, granularity) = arithmetic(fmt, quant, granularity)?;
     let name = name.unwrap_or_else(|| exporter::default_name(lang, int).to_string());
     exporter::check_name(lang, &name).map_err(value_error)?;
     let levels = crate::given_levels(levels)?;
@@ -121,6 +86,51 @@ pub fn export(
     .map_err(|e| value_error(format!("{e:#}")))?;
     write_atomic(&out, r.text.as_bytes()).map_err(file_error)?;
     Ok(import.describe())
+}
+
+/// The language, whether int8, and the int8 weights' granularity `export`'s keywords ask for.
+fn arithmetic(
+    fmt: &str,
+    quant: Option<&str>,
+    granularity: Option<&str>,
+) -> PyResult<(Language, bool, Granularity)> {
+    let lang = match fmt {
+        "rust" => Language::Rust,
+        "c" => Language::C,
+        _ => {
+            return Err(value_error(format!(
+                "fmt must be \"rust\" or \"c\"; found {fmt:?}"
+            )));
+        }
+    };
+    let int = match quant {
+        None => false,
+        Some("int8") => true,
+        Some(q) => {
+            return Err(value_error(format!(
+                "quant must be None or \"int8\"; found {q:?}"
+            )));
+        }
+    };
+    let granularity = match (granularity, int) {
+        (None, _) => Granularity::default(),
+        // It chooses how int8 weights share a scale: without quant it would change nothing,
+        // and the command refuses --granularity without --quant.
+        (Some(g), false) => {
+            return Err(value_error(format!(
+                "granularity needs quant=\"int8\" (it chooses how int8 weights share a \
+                 scale); found granularity={g:?} without quant"
+            )));
+        }
+        (Some("per-channel"), true) => Granularity::PerChannel,
+        (Some("per-tensor"), true) => Granularity::PerTensor,
+        (Some(g), true) => {
+            return Err(value_error(format!(
+                "granularity must be \"per-channel\" or \"per-tensor\"; found {g:?}"
+            )));
+        }
+    };
+    Ok((lang, int, granularity))
 }
 
 /// What finding the network goes by: the prefix and levels given, and the rig and output

@@ -74,76 +74,78 @@ fn every_item_a_rust_module_defines_beside_its_static_is_refused_as_its_name() {
     }
 }
 
+/// Names the C library takes, by what takes them, as the refusal says it.
+const LIBRARY_CLASSES: [(&str, &[&str]); 21] = [
+    (
+        "a macro name of <stdint.h>, which the header includes",
+        &[
+            "INT8_MAX",
+            "UINT64_C",
+            "INT_LEAST16_MIN",
+            "UINTPTR_WIDTH",
+            "INTERVAL_MAX",
+            "INTMAX_C",
+            "UINTMAX_C",
+            "SIZE_MAX",
+            "PTRDIFF_MIN",
+            "PTRDIFF_MAX",
+            "SIG_ATOMIC_MIN",
+            "SIG_ATOMIC_MAX",
+            "WCHAR_MIN",
+            "WCHAR_MAX",
+            "WINT_MIN",
+            "WINT_MAX",
+            "SIZE_WIDTH",
+        ],
+    ),
+    (
+        "a macro of <stddef.h>",
+        &["NULL", "offsetof", "unreachable"],
+    ),
+    ("the macro of <errno.h>", &["errno"]),
+    ("the function every C program defines", &["main"]),
+    ("default GNU dialects predefine", &["unix", "linux", "i386"]),
+    ("a release build defines", &["NDEBUG"]),
+    // The standard headers a program includes beside the header: each name failed to
+    // compile there, in strict C99 and C++17.
+    (
+        "<stdio.h>",
+        &[
+            "EOF", "stdout", "stdin", "stderr", "BUFSIZ", "SEEK_SET", "printf",
+        ],
+    ),
+    (
+        "<math.h>",
+        &["INFINITY", "NAN", "HUGE_VAL", "round", "roundf", "sqrtl"],
+    ),
+    (
+        "<math.h>",
+        &["math_errhandling", "FP_NAN", "isnan", "isinf"],
+    ),
+    ("<stdlib.h>", &["abs", "EXIT_SUCCESS", "RAND_MAX", "malloc"]),
+    (
+        "<limits.h>",
+        &["CHAR_BIT", "LLONG_MAX", "MB_LEN_MAX", "SCHAR_MIN"],
+    ),
+    ("<signal.h>", &["SIGINT", "signal", "SIGTERM", "SIG_DFL"]),
+    (
+        "<float.h>",
+        &["FLT_MAX", "DBL_MAX", "LDBL_EPSILON", "DECIMAL_DIG"],
+    ),
+    ("<time.h>", &["CLOCKS_PER_SEC", "time"]),
+    ("<complex.h>", &["I", "complex", "cabsf"]),
+    ("<stdnoreturn.h>", &["noreturn"]),
+    ("<setjmp.h>", &["setjmp", "longjmp"]),
+    ("POSIX's <math.h>", &["M_PI", "M_2_PI"]),
+    // What C11 7.31 reserves for the library's future, by pattern.
+    ("<errno.h>", &["ENOMEM", "E2BIG", "EVERYTHING"]),
+    ("<ctype.h>", &["isready", "total", "toupper"]),
+    ("<string.h>", &["string", "memory", "strlen"]),
+];
+
 #[test]
 fn c_names_the_c_library_takes_are_refused_by_class_saying_why() {
-    let classes: [(&str, &[&str]); 21] = [
-        (
-            "a macro name of <stdint.h>, which the header includes",
-            &[
-                "INT8_MAX",
-                "UINT64_C",
-                "INT_LEAST16_MIN",
-                "UINTPTR_WIDTH",
-                "INTERVAL_MAX",
-                "INTMAX_C",
-                "UINTMAX_C",
-                "SIZE_MAX",
-                "PTRDIFF_MIN",
-                "PTRDIFF_MAX",
-                "SIG_ATOMIC_MIN",
-                "SIG_ATOMIC_MAX",
-                "WCHAR_MIN",
-                "WCHAR_MAX",
-                "WINT_MIN",
-                "WINT_MAX",
-                "SIZE_WIDTH",
-            ],
-        ),
-        (
-            "a macro of <stddef.h>",
-            &["NULL", "offsetof", "unreachable"],
-        ),
-        ("the macro of <errno.h>", &["errno"]),
-        ("the function every C program defines", &["main"]),
-        ("default GNU dialects predefine", &["unix", "linux", "i386"]),
-        ("a release build defines", &["NDEBUG"]),
-        // The standard headers a program includes beside the header: each name failed to
-        // compile there, in strict C99 and C++17.
-        (
-            "<stdio.h>",
-            &[
-                "EOF", "stdout", "stdin", "stderr", "BUFSIZ", "SEEK_SET", "printf",
-            ],
-        ),
-        (
-            "<math.h>",
-            &["INFINITY", "NAN", "HUGE_VAL", "round", "roundf", "sqrtl"],
-        ),
-        (
-            "<math.h>",
-            &["math_errhandling", "FP_NAN", "isnan", "isinf"],
-        ),
-        ("<stdlib.h>", &["abs", "EXIT_SUCCESS", "RAND_MAX", "malloc"]),
-        (
-            "<limits.h>",
-            &["CHAR_BIT", "LLONG_MAX", "MB_LEN_MAX", "SCHAR_MIN"],
-        ),
-        ("<signal.h>", &["SIGINT", "signal", "SIGTERM", "SIG_DFL"]),
-        (
-            "<float.h>",
-            &["FLT_MAX", "DBL_MAX", "LDBL_EPSILON", "DECIMAL_DIG"],
-        ),
-        ("<time.h>", &["CLOCKS_PER_SEC", "time"]),
-        ("<complex.h>", &["I", "complex", "cabsf"]),
-        ("<stdnoreturn.h>", &["noreturn"]),
-        ("<setjmp.h>", &["setjmp", "longjmp"]),
-        ("POSIX's <math.h>", &["M_PI", "M_2_PI"]),
-        // What C11 7.31 reserves for the library's future, by pattern.
-        ("<errno.h>", &["ENOMEM", "E2BIG", "EVERYTHING"]),
-        ("<ctype.h>", &["isready", "total", "toupper"]),
-        ("<string.h>", &["string", "memory", "strlen"]),
-    ];
-    for (why, names) in classes {
+    for (why, names) in LIBRARY_CLASSES {
         for name in names {
             let e = check_c_name(name).unwrap_err().to_string();
             assert!(

@@ -5,7 +5,7 @@
 use super::{refused, run, scratch, stderr};
 
 #[test]
-fn a_key_its_mode_never_reads_is_refused_and_a_presets_own_are_not() {
+fn a_key_its_mode_never_reads_is_refused() {
     let fast = ["train", "--preset", "fast", "--print-config"];
     let with = |rest: &[&'static str]| [&fast[..], rest].concat();
     let cases: [(Vec<&str>, &str); 5] = [
@@ -51,8 +51,14 @@ fn a_key_its_mode_never_reads_is_refused_and_a_presets_own_are_not() {
     for (args, want) in cases {
         refused(&args, want);
     }
-    // A preset's own values pass with their mode turned off, and so does every preset's
-    // configuration read back whole over another.
+}
+
+/// A preset's own values pass with their mode turned off, and so does every preset's
+/// configuration read back whole over another.
+#[test]
+fn a_presets_own_values_and_the_defaults_pass_with_their_mode_off() {
+    let fast = ["train", "--preset", "fast", "--print-config"];
+    let with = |rest: &[&'static str]| [&fast[..], rest].concat();
     let dir = scratch("modes");
     for preset in [
         &["--preset", "paper"][..],
