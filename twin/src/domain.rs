@@ -64,7 +64,7 @@ impl Domain {
         let d = Domain {
             spec: spec.to_string(),
             machine: *machine,
-            parts: grammar::parse(spec, "domain", machine)?,
+            parts: grammar::parse(spec, "domain")?,
         };
         // Every low end, every high end, and the stiffest corner: the most damping and
         // friction on the lightest, shortest pole and cart.

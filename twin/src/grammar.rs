@@ -9,7 +9,6 @@
 //! a number or (in a domain) a range `LO..HI`, and (in a domain) `@P` applies the part in a
 //! share P of samples only.
 
-use crate::machine::Machine;
 use crate::scenario::{MAX_SPEC_BYTES, Scenario};
 
 mod help;
@@ -93,11 +92,6 @@ pub enum Idle {
     First(f64),
     /// Every field at this value.
     Every(f64),
-    /// Values that set its quantities to the machine's own (`friction=0` or `delay=0` on
-    /// Gymnasium's machine): it sets them outright, so what is idle depends on the machine.
-    /// Its key alone is not refused: it asks for the part's standard level, which the
-    /// built-in sets name on every machine (`delay` on a rig with a period of dead time).
-    Own,
 }
 
 impl PartSpec {
@@ -111,7 +105,7 @@ impl PartSpec {
     /// does ([`Idle`]); `None` for a part that always changes something.
     pub fn idle_fields(&self) -> Option<(&'static [Field], f64)> {
         match self.idle {
-            Idle::Never | Idle::Own => None,
+            Idle::Never => None,
             Idle::First(v) => Some((&self.fields[..1], v)),
             Idle::Every(v) => Some((self.fields, v)),
         }
@@ -178,19 +172,9 @@ pub struct Part {
     pub share: f64,
 }
 
-/// Splits `spec` into parts (`nominal` and `""` are none) of worlds around `machine`,
-/// checking every value against its field and the machine. `what` names the spec in errors
-/// (`scenario` or `domain`).
-pub fn parse(spec: &str, what: &str, machine: &Machine) -> Result<Vec<Part>, String> {
-    let parts = read(spec, what)?;
-    for part in &parts {
-        refuse_own(part, machine).map_err(|e| format!("{what} {}: {e}", weights::quote(spec)))?;
-    }
-    Ok(parts)
-}
-
-/// [`parse`] short of the checks that need a machine: what a spec says, wherever it is run.
-pub fn read(spec: &str, what: &str) -> Result<Vec<Part>, String> {
+/// Splits `spec` into parts (`nominal` and `""` are none), checking every value against its
+/// field. `what` names the spec in errors (`scenario` or `domain`).
+pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {
     let shown = weights::quote(spec);
     if spec.len() > MAX_SPEC_BYTES {
         return Err(format!(
@@ -300,39 +284,6 @@ fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
         "{} changes nothing with {} {at}: expected another value, or the part left out",
         spec.key,
         names.join(" and ")
-    ))
-}
-
-/// Refuses a part written at `machine`'s own values ([`Idle::Own`]).
-fn refuse_own(part: &Part, machine: &Machine) -> Result<(), String> {
-    let spec = part.spec;
-    let values = &part.values;
-    if spec.idle != Idle::Own
-        || values.iter().all(Option::is_none)
-        || values.iter().flatten().any(|s| !s.is_point())
-    {
-        return Ok(());
-    }
-    let given: Vec<Option<f64>> = values.iter().map(|v| v.map(|s| s.lo)).collect();
-    let nominal = Scenario::nominal_on(machine);
-    let mut s = nominal.clone();
-    (spec.effect)(&mut s, &Values::new(spec, &given));
-    if s != nominal {
-        return Ok(());
-    }
-    let filled = Values::new(spec, &given);
-    let shown: Vec<String> = (0..spec.fields.len())
-        .filter_map(|i| {
-            filled
-                .get(i)
-                .map(|v| format!("{} {v}", spec.fields[i].name))
-        })
-        .collect();
-    Err(format!(
-        "{} changes nothing with {}, the machine's own: expected another value, or the part \
-         left out",
-        spec.key,
-        shown.join(" and ")
     ))
 }
 

@@ -127,7 +127,7 @@ impl Scenario {
         let rig = &machine.rig;
         let mut s = Scenario::nominal_on(machine);
         s.name = spec.to_string();
-        for part in grammar::parse(spec, "scenario", machine)? {
+        for part in grammar::parse(spec, "scenario")? {
             if part.share != 1.0 || part.values.iter().flatten().any(|v| !v.is_point()) {
                 return Err(format!(
                     "scenario {shown}: {} takes single values, not ranges or shares (those \

@@ -64,7 +64,7 @@ pub fn check_rows(
 /// in and `-0` as 0 (by their bits, to be hashed), a factor given twice as its product, in
 /// the order of the keys. A name that is no spec (none the tools make) is its text.
 fn canonical(spec: &str) -> Vec<(String, Vec<Option<u64>>)> {
-    let Ok(parts) = twin::grammar::read(spec, "scenario") else {
+    let Ok(parts) = twin::grammar::parse(spec, "scenario") else {
         return vec![(spec.to_string(), Vec::new())];
     };
     let mut set: std::collections::BTreeMap<String, Vec<Option<f64>>> = Default::default();

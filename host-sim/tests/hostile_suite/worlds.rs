@@ -41,10 +41,6 @@ pub fn bad_specs() -> Vec<Case> {
         "push=0/9",
         "weak=1/5",
         "jitter=0",
-        // Gymnasium's own friction and dead time, set outright.
-        "friction=0",
-        "friction=0/0",
-        "nominal,delay=0",
         // A discount the board's f32 holds as a subnormal.
         "encoder=2400/15000/1e-40",
     ];

@@ -1,6 +1,6 @@
 //! The parts' table as people read it: the syntax list, a flag's help, the Markdown table.
 
-use super::{Fallback, Field, Idle, PARTS, PartSpec};
+use super::{Fallback, Field, PARTS, PartSpec};
 
 /// Every part's syntax, comma-separated: what an error lists and the help shows.
 pub fn syntax_list() -> String {
@@ -51,9 +51,6 @@ fn describe(f: &Field) -> String {
 
 /// The values a part is refused at, as the table shows them.
 fn idle(p: &PartSpec) -> String {
-    if p.idle == Idle::Own {
-        return "; not written at the machine's own (it would change nothing)".into();
-    }
     let Some((fields, at)) = p.idle_fields() else {
         return String::new();
     };

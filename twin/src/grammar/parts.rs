@@ -46,7 +46,7 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "delay[=N]",
         doc: "N periods of actuator dead time, known to the controller",
         stiff_high: false,
-        idle: Idle::Own,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "force",
@@ -117,7 +117,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "Coulomb friction C of the cart on the track and viscous friction P (N m s/rad) \
               at the pivot (Florian 2007's corrected equations)",
         stiff_high: true,
-        idle: Idle::Own,
+        idle: Idle::Never,
     },
     PartSpec {
         key: "encoder",

@@ -204,7 +204,7 @@ fn a_part_at_values_that_change_nothing_is_refused_and_those_values_do_change_no
     let read = Scenario::parse_on("encoder+noise", &desk).unwrap();
     for part in PARTS {
         let (at, every) = match part.idle {
-            Idle::Never | Idle::Own => continue,
+            Idle::Never => continue,
             Idle::First(v) => (v, false),
             Idle::Every(v) => (v, true),
         };
@@ -241,50 +241,9 @@ fn a_part_at_values_that_change_nothing_is_refused_and_those_values_do_change_no
     for spec in ["push=0/7", "weak=1/3/9", "zero=0/0", "noise+zero=0"] {
         assert!(Scenario::parse_on(spec, &desk).is_err(), "{spec}");
     }
-    let gym = &Machine::GYMNASIUM;
-    let e = crate::grammar::parse("noise=0@0.5", "domain", gym).unwrap_err();
+    let e = crate::grammar::parse("noise=0@0.5", "domain").unwrap_err();
     assert!(e.contains("noise changes nothing with scale 0"), "{e}");
-    assert!(crate::grammar::parse("noise=0..0.5", "domain", gym).is_ok());
-}
-
-#[test]
-fn a_part_that_sets_the_machine_own_values_is_refused_on_that_machine_only() {
-    let desk = crate::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
-    let gym = Machine::GYMNASIUM;
-    for (spec, machine, found) in [
-        (
-            "friction=0",
-            &gym,
-            "cart coefficient 0 and pivot coefficient 0",
-        ),
-        (
-            "friction=0/0",
-            &gym,
-            "cart coefficient 0 and pivot coefficient 0",
-        ),
-        ("noise+delay=0", &gym, "delay 0"),
-        ("delay=1", &desk, "delay 1"),
-    ] {
-        let e = Scenario::parse_on(spec, machine).unwrap_err();
-        assert!(
-            e.contains(&format!("changes nothing with {found}, the machine's own")),
-            "{spec}: {e}"
-        );
-    }
-    let e = crate::Domain::parse("friction=0..0/0@0.5").unwrap_err();
-    assert!(e.contains("friction changes nothing"), "{e}");
-    // Another machine's values, a range, or the key alone (the sets' `delay` on the desk)
-    // still act or are taken.
-    for (spec, machine) in [
-        ("delay=0", &desk),
-        ("delay", &desk),
-        ("friction=0/0.001", &gym),
-        ("friction=0.1", &gym),
-        ("delay", &gym),
-    ] {
-        assert!(Scenario::parse_on(spec, machine).is_ok(), "{spec}");
-    }
-    assert!(crate::Domain::parse("friction=0..0.1+delay=0..2").is_ok());
+    assert!(crate::grammar::parse("noise=0..0.5", "domain").is_ok());
 }
 
 /// 300 periods of `s` under a fixed sequence of duties: each period's reading and state.
@@ -297,4 +256,24 @@ fn periods(s: &Scenario) -> Vec<(firmware::link::Measurement, firmware::cartpole
             (m, world.state())
         })
         .collect()
+}
+
+/// The named sets build on every machine the repository describes: their specs are parsed
+/// on the machine at hand, and a refusal there would panic (`parse_all`).
+#[test]
+fn the_named_sets_build_on_every_rig() {
+    let rigs = [
+        include_str!("../../../rigs/desk.toml"),
+        include_str!("../../../rigs/desk-100hz.toml"),
+        include_str!("../../../rigs/lab.toml"),
+        include_str!("../../../rigs/gymnasium-100hz.toml"),
+    ];
+    let mut machines = vec![Machine::GYMNASIUM];
+    machines.extend(rigs.map(|text| crate::rigfile::parse(text, "rig").unwrap()));
+    for machine in &machines {
+        for set in ["all", "hard", "hard-candidates", "faults"] {
+            let built = Scenario::words_on(&[set.to_string()], machine).unwrap();
+            assert!(!built.is_empty(), "{set}");
+        }
+    }
 }
