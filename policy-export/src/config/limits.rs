@@ -293,27 +293,45 @@ fn trials(c: &Config) -> bool {
 
 impl Config {
     /// Refuses a key changed from `preset` (by a `--config` file or a flag) where the mode
-    /// that reads it is off: the value would be recorded and dropped. A key at its preset's
-    /// value, or at its declared default ([`Config::paper`], where every preset leaves the
-    /// keys its modes do not read), asks for nothing and passes: so a preset's own values,
-    /// and a configuration `--print-config` wrote, read back whole over any preset, are never
-    /// refused.
-    pub fn unread(&self, preset: &Config) -> Result<(), ConfigError> {
+    /// that reads it is off: the value would be recorded and dropped. A key the mode does not
+    /// read, at its preset's value, is put back to its declared default ([`Config::paper`],
+    /// where every preset leaves the keys its modes do not read), so the configuration
+    /// records nothing unread; and a key at its default asks for nothing. So a preset's own
+    /// values, and a configuration `--print-config` wrote, read back whole over any preset,
+    /// are never refused.
+    pub fn unread(&mut self, preset: &Config) -> Result<(), ConfigError> {
         let table = |c: &Config| {
             toml::Table::try_from(c)
                 .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))
         };
-        let (now, before, default) = (table(self)?, table(preset)?, table(&Config::paper())?);
+        let (mut now, before, default) = (table(self)?, table(preset)?, table(&Config::paper())?);
+        // A mode put back may turn off another (no periodic evaluations, so no finalists,
+        // so no trial): until nothing changes.
+        let unread = loop {
+            let unread: Vec<&Modal> = MODAL.iter().filter(|m| !(m.reads)(self)).collect();
+            let back: Vec<&str> = unread
+                .iter()
+                .map(|m| m.key)
+                .filter(|k| now[*k] == before[*k] && now[*k] != default[*k])
+                .collect();
+            if back.is_empty() {
+                break unread;
+            }
+            for key in back {
+                now.insert(key.to_string(), default[key].clone());
+            }
+            *self = now
+                .clone()
+                .try_into()
+                .map_err(|e| ConfigError(format!("internal: config from TOML: {e}")))?;
+        };
         let shown = |key: &str| match &now[key] {
             toml::Value::String(s) => weights::quote(s),
             v => v.to_string(),
         };
-        let errs: Vec<String> = MODAL
+        let errs: Vec<String> = unread
             .iter()
-            .filter(|m| {
-                let key = m.key;
-                now[key] != before[key] && now[key] != default[key] && !(m.reads)(self)
-            })
+            .filter(|m| now[m.key] != default[m.key])
             .map(|m| {
                 let (key, mode, needs) = (m.key, m.mode, m.needs);
                 format!(

@@ -134,7 +134,18 @@ fn every_preset_read_whole_over_any_other_asks_for_nothing_unread() {
             assert_eq!(on(p).unread(&on(q)), Ok(()), "{p:?} over {q:?}");
         }
     }
-    let hard = Config {
+    // A preset's value its mode turned off no longer reads is put back to the default, so
+    // what is recorded reads back over any preset.
+    let deploy = Config::deploy();
+    let mut quiet = Config {
+        eval_every: 0,
+        ..deploy.clone()
+    };
+    assert_ne!(deploy.patience, Config::paper().patience);
+    quiet.unread(&deploy).unwrap();
+    assert_eq!(quiet.patience, Config::paper().patience);
+    assert_eq!(quiet.clone().unread(&Config::paper()), Ok(()));
+    let mut hard = Config {
         tau: 0.5,
         ..Config::paper()
     };
