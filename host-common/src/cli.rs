@@ -101,7 +101,7 @@ pub fn check_threads_env() -> Result<(), String> {
         return Err(format!(
             "{var}: expected a whole number of threads from 0 (one a processor) to \
              {MAX_THREADS}, or unset; found {}",
-            shown(&v.to_string_lossy())
+            weights::quote(&v.to_string_lossy())
         ));
     }
     Ok(())
@@ -153,11 +153,6 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
     }
 }
 
-/// Input text as a message shows it: Debug-quoted, so escaped, and cut at 200 characters.
-fn shown(text: &str) -> String {
-    format!("{:?}", text.chars().take(200).collect::<String>())
-}
-
 /// Stands for the stray bytes of the one argument being traced, in the parse that finds the
 /// flag holding it (a private-use character nobody types).
 const MARK: &str = "\u{10FFFD}";
@@ -188,11 +183,14 @@ fn not_utf8(cmd: &clap::Command, args: &[OsString]) -> String {
     match holder(cmd, &traced) {
         Some(flag) => {
             let value = given.strip_prefix(&format!("{flag}=")).unwrap_or(&given);
-            format!("{flag}: expected UTF-8 text, found {}", shown(value))
+            format!(
+                "{flag}: expected UTF-8 text, found {}",
+                weights::quote(value)
+            )
         }
         None => format!(
             "argument {at}: expected UTF-8 text, found {}",
-            shown(&given)
+            weights::quote(&given)
         ),
     }
 }
