@@ -78,10 +78,10 @@ fn reserved_pattern(name: &str) -> Option<&'static str> {
     let lower_or_x = |c: u8| c.is_ascii_lowercase() || c == b'X';
     type Class = fn(u8) -> bool;
     // C11 7.31 unless said: errno's E macros, signal's, locale's, fenv's, inttypes' format
-    // macros, ctype's and wctype's is/to, string's and stdlib's str/mem, wchar's wcs,
+    // macros, wchar's wcs,
     // stdatomic's, threads', <math.h>'s FP_ (7.12), and POSIX <math.h>'s M_ constants
     // (M_PI), which GNU dialects define.
-    let patterns: [(&str, Class, &str); 20] = [
+    let patterns: [(&str, Class, &str); 16] = [
         ("E", upper_or_digit, "<errno.h>"),
         ("SIG_", upper, "<signal.h>"),
         ("SIG", upper, "<signal.h>"),
@@ -89,10 +89,6 @@ fn reserved_pattern(name: &str) -> Option<&'static str> {
         ("FE_", upper, "<fenv.h>"),
         ("PRI", lower_or_x, "<inttypes.h>"),
         ("SCN", lower_or_x, "<inttypes.h>"),
-        ("is", lower, "<ctype.h>"),
-        ("to", lower, "<ctype.h>"),
-        ("str", lower, "<string.h>"),
-        ("mem", lower, "<string.h>"),
         ("wcs", lower, "<wchar.h>"),
         ("ATOMIC_", upper, "<stdatomic.h>"),
         ("atomic_", lower, "<stdatomic.h>"),
@@ -165,8 +161,21 @@ const COMPLEX_FUNCTIONS: &str = "cacos casin catan ccos csin ctan cacosh casinh 
 
 /// The other names each standard header declares, outside the patterns above, keywords, and
 /// names reserved by their form (`_X`, `__x`, `x_t`).
-const LISTS: [(&str, &str); 18] = [
+const LISTS: [(&str, &str); 20] = [
     ("<assert.h>", "assert"),
+    // Today's is/to and str/mem functions by name: C11 7.31 reserves every lowercase name of
+    // those forms for the library's future, but C23 leaves them to programs until a library
+    // declares one, and `torque` or `string` are names a rig's code takes.
+    (
+        "<ctype.h>",
+        "isalnum isalpha isblank iscntrl isdigit isgraph islower isprint ispunct isspace \
+         isupper isxdigit tolower toupper",
+    ),
+    (
+        "<string.h>",
+        "memcpy memmove strcpy strncpy strcat strncat memcmp strcmp strcoll strncmp strxfrm \
+         memchr strchr strcspn strpbrk strrchr strspn strstr strtok memset strerror strlen",
+    ),
     ("<complex.h>", "complex imaginary I CMPLX CMPLXF CMPLXL"),
     (
         "<fenv.h>",
@@ -196,7 +205,8 @@ const LISTS: [(&str, &str); 18] = [
     ),
     (
         "<stdlib.h>",
-        "EXIT_FAILURE EXIT_SUCCESS MB_CUR_MAX RAND_MAX atof atoi atol atoll rand srand aligned_alloc calloc free malloc \
+        "EXIT_FAILURE EXIT_SUCCESS MB_CUR_MAX RAND_MAX atof atoi atol atoll strtod strtof \
+         strtold strtol strtoll strtoul strtoull rand srand aligned_alloc calloc free malloc \
          realloc abort atexit at_quick_exit exit quick_exit getenv system bsearch qsort abs \
          labs llabs div ldiv lldiv mblen mbtowc wctomb mbstowcs wcstombs",
     ),
@@ -218,5 +228,9 @@ const LISTS: [(&str, &str); 18] = [
          ungetwc wmemchr wmemcmp wmemcpy wmemmove wmemset btowc wctob mbsinit mbrlen mbrtowc \
          wcrtomb mbsrtowcs wcsrtombs",
     ),
-    ("<wctype.h>", "wctype wctrans"),
+    (
+        "<wctype.h>",
+        "wctype wctrans iswalnum iswalpha iswblank iswcntrl iswdigit iswgraph iswlower \
+         iswprint iswpunct iswspace iswupper iswxdigit iswctype towlower towupper towctrans",
+    ),
 ];
