@@ -257,9 +257,12 @@ const fn modal(
 }
 
 /// The keys read in one mode alone. Hard target updates never read `tau` (the weights came
-/// out identical for any), soft ones never the period; without periodic evaluations nothing
-/// stops a run early or has snapshots for finalists; without finalists there is no trial.
+/// out identical for any), soft ones never the period; an exploration that starts at its
+/// floor has no decay; without periodic evaluations nothing stops a run early or has
+/// snapshots for finalists; without finalists there is no trial.
 const MODAL: &[Modal] = &[
+    modal("eps_decay", "eps_start", "other than eps_end", decays),
+    modal("eps_unit", "eps_start", "other than eps_end", decays),
     modal("tau", "target_update", "soft", soft),
     modal("target_period", "target_update", "hard", hard),
     modal("target_period_unit", "target_update", "hard", hard),
@@ -281,6 +284,10 @@ fn soft(c: &Config) -> bool {
 
 fn hard(c: &Config) -> bool {
     c.target_update == TargetUpdate::Hard
+}
+
+fn decays(c: &Config) -> bool {
+    c.eps_start != c.eps_end
 }
 
 fn evaluates(c: &Config) -> bool {

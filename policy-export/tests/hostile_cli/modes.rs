@@ -8,7 +8,19 @@ use super::{refused, run, scratch, stderr};
 fn a_key_its_mode_never_reads_is_refused() {
     let fast = ["train", "--preset", "fast", "--print-config"];
     let with = |rest: &[&'static str]| [&fast[..], rest].concat();
-    let cases: [(Vec<&str>, &str); 5] = [
+    let cases: [(Vec<&str>, &str); 6] = [
+        (
+            with(&[
+                "--eps-start",
+                "0.1",
+                "--eps-end",
+                "0.1",
+                "--eps-decay",
+                "500",
+            ]),
+            "eps_decay = 500.0 is read only when eps_start is other than eps_end; eps_start = 0.1 \
+             ignores it",
+        ),
         (
             with(&["--target-update", "hard", "--tau", "0.5"]),
             "tau = 0.5 is read only when target_update is soft; target_update = \"hard\" ignores it",
