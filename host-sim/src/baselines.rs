@@ -108,6 +108,43 @@ impl Policy for LinearLqr {
     }
 }
 
+/// [`LinearLqr`]'s command, saturated, rounded to the nearest of `levels` (the lower of two
+/// equally near): the linear controller held to the duties a policy of those levels may
+/// choose, so that a table shows what the levels themselves cost beside what the learning
+/// does.
+#[derive(Clone, Debug)]
+pub struct RoundedLqr {
+    lqr: LinearLqr,
+    levels: Vec<f32>,
+}
+
+impl RoundedLqr {
+    /// [`LinearLqr::of`] `rig`, rounded to `levels` (in increasing order, as a policy's are).
+    pub fn of(rig: &Rig, levels: &[Duty]) -> RoundedLqr {
+        RoundedLqr {
+            lqr: LinearLqr::of(rig),
+            levels: levels.iter().map(|d| d.fraction()).collect(),
+        }
+    }
+}
+
+impl Policy for RoundedLqr {
+    type Scores = Push;
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.lqr.duty(i)
+    }
+    fn scores(&mut self, obs: &[f32; 4]) -> Push {
+        let Push(u) = self.lqr.scores(obs);
+        let u = u.clamp(-1.0, 1.0);
+        let nearest = self
+            .levels
+            .iter()
+            .copied()
+            .reduce(|a, b| if (b - u).abs() < (a - u).abs() { b } else { a });
+        Push(nearest.filter(|_| u.is_finite()).unwrap_or(f32::NAN))
+    }
+}
+
 /// The classic hand rule: push towards where the pole is falling, `theta + 0.5 theta_dot`.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct AngleRule;
@@ -177,5 +214,36 @@ mod tests {
         assert_eq!(duty(-0.5), -1000);
         assert_eq!(Push(f32::NAN).choice(), None);
         assert_eq!(lqr.duty(2 * CENTRE + 1), None);
+    }
+
+    #[test]
+    fn the_rounded_lqr_drives_the_nearest_level() {
+        let levels =
+            [-1.0, -0.4, -0.05, 0.0, 0.05, 0.4, 1.0].map(|f| Duty::from_fraction(f).unwrap());
+        let mut lqr = RoundedLqr {
+            lqr: LinearLqr {
+                k: [0.0, 0.0, -100.0, 0.0],
+                force_mag: 10.0,
+            },
+            levels: levels.iter().map(|d| d.fraction()).collect(),
+        };
+        // The command is theta x 10 as a fraction of the full push (the test above); each
+        // expected level picked by hand from the list.
+        for (theta, want) in [
+            (0.0, 0),
+            (0.002, 0),
+            (0.003, 50),
+            (-0.004, -50),
+            (0.02, 50),
+            (0.023, 400),
+            (0.07, 400),
+            (0.071, 1000),
+            (0.5, 1000),
+            (-0.5, -1000),
+        ] {
+            let i = lqr.scores(&[0.0, 0.0, theta, 0.0]).choice().unwrap();
+            assert_eq!(lqr.duty(i).unwrap().thousandths(), want, "theta {theta}");
+        }
+        assert_eq!(lqr.scores(&[0.0, 0.0, f32::NAN, 0.0]).choice(), None);
     }
 }

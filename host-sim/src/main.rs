@@ -174,7 +174,7 @@ impl Subject {
             .map(host_sim::envelope::read)
             .transpose()?;
         let int = kinds.iter().any(|k| k.int());
-        let policy = kinds.iter().any(|k| k.runs_policy());
+        let policy = kinds.iter().any(|k| k.needs_policy());
         let (machine, net) = self.load(int, policy)?;
         let net = match envelope {
             Some(e) => net.with_envelope(e),

@@ -83,6 +83,32 @@ fn an_onnx_policy_of_five_outputs_drives_the_levels_given() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The linear LQR rounded to the policy's levels drives those levels and no others: with
+/// levels of at least 0.7 either way its mean |duty| is at least 0.7; with fine levels about
+/// a balanced pole, far less.
+#[test]
+fn the_rounded_lqr_drives_the_policys_levels() {
+    let dir = scratch("rounded");
+    let file = dir.join("policy.onnx");
+    std::fs::write(&file, onnx(&constant(3))).unwrap();
+    let mean = |levels: &str| {
+        mean_abs_duty(
+            &Command::new(env!("CARGO_BIN_EXE_host-sim"))
+                .args(["eval", "--scenario", "nominal", "--episodes", "4"])
+                .args(["--controller", "lqr-levels", "--json", "--policy"])
+                .arg(&file)
+                .args(["--levels", levels])
+                .output()
+                .unwrap(),
+        )
+    };
+    let coarse = mean("-1,-0.9,-0.8,-0.7,1");
+    assert!(coarse >= 0.7 - 1e-9, "mean |duty| {coarse}");
+    let fine = mean(FIVE);
+    assert!(fine < 0.5, "mean |duty| {fine}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
 /// Exit 2, within the refusals' processor time, with each of `want` in a short message that
 /// names --levels, and nothing on stdout.
 fn refused(policy: &Path, extra: &[&str], want: &[&str]) {

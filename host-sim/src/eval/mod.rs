@@ -19,7 +19,7 @@ use twin::run::{Aids, Stream, episode_rng};
 use twin::{EpisodeStats, Frame, Scenario};
 use twin::{run_episode, run_episodes};
 
-use crate::baselines::{AngleRule, LinearLqr, Lqr, Random};
+use crate::baselines::{AngleRule, LinearLqr, Lqr, Random, RoundedLqr};
 
 mod net;
 mod rows;
@@ -51,6 +51,11 @@ pub enum ControllerKind {
     LqrLinear,
     /// Linear LQR on the predicted state.
     LqrLinearPredict,
+    /// Linear LQR rounded to the nearest of the policy's duty levels: what a linear
+    /// controller does with only the levels the policy may choose.
+    LqrLevels,
+    /// The rounded linear LQR on the predicted state.
+    LqrLevelsPredict,
     /// Push towards `theta + 0.5 theta_dot`.
     Rule,
     /// A fair coin every period.
@@ -61,6 +66,16 @@ impl ControllerKind {
     /// Whether the Q-network drives (in any form).
     pub fn runs_policy(self) -> bool {
         self.int() || matches!(self, ControllerKind::Policy | ControllerKind::Monitored)
+    }
+
+    /// Whether the policy's duty levels shape its commands: the network drives, or a
+    /// baseline is rounded to its levels.
+    pub fn needs_policy(self) -> bool {
+        self.runs_policy()
+            || matches!(
+                self,
+                ControllerKind::LqrLevels | ControllerKind::LqrLevelsPredict
+            )
     }
 
     /// Whether the integer network drives.
@@ -91,6 +106,8 @@ impl fmt::Display for ControllerKind {
             ControllerKind::LqrPredict => "lqr-predict",
             ControllerKind::LqrLinear => "lqr-linear",
             ControllerKind::LqrLinearPredict => "lqr-linear-predict",
+            ControllerKind::LqrLevels => "lqr-levels",
+            ControllerKind::LqrLevelsPredict => "lqr-levels-predict",
             ControllerKind::Rule => "rule",
             ControllerKind::Random => "random",
         })
@@ -134,6 +151,11 @@ pub fn episode(
                 on_frame,
             )
         }
+        ControllerKind::LqrLevels | ControllerKind::LqrLevelsPredict => {
+            let predict = kind == ControllerKind::LqrLevelsPredict;
+            let lqr = RoundedLqr::of(&s.rig, net.levels());
+            run_episode(lqr, s, h, seed, episode, predict, on_frame)
+        }
         ControllerKind::Rule => run_episode(AngleRule, s, h, seed, episode, false, on_frame),
         ControllerKind::Random => run_episode(
             Random(episode_rng(seed, episode, Stream::Policy)),
@@ -167,6 +189,11 @@ pub fn episodes(
         ControllerKind::LqrLinear | ControllerKind::LqrLinearPredict => {
             let predict = kind == ControllerKind::LqrLinearPredict;
             run_episodes(|_| LinearLqr::of(&s.rig), s, h, seed, e, predict)
+        }
+        ControllerKind::LqrLevels | ControllerKind::LqrLevelsPredict => {
+            let predict = kind == ControllerKind::LqrLevelsPredict;
+            let lqr = RoundedLqr::of(&s.rig, net.levels());
+            run_episodes(|_| lqr.clone(), s, h, seed, e, predict)
         }
         ControllerKind::Rule => run_episodes(|_| AngleRule, s, h, seed, e, false),
         ControllerKind::Random => run_episodes(
