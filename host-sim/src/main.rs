@@ -353,9 +353,10 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
         .map(twin::rigfile::load)
         .transpose()?;
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
-    // The scenarios are checked before the policy loads; built on the machine it is run on.
+    // The specs are checked before the policy loads; what each changes is judged once the
+    // machine the episodes run on is known, where they are built.
     let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
-    let probed = parse_scenarios(&a.scenario, &probe)?;
+    let probed = Scenario::words_built_on(&a.scenario, &probe).map_err(anyhow::Error::msg)?;
     let flags = ["--horizon", "--scenario", "--controller"];
     eval::check_rows(&a.horizon, &probed, &controllers, flags).map_err(anyhow::Error::msg)?;
     let (machine, net) = a.subject.load_for(&controllers)?;

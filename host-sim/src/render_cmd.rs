@@ -70,7 +70,9 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         .as_deref()
         .map(twin::rigfile::load)
         .transpose()?;
-    Scenario::parse_on(&a.scenario, &given.unwrap_or(twin::Machine::GYMNASIUM))
+    // The spec is checked before the policy loads; what it changes is judged on the
+    // machine the episode runs on, once known.
+    Scenario::build_on(&a.scenario, &given.unwrap_or(twin::Machine::GYMNASIUM))
         .map_err(anyhow::Error::msg)?;
     let (gif, png) = pictures(out)?;
     crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;

@@ -67,8 +67,10 @@ pub fn evaluate_json(
     let machine = given.unwrap_or(policy.machine);
     // Counted before the specs are parsed, each a row at least: a parse costs far more.
     check_count(horizons.len(), scenarios.len(), kinds.len())?;
+    // A spec asked for twice is named as such before a world two specs build is.
+    let built = Scenario::words_built_on(&scenarios, &machine).map_err(value_error)?;
+    eval::check_rows(&horizons, &built, &kinds, NAMES).map_err(value_error)?;
     let scenarios = Scenario::words_on(&scenarios, &machine).map_err(value_error)?;
-    eval::check_rows(&horizons, &scenarios, &kinds, NAMES).map_err(value_error)?;
     let rows = horizons.len() * scenarios.len() * kinds.len();
     let net = network(policy, &kinds, &machine)?.unwrap_or_else(|| policy.net.clone());
     let mut out = Vec::with_capacity(rows);

@@ -111,9 +111,27 @@ impl Scenario {
     }
 
     /// Parses a spec ([`crate::grammar`], every value a single number) into a world around
-    /// `machine`. Factors of one quantity multiply; every quantity must end within
-    /// [`FACTOR_RANGE`] of the rig's.
+    /// `machine`, as [`Scenario::build_on`] does, and refuses a part that changes nothing on
+    /// it: one the world is the same without (`delay=1` on a rig of one period's dead time,
+    /// `length=2+length=0.5`, `damping` on a motor without damping), which is the world
+    /// without it under another name.
     pub fn parse_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
+        let (s, parts) = Scenario::built(spec, machine)?;
+        words::refuse_idle_on(&s, &parts, machine)?;
+        Ok(s)
+    }
+
+    /// Builds a spec into a world around `machine` without judging what each part changes
+    /// on it: for the named sets, whose rows are the same specs on every machine, and for a
+    /// check of a spec before the machine its episodes run on is known. Factors of one
+    /// quantity multiply; every quantity must end within
+    /// [`FACTOR_RANGE`] of the rig's.
+    pub fn build_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
+        Scenario::built(spec, machine).map(|(s, _)| s)
+    }
+
+    /// [`Scenario::build_on`]'s world, and the parts it was built from.
+    fn built(spec: &str, machine: &Machine) -> Result<(Scenario, Vec<Part>), String> {
         if spec.is_empty() {
             // An empty `--scenario` (or a comma with nothing after it) is a slip, not a
             // request for the nominal world, which has a name.
@@ -124,33 +142,25 @@ impl Scenario {
             );
         }
         let shown = weights::quote(spec);
-        let rig = &machine.rig;
-        let mut s = Scenario::nominal_on(machine);
-        s.name = spec.to_string();
-        for part in grammar::parse(spec, "scenario")? {
-            if part.share != 1.0 || part.values.iter().flatten().any(|v| !v.is_point()) {
-                return Err(format!(
-                    "scenario {shown}: {} takes single values, not ranges or shares (those \
-                     are a domain's)",
-                    part.spec.key
-                ));
-            }
-            // A factor on a damping the machine does not have scales nothing (Gymnasium's).
-            if part.spec.key == "damping" && rig.params.motor_damping == 0.0 {
-                return Err(format!(
-                    "scenario {shown}: damping changes nothing on a machine without motor \
-                     damping; expected another part, or a rig that has some"
-                ));
-            }
-            let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
-            s.apply(&part, &values);
+        let parts = grammar::parse(spec, "scenario")?;
+        if let Some(part) = parts
+            .iter()
+            .find(|p| p.share != 1.0 || p.values.iter().flatten().any(|v| !v.is_point()))
+        {
+            return Err(format!(
+                "scenario {shown}: {} takes single values, not ranges or shares (those \
+                 are a domain's)",
+                part.spec.key
+            ));
         }
-        check_factors(&s.params, &rig.params)
+        let mut s = words::world_of(parts.iter(), machine);
+        s.name = spec.to_string();
+        check_factors(&s.params, &machine.rig.params)
             .and_then(|()| check_integrable(&s.params, s.integration))
             .map_err(|e| format!("scenario {shown}: {e}"))?;
         s.check_board()
             .map_err(|e| format!("scenario {shown}: the board refuses it: {e}"))?;
-        Ok(s)
+        Ok((s, parts))
     }
 
     /// Sets what `part` says with `values` (one per field, `None` where left out).
@@ -205,22 +215,6 @@ impl Scenario {
     /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]).
     pub fn hard_candidates() -> Vec<Scenario> {
         parse_all(&Machine::GYMNASIUM, HARD_CANDIDATES)
-    }
-
-    /// What the tools' `--scenario` words name on `machine`: a named set (`all`, `hard`,
-    /// `hard-candidates`, `faults`) or one spec each, in order.
-    pub fn words_on(words: &[String], machine: &Machine) -> Result<Vec<Scenario>, String> {
-        let mut out = Vec::new();
-        for word in words {
-            match word.as_str() {
-                "all" => out.extend(Scenario::default_set_on(machine)),
-                "hard" => out.extend(Scenario::hard_set_on(machine)),
-                "hard-candidates" => out.extend(Scenario::hard_candidates()),
-                "faults" => out.extend(Scenario::faults_set_on(machine)),
-                _ => out.push(Scenario::parse_on(word, machine)?),
-            }
-        }
-        Ok(out)
     }
 }
 
@@ -320,7 +314,7 @@ pub const HARD_CANDIDATES: &[&str] = &[
 fn parse_all(machine: &Machine, specs: &[&str]) -> Vec<Scenario> {
     specs
         .iter()
-        .map(|s| Scenario::parse_on(s, machine).expect("built-in scenario specs parse"))
+        .map(|s| Scenario::build_on(s, machine).expect("built-in scenario specs build"))
         .collect()
 }
 
@@ -418,6 +412,8 @@ pub(crate) mod effects {
         });
     }
 }
+
+mod words;
 
 #[cfg(test)]
 mod tests;

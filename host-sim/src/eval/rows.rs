@@ -1,11 +1,12 @@
 //! The rows one evaluation asks for, checked before any work by `host-sim eval` and Python's
 //! `evaluate` alike: at most [`MAX_ROWS`], and each once (a table showing one row twice is a
 //! slip: `--scenario all,noise`, `--controller lqr,lqr`, `noise+delay,delay+noise`). A
-//! scenario is compared by what its spec sets: its parts in any order, its numbers however
-//! written, a value left at its default or written out (`noise`, `noise=1`), `-0` as 0, a
-//! factor given twice as its product (`length=2+length=2`, `length=4`); not by the world it
-//! builds: on a rig with a period of dead time, `delay` builds the nominal world, and the
-//! robustness set shows both rows.
+//! scenario is compared here by what its spec sets: its parts in any order, its numbers
+//! however written, a value left at its default or written out (`noise`, `noise=1`), `-0` as
+//! 0, a factor given twice as its product (`length=2+length=2`, `length=4`). What depends on
+//! the machine (on a rig with a period of dead time, `delay` builds the nominal world) is
+//! judged where the worlds are built on the machine the episodes run on
+//! (`twin::Scenario::words_on`), which keeps a named set's rows whole.
 
 use twin::Scenario;
 
@@ -108,7 +109,7 @@ mod tests {
 
     fn parsed(specs: &[&str]) -> Vec<Scenario> {
         let specs: Vec<String> = specs.iter().map(|s| s.to_string()).collect();
-        Scenario::words_on(&specs, &Machine::GYMNASIUM).unwrap()
+        Scenario::words_built_on(&specs, &Machine::GYMNASIUM).unwrap()
     }
 
     const NAMES: [&str; 3] = ["horizon", "scenario", "controller"];
@@ -153,10 +154,6 @@ mod tests {
             (
                 &["length=2+length=2", "length=4"],
                 "\"length=2+length=2\" and \"length=4\"",
-            ),
-            (
-                &["encoder=64", "encoder=64/320"],
-                "\"encoder=64\" and \"encoder=64/320\"",
             ),
         ] {
             let e = check_rows(&[500], &parsed(specs), &[Policy], NAMES).unwrap_err();

@@ -41,6 +41,9 @@ pub fn bad_specs() -> Vec<Case> {
         "push=0/9",
         "weak=1/5",
         "jitter=0",
+        // At values that change nothing on the machine the episodes run on (Gymnasium's).
+        "length=2+length=0.5",
+        "delay=0",
         // A discount the board's f32 holds as a subnormal.
         "encoder=2400/15000/1e-40",
     ];
@@ -184,6 +187,26 @@ pub fn bad_rows() -> Vec<Case> {
             format!("{args:?}"),
             &args,
             &["one scenario spelt twice"],
+        ));
+    }
+    // One world on the machine the episodes run on: the desk's own dead time and encoders.
+    let desk = repo("rigs/desk.toml");
+    for (specs, want) in [
+        (
+            "nominal,delay",
+            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 periods",
+        ),
+        (
+            "encoder,encoder=2400/15000",
+            "found \"encoder\" and \"encoder=2400/15000\", which build one world on this machine",
+        ),
+    ] {
+        let mut args = os(&[&"eval", &"--controller", &"lqr", &"--rig", &desk]);
+        args.extend(os(&[&"--episodes", &"1", &"--scenario", &specs]));
+        cases.push(Case::new(
+            format!("eval on desk --scenario {specs}"),
+            &args,
+            &[want],
         ));
     }
     cases

@@ -264,8 +264,15 @@ fn periods(s: &Scenario) -> Vec<(firmware::link::Measurement, firmware::cartpole
 fn the_named_sets_build_on_every_rig() {
     let rigs = [
         include_str!("../../../rigs/desk.toml"),
+        include_str!("../../../rigs/desk-identified.toml"),
+        include_str!("../../../rigs/desk-measured.toml"),
         include_str!("../../../rigs/desk-100hz.toml"),
+        include_str!("../../../rigs/desk-100hz-identified.toml"),
+        include_str!("../../../rigs/desk-100hz-measured.toml"),
         include_str!("../../../rigs/lab.toml"),
+        include_str!("../../../rigs/lab-identified.toml"),
+        include_str!("../../../rigs/lab-measured.toml"),
+        include_str!("../../../rigs/gymnasium.toml"),
         include_str!("../../../rigs/gymnasium-100hz.toml"),
     ];
     let mut machines = vec![Machine::GYMNASIUM];
@@ -276,4 +283,94 @@ fn the_named_sets_build_on_every_rig() {
             assert!(!built.is_empty(), "{set}");
         }
     }
+}
+
+fn words_on(words: &[&str], machine: &Machine) -> Result<Vec<Scenario>, String> {
+    let words: Vec<String> = words.iter().map(|w| w.to_string()).collect();
+    Scenario::words_on(&words, machine)
+}
+
+/// What a part changes depends on the machine: it is judged on the worlds built there, so a
+/// spec that reads as a change and builds the machine's own world is refused on that machine
+/// alone, and the named sets, built without the judgement, keep their rows on every rig.
+#[test]
+fn a_part_that_changes_nothing_on_the_machine_at_hand_is_refused_there() {
+    let rig = |text: &str| crate::rigfile::parse(text, "rig").unwrap();
+    let desk = rig(include_str!("../../../rigs/desk.toml"));
+    let desk100 = rig(include_str!("../../../rigs/desk-100hz.toml"));
+    let gym = Machine::GYMNASIUM;
+    for (words, machine, found) in [
+        (
+            &["nominal", "delay"][..],
+            &desk,
+            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 periods",
+        ),
+        (
+            &["delay=2"],
+            &desk100,
+            "delay changes nothing on this machine",
+        ),
+        (&["delay=0"], &gym, "whose own dead time is 0 periods"),
+        (
+            &["friction=0"],
+            &desk,
+            "friction changes nothing on this machine, which has it",
+        ),
+        (
+            &["damping=2+length=2"],
+            &gym,
+            "damping changes nothing on a machine without motor damping",
+        ),
+        (
+            &["noise+length=2+length=0.5"],
+            &gym,
+            "length changes nothing on this machine: its factors multiply to 1",
+        ),
+        (
+            &["length=0.5+cartmass=2+length=4+length=0.5"],
+            &desk,
+            "length changes nothing on this machine: its factors multiply to 1",
+        ),
+        // Two specs of one world, the rig's own encoders each.
+        (
+            &["encoder", "encoder=4096"],
+            &gym,
+            "expected each row once, found \"encoder\" and \"encoder=4096\", which build one \
+             world on this machine",
+        ),
+        (
+            &["encoder=2400/15000", "encoder"],
+            &desk,
+            "found \"encoder=2400/15000\" and \"encoder\", which build one",
+        ),
+        // A spec that builds a named set's row.
+        (
+            &["all", "force=0.4+force=2"],
+            &gym,
+            "found \"force=0.8\" and",
+        ),
+    ] {
+        let e = words_on(words, machine).unwrap_err();
+        assert!(e.contains(found), "{words:?}: {e}");
+    }
+    for (words, machine) in [
+        (&["nominal", "delay"][..], &gym),
+        (&["delay=0", "delay=2"], &desk),
+        (&["damping=2", "friction=0.1"], &desk),
+        (&["encoder", "encoder=4096"], &desk),
+        (&["length=2+length=0.25"], &gym),
+        // The default set's `delay` is the desk's `nominal`: the set's own rows.
+        (&["all"], &desk),
+    ] {
+        let built = words_on(words, machine).unwrap();
+        assert!(built.len() >= words.len(), "{words:?}");
+    }
+    // Built, not judged: for a check before the machine is known.
+    assert!(
+        Scenario::build_on("delay", &desk)
+            .unwrap()
+            .same_world(&Scenario::nominal_on(&desk))
+    );
+    let built = Scenario::words_built_on(&["nominal".into(), "delay".into()], &desk).unwrap();
+    assert!(built[0].same_world(&built[1]));
 }

@@ -1,0 +1,152 @@
+//! The worlds the tools' `--scenario` words build on a machine, and what each part changes
+//! there. Whether a part changes nothing is judged on the worlds built, not on the spec: a
+//! part's effect can depend on the machine (`delay=1` is one rig's own dead time and another
+//! rig's change, `damping` scales a damping one motor does not have), and factors of one
+//! quantity can multiply to 1.
+
+use std::collections::hash_map::{Entry, HashMap};
+
+use super::Scenario;
+use crate::grammar::{Part, PartSpec};
+use crate::machine::Machine;
+
+impl Scenario {
+    /// What the tools' `--scenario` words name on `machine`: a named set (`all`, `hard`,
+    /// `hard-candidates`, `faults`) or one spec each ([`Scenario::parse_on`]), in order. A
+    /// spec that builds the world another row builds on `machine` is refused: one row asked
+    /// for twice. The named sets keep their rows on every machine, even two of one world (on
+    /// a rig with a period of dead time, the default set's `delay` builds its `nominal`).
+    pub fn words_on(words: &[String], machine: &Machine) -> Result<Vec<Scenario>, String> {
+        let (rows, typed) = expand(words, machine, Scenario::parse_on)?;
+        refuse_same_world(&rows, &typed)?;
+        Ok(rows)
+    }
+
+    /// The words' rows as [`Scenario::build_on`] builds them, without judging what they
+    /// change on `machine`: for a check of their specs before the machine the episodes run
+    /// on is known.
+    pub fn words_built_on(words: &[String], machine: &Machine) -> Result<Vec<Scenario>, String> {
+        expand(words, machine, Scenario::build_on).map(|(rows, _)| rows)
+    }
+
+    /// Whether `other` is the same world under whatever name.
+    pub fn same_world(&self, other: &Scenario) -> bool {
+        let named = Scenario {
+            name: other.name.clone(),
+            ..self.clone()
+        };
+        named == *other
+    }
+}
+
+/// The rows `words` name, each spec built by `spec`, and whether each row was a spec (not a
+/// named set's).
+type Rows = (Vec<Scenario>, Vec<bool>);
+
+fn expand(
+    words: &[String],
+    machine: &Machine,
+    spec: fn(&str, &Machine) -> Result<Scenario, String>,
+) -> Result<Rows, String> {
+    let (mut rows, mut typed) = (Vec::new(), Vec::new());
+    for word in words {
+        let set = match word.as_str() {
+            "all" => Scenario::default_set_on(machine),
+            "hard" => Scenario::hard_set_on(machine),
+            "hard-candidates" => Scenario::hard_candidates(),
+            "faults" => Scenario::faults_set_on(machine),
+            _ => {
+                rows.push(spec(word, machine)?);
+                typed.push(true);
+                continue;
+            }
+        };
+        typed.extend(set.iter().map(|_| false));
+        rows.extend(set);
+    }
+    Ok((rows, typed))
+}
+
+/// Refuses a spec's row whose world another row builds. Worlds are compared by their fields
+/// as `Debug` writes them (every number in its shortest exact form), so that ten thousand
+/// rows cost ten thousand keys, not fifty million pairs.
+fn refuse_same_world(rows: &[Scenario], typed: &[bool]) -> Result<(), String> {
+    let mut seen: HashMap<String, usize> = HashMap::new();
+    for (b, row) in rows.iter().enumerate() {
+        let world = Scenario {
+            name: String::new(),
+            ..row.clone()
+        };
+        match seen.entry(format!("{world:?}")) {
+            Entry::Vacant(e) => {
+                e.insert(b);
+            }
+            Entry::Occupied(e) if typed[*e.get()] || typed[b] => {
+                return Err(format!(
+                    "scenario: expected each row once, found {} and {}, which build one world \
+                     on this machine",
+                    weights::quote(&rows[*e.get()].name),
+                    weights::quote(&row.name)
+                ));
+            }
+            Entry::Occupied(_) => {}
+        }
+    }
+    Ok(())
+}
+
+/// The world `parts` build around `machine`, each applied in the spec's order (a factor
+/// given again multiplies).
+pub(super) fn world_of<'a>(parts: impl Iterator<Item = &'a Part>, machine: &Machine) -> Scenario {
+    let mut s = Scenario::nominal_on(machine);
+    for part in parts {
+        let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
+        s.apply(part, &values);
+    }
+    s
+}
+
+/// Refuses a part of `parts` (a factor's values all at once) that `s`, the world they build
+/// on `machine`, is the same without.
+pub(super) fn refuse_idle_on(
+    s: &Scenario,
+    parts: &[Part],
+    machine: &Machine,
+) -> Result<(), String> {
+    let mut judged: Vec<&PartSpec> = Vec::new();
+    for part in parts {
+        if judged.contains(&part.spec) {
+            continue;
+        }
+        judged.push(part.spec);
+        let without = parts.iter().filter(|q| q.spec != part.spec);
+        if !world_of(without, machine).same_world(s) {
+            continue;
+        }
+        let key = part.spec.key;
+        let rig = &machine.rig;
+        let why = if key == "damping" && rig.params.motor_damping == 0.0 {
+            "on a machine without motor damping; expected another part, or a rig that has some"
+                .to_string()
+        } else if key == "delay" {
+            format!(
+                "on this machine, whose own dead time is {} periods; expected another value, \
+                 or the part left out",
+                rig.dead_time
+            )
+        } else if parts.iter().filter(|q| q.spec == part.spec).count() > 1 {
+            "on this machine: its factors multiply to 1; expected other values, or the part \
+             left out"
+                .to_string()
+        } else {
+            "on this machine, which has it already; expected another value, or the part left \
+             out"
+            .to_string()
+        };
+        return Err(format!(
+            "scenario {}: {key} changes nothing {why}",
+            weights::quote(&s.name)
+        ));
+    }
+    Ok(())
+}
