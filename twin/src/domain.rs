@@ -21,7 +21,7 @@ use rand_core::Rng;
 
 use crate::grammar::{self, Kind, Part, Span};
 use crate::machine::{Machine, check_integrable};
-use crate::scenario::{Scenario, check_factors};
+use crate::scenario::{Scenario, check_factors, scales_nothing};
 
 /// A distribution over scenarios; see [the module](self).
 #[derive(Clone, Debug, PartialEq)]
@@ -66,6 +66,15 @@ impl Domain {
             machine: *machine,
             parts: grammar::parse(spec, "domain")?,
         };
+        for part in &d.parts {
+            if let Some(why) = scales_nothing(part.spec, machine) {
+                return Err(format!(
+                    "domain {}: {} changes nothing {why}",
+                    weights::quote(spec),
+                    part.spec.key
+                ));
+            }
+        }
         // Every low end, every high end, and the stiffest corner: the most damping and
         // friction on the lightest, shortest pole and cart.
         let stiff = |p: &Part| p.spec.stiff_high;
@@ -227,9 +236,24 @@ mod tests {
                 "length=500+length=500",
                 "length comes to 2.5e5 times nominal",
             ),
+            // Gymnasium's motor has no damping to scale: any range of it draws nothing.
+            (
+                "noise=0..1+damping=0.5..2",
+                "domain \"noise=0..1+damping=0.5..2\": damping changes nothing on a machine \
+                 without motor damping; expected another part, or a rig that has some",
+            ),
         ] {
             let e = Domain::parse(spec).unwrap_err();
             assert!(e.contains(want), "{spec}: {e}");
         }
+    }
+
+    #[test]
+    fn a_damping_range_is_drawn_on_a_motor_that_has_damping() {
+        let desk = crate::rigfile::parse(include_str!("../../rigs/desk.toml"), "desk").unwrap();
+        let d = Domain::parse_on("damping=0.5..2", &desk).unwrap();
+        let s = d.sample(&mut Pcg64Mcg::new(5));
+        let f = s.params.motor_damping / desk.rig.params.motor_damping;
+        assert!((0.5..=2.0).contains(&f) && f != 1.0, "{f}");
     }
 }

@@ -414,6 +414,7 @@ pub(crate) mod effects {
 }
 
 mod words;
+pub(crate) use words::scales_nothing;
 
 #[cfg(test)]
 mod tests;

@@ -41,7 +41,8 @@ pub enum Limit {
     Positive,
     /// A clipping threshold: >= 0 and finite in f32; 0 turns the clipping off.
     Clip,
-    /// A domain spec `twin::Domain::parse` accepts.
+    /// A domain spec of the grammar (`twin::grammar::parse`); [`KeyLimit::check`] builds it
+    /// on the machine trained for.
     Domain,
     /// A learning-reward spec `reward::Reward::parse` accepts.
     Reward,
@@ -105,7 +106,15 @@ pub struct KeyLimit {
 impl KeyLimit {
     /// Checks the key of `c`; the error is a sentence that names it.
     pub fn check(&self, c: &Config) -> Result<(), String> {
-        self.limit.check(self.key, (self.get)(c))
+        let v = (self.get)(c);
+        self.limit.check(self.key, v)?;
+        // A domain's factors scale the machine trained for (`rig`), whose motor may have no
+        // damping: it is judged there, once the rig reads (a rig that does not is refused
+        // by its own key).
+        if let (Limit::Domain, Value::Text(s), Ok(machine)) = (&self.limit, v, c.machine()) {
+            twin::Domain::parse_on(s, &machine).map_err(|e| format!("{}: {e}", self.key))?;
+        }
+        Ok(())
     }
 }
 
@@ -170,7 +179,7 @@ impl Limit {
                 &">= 0 and finite in f32, zero or normal there (0 disables it)",
                 &format_args!("{x:?}"),
             ),
-            (Limit::Domain, Value::Text(s)) => parsed(twin::Domain::parse(s).map(drop)),
+            (Limit::Domain, Value::Text(s)) => parsed(twin::grammar::parse(s, "domain").map(drop)),
             (Limit::Reward, Value::Text(s)) => parsed(crate::reward::Reward::parse(s).map(drop)),
             (Limit::Rig, Value::Text("")) => Ok(()),
             (Limit::Rig, Value::Text(s)) => parsed(

@@ -1,6 +1,7 @@
 //! Training keys that the chosen mode never reads (a soft update's period, a hard one's tau,
 //! finalists' keys without finalists, early stops without periodic evaluations): refused when
-//! given, where they were recorded and dropped; a preset's own values pass.
+//! given, where they were recorded and dropped; a preset's own values pass. And domains
+//! judged on the machine trained for.
 
 use super::{refused, run, scratch, stderr};
 
@@ -133,4 +134,20 @@ fn a_presets_own_values_and_the_defaults_pass_with_their_mode_off() {
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A domain is drawn around the machine trained for: a damping range scales nothing on a
+/// motor without damping (Gymnasium's), and is drawn on one with some.
+#[test]
+fn a_domain_is_judged_on_the_machine_trained_for() {
+    for key in ["--domain", "--eval-domain"] {
+        refused(
+            &["train", "--print-config", key, "noise=0..1+damping=0.5..2"],
+            "domain \"noise=0..1+damping=0.5..2\": damping changes nothing on a machine without \
+             motor damping; expected another part, or a rig that has some",
+        );
+        let desk = ["--rig", "../rigs/desk.toml", key, "damping=0.5..2"];
+        let o = run(&[&["train", "--print-config"][..], &desk].concat());
+        assert!(o.status.success(), "{desk:?}: {}", stderr(&o));
+    }
 }

@@ -125,9 +125,8 @@ pub(super) fn refuse_idle_on(
         }
         let key = part.spec.key;
         let rig = &machine.rig;
-        let why = if key == "damping" && rig.params.motor_damping == 0.0 {
-            "on a machine without motor damping; expected another part, or a rig that has some"
-                .to_string()
+        let why = if let Some(why) = scales_nothing(part.spec, machine) {
+            why.to_string()
         } else if key == "delay" {
             format!(
                 "on this machine, whose own dead time is {} periods; expected another value, \
@@ -149,4 +148,13 @@ pub(super) fn refuse_idle_on(
         ));
     }
     Ok(())
+}
+
+/// Why a part of `spec` changes nothing on `machine` at any value, if it does: a factor on a
+/// damping the motor does not have (Gymnasium's). A domain's ranges are judged by it, as they
+/// build no one world to compare.
+pub(crate) fn scales_nothing(spec: &PartSpec, machine: &Machine) -> Option<&'static str> {
+    (spec.key == "damping" && machine.rig.params.motor_damping == 0.0).then_some(
+        "on a machine without motor damping; expected another part, or a rig that has some",
+    )
 }
