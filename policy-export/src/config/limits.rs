@@ -243,12 +243,18 @@ impl Config {
 /// A key read only in one mode of another's.
 struct Modal {
     key: &'static str,
-    /// The key that sets the mode.
-    mode: &'static str,
-    /// What the mode must be, in words.
-    needs: &'static str,
+    /// What turns the mode on.
+    when: When,
     /// Whether the mode is on.
     reads: fn(&Config) -> bool,
+}
+
+/// What turns a mode on.
+enum When {
+    /// The key that sets the mode, and what it must be, in words.
+    Key(&'static str, &'static str),
+    /// What must hold, in words, and what the configuration has instead.
+    Said(&'static str, fn(&Config) -> String),
 }
 
 const fn modal(
@@ -259,8 +265,7 @@ const fn modal(
 ) -> Modal {
     Modal {
         key,
-        mode,
-        needs,
+        when: When::Key(mode, needs),
         reads,
     }
 }
@@ -268,7 +273,8 @@ const fn modal(
 /// The keys read in one mode alone. Hard target updates never read `tau` (the weights came
 /// out identical for any), soft ones never the period; an exploration that starts at its
 /// floor has no decay; without periodic evaluations nothing stops a run early or has
-/// snapshots for finalists; without finalists there is no trial.
+/// snapshots for finalists; without finalists there is no trial; in worlds without dead time
+/// the predictor has nothing to advance the readings over.
 const MODAL: &[Modal] = &[
     modal("eps_decay", "eps_start", "other than eps_end", decays),
     modal("eps_unit", "eps_start", "other than eps_end", decays),
@@ -285,6 +291,11 @@ const MODAL: &[Modal] = &[
     modal("finalist_domain", "finalists", "above 0", trials),
     modal("board_int8", "finalists", "above 0", trials),
     modal("trial_margin", "finalists", "above 0", trials),
+    Modal {
+        key: "compensate",
+        when: When::Said("a world has dead time", no_dead_time),
+        reads: has_dead_time,
+    },
 ];
 
 fn soft(c: &Config) -> bool {
@@ -305,6 +316,50 @@ fn evaluates(c: &Config) -> bool {
 
 fn trials(c: &Config) -> bool {
     c.finalists > 0
+}
+
+/// The domains a run draws its worlds from: training's, the evaluations', and the trial's
+/// when there is one.
+fn drawn(c: &Config) -> Vec<&String> {
+    let mut domains = vec![&c.domain, &c.eval_domain];
+    if trials(c) {
+        domains.push(&c.finalist_domain);
+    }
+    domains
+}
+
+/// The most periods of dead time a world of `spec` has around a machine of `own`: a delay
+/// part's (its high end, its default if left out) in every world it applies to, the
+/// machine's in the others.
+fn most_dead_time(spec: &str, own: f64) -> f64 {
+    let Ok(parts) = twin::grammar::parse(spec, "domain") else {
+        return own;
+    };
+    parts
+        .iter()
+        .find(|p| p.spec.key == "delay")
+        .map_or(own, |p| {
+            let hi = [p.values[0].map(|v| v.hi)];
+            let drawn = twin::grammar::Values::new(p.spec, &hi).first();
+            if p.share < 1.0 { drawn.max(own) } else { drawn }
+        })
+}
+
+/// The machine's dead time, in periods (0 for a rig that does not read: refused by its key).
+fn own_dead_time(c: &Config) -> f64 {
+    c.machine().map_or(0.0, |m| f64::from(m.rig.dead_time))
+}
+
+fn has_dead_time(c: &Config) -> bool {
+    let own = own_dead_time(c);
+    drawn(c).iter().any(|d| most_dead_time(d, own) > 0.0)
+}
+
+fn no_dead_time(c: &Config) -> String {
+    format!(
+        "the machine trained for has {} periods of dead time and no domain draws any",
+        own_dead_time(c)
+    )
 }
 
 impl Config {
@@ -348,13 +403,19 @@ impl Config {
         let errs: Vec<String> = unread
             .iter()
             .filter(|m| now[m.key] != default[m.key])
-            .map(|m| {
-                let (key, mode, needs) = (m.key, m.mode, m.needs);
-                format!(
-                    "{key} = {} is read only when {mode} is {needs}; {mode} = {} ignores it",
-                    shown(key),
+            .map(|m| match m.when {
+                When::Key(mode, needs) => format!(
+                    "{} = {} is read only when {mode} is {needs}; {mode} = {} ignores it",
+                    m.key,
+                    shown(m.key),
                     shown(mode)
-                )
+                ),
+                When::Said(needs, found) => format!(
+                    "{} = {} is read only when {needs}; {}",
+                    m.key,
+                    shown(m.key),
+                    found(self)
+                ),
             })
             .collect();
         if errs.is_empty() {

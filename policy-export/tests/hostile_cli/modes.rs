@@ -1,7 +1,7 @@
 //! Training keys that the chosen mode never reads (a soft update's period, a hard one's tau,
-//! finalists' keys without finalists, early stops without periodic evaluations): refused when
-//! given, where they were recorded and dropped; a preset's own values pass. And domains
-//! judged on the machine trained for.
+//! finalists' keys without finalists, early stops without periodic evaluations, the dead-time
+//! predictor without dead time): refused when given, where they were recorded and dropped; a
+//! preset's own values pass. And domains judged on the machine trained for.
 
 use super::{refused, run, scratch, stderr};
 
@@ -134,6 +134,61 @@ fn a_presets_own_values_and_the_defaults_pass_with_their_mode_off() {
         assert!(o.status.success(), "{args:?}: {}", stderr(&o));
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The dead-time predictor in worlds without dead time advances nothing: refused when asked
+/// for, where it was recorded and dropped; a preset's own is put back to its default. What
+/// has dead time is the machine trained for and the domains drawn around it.
+#[test]
+fn the_predictor_is_read_only_where_a_world_has_dead_time() {
+    refused(
+        &[
+            "train",
+            "--preset",
+            "robust",
+            "--print-config",
+            "--compensate",
+            "true",
+        ],
+        "compensate = true is read only when a world has dead time; the machine trained for \
+         has 0 periods of dead time and no domain draws any",
+    );
+    refused(
+        &[
+            "train",
+            "--preset",
+            "robust",
+            "--print-config",
+            "--compensate",
+            "true",
+            "--domain",
+            "noise+delay=0",
+        ],
+        "compensate = true is read only when a world has dead time",
+    );
+    let config = |args: &[&str]| {
+        let o = run(&[&["train", "--print-config"][..], args].concat());
+        assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        String::from_utf8(o.stdout).unwrap()
+    };
+    for args in [
+        &["--rig", "../rigs/desk.toml", "--compensate", "true"][..],
+        &["--compensate", "true", "--eval-domain", "delay=0..2@0.5"],
+        &["--compensate", "true", "--domain", "delay"],
+        &["--preset", "deploy"],
+    ] {
+        assert!(config(args).contains("compensate = true"), "{args:?}");
+    }
+    let still = [
+        "--preset",
+        "deploy",
+        "--domain",
+        "noise",
+        "--eval-domain",
+        "noise",
+    ];
+    let all = [&still[..], &["--finalist-domain", "noise"]].concat();
+    assert!(config(&all).contains("compensate = false"), "{all:?}");
 }
 
 /// A domain is drawn around the machine trained for: a damping range scales nothing on a
