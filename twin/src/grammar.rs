@@ -145,6 +145,14 @@ pub const POLE_COUNTS_RANGE: (f64, f64) = (16.0, (1u32 << 24) as f64);
 /// The cart encoder's counts per metre of travel a world (and a rig file) may have.
 pub const CART_COUNTS_RANGE: (f64, f64) = (16.0, (1u32 << 26) as f64);
 
+/// The product of a factor's values given again (`length=2+length=3+length=0.5`), taken in
+/// ascending order: the same bits however a spec orders them.
+pub fn product(factors: &[f64]) -> f64 {
+    let mut sorted = factors.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.iter().product()
+}
+
 /// A closed range `[lo, hi]`; a point when `lo == hi`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Span {

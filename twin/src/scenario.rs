@@ -124,7 +124,7 @@ impl Scenario {
     /// Builds a spec into a world around `machine` without judging what each part changes
     /// on it: for the named sets, whose rows are the same specs on every machine, and for a
     /// check of a spec before the machine its episodes run on is known. Factors of one
-    /// quantity multiply; every quantity must end within
+    /// quantity multiply ([`words::world_of`]); every quantity must end within
     /// [`FACTOR_RANGE`] of the rig's.
     pub fn build_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
         Scenario::built(spec, machine).map(|(s, _)| s)

@@ -69,21 +69,23 @@ fn canonical(spec: &str) -> Vec<(String, Vec<Option<u64>>)> {
         return vec![(spec.to_string(), Vec::new())];
     };
     let mut set: std::collections::BTreeMap<String, Vec<Option<f64>>> = Default::default();
+    let mut factors: std::collections::BTreeMap<String, Vec<f64>> = Default::default();
     for part in &parts {
         let given: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|s| s.lo)).collect();
+        if part.spec.multiplies() {
+            let factor = given[0].unwrap_or(1.0);
+            factors
+                .entry(part.spec.key.to_string())
+                .or_default()
+                .push(factor);
+            continue;
+        }
         let filled = twin::grammar::Values::new(part.spec, &given);
         let values: Vec<Option<f64>> = (0..given.len()).map(|i| filled.get(i)).collect();
-        let entry = set.entry(part.spec.key.to_string());
-        match entry {
-            std::collections::btree_map::Entry::Occupied(mut e) if part.spec.multiplies() => {
-                for (had, v) in e.get_mut().iter_mut().zip(values) {
-                    *had = had.zip(v).map(|(a, b)| a * b);
-                }
-            }
-            e => {
-                e.or_insert(values);
-            }
-        }
+        set.insert(part.spec.key.to_string(), values);
+    }
+    for (key, values) in factors {
+        set.insert(key, vec![Some(twin::grammar::product(&values))]);
     }
     set.into_iter()
         .map(|(key, values)| {
@@ -154,6 +156,18 @@ mod tests {
             (
                 &["length=2+length=2", "length=4"],
                 "\"length=2+length=2\" and \"length=4\"",
+            ),
+            // Multiplied in the order given, these two products differ in the last bit.
+            (
+                &[
+                    "length=0.9+length=1.6+length=1.5",
+                    "length=1.5+length=1.6+length=0.9",
+                ],
+                "\"length=0.9+length=1.6+length=1.5\" and \"length=1.5+length=1.6+length=0.9\"",
+            ),
+            (
+                &["encoder=64", "encoder=64/320"],
+                "\"encoder=64\" and \"encoder=64/320\"",
             ),
         ] {
             let e = check_rows(&[500], &parsed(specs), &[Policy], NAMES).unwrap_err();

@@ -181,6 +181,7 @@ pub fn bad_rows() -> Vec<Case> {
         "push=0.5/100,push",
         "zero=0/1,zero=-0/1",
         "length=2+length=2,length=4",
+        "length=0.9+length=1.6+length=1.5,length=1.5+length=1.6+length=0.9",
     ] {
         let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
         cases.push(Case::new(

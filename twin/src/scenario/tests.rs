@@ -374,3 +374,31 @@ fn a_part_that_changes_nothing_on_the_machine_at_hand_is_refused_there() {
     let built = Scenario::words_built_on(&["nominal".into(), "delay".into()], &desk).unwrap();
     assert!(built[0].same_world(&built[1]));
 }
+
+/// A quantity's factors multiply to the same bits in any order: reordered specs are one world.
+#[test]
+fn factors_given_again_multiply_in_one_order_whatever_the_spec_says() {
+    let (a, b, c) = (0.9, 1.6, 1.5);
+    let orders = [
+        (a, b, c),
+        (a, c, b),
+        (b, a, c),
+        (b, c, a),
+        (c, a, b),
+        (c, b, a),
+    ];
+    let lengths: Vec<u64> = orders
+        .iter()
+        .map(|(x, y, z)| {
+            let spec = format!("length={x}+length={y}+length={z}");
+            Scenario::parse(&spec).unwrap().params.length.to_bits()
+        })
+        .collect();
+    // Multiplied in the spec's order, these factors differ in the last bit.
+    let l = Params::default().length;
+    assert_ne!((l * a * b * c).to_bits(), (l * c * b * a).to_bits());
+    assert!(
+        lengths.iter().all(|&bits| bits == lengths[0]),
+        "{lengths:?}"
+    );
+}

@@ -7,7 +7,7 @@
 use std::collections::hash_map::{Entry, HashMap};
 
 use super::Scenario;
-use crate::grammar::{Part, PartSpec};
+use crate::grammar::{self, Part, PartSpec};
 use crate::machine::Machine;
 
 impl Scenario {
@@ -95,13 +95,30 @@ fn refuse_same_world(rows: &[Scenario], typed: &[bool]) -> Result<(), String> {
     Ok(())
 }
 
-/// The world `parts` build around `machine`, each applied in the spec's order (a factor
-/// given again multiplies).
-pub(super) fn world_of<'a>(parts: impl Iterator<Item = &'a Part>, machine: &Machine) -> Scenario {
+/// The world `parts` build around `machine`, in the spec's order, but that the values of a
+/// factor given again multiply into one factor ([`grammar::product`]), applied where the
+/// factor first appears: however the spec orders them, the same bits.
+pub(super) fn world_of<'a>(
+    parts: impl Iterator<Item = &'a Part> + Clone,
+    machine: &Machine,
+) -> Scenario {
+    let mut factors: Vec<(&PartSpec, Vec<f64>)> = Vec::new();
+    for part in parts.clone().filter(|p| p.spec.multiplies()) {
+        let value = part.values[0].map_or(1.0, |v| v.lo);
+        match factors.iter_mut().find(|(spec, _)| *spec == part.spec) {
+            Some((_, values)) => values.push(value),
+            None => factors.push((part.spec, vec![value])),
+        }
+    }
     let mut s = Scenario::nominal_on(machine);
     for part in parts {
-        let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
-        s.apply(part, &values);
+        if !part.spec.multiplies() {
+            let values: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.lo)).collect();
+            s.apply(part, &values);
+        } else if let Some(k) = factors.iter().position(|(spec, _)| *spec == part.spec) {
+            let (_, values) = factors.swap_remove(k);
+            s.apply(part, &[Some(grammar::product(&values))]);
+        }
     }
     s
 }
