@@ -175,8 +175,10 @@ fn not_utf8(cmd: &clap::Command, args: &[OsString]) -> String {
     let Some(at) = first_refused(cmd, args, &bad, |i| lossy(i, false)) else {
         return "expected UTF-8 text in every argument but paths".into();
     };
-    let mut traced = args.to_vec();
-    for &i in &bad {
+    // Read no further than the argument: a flag given again later (`--name a\xff --name b`)
+    // would replace the value traced in what clap matched.
+    let mut traced = args[..=at].to_vec();
+    for &i in bad.iter().filter(|&&i| i <= at) {
         traced[i] = lossy(i, i == at);
     }
     let given = args[at].to_string_lossy();
@@ -305,6 +307,7 @@ mod tests {
             Command::new("run")
                 .arg(path().long("policy"))
                 .arg(Arg::new("name").long("name"))
+                .arg(Arg::new("tag").long("tag"))
                 .arg(
                     Arg::new("count")
                         .long("count")
@@ -337,6 +340,29 @@ mod tests {
         assert_eq!(
             refusal(&[b"tool", b"run", b"--policy", bad_path, b"x\xff"]),
             "<LABEL>: expected UTF-8 text, found \"x\u{fffd}\""
+        );
+        // Two flags given bytes that are not UTF-8: the first is named, whichever it is.
+        for (first, second) in [(&b"--name"[..], &b"--tag"[..]), (b"--tag", b"--name")] {
+            let want = format!(
+                "{}: expected UTF-8 text, found \"a\u{fffd}\"",
+                String::from_utf8_lossy(first)
+            );
+            assert_eq!(
+                refusal(&[b"tool", b"run", first, b"a\xff", second, b"b\xfe"]),
+                want
+            );
+        }
+        // A flag given again, after the bytes or with them too: clap keeps the last value,
+        // which named only "argument 3".
+        for again in [b"b".as_slice(), b"b\xfe"] {
+            assert_eq!(
+                refusal(&[b"tool", b"run", b"--name", b"a\xff", b"--name", again]),
+                "--name: expected UTF-8 text, found \"a\u{fffd}\""
+            );
+        }
+        assert_eq!(
+            refusal(&[b"tool", b"run", b"--count", b"1\xff", b"--count=2"]),
+            "--count: expected UTF-8 text, found \"1\u{fffd}\""
         );
         // A path alone is no refusal.
         let args = [b"tool".as_slice(), b"run", b"--policy", bad_path]

@@ -336,10 +336,32 @@ fn bad_text(s: &Scratch) -> Vec<Case> {
     let bytes = |b: &[u8]| std::ffi::OsStr::from_bytes(b).to_owned();
     let policy = s.0.join(std::ffi::OsStr::from_bytes(b"p\xff.safetensors"));
     std::fs::copy(repo("shipped/policy.safetensors"), &policy).unwrap();
-    let cases: [(Vec<OsString>, &'static str); 5] = [
+    let cases: [(Vec<OsString>, &'static str); 7] = [
         (
             os(&[&"eval", &"--scenario", &bytes(b"noise\xff")]),
             "--scenario: expected UTF-8 text, found \"noise\u{fffd}\"",
+        ),
+        // Two flags so given: the first is named; a flag given again after it: named, not
+        // "argument 3".
+        (
+            os(&[
+                &"eval",
+                &"--episodes",
+                &bytes(b"1\xff"),
+                &"--scenario",
+                &bytes(b"noise\xff"),
+            ]),
+            "--episodes: expected UTF-8 text, found \"1\u{fffd}\"",
+        ),
+        (
+            os(&[
+                &"eval",
+                &"--episodes",
+                &bytes(b"1\xff"),
+                &"--episodes",
+                &"2",
+            ]),
+            "--episodes: expected UTF-8 text, found \"1\u{fffd}\"",
         ),
         (
             os(&[

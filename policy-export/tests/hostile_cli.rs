@@ -145,9 +145,23 @@ fn text_that_is_not_utf8_is_refused_naming_its_flag_and_a_path_that_is_not_is_ta
         args.extend(os(rest));
         args
     };
-    let cases: [(Vec<OsString>, &str); 5] = [
+    let cases: [(Vec<OsString>, &str); 8] = [
         (
             export(&[b"--name", b"P\xff"]),
+            "--name: expected UTF-8 text, found \"P\u{fffd}\"",
+        ),
+        // Two flags so given, either first: the first is named. A flag given again after
+        // the bytes: it was "argument 6", its value replaced by the second in the trace.
+        (
+            export(&[b"--prefix", b"a\xfe", b"--name", b"P\xff"]),
+            "--prefix: expected UTF-8 text, found \"a\u{fffd}\"",
+        ),
+        (
+            export(&[b"--name", b"P\xff", b"--prefix", b"a\xfe"]),
+            "--name: expected UTF-8 text, found \"P\u{fffd}\"",
+        ),
+        (
+            export(&[b"--name", b"P\xff", b"--name", b"Q"]),
             "--name: expected UTF-8 text, found \"P\u{fffd}\"",
         ),
         (
