@@ -226,6 +226,51 @@ fn a_repeated_experiment_is_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], 
         )],
     );
     std::fs::remove_file(&double).unwrap();
+    // The same samples counted from another zero: the pole a revolution on, the cart pushed
+    // along by a few counts; and the swing copied so, but only the pole.
+    let per_rev = desk().0.rig.encoders.pole_counts_per_rev as i32;
+    let moved = recounted(cart, &dir.join("cart-moved.log"), |c, p| {
+        (c + 7, p + per_rev)
+    });
+    refused(
+        dir,
+        &[cart, swing, &moved, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "cart-moved.log:1: expected each experiment once, found the same samples as {once}, \
+             its counts shifted by 7 (cart) and {per_rev} (pole)"
+        )],
+    );
+    let turned = recounted(swing, &dir.join("swing-turned.log"), |c, p| {
+        (c, p - per_rev)
+    });
+    refused(
+        dir,
+        &[&turned, cart, swing, &rig_flag, rig, &out_flag, out],
+        &[&format!(
+            "swing.log:1: expected each experiment once, found the same samples as {}:1, its \
+             counts shifted by 0 (cart) and {per_rev} (pole)",
+            turned.display()
+        )],
+    );
+    std::fs::remove_file(&moved).unwrap();
+    std::fs::remove_file(&turned).unwrap();
+}
+
+/// `path`'s logs written to `to` with each row's cart and pole counts mapped by `f`.
+fn recounted(path: &Path, to: &Path, f: impl Fn(i32, i32) -> (i32, i32)) -> PathBuf {
+    let text: String = std::fs::read_to_string(path)
+        .unwrap()
+        .lines()
+        .map(|l| match l.split(',').collect::<Vec<_>>()[..] {
+            [k, d, c, p] if k.parse::<u32>().is_ok() => {
+                let (c, p) = f(c.parse().unwrap(), p.parse().unwrap());
+                format!("{k},{d},{c},{p}\n")
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect();
+    std::fs::write(to, text).unwrap();
+    to.to_path_buf()
 }
 
 /// The pole's counts of `cart` and `swing` as an encoder wired the other way reads them;
@@ -233,21 +278,7 @@ fn a_repeated_experiment_is_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], 
 fn inverted_and_too_many_logs_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &Path) {
     let (rig_flag, out_flag) = (PathBuf::from("--rig"), PathBuf::from("--out"));
     // Each pole count c as -c - 1.
-    let flipped = |path: &Path, name: &str| {
-        let text: String = std::fs::read_to_string(path)
-            .unwrap()
-            .lines()
-            .map(|l| match l.split(',').collect::<Vec<_>>()[..] {
-                [k, d, c, p] if k.parse::<u32>().is_ok() => {
-                    format!("{k},{d},{c},{}\n", -p.parse::<i32>().unwrap() - 1)
-                }
-                _ => format!("{l}\n"),
-            })
-            .collect();
-        let to = dir.join(name);
-        std::fs::write(&to, text).unwrap();
-        to
-    };
+    let flipped = |path: &Path, name: &str| recounted(path, &dir.join(name), |c, p| (c, -p - 1));
     let (cart_flipped, swing_flipped) = (
         flipped(cart, "cart-inverted.log"),
         flipped(swing, "swing-inverted.log"),

@@ -279,24 +279,30 @@ pub fn parse(text: &str, origin: &str) -> Result<Vec<Log>> {
 /// Refuses an experiment given twice, in one file or across files: counted twice, it
 /// narrowed every interval by the square root of two. Experiments are compared by what was
 /// measured, their samples, not by their text: a copy with other line ends or another
-/// comment, or a file holding the same experiments twice, is the same measurement.
+/// comment, or a file holding the same experiments twice, is the same measurement. Counts
+/// are compared from each log's first, as an encoder's zero is wherever the board started
+/// (a pole hanging a revolution on, a cart that was pushed): a copy of a log's counts
+/// shifted by a constant is the same measurement too.
 pub fn check_each_once(logs: &[Log]) -> Result<()> {
     use std::hash::{Hash, Hasher};
     let mut seen: std::collections::HashMap<u64, Vec<&Log>> = Default::default();
     for log in logs {
         let mut h = std::hash::DefaultHasher::new();
-        (&log.cart, &log.pole).hash(&mut h);
-        log.duty
-            .iter()
-            .for_each(|d| (d + 0.0).to_bits().hash(&mut h));
-        let same = |a: &&&Log| (&a.duty, &a.cart, &a.pole) == (&log.duty, &log.cart, &log.pole);
+        from_first(log).for_each(|s| s.hash(&mut h));
         let bucket = seen.entry(h.finish()).or_default();
-        if let Some(first) = bucket.iter().find(same) {
+        if let Some(first) = bucket.iter().find(|a| from_first(a).eq(from_first(log))) {
+            let shift = |a: &[i32], b: &[i32]| first_count(b) - first_count(a);
+            let (cart, pole) = (shift(&first.cart, &log.cart), shift(&first.pole, &log.pole));
+            let zero = if (cart, pole) == (0, 0) {
+                String::new()
+            } else {
+                format!(", its counts shifted by {cart} (cart) and {pole} (pole)")
+            };
             return Err(input(
                 &log.origin,
                 log.line,
                 format!(
-                    "expected each experiment once, found the same samples as {}:{}",
+                    "expected each experiment once, found the same samples as {}:{}{zero}",
                     first.origin, first.line
                 ),
             ));
@@ -306,13 +312,30 @@ pub fn check_each_once(logs: &[Log]) -> Result<()> {
     Ok(())
 }
 
+/// A log's first count, 0 for a log of no rows.
+fn first_count(counts: &[i32]) -> i64 {
+    counts.first().map_or(0, |&c| i64::from(c))
+}
+
+/// Each period's duty (its bits, zero's sign dropped) and counts less the log's first.
+fn from_first(log: &Log) -> impl Iterator<Item = (u64, i64, i64)> + '_ {
+    let (cart, pole) = (first_count(&log.cart), first_count(&log.pole));
+    log.duty
+        .iter()
+        .zip(log.cart.iter().zip(&log.pole))
+        .map(move |(d, (&c, &p))| {
+            let d = (d + 0.0).to_bits();
+            (d, i64::from(c) - cart, i64::from(p) - pole)
+        })
+}
+
 /// The pole's count as its offset from the hanging position nearest to where the log
 /// starts (a pole that went over the top in an earlier experiment hangs a revolution on),
 /// doubled and made odd: twice the midpoint of the count, never zero, so its sign is the
 /// side of hanging the pole is on.
 pub fn doubled_midpoints(log: &Log) -> Vec<i64> {
     let per_rev = i64::from(log.encoders.pole_counts_per_rev);
-    let first = log.pole.first().map_or(0, |&c| i64::from(c));
+    let first = first_count(&log.pole);
     let rev = (first + per_rev / 2).div_euclid(per_rev) * per_rev;
     log.pole
         .iter()

@@ -41,15 +41,23 @@ pub fn apart(s: &Scratch, log: &Path, rig: &Path) -> Vec<Case> {
         ));
     }
     // 3,000 logs of a row each, with plots: 12,000 plots kept apart pairwise took seconds
-    // (10,000 logs, minutes). Each row's cart count is its own: an experiment given twice
-    // is refused before the plots' places are.
+    // (10,000 logs, minutes). Each row's duty is its own (counts are compared from each
+    // log's first, so another cart count alone is the same experiment): an experiment given
+    // twice is refused before the plots' places are.
     let one = std::fs::read_to_string(log).unwrap();
     let row = one.find("\n0,").unwrap() + 1;
     let (head, rest) = one.split_at(row);
     let fields: Vec<&str> = rest[..rest.find('\n').unwrap()].split(',').collect();
     let many = s.join("many.log");
     let logs: String = (0..3_000)
-        .map(|k| format!("{head}0,{},{k},{}\n", fields[1], fields[3]))
+        .map(|k| {
+            format!(
+                "{head}0,{},{},{}\n",
+                f64::from(k) / 4000.0,
+                fields[2],
+                fields[3]
+            )
+        })
         .collect();
     std::fs::write(&many, logs).unwrap();
     let args = os(&[
