@@ -233,8 +233,9 @@ fn a_five_level_header_carries_its_duties_and_names_the_library_functions() {
 }
 
 /// Names just outside each class the C library takes: of `<stdint.h>` (`INT` or `UINT` with
-/// `_MAX`, `_MIN`, `_WIDTH` or `_C` needs both), of `<stddef.h>`, `errno` and `main`.
-const NEAR_NAMES: [&str; 12] = [
+/// `_MAX`, `_MIN`, `_WIDTH` or `_C` needs both), of `<stddef.h>`, `errno` and `main`, and of
+/// what the GNU dialects declare (a `_MAX` ending is no POSIX limit's).
+const NEAR_NAMES: [&str; 16] = [
     "MY_INT8_MAX",
     "INT8_MAXIMUM",
     "UINT64_CONST",
@@ -247,6 +248,10 @@ const NEAR_NAMES: [&str; 12] = [
     "Errno",
     "errno_",
     "main_",
+    "y2",
+    "random_",
+    "POLICY_MAX",
+    "SA_restart",
 ];
 
 #[test]

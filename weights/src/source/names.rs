@@ -8,6 +8,7 @@ use crate::{BANG_BANG, Error, Result, quote};
 use c_library::c_library_use;
 
 mod c_library;
+mod posix_library;
 
 /// Longest name: C guarantees 63 significant characters of an identifier, and the include
 /// guard puts 18 before it ([`c_guard`]).

@@ -5,6 +5,8 @@
 //! the policy's. Where the standard reserves a pattern (C11 7.31, future library directions)
 //! the pattern is refused, not only today's names.
 
+use super::posix_library::posix_library_use;
+
 /// Why the C library takes `name`, if it does.
 pub(super) fn c_library_use(name: &str) -> Option<String> {
     if stdint_macro(name) {
@@ -34,9 +36,15 @@ pub(super) fn c_library_use(name: &str) -> Option<String> {
         return Some(why.into());
     }
     // A name's own header first: `EOF` is <stdio.h>'s, though <errno.h> reserves its form.
-    let header = listed(name).or_else(|| reserved_pattern(name))?;
+    if let Some(header) = listed(name).or_else(|| reserved_pattern(name)) {
+        return Some(format!(
+            "a name {header} declares or reserves, which a program may include beside the header"
+        ));
+    }
+    let header = posix_library_use(name)?;
     Some(format!(
-        "a name {header} declares or reserves, which a program may include beside the header"
+        "a name {header} declares in the GNU dialects compilers default to (gnu17, and C++), \
+         from POSIX or the BSDs, which a program may include beside the header"
     ))
 }
 
@@ -129,13 +137,11 @@ fn listed(name: &str) -> Option<&'static str> {
     {
         return Some("<float.h>");
     }
-    let base = [name.strip_suffix('f'), name.strip_suffix('l')];
     for (header, functions) in [
         ("<math.h>", MATH_FUNCTIONS),
         ("<complex.h>", COMPLEX_FUNCTIONS),
     ] {
-        let mut names = functions.split_whitespace();
-        if names.any(|f| f == name || base.contains(&Some(f))) {
+        if with_forms(name, functions) {
             return Some(header);
         }
     }
@@ -143,6 +149,14 @@ fn listed(name: &str) -> Option<&'static str> {
         .iter()
         .find(|(_, names)| names.split_whitespace().any(|n| n == name))
         .map(|(header, _)| *header)
+}
+
+/// Whether `name` is one of `functions` or its `f` (float) or `l` (long double) form.
+pub(super) fn with_forms(name: &str, functions: &str) -> bool {
+    let base = [name.strip_suffix('f'), name.strip_suffix('l')];
+    functions
+        .split_whitespace()
+        .any(|f| f == name || base.contains(&Some(f)))
 }
 
 /// The types of `<limits.h>`, each with its `_MAX` and `_MIN` (C23: `_WIDTH`).
@@ -182,7 +196,7 @@ const LISTS: [(&str, &str); 20] = [
         "feclearexcept fegetexceptflag feraiseexcept fesetexceptflag fetestexcept fegetround \
          fesetround fegetenv feholdexcept fesetenv feupdateenv",
     ),
-    ("<inttypes.h>", "imaxabs imaxdiv"),
+    ("<inttypes.h>", "imaxabs imaxdiv strtoimax strtoumax"),
     ("<locale.h>", "setlocale localeconv"),
     (
         "<math.h>",
@@ -190,10 +204,11 @@ const LISTS: [(&str, &str); 20] = [
          math_errhandling fpclassify signbit isfinite isinf isnan isnormal isgreater \
          isgreaterequal isless islessequal islessgreater isunordered",
     ),
-    ("<setjmp.h>", "setjmp longjmp jmp_buf"),
+    // `_setjmp` too: glibc declares it, and C reserves a leading `_` at file scope.
+    ("<setjmp.h>", "setjmp longjmp jmp_buf _setjmp"),
     ("<signal.h>", "signal raise"),
     ("<stdarg.h>", "va_list va_start va_arg va_end va_copy"),
-    ("<stdatomic.h>", "kill_dependency"),
+    ("<stdatomic.h>", "kill_dependency memory_order"),
     (
         "<stdio.h>",
         "FILE EOF BUFSIZ FOPEN_MAX FILENAME_MAX L_tmpnam SEEK_CUR SEEK_END SEEK_SET TMP_MAX \
@@ -213,12 +228,12 @@ const LISTS: [(&str, &str); 20] = [
     ("<stdnoreturn.h>", "noreturn"),
     (
         "<threads.h>",
-        "ONCE_FLAG_INIT TSS_DTOR_ITERATIONS call_once",
+        "ONCE_FLAG_INIT TSS_DTOR_ITERATIONS call_once once_flag",
     ),
     (
         "<time.h>",
         "CLOCKS_PER_SEC TIME_UTC clock difftime mktime time timespec_get asctime ctime gmtime \
-         localtime",
+         localtime strftime",
     ),
     ("<uchar.h>", "mbrtoc16 c16rtomb mbrtoc32 c32rtomb"),
     (

@@ -1,0 +1,100 @@
+//! The names an exported header's object may not have because a program compiled in the
+//! compilers' default GNU dialect cannot declare them beside the standard headers: found by
+//! the system's C compiler (`CC`, else `cc`), an implementation nobody here wrote, not by a
+//! list of ours. POSIX's and the BSDs' names (`y0`, `random`, `fileno`, `popen`, `drand48`)
+//! compile under `-std=c11` but not under `-std=gnu17`, where the C library declares them.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use weights::source::check_c_name;
+
+/// Every C11 header a program may include beside an exported one.
+const C11_HEADERS: &str = "assert complex ctype errno fenv float inttypes iso646 limits locale \
+    math setjmp signal stdalign stdarg stdatomic stdbool stddef stdint stdio stdlib \
+    stdnoreturn string tgmath threads time uchar wchar wctype";
+
+/// How an exported header declares its object, to the compiler: a name the headers declare
+/// as anything else (a function, an object of another type, a typedef, an enumerator, a
+/// macro) is an error on its line.
+fn declaration(name: &str) -> String {
+    format!("extern const struct cartpole_probe {name};\n")
+}
+
+/// The compiler run in dialect `std` on `file`.
+fn cc(std: &str, args: &[&str], file: &Path) -> Output {
+    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    Command::new(&cc)
+        .arg(format!("-std={std}"))
+        .args(args)
+        .arg(file)
+        .output()
+        .unwrap_or_else(|e| panic!("running {cc}: {e}"))
+}
+
+/// The identifiers of the C11 headers in dialect `std` (each word of their preprocessed text
+/// and each macro they define) that the compiler refuses as the object's name.
+fn colliding(std: &str) -> Vec<String> {
+    let dir = std::env::temp_dir().join(format!("weights-collide-{std}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let includes: String = C11_HEADERS
+        .split_whitespace()
+        .map(|h| format!("#include <{h}.h>\n"))
+        .collect();
+    let headers = dir.join("headers.c");
+    std::fs::write(&headers, &includes).unwrap();
+    let text = |args: &[&str]| {
+        let out = cc(std, args, &headers);
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap()
+    };
+    let mut words: Vec<String> = [text(&["-E", "-P"]), text(&["-dM", "-E"])]
+        .concat()
+        .split(|c: char| !(c.is_ascii_alphanumeric() || c == '_'))
+        .filter(|w| w.starts_with(|c: char| c.is_ascii_alphabetic() || c == '_'))
+        .map(String::from)
+        .collect();
+    words.sort();
+    words.dedup();
+    let probe = dir.join("probe.c");
+    let first = includes.lines().count() + 1;
+    let body: String = words.iter().map(|w| declaration(w)).collect();
+    std::fs::write(&probe, includes + &body).unwrap();
+    let out = cc(std, &["-fsyntax-only"], &probe);
+    let err = String::from_utf8_lossy(&out.stderr);
+    std::fs::remove_dir_all(&dir).unwrap();
+    let shown = probe.to_string_lossy().into_owned();
+    let mut refused: Vec<String> = err
+        .lines()
+        .filter_map(|l| l.strip_prefix(&format!("{shown}:")))
+        .filter(|l| l.contains(": error:"))
+        .filter_map(|l| l.split(':').next()?.parse::<usize>().ok())
+        .filter_map(|line| words.get(line.checked_sub(first)?).cloned())
+        .collect();
+    refused.dedup();
+    refused
+}
+
+#[test]
+fn every_name_the_c11_headers_declare_in_gnu17_is_refused() {
+    for std in ["c11", "gnu17"] {
+        let refused = colliding(std);
+        // The probe refuses what the headers declare, not every word of them: a struct's tag
+        // is no object's name in C.
+        let has = |name: &str| refused.iter().any(|r| r == name);
+        assert!(["printf", "EOF", "sqrt"].into_iter().all(has), "{std}");
+        assert!(!has("tm") && !has("timespec"), "{std}: {refused:?}");
+        for posix in ["y0", "j1", "gamma", "random", "fileno", "popen", "drand48"] {
+            assert_eq!(has(posix), std == "gnu17", "{std}: {posix}");
+        }
+        let accepted: Vec<&String> = refused.iter().filter(|m| check_c_name(m).is_ok()).collect();
+        assert!(
+            accepted.is_empty(),
+            "{std}: accepted as names: {accepted:?}"
+        );
+    }
+}
