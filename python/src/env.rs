@@ -248,7 +248,7 @@ impl Twin {
 }
 
 fn not_reset() -> PyErr {
-    pyo3::exceptions::PyRuntimeError::new_err("call reset() before step()")
+    crate::not_running("call reset() before step()")
 }
 
 /// Many worlds of one scenario or domain, stepped together with Gymnasium's next-step

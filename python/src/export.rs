@@ -149,8 +149,14 @@ fn from_file(src: &Path, f: &Found) -> PyResult<(Import, Vec<String>)> {
     inputs.extend(f.rig.map(|r| ("rig", r)));
     check_io(&inputs, &[("out", f.out)]).map_err(file_error)?;
     let import = checkpoint::load_with(src, f.prefix, f.levels).map_err(file_error)?;
-    let provenance = policy_export::run::source_provenance(src, &import)
-        .map_err(|e| value_error(format!("{e:#}")))?;
+    // As the command's exit status tells them apart: a summary refused, or one the system
+    // failed to read.
+    let provenance = policy_export::run::source_provenance(src, &import).map_err(|e| {
+        match e.downcast::<weights::Error>() {
+            Ok(e) => file_error(e),
+            Err(e) => value_error(format!("{e:#}")),
+        }
+    })?;
     Ok((import, provenance))
 }
 

@@ -8,7 +8,7 @@ use std::fmt::Display;
 use std::ops::Range;
 use std::path::Path;
 
-use pyo3::exceptions::{PyMemoryError, PyOSError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use twin::Machine;
 use weights::levels::GivenLevels;
@@ -24,6 +24,13 @@ mod swing;
 /// says what was expected and what was found.
 pub(crate) fn value_error(e: impl Display) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// A call an environment's episode does not allow (a step before `reset()`, after
+/// `close()` or past the episode's end), as the `RuntimeError` Gymnasium's CartPole raises:
+/// every environment of the package raises the same.
+pub(crate) fn not_running(what: &str) -> PyErr {
+    PyRuntimeError::new_err(what.to_string())
 }
 
 /// A file refused or not written, as the tools tell them apart: bad input as `ValueError`

@@ -89,7 +89,9 @@ impl SwingUp {
         let duty = self.levels.fractions()[self::action(action, &self.levels)?];
         let (reach, horizon) = (self.reach, self.horizon);
         let run = self.running.as_mut().filter(|r| !r.over).ok_or_else(|| {
-            value_error("step() needs a running episode: call reset() first, and after its end")
+            crate::not_running(
+                "step() needs a running episode: call reset() first, and after its end",
+            )
         })?;
         let stopped = run.circle.step(f64::from(duty), 0.0, |_| {});
         run.steps += 1;
@@ -127,7 +129,7 @@ impl SwingUp {
         let run = self
             .running
             .as_ref()
-            .ok_or_else(|| value_error("call reset() first"))?;
+            .ok_or_else(|| crate::not_running("call reset() first"))?;
         Ok(run.circle.state().to_array())
     }
 }

@@ -3,6 +3,7 @@
 import itertools
 import re
 import json
+import numpy as np
 
 import pytest
 
@@ -37,6 +38,22 @@ def test_refusals_raise_value_error():
         cartpole_ddqn.evaluate(episodes=0)
     with pytest.raises(ValueError, match="monitored"):
         cartpole_ddqn.evaluate(cartpole_ddqn.load(REPO / "shipped" / "policy.safetensors"), controller="monitored")
+
+
+@pytest.mark.parametrize("episodes", [1.5, 2.0, "3", None])
+def test_a_count_of_episodes_that_is_no_int_raises_type_error(episodes):
+    """As a float seed does: 1.5 is not cut to 1."""
+    with pytest.raises(TypeError, match=r"^episodes must be an int \(a whole number\); found "):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=episodes, horizon=2)
+
+
+@pytest.mark.parametrize("episodes", [0, -1, cartpole_ddqn.MAX_EPISODES + 1, 2**64, -(2**64)])
+def test_a_count_of_episodes_out_of_range_names_the_argument_and_the_range(episodes):
+    """2**64 raised an OverflowError from the native conversion, naming neither."""
+    most = cartpole_ddqn.MAX_EPISODES
+    with pytest.raises(ValueError, match=rf"^episodes must be in \[1, {most}\]; found {episodes}$"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=episodes, horizon=2)
+    assert cartpole_ddqn.evaluate(controller="lqr", episodes=np.int64(1), horizon=2)[0]["episodes"] == 1
 
 
 def test_provenance_is_the_tools_record(tools):

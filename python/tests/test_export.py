@@ -124,6 +124,25 @@ def test_a_write_that_fails_raises_os_error_not_value_error(tmp_path, source):
     assert list(out.parent.iterdir()) == []
 
 
+def test_a_read_that_fails_raises_os_error_and_a_summary_refused_value_error(tmp_path):
+    """A run's summary.json that opens as a regular file but fails to read (/proc/self/mem
+    refuses a read at address 0 with an I/O error) is the system's failure, as the command
+    exits 1 there; it raised ValueError. A summary that is no run's stays bad input."""
+    src = tmp_path / "run"
+    src.mkdir()
+    (src / "policy.safetensors").write_bytes((REPO / "shipped" / "policy.safetensors").read_bytes())
+    summary = src / "summary.json"
+    summary.symlink_to("/proc/self/mem")
+    out = tmp_path / "policy.rs"
+    with pytest.raises(OSError, match=r"^reading .*summary\.json: Input/output error"):
+        cartpole_ddqn.export(src, out=out)
+    summary.unlink()
+    summary.write_text("{}")
+    with pytest.raises(ValueError, match="summary.json: not a run summary"):
+        cartpole_ddqn.export(src, out=out)
+    assert not out.exists()
+
+
 def test_a_dict_without_the_network_is_refused(tmp_path):
     tensors = read_safetensors(REPO / "shipped" / "policy.safetensors")
     del tensors["fc2.weight"]

@@ -101,7 +101,7 @@ def test_the_episode_ends_as_the_cart_enters_the_end_stop_margin():
         if terminated:
             break
     assert terminated and reach < x < rig["track_half_length_m"] + 1e-12
-    with pytest.raises(ValueError, match="reset"):
+    with pytest.raises(RuntimeError, match="reset"):
         env.step(0)
 
 

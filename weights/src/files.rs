@@ -59,9 +59,11 @@ pub fn read_capped(path: &Path, max: u64) -> Result<Vec<u8>> {
     // doubles the buffer: a file costs its size in memory, not twice or three times it.
     let size = file.metadata().map_or(0, |m| m.len()).min(max);
     let mut bytes = Vec::with_capacity(usize::try_from(size).unwrap_or(0).saturating_add(1));
+    // Opened as a regular file, it fails to read for a reason of the system's (an I/O error),
+    // not for what was named: exit status 1, Python's OSError, as for a write.
     file.take(max + 1)
         .read_to_end(&mut bytes)
-        .map_err(|e| Error::Input(format!("reading {}: {e}", crate::shown(path))))?;
+        .map_err(|e| Error::Io(format!("reading {}: {e}", crate::shown(path))))?;
     if bytes.len() as u64 > max {
         return Err(Error::Input(format!(
             "{}: expected at most {max} bytes, found more",

@@ -98,8 +98,9 @@ def _at(array, k):
 
 
 def _real_items(source):
-    """An object array's items as float64, each a real number (None became NaN); an int
-    past float64's range as an infinity, refused as past float32's."""
+    """An object array's items as float64, each a real number (None, a str or any other
+    object is refused with ValueError); an int past float64's range as an infinity, refused
+    as past float32's."""
     values = np.empty(source.shape, dtype=np.float64)
     flat = values.reshape(-1)
     for k, v in enumerate(source.flat):
@@ -318,20 +319,24 @@ def _horizon(h):
 _SEEDS = 2**64
 
 
-def _seed(seed, most=_SEEDS - 1, name="seed"):
-    """A seed as Gymnasium's ``reset(seed=)`` takes one, a Python int of at least 0 (a bool
-    among them), or a NumPy integer, returned as a Python int for Gymnasium's seeding. A
-    float is refused, not truncated: 1.7 would replay seed 1's episodes."""
+def _whole(value, name, least, most, kind="a whole number"):
+    """``value``, a Python int (a bool among them) or a NumPy integer, as a Python int in
+    [least, most]: TypeError for what is no int, as a float is refused, not truncated;
+    ValueError naming the range for an int outside it, before the native module's
+    conversion would raise an OverflowError that names neither."""
     try:
-        value = operator.index(seed)
+        whole = operator.index(value)
     except TypeError:
-        raise TypeError(
-            f"{name} must be an int (a whole number, as Gymnasium takes one); found {_short(seed)} "
-            f"({type(seed).__name__})"
-        ) from None
-    if not 0 <= value <= most:
-        raise ValueError(f"{name} must be in [0, {most}]; found {value}")
-    return value
+        raise TypeError(f"{name} must be an int ({kind}); found {_short(value)} ({type(value).__name__})") from None
+    if not least <= whole <= most:
+        raise ValueError(f"{name} must be in [{least}, {most}]; found {whole}")
+    return whole
+
+
+def _seed(seed, most=_SEEDS - 1, name="seed"):
+    """A seed as Gymnasium's ``reset(seed=)`` takes one, an int of at least 0, returned as a
+    Python int for Gymnasium's seeding: 1.7 would replay seed 1's episodes."""
+    return _whole(seed, name, 0, most, "a whole number, as Gymnasium takes one")
 
 
 def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,
@@ -347,8 +352,7 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     a second."""
     if policy is not None and not isinstance(policy, Policy):
         raise ValueError(f"expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
-    if not isinstance(episodes, (int, np.integer)) or episodes < 0:
-        raise ValueError(f"episodes must be a whole number of at least 0; found {episodes!r}")
+    episodes = _whole(episodes, "episodes", 1, MAX_EPISODES)
     seed = _seed(seed)
     given = ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))
     named = [(_listed(v, w), w) for v, w in given]
@@ -364,7 +368,7 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
         None if policy is None else policy._native,
         _names(scenarios, "scenario"),
         _names(controllers, "controller"),
-        int(episodes),
+        episodes,
         [_horizon(h) for h in horizons],
         seed,
         _path(rig),

@@ -170,3 +170,16 @@ fn reads_are_capped_and_only_of_regular_files() {
     assert!(e.is_input() && e.to_string().contains("missing"), "{e}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_read_the_system_fails_is_its_failure_a_path_that_cannot_be_opened_the_inputs() {
+    // It opens as a regular file, and a read at address 0 fails with an I/O error.
+    let mem = Path::new("/proc/self/mem");
+    let e = read_capped(mem, 100).unwrap_err();
+    assert!(
+        !e.is_input() && e.to_string().starts_with("reading /proc/self/mem: "),
+        "{e}"
+    );
+    let e = read_capped(Path::new("/nonexistent/summary.json"), 100).unwrap_err();
+    assert!(e.is_input(), "{e}");
+}
