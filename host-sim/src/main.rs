@@ -184,8 +184,9 @@ impl Subject {
     }
 
     /// The machine, and the network (with its integer version if `int`), loaded lazily by
-    /// the commands after their cheaper checks. Where no policy runs (`policy` false: the
-    /// baselines alone), --rig is the machine and a policy's own rig is no concern of it.
+    /// the commands after their cheaper checks. Where nothing needs the policy (`policy`
+    /// false: baselines that take none of its levels), --rig is the machine and a policy's
+    /// own rig is no concern of it.
     fn load(&self, int: bool, policy: bool) -> Result<(Machine, Net)> {
         let given = self.rig.as_deref().map(twin::rigfile::load).transpose()?;
         if let (Some(machine), false) = (given, policy) {
@@ -301,7 +302,7 @@ fn main() -> ExitCode {
         Ok(false) => host_common::cli::exit(1),
         Err(e) => {
             host_common::errln!("error: {e:#}");
-            // Everything but a failure to write is the input's fault.
+            // Everything but the system failing a read or a write is the input's fault.
             let system = matches!(
                 e.downcast_ref::<weights::Error>(),
                 Some(weights::Error::Io(_))
