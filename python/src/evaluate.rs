@@ -21,9 +21,9 @@ use crate::policy::Policy;
 use crate::{reserve, value_error};
 
 /// The rows of `controllers` on `scenarios` (specs, or the sets `all`, `hard`, `faults`,
-/// `hard-candidates`) at `horizons`, `episodes` each from `seed`; `policy` the network
-/// (the shipped one if `None`), `rig` the machine (the policy's if `None`); `levels`, if
-/// given, must be the policy's.
+/// `hard-candidates`, Gymnasium's machine alone) at `horizons`, `episodes` each from
+/// `seed`; `policy` the network (the shipped one if `None`), `rig` the machine (the
+/// policy's if `None`); `levels`, if given, must be the policy's.
 #[pyfunction]
 #[pyo3(signature = (policy, scenarios, controllers, episodes, horizons, seed, rig=None, levels=None))]
 // One argument per keyword of the Python function (`cartpole_ddqn.evaluate`).

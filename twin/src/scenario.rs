@@ -212,7 +212,8 @@ impl Scenario {
         parse_all(machine, FAULTS)
     }
 
-    /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]).
+    /// The candidates the `hard` set is chosen from ([`HARD_CANDIDATES`]), on Gymnasium's
+    /// machine, where the choice was made: the `--scenario` word is refused on any other.
     pub fn hard_candidates() -> Vec<Scenario> {
         parse_all(&Machine::GYMNASIUM, HARD_CANDIDATES)
     }

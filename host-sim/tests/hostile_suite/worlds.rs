@@ -201,6 +201,12 @@ pub fn bad_rows() -> Vec<Case> {
             "encoder,encoder=2400/15000",
             "found \"encoder\" and \"encoder=2400/15000\", which build one world on this machine",
         ),
+        // Gymnasium's candidate pool, which would run in Gymnasium's world under the desk's name.
+        (
+            "hard-candidates",
+            "expected `hard-candidates` on Gymnasium's machine, where the `hard` set was chosen \
+             from its rows; found another rig or world",
+        ),
     ] {
         let mut args = os(&[&"eval", &"--controller", &"lqr", &"--rig", &desk]);
         args.extend(os(&[&"--episodes", &"1", &"--scenario", &specs]));
@@ -210,5 +216,17 @@ pub fn bad_rows() -> Vec<Case> {
             &[want],
         ));
     }
+    let mut args = os(&[&"eval", &"--controller", &"lqr", &"--world", &desk]);
+    args.extend(os(&[
+        &"--episodes",
+        &"1",
+        &"--scenario",
+        &"hard-candidates",
+    ]));
+    cases.push(Case::new(
+        "eval --world desk --scenario hard-candidates".into(),
+        &args,
+        &["expected `hard-candidates` on Gymnasium's machine"],
+    ));
     cases
 }

@@ -17,7 +17,8 @@ pub fn scenario_help(rows: bool) -> String {
     }
     format!(
         "Scenarios, one row each: {one}; `all` is the robustness set, `hard` the set beyond \
-         it, `hard-candidates` what that set is chosen from, `faults` one row per fault"
+         it, `hard-candidates` what that set is chosen from (on Gymnasium's machine alone), `faults` \
+         one row per fault"
     )
 }
 

@@ -15,7 +15,8 @@ impl Scenario {
     /// `hard-candidates`, `faults`) or one spec each ([`Scenario::parse_on`]), in order. A
     /// spec that builds the world another row builds on `machine` is refused: one row asked
     /// for twice. The named sets keep their rows on every machine, even two of one world (on
-    /// a rig with a period of dead time, the default set's `delay` builds its `nominal`).
+    /// a rig with a period of dead time, the default set's `delay` builds its `nominal`);
+    /// `hard-candidates` is refused off Gymnasium's machine ([`Scenario::hard_candidates`]).
     pub fn words_on(words: &[String], machine: &Machine) -> Result<Vec<Scenario>, String> {
         let (rows, typed) = expand(words, machine, Scenario::parse_on)?;
         refuse_same_world(&rows, &typed)?;
@@ -53,7 +54,8 @@ fn expand(
         let set = match word.as_str() {
             "all" => Scenario::default_set_on(machine),
             "hard" => Scenario::hard_set_on(machine),
-            "hard-candidates" => Scenario::hard_candidates(),
+            "hard-candidates" if *machine == Machine::GYMNASIUM => Scenario::hard_candidates(),
+            "hard-candidates" => return Err(HARD_CANDIDATES_OFF_GYMNASIUM.into()),
             "faults" => Scenario::faults_set_on(machine),
             _ => {
                 rows.push(spec(word, machine)?);
@@ -66,6 +68,13 @@ fn expand(
     }
     Ok((rows, typed))
 }
+
+/// Why `hard-candidates` is refused off Gymnasium's machine: its rows are the pool the
+/// `hard` set was chosen from by runs there, built on Gymnasium's plant; on another machine
+/// they would be neither that pool nor the machine's own worlds.
+const HARD_CANDIDATES_OFF_GYMNASIUM: &str = "scenario: expected `hard-candidates` on \
+     Gymnasium's machine, where the `hard` set was chosen from its rows; found another rig or \
+     world: name the specs wanted, or `hard`, which builds on every machine";
 
 /// Refuses a spec's row whose world another row builds. Worlds are compared by their fields
 /// as `Debug` writes them (every number in its shortest exact form), so that ten thousand
