@@ -20,6 +20,9 @@ mod work;
 
 #[path = "hostile_suite/outputs.rs"]
 mod outputs;
+
+#[path = "hostile_suite/text.rs"]
+mod text;
 use worlds::{bad_rigs, bad_rows, bad_specs};
 
 fn exe() -> PathBuf {
@@ -328,70 +331,6 @@ fn bad_values(s: &Scratch) -> Vec<Case> {
     cases
 }
 
-/// Text flags given bytes that are not UTF-8: each is named with what it was given, a stray
-/// byte as U+FFFD (clap's message named neither), even past a path that is not UTF-8, which
-/// is taken.
-fn bad_text(s: &Scratch) -> Vec<Case> {
-    use std::os::unix::ffi::OsStrExt;
-    let bytes = |b: &[u8]| std::ffi::OsStr::from_bytes(b).to_owned();
-    let policy = s.0.join(std::ffi::OsStr::from_bytes(b"p\xff.safetensors"));
-    std::fs::copy(repo("shipped/policy.safetensors"), &policy).unwrap();
-    let cases: [(Vec<OsString>, &'static str); 7] = [
-        (
-            os(&[&"eval", &"--scenario", &bytes(b"noise\xff")]),
-            "--scenario: expected UTF-8 text, found \"noise\u{fffd}\"",
-        ),
-        // Two flags so given: the first is named; a flag given again after it: named, not
-        // "argument 3".
-        (
-            os(&[
-                &"eval",
-                &"--episodes",
-                &bytes(b"1\xff"),
-                &"--scenario",
-                &bytes(b"noise\xff"),
-            ]),
-            "--episodes: expected UTF-8 text, found \"1\u{fffd}\"",
-        ),
-        (
-            os(&[
-                &"eval",
-                &"--episodes",
-                &bytes(b"1\xff"),
-                &"--episodes",
-                &"2",
-            ]),
-            "--episodes: expected UTF-8 text, found \"1\u{fffd}\"",
-        ),
-        (
-            os(&[
-                &"eval",
-                &"--policy",
-                &policy,
-                &"--episodes",
-                &bytes(b"1\xff"),
-            ]),
-            "--episodes: expected UTF-8 text, found \"1\u{fffd}\"",
-        ),
-        (
-            os(&[&"startup", &bytes(b"--knock=1@2\xfe")]),
-            "--knock: expected UTF-8 text, found \"1@2\u{fffd}\"",
-        ),
-        (
-            os(&[&"results", &"moved", &"a", &"b", &"--name", &bytes(b"\xc3")]),
-            "--name: expected UTF-8 text, found \"\u{fffd}\"",
-        ),
-        (
-            os(&[&"eval", &"--controller", &bytes(b"lqr\xff")]),
-            "invalid value 'lqr\u{fffd}' for '--controller",
-        ),
-    ];
-    cases
-        .into_iter()
-        .map(|(args, want)| Case::new(format!("{args:?}"), &args, &[want]))
-        .collect()
-}
-
 /// Results files of `tables` that are no files: a FIFO (which blocked) and a link to
 /// `/dev/zero` (read until memory ran out).
 fn bad_tables(s: &Scratch) -> Vec<Case> {
@@ -468,7 +407,7 @@ fn every_hostile_command_line_is_refused_by_the_rules() {
     cases.extend(bad_rigs(&s));
     cases.extend(bad_rows());
     cases.extend(bad_replays(&s));
-    cases.extend(bad_text(&s));
+    cases.extend(text::bad_text(&s));
     let n = run_all(&exe(), &s.0, &cases);
     assert!(n >= 200, "{n} cases");
 }
