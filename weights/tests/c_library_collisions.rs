@@ -21,15 +21,35 @@ fn declaration(name: &str) -> String {
     format!("extern const struct cartpole_probe {name};\n")
 }
 
+/// The system's C compiler.
+fn compiler() -> String {
+    std::env::var("CC").unwrap_or_else(|_| "cc".into())
+}
+
 /// The compiler run in dialect `std` on `file`.
 fn cc(std: &str, args: &[&str], file: &Path) -> Output {
-    let cc = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+    let cc = compiler();
     Command::new(&cc)
         .arg(format!("-std={std}"))
         .args(args)
         .arg(file)
         .output()
         .unwrap_or_else(|e| panic!("running {cc}: {e}"))
+}
+
+/// The flag that lifts the compiler's limit on errors reported, so that every colliding name
+/// is: Clang stops after 20 unless told (`-ferror-limit`), GCC takes `-fmax-errors`.
+fn no_error_limit() -> &'static str {
+    let version = Command::new(compiler())
+        .arg("--version")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+        .unwrap_or_default();
+    if version.contains("clang") {
+        "-ferror-limit=0"
+    } else {
+        "-fmax-errors=0"
+    }
 }
 
 /// The identifiers of the C11 headers in dialect `std` (each word of their preprocessed text
@@ -64,7 +84,7 @@ fn colliding(std: &str) -> Vec<String> {
     let first = includes.lines().count() + 1;
     let body: String = words.iter().map(|w| declaration(w)).collect();
     std::fs::write(&probe, includes + &body).unwrap();
-    let out = cc(std, &["-fsyntax-only"], &probe);
+    let out = cc(std, &["-fsyntax-only", no_error_limit()], &probe);
     let err = String::from_utf8_lossy(&out.stderr);
     std::fs::remove_dir_all(&dir).unwrap();
     let shown = probe.to_string_lossy().into_owned();
