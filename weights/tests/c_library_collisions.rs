@@ -3,6 +3,8 @@
 //! the system's C compiler (`CC`, else `cc`), an implementation nobody here wrote, not by a
 //! list of ours. POSIX's and the BSDs' names (`y0`, `random`, `fileno`, `popen`, `drand48`)
 //! compile under `-std=c11` but not under `-std=gnu17`, where the C library declares them.
+//! `-D_GNU_SOURCE` (g++'s on glibc) is not probed: the names refused are not claimed to
+//! cover it (`weights/src/source/names/posix_library.rs`).
 
 use std::path::Path;
 use std::process::{Command, Output};

@@ -144,7 +144,7 @@ const LIBRARY_CLASSES: [(&str, &[&str]); 23] = [
     ("<stdlib.h>", &["strtod"]),
     // What glibc declares beyond C11 in gnu17 and C++: each compiled under -std=c99 only.
     (
-        "declares in the GNU dialects compilers default to",
+        "declares in the GNU dialect C compilers default to (-std=gnu17)",
         &[
             "y0",
             "y1",

@@ -184,20 +184,27 @@ const CXX_KEYWORDS: [&str; 58] = [
 ];
 
 /// Checks a C identifier for the header's object: at most [`MAX_NAME_CHARS`] letters, digits
-/// and underscores, not starting with a digit, not a C or C++ keyword, not reserved (`_`
-/// followed by a capital or `_`, or ending in `_t`, POSIX's), not a name the C library takes
+/// and underscores, not starting with a digit or `_`, not a C or C++ keyword, not ending in
+/// `_t` (POSIX reserves it), not a name the C library takes
 /// ([`c_library_use`]), not ending in `_rig`, `_levels` or `_duty` (so that no header's
 /// `NAME_rig`, `NAME_levels` or `NAME_duty` is another's `NAME`), and such that none of
 /// `NAME`, `NAME_rig`, `NAME_levels`, `NAME_duty` and the include guard ([`c_guard`]) is an
 /// identifier of the C API (`cartpole_policy.h`), which a board includes beside it.
 pub fn check_c_name(name: &str) -> Result<()> {
     check_length(name)?;
+    // The object is defined at file scope, where C reserves every name with a leading `_`
+    // (C11 7.1.3) and C++ every one in the global namespace: the C library's own (`_exit`,
+    // `_setjmp`, `_tolower`) among them, and whichever a later C library adds.
+    if name.starts_with('_') {
+        return Err(Error::Input(format!(
+            "--name: expected a name starting with a letter, found {}: C reserves names \
+             starting with `_` at file scope, where the header defines its object",
+            quote(name)
+        )));
+    }
     let b = name.as_bytes();
-    let ok = b
-        .first()
-        .is_some_and(|c| c.is_ascii_alphabetic() || *c == b'_')
+    let ok = b.first().is_some_and(u8::is_ascii_alphabetic)
         && b.iter().all(|c| c.is_ascii_alphanumeric() || *c == b'_')
-        && !(b.len() >= 2 && b[0] == b'_' && (b[1] == b'_' || b[1].is_ascii_uppercase()))
         && !C_KEYWORDS.contains(&name)
         && !CXX_KEYWORDS.contains(&name)
         && !name.ends_with("_t")
@@ -318,11 +325,18 @@ mod tests {
             let e = check_rust_name(bad).unwrap_err();
             assert!(e.is_input() && e.to_string().contains("--name"), "{bad}");
         }
-        for ok in ["cartpole_policy", "P", "_p", "w64"] {
+        for ok in ["cartpole_policy", "P", "p_", "w64"] {
             check_c_name(ok).unwrap();
         }
-        for bad in ["int", "static", "__x", "_X", "9a", "a b", "", "a;b"] {
+        for bad in ["int", "static", "9a", "a b", "", "a;b"] {
             assert!(check_c_name(bad).is_err(), "{bad}");
+        }
+        for bad in [
+            "_", "_p", "_X", "__x", "_exit", "_setjmp", "_tolower", "_longjmp",
+        ] {
+            let e = check_c_name(bad).unwrap_err();
+            let shown = format!("found {}: C reserves names starting with `_`", quote(bad));
+            assert!(e.is_input() && e.to_string().contains(&shown), "{e}");
         }
     }
 

@@ -43,7 +43,7 @@ pub(super) fn c_library_use(name: &str) -> Option<String> {
     }
     let header = posix_library_use(name)?;
     Some(format!(
-        "a name {header} declares in the GNU dialects compilers default to (gnu17, and C++), \
+        "a name {header} declares in the GNU dialect C compilers default to (-std=gnu17), \
          from POSIX or the BSDs, which a program may include beside the header"
     ))
 }
@@ -174,7 +174,7 @@ const COMPLEX_FUNCTIONS: &str = "cacos casin catan ccos csin ctan cacosh casinh 
     csinh ctanh cexp clog cabs cpow csqrt carg cimag conj cproj creal";
 
 /// The other names each standard header declares, outside the patterns above, keywords, and
-/// names reserved by their form (`_X`, `__x`, `x_t`).
+/// names reserved by their form (a leading `_`, a `_t` ending).
 const LISTS: [(&str, &str); 20] = [
     ("<assert.h>", "assert"),
     // Today's is/to and str/mem functions by name: C11 7.31 reserves every lowercase name of
@@ -204,8 +204,7 @@ const LISTS: [(&str, &str); 20] = [
          math_errhandling fpclassify signbit isfinite isinf isnan isnormal isgreater \
          isgreaterequal isless islessequal islessgreater isunordered",
     ),
-    // `_setjmp` too: glibc declares it, and C reserves a leading `_` at file scope.
-    ("<setjmp.h>", "setjmp longjmp jmp_buf _setjmp"),
+    ("<setjmp.h>", "setjmp longjmp jmp_buf"),
     ("<signal.h>", "signal raise"),
     ("<stdarg.h>", "va_list va_start va_arg va_end va_copy"),
     ("<stdatomic.h>", "kill_dependency memory_order"),

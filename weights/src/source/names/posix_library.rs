@@ -1,8 +1,11 @@
-//! The names the C library's standard headers declare beyond C11's in the dialects compilers
-//! default to: GCC's `-std=gnu17` asks glibc for POSIX's, X/Open's and the BSD and System V
-//! extensions (`_DEFAULT_SOURCE`), and g++ asks for them in every dialect (`_GNU_SOURCE`), so
-//! a program built so sees `y0`, `random`, `fileno` or `popen` beside the exported header,
-//! and an object of that name fails to compile there though it compiles under `-std=c11`.
+//! The names the C library's standard headers declare beyond C11's in the dialect C compilers
+//! default to: GCC's and Clang's `-std=gnu17` asks glibc for POSIX's, X/Open's and the BSD
+//! and System V extensions (`_DEFAULT_SOURCE`), so a program built so sees `y0`, `random`,
+//! `fileno` or `popen` beside the exported header, and an object of that name fails to
+//! compile there though it compiles under `-std=c11`. Not covered: `_GNU_SOURCE`, which g++
+//! defines for every C++ program on glibc and a C program may define, and under which the
+//! same headers declare many more names (`mempcpy`, `sincos`, `qsort_r`, `read`, `fork`); a
+//! list of those would be glibc's whole extension surface, ever growing.
 //! Each is listed under the C11 header that declares it (`<stdlib.h>` brings
 //! `<sys/types.h>`, `<sys/select.h>`, `<endian.h>` and the wait macros); where POSIX
 //! reserves a prefix before a capital for a header's macros (XBD 2.2.2) the prefix is
@@ -10,7 +13,7 @@
 
 use super::c_library::with_forms;
 
-/// The header that declares `name` in the GNU dialects, if one does.
+/// The header that declares `name` in `-std=gnu17`, if one does.
 pub(super) fn posix_library_use(name: &str) -> Option<&'static str> {
     if with_forms(name, MATH_FUNCTIONS) {
         return Some("<math.h>");
@@ -49,8 +52,8 @@ const PATTERNS: [(&str, &str); 13] = [
     ("TIMER_", "<time.h>"),
 ];
 
-/// The other names each header declares in the GNU dialects beyond C11's, outside names
-/// reserved by their form (`_X`, `__x`, `x_t`).
+/// The other names each header declares in `-std=gnu17` beyond C11's, outside names
+/// reserved by their form (a leading `_`, a `_t` ending).
 const LISTS: [(&str, &str); 12] = [
     ("<math.h>", "lgamma_r lgammaf_r lgammal_r signgam"),
     (
@@ -94,7 +97,7 @@ const LISTS: [(&str, &str); 12] = [
     ),
     (
         "<ctype.h>",
-        "_tolower _toupper isascii toascii isascii_l toascii_l isalnum_l isalpha_l isblank_l iscntrl_l \
+        "isascii toascii isascii_l toascii_l isalnum_l isalpha_l isblank_l iscntrl_l \
          isdigit_l isgraph_l islower_l isprint_l ispunct_l isspace_l isupper_l isxdigit_l \
          tolower_l toupper_l",
     ),
@@ -124,5 +127,5 @@ const LISTS: [(&str, &str); 12] = [
          si_stime si_syscall si_timerid si_uid si_upper si_utime si_value \
          sigev_notify_attributes sigev_notify_function",
     ),
-    ("<setjmp.h>", "sigjmp_buf siglongjmp sigsetjmp _longjmp"),
+    ("<setjmp.h>", "sigjmp_buf siglongjmp sigsetjmp"),
 ];
