@@ -245,5 +245,18 @@ mod tests {
             assert_eq!(lqr.duty(i).unwrap().thousandths(), want, "theta {theta}");
         }
         assert_eq!(lqr.scores(&[0.0, 0.0, f32::NAN, 0.0]).choice(), None);
+        // An exact tie: a gain of force_mag makes the command theta itself, so +-0.5 lies
+        // exactly halfway between two levels, and the lower one is driven.
+        let mut tied = RoundedLqr {
+            lqr: LinearLqr {
+                k: [0.0, 0.0, -10.0, 0.0],
+                force_mag: 10.0,
+            },
+            levels: vec![-1.0, 0.0, 1.0],
+        };
+        for (theta, want) in [(0.5, 0), (-0.5, -1000), (0.5000001, 1000)] {
+            let i = tied.scores(&[0.0, 0.0, theta, 0.0]).choice().unwrap();
+            assert_eq!(tied.duty(i).unwrap().thousandths(), want, "theta {theta}");
+        }
     }
 }

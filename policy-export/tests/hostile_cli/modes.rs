@@ -187,6 +187,8 @@ fn the_predictor_is_read_only_where_a_world_has_dead_time() {
         "--eval-domain",
         "noise",
     ];
+    // The deploy preset's finalist domain draws no dead time either.
+    assert!(config(&still).contains("compensate = false"), "{still:?}");
     let all = [&still[..], &["--finalist-domain", "noise"]].concat();
     assert!(config(&all).contains("compensate = false"), "{all:?}");
 }
