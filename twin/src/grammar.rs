@@ -305,7 +305,13 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
     let (a, b) = text.split_once("..").unwrap_or((text, text));
     let read = |t: &str| -> Result<f64, String> {
         let v = match f.kind {
-            Kind::Real => t.parse::<f64>().ok().filter(|v| weights::plain(*v)),
+            // `-0` reads as 0: the two build one world, and a world's key (its `Debug`
+            // text, `words::refuse_same_world`) must not tell them apart.
+            Kind::Real => t
+                .parse::<f64>()
+                .ok()
+                .filter(|v| weights::plain(*v))
+                .map(|v| v + 0.0),
             Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
         };
         v.filter(|v| (f.lo..=f.hi).contains(v)).ok_or_else(|| {

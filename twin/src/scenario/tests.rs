@@ -308,6 +308,24 @@ fn the_named_sets_build_on_every_rig() {
     assert_eq!(machines[machines.len() - 2], machines[0]);
 }
 
+/// A `-0` builds the world its `0` builds, and is refused beside it as one world twice.
+#[test]
+fn a_negative_zero_is_the_world_of_its_zero() {
+    let gym = Machine::GYMNASIUM;
+    for (a, b) in [
+        ("friction=0/0.001", "friction=-0/0.001"),
+        ("jitter=0.1+friction=0.1/0", "jitter=0.1+friction=0.1/-0"),
+    ] {
+        let e = words_on(&[a, b], &gym).unwrap_err();
+        let want = format!(
+            "found {} and {}, which build one world",
+            weights::quote(a),
+            weights::quote(b)
+        );
+        assert!(e.contains(&want), "{e}");
+    }
+}
+
 fn words_on(words: &[&str], machine: &Machine) -> Result<Vec<Scenario>, String> {
     let words: Vec<String> = words.iter().map(|w| w.to_string()).collect();
     Scenario::words_on(&words, machine)
