@@ -40,6 +40,8 @@ pub fn evaluate_json(
     levels: Option<Vec<f64>>,
 ) -> PyResult<String> {
     host_common::cli::check_threads_env().map_err(value_error)?;
+    // The Python wrapper (`_whole`) checks `episodes`' range first, with the same words;
+    // checked again here for a caller of the native module itself, which it does not guard.
     if !(1..=MAX_EPISODES).contains(&episodes) {
         return Err(value_error(format!(
             "episodes must be in [1, {MAX_EPISODES}]; found {episodes}"

@@ -57,6 +57,15 @@ pub struct Machine {
     pub uncertainty: Uncertainty,
 }
 
+/// `n` control periods in words: "1 period", "2 periods".
+pub fn periods(n: u32) -> String {
+    if n == 1 {
+        "1 period".into()
+    } else {
+        format!("{n} periods")
+    }
+}
+
 /// Refuses a board whose control period is not its world's: a board runs at its world's
 /// period, and every count of periods (dead time, windows, horizons) means the world's.
 pub fn same_period(world: &Rig, board: &Rig) -> Result<(), String> {

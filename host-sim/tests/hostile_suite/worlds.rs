@@ -195,7 +195,7 @@ pub fn bad_rows() -> Vec<Case> {
     for (specs, want) in [
         (
             "nominal,delay",
-            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 periods",
+            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 period;",
         ),
         (
             "encoder,encoder=2400/15000",

@@ -344,7 +344,7 @@ fn a_part_that_changes_nothing_on_the_machine_at_hand_is_refused_there() {
         (
             &["nominal", "delay"][..],
             &desk,
-            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 periods",
+            "\"delay\": delay changes nothing on this machine, whose own dead time is 1 period;",
         ),
         (
             &["delay=2"],

@@ -155,9 +155,9 @@ pub(super) fn refuse_idle_on(
             why.to_string()
         } else if key == "delay" {
             format!(
-                "on this machine, whose own dead time is {} periods; expected another value, \
-                 or the part left out",
-                rig.dead_time
+                "on this machine, whose own dead time is {}; expected another value, or the \
+                 part left out",
+                crate::machine::periods(rig.dead_time)
             )
         } else if parts.iter().filter(|q| q.spec == part.spec).count() > 1 {
             "on this machine: its factors multiply to 1; expected other values, or the part \
