@@ -96,6 +96,24 @@ impl Domain {
         Ok(d)
     }
 
+    /// The most periods of dead time a world drawn has: the delay part's high end (its
+    /// default where the value is left out) in the worlds it applies to, the machine's own
+    /// in the others (all of them, without the part).
+    pub fn most_dead_time(&self) -> u32 {
+        let own = self.machine.rig.dead_time;
+        let Some(part) = self.parts.iter().find(|p| p.spec.key == "delay") else {
+            return own;
+        };
+        let mut s = Scenario::nominal_on(&self.machine);
+        let high: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.hi)).collect();
+        s.apply(part, &high);
+        if part.share < 1.0 {
+            s.delay().max(own)
+        } else {
+            s.delay()
+        }
+    }
+
     /// One world of the distribution.
     pub fn sample<R: Rng + ?Sized>(&self, rng: &mut R) -> Scenario {
         let mut s = Scenario::nominal_on(&self.machine);

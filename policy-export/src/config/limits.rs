@@ -106,15 +106,7 @@ pub struct KeyLimit {
 impl KeyLimit {
     /// Checks the key of `c`; the error is a sentence that names it.
     pub fn check(&self, c: &Config) -> Result<(), String> {
-        let v = (self.get)(c);
-        self.limit.check(self.key, v)?;
-        // A domain's factors scale the machine trained for (`rig`), whose motor may have no
-        // damping: it is judged there, once the rig reads (a rig that does not is refused
-        // by its own key).
-        if let (Limit::Domain, Value::Text(s), Ok(machine)) = (&self.limit, v, c.machine()) {
-            twin::Domain::parse_on(s, &machine).map_err(|e| format!("{}: {e}", self.key))?;
-        }
-        Ok(())
+        self.limit.check(self.key, (self.get)(c))
     }
 }
 
@@ -230,6 +222,7 @@ impl Config {
                     + " (width and levels)",
             );
         }
+        errs.extend(self.domains_on_rig());
         if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
             errs.push(format!(
                 "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
@@ -237,6 +230,29 @@ impl Config {
             ));
         }
         errs
+    }
+}
+
+impl Config {
+    /// Each domain key's refusal on the machine trained for (`rig`): a domain's factors
+    /// scale that machine, whose motor may have no damping. Judged once the rig reads (a rig
+    /// that does not is refused by its own key) and the domain parses (refused by its own).
+    fn domains_on_rig(&self) -> Vec<String> {
+        let Ok(machine) = self.machine() else {
+            return Vec::new();
+        };
+        super::LIMITS
+            .iter()
+            .filter(|l| l.limit == Limit::Domain)
+            .filter_map(|l| match (l.get)(self) {
+                Value::Text(s) if twin::grammar::parse(s, "domain").is_ok() => {
+                    twin::Domain::parse_on(s, &machine)
+                        .err()
+                        .map(|e| format!("{}: {e}", l.key))
+                }
+                _ => None,
+            })
+            .collect()
     }
 }
 
@@ -328,38 +344,31 @@ fn drawn(c: &Config) -> Vec<&String> {
     domains
 }
 
-/// The most periods of dead time a world of `spec` has around a machine of `own`: a delay
-/// part's (its high end, its default if left out) in every world it applies to, the
-/// machine's in the others.
-fn most_dead_time(spec: &str, own: f64) -> f64 {
-    let Ok(parts) = twin::grammar::parse(spec, "domain") else {
-        return own;
-    };
-    parts
-        .iter()
-        .find(|p| p.spec.key == "delay")
-        .map_or(own, |p| {
-            let hi = [p.values[0].map(|v| v.hi)];
-            let drawn = twin::grammar::Values::new(p.spec, &hi).first();
-            if p.share < 1.0 { drawn.max(own) } else { drawn }
-        })
-}
-
 /// The machine's dead time, in periods (0 for a rig that does not read: refused by its key).
-fn own_dead_time(c: &Config) -> f64 {
-    c.machine().map_or(0.0, |m| f64::from(m.rig.dead_time))
+fn own_dead_time(c: &Config) -> u32 {
+    c.machine().map_or(0, |m| m.rig.dead_time)
 }
 
+/// Whether a world drawn from any domain of the run has dead time. A domain that does not
+/// parse on the machine (refused by its own key) is taken as the machine itself.
 fn has_dead_time(c: &Config) -> bool {
-    let own = own_dead_time(c);
-    drawn(c).iter().any(|d| most_dead_time(d, own) > 0.0)
+    let machine = c.machine().ok();
+    drawn(c).iter().any(|d| {
+        machine
+            .and_then(|m| twin::Domain::parse_on(d, &m).ok())
+            .map_or(own_dead_time(c), |d| d.most_dead_time())
+            > 0
+    })
 }
 
 fn no_dead_time(c: &Config) -> String {
-    format!(
-        "the machine trained for has {} periods of dead time and no domain draws any",
-        own_dead_time(c)
-    )
+    match own_dead_time(c) {
+        0 => "the machine trained for has no dead time and no domain draws any".into(),
+        own => format!(
+            "every domain drawn sets the machine's dead time of {} to none",
+            twin::machine::periods(own)
+        ),
+    }
 }
 
 impl Config {

@@ -151,7 +151,7 @@ fn the_predictor_is_read_only_where_a_world_has_dead_time() {
             "true",
         ],
         "compensate = true is read only when a world has dead time; the machine trained for \
-         has 0 periods of dead time and no domain draws any",
+         has no dead time and no domain draws any",
     );
     refused(
         &[
@@ -165,6 +165,23 @@ fn the_predictor_is_read_only_where_a_world_has_dead_time() {
             "noise+delay=0",
         ],
         "compensate = true is read only when a world has dead time",
+    );
+    // The desk's own dead time, taken out by every domain drawn.
+    refused(
+        &[
+            "train",
+            "--rig",
+            "../rigs/desk.toml",
+            "--print-config",
+            "--compensate",
+            "true",
+            "--domain",
+            "delay=0",
+            "--eval-domain",
+            "noise+delay=0",
+        ],
+        "compensate = true is read only when a world has dead time; every domain drawn sets \
+         the machine's dead time of 1 period to none",
     );
     let config = |args: &[&str]| {
         let o = run(&[&["train", "--print-config"][..], args].concat());
