@@ -166,3 +166,35 @@ fn more_logs_than_the_fit_takes_are_refused() {
     logs.extend(log::parse(&swing, "swing").unwrap());
     assert!(check(&logs, &machine).is_ok());
 }
+
+/// A copy of a log is one experiment counted twice, its cart from any zero and its pole a
+/// whole revolution on; a pole counted from another angle, another experiment, or another
+/// period or encoder is another measurement.
+#[test]
+fn only_the_same_measurement_is_refused_as_an_experiment_given_twice() {
+    let (_, [cart, _]) = desk();
+    let log = log::parse(&cart, "cart").unwrap().remove(0);
+    let per_rev = log.encoders.pole_counts_per_rev as i32;
+    let changed = |f: &dyn Fn(&mut Log)| {
+        let mut copy = log.clone();
+        f(&mut copy);
+        log::check_each_once(&[log.clone(), copy])
+    };
+    type Change<'a> = &'a dyn Fn(&mut Log);
+    let same: [Change; 2] = [&|l| l.cart.iter_mut().for_each(|c| *c += 7), &|l| {
+        l.pole.iter_mut().for_each(|p| *p -= per_rev)
+    }];
+    for change in same {
+        let e = changed(change).unwrap_err().to_string();
+        assert!(e.contains("expected each experiment once"), "{e}");
+    }
+    let other: [Change; 4] = [
+        &|l| l.pole.iter_mut().for_each(|p| *p += 3),
+        &|l| l.experiment = firmware::identify::Experiment::Swing,
+        &|l| l.period_s *= 2.0,
+        &|l| l.encoders.cart_counts_per_m += 1,
+    ];
+    for other in other {
+        changed(other).unwrap();
+    }
+}
