@@ -41,7 +41,7 @@ pub enum Limit {
     Positive,
     /// A clipping threshold: >= 0 and finite in f32; 0 turns the clipping off.
     Clip,
-    /// A domain spec of the grammar (`twin::grammar::parse`); [`KeyLimit::check`] builds it
+    /// A domain spec of the grammar (`twin::grammar::parse`); `Config::relations` builds it
     /// on the machine trained for.
     Domain,
     /// A learning-reward spec `reward::Reward::parse` accepts.
@@ -352,11 +352,11 @@ fn own_dead_time(c: &Config) -> u32 {
 /// Whether a world drawn from any domain of the run has dead time. A domain that does not
 /// parse on the machine (refused by its own key) is taken as the machine itself.
 fn has_dead_time(c: &Config) -> bool {
-    let machine = c.machine().ok();
+    let Ok(machine) = c.machine() else {
+        return false;
+    };
     drawn(c).iter().any(|d| {
-        machine
-            .and_then(|m| twin::Domain::parse_on(d, &m).ok())
-            .map_or(own_dead_time(c), |d| d.most_dead_time())
+        twin::Domain::parse_on(d, &machine).map_or(machine.rig.dead_time, |d| d.most_dead_time())
             > 0
     })
 }

@@ -141,29 +141,21 @@ fn a_presets_own_values_and_the_defaults_pass_with_their_mode_off() {
 /// has dead time is the machine trained for and the domains drawn around it.
 #[test]
 fn the_predictor_is_read_only_where_a_world_has_dead_time() {
+    let robust = [
+        "train",
+        "--preset",
+        "robust",
+        "--print-config",
+        "--compensate",
+        "true",
+    ];
     refused(
-        &[
-            "train",
-            "--preset",
-            "robust",
-            "--print-config",
-            "--compensate",
-            "true",
-        ],
+        &robust,
         "compensate = true is read only when a world has dead time; the machine trained for \
          has no dead time and no domain draws any",
     );
     refused(
-        &[
-            "train",
-            "--preset",
-            "robust",
-            "--print-config",
-            "--compensate",
-            "true",
-            "--domain",
-            "noise+delay=0",
-        ],
+        &[&robust[..], &["--domain", "noise+delay=0"]].concat(),
         "compensate = true is read only when a world has dead time",
     );
     // The desk's own dead time, taken out by every domain drawn.
