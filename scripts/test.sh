@@ -36,7 +36,8 @@ export CARTPOLE_PYTHON="$venv/bin/python"
 cargo test --workspace --profile quick --no-run
 # The end-to-end crate's binaries run beside the other crates': most binaries hold a few
 # long tests, which leave a core idle when the binaries run one after another. Its report
-# follows the others'.
+# follows the others'. Selected alone, it resolves its dependencies' features as the
+# workspace does (tests/tests/features.rs), so it builds nothing the suite did not.
 cargo test -p e2e --profile quick >"$e2e_log" 2>&1 &
 e2e=$!
 jobs_running+=("$e2e")

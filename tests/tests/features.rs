@@ -1,6 +1,7 @@
 //! What the scripts build after the test suite builds on the suite's artefacts: the Python
-//! extension (`scripts/python.sh`, which the package's build compiles alone) and a host tool
-//! built with the workspace selected (`scripts/fuzz.sh`'s configuration seed) resolve every
+//! extension (`scripts/python.sh`, which the package's build compiles alone), a host tool
+//! built with the workspace selected (`scripts/fuzz.sh`'s configuration seed) and the
+//! end-to-end crate's tests (`scripts/test.sh` runs them as `-p e2e`) resolve every
 //! package's features as `cargo test --workspace` did. A feature that only a development
 //! dependency turns on would make each of them compile a second copy of the trainer and the
 //! simulator (a minute of CI's); `host-common/Cargo.toml` asks for those features too.
@@ -52,7 +53,7 @@ fn differ(
 fn the_scripts_builds_resolve_the_features_the_suite_built() {
     let suite = features(&["--workspace", "-e", "normal,dev,build"]);
     assert!(suite.keys().any(|p| p.starts_with("policy-export ")));
-    let builds: [(&str, &[&str]); 2] = [
+    let builds: [(&str, &[&str]); 3] = [
         (
             "the workspace's tools",
             &["--workspace", "-e", "normal,build"],
@@ -60,6 +61,10 @@ fn the_scripts_builds_resolve_the_features_the_suite_built() {
         (
             "the Python extension",
             &["-p", "cartpole-ddqn-py", "-e", "normal,build"],
+        ),
+        (
+            "the end-to-end tests, run apart (scripts/test.sh)",
+            &["-p", "e2e", "-e", "normal,dev,build"],
         ),
     ];
     for (what, select) in builds {
