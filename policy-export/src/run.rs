@@ -51,7 +51,7 @@ pub struct Summary {
     pub env_steps: u64,
     /// Gradient steps.
     pub grad_steps: u64,
-    /// Training wall time, s.
+    /// Training wall time, s ([`crate::train::RunResult::wall_s`]).
     pub wall_s: f64,
     /// Training wall time per environment step, microseconds.
     pub us_per_env_step: f64,

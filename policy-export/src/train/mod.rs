@@ -148,7 +148,9 @@ pub struct RunResult {
     pub env_steps: u64,
     /// Total gradient steps.
     pub grad_steps: u64,
-    /// Training wall time, s (final evaluation excluded).
+    /// Training wall time, s: the learning and its periodic evaluations, up to the last
+    /// episode (the finalists' trial and the final evaluation, which choose and judge the
+    /// policy after it, excluded).
     pub wall_s: f64,
     /// The kernel that ran.
     pub kernel: Kernel,
