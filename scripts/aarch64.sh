@@ -5,7 +5,7 @@
 # emulation). The trainer's tests check fingerprints recorded on x86-64 (a small run, and
 # the shipped deploy recipe cut short), so a platform that computes other bits, here NEON's
 # fused multiply-adds, fails them. `--full` also retrains the shipped policy and requires it
-# bit for bit (about 7 minutes under emulation). Installs what it needs on Debian/Ubuntu: the
+# bit for bit (hours under emulation: docs/TRAINING.md). Installs what it needs on Debian/Ubuntu: the
 # Rust target, gcc-aarch64-linux-gnu (the linker), the aarch64 C library and qemu-user.
 # `--packages` installs those system packages and nothing else (CI, while other steps run).
 #   scripts/aarch64.sh [--full | --packages]
@@ -30,8 +30,8 @@ fi
 [ "${1:-}" != --packages ] || exit 0
 export CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_LINKER=aarch64-linux-gnu-gcc
 runner=(qemu-aarch64 -L /usr/aarch64-linux-gnu)
-# The property tests' cases are the same seeded sequence, cut shorter: what is checked here
-# is the platform's arithmetic on them; the search's breadth is x86-64's.
+# What is checked here is the platform's arithmetic, which a few cases of each property
+# exercise; the search's breadth is x86-64's.
 export PROPTEST_CASES=32
 # In-process tests only: a test that starts one of the tools would exec an aarch64 binary
 # outside the emulator. Of weights' own test files, the one whose networks compute: the
@@ -41,13 +41,16 @@ export PROPTEST_CASES=32
 selection=(-p firmware -p weights -p host-common -p policy-export --lib --test faults
   --test pytorch_fixtures)
 cargo_test() { cargo test -q --profile quick --target aarch64-unknown-linux-gnu "$@"; }
-built=$(cargo_test "${selection[@]}" --no-run --message-format=json | python3 -c '
+command -v python3 >/dev/null || { echo "aarch64: python3 not found (it lists the test binaries)" >&2; exit 1; }
+# Compiler messages go to the terminal; the artefacts' JSON, to the listing.
+built=$(cargo_test "${selection[@]}" --no-run --message-format=json-render-diagnostics | python3 -c '
 import json, os, sys
 for line in sys.stdin:
     m = json.loads(line)
     if m.get("reason") == "compiler-artifact" and m["profile"]["test"]:
         print(os.path.dirname(m["manifest_path"]), m["target"]["name"], m["executable"], sep="\t")
-')
+' | sort)
+[ -n "$built" ] || { echo "aarch64: cargo listed no test binaries" >&2; exit 1; }
 # Each test binary from its package's directory, as cargo runs it. Of the trainer's own tests,
 # the bits recorded on x86-64, of a small run and of the shipped recipe cut short. Every
 # transition it learns from is the plant's, so they hold the plant's bits too (the recorded
@@ -57,10 +60,11 @@ while IFS=$'\t' read -r dir name exe; do
   filter=()
   [ "$name" = policy_export ] && filter=(recorded_bits)
   # The exhaustive sweep of glitch sizes and positions (half a minute under emulation)
-  # repeats the sampled glitches' arithmetic; on this platform the samples check it.
+  # measures bounds of the observer's f32 arithmetic, which has no fused steps and so
+  # gives the same results on every platform; the sampled glitches run here.
   [ "$name" = faults ] && filter=(--skip the_recovery_bounds_are_the_worst_glitches_measured)
   echo "$name (${exe##*/})"
-  (cd "$dir" && "${runner[@]}" "$exe" -q "${filter[@]}")
+  (cd "$dir" && "${runner[@]}" "$exe" -q "${filter[@]}" </dev/null)
 done <<<"$built"
 if [ "${1:-}" = "--full" ]; then
   CARGO_TARGET_AARCH64_UNKNOWN_LINUX_GNU_RUNNER="${runner[*]}" cargo_test -p e2e --test shipped_policy

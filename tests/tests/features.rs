@@ -3,8 +3,9 @@
 //! built with the workspace selected (`scripts/fuzz.sh`'s configuration seed) and the
 //! end-to-end crate's tests (`scripts/test.sh` runs them as `-p e2e`) resolve every
 //! package's features as `cargo test --workspace` did. A feature that only a development
-//! dependency turns on would make each of them compile a second copy of the trainer and the
-//! simulator (a minute of CI's); `host-common/Cargo.toml` asks for those features too.
+//! dependency or another member (the Python extension's array crates) turns on would make
+//! each of them compile a second copy of the trainer and the simulator (a minute of CI's);
+//! `host-common/Cargo.toml` asks for those features too.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::process::Command;
@@ -72,8 +73,8 @@ fn the_scripts_builds_resolve_the_features_the_suite_built() {
         let apart = differ(&built, &suite);
         assert!(
             apart.is_empty(),
-            "{what} built without the suite's development dependencies: {apart:#?}; ask \
-             for those features in host-common/Cargo.toml"
+            "{what} resolved features the suite did not (a development dependency's or \
+             another member's): {apart:#?}; ask for those features in host-common/Cargo.toml"
         );
     }
 }
