@@ -1,6 +1,7 @@
 //! Any counts a counter may give, through the estimators and the controller: no panic (the
-//! suite's debug build checks every overflow), every reading either finite and within the
-//! limits or a counted fault, and a single glitch forgotten within a bound.
+//! suite's `quick` profile checks the firmware's overflows, as a debug build does), every
+//! reading either finite and within the limits or a counted fault, and a single glitch
+//! forgotten within a bound.
 
 use firmware::cartpole::{CartPole, State};
 use firmware::controller::{Command, Controller, StateSensor};
