@@ -5,8 +5,9 @@
 # emulation). The trainer's tests check fingerprints recorded on x86-64 (a small run, and
 # the shipped deploy recipe cut short), so a platform that computes other bits, here NEON's
 # fused multiply-adds, fails them. `--full` also retrains the shipped policy and requires it
-# bit for bit (hours under emulation: docs/TRAINING.md). Installs what it needs on Debian/Ubuntu: the
-# Rust target, gcc-aarch64-linux-gnu (the linker), the aarch64 C library and qemu-user.
+# bit for bit (hours under emulation: docs/TRAINING.md). Installs what it needs on
+# Debian/Ubuntu: the Rust target, gcc-aarch64-linux-gnu (the linker), the aarch64 C library
+# and qemu-user.
 # `--packages` installs those system packages and nothing else (CI, while other steps run).
 #   scripts/aarch64.sh [--full | --packages]
 set -euo pipefail
@@ -41,7 +42,8 @@ export PROPTEST_CASES=32
 selection=(-p firmware -p weights -p host-common -p policy-export --lib --test faults
   --test pytorch_fixtures)
 cargo_test() { cargo test -q --profile quick --target aarch64-unknown-linux-gnu "$@"; }
-command -v python3 >/dev/null || { echo "aarch64: python3 not found (it lists the test binaries)" >&2; exit 1; }
+command -v python3 >/dev/null ||
+  { echo "aarch64: python3 not found (it lists the test binaries)" >&2; exit 1; }
 # Compiler messages go to the terminal; the artefacts' JSON, to the listing.
 built=$(cargo_test "${selection[@]}" --no-run --message-format=json-render-diagnostics | python3 -c '
 import json, os, sys
