@@ -21,7 +21,7 @@ use rand_core::Rng;
 
 use crate::grammar::{self, Kind, Part, Span};
 use crate::machine::{Machine, check_integrable};
-use crate::scenario::{Scenario, check_factors, scales_nothing};
+use crate::scenario::{Scenario, check_factors, idle_part, world_at};
 
 /// A distribution over scenarios; see [the module](self).
 #[derive(Clone, Debug, PartialEq)]
@@ -66,12 +66,18 @@ impl Domain {
             machine: *machine,
             parts: grammar::parse(spec, "domain")?,
         };
+        // A part changes nothing if the world it builds alone is the machine's at both ends
+        // of its ranges (`delay=1` on a rig of one period's dead time, `damping` on a motor
+        // without damping): the judgement of a scenario's parts ([`Scenario::parse_on`]).
         for part in &d.parts {
-            if let Some(why) = scales_nothing(part.spec, machine) {
+            let idle = [false, true].map(|high| {
+                let (world, end) = world_at(part, high, machine);
+                idle_part(&world, core::slice::from_ref(&end), machine)
+            });
+            if let [Some((key, why)), Some(_)] = idle {
                 return Err(format!(
-                    "domain {}: {} changes nothing {why}",
-                    weights::quote(spec),
-                    part.spec.key
+                    "domain {}: {key} changes nothing {why}",
+                    weights::quote(spec)
                 ));
             }
         }
@@ -264,6 +270,31 @@ mod tests {
             let e = Domain::parse(spec).unwrap_err();
             assert!(e.contains(want), "{spec}: {e}");
         }
+    }
+
+    #[test]
+    fn a_part_that_draws_only_the_machines_own_world_is_refused() {
+        let desk = crate::rigfile::parse(include_str!("../../rigs/desk.toml"), "desk").unwrap();
+        for (spec, want) in [
+            (
+                "noise=0..1+delay=1@0.5",
+                "domain \"noise=0..1+delay=1@0.5\": delay changes nothing on this machine, \
+                 whose own dead time is 1 period",
+            ),
+            ("length=1", "length changes nothing"),
+            (
+                "friction=0/0",
+                "friction changes nothing on this machine, which has it",
+            ),
+        ] {
+            let e = Domain::parse_on(spec, &desk).unwrap_err();
+            assert!(e.contains(want), "{spec}: {e}");
+        }
+        // A range reaching past the machine's own value, at either end, draws other worlds.
+        for spec in ["delay=0..1", "delay=1..2", "length=1..1.2", "delay=2"] {
+            Domain::parse_on(spec, &desk).unwrap();
+        }
+        Domain::parse("delay=1").unwrap();
     }
 
     #[test]

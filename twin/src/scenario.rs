@@ -415,7 +415,7 @@ pub(crate) mod effects {
 }
 
 mod words;
-pub(crate) use words::scales_nothing;
+pub(crate) use words::{idle_part, world_at};
 
 #[cfg(test)]
 mod tests;

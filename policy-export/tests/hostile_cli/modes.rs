@@ -155,7 +155,7 @@ fn the_predictor_is_read_only_where_a_world_has_dead_time() {
          has no dead time and no domain draws any",
     );
     refused(
-        &[&robust[..], &["--domain", "noise+delay=0"]].concat(),
+        &[&robust[..], &["--domain", "noise=0..1"]].concat(),
         "compensate = true is read only when a world has dead time",
     );
     // The desk's own dead time, taken out by every domain drawn.

@@ -7,7 +7,7 @@
 use std::collections::hash_map::{Entry, HashMap};
 
 use super::Scenario;
-use crate::grammar::{self, Part, PartSpec};
+use crate::grammar::{self, Part, PartSpec, Span};
 use crate::machine::Machine;
 
 impl Scenario {
@@ -139,6 +139,22 @@ pub(super) fn refuse_idle_on(
     parts: &[Part],
     machine: &Machine,
 ) -> Result<(), String> {
+    match idle_part(s, parts, machine) {
+        Some((key, why)) => Err(format!(
+            "scenario {}: {key} changes nothing {why}",
+            weights::quote(&s.name)
+        )),
+        None => Ok(()),
+    }
+}
+
+/// The first part of `parts` (a factor's values all at once) that `s`, the world they build
+/// on `machine`, is the same without: its key, and why it changes nothing.
+pub(crate) fn idle_part(
+    s: &Scenario,
+    parts: &[Part],
+    machine: &Machine,
+) -> Option<(&'static str, String)> {
     let mut judged: Vec<&PartSpec> = Vec::new();
     for part in parts {
         if judged.contains(&part.spec) {
@@ -168,17 +184,31 @@ pub(super) fn refuse_idle_on(
              out"
             .to_string()
         };
-        return Err(format!(
-            "scenario {}: {key} changes nothing {why}",
-            weights::quote(&s.name)
-        ));
+        return Some((key, why));
     }
-    Ok(())
+    None
+}
+
+/// The world `part` alone builds on `machine` at the low ends of its ranges, or the high.
+pub(crate) fn world_at(part: &Part, high: bool, machine: &Machine) -> (Scenario, Part) {
+    let end = Part {
+        values: part
+            .values
+            .iter()
+            .map(|v| {
+                v.map(|v| {
+                    let x = if high { v.hi } else { v.lo };
+                    Span { lo: x, hi: x }
+                })
+            })
+            .collect(),
+        ..part.clone()
+    };
+    (world_of(core::iter::once(&end), machine), end)
 }
 
 /// Why a part of `spec` changes nothing on `machine` at any value, if it does: a factor on a
-/// damping the motor does not have (Gymnasium's). A domain's ranges are judged by it, as they
-/// build no one world to compare.
+/// damping the motor does not have (Gymnasium's).
 pub(crate) fn scales_nothing(spec: &PartSpec, machine: &Machine) -> Option<&'static str> {
     (spec.key == "damping" && machine.rig.params.motor_damping == 0.0).then_some(
         "on a machine without motor damping; expected another part, or a rig that has some",
