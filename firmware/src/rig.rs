@@ -144,7 +144,8 @@ impl Rig {
         envelope: Limits,
         gain: [f32; 4],
     ) -> Result<Assurance, ConfigError> {
-        Assurance::new(envelope, check!(self.recoverable()), gain)
+        let full_force = self.params.force_mag as f32;
+        Assurance::new(envelope, check!(self.recoverable()), gain, full_force)
     }
 
     /// [`Rig::assurance`] with the fallback designed for this machine's plant here

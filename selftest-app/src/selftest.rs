@@ -99,8 +99,7 @@ pub extern "C" fn selftest_monitored_int(obs: Option<&[i16; 4]>, q: Option<&mut 
         let mut monitor = Monitor::new(ASSURANCE);
         let mut counters = FaultCounters::default();
         let mut policy = &shipped::policy_int::POLICY_INT;
-        let decide = |s: &[i16; 4]| answer(&mut policy, s);
-        (*q, _, _) = monitor.decide(obs, obs, false, decide, &mut counters);
+        (*q, _, _) = monitor.decide(obs, obs, false, &mut policy, answer, &mut counters);
     }
 }
 

@@ -142,17 +142,29 @@ impl<const A: usize> Levels<A> {
     }
 
     /// The output whose duty is nearest `fraction` (the lower one of two equally near): how
-    /// a linear controller's command becomes one of the levels.
+    /// a linear controller's command becomes one of the levels ([`nearest`]).
     pub fn nearest(&self, fraction: f32) -> usize {
-        let mut best = 0;
-        for i in 1..A {
-            let d = |k: usize| (self.0[k].fraction() - fraction).abs();
-            if d(i) < d(best) {
-                best = i;
-            }
-        }
-        best
+        nearest(|i| self.duty(i), fraction, 1.0).unwrap_or(0)
     }
+}
+
+/// Of the duties `duty(0), duty(1), ...` up to the first `None` (in increasing order, as a
+/// policy's levels are), the index of the one nearest the force `force` when full duty
+/// pushes with `full`: the highest whose midpoint with the level below lies under `force`
+/// (`force > midpoint * full`), so the lower of two equally near, and, with the paper's
+/// two levels, the sign of `force` exactly (`force > 0` pushes right). `None` without
+/// levels; the lowest for a force that is not a number.
+pub fn nearest(duty: impl Fn(usize) -> Option<Duty>, force: f32, full: f32) -> Option<usize> {
+    let mut best = duty(0)?;
+    let mut i = 1;
+    while let Some(d) = duty(i) {
+        if force <= 0.5 * (best.fraction() + d.fraction()) * full {
+            break;
+        }
+        best = d;
+        i += 1;
+    }
+    Some(i - 1)
 }
 
 /// What the controller asked of the motor in one period.

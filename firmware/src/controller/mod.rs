@@ -85,7 +85,7 @@ mod reading;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
-pub use levels::{Command, Duty, Levels, check_levels};
+pub use levels::{Command, Duty, Levels, check_levels, nearest};
 pub use monitor::{Assurance, Mode, Monitor};
 pub use policy::{Answer, Greedy, Policy, Scores, answer};
 pub use predict::Predictor;
@@ -319,9 +319,8 @@ where
         } else {
             match &mut self.monitor {
                 Some(m) => {
-                    let decide = |seen: &S::Reading| decide(policy, seen);
                     let (q, command, who) =
-                        m.decide(&obs, &seen, model_only, decide, &mut self.faults);
+                        m.decide(&obs, &seen, model_only, policy, decide, &mut self.faults);
                     flags = flags.with(who);
                     (q, command)
                 }

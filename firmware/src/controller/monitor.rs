@@ -11,7 +11,9 @@
 //! - **Policy** while the reading lies inside the *envelope* (the
 //!   states the policy visited in the evaluation it passed, with a margin, generated beside
 //!   the policy by `host-sim envelope`), its readings are sound, and its scores are finite.
-//! - **Fallback** (bang-bang LQR, `u = -K s`, on the state the command will meet) when the
+//! - **Fallback** (LQR, `u = -K s`, on the state the command will meet, its force as the
+//!   nearest of the policy's duty levels: bang-bang with the paper's two, a duty near the
+//!   linear controller's with a rig's finer levels) when the
 //!   reading leaves the envelope, when [`Assurance::FAULT_RUN`] readings in a row were
 //!   rejected or came from the model alone (a frozen encoder), or when the policy's scores
 //!   are not finite. Back to the policy only after [`Assurance::DWELL`] sound periods in a
@@ -31,10 +33,10 @@
 //! reading are integer compares.
 
 use super::faults::{FaultCounters, FaultFlags, Limits};
-use super::levels::{Command, Duty};
-use super::policy::{Answer, Scores};
+use super::levels::{Command, nearest};
+use super::policy::{Answer, Policy, Scores};
 use super::reading::Reading;
-use crate::config::{ConfigError, check};
+use crate::config::{ConfigError, check, positive};
 
 /// The fraction of the envelope a reading must lie within, channel by channel, for the
 /// fallback to hand the loop back.
@@ -61,6 +63,7 @@ pub struct Assurance {
     calm: Limits,
     recoverable: Limits,
     gain: [f32; 4],
+    full_force: f32,
 }
 
 impl Assurance {
@@ -72,14 +75,17 @@ impl Assurance {
 
     /// The assurance of a policy whose `envelope` was measured, with the fallback's LQR
     /// `gain` (`u = -K s`, in newtons per unit of each channel;
-    /// [`crate::linear::balance_gain`] designs it), which can recover a reading within
-    /// `recoverable` (the rig's, [`Rig::assurance`](crate::rig::Rig::assurance)). Refused:
-    /// a gain that is not finite.
+    /// [`crate::linear::balance_gain`] designs it) on a motor whose full duty pushes with
+    /// `full_force` newtons, which can recover a reading within `recoverable` (the rig's,
+    /// [`Rig::assurance`](crate::rig::Rig::assurance)). Refused: a gain that is not finite,
+    /// a full force that is not positive.
     pub const fn new(
         envelope: Limits,
         recoverable: Limits,
         gain: [f32; 4],
+        full_force: f32,
     ) -> Result<Assurance, ConfigError> {
+        check!(positive(full_force as f64, "assurance.full_force"));
         let mut i = 0;
         while i < 4 {
             if !gain[i].is_finite() {
@@ -99,6 +105,7 @@ impl Assurance {
             calm,
             recoverable,
             gain,
+            full_force,
         })
     }
 }
@@ -153,21 +160,23 @@ impl Monitor {
 
     /// A period with reading `obs`, `seen` the state the command will meet (`obs` itself
     /// without a predictor), `model_only` when the reading came from the model alone:
-    /// `decide` asked for the policy's scores and decision where the policy drives (its
-    /// decision `None` when its scores are not finite), then the scores recorded, the
-    /// command, and the flags of who decided.
-    pub fn decide<O: Reading, Q: Scores>(
+    /// `decide` asked for `policy`'s scores and decision where the policy drives (its
+    /// decision `None` when its scores are not finite), the fallback's force driven as the
+    /// nearest of `policy`'s levels elsewhere; then the scores recorded, the command, and
+    /// the flags of who decided.
+    pub fn decide<O: Reading, P: Policy<O>>(
         &mut self,
         obs: &O,
         seen: &O,
         model_only: bool,
-        decide: impl FnOnce(&O) -> Answer<Q>,
+        policy: &mut P,
+        decide: impl FnOnce(&mut P, &O) -> Answer<P::Scores>,
         counters: &mut FaultCounters,
-    ) -> (Q, Command, FaultFlags) {
+    ) -> (P::Scores, Command, FaultFlags) {
         let beyond = !obs.flags(&self.assurance.recoverable).is_empty();
         self.beyond(beyond, counters);
         if self.mode == Mode::Stopped {
-            return (Q::UNSCORED, Command::Coast, FaultFlags::STOPPED);
+            return (P::Scores::UNSCORED, Command::Coast, FaultFlags::STOPPED);
         }
         if model_only {
             self.fault(counters);
@@ -185,10 +194,10 @@ impl Monitor {
                 counters.recoveries = counters.recoveries.saturating_add(1);
             }
         }
-        let mut q = Q::UNSCORED;
+        let mut q = P::Scores::UNSCORED;
         if self.mode == Mode::Policy {
             let duty;
-            (q, duty) = decide(seen);
+            (q, duty) = decide(policy, seen);
             if let Some(d) = duty {
                 return (q, Command::Drive(d), FaultFlags::default());
             }
@@ -196,12 +205,12 @@ impl Monitor {
             self.fall_back(counters);
         }
         counters.fallback_periods = counters.fallback_periods.saturating_add(1);
-        let push = if seen.lqr(&self.assurance.gain) > 0.0 {
-            Duty::RIGHT
-        } else {
-            Duty::LEFT
+        let force = seen.lqr(&self.assurance.gain);
+        let level = nearest(|i| policy.duty(i), force, self.assurance.full_force);
+        let command = match level.and_then(|i| policy.duty(i)) {
+            Some(duty) => Command::Drive(duty),
+            None => Command::Coast,
         };
-        let command = Command::Drive(push);
         (q, command, FaultFlags::FALLBACK)
     }
 

@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::controller::tests::SignOfTheta;
-use crate::controller::{Levels, Policy, answer};
+use crate::controller::{Duty, Levels, Policy, answer};
 use crate::fixed;
 use crate::rig::Rig;
 use crate::shipped::envelope::{ASSURANCE, ENVELOPE, FALLBACK_GAIN, POLICY_DIGEST};
@@ -30,7 +30,7 @@ fn assurance() -> Assurance {
 }
 
 fn decide(m: &mut Monitor, obs: [f32; 4], c: &mut FaultCounters) -> (Command, FaultFlags) {
-    let (_, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut SignOfTheta, s), c);
+    let (_, command, flags) = m.decide(&obs, &obs, false, &mut SignOfTheta, answer, c);
     (command, flags)
 }
 
@@ -39,7 +39,7 @@ fn inside_the_envelope_the_policy_decides_alone() {
     let mut m = Monitor::new(assurance());
     let mut c = FaultCounters::default();
     let obs = [0.5, -0.5, 0.05, 0.5];
-    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut SignOfTheta, s), &mut c);
+    let (q, command, flags) = m.decide(&obs, &obs, false, &mut SignOfTheta, answer, &mut c);
     assert_eq!(
         (q, command, flags),
         (
@@ -108,13 +108,7 @@ fn a_run_of_faulty_readings_hands_over_and_a_sound_one_breaks_the_run() {
     // Readings from the model alone count as faulty too.
     let mut m = Monitor::new(assurance());
     for k in 1..=Assurance::FAULT_RUN {
-        let (_, _, flags) = m.decide(
-            &[0.0; 4],
-            &[0.0; 4],
-            true,
-            |s| answer(&mut SignOfTheta, s),
-            &mut c,
-        );
+        let (_, _, flags) = m.decide(&[0.0; 4], &[0.0; 4], true, &mut SignOfTheta, answer, &mut c);
         assert_eq!(
             flags == FaultFlags::FALLBACK,
             k == Assurance::FAULT_RUN,
@@ -128,7 +122,7 @@ fn scores_that_are_no_numbers_go_to_the_fallback_and_are_counted() {
     let mut m = Monitor::new(assurance());
     let mut c = FaultCounters::default();
     let obs = [0.0, 0.0, 0.05, 0.0];
-    let (q, command, flags) = m.decide(&obs, &obs, false, |s| answer(&mut Broken, s), &mut c);
+    let (q, command, flags) = m.decide(&obs, &obs, false, &mut Broken, answer, &mut c);
     assert!(q[0].is_nan());
     // u = -(10 * 0.05) < 0: left.
     assert_eq!(
@@ -180,7 +174,8 @@ fn an_integer_reading_meets_the_same_decisions_in_q3_12() {
             &q,
             &q,
             false,
-            |s| answer(&mut FnPolicy(&mut int_policy), s),
+            &mut FnPolicy(&mut int_policy),
+            answer,
             &mut c,
         );
         assert_eq!((ci, fi), decide(&mut mf, s, &mut c), "{s:?}");
@@ -216,4 +211,40 @@ fn the_shipped_assurance_is_the_shipped_policys_and_rigs() {
     let k = crate::linear::balance_gain(&RIG.params).map(|k| k as f32);
     assert_eq!(FALLBACK_GAIN, k);
     assert_eq!(RIG.lqr_assurance(ENVELOPE), Ok(ASSURANCE));
+}
+
+/// A policy of nine levels, fine near zero, whose scores never matter here.
+struct Nine;
+
+impl Policy for Nine {
+    type Scores = [f32; 9];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::new([-1.0, -0.4, -0.15, -0.05, 0.0, 0.05, 0.15, 0.4, 1.0])
+            .ok()?
+            .duty(i)
+    }
+    fn scores(&mut self, _: &[f32; 4]) -> [f32; 9] {
+        [0.0; 9]
+    }
+}
+
+#[test]
+fn with_finer_levels_the_fallback_drives_the_one_nearest_its_force() {
+    // Full duty is Gymnasium's 10 N; each state lies beyond the envelope's 1 m/s.
+    for (s, want) in [
+        // u = -(1.5 + 0.5) = -2 N, -0.2 of full: between the midpoints -0.275 and -0.1.
+        ([0.0, 1.5, 0.05, 0.0], -0.15),
+        // u = 1.5 - 0.1 = 1.4 N: 0.14, between 0.1 and 0.275.
+        ([0.0, -1.5, 0.01, 0.0], 0.15),
+        // u = -(1.5 + 0.9 + 0.5) = -2.9 N: -0.29, below -0.275.
+        ([0.0, 1.5, 0.09, 0.5], -0.4),
+        // u = -(1.2 - 0.2 - 0.5) = -0.5 N: -0.05, a level itself.
+        ([0.0, 1.2, -0.02, -0.5], -0.05),
+    ] {
+        let mut m = Monitor::new(assurance());
+        let mut c = FaultCounters::default();
+        let (_, command, flags) = m.decide(&s, &s, false, &mut Nine, answer, &mut c);
+        assert_eq!(flags, FaultFlags::FALLBACK, "{s:?}");
+        assert_eq!(command.level(), want, "{s:?}");
+    }
 }
