@@ -12,7 +12,7 @@
 use std::cell::RefCell;
 
 use firmware::cartpole::{Params, unit_f64};
-use firmware::controller::{Duty, Levels, Policy, Scores};
+use firmware::controller::{Duty, Levels, Policy, Scores, nearest};
 use firmware::linear::{Vec4, balance_gain, dot};
 use firmware::rig::Rig;
 use rand_pcg::Pcg64Mcg;
@@ -108,14 +108,14 @@ impl Policy for LinearLqr {
     }
 }
 
-/// [`LinearLqr`]'s command, saturated, rounded to the nearest of `levels` (the lower of two
-/// equally near): the linear controller held to the duties a policy of those levels may
+/// [`LinearLqr`]'s command rounded to the nearest of `levels` ([`nearest`], the lower of two
+/// equally near, as the monitor's fallback rounds): the linear controller held to the duties a policy of those levels may
 /// choose, so that a table shows what the levels themselves cost beside what the learning
 /// does.
 #[derive(Clone, Debug)]
 pub struct RoundedLqr {
     lqr: LinearLqr,
-    levels: Vec<f32>,
+    levels: Vec<Duty>,
 }
 
 impl RoundedLqr {
@@ -123,7 +123,7 @@ impl RoundedLqr {
     pub fn of(rig: &Rig, levels: &[Duty]) -> RoundedLqr {
         RoundedLqr {
             lqr: LinearLqr::of(rig),
-            levels: levels.iter().map(|d| d.fraction()).collect(),
+            levels: levels.to_vec(),
         }
     }
 }
@@ -135,13 +135,9 @@ impl Policy for RoundedLqr {
     }
     fn scores(&mut self, obs: &[f32; 4]) -> Push {
         let Push(u) = self.lqr.scores(obs);
-        let u = u.clamp(-1.0, 1.0);
-        let nearest = self
-            .levels
-            .iter()
-            .copied()
-            .reduce(|a, b| if (b - u).abs() < (a - u).abs() { b } else { a });
-        Push(nearest.filter(|_| u.is_finite()).unwrap_or(f32::NAN))
+        let level = nearest(|i| self.levels.get(i).copied(), u, 1.0);
+        let duty = level.and_then(|i| self.levels.get(i)).map(|d| d.fraction());
+        Push(duty.filter(|_| u.is_finite()).unwrap_or(f32::NAN))
     }
 }
 
@@ -225,7 +221,7 @@ mod tests {
                 k: [0.0, 0.0, -100.0, 0.0],
                 force_mag: 10.0,
             },
-            levels: levels.iter().map(|d| d.fraction()).collect(),
+            levels: levels.to_vec(),
         };
         // The command is theta x 10 as a fraction of the full push (the test above); each
         // expected level picked by hand from the list.
@@ -252,7 +248,7 @@ mod tests {
                 k: [0.0, 0.0, -10.0, 0.0],
                 force_mag: 10.0,
             },
-            levels: vec![-1.0, 0.0, 1.0],
+            levels: vec![Duty::LEFT, Duty::OFF, Duty::RIGHT],
         };
         for (theta, want) in [(0.5, 0), (-0.5, -1000), (0.5000001, 1000)] {
             let i = tied.scores(&[0.0, 0.0, theta, 0.0]).choice().unwrap();
