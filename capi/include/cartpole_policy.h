@@ -448,7 +448,8 @@ int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *peri
 /* Puts *c under the runtime monitor from its next period (docs/FAULTS.md): the policy drives
  * while the reading lies inside envelope {x (m), x_dot (m/s), theta (rad), theta_dot
  * (rad/s)}, bounds on each channel's magnitude (NULL: the shipped policy's, measured by
- * `host-sim envelope`); bang-bang LQR designed for rig drives outside it, after 3 faulty
+ * `host-sim envelope`); LQR designed for rig drives outside it (its force as the nearest of
+ * the policy's duty levels or full duty: bang-bang for two levels), after 3 faulty
  * readings in a row and on non-finite scores, until 25 sound periods inside 0.8 of the
  * envelope; 3 readings in a row past the rig's failure angle or at the end of its track
  * stop the controller (duty off) until it is initialised again. The observer then watches

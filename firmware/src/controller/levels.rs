@@ -140,12 +140,6 @@ impl<const A: usize> Levels<A> {
     pub const fn duties(&self) -> &[Duty; A] {
         &self.0
     }
-
-    /// The output whose duty is nearest `fraction` (the lower one of two equally near): how
-    /// a linear controller's command becomes one of the levels ([`nearest`]).
-    pub fn nearest(&self, fraction: f32) -> usize {
-        nearest(|i| self.duty(i), fraction, 1.0).unwrap_or(0)
-    }
 }
 
 /// Of the duties `duty(0), duty(1), ...` up to the first `None` (in increasing order, as a
@@ -158,7 +152,9 @@ pub fn nearest(duty: impl Fn(usize) -> Option<Duty>, force: f32, full: f32) -> O
     let mut best = duty(0)?;
     let mut i = 1;
     while let Some(d) = duty(i) {
-        if force <= 0.5 * (best.fraction() + d.fraction()) * full {
+        // Anything but "above", a NaN force included, stops at the level reached.
+        let mid = 0.5 * (best.fraction() + d.fraction()) * full;
+        if force.partial_cmp(&mid) != Some(core::cmp::Ordering::Greater) {
             break;
         }
         best = d;
@@ -224,8 +220,32 @@ mod tests {
     #[test]
     fn the_nearest_level_of_a_linear_command() {
         let five = Levels::new([-1.0, -0.3, 0.0, 0.3, 1.0]).unwrap();
-        let got = [-2.0, -0.7, -0.16, 0.1, 0.2, 0.64, 0.7].map(|u| five.nearest(u));
-        assert_eq!(got, [0, 0, 1, 2, 3, 3, 4]);
+        let at = |u: f32| nearest(|i| five.duty(i), u, 1.0).unwrap();
+        // Midpoints -0.65, -0.15, 0.15, 0.65; 0.15 is exactly half of 0.3 in f32, so on that
+        // midpoint the lower level is driven.
+        let got = [-2.0, -0.7, -0.16, 0.1, 0.15, 0.2, 0.64, 0.7, f32::INFINITY];
+        assert_eq!(got.map(at), [0, 0, 1, 2, 2, 3, 3, 4, 4]);
+        assert_eq!(at(f32::NAN), 0);
+        // In newtons of a 10 N motor: -6.6 N is -0.66 of full duty.
+        assert_eq!(nearest(|i| five.duty(i), -6.6, 10.0), Some(0));
+        assert_eq!(nearest(|_| None, 1.0, 1.0), None);
+    }
+
+    #[test]
+    fn with_the_papers_two_levels_the_nearest_is_the_sign_of_the_force() {
+        let two = |i| Levels::BANG_BANG.duty(i);
+        let tiny = f32::from_bits(1);
+        for (force, want) in [
+            (tiny, 1),
+            (-tiny, 0),
+            (0.0, 0),
+            (-0.0, 0),
+            (f32::NAN, 0),
+            (-f32::INFINITY, 0),
+            (1e30, 1),
+        ] {
+            assert_eq!(nearest(two, force, 10.0), Some(want), "{force}");
+        }
     }
 
     #[test]

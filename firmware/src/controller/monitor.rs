@@ -12,8 +12,8 @@
 //!   states the policy visited in the evaluation it passed, with a margin, generated beside
 //!   the policy by `host-sim envelope`), its readings are sound, and its scores are finite.
 //! - **Fallback** (LQR, `u = -K s`, on the state the command will meet, its force as the
-//!   nearest of the policy's duty levels: bang-bang with the paper's two, a duty near the
-//!   linear controller's with a rig's finer levels) when the
+//!   nearest of the policy's duty levels and full duty either way: bang-bang with the
+//!   paper's two, a duty near the linear controller's with a rig's finer levels) when the
 //!   reading leaves the envelope, when [`Assurance::FAULT_RUN`] readings in a row were
 //!   rejected or came from the model alone (a frozen encoder), or when the policy's scores
 //!   are not finite. Back to the policy only after [`Assurance::DWELL`] sound periods in a
@@ -33,7 +33,7 @@
 //! reading are integer compares.
 
 use super::faults::{FaultCounters, FaultFlags, Limits};
-use super::levels::{Command, nearest};
+use super::levels::{Command, Duty, nearest};
 use super::policy::{Answer, Policy, Scores};
 use super::reading::Reading;
 use crate::config::{ConfigError, check, positive};
@@ -162,7 +162,7 @@ impl Monitor {
     /// without a predictor), `model_only` when the reading came from the model alone:
     /// `decide` asked for `policy`'s scores and decision where the policy drives (its
     /// decision `None` when its scores are not finite), the fallback's force driven as the
-    /// nearest of `policy`'s levels elsewhere; then the scores recorded, the command, and
+    /// nearest of `policy`'s levels and full duty either way elsewhere; then the scores recorded, the command, and
     /// the flags of who decided.
     pub fn decide<O: Reading, P: Policy<O>>(
         &mut self,
@@ -206,8 +206,16 @@ impl Monitor {
         }
         counters.fallback_periods = counters.fallback_periods.saturating_add(1);
         let force = seen.lqr(&self.assurance.gain);
-        let level = nearest(|i| policy.duty(i), force, self.assurance.full_force);
-        let command = match level.and_then(|i| policy.duty(i)) {
+        // Full duty either side of the policy's levels: levels that stop short of it
+        // (`-0.5,0.5`) must not take force from what recovers the pole.
+        let duty = |i: usize| match i.checked_sub(1) {
+            None => Some(Duty::LEFT),
+            Some(k) => policy
+                .duty(k)
+                .or_else(|| (k > 0 && policy.duty(k - 1).is_some()).then_some(Duty::RIGHT)),
+        };
+        let level = nearest(duty, force, self.assurance.full_force);
+        let command = match level.and_then(duty) {
             Some(duty) => Command::Drive(duty),
             None => Command::Coast,
         };

@@ -248,3 +248,50 @@ fn with_finer_levels_the_fallback_drives_the_one_nearest_its_force() {
         assert_eq!(command.level(), want, "{s:?}");
     }
 }
+
+/// A policy of three levels that stop at half duty.
+struct Half;
+
+impl Policy for Half {
+    type Scores = [f32; 3];
+    fn duty(&self, i: usize) -> Option<Duty> {
+        Levels::new([-0.5, 0.0, 0.5]).ok()?.duty(i)
+    }
+    fn scores(&mut self, _: &[f32; 4]) -> [f32; 3] {
+        [0.0; 3]
+    }
+}
+
+#[test]
+fn levels_that_stop_short_of_full_duty_leave_the_fallback_its_whole_force() {
+    // u = -2.9 N and 2.9 N of 10 N: -0.29 and 0.29, nearer the half levels (midpoints
+    // -0.75, -0.25, 0.25, 0.75); u = -(1.5 + 2 + 5) = -8.5 N: -0.85, nearer full duty.
+    for (s, want) in [
+        ([0.0, 1.5, 0.09, 0.5], -0.5),
+        ([0.0, -1.5, -0.09, -0.5], 0.5),
+        ([0.0, 1.5, 0.2, 5.0], -1.0),
+        ([0.0, -1.5, -0.2, -5.0], 1.0),
+    ] {
+        let mut m = Monitor::new(assurance());
+        let mut c = FaultCounters::default();
+        let (_, command, _) = m.decide(&s, &s, false, &mut Half, answer, &mut c);
+        assert_eq!(command.level(), want, "{s:?}");
+    }
+}
+
+#[test]
+fn an_assurance_needs_a_motor_that_pushes() {
+    let envelope = Limits::new([1.0, 1.0, 0.1, 1.0]).unwrap();
+    for (full, want) in [
+        (0.0, ConfigError::NotPositive("assurance.full_force")),
+        (-1.0, ConfigError::NotPositive("assurance.full_force")),
+        (f32::NAN, ConfigError::NotFinite("assurance.full_force")),
+        (
+            f32::INFINITY,
+            ConfigError::NotFinite("assurance.full_force"),
+        ),
+    ] {
+        let got = Assurance::new(envelope, envelope, [1.0; 4], full);
+        assert_eq!(got, Err(want), "{full}");
+    }
+}
