@@ -109,9 +109,9 @@ impl Policy for LinearLqr {
 }
 
 /// [`LinearLqr`]'s command rounded to the nearest of `levels` ([`nearest`], the lower of two
-/// equally near, as the monitor's fallback rounds): the linear controller held to the duties a policy of those levels may
-/// choose, so that a table shows what the levels themselves cost beside what the learning
-/// does.
+/// equally near, as the monitor's fallback rounds): the linear controller held to the
+/// duties a policy of those levels may choose, so that a table shows what the levels
+/// themselves cost beside what the learning does.
 #[derive(Clone, Debug)]
 pub struct RoundedLqr {
     lqr: LinearLqr,
@@ -137,7 +137,7 @@ impl Policy for RoundedLqr {
         let Push(u) = self.lqr.scores(obs);
         let level = nearest(|i| self.levels.get(i).copied(), u, 1.0);
         let duty = level.and_then(|i| self.levels.get(i)).map(|d| d.fraction());
-        Push(duty.filter(|_| u.is_finite()).unwrap_or(f32::NAN))
+        Push(duty.filter(|_| !u.is_nan()).unwrap_or(f32::NAN))
     }
 }
 
@@ -236,6 +236,7 @@ mod tests {
             (0.071, 1000),
             (0.5, 1000),
             (-0.5, -1000),
+            (f32::INFINITY, 1000),
         ] {
             let i = lqr.scores(&[0.0, 0.0, theta, 0.0]).choice().unwrap();
             assert_eq!(lqr.duty(i).unwrap().thousandths(), want, "theta {theta}");

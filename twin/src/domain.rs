@@ -88,12 +88,7 @@ impl Domain {
         for high in corners {
             let mut s = Scenario::nominal_on(machine);
             for part in &d.parts {
-                let values: Vec<Option<f64>> = part
-                    .values
-                    .iter()
-                    .map(|v| v.map(|v| if high(part) { v.hi } else { v.lo }))
-                    .collect();
-                s.apply(part, &values);
+                s.apply(part, &part.ends(high(part)));
             }
             check_factors(&s.params, &rig.params)
                 .and_then(|()| check_integrable(&s.params, s.integration))
@@ -111,8 +106,7 @@ impl Domain {
             return own;
         };
         let mut s = Scenario::nominal_on(&self.machine);
-        let high: Vec<Option<f64>> = part.values.iter().map(|v| v.map(|v| v.hi)).collect();
-        s.apply(part, &high);
+        s.apply(part, &part.ends(true));
         if part.share < 1.0 {
             s.delay().max(own)
         } else {
@@ -281,7 +275,6 @@ mod tests {
                 "domain \"noise=0..1+delay=1@0.5\": delay changes nothing on this machine, \
                  whose own dead time is 1 period",
             ),
-            ("length=1", "length changes nothing"),
             (
                 "friction=0/0",
                 "friction changes nothing on this machine, which has it",
@@ -295,6 +288,8 @@ mod tests {
             Domain::parse_on(spec, &desk).unwrap();
         }
         Domain::parse("delay=1").unwrap();
+        let e = Domain::parse("delay=0").unwrap_err();
+        assert!(e.contains("own dead time is 0 periods"), "{e}");
     }
 
     #[test]

@@ -180,6 +180,14 @@ pub struct Part {
     pub share: f64,
 }
 
+impl Part {
+    /// Each field's value at the low ends of its range, or the high (`None` where left out).
+    pub fn ends(&self, high: bool) -> Vec<Option<f64>> {
+        let end = |v: Span| if high { v.hi } else { v.lo };
+        self.values.iter().map(|v| v.map(end)).collect()
+    }
+}
+
 /// Splits `spec` into parts (`nominal` and `""` are none), checking every value against its
 /// field. `what` names the spec in errors (`scenario` or `domain`).
 pub fn parse(spec: &str, what: &str) -> Result<Vec<Part>, String> {

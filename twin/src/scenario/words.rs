@@ -192,15 +192,8 @@ pub(crate) fn idle_part(
 /// The world `part` alone builds on `machine` at the low ends of its ranges, or the high.
 pub(crate) fn world_at(part: &Part, high: bool, machine: &Machine) -> (Scenario, Part) {
     let end = Part {
-        values: part
-            .values
-            .iter()
-            .map(|v| {
-                v.map(|v| {
-                    let x = if high { v.hi } else { v.lo };
-                    Span { lo: x, hi: x }
-                })
-            })
+        values: (part.ends(high).into_iter())
+            .map(|v| v.map(|x| Span { lo: x, hi: x }))
             .collect(),
         ..part.clone()
     };
