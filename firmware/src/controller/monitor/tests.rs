@@ -213,23 +213,32 @@ fn the_shipped_assurance_is_the_shipped_policys_and_rigs() {
     assert_eq!(RIG.lqr_assurance(ENVELOPE), Ok(ASSURANCE));
 }
 
-/// A policy of nine levels, fine near zero, whose scores never matter here.
-struct Nine;
+/// A policy of the given levels whose scores never matter here.
+struct Stepped<const A: usize>(Levels<A>);
 
-impl Policy for Nine {
-    type Scores = [f32; 9];
+impl<const A: usize> Policy for Stepped<A> {
+    type Scores = [f32; A];
     fn duty(&self, i: usize) -> Option<Duty> {
-        Levels::new([-1.0, -0.4, -0.15, -0.05, 0.0, 0.05, 0.15, 0.4, 1.0])
-            .ok()?
-            .duty(i)
+        self.0.duty(i)
     }
-    fn scores(&mut self, _: &[f32; 4]) -> [f32; 9] {
-        [0.0; 9]
+    fn scores(&mut self, _: &[f32; 4]) -> [f32; A] {
+        [0.0; A]
     }
+}
+
+/// What a fresh monitor commands at state `s` with a policy of `levels`: the duty, and who
+/// decided.
+fn command_of<const A: usize>(levels: [f32; A], s: [f32; 4]) -> (f32, FaultFlags) {
+    let mut policy = Stepped(Levels::new(levels).unwrap());
+    let mut m = Monitor::new(assurance());
+    let mut c = FaultCounters::default();
+    let (_, command, flags) = m.decide(&s, &s, false, &mut policy, answer, &mut c);
+    (command.level(), flags)
 }
 
 #[test]
 fn with_finer_levels_the_fallback_drives_the_one_nearest_its_force() {
+    let nine = [-1.0, -0.4, -0.15, -0.05, 0.0, 0.05, 0.15, 0.4, 1.0];
     // Full duty is Gymnasium's 10 N; each state lies beyond the envelope's 1 m/s.
     for (s, want) in [
         // u = -(1.5 + 0.5) = -2 N, -0.2 of full: between the midpoints -0.275 and -0.1.
@@ -241,24 +250,7 @@ fn with_finer_levels_the_fallback_drives_the_one_nearest_its_force() {
         // u = -(1.2 - 0.2 - 0.5) = -0.5 N: -0.05, a level itself.
         ([0.0, 1.2, -0.02, -0.5], -0.05),
     ] {
-        let mut m = Monitor::new(assurance());
-        let mut c = FaultCounters::default();
-        let (_, command, flags) = m.decide(&s, &s, false, &mut Nine, answer, &mut c);
-        assert_eq!(flags, FaultFlags::FALLBACK, "{s:?}");
-        assert_eq!(command.level(), want, "{s:?}");
-    }
-}
-
-/// A policy of three levels that stop at half duty.
-struct Half;
-
-impl Policy for Half {
-    type Scores = [f32; 3];
-    fn duty(&self, i: usize) -> Option<Duty> {
-        Levels::new([-0.5, 0.0, 0.5]).ok()?.duty(i)
-    }
-    fn scores(&mut self, _: &[f32; 4]) -> [f32; 3] {
-        [0.0; 3]
+        assert_eq!(command_of(nine, s), (want, FaultFlags::FALLBACK), "{s:?}");
     }
 }
 
@@ -272,10 +264,7 @@ fn levels_that_stop_short_of_full_duty_leave_the_fallback_its_whole_force() {
         ([0.0, 1.5, 0.2, 5.0], -1.0),
         ([0.0, -1.5, -0.2, -5.0], 1.0),
     ] {
-        let mut m = Monitor::new(assurance());
-        let mut c = FaultCounters::default();
-        let (_, command, _) = m.decide(&s, &s, false, &mut Half, answer, &mut c);
-        assert_eq!(command.level(), want, "{s:?}");
+        assert_eq!(command_of([-0.5, 0.0, 0.5], s).0, want, "{s:?}");
     }
 }
 
