@@ -26,10 +26,11 @@ use twin::{Episode, Scenario};
 use weights::Weights;
 
 use super::evaluate::Judge;
+use super::periodic::{Mark, Periodic};
 use super::select::Selection;
 use super::{
-    EpisodeRecord, Learner, ReplayBuffer, Reward, RunResult, Stream, Training, domains, epsilon,
-    rng,
+    Domains, EpisodeRecord, Learner, ReplayBuffer, Reward, RunResult, Stream, Training, domains,
+    epsilon, rng,
 };
 use crate::config::{Config, TargetUpdate, Unit};
 use crate::reward::Drive;
@@ -53,42 +54,44 @@ pub(super) fn run<const H: usize, const A: usize>(
         explore: rng(seed, Stream::Explore),
         sample: rng(seed, Stream::Sample),
         env_steps: 0,
+        cut_grad_steps: None,
+        shown: 0,
     };
     let mut worlds = Worlds {
+        domain: rng(seed, Stream::Domain),
         start: rng(seed, Stream::Env),
         noise: rng(seed, Stream::Noise),
         pushes: rng(seed, Stream::Pushes),
     };
-    let mut domain_rng = rng(seed, Stream::Domain);
     let judge = Judge {
         compensate: cfg.compensate,
         prices: r.reward.prices(),
     };
-    let mut selection = Selection::new(cfg, seed, &d, levels, judge);
+    let selection = Selection::new(cfg, seed, &d, levels, judge);
     let mut records = Vec::with_capacity(cfg.episodes);
-    // Periodic evaluations in a row that were perfect.
-    let mut settled = 0;
-    for ep in 0..cfg.episodes {
-        let scenario = d.train.sample(&mut domain_rng);
-        let (mut rec, spent) = r.episode(&mut worlds, ep, &scenario)?;
-        rec.wall_s = start.elapsed().as_secs_f64();
-        (t.on_episode)(&rec);
-        records.push(rec);
-        // The weights the budget stops at are a candidate too.
-        let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
-        if due {
-            let perfect = selection.periodic(&r.learner, ep + 1);
-            settled = if perfect { settled + 1 } else { 0 };
-            let done = (cfg.patience > 0 && selection.stale() >= cfg.patience)
-                || (cfg.settle > 0 && settled >= cfg.settle);
-            if (perfect && cfg.stop_when_perfect) || done {
-                break;
+    let beside = t.beside && cfg.eval_every > 0;
+    let selection = std::thread::scope(|scope| {
+        let mut periodic = Periodic::new(cfg, selection, beside.then_some(scope));
+        let learnt = r.learn(
+            &d,
+            &mut worlds,
+            &mut periodic,
+            &mut records,
+            t.on_episode,
+            start,
+        );
+        match periodic.settle() {
+            // An error in the episodes learnt beside the evaluation is in episodes it drops.
+            Some(mark) => r.cut(mark, &mut records, t.on_episode),
+            None => {
+                learnt?;
+                r.show(&records, t.on_episode);
             }
         }
-        if spent {
-            break;
-        }
-    }
+        periodic
+            .into_selection()
+            .ok_or_else(|| anyhow::anyhow!("an evaluation was left unsettled"))
+    })?;
     let wall_s = start.elapsed().as_secs_f64();
     let chosen = selection.choose(&r.learner, &records, t.evaluate_policy);
     Ok(RunResult {
@@ -104,7 +107,7 @@ pub(super) fn run<const H: usize, const A: usize>(
         trial: chosen.trial,
         final_eval: chosen.final_eval,
         env_steps: r.env_steps,
-        grad_steps: r.learner.steps(),
+        grad_steps: r.grad_steps(),
         wall_s,
         kernel: t.kernel,
     })
@@ -121,10 +124,16 @@ struct Trainer<'a, const H: usize, const A: usize> {
     explore: Pcg64Mcg,
     sample: Pcg64Mcg,
     env_steps: u64,
+    /// The gradient steps of a run cut back by its selection ([`Trainer::cut`]).
+    cut_grad_steps: Option<u64>,
+    /// Records handed to the caller's `on_episode` so far.
+    shown: usize,
 }
 
-/// The random streams the training worlds draw from: starts, sensor noise, push sides.
+/// The random streams the training worlds draw from: the worlds themselves (one per
+/// episode), starts, sensor noise, push sides.
 struct Worlds {
+    domain: Pcg64Mcg,
     start: Pcg64Mcg,
     noise: Pcg64Mcg,
     pushes: Pcg64Mcg,
@@ -147,6 +156,73 @@ struct Tally {
 }
 
 impl<const H: usize, const A: usize> Trainer<'_, H, A> {
+    /// Episodes in worlds drawn from `d`'s training domain until the episode count, the
+    /// step budget or a periodic evaluation stops the run; each record shown once no
+    /// evaluation under way can drop it.
+    fn learn<'s, 'c: 's>(
+        &mut self,
+        d: &Domains,
+        w: &mut Worlds,
+        periodic: &mut Periodic<'s, '_, 'c, H, A>,
+        records: &mut Vec<EpisodeRecord>,
+        on_episode: &mut dyn FnMut(&EpisodeRecord),
+        start: Instant,
+    ) -> Result<()> {
+        let cfg = self.cfg;
+        for ep in 0..cfg.episodes {
+            let scenario = d.train.sample(&mut w.domain);
+            let (mut rec, spent) = self.episode(w, ep, &scenario)?;
+            rec.wall_s = start.elapsed().as_secs_f64();
+            records.push(rec);
+            // The weights the budget stops at are a candidate too.
+            let due = cfg.eval_every > 0 && ((ep + 1).is_multiple_of(cfg.eval_every) || spent);
+            if due {
+                let mark = Mark {
+                    episodes: ep + 1,
+                    env_steps: self.env_steps,
+                    grad_steps: self.learner.steps(),
+                };
+                if let Some(stop) = periodic.submit(self.learner.snapshot(), mark) {
+                    self.cut(stop, records, on_episode);
+                    return Ok(());
+                }
+            }
+            if !periodic.pending() {
+                self.show(records, on_episode);
+            }
+            if spent {
+                break;
+            }
+        }
+        Ok(())
+    }
+
+    /// Cuts the run back to `mark`: the episodes after it dropped, its counts restored.
+    fn cut(
+        &mut self,
+        mark: Mark,
+        records: &mut Vec<EpisodeRecord>,
+        on_episode: &mut dyn FnMut(&EpisodeRecord),
+    ) {
+        records.truncate(mark.episodes);
+        self.env_steps = mark.env_steps;
+        self.cut_grad_steps = Some(mark.grad_steps);
+        self.show(records, on_episode);
+    }
+
+    /// Hands the records not yet shown to `on_episode`.
+    fn show(&mut self, records: &[EpisodeRecord], on_episode: &mut dyn FnMut(&EpisodeRecord)) {
+        for rec in &records[self.shown.min(records.len())..] {
+            on_episode(rec);
+        }
+        self.shown = records.len();
+    }
+
+    /// Gradient steps taken, up to the cut if the run was cut back.
+    fn grad_steps(&self) -> u64 {
+        self.cut_grad_steps.unwrap_or(self.learner.steps())
+    }
+
     /// Episode `ep` (0-based) in `scenario`: its record (the wall time left for the caller),
     /// and whether the step budget is spent.
     fn episode(

@@ -235,7 +235,7 @@ fn split_parameters<'a, const H: usize, const A: usize>(
 /// Whether a run may have a second core for its updates: the thread pool has one (the
 /// machine's cores, or `RAYON_NUM_THREADS`, `train --threads`), and the run is not one of
 /// several the pool runs side by side (seeds, a study), each of which keeps a core busy.
-fn spare_core() -> bool {
+pub(super) fn spare_core() -> bool {
     rayon::current_thread_index().is_none() && rayon::current_num_threads() >= 2
 }
 

@@ -11,6 +11,7 @@
 //!
 //! - `dqn`: the training loop, top to bottom.
 //! - `select`: the snapshots evaluated, the finalists' trial, the final evaluation.
+//! - `periodic`: the periodic evaluations, beside the learning where a core is spare.
 //! - `replay`: the FIFO replay buffer.
 //! - `learner`: the two networks, TD targets and one gradient step.
 //! - `evaluate`: greedy evaluation and the solved-episode measures.
@@ -29,6 +30,7 @@ use crate::nn::Kernel;
 mod dqn;
 mod evaluate;
 mod learner;
+mod periodic;
 mod replay;
 mod select;
 
@@ -162,18 +164,19 @@ pub fn train(
     seed: u64,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
 ) -> Result<RunResult> {
-    run(cfg, seed, on_episode, true)
+    run(cfg, seed, on_episode, true, learner::spare_core())
 }
 
 /// Trains one seed for its episode records alone, which is all a study reads: the policy
 /// is neither chosen among snapshots nor evaluated on fresh starts (100 greedy episodes of
 /// up to 500 steps for the paper preset). The records are [`train`]'s, bit for bit.
 pub fn episodes(cfg: &Config, seed: u64) -> Result<Vec<EpisodeRecord>> {
-    Ok(run(cfg, seed, &mut |_| {}, false)?.episodes)
+    Ok(run(cfg, seed, &mut |_| {}, false, learner::spare_core())?.episodes)
 }
 
 /// One run at the configured shape; with `evaluate_policy` false, the finalists' trial and
-/// the final evaluation are left out.
+/// the final evaluation are left out; with `beside`, the periodic evaluations run beside
+/// the learning (`periodic`), which gives the same bits.
 struct Training<'a> {
     cfg: &'a Config,
     levels: Vec<f32>,
@@ -181,6 +184,7 @@ struct Training<'a> {
     kernel: Kernel,
     on_episode: &'a mut dyn FnMut(&EpisodeRecord),
     evaluate_policy: bool,
+    beside: bool,
 }
 
 fn run(
@@ -188,6 +192,7 @@ fn run(
     seed: u64,
     on_episode: &mut dyn FnMut(&EpisodeRecord),
     evaluate_policy: bool,
+    beside: bool,
 ) -> Result<RunResult> {
     cfg.validate()?;
     let kernel = cfg.kernel.resolve()?;
@@ -200,6 +205,7 @@ fn run(
         kernel,
         on_episode,
         evaluate_policy,
+        beside,
     };
     by_shape(cfg.width, outputs, training)?
 }

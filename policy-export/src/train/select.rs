@@ -202,16 +202,15 @@ impl<'a, const H: usize, const A: usize> Selection<'a, H, A> {
         trial
     }
 
-    /// Evaluates the learner's weights after episode `episode` (1-based) and keeps them if
-    /// they are among the best; whether every episode reached the limit.
-    pub fn periodic(&mut self, learner: &Learner<H, A>, episode: usize) -> bool {
-        let res = self.evaluate(learner.online(), Eval::Periodic);
+    /// Evaluates `net`, the learner's weights after episode `episode` (1-based), and keeps
+    /// it if it is among the best; whether every episode reached the limit.
+    pub fn periodic(&mut self, net: Box<Mlp<H, A>>, episode: usize) -> bool {
+        let res = self.evaluate(&net, Eval::Periodic);
         let perfect = res.min >= f64::from(self.cfg.eval_max_steps);
         let rank = self.pool.partition_point(|(b, _, _)| !res.beats(b));
         self.stale = if rank == 0 { 0 } else { self.stale + 1 };
         if rank < self.cfg.finalists.max(1) {
-            self.pool
-                .insert(rank, (res.clone(), episode, learner.snapshot()));
+            self.pool.insert(rank, (res.clone(), episode, net));
             self.pool.truncate(self.cfg.finalists.max(1));
         }
         self.evals.push((episode, res));

@@ -21,7 +21,7 @@ pub(super) fn small(kernel: KernelChoice) -> Config {
     }
 }
 
-fn bits(r: &RunResult) -> Vec<u32> {
+pub(super) fn bits(r: &RunResult) -> Vec<u32> {
     r.policy
         .tensors()
         .iter()
@@ -31,7 +31,7 @@ fn bits(r: &RunResult) -> Vec<u32> {
 }
 
 /// The metrics without the one column that is not deterministic.
-fn strip(r: &RunResult) -> Vec<EpisodeRecord> {
+pub(super) fn strip(r: &RunResult) -> Vec<EpisodeRecord> {
     r.episodes
         .iter()
         .map(|e| EpisodeRecord {
