@@ -2,9 +2,11 @@
 //! compilers' default GNU dialect cannot declare them beside the standard headers: found by
 //! the system's C compiler (`CC`, else `cc`), an implementation nobody here wrote, not by a
 //! list of ours. POSIX's and the BSDs' names (`y0`, `random`, `fileno`, `popen`, `drand48`)
-//! compile under `-std=c11` but not under `-std=gnu17`, where the C library declares them.
-//! `-D_GNU_SOURCE` (g++'s on glibc) is not probed: the names refused are not claimed to
-//! cover it (`weights/src/source/names/posix_library.rs`).
+//! compile under `-std=c11` but not under `-std=gnu17`, where the C library declares them;
+//! glibc's `_GNU_SOURCE` names (`read`, `fork`, `mempcpy`, `sincos`) fail where a C program
+//! defines it and in every C++ program, since g++ defines it: probed with the system's C++
+//! compiler too (`CXX`, else `c++`), as `scripts/gnu_names.py` probed them to write the list
+//! that refuses them (`weights/src/source/names/gnu_library.rs`; rerun it where this fails).
 
 use std::path::Path;
 use std::process::{Command, Output};
@@ -23,50 +25,68 @@ fn declaration(name: &str) -> String {
     format!("extern const struct cartpole_probe {name};\n")
 }
 
-/// The system's C compiler.
-fn compiler() -> String {
-    std::env::var("CC").unwrap_or_else(|_| "cc".into())
+/// A compiler of the system's and its flags: the C compiler (`CC`, else `cc`) or the C++
+/// one (`CXX`, else `c++`), with the extension of the sources it is given.
+struct Compiler {
+    command: String,
+    flags: &'static [&'static str],
+    ext: &'static str,
 }
 
-/// The compiler run in dialect `std` on `file`.
-fn cc(std: &str, args: &[&str], file: &Path) -> Output {
-    let cc = compiler();
-    Command::new(&cc)
-        .arg(format!("-std={std}"))
-        .args(args)
-        .arg(file)
-        .output()
-        .unwrap_or_else(|e| panic!("running {cc}: {e}"))
-}
+impl Compiler {
+    fn c(flags: &'static [&'static str]) -> Self {
+        let command = std::env::var("CC").unwrap_or_else(|_| "cc".into());
+        Compiler { command, flags, ext: "c" }
+    }
 
-/// The flag that lifts the compiler's limit on errors reported, so that every colliding name
-/// is: Clang stops after 20 unless told (`-ferror-limit`), GCC takes `-fmax-errors`.
-fn no_error_limit() -> &'static str {
-    let version = Command::new(compiler())
-        .arg("--version")
-        .output()
-        .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
-        .unwrap_or_default();
-    if version.contains("clang") {
-        "-ferror-limit=0"
-    } else {
-        "-fmax-errors=0"
+    fn cxx(flags: &'static [&'static str]) -> Self {
+        let command = std::env::var("CXX").unwrap_or_else(|_| "c++".into());
+        Compiler { command, flags, ext: "cc" }
+    }
+
+    /// The compiler run with its flags and `args` on `file`.
+    fn run(&self, args: &[&str], file: &Path) -> Output {
+        Command::new(&self.command)
+            .args(self.flags)
+            .args(args)
+            .arg(file)
+            .output()
+            .unwrap_or_else(|e| panic!("running {}: {e}", self.command))
+    }
+
+    /// The flag that lifts the compiler's limit on errors reported, so that every colliding
+    /// name is: Clang stops after 20 unless told (`-ferror-limit`), GCC takes `-fmax-errors`.
+    fn no_error_limit(&self) -> &'static str {
+        let version = Command::new(&self.command)
+            .arg("--version")
+            .output()
+            .map(|o| String::from_utf8_lossy(&o.stdout).into_owned())
+            .unwrap_or_default();
+        if version.contains("clang") {
+            "-ferror-limit=0"
+        } else {
+            "-fmax-errors=0"
+        }
     }
 }
 
-/// The identifiers of the C11 headers in dialect `std` (each word of their preprocessed text
-/// and each macro they define) that the compiler refuses as the object's name.
-fn colliding(std: &str) -> Vec<String> {
-    let dir = std::env::temp_dir().join(format!("weights-collide-{std}-{}", std::process::id()));
+/// The identifiers of the C11 headers as `cc` compiles them (each word of their preprocessed
+/// text and each macro they define) that it refuses as the object's name.
+fn colliding(cc: &Compiler) -> Vec<String> {
+    let dir = std::env::temp_dir().join(format!(
+        "weights-collide-{}-{}",
+        cc.flags.concat(),
+        std::process::id()
+    ));
     std::fs::create_dir_all(&dir).unwrap();
     let includes: String = C11_HEADERS
         .split_whitespace()
         .map(|h| format!("#include <{h}.h>\n"))
         .collect();
-    let headers = dir.join("headers.c");
+    let headers = dir.join(format!("headers.{}", cc.ext));
     std::fs::write(&headers, &includes).unwrap();
     let text = |args: &[&str]| {
-        let out = cc(std, args, &headers);
+        let out = cc.run(args, &headers);
         assert!(
             out.status.success(),
             "{}",
@@ -82,11 +102,11 @@ fn colliding(std: &str) -> Vec<String> {
         .collect();
     words.sort();
     words.dedup();
-    let probe = dir.join("probe.c");
+    let probe = dir.join(format!("probe.{}", cc.ext));
     let first = includes.lines().count() + 1;
     let body: String = words.iter().map(|w| declaration(w)).collect();
     std::fs::write(&probe, includes + &body).unwrap();
-    let out = cc(std, &["-fsyntax-only", no_error_limit()], &probe);
+    let out = cc.run(&["-fsyntax-only", cc.no_error_limit()], &probe);
     let err = String::from_utf8_lossy(&out.stderr);
     std::fs::remove_dir_all(&dir).unwrap();
     let shown = probe.to_string_lossy().into_owned();
@@ -101,22 +121,51 @@ fn colliding(std: &str) -> Vec<String> {
     refused
 }
 
+/// The names of `refused` that the export accepts.
+fn accepted(refused: &[String]) -> Vec<&String> {
+    refused.iter().filter(|m| check_c_name(m).is_ok()).collect()
+}
+
 #[test]
 fn every_name_the_c11_headers_declare_in_gnu17_is_refused() {
-    for std in ["c11", "gnu17"] {
-        let refused = colliding(std);
+    for cc in [Compiler::c(&["-std=c11"]), Compiler::c(&["-std=gnu17"])] {
+        let refused = colliding(&cc);
+        let std = cc.flags[0];
         // The probe refuses what the headers declare, not every word of them: a struct's tag
         // is no object's name in C.
         let has = |name: &str| refused.iter().any(|r| r == name);
         assert!(["printf", "EOF", "sqrt"].into_iter().all(has), "{std}");
         assert!(!has("tm") && !has("timespec"), "{std}: {refused:?}");
         for posix in ["y0", "j1", "gamma", "random", "fileno", "popen", "drand48"] {
-            assert_eq!(has(posix), std == "gnu17", "{std}: {posix}");
+            assert_eq!(has(posix), std == "-std=gnu17", "{std}: {posix}");
         }
-        let accepted: Vec<&String> = refused.iter().filter(|m| check_c_name(m).is_ok()).collect();
+        for gnu in ["read", "fork", "mempcpy", "sincos"] {
+            assert!(!has(gnu), "{std}: {gnu}");
+        }
+        let accepted = accepted(&refused);
         assert!(
             accepted.is_empty(),
             "{std}: accepted as names: {accepted:?}"
+        );
+    }
+}
+
+#[test]
+fn every_name_the_c11_headers_declare_under_gnu_source_or_to_cxx_is_refused() {
+    for cc in [
+        Compiler::c(&["-std=gnu17", "-D_GNU_SOURCE"]),
+        Compiler::cxx(&["-std=c++17"]),
+    ] {
+        let refused = colliding(&cc);
+        let has = |name: &str| refused.iter().any(|r| r == name);
+        let dialect = cc.flags.join(" ");
+        for gnu in ["read", "fork", "mempcpy", "sincos", "qsort_r", "printf", "y0"] {
+            assert!(has(gnu), "{dialect}: {gnu}");
+        }
+        let accepted = accepted(&refused);
+        assert!(
+            accepted.is_empty(),
+            "{dialect}: accepted as names (rerun scripts/gnu_names.py): {accepted:?}"
         );
     }
 }

@@ -8,6 +8,7 @@ use crate::{BANG_BANG, Error, Result, quote};
 use c_library::c_library_use;
 
 mod c_library;
+mod gnu_library;
 mod posix_library;
 
 /// Longest name: C guarantees 63 significant characters of an identifier, and the include
@@ -337,6 +338,16 @@ mod tests {
             let e = check_c_name(bad).unwrap_err();
             let shown = format!("found {}: C reserves names starting with `_`", quote(bad));
             assert!(e.is_input() && e.to_string().contains(&shown), "{e}");
+        }
+    }
+
+    #[test]
+    fn the_generated_gnu_names_are_sorted_for_their_binary_search() {
+        let unsorted = gnu_library::GNU_NAMES.windows(2).find(|w| w[0] >= w[1]);
+        assert_eq!(unsorted, None);
+        for name in ["read", "fork", "mempcpy", "sincos", "qsort_r"] {
+            let e = check_c_name(name).unwrap_err().to_string();
+            assert!(e.contains("_GNU_SOURCE"), "{e}");
         }
     }
 

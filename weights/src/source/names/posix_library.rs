@@ -2,10 +2,10 @@
 //! default to: GCC's and Clang's `-std=gnu17` asks glibc for POSIX's, X/Open's and the BSD
 //! and System V extensions (`_DEFAULT_SOURCE`), so a program built so sees `y0`, `random`,
 //! `fileno` or `popen` beside the exported header, and an object of that name fails to
-//! compile there though it compiles under `-std=c11`. Not covered: `_GNU_SOURCE`, which g++
-//! defines for every C++ program on glibc and a C program may define, and under which the
-//! same headers declare many more names (`mempcpy`, `sincos`, `qsort_r`, `read`, `fork`); a
-//! list of those would be glibc's whole extension surface, ever growing.
+//! compile there though it compiles under `-std=c11`. The many more names the same headers
+//! declare under `_GNU_SOURCE`, which g++ defines for every C++ program on glibc (`mempcpy`,
+//! `sincos`, `qsort_r`, `read`, `fork`), are glibc's whole extension surface: not written by
+//! hand but asked of the compilers (`gnu_library.rs`).
 //! Each is listed under the C11 header that declares it (`<stdlib.h>` brings
 //! `<sys/types.h>`, `<sys/select.h>`, `<endian.h>` and the wait macros); where POSIX
 //! reserves a prefix before a capital for a header's macros (XBD 2.2.2) the prefix is
