@@ -307,6 +307,17 @@ fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fail
             "{err}"
         );
     }
+    // A long value is cut as every input quoted in a message is, the cut marked.
+    let long = "7".repeat(1000);
+    let o = Command::new(exe)
+        .args(lqr)
+        .env("RAYON_NUM_THREADS", &long)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let cut = format!("found {}", weights::quote(&long));
+    assert!(cut.ends_with("\"...") && err.contains(&cut), "{err}");
     for args in [&["eval", "--help"][..], &["--version"]] {
         let full = std::fs::File::create("/dev/full").unwrap();
         let o = Command::new(exe).args(args).stdout(full).output().unwrap();

@@ -266,6 +266,21 @@ fn a_batch_dropped_uncommitted_removes_its_temporaries_and_its_directories() {
 }
 
 #[test]
+fn a_batch_writes_outputs_whose_names_share_their_first_200_bytes() {
+    let t = Scratch::new("batch-long");
+    let common = "p".repeat(200);
+    let (a, b) = (t.join(&format!("{common}a.png")), t.join(&format!("{common}b.png")));
+    let mut batch = Batch::default();
+    // Each temporary in a private directory named after its output's hidden name: one
+    // shared by the two made the second take the first's away.
+    std::fs::write(batch.file(&a).unwrap(), "a").unwrap();
+    std::fs::write(batch.file(&b).unwrap(), "b").unwrap();
+    batch.commit().unwrap();
+    assert_eq!((read(&a), read(&b)), (b"a".to_vec(), b"b".to_vec()));
+    assert_eq!(entries(&t.0).len(), 2);
+}
+
+#[test]
 fn tables_on_a_full_disk_rewrites_no_document() {
     let t = Scratch::new("tables");
     std::fs::create_dir_all(t.join("docs/results")).unwrap();

@@ -229,25 +229,37 @@ fn same_file(a: &Path, b: &Path) -> bool {
     )
 }
 
-/// Most bytes of an output's name its hidden siblings keep: with a process id and a suffix
-/// they stay within a file system's 255, where a name of 243 bytes or more made the probe
-/// fail and a valid output refused.
-const HIDDEN_STEM_MAX: usize = 200;
+/// Longest output name its hidden siblings keep whole. A longer one keeps its first bytes up
+/// to this many, then `~` and its whole name's digest ([`hidden_stem`]): with a process id
+/// (10 digits at most) and a suffix (7 bytes at most: `partial`) a hidden name stays within a
+/// file system's 255 bytes, where a name of 243 bytes or more made the probe fail and a valid
+/// output refused; and two outputs sharing their first bytes still have hidden names of their
+/// own.
+const HIDDEN_WHOLE_MAX: usize = 218;
 
-/// The hidden sibling `.NAME.PID.SUFFIX` of `path` (a temporary, a probe, a staging
-/// directory), its name cut to [`HIDDEN_STEM_MAX`] bytes; [`stale`] finds those of writers
-/// that are gone.
+/// The hidden sibling `.STEM.PID.SUFFIX` of `path` (a temporary, a probe, a staging
+/// directory), its stem the name itself or, past [`HIDDEN_WHOLE_MAX`] bytes, a cut of it
+/// unique to it; [`stale`] finds those of writers that are gone.
 pub fn hidden_name(path: &Path, pid: u32, suffix: &str) -> String {
     format!(".{}.{pid}.{suffix}", hidden_stem(path))
 }
 
+/// `path`'s name, or past [`HIDDEN_WHOLE_MAX`] bytes its beginning, `~` and the 64-bit
+/// FNV-1a digest of the whole name in hexadecimal: at least 14 bytes longer than any name
+/// kept whole, so never one's stem.
 fn hidden_stem(path: &Path) -> String {
     let name = path.file_name().unwrap_or_default().to_string_lossy();
-    let mut end = name.len().min(HIDDEN_STEM_MAX);
+    if name.len() <= HIDDEN_WHOLE_MAX {
+        return name.into_owned();
+    }
+    let mut end = HIDDEN_WHOLE_MAX;
     while !name.is_char_boundary(end) {
         end -= 1;
     }
-    name[..end].to_string()
+    let digest = firmware::link::digest::Fnv::default()
+        .bytes(name.as_bytes())
+        .finish();
+    format!("{}~{digest:016x}", &name[..end])
 }
 
 /// The temporary name `write_atomic` uses for `path`: hidden, beside it, unique to this
@@ -286,8 +298,8 @@ pub fn remove_stale(path: &Path, suffixes: &[&str]) {
     }
 }
 
-/// The entries `.NAME.PID.SUFFIX` beside `path` (for each of `suffixes`) whose process is
-/// gone: what killed writers of `path` left.
+/// The entries `.STEM.PID.SUFFIX` beside `path` ([`hidden_name`], for each of `suffixes`)
+/// whose process is gone: what killed writers of `path` left.
 pub fn stale(path: &Path, suffixes: &[&str]) -> Vec<PathBuf> {
     let mut found = Vec::new();
     let (Some(name), Some(dir)) = (path.file_name(), path.parent()) else {
@@ -298,13 +310,20 @@ pub fn stale(path: &Path, suffixes: &[&str]) -> Vec<PathBuf> {
     } else {
         dir
     };
-    let prefix = format!(".{}.", hidden_stem(Path::new(name)));
+    // Earlier versions named a hidden sibling after the whole name, however long: a killed
+    // one's are found too (not those of the one that cut names at 200 bytes, without a
+    // digest: such a cut is no one output's).
+    let prefixes = [
+        format!(".{}.", hidden_stem(Path::new(name))),
+        format!(".{}.", name.to_string_lossy()),
+    ];
     let Ok(entries) = std::fs::read_dir(dir) else {
         return found;
     };
     for e in entries.flatten() {
         let file = e.file_name().to_string_lossy().into_owned();
-        let Some((pid, suffix)) = file.strip_prefix(&prefix).and_then(|r| r.split_once('.')) else {
+        let rest = prefixes.iter().find_map(|p| file.strip_prefix(p.as_str()));
+        let Some((pid, suffix)) = rest.and_then(|r| r.split_once('.')) else {
             continue;
         };
         if suffixes.contains(&suffix) && pid.parse().is_ok_and(|p| !pid_alive(p)) {

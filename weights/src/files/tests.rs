@@ -71,6 +71,34 @@ fn a_killed_writers_temporary_is_removed_and_a_live_ones_kept() {
 }
 
 #[test]
+fn outputs_sharing_their_first_200_bytes_have_hidden_names_of_their_own() {
+    let dir = scratch("shared");
+    let common = "n".repeat(200);
+    let (a, b) = (dir.join(common.clone() + "a"), dir.join(common + "b"));
+    assert_ne!(temp_path(&a), temp_path(&b));
+    // One write under way while the other runs whole: neither takes the other's temporary.
+    let tmp_a = temp_path(&a);
+    write_new(&tmp_a, b"a").unwrap();
+    write_atomic(&b, b"b").unwrap();
+    std::fs::rename(&tmp_a, &a).unwrap();
+    assert_eq!(std::fs::read(&a).unwrap(), b"a");
+    assert_eq!(std::fs::read(&b).unwrap(), b"b");
+    // The longest names, of one byte and of two-byte characters, and a process id of ten
+    // digits: within a file system's 255 bytes, each name's own.
+    let widest = [dir.join("w".repeat(255)), dir.join("\u{e9}".repeat(127) + "w")];
+    let names = widest.map(|p| hidden_name(&p, u32::MAX, "partial"));
+    assert!(names.iter().all(|n| n.len() <= 255), "{names:?}");
+    assert_ne!(names[0], names[1]);
+    // What an earlier version, which kept the whole name, left for a name of 201 to 242
+    // bytes (PID 4,000,000,000 is no process's).
+    let earlier = dir.join(format!(".{}.4000000000.tmp", "m".repeat(230)));
+    std::fs::write(&earlier, b"half").unwrap();
+    write_atomic(&dir.join("m".repeat(230)), b"whole").unwrap();
+    assert_eq!(earlier.exists(), !Path::new("/proc/self").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn outputs_never_replace_directories_devices_or_inputs() {
     let dir = scratch("out");
     let e = write_atomic(&dir, b"x").unwrap_err().to_string();
