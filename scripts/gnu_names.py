@@ -116,7 +116,7 @@ def main():
         "//! `_GNU_SOURCE` on glibc) or a C program defining `_GNU_SOURCE`, beyond those of\n"
         "//! `-std=gnu17` and outside names starting with `_`, as the compilers fail them.\n\n"
         "/// Sorted, for a binary search.\n"
-        f"pub(super) const GNU_NAMES: [&str; {len(names)}] = [\n{body}];\n"
+        f"pub(super) static GNU_NAMES: [&str; {len(names)}] = [\n{body}];\n"
     )
     fd, tmp = tempfile.mkstemp(dir=os.path.dirname(OUT), prefix=".gnu_library.")
     try:

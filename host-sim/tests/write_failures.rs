@@ -269,7 +269,10 @@ fn a_batch_dropped_uncommitted_removes_its_temporaries_and_its_directories() {
 fn a_batch_writes_outputs_whose_names_share_their_first_200_bytes() {
     let t = Scratch::new("batch-long");
     let common = "p".repeat(200);
-    let (a, b) = (t.join(&format!("{common}a.png")), t.join(&format!("{common}b.png")));
+    let (a, b) = (
+        t.join(&format!("{common}a.png")),
+        t.join(&format!("{common}b.png")),
+    );
     let mut batch = Batch::default();
     // Each temporary in a private directory named after its output's hidden name: one
     // shared by the two made the second take the first's away.

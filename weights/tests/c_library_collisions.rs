@@ -36,12 +36,20 @@ struct Compiler {
 impl Compiler {
     fn c(flags: &'static [&'static str]) -> Self {
         let command = std::env::var("CC").unwrap_or_else(|_| "cc".into());
-        Compiler { command, flags, ext: "c" }
+        Compiler {
+            command,
+            flags,
+            ext: "c",
+        }
     }
 
     fn cxx(flags: &'static [&'static str]) -> Self {
         let command = std::env::var("CXX").unwrap_or_else(|_| "c++".into());
-        Compiler { command, flags, ext: "cc" }
+        Compiler {
+            command,
+            flags,
+            ext: "cc",
+        }
     }
 
     /// The compiler run with its flags and `args` on `file`.
@@ -159,7 +167,9 @@ fn every_name_the_c11_headers_declare_under_gnu_source_or_to_cxx_is_refused() {
         let refused = colliding(&cc);
         let has = |name: &str| refused.iter().any(|r| r == name);
         let dialect = cc.flags.join(" ");
-        for gnu in ["read", "fork", "mempcpy", "sincos", "qsort_r", "printf", "y0"] {
+        for gnu in [
+            "read", "fork", "mempcpy", "sincos", "qsort_r", "printf", "y0",
+        ] {
             assert!(has(gnu), "{dialect}: {gnu}");
         }
         let accepted = accepted(&refused);

@@ -85,7 +85,10 @@ fn outputs_sharing_their_first_200_bytes_have_hidden_names_of_their_own() {
     assert_eq!(std::fs::read(&b).unwrap(), b"b");
     // The longest names, of one byte and of two-byte characters, and a process id of ten
     // digits: within a file system's 255 bytes, each name's own.
-    let widest = [dir.join("w".repeat(255)), dir.join("\u{e9}".repeat(127) + "w")];
+    let widest = [
+        dir.join("w".repeat(255)),
+        dir.join("\u{e9}".repeat(127) + "w"),
+    ];
     let names = widest.map(|p| hidden_name(&p, u32::MAX, "partial"));
     assert!(names.iter().all(|n| n.len() <= 255), "{names:?}");
     assert_ne!(names[0], names[1]);

@@ -4,7 +4,7 @@
 //! `-std=gnu17` and outside names starting with `_`, as the compilers fail them.
 
 /// Sorted, for a binary search.
-pub(super) const GNU_NAMES: [&str; 1544] = [
+pub(super) static GNU_NAMES: [&str; 1544] = [
     "ADJ_ESTERROR",
     "ADJ_FREQUENCY",
     "ADJ_MAXERROR",
