@@ -4,73 +4,29 @@
 //! A directory is built in a hidden sibling (`.NAME.PID.partial`, [`Staging`]) and renamed
 //! into place when complete, so a killed run leaves the old directory (or none), never a mix
 //! of two runs. Its marker file, [`MARKER`], names the tool, its version, the kind of output
-//! and every file the tool wrote there. An existing directory is replaced only if it is
-//! empty, or if its marker names this tool and the same kind and it holds nothing but the
-//! files the marker lists: a file added by hand (an export, notes) or a directory of another
-//! program, even one with a `summary.json`, is refused with exit status 2, named, with the
-//! reason. A killed run's sibling is removed by the next run on the same proof.
+//! and every entry the tool wrote there, each file with its size and digest (`marker.rs`).
+//! An existing directory is replaced only if it is empty, or if its marker names this tool
+//! and the same kind and it holds nothing but the entries the marker lists, each file as it
+//! was written: a file added by hand (an export, notes), one changed since or listed by a
+//! marker written by hand, or a directory of another program, even one with a
+//! `summary.json`, is refused with exit status 2, named, with the reason. A killed run's
+//! sibling is removed by the next run on the same proof.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use serde::{Deserialize, Serialize};
 use weights::Error;
-use weights::files::{check_place, kind, read_capped, write_atomic};
+use weights::files::{check_place, kind};
 
-/// The marker file of an output directory.
-pub const MARKER: &str = ".cartpole-run";
-/// Largest marker read: a `--seeds` run of 10,000 seeds lists about 50,000 entries.
-const MAX_MARKER_BYTES: u64 = 16 << 20;
+mod marker;
+use marker::{Found, Listing};
+pub use marker::{MARKER, MAX_MARKER_BYTES};
+
 /// Most entries an output directory may hold to be replaced (a `--seeds` run at its limit
 /// has about 50,000).
 const MAX_ENTRIES: usize = 200_000;
 /// Entries named in a refusal.
 const NAMED: usize = 3;
-
-/// What [`MARKER`] holds.
-#[derive(Debug, Serialize, Deserialize)]
-struct Marker {
-    tool: String,
-    version: String,
-    kind: String,
-    /// Every entry the tool wrote, relative, `/`-separated, directories ending in `/`.
-    files: Vec<String>,
-}
-
-impl Marker {
-    fn new(kind: &str, files: Vec<String>) -> Marker {
-        Marker {
-            tool: env!("CARGO_PKG_NAME").into(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            kind: kind.into(),
-            files,
-        }
-    }
-
-    /// The marker in `dir`, if it is one of this tool's for outputs of `kind`; else why not.
-    fn read(dir: &Path, kind: &str) -> std::result::Result<Marker, String> {
-        let path = dir.join(MARKER);
-        if std::fs::symlink_metadata(&path).is_err() {
-            return Err(format!(
-                "it holds no {MARKER} marker, so nothing shows that {} wrote it",
-                env!("CARGO_PKG_NAME")
-            ));
-        }
-        let bytes = read_capped(&path, MAX_MARKER_BYTES).map_err(|e| e.to_string())?;
-        let mut m: Marker = weights::json::parse_bytes(&bytes)
-            .map_err(|_| format!("its {MARKER} is not a marker this tool wrote"))?;
-        m.files.sort();
-        if m.tool != env!("CARGO_PKG_NAME") || m.kind != kind {
-            return Err(format!(
-                "its {MARKER} marks an output of {} {}, not of {} {kind}",
-                weights::quote(&m.tool),
-                weights::quote(&m.kind),
-                env!("CARGO_PKG_NAME")
-            ));
-        }
-        Ok(m)
-    }
-}
 
 /// Every entry under `dir` but the marker, relative and sorted, directories ending in `/`;
 /// refused if any is neither a regular file nor a directory (the tool writes no other kind),
@@ -109,37 +65,101 @@ fn listing(dir: &Path) -> std::result::Result<Vec<String>, String> {
 }
 
 /// Whether `dir` (an existing directory) may be replaced by an output of `kind`: empty, or
-/// marked by this tool for `kind` and holding only what its marker lists; else why not.
+/// marked by this tool for `kind` and holding only what its marker lists, each file as the
+/// tool wrote it; else why not.
 fn replaceable(dir: &Path, kind: &str) -> std::result::Result<(), String> {
     let found = listing(dir)?;
     if found.is_empty() && std::fs::symlink_metadata(dir.join(MARKER)).is_err() {
         return Ok(());
     }
-    let marker = Marker::read(dir, kind)?;
-    let foreign: Vec<&String> = found
-        .iter()
-        .filter(|f| marker.files.binary_search(f).is_err())
-        .collect();
-    if foreign.is_empty() {
-        return Ok(());
+    let verdicts = proof(dir, kind, &found)?;
+    unproven(&found, &verdicts)
+}
+
+/// What the marker in `dir` shows of each of `found`, if it is this tool's for `kind` and
+/// lists each file's size and digest.
+fn proof(dir: &Path, kind: &str, found: &[String]) -> std::result::Result<Vec<Found>, String> {
+    let marker = marker::read(dir, kind, found)?;
+    if marker.listing == Listing::Names {
+        return Err(format!(
+            "its {MARKER} is an earlier version's, which lists files without their sizes and \
+             digests, so nothing shows they are still those {} wrote (move what you keep, \
+             then remove the directory)",
+            env!("CARGO_PKG_NAME")
+        ));
     }
-    let named: Vec<String> = foreign
+    Ok(marker.found)
+}
+
+/// Refuses the entries of `found` that their verdicts do not show the tool's: first those
+/// the marker does not list, then the files it lists with another size or digest.
+fn unproven(found: &[String], verdicts: &[Found]) -> std::result::Result<(), String> {
+    let with = |verdict: Found| -> Vec<&String> {
+        let both = found.iter().zip(verdicts);
+        both.filter(|(_, v)| **v == verdict)
+            .map(|(f, _)| f)
+            .collect()
+    };
+    let tool = env!("CARGO_PKG_NAME");
+    let foreign = with(Found::Foreign);
+    if !foreign.is_empty() {
+        let n = count(foreign.len(), "entry", "entries");
+        return Err(format!(
+            "it holds {n} {tool} did not write ({})",
+            named(&foreign)
+        ));
+    }
+    let changed = with(Found::Changed);
+    if !changed.is_empty() {
+        let n = count(changed.len(), "file", "files");
+        return Err(format!(
+            "it holds {n} no longer as {tool} wrote (its {MARKER} lists another size or \
+             digest: {})",
+            named(&changed)
+        ));
+    }
+    Ok(())
+}
+
+/// `n` and the noun for it.
+fn count(n: usize, one: &str, many: &str) -> String {
+    format!("{n} {}", if n == 1 { one } else { many })
+}
+
+/// The first [`NAMED`] of `entries`, quoted, then `...` if there are more.
+fn named(entries: &[&String]) -> String {
+    let shown: Vec<String> = entries
         .iter()
         .take(NAMED)
         .map(|f| weights::quote(f))
         .collect();
-    Err(format!(
-        "it holds {} {} {} did not write ({}{})",
-        foreign.len(),
-        if foreign.len() == 1 {
-            "entry"
-        } else {
-            "entries"
-        },
-        env!("CARGO_PKG_NAME"),
-        named.join(", "),
-        if foreign.len() > NAMED { ", ..." } else { "" }
-    ))
+    let more = if entries.len() > NAMED { ", ..." } else { "" };
+    shown.join(", ") + more
+}
+
+/// Removes `dir`, an earlier output of `kind` (moved aside by a commit, or left by a killed
+/// one), as far as its marker proves it the tool's: each entry it lists as written, deepest
+/// first, then the marker and the directory. Anything else (a file changed or added since
+/// it was checked) is kept, with the directory, and named in the error.
+fn clear(dir: &Path, kind: &str) -> std::result::Result<(), String> {
+    let found = listing(dir)?;
+    let marked = std::fs::symlink_metadata(dir.join(MARKER)).is_ok();
+    if marked || !found.is_empty() {
+        let verdicts = proof(dir, kind, &found)?;
+        for (entry, verdict) in found.iter().zip(&verdicts).rev() {
+            let path = dir.join(entry);
+            if *verdict == Found::Owned {
+                // A directory that still holds something kept stays.
+                let _ = match entry.ends_with('/') {
+                    true => std::fs::remove_dir(&path),
+                    false => std::fs::remove_file(&path),
+                };
+            }
+        }
+        unproven(&found, &verdicts)?;
+        std::fs::remove_file(dir.join(MARKER)).map_err(|e| e.to_string())?;
+    }
+    std::fs::remove_dir(dir).map_err(|e| format!("it holds what was added since ({e})"))
 }
 
 /// Checks, before any work, that `dir` can receive an output directory of `kind`: a new path
@@ -202,7 +222,11 @@ impl Staging {
             ))
         })?;
         for old in weights::files::stale(dest, &["partial", "old"]) {
-            if Marker::read(&old, kind).is_ok() {
+            if old.extension().is_some_and(|e| e == "old") {
+                // An earlier output a killed commit moved aside: what its marker proves.
+                let _ = clear(&old, kind);
+            } else if marker::read(&old, kind, &[]).is_ok() {
+                // A killed run's staging, marked when created, its files not yet listed.
                 let _ = std::fs::remove_dir_all(&old);
             }
         }
@@ -223,7 +247,7 @@ impl Staging {
             dest: dest.to_path_buf(),
             kind,
         };
-        staging.mark(Vec::new())?;
+        marker::write(&staging.tmp, kind, &[])?;
         Ok(staging)
     }
 
@@ -232,16 +256,14 @@ impl Staging {
         &self.tmp
     }
 
-    fn mark(&self, files: Vec<String>) -> Result<()> {
-        let marker = serde_json::to_vec_pretty(&Marker::new(self.kind, files))?;
-        Ok(write_atomic(&self.tmp.join(MARKER), &marker)?)
-    }
-
-    /// Lists what was written in the marker and puts the directory in place of the
-    /// destination, which is checked again first.
+    /// Lists what was written in the marker, each file with its size and digest, and puts
+    /// the directory in place of the destination, which is checked again first. The earlier
+    /// output is moved aside and removed as far as its marker proves it the tool's: a file
+    /// changed or added in between is kept there, named in the error.
     pub fn commit(self) -> Result<()> {
         check_output_dir(&self.dest, self.kind)?;
-        self.mark(listing(&self.tmp).map_err(anyhow::Error::msg)?)?;
+        let entries = listing(&self.tmp).map_err(anyhow::Error::msg)?;
+        marker::write(&self.tmp, self.kind, &entries)?;
         let old = self.tmp.with_extension("old");
         let had_old = self.dest.exists();
         if had_old {
@@ -250,9 +272,12 @@ impl Staging {
         }
         std::fs::rename(&self.tmp, &self.dest)
             .with_context(|| format!("renaming onto {}", weights::shown(&self.dest)))?;
-        if had_old {
-            std::fs::remove_dir_all(&old)
-                .with_context(|| format!("removing {}", weights::shown(&old)))?;
+        if had_old && let Err(why) = clear(&old, self.kind) {
+            bail!(
+                "{} is written, but the earlier output moved aside to {} is kept: {why}",
+                weights::shown(&self.dest),
+                weights::shown(&old)
+            );
         }
         Ok(())
     }
@@ -285,11 +310,9 @@ mod tests {
         std::fs::write(st.path().join("seed-1/summary.json"), b"{}").unwrap();
         std::fs::write(st.path().join("aggregate.json"), b"{}").unwrap();
         st.commit().unwrap();
-        let marker = Marker::read(&dest, "train").unwrap();
-        assert_eq!(
-            marker.files,
-            ["aggregate.json", "seed-1/", "seed-1/summary.json"]
-        );
+        let found = listing(&dest).unwrap();
+        assert_eq!(found, ["aggregate.json", "seed-1/", "seed-1/summary.json"]);
+        assert_eq!(proof(&dest, "train", &found).unwrap(), [Found::Owned; 3]);
         check_output_dir(&dest, "train").unwrap();
         let e = check_output_dir(&dest, "reproduce")
             .unwrap_err()
@@ -307,6 +330,54 @@ mod tests {
         assert!(
             e.contains("a symbolic link \"link\", which this tool never writes"),
             "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_listed_file_no_longer_as_written_is_refused_and_kept() {
+        let dir = scratch("changed");
+        let dest = dir.join("run");
+        let st = Staging::new(&dest, "train").unwrap();
+        std::fs::write(st.path().join("summary.json"), b"{}").unwrap();
+        std::fs::write(st.path().join("metrics.csv"), b"a,b").unwrap();
+        st.commit().unwrap();
+        // The same size, other bytes: the digest tells.
+        std::fs::write(dest.join("summary.json"), b"[]").unwrap();
+        let e = check_output_dir(&dest, "train").unwrap_err().to_string();
+        let said = "it holds 1 file no longer as policy-export wrote (its .cartpole-run lists \
+                    another size or digest: \"summary.json\")";
+        assert!(e.contains(said), "{e}");
+        // Changed after the check, before the clearing: kept, named, the rest removed.
+        let e = clear(&dest, "train").unwrap_err();
+        assert!(e.contains("\"summary.json\""), "{e}");
+        assert_eq!(std::fs::read(dest.join("summary.json")).unwrap(), b"[]");
+        assert!(!dest.join("metrics.csv").exists() && dest.join(MARKER).exists());
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn a_marker_that_lists_files_without_digests_proves_nothing() {
+        let dir = scratch("names");
+        std::fs::write(dir.join("thesis.tex"), b"years of work").unwrap();
+        let marker =
+            r#"{"tool":"policy-export","version":"0","kind":"train","files":["thesis.tex"]}"#;
+        std::fs::write(dir.join(MARKER), marker).unwrap();
+        let e = check_output_dir(&dir, "train").unwrap_err().to_string();
+        assert!(
+            e.contains("lists files without their sizes and digests"),
+            "{e}"
+        );
+        // Written by hand with the file's size but another digest.
+        let marker = r#"{"tool":"policy-export","version":"0","kind":"train","entries":[
+            {"path":"thesis.tex","bytes":13,"fnv1a64":"0000000000000000"}]}"#;
+        std::fs::write(dir.join(MARKER), marker).unwrap();
+        let e = check_output_dir(&dir, "train").unwrap_err().to_string();
+        assert!(e.contains("no longer as policy-export wrote"), "{e}");
+        clear(&dir, "train").unwrap_err();
+        assert_eq!(
+            std::fs::read(dir.join("thesis.tex")).unwrap(),
+            b"years of work"
         );
         std::fs::remove_dir_all(&dir).unwrap();
     }

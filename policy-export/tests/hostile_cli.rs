@@ -296,6 +296,44 @@ fn a_run_directory_is_replaced_whole_only_while_it_holds_only_the_runs_files() {
 }
 
 #[test]
+fn a_marker_written_by_hand_has_no_file_it_lists_removed() {
+    let dir = scratch("by-hand");
+    let out = dir.join("run");
+    let o = out.to_str().unwrap();
+    std::fs::create_dir(&out).unwrap();
+    std::fs::write(out.join("thesis.tex"), b"years of work").unwrap();
+    // An earlier version's list of names, then a list with a size and a digest made up.
+    let names = r#"{"tool":"policy-export","version":"0","kind":"train","files":["thesis.tex"]}"#;
+    let made_up = r#"{"tool":"policy-export","version":"0","kind":"train","entries":[
+        {"path":"thesis.tex","bytes":13,"fnv1a64":"0123456789abcdef"}]}"#;
+    for (marker, want) in [
+        (names, "lists files without their sizes and digests"),
+        (
+            made_up,
+            "1 file no longer as policy-export wrote (its .cartpole-run lists",
+        ),
+    ] {
+        std::fs::write(out.join(".cartpole-run"), marker).unwrap();
+        refused(&["train", "--episodes", "5", "--out", o], want);
+        assert_eq!(
+            std::fs::read(out.join("thesis.tex")).unwrap(),
+            b"years of work"
+        );
+    }
+    // The same directory as a killed commit would have left it aside: the next run keeps
+    // what the marker does not prove the run's.
+    let aside = dir.join(".run.4000000000.old");
+    std::fs::rename(&out, &aside).unwrap();
+    let o = run(&["train", "--episodes", "5", "--out", o]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        std::fs::read(aside.join("thesis.tex")).unwrap(),
+        b"years of work"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn a_run_that_diverges_on_its_last_update_writes_nothing() {
     let dir = scratch("diverge");
     let out = dir.join("d");

@@ -156,7 +156,8 @@ fn bad_outputs(s: &Scratch) -> Vec<Case> {
     std::fs::create_dir(&marked).unwrap();
     std::fs::write(
         marked.join(".cartpole-run"),
-        r#"{"tool":"policy-export","version":"0","kind":"train","files":["summary.json"]}"#,
+        r#"{"tool":"policy-export","version":"0","kind":"train","entries":[
+            {"path":"summary.json","bytes":2,"fnv1a64":"08f44b07b5901a25"}]}"#,
     )
     .unwrap();
     std::fs::write(marked.join("summary.json"), b"{}").unwrap();

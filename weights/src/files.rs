@@ -18,7 +18,7 @@ pub use apart::check_apart;
 pub const MAX_POLICY_BYTES: u64 = 64 << 20;
 
 /// Opens `path` for reading if it is a regular file, without blocking on a FIFO.
-fn open_regular(path: &Path) -> Result<File> {
+pub fn open_regular(path: &Path) -> Result<File> {
     let mut opts = std::fs::OpenOptions::new();
     opts.read(true);
     #[cfg(unix)]

@@ -1,4 +1,4 @@
-//! JSON the tools read back. Into a type ([`parse`]: run summaries, envelopes, markers,
+//! JSON the tools read back. Into a type ([`parse`]: run summaries, envelopes,
 //! `eval`'s rows for the tables) the memory is the type's, which ignores what it does not
 //! name. Into a generic value ([`value`]: results files compared, figures looked up) every
 //! value is kept, and costs tens of bytes however short its text (`0,` is two bytes and a
