@@ -6,8 +6,8 @@
 //! not against someone who computes digests of their own files to have them removed.
 //!
 //! Read as it streams, each entry judged against the directory and none kept: a marker at
-//! its cap of 16 MiB costs a few kilobytes, where parsed whole it cost about 9 times its
-//! size.
+//! its cap of 16 MiB costs about 8 KB, where parsed whole a list of short names took about
+//! 100 MB.
 
 use std::io::{BufReader, Read};
 use std::path::Path;
