@@ -21,7 +21,7 @@ use rand_core::Rng;
 
 use crate::grammar::{self, Kind, Part, Span};
 use crate::machine::{Machine, check_integrable};
-use crate::scenario::{Scenario, check_factors, idle_part, world_at};
+use crate::scenario::{Scenario, check_factors, idle_part};
 
 /// A distribution over scenarios; see [the module](self).
 #[derive(Clone, Debug, PartialEq)]
@@ -66,20 +66,14 @@ impl Domain {
             machine: *machine,
             parts: grammar::parse(spec, "domain")?,
         };
-        // A part changes nothing if the world it builds alone is the machine's at both ends
-        // of its ranges (`delay=1` on a rig of one period's dead time, `damping` on a motor
-        // without damping): the judgement of a scenario's parts ([`Scenario::parse_on`]).
-        for part in &d.parts {
-            let idle = [false, true].map(|high| {
-                let (world, end) = world_at(part, high, machine);
-                idle_part(&world, core::slice::from_ref(&end), machine)
-            });
-            if let [Some((key, why)), Some(_)] = idle {
-                return Err(format!(
-                    "domain {}: {key} changes nothing {why}",
-                    weights::quote(spec)
-                ));
-            }
+        // A part changes nothing if every world the sampler builds of it runs as the world
+        // without it (`delay=1` on a rig of one period's dead time, `length=2+length=0.5`,
+        // `damping` on a motor without damping): the judgement of a scenario's parts.
+        if let Some((key, why)) = idle_part(&d.parts, machine) {
+            return Err(format!(
+                "domain {}: {key} changes nothing {why}",
+                weights::quote(spec)
+            ));
         }
         // Every low end, every high end, and the stiffest corner: the most damping and
         // friction on the lightest, shortest pole and cart.
@@ -290,6 +284,36 @@ mod tests {
         Domain::parse("delay=1").unwrap();
         let e = Domain::parse("delay=0").unwrap_err();
         assert!(e.contains("own dead time is 0 periods"), "{e}");
+    }
+
+    /// A factor's parts are judged together, as the sampler applies them: all at once where
+    /// each is always drawn, apart where a share's coin may fall alone.
+    #[test]
+    fn the_parts_of_one_factor_are_judged_together() {
+        let desk = crate::rigfile::parse(include_str!("../../rigs/desk.toml"), "desk").unwrap();
+        for machine in [Machine::GYMNASIUM, desk] {
+            for spec in ["length=2+length=0.5", "noise+length=2+length=0.25+length=2"] {
+                let e = Domain::parse_on(spec, &machine).unwrap_err();
+                let want = format!(
+                    "domain {}: length changes nothing on this machine: its factors multiply \
+                     to 1",
+                    weights::quote(spec)
+                );
+                assert!(e.contains(&want), "{spec}: {e}");
+            }
+            for spec in [
+                "length=2@0.5+length=0.5@0.5",
+                "length=2+length=0.5@0.5",
+                "length=1..2+length=0.5",
+                "length=2..4+length=0.25..0.5",
+            ] {
+                let d = Domain::parse_on(spec, &machine).unwrap();
+                let mut rng = Pcg64Mcg::new(2);
+                let own = machine.rig.params.length;
+                let other = (0..50).any(|_| d.sample(&mut rng).params.length != own);
+                assert!(other, "{spec} drew only the machine's length");
+            }
+        }
     }
 
     #[test]

@@ -117,7 +117,7 @@ impl Scenario {
     /// without it under another name.
     pub fn parse_on(spec: &str, machine: &Machine) -> Result<Scenario, String> {
         let (s, parts) = Scenario::built(spec, machine)?;
-        words::refuse_idle_on(&s, &parts, machine)?;
+        judge::refuse_idle_on(&s, &parts, machine)?;
         Ok(s)
     }
 
@@ -414,8 +414,9 @@ pub(crate) mod effects {
     }
 }
 
+mod judge;
 mod words;
-pub(crate) use words::{idle_part, world_at};
+pub(crate) use judge::idle_part;
 
 #[cfg(test)]
 mod tests;

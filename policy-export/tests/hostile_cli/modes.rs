@@ -217,3 +217,23 @@ fn a_domain_is_judged_on_the_machine_trained_for() {
         assert!(o.status.success(), "{desk:?}: {}", stderr(&o));
     }
 }
+
+/// A domain's parts are judged as its sampler builds them, on the machine trained for: the
+/// factors of one quantity together.
+#[test]
+fn a_domain_whose_parts_build_only_the_machine_is_refused() {
+    for rig in [&[][..], &["--rig", "../rigs/desk.toml"]] {
+        let train = [&["train", "--print-config"][..], rig].concat();
+        refused(
+            &[&train[..], &["--domain", "length=2+length=0.5"]].concat(),
+            "domain \"length=2+length=0.5\": length changes nothing on this machine: its \
+             factors multiply to 1",
+        );
+        // Either coin may fall alone.
+        for domain in ["length=2@0.5+length=0.5@0.5", "length=2+length=0.5@0.5"] {
+            let args = [&train[..], &["--domain", domain]].concat();
+            let o = run(&args);
+            assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+        }
+    }
+}

@@ -1,13 +1,10 @@
-//! The worlds the tools' `--scenario` words build on a machine, and what each part changes
-//! there. Whether a part changes nothing is judged on the worlds built, not on the spec: a
-//! part's effect can depend on the machine (`delay=1` is one rig's own dead time and another
-//! rig's change, `damping` scales a damping one motor does not have), and factors of one
-//! quantity can multiply to 1.
+//! The worlds the tools' `--scenario` words build on a machine, and which of them are one
+//! world asked for twice.
 
 use std::collections::hash_map::{Entry, HashMap};
 
 use super::Scenario;
-use crate::grammar::{self, Part, PartSpec, Span};
+use crate::grammar::{self, Part, PartSpec};
 use crate::machine::Machine;
 
 impl Scenario {
@@ -130,80 +127,4 @@ pub(super) fn world_of<'a>(
         }
     }
     s
-}
-
-/// Refuses a part of `parts` (a factor's values all at once) that `s`, the world they build
-/// on `machine`, is the same without.
-pub(super) fn refuse_idle_on(
-    s: &Scenario,
-    parts: &[Part],
-    machine: &Machine,
-) -> Result<(), String> {
-    match idle_part(s, parts, machine) {
-        Some((key, why)) => Err(format!(
-            "scenario {}: {key} changes nothing {why}",
-            weights::quote(&s.name)
-        )),
-        None => Ok(()),
-    }
-}
-
-/// The first part of `parts` (a factor's values all at once) that `s`, the world they build
-/// on `machine`, is the same without: its key, and why it changes nothing.
-pub(crate) fn idle_part(
-    s: &Scenario,
-    parts: &[Part],
-    machine: &Machine,
-) -> Option<(&'static str, String)> {
-    let mut judged: Vec<&PartSpec> = Vec::new();
-    for part in parts {
-        if judged.contains(&part.spec) {
-            continue;
-        }
-        judged.push(part.spec);
-        let without = parts.iter().filter(|q| q.spec != part.spec);
-        if !world_of(without, machine).same_world(s) {
-            continue;
-        }
-        let key = part.spec.key;
-        let rig = &machine.rig;
-        let why = if let Some(why) = scales_nothing(part.spec, machine) {
-            why.to_string()
-        } else if key == "delay" {
-            format!(
-                "on this machine, whose own dead time is {}; expected another value, or the \
-                 part left out",
-                crate::machine::periods(rig.dead_time)
-            )
-        } else if parts.iter().filter(|q| q.spec == part.spec).count() > 1 {
-            "on this machine: its factors multiply to 1; expected other values, or the part \
-             left out"
-                .to_string()
-        } else {
-            "on this machine, which has it already; expected another value, or the part left \
-             out"
-            .to_string()
-        };
-        return Some((key, why));
-    }
-    None
-}
-
-/// The world `part` alone builds on `machine` at the low ends of its ranges, or the high.
-pub(crate) fn world_at(part: &Part, high: bool, machine: &Machine) -> (Scenario, Part) {
-    let end = Part {
-        values: (part.ends(high).into_iter())
-            .map(|v| v.map(|x| Span { lo: x, hi: x }))
-            .collect(),
-        ..part.clone()
-    };
-    (world_of(core::iter::once(&end), machine), end)
-}
-
-/// Why a part of `spec` changes nothing on `machine` at any value, if it does: a factor on a
-/// damping the motor does not have (Gymnasium's).
-pub(crate) fn scales_nothing(spec: &PartSpec, machine: &Machine) -> Option<&'static str> {
-    (spec.key == "damping" && machine.rig.params.motor_damping == 0.0).then_some(
-        "on a machine without motor damping; expected another part, or a rig that has some",
-    )
 }
