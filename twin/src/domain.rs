@@ -68,7 +68,7 @@ impl Domain {
         };
         // A part changes nothing if every world the sampler builds of it runs as the world
         // without it (`delay=1` on a rig of one period's dead time, `length=2+length=0.5`,
-        // `damping` on a motor without damping): the judgement of a scenario's parts.
+        // `jitter` without an encoder part): the judgement of a scenario's parts.
         if let Some((key, why)) = idle_part(&d.parts, machine) {
             return Err(format!(
                 "domain {}: {key} changes nothing {why}",
@@ -313,6 +313,36 @@ mod tests {
                 let other = (0..50).any(|_| d.sample(&mut rng).params.length != own);
                 assert!(other, "{spec} drew only the machine's length");
             }
+        }
+    }
+
+    /// A part that needs another is judged beside the domain's other parts, drawn or not.
+    #[test]
+    fn a_part_that_needs_another_is_judged_beside_the_others() {
+        for (spec, want) in [
+            (
+                "noise=0..1+jitter=0..0.1",
+                "jitter changes nothing under exact sensing, where no encoder is read early or \
+                 late; expected an encoder part beside it",
+            ),
+            (
+                "zero=0.01..0.02+encoder=256..8192",
+                "zero changes nothing through encoders of 8192 counts per revolution and 40960 \
+                 per metre",
+            ),
+        ] {
+            let e = Domain::parse(spec).unwrap_err();
+            assert!(e.contains(want), "{spec}: {e}");
+        }
+        // An encoder part drawn in some worlds, or fine enough at its high end; an exact
+        // sensor where the encoder's coin falls.
+        for spec in [
+            "jitter=0..0.1@0.3+encoder=256..8192@0.3",
+            "encoder+jitter=0.2",
+            "zero=0.01..0.02+encoder=256..65536",
+            "zero=0.01+encoder=1024@0.5",
+        ] {
+            Domain::parse(spec).unwrap();
         }
     }
 

@@ -77,14 +77,12 @@ impl Faults {
         if (theta, x, glitch) == (0.0, 0.0, 0) {
             return m;
         }
-        let pole_count = core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev);
         match m {
             Measurement::Counts(cart, pole) => {
-                let counts = |v: f64| v.round() as i32;
+                let (dx, dtheta) = zero_counts((theta, x), encoders);
                 Measurement::Counts(
-                    cart.wrapping_add(counts(x * f64::from(encoders.cart_counts_per_m))),
-                    pole.wrapping_add(counts(theta / pole_count))
-                        .wrapping_add_unsigned(glitch),
+                    cart.wrapping_add(dx),
+                    pole.wrapping_add(dtheta).wrapping_add_unsigned(glitch),
                 )
             }
             Measurement::State(mut s) => {
@@ -92,7 +90,7 @@ impl Faults {
                 if x != 0.0 {
                     s[0] = (f64::from(s[0]) + x) as f32;
                 }
-                let theta = theta + f64::from(glitch) * pole_count;
+                let theta = theta + f64::from(glitch) * pole_count(encoders);
                 if theta != 0.0 {
                     s[2] = (f64::from(s[2]) + theta) as f32;
                 }
@@ -101,6 +99,22 @@ impl Faults {
             Measurement::Missing => m,
         }
     }
+}
+
+/// The counts `(cart, pole)` a zero error of `(theta, x)` (radians, metres) adds to what
+/// `encoders` read: the nearest whole counts, so that an error within half a count of each
+/// adds none.
+pub(crate) fn zero_counts((theta, x): (f64, f64), encoders: &Encoders) -> (i32, i32) {
+    let counts = |v: f64| v.round() as i32;
+    (
+        counts(x * f64::from(encoders.cart_counts_per_m)),
+        counts(theta / pole_count(encoders)),
+    )
+}
+
+/// One count of the pole encoder, radians.
+fn pole_count(encoders: &Encoders) -> f64 {
+    core::f64::consts::TAU / f64::from(encoders.pole_counts_per_rev)
 }
 
 /// Stretches of `periods` (field `i`) every `every` (field `i + 1`).

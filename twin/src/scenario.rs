@@ -92,6 +92,12 @@ impl Scenario {
         self.rig.dead_time
     }
 
+    /// Whether the board reads encoder counts, not the exact state: only then are readings
+    /// taken early or late (`jitter`) and the zero errors rounded to whole counts.
+    pub fn reads_counts(&self) -> bool {
+        self.sensing != Sensing::Exact
+    }
+
     /// The same world with its board modelling another machine, `board`: the physics its
     /// observer, predictor and gains run, its observer's tuning and its end-stop margin
     /// (a policy trained for one rig and run on another; a rig identified from a true one).

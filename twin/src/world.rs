@@ -14,7 +14,7 @@ use rand_core::Rng;
 use rand_distr::{Distribution, StandardNormal};
 
 use crate::machine::{self, Integration, Lane};
-use crate::scenario::{Scenario, Sensing};
+use crate::scenario::Scenario;
 
 /// What the sensors report in one period: the link's, which a board's sensor reads.
 pub use firmware::link::Measurement;
@@ -83,7 +83,7 @@ impl<'s, R: Rng> World<'s, R> {
         let s = self.plant.state();
         let sd = self.scenario.noise_std;
         let noisy = sd != [0.0; 4];
-        if self.scenario.sensing != Sensing::Exact {
+        if self.scenario.reads_counts() {
             let (mut x, mut theta) = (s.x, s.theta);
             if self.scenario.jitter > 0.0 {
                 // Within a few milliseconds the second-order term stays below one count.

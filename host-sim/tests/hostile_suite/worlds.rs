@@ -44,6 +44,9 @@ pub fn bad_specs() -> Vec<Case> {
         // At values that change nothing on the machine the episodes run on (Gymnasium's).
         "length=2+length=0.5",
         "delay=0",
+        // Parts without what they need beside them: the same episodes under another name.
+        "noise+jitter=0.5",
+        "encoder=1024+zero=0.1/0.09",
         // A discount the board's f32 holds as a subnormal.
         "encoder=2400/15000/1e-40",
     ];

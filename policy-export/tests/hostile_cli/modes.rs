@@ -219,18 +219,30 @@ fn a_domain_is_judged_on_the_machine_trained_for() {
 }
 
 /// A domain's parts are judged as its sampler builds them, on the machine trained for: the
-/// factors of one quantity together.
+/// factors of one quantity together, and a part beside the parts it needs.
 #[test]
 fn a_domain_whose_parts_build_only_the_machine_is_refused() {
     for rig in [&[][..], &["--rig", "../rigs/desk.toml"]] {
         let train = [&["train", "--print-config"][..], rig].concat();
-        refused(
-            &[&train[..], &["--domain", "length=2+length=0.5"]].concat(),
-            "domain \"length=2+length=0.5\": length changes nothing on this machine: its \
-             factors multiply to 1",
-        );
-        // Either coin may fall alone.
-        for domain in ["length=2@0.5+length=0.5@0.5", "length=2+length=0.5@0.5"] {
+        for (domain, want) in [
+            (
+                "length=2+length=0.5",
+                "domain \"length=2+length=0.5\": length changes nothing on this machine: its \
+                 factors multiply to 1",
+            ),
+            (
+                "noise=0..1+jitter=0..0.1",
+                "jitter changes nothing under exact sensing, where no encoder is read early or \
+                 late; expected an encoder part beside it",
+            ),
+        ] {
+            refused(&[&train[..], &["--domain", domain]].concat(), want);
+        }
+        // Either coin may fall alone; an encoder part drawn in some worlds.
+        for domain in [
+            "length=2@0.5+length=0.5@0.5",
+            "noise=0..1+jitter=0..0.1@0.3+encoder=256..8192@0.3",
+        ] {
             let args = [&train[..], &["--domain", domain]].concat();
             let o = run(&args);
             assert!(o.status.success(), "{args:?}: {}", stderr(&o));

@@ -153,7 +153,8 @@ pub const PARTS: &[PartSpec] = &[
         syntax: "jitter[=F]",
         doc: "the encoders are read up to F of a period early or late (an interrupt's \
               latency), uniformly: the positions move on over the offset at the state's \
-              velocities; only readings through encoders",
+              velocities; only readings through encoders, so refused without an encoder \
+              part",
         stiff_high: false,
         idle: Idle::First(0.0),
     },
@@ -184,7 +185,8 @@ pub const PARTS: &[PartSpec] = &[
         ],
         syntax: "zero=DEG[/MM]",
         doc: "the encoders' zeros are off for the whole episode: the pole reads DEG degrees \
-              and the cart MM mm more than they are (through encoders, in whole counts)",
+              and the cart MM mm more than they are (through encoders, in whole counts: \
+              refused where both round to none)",
         stiff_high: false,
         idle: Idle::Every(0.0),
     },

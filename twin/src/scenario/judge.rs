@@ -1,16 +1,18 @@
 //! Whether a part of a scenario or a domain changes nothing, judged on the worlds its parts
-//! build on a machine, not on the spec. A part's effect can depend on the machine
-//! (`delay=1` is one rig's own dead time and another rig's change, `damping` scales a
-//! damping one motor does not have), and factors of one quantity can multiply to 1. A
-//! scenario is the domain whose every value is a point, so one judgement serves both.
+//! build on a machine and on how those worlds run, not on the spec. A part's effect can
+//! depend on the machine (`delay=1` is one rig's own dead time and another rig's change,
+//! `damping` scales a damping one motor does not have), on the parts beside it (`jitter`
+//! moves only readings taken through encoders), and factors of one quantity can multiply
+//! to 1. A scenario is the domain whose every value is a point, so one judgement serves both.
 
 use super::Scenario;
 use super::words::world_of;
+use crate::faults::zero_counts;
 use crate::grammar::{Part, PartSpec, Span};
 use crate::machine::Machine;
 
 /// Refuses a part of `parts` (a factor's values all at once) that `s`, the world they build
-/// on `machine`, is the same without.
+/// on `machine`, runs the same without.
 pub(super) fn refuse_idle_on(
     s: &Scenario,
     parts: &[Part],
@@ -42,13 +44,14 @@ pub(crate) fn idle_part(parts: &[Part], machine: &Machine) -> Option<(&'static s
 }
 
 /// Why the parts of `key` change nothing in the worlds a sampler of `parts` builds on
-/// `machine`, or `None` where one of them is another world without those parts. The sampler
+/// `machine`, or `None` where one of them runs otherwise without those parts. The sampler
 /// draws each value within its range and each share's coin alone, so the worlds looked at
 /// are: the key's parts at the low ends of their ranges and at the high ends, all at once
 /// (a factor's values multiply, and their product is 1 at both ends only if it is 1
 /// throughout); those of share 1 together, with each of a lower share beside them or alone
 /// (its coin may fall without the others'); and the other parts at either end, all of
-/// them or only those of share 1.
+/// them or only those of share 1 (an encoder part of a lower share, which `jitter` needs,
+/// or whose coarse counts hide a `zero`).
 fn idle_key(key: &PartSpec, parts: &[Part], machine: &Machine) -> Option<String> {
     let ranged = parts
         .iter()
@@ -83,7 +86,9 @@ fn idle_key(key: &PartSpec, parts: &[Part], machine: &Machine) -> Option<String>
                 if !with.same_world(&without) {
                     return None;
                 }
-                why.get_or_insert_with(|| reason(key, set.len(), machine));
+                // Read at the high ends last, where a part that needs another sets the most
+                // (a jitter range's low end may be 0, which needs nothing).
+                why = Some(reason(key, &with, set.len(), machine));
             }
         }
     }
@@ -100,10 +105,14 @@ fn end(part: &Part, high: bool) -> Part {
     }
 }
 
-/// Why a part of `key` (`factors` of them at once) changes nothing on `machine`.
-fn reason(key: &PartSpec, factors: usize, machine: &Machine) -> String {
+/// Why a part of `key` (`factors` of them at once) changes nothing in `with`, a world it
+/// runs the same without, on `machine`.
+fn reason(key: &PartSpec, with: &Scenario, factors: usize, machine: &Machine) -> String {
     if let Some(why) = scales_nothing(key, machine) {
         return why.to_string();
+    }
+    if let Some(need) = NEEDS.iter().find(|n| n.key == key.key && (n.moot)(with)) {
+        return (need.why)(with);
     }
     if key.key == "delay" {
         return format!(
@@ -128,3 +137,56 @@ pub(crate) fn scales_nothing(spec: &PartSpec, machine: &Machine) -> Option<&'sta
         "on a machine without motor damping; expected another part, or a rig that has some",
     )
 }
+
+/// A part whose effect needs something beside it: in a world where `moot` holds, the field
+/// the part sets changes nothing in any episode, and `clear` takes it out.
+struct Need {
+    key: &'static str,
+    moot: fn(&Scenario) -> bool,
+    clear: fn(&mut Scenario),
+    why: fn(&Scenario) -> String,
+}
+
+/// Every part a world can hold without effect ([`crate::world::World`]'s sensors): what is
+/// left out is a `reset` under exact sensing without dead time, which restarts nothing in
+/// the twin's episodes but restarts the monitor of a board in the loop.
+const NEEDS: &[Need] = &[
+    Need {
+        key: "jitter",
+        moot: |s| s.jitter > 0.0 && !s.reads_counts(),
+        clear: |s| s.jitter = 0.0,
+        why: |_| {
+            "under exact sensing, where no encoder is read early or late; expected an encoder \
+             part beside it"
+                .into()
+        },
+    },
+    Need {
+        key: "zero",
+        moot: |s| {
+            let encoders = &s.rig.encoders;
+            s.reads_counts() && (s.faults.zero).is_some_and(|z| zero_counts(z, encoders) == (0, 0))
+        },
+        clear: |s| s.faults.zero = None,
+        why: |s| {
+            let e = &s.rig.encoders;
+            format!(
+                "through encoders of {} counts per revolution and {} per metre, which round \
+                 its errors to no count; expected an error of half a count or more",
+                e.pole_counts_per_rev, e.cart_counts_per_m
+            )
+        },
+    },
+];
+
+/// `s` as its episodes run: a field a part sets without effect there ([`NEEDS`]) taken out.
+pub(super) fn in_effect(s: &Scenario) -> Scenario {
+    let mut out = s.clone();
+    for need in NEEDS.iter().filter(|n| (n.moot)(s)) {
+        (need.clear)(&mut out);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

@@ -180,7 +180,6 @@ fn bad_specs_are_rejected_with_the_reason() {
 #[test]
 fn every_part_of_the_table_changes_the_world_it_is_applied_to() {
     let desk = crate::rigfile::parse(include_str!("../../../rigs/desk.toml"), "desk").unwrap();
-    let nominal = Scenario::nominal_on(&desk);
     for part in crate::grammar::PARTS {
         // The desk rig has a period of dead time already: its default would change nothing.
         let spec = match part.fields[0].fallback {
@@ -188,12 +187,20 @@ fn every_part_of_the_table_changes_the_world_it_is_applied_to() {
             _ if part.key == "delay" => "delay=3".to_string(),
             _ => part.key.to_string(),
         };
-        let s = Scenario::parse_on(&spec, &desk).unwrap();
-        let unnamed = Scenario {
-            name: nominal.name.clone(),
-            ..s
+        // Jitter moves only readings through encoders.
+        let beside = if part.key == "jitter" {
+            "encoder"
+        } else {
+            "nominal"
         };
-        assert_ne!(unnamed, nominal, "{spec} changed nothing");
+        let base = Scenario::parse_on(beside, &desk).unwrap();
+        let spec = if part.key == "jitter" {
+            format!("{beside}+{spec}")
+        } else {
+            spec
+        };
+        let s = Scenario::parse_on(&spec, &desk).unwrap();
+        assert!(!s.same_world(&base), "{spec} changed nothing");
     }
 }
 
@@ -314,7 +321,10 @@ fn a_negative_zero_is_the_world_of_its_zero() {
     let gym = Machine::GYMNASIUM;
     for (a, b) in [
         ("friction=0/0.001", "friction=-0/0.001"),
-        ("jitter=0.1+friction=0.1/0", "jitter=0.1+friction=0.1/-0"),
+        (
+            "encoder+jitter=0.1+friction=0.1/0",
+            "encoder+jitter=0.1+friction=0.1/-0",
+        ),
     ] {
         let e = words_on(&[a, b], &gym).unwrap_err();
         let want = format!(

@@ -4,6 +4,7 @@
 use std::collections::hash_map::{Entry, HashMap};
 
 use super::Scenario;
+use super::judge::in_effect;
 use crate::grammar::{self, Part, PartSpec};
 use crate::machine::Machine;
 
@@ -27,13 +28,14 @@ impl Scenario {
         expand(words, machine, Scenario::build_on).map(|(rows, _)| rows)
     }
 
-    /// Whether `other` is the same world under whatever name.
+    /// Whether `other` runs as this world does, under whatever name: a field that changes
+    /// nothing in its episodes (`jitter` under exact sensing) aside.
     pub fn same_world(&self, other: &Scenario) -> bool {
         let named = Scenario {
             name: other.name.clone(),
-            ..self.clone()
+            ..in_effect(self)
         };
-        named == *other
+        named == in_effect(other)
     }
 }
 
@@ -73,15 +75,15 @@ const HARD_CANDIDATES_OFF_GYMNASIUM: &str = "scenario: expected `hard-candidates
      Gymnasium's machine, where the `hard` set was chosen from its rows; found another rig or \
      world: name the specs wanted, or `hard`, which builds on every machine";
 
-/// Refuses a spec's row whose world another row builds. Worlds are compared by their fields
-/// as `Debug` writes them (every number in its shortest exact form), so that ten thousand
-/// rows cost ten thousand keys, not fifty million pairs.
+/// Refuses a spec's row whose world another row builds ([`Scenario::same_world`]). Worlds
+/// are compared by their fields as `Debug` writes them (every number in its shortest exact
+/// form), so that ten thousand rows cost ten thousand keys, not fifty million pairs.
 fn refuse_same_world(rows: &[Scenario], typed: &[bool]) -> Result<(), String> {
     let mut seen: HashMap<String, usize> = HashMap::new();
     for (b, row) in rows.iter().enumerate() {
         let world = Scenario {
             name: String::new(),
-            ..row.clone()
+            ..in_effect(row)
         };
         match seen.entry(format!("{world:?}")) {
             Entry::Vacant(e) => {
