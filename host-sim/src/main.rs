@@ -347,30 +347,31 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     check_io(&inputs, &[])?;
     let controllers = a.controllers();
     let pil = a.pil.place(a.subject.policy.is_some(), &controllers)?;
-    let given = a
-        .subject
-        .rig
-        .as_deref()
-        .map(twin::rigfile::load)
-        .transpose()?;
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
-    // The specs are checked before the policy loads; what each changes is judged once the
-    // machine the episodes run on is known, where they are built.
-    let probe = world.or(given).unwrap_or(Machine::GYMNASIUM);
-    let probed = Scenario::words_built_on(&a.scenario, &probe).map_err(anyhow::Error::msg)?;
     let flags = ["--horizon", "--scenario", "--controller"];
-    eval::check_rows(&a.horizon, &probed, &controllers, flags).map_err(anyhow::Error::msg)?;
+    // Counted before the policy loads, each spec a row at least; built and judged once the
+    // machine the episodes run on is known (`--world`, `--rig` or the policy's own rig): a
+    // spec read on another machine could be refused there, or pass where it changes nothing.
+    let counts = [a.horizon.len(), a.scenario.len(), controllers.len()];
+    eval::check_count(counts, flags).map_err(anyhow::Error::msg)?;
     let (machine, net) = a.subject.load_for(&controllers)?;
-    let scenarios = match (&world, &a.world) {
+    let run_on = match (&world, &a.world) {
         (Some(w), Some(path)) => {
             world_arg::same_period(w, path, &machine, a.subject.rig.as_deref())?;
-            parse_scenarios(&a.scenario, w)?
-                .into_iter()
-                .map(|s| s.known_as(&machine.rig).map_err(anyhow::Error::msg))
-                .collect::<Result<_>>()?
+            w
         }
-        _ => parse_scenarios(&a.scenario, &machine)?,
+        _ => &machine,
     };
+    // A spec asked for twice is named as such before a world two specs build is.
+    let built = Scenario::words_built_on(&a.scenario, run_on).map_err(anyhow::Error::msg)?;
+    eval::check_rows(&a.horizon, &built, &controllers, flags).map_err(anyhow::Error::msg)?;
+    let mut scenarios = parse_scenarios(&a.scenario, run_on)?;
+    if world.is_some() {
+        // The board models the machine `--rig` or the policy gives, in the world `--world` is.
+        scenarios = (scenarios.into_iter())
+            .map(|s| s.known_as(&machine.rig).map_err(anyhow::Error::msg))
+            .collect::<Result<_>>()?;
+    }
     let jobs: Vec<(u32, &Scenario, ControllerKind)> = a
         .horizon
         .iter()

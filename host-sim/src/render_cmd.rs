@@ -64,18 +64,10 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         "--horizon / --stride must make at most {MAX_FRAMES} frames of the animation, got \
          {frames} ({horizon} / {stride})"
     );
-    let given = a
-        .subject
-        .rig
-        .as_deref()
-        .map(twin::rigfile::load)
-        .transpose()?;
-    // The spec is checked before the policy loads; what it changes is judged on the
-    // machine the episode runs on, once known.
-    Scenario::build_on(&a.scenario, &given.unwrap_or(twin::Machine::GYMNASIUM))
-        .map_err(anyhow::Error::msg)?;
     let (gif, png) = pictures(out)?;
     crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
+    // Built and judged once, on the machine the episode runs on (`--rig`, or the policy's
+    // own rig), not read first on another one.
     let (machine, net) = a.subject.load_for(&[a.controller])?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let (controller, seed, episode) = (a.controller, a.seed, a.episode);

@@ -173,3 +173,65 @@ fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
         assert!(o.stdout.is_empty(), "{args:?} printed on stdout");
     }
 }
+
+/// A spec is judged on the machine its episodes run on, which a policy's recorded rig
+/// gives: `delay=1` is the desk's own dead time, and a short pole with the most pivot
+/// friction integrates in the desk's Runge-Kutta steps where Gymnasium's Euler step of a
+/// period does not.
+#[test]
+fn eval_and_render_judge_a_spec_on_the_rig_the_policy_records() {
+    let dir = scratch("judged");
+    let desk = repo().join("rigs/desk.toml");
+    let gym = repo().join("rigs/gymnasium.toml");
+    let policy = run_dir(&dir, &std::fs::read_to_string(&desk).unwrap());
+    let pics = dir.join("pics");
+    let (policy, gym, out) = (
+        policy.to_str().unwrap(),
+        gym.to_str().unwrap(),
+        pics.to_str().unwrap(),
+    );
+    let short = "length=0.15+friction=0/0.1";
+    let eval = |spec: &'static str| {
+        let head = [
+            "eval",
+            "--controller",
+            "lqr",
+            "--episodes",
+            "2",
+            "--horizon",
+            "20",
+        ];
+        [&head[..], &["--policy", policy, "--scenario", spec]].concat()
+    };
+    let refusals = [
+        (
+            eval("delay=1"),
+            "scenario \"delay=1\": delay changes nothing on this machine, whose own dead time \
+             is 1 period",
+        ),
+        (
+            [&eval(short)[..], &["--rig", gym]].concat(),
+            "the pivot's friction damps a velocity",
+        ),
+    ];
+    for (args, want) in refusals {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want) && o.stdout.is_empty(), "{args:?}: {err}");
+    }
+    let render = ["render", "--controller", "lqr", "--horizon", "5"];
+    let render = [
+        &render[..],
+        &["--policy", policy, "--scenario", short, "--out", out],
+    ]
+    .concat();
+    for args in [eval(short), eval("delay=2"), render] {
+        let o = run(&args);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{args:?}: {err}");
+        assert!(!o.stdout.is_empty(), "{args:?}: nothing printed");
+    }
+    assert!(pics.join("episode.png").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
