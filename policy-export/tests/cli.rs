@@ -191,7 +191,9 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
     let header = std::fs::read_to_string(&h).unwrap();
     assert!(
         header.contains("static const struct cartpole_mlp64 balance = {")
-            && header.contains("source: policy.safetensors (layers fc1, fc2, fc3 under no prefix"),
+            && header.contains(
+                "source: policy.safetensors (layers \"fc1\", \"fc2\", \"fc3\" under no prefix"
+            ),
         "{header}"
     );
     // The rig the run recorded (Gymnasium's, as trained here) goes beside the weights.
@@ -230,7 +232,7 @@ fn pytorch_checkpoints_export_and_ambiguous_ones_list_their_networks() {
         "{text}"
     );
     assert!(
-        text.contains("layers 0, 2, 4 under prefix \"network.\""),
+        text.contains("layers \"0\", \"2\", \"4\" under prefix \"network.\""),
         "{text}"
     );
 

@@ -44,7 +44,7 @@ pub fn load(
     let recorded = twin::rigfile::recorded(&import.metadata, &source).map_err(value_error)?;
     let machine = twin::rigfile::choose(given, recorded);
     let net = Net::from_weights(&import.weights, None)
-        .map_err(|e| value_error(format!("policy {}: {e:#}", path.display())))?;
+        .map_err(|e| value_error(format!("{source}: {e:#}")))?;
     Ok(Policy {
         import: Some(import),
         machine,

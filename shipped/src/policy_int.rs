@@ -8,7 +8,7 @@
 //! `q[1] > q[0]`. `q` holds the advantages `Q - mean(Q)` (`q[0] == -q[1]` as exported);
 //! one unit is 9.371611e-4 of the float policy's Q-value.
 //!
-//! - source: policy.safetensors (layers fc1, fc2, fc3 under no prefix, hidden width 64)
+//! - source: policy.safetensors (layers "fc1", "fc2", "fc3" under no prefix, hidden width 64)
 //! - int8 weights (per-channel), u8 activations (scales 9.7462e-3, 5.3042e-2), calibrated on 26000 visited states; advantage per output unit 9.371611e-4
 
 /// 5512 bytes of flash (int8 weights, int32 biases, a requantisation per hidden unit).

@@ -90,11 +90,14 @@ pub struct Import {
 }
 
 impl Import {
-    /// One line for a log: `fc1, fc2, fc3 under prefix network., width 64`.
+    /// One line for a log: `layers "0", "2", "4" under prefix "network.", hidden width 64`.
+    /// The names are the file's, so each is quoted: a layer named with a line break or an
+    /// escape sequence cannot forge a line or move a terminal's cursor.
     pub fn describe(&self) -> String {
+        let layers: Vec<String> = self.layers.iter().map(|l| quote(l)).collect();
         let mut s = format!(
             "layers {} under {}, hidden width {}",
-            self.layers.join(", "),
+            layers.join(", "),
             show_prefix(&self.prefix),
             self.weights.width()
         );

@@ -144,6 +144,20 @@ fn tensors_outside_the_network_need_an_explicit_prefix() {
     assert!(got.describe().contains("1 other tensors ignored"));
 }
 
+/// The file's layer names reach the log line quoted: a name with a line break or an escape
+/// sequence neither starts a line nor reaches the terminal raw.
+#[test]
+fn the_description_quotes_the_files_layer_names() {
+    let layers = ["q\nerror: fake fc1", "\u{1b}[31mfc2", "fc3"];
+    let got = import(&named("", layers, &[]), None).unwrap();
+    let d = got.describe();
+    assert!(
+        d.starts_with(r#"layers "q\nerror: fake fc1", "\u{1b}[31mfc2", "fc3" under no prefix"#),
+        "{d}"
+    );
+    assert!(!d.chars().any(char::is_control), "{d}");
+}
+
 #[test]
 fn shapes_that_do_not_make_the_network_say_why() {
     // A fourth layer.
