@@ -20,6 +20,10 @@ pub struct TrainArgs {
     /// TOML file of config keys overriding the preset (flags override it in turn).
     #[arg(long)]
     pub config: Option<PathBuf>,
+    /// The rig file of the machine to train for (`rigs/`): the preset is made for it, and
+    /// the configuration's `rig` key holds its text.
+    #[arg(long, value_name = "FILE")]
+    pub rig: Option<PathBuf>,
     /// One seed.
     #[arg(long, default_value_t = 0, conflicts_with = "seeds")]
     pub seed: u64,
@@ -69,14 +73,11 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
     // On the command line the rig is a file; the preset is made for its machine, and the
     // configuration keeps the file's text, so that a run records the machine it was trained
     // for whole.
-    let rig = match &args.set.rig {
+    let rig = match &args.rig {
         None => None,
         Some(path) => {
-            let bytes = read_capped(std::path::Path::new(path), twin::rigfile::MAX_RIG_BYTES)?;
-            let shown = weights::excerpt(path);
-            let text = String::from_utf8(bytes)
-                .map_err(|_| ConfigError(format!("--rig {shown}: expected UTF-8 text")))?;
-            let machine = twin::rigfile::parse(&text, &format!("--rig {shown}"))?;
+            let (text, origin) = twin::rigfile::read_text(path)?;
+            let machine = twin::rigfile::parse(&text, &origin)?;
             Some((text, machine))
         }
     };

@@ -57,3 +57,32 @@ fn train_and_export_refuse_a_rig_no_machine_has_naming_the_field() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A rig file's name need not be text: `train --rig` takes any path, as `--config`, `--out`
+/// and `export --rig` do, and the configuration holds the file's text, whatever its name.
+#[test]
+fn train_takes_a_rig_whose_path_is_not_utf8_and_keeps_its_text() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = scratch("utf8");
+    let desk = repo().join("rigs/desk.toml");
+    let odd = dir.join(std::ffi::OsStr::from_bytes(b"rig\xff\xfe.toml"));
+    std::fs::copy(&desk, &odd).unwrap();
+    let config = |rig: &Path| {
+        let o = Command::new(env!("CARGO_BIN_EXE_policy-export"))
+            .args(["train", "--preset", "deploy", "--print-config", "--rig"])
+            .arg(rig)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "--rig {}: {err}", rig.display());
+        String::from_utf8(o.stdout).unwrap()
+    };
+    let printed = config(&odd);
+    assert_eq!(printed, config(&desk));
+    let cfg: toml::Table = toml::from_str(&printed).unwrap();
+    assert_eq!(
+        cfg["rig"].as_str(),
+        Some(std::fs::read_to_string(&desk).unwrap().as_str())
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}

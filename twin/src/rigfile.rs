@@ -409,11 +409,18 @@ pub fn parse(text: &str, origin: &str) -> Result<Machine> {
 /// Reads the rig file at `path` with its start-up: its `[startup]` table, the rest suggested
 /// from its physics ([`startup`]).
 pub fn load_startup(path: &Path) -> Result<(Machine, Startup)> {
+    let (text, origin) = read_text(path)?;
+    parse_startup(&text, &origin)
+}
+
+/// The text of the rig file at `path` (any path: its name need not be text, its contents
+/// must be), and how refusals of it name it, for [`parse`].
+pub fn read_text(path: &Path) -> Result<(String, String)> {
     let bytes = weights::files::read_capped(path, MAX_RIG_BYTES)?;
     let origin = format!("rig {}", weights::shown(path));
-    let text = std::str::from_utf8(&bytes)
+    let text = String::from_utf8(bytes)
         .map_err(|_| Error::Input(format!("{origin}: expected UTF-8 text")))?;
-    parse_startup(text, &origin)
+    Ok((text, origin))
 }
 
 /// [`parse`] with the start-up, as [`load_startup`] reads it.

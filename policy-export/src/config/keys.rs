@@ -22,6 +22,7 @@ macro_rules! config_keys {
             $(
                 $(#[doc = $key_doc:literal])*
                 $(#[serde($absent:ident)])?
+                $(#[flag($flag:ident)])?
                 $key:ident: $ty:ty = $paper:expr $(, limit $limit:expr)?;
             )*
         }
@@ -40,18 +41,7 @@ macro_rules! config_keys {
             }
         }
 
-        /// Some keys of a configuration, each set or absent: the command-line flags, one
-        /// `--key-with-dashes` per key (see [`Config`] for their meaning), and what a file
-        /// is read as before [`Config`] fills in the keys it may lack.
-        #[derive(Debug, Deserialize, clap::Args)]
-        #[serde(deny_unknown_fields)]
-        pub struct Overrides {
-            $(
-                #[arg(long)]
-                #[serde(default, deserialize_with = "keys::present")]
-                pub $key: Option<$ty>,
-            )*
-        }
+        config_keys!(@overrides [] $($key: $ty $(, $flag)?;)*);
 
         impl Overrides {
             /// Sets the keys that are set here.
@@ -85,6 +75,30 @@ macro_rules! config_keys {
                 get: |c| Value::from(&c.$key),
             },)?)*
         ];
+    };
+    // `Overrides`, a field a key: the flag `--key-with-dashes`, but none for a key marked
+    // `#[flag(file)]`, whose flag the command declares, taking the file whose text is the
+    // key's value (a path need not be text, so the flag cannot be the value's type).
+    (@overrides [$($field:tt)*] $key:ident: $ty:ty; $($rest:tt)*) => {
+        config_keys!(@overrides [$($field)* #[arg(long)] $key: $ty;] $($rest)*);
+    };
+    (@overrides [$($field:tt)*] $key:ident: $ty:ty, file; $($rest:tt)*) => {
+        config_keys!(@overrides [$($field)* #[arg(skip)] $key: $ty;] $($rest)*);
+    };
+    (@overrides [$(#[$arg:meta] $key:ident: $ty:ty;)*]) => {
+        /// Some keys of a configuration, each set or absent: the command-line flags, one
+        /// `--key-with-dashes` per key (see [`Config`] for their meaning) but for the keys
+        /// whose flag names a file, and what a file is read as before [`Config`] fills in
+        /// the keys it may lack.
+        #[derive(Debug, Deserialize, clap::Args)]
+        #[serde(deny_unknown_fields)]
+        pub struct Overrides {
+            $(
+                #[$arg]
+                #[serde(default, deserialize_with = "keys::present")]
+                pub $key: Option<$ty>,
+            )*
+        }
     };
     (@absent $key:ident, default, $paper:expr) => {
         $paper

@@ -16,7 +16,8 @@
 //! - [`Config::paper`], every key at its default (the other presets are changes to it);
 //! - [`Overrides`], one flag `--key-with-dashes` per key (the values of an enum's flag are
 //!   its `clap::ValueEnum` names), and [`Overrides::apply`], which lays them over a
-//!   configuration;
+//!   configuration; a key marked `#[flag(file)]` holds a file's text, and its flag, which
+//!   names the file (any path, text or not), is the command's to declare and read;
 //! - the reading of files that lack keys: `#[serde(default)]` marks a key added after files
 //!   were first written, and a file without it gets its paper default, the value runs had
 //!   before it existed; a file without any other key is refused;
@@ -28,17 +29,17 @@
 //! side: the flags (a second struct of `Option`s), the paper defaults and the limits would
 //! each stay a list kept in step with the struct by hand.
 //!
-//! Adding a key is one entry in the list. A file path that older files lack, say:
+//! Adding a key is one entry in the list. A switch that older files lack, say:
 //!
 //! ```text
-//! /// The rig the run is calibrated for (a file); empty: the nominal plant.
+//! /// Start each episode from the last one's final state.
 //! #[serde(default)]
-//! rig: PathBuf = PathBuf::new();
+//! carry_over: bool = false;
 //! ```
 //!
-//! gives `Config::rig`, `rig = "..."` in TOML and `--rig <RIG>`. A key with a limit names it
-//! after the default (`steps: u32 = 100, limit Limit::Count(1..=1_000);`); a new kind of
-//! limit is a new [`Limit`] variant. A key's enum (the kernel's, say) changes in the enum
+//! gives `Config::carry_over`, `carry_over = true` in TOML and `--carry-over <CARRY_OVER>`.
+//! A key with a limit names it after the default (`steps: u32 = 100, limit
+//! Limit::Count(1..=1_000);`); a new kind of limit is a new [`Limit`] variant. A key's enum (the kernel's, say) changes in the enum
 //! alone: its serde names are its TOML values and its `clap::ValueEnum` names its flag's.
 
 use std::fmt;
@@ -301,6 +302,7 @@ config_keys! {
         /// `--rig FILE` reads the file): the nominal world, the centre the domains' factors
         /// are relative to, its control period and dead time; empty: Gymnasium's machine.
         #[serde(default)]
+        #[flag(file)]
         rig: String = String::new(), limit Limit::Rig;
     }
 }

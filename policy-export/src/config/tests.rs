@@ -259,7 +259,8 @@ fn every_key_has_one_flag_which_sets_that_key_as_the_toml_key_does() {
         .map(|a| a.get_long().unwrap().replace('-', "_"))
         .collect();
     flags.sort();
-    let keys: Vec<&String> = paper.keys().collect();
+    // `rig`'s flag names a file, so `train` declares it (tests/rig_cli.rs).
+    let keys: Vec<&String> = paper.keys().filter(|k| *k != "rig").collect();
     assert_eq!(flags.iter().collect::<Vec<_>>(), keys);
     for arg in parser.get_arguments() {
         let flag = format!("--{}", arg.get_long().unwrap());
