@@ -64,6 +64,8 @@ def test_action_i_drives_level_i_as_gymnasiums_cartpole_pushed_with_its_force(se
         # Below float32's least subnormal: narrowed first, a zero that passed.
         ([-1.0, 5e-324], "found 5e-324"),
         ([-1.0, 1e-46], "found 1e-46"),
+        # Beyond the full push as given, the full push once narrowed: it passed.
+        ([-1.0, 1.0000000001], r"expected within \[-1, 1\], found 1.0000000001"),
     ],
 )
 def test_bad_levels_raise_value_error_naming_levels(levels, words):

@@ -9,6 +9,7 @@
 
 use std::collections::BTreeMap;
 
+use firmware::ConfigError;
 use firmware::controller::{Duty, check_levels};
 
 use crate::{BANG_BANG, Error, Result, few, quote};
@@ -93,11 +94,18 @@ pub fn parse_levels(spec: &str, by: &str) -> Result<Vec<f32>> {
 /// `levels` as the board holds them, or why they are not ones the firmware takes
 /// ([`check_levels`]) or not each zero or normal ([`crate::plain`]). They are checked before
 /// narrowing: a subnormal is a slip the board rounds to off, and one below f32's least
-/// (`5e-324`) would become a zero that passes.
+/// (`5e-324`) would become a zero that passes; a level just beyond the full push
+/// (`1.0000000001`) would round to it, and one beyond f32's range to an infinity.
 fn narrow(levels: &[f64]) -> std::result::Result<Vec<f32>, String> {
     if let Some(l) = levels.iter().find(|l| l.is_finite() && !crate::plain(**l)) {
         return Err(format!(
             "levels: expected each zero or a normal number, found {l:e}"
+        ));
+    }
+    if let Some(l) = levels.iter().find(|l| l.is_finite() && l.abs() > 1.0) {
+        return Err(format!(
+            "{}, found {l:?}",
+            ConfigError::OutOfRange("levels")
         ));
     }
     let narrowed: Vec<f32> = levels.iter().map(|&l| l as f32).collect();
@@ -228,7 +236,18 @@ mod tests {
             ("-1,1e-46,1", "found 1e-46"),
             ("-1,1e-50,1", "found 1e-50"),
             ("0.2,0.2004", "expected strictly increasing"),
-            ("-1,0,1.5", "expected within [-1, 1]"),
+            ("-1,0,1.5", "expected within [-1, 1], found 1.5"),
+            // Beyond the range in f64, the full push or an infinity in f32: read as f32
+            // first, the first two passed and the last was called infinite.
+            (
+                "-1,1.0000000001",
+                "expected within [-1, 1], found 1.0000000001",
+            ),
+            (
+                "-1.00000001,1",
+                "expected within [-1, 1], found -1.00000001",
+            ),
+            ("-1,1e300", "expected within [-1, 1], found 1e300"),
             ("-1,NaN", "expected a finite number"),
             ("-1,1e999", "expected a finite number"),
             ("1", "expected at least two"),
@@ -256,6 +275,11 @@ mod tests {
         assert_eq!(
             e.to_string(),
             "levels [-1, 5e-324]: levels: expected each zero or a normal number, found 5e-324"
+        );
+        let e = GivenLevels::new(&[-1.0, 1.0000000001], "levels").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "levels [-1, 1.0000000001]: levels: expected within [-1, 1], found 1.0000000001"
         );
         let e = GivenLevels::new(&[], "levels").unwrap_err().to_string();
         assert!(e.contains("expected at least two"), "{e}");
@@ -339,6 +363,11 @@ mod tests {
             ),
             ("[1, -1]", 2, "expected strictly increasing"),
             ("[-2, 1]", 2, "expected within [-1, 1]"),
+            (
+                "[-1, 1.0000000001]",
+                2,
+                "expected within [-1, 1], found 1.0000000001",
+            ),
             (
                 "[-1, 5e-324]",
                 2,
