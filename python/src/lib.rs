@@ -122,6 +122,7 @@ mod _native {
         m.add("MAX_EPISODES", host_sim::eval::MAX_EPISODES)?;
         m.add("MAX_HORIZON", host_sim::eval::MAX_HORIZON)?;
         m.add("MAX_ROWS", host_sim::eval::MAX_ROWS)?;
+        m.add("ROWS_PER_CHECK", policy::ROWS_PER_CHECK)?;
         Ok(())
     }
 

@@ -126,8 +126,9 @@ impl Policy {
     }
 }
 
-/// Readings a forward pass runs between two looks at Python's signals: milliseconds.
-const ROWS_PER_CHECK: u64 = 16384;
+/// Readings a forward pass runs between two looks at Python's signals: milliseconds. The
+/// Python package converts and checks readings a range of this many at a time too.
+pub(crate) const ROWS_PER_CHECK: u64 = 16384;
 
 /// The rows of `obs`, which must be `[n, 4]`, copied (the GIL is released as the network
 /// runs on them); `MemoryError` if they do not fit.

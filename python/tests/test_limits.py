@@ -7,6 +7,7 @@ import re
 import signal
 import subprocess
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -47,10 +48,14 @@ def test_the_native_vector_env_refuses_too_many_worlds_itself():
 
 class Interrupt:
     """SIGINT sent to this process from another thread after `delay` seconds, under
-    Python's own handler (KeyboardInterrupt)."""
+    Python's own handler (KeyboardInterrupt); `sent` is when (`time.monotonic`)."""
 
     def __init__(self, delay):
-        self.timer = threading.Timer(delay, os.kill, (os.getpid(), signal.SIGINT))
+        self.timer = threading.Timer(delay, self._send)
+
+    def _send(self):
+        self.sent = time.monotonic()
+        os.kill(os.getpid(), signal.SIGINT)
 
     def __enter__(self):
         self.handler = signal.signal(signal.SIGINT, signal.default_int_handler)
@@ -89,6 +94,20 @@ def test_ctrl_c_stops_a_vector_env_and_a_reset_recovers_it():
         assert "reset" in str(e)
     venv.reset(seed=1)
     assert venv.step(actions)[0].shape == (venv.num_envs, 4)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+def test_ctrl_c_stops_q_values_and_act_on_a_huge_batch_within_a_second(dtype):
+    """10^8 readings through a zero-stride view, many seconds of work: the interrupt is
+    heard after the range of readings in progress, whether it lands as they are converted,
+    checked or run, not after a pass over the whole batch (4 s of it at this size)."""
+    huge = np.broadcast_to(np.zeros((1, 4), dtype=dtype), (10**8, 4))
+    policy = cartpole_ddqn.shipped()
+    for call in (policy.q_values, policy.act):
+        with Interrupt(0.3) as interrupt, pytest.raises(KeyboardInterrupt):
+            call(huge)
+        late = time.monotonic() - interrupt.sent
+        assert late < 1.0, f"{call.__name__}: KeyboardInterrupt {late:.2f} s after the signal"
 
 
 def test_a_batch_that_cannot_fit_raises_memory_error():

@@ -90,6 +90,17 @@ def test_loaded_policy_evaluates_as_the_command_line_does(tools):
     assert got == want
 
 
+def test_the_repr_quotes_the_files_layer_names(tmp_path):
+    """Tensor names are the file's: a layer named with a line break or an escape sequence
+    is shown quoted and escaped, on one line."""
+    path = tmp_path / "names.safetensors"
+    layers = {"fc1": "q\nerror: fake fc1", "fc2": "\x1b[31mfc2", "fc3": "fc3"}
+    write_safetensors(path, {layers[k[:3]] + k[3:]: v for k, v in read_safetensors(SHIPPED).items()})
+    shown = repr(cartpole_ddqn.load(path))
+    assert shown.startswith('Policy(layers "q\\nerror: fake fc1", "\\u{1b}[31mfc2", "fc3" under no prefix'), shown
+    assert shown.isprintable(), shown
+
+
 def test_refusals_raise_value_error():
     with pytest.raises(ValueError, match="nonexistent"):
         cartpole_ddqn.load(REPO / "nonexistent.safetensors")

@@ -42,9 +42,9 @@ class Policy:
         self._native = native
 
     def q_values(self, obs):
-        obs = _readings(obs)
-        q = self._native.q_values(obs.reshape(-1, 4))
-        return q.reshape(obs.shape[:-1] + q.shape[-1:])
+        source, given = _readings(obs)
+        q = _by_range(source, given, (len(self.levels),), np.float32, self._native.q_values)
+        return q.reshape(given.shape[:-1] + q.shape[-1:])
 
     @property
     def levels(self):
@@ -52,8 +52,8 @@ class Policy:
         return self._native.levels
 
     def act(self, obs):
-        obs = _readings(obs)
-        actions = self._native.act(obs.reshape(-1, 4)).reshape(obs.shape[:-1])
+        source, given = _readings(obs)
+        actions = _by_range(source, given, (), np.int64, self._native.act).reshape(given.shape[:-1])
         return int(actions) if actions.ndim == 0 else actions
 
     def __repr__(self):
@@ -62,12 +62,15 @@ class Policy:
 
 _NOT_REAL = "obs: expected readings that are real numbers; found"
 
+# Readings converted, checked and run between two looks at Ctrl-C: the native network's
+# range, a few milliseconds of work.
+_ROWS = _native.ROWS_PER_CHECK
+
 
 def _readings(obs):
-    """Readings as the network takes them, float32 ``[..., 4]``, refused with ValueError
-    naming ``obs`` where they are no real numbers (None, text, complex) or not finite in
-    float32 (NaN, an infinity, 1e300): the network answered them all the same, and NaN
-    turns every ReLU off, so its answer was a constant no state chose."""
+    """``obs`` as given (``source``) and as real numbers (``given``, the same array but for an
+    object array's items as float64), shaped ``[..., 4]``: refused with ValueError naming
+    ``obs`` where they are no real numbers (None, text, complex)."""
     source = np.asarray(obs)
     if source.ndim == 0 or source.shape[-1] != 4:
         raise ValueError(
@@ -77,12 +80,35 @@ def _readings(obs):
     if given.dtype.kind not in "biuf":
         first = f", the first {_item(given, 0)} at {[0] * given.ndim}" if given.size else ""
         raise ValueError(f"{_NOT_REAL} {given.dtype} readings{first}")
+    return source, given
+
+
+def _by_range(source, given, tail, dtype, run):
+    """``run`` (the network's native call on float32 readings ``[m, 4]``, giving ``[m,
+    *tail]``) on every reading of ``given``, into one array ``[n, *tail]`` of ``dtype``
+    (MemoryError if it cannot be allocated). The readings are converted and checked
+    ``_ROWS`` at a time, as the network runs them: a pass over a batch of 10^8 before the
+    first range heard Ctrl-C only seconds later, and held a float32 copy of it whole."""
+    n = given.size // 4
+    out = np.empty((n, *tail), dtype=dtype)
+    for start in range(0, n, _ROWS):
+        end = min(start + _ROWS, n)
+        out[start:end] = run(_checked(source, given, start, end))
+    return out
+
+
+def _checked(source, given, start, end):
+    """Readings ``start..end`` of ``given`` (in C order) as the network takes them, float32
+    ``[m, 4]``, refused with ValueError naming ``obs`` and the first as ``source`` holds it
+    where they are not finite in float32 (NaN, an infinity, 1e300): the network answered
+    them all the same, and NaN turns every ReLU off, so its answer was a constant no state
+    chose."""
     # Past float32's range a value becomes an infinity: refused below, shown as given.
     with np.errstate(over="ignore"):
-        readings = np.ascontiguousarray(given, dtype=np.float32)
+        readings = given.flat[4 * start : 4 * end].astype(np.float32, copy=False).reshape(-1, 4)
     finite = np.isfinite(readings)
     if not finite.all():
-        k = int(np.argmin(finite))
+        k = 4 * start + int(np.argmin(finite))
         raise ValueError(f"obs: expected readings finite in float32; found {_item(source, k)} at {_at(source, k)}")
     return readings
 
