@@ -25,7 +25,7 @@
 //!
 //! Optional: `gravity_m_s2` (9.8, Gymnasium's), `failure_angle_deg` (12), a `[world]` table
 //! with `integration = "continuous"` (the default: Runge-Kutta steps of at most `substep_s`,
-//! 0.001) or `"euler"` (Gymnasium's one step per period), and an `[observer]` table with the
+//! 0.001, and at most the period) or `"euler"` (Gymnasium's one step per period), and an `[observer]` table with the
 //! observer's `force_sd` and `accel_sd` (`firmware::estimator::Tuning`), and an
 //! `[identified]` table that `host-sim identify` writes: how far each fitted value may be off
 //! (`stall_force`, `damping`, `pole_com`: the half-width of its 95% interval relative to the
@@ -86,6 +86,8 @@ pub fn choose(given: Option<Machine>, recorded: Option<Machine>) -> Machine {
 pub const MAX_RIG_BYTES: u64 = 64 << 10;
 /// The longest Runge-Kutta step a continuous world takes when a rig file names none, s.
 pub const DEFAULT_SUBSTEP_S: f64 = 0.001;
+/// The shortest step a rig file may name, s: a hundredth of the default.
+const MIN_SUBSTEP_S: f64 = 1e-5;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -379,12 +381,14 @@ impl Fields<'_> {
                 "world.substep_s: expected none with integration = \"euler\" (one step a \
                  period), found {step}"
             ))),
+            // At most the period: a longer step is cut to it, so 0.05 built the same world
+            // as 0.02 on a 0.02 s period.
             ("continuous", step) => Ok(Integration::rk4(
                 tau,
                 self.check(
-                    "world.substep_s",
+                    "world.substep_s (at most period_s)",
                     step.unwrap_or(DEFAULT_SUBSTEP_S),
-                    (1e-5, 0.05),
+                    (MIN_SUBSTEP_S, tau),
                     false,
                 )?,
             )),

@@ -62,6 +62,22 @@ fn a_rig_written_reads_back_bit_for_bit() {
     }
 }
 
+#[test]
+fn every_rig_of_the_repository_loads_and_a_substep_may_be_the_whole_period() {
+    let mut names: Vec<_> = std::fs::read_dir(repo("rigs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    names.sort();
+    assert!(names.len() >= 10, "{names:?}");
+    for path in names {
+        crate::rigfile::load_startup(&path).unwrap_or_else(|e| panic!("{path:?}: {e}"));
+    }
+    let desk = std::fs::read_to_string(repo("rigs/desk.toml")).unwrap();
+    let whole = parse(&format!("{desk}\n[world]\nsubstep_s = 0.02\n"), "t").unwrap();
+    assert_eq!(whole.integration, Integration::Rk4 { substeps: 1 });
+}
+
 /// A change to the desk rig's file, `(from, to)`, and what its refusal must say.
 const BAD_RIGS: &[(&str, &str, &str)] = &[
     // Normal in f64, a subnormal in the board's f32.
@@ -216,6 +232,18 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
         "dead_time_periods = 1",
         "dead_time_periods = 1\n[world]\nintegration = \"rk2\"",
         "world.integration: expected",
+    ),
+    // A step longer than the period is cut to it: 0.05 and 0.03 built 0.02's world.
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 1\n[world]\nsubstep_s = 0.05",
+        "world.substep_s (at most period_s): expected a number in [0.00001, 0.02], found 0.05",
+    ),
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 1\n[world]\nsubstep_s = 0.020000000000000004",
+        "world.substep_s (at most period_s): expected a number in [0.00001, 0.02], found \
+         0.020000000000000004",
     ),
 ];
 
