@@ -15,7 +15,7 @@
 //! swing_centring_per_s = 4.0
 //! swing_overshoot = 0.015
 //! trim_deg_per_m_s = 0.69       # the zero refined while balancing (integral action); 0: off
-//! trim_max_deg = 2.0            # by at most this
+//! trim_max_deg = 2.0            # by at most this (above 0; none with the trim off)
 //! homing = false                # or drive the cart to the -x end stop, then to the centre
 //! homing_duty = 0.3             # at most this duty (firmware::startup::Homing)
 //! homing_stall_s = 0.25         # still this long: at the stop, or arrived
@@ -78,17 +78,7 @@ impl Fields<'_> {
         if let Some(a) = value("release_angle_deg", t.release_angle_deg, 90.0)? {
             s.release_angle = narrow("release_angle_deg", radians(a))?;
         }
-        // Zero turns the trim off.
-        let trim = |field: &str, v: Option<f64>| {
-            v.map(|v| self.check(&format!("startup.{field}"), v, (0.0, 90.0), false))
-                .transpose()
-        };
-        if let Some(r) = trim("trim_deg_per_m_s", t.trim_deg_per_m_s)? {
-            s.trim_rate = narrow("trim_deg_per_m_s", radians(r))?;
-        }
-        if let Some(m) = trim("trim_max_deg", t.trim_max_deg)? {
-            s.trim_max = narrow("trim_max_deg", radians(m))?;
-        }
+        self.trim(t, &mut s)?;
         let tuned = t.homing_duty.is_some() || t.homing_stall_s.is_some();
         if tuned && t.homing != Some(true) {
             return Err(self.refuse(
@@ -107,6 +97,26 @@ impl Fields<'_> {
         }
         s.swing = self.swing(t, s.swing)?;
         s.check(rig).map_err(refused)
+    }
+
+    /// The trim `t` asks for, into `s`. A rate of zero turns it off, and a limit is then
+    /// refused, as are swing-up values without a swing-up: a trim that never runs reads
+    /// none. A limit of zero is refused too: it would leave the rate read by nothing.
+    fn trim(self, t: &Table, s: &mut Startup) -> Result<()> {
+        if let Some(r) = t.trim_deg_per_m_s {
+            let r = self.check("startup.trim_deg_per_m_s", r, (0.0, 90.0), false)?;
+            s.trim_rate = self.narrow("trim_deg_per_m_s", radians(r))?;
+        }
+        if let Some(m) = self.start_value("trim_max_deg", t.trim_max_deg, 90.0)? {
+            if s.trim_rate == 0.0 {
+                return Err(self.refuse(
+                    "startup.trim_max_deg: given, but the trim is off (trim_deg_per_m_s = 0)"
+                        .into(),
+                ));
+            }
+            s.trim_max = self.narrow("trim_max_deg", radians(m))?;
+        }
+        Ok(())
     }
 
     /// `startup.FIELD`'s value `v`, if given: in (0, `hi`].

@@ -32,8 +32,12 @@ fn a_startup_table_overrides_the_suggested_values_it_names() {
         .unwrap();
     // 0.3 s at 50 Hz: 15 periods.
     assert_eq!((h.duty, h.stall_periods), (0.25, 15));
-    let t = desk_with("trim_deg_per_m_s = 0\ntrim_max_deg = 1").unwrap();
-    assert_eq!((t.trim_rate, t.trim_max), (0.0, 1f64.to_radians() as f32));
+    let t = desk_with("trim_deg_per_m_s = 0.5\ntrim_max_deg = 1").unwrap();
+    assert_eq!(
+        (t.trim_rate, t.trim_max),
+        (0.5f64.to_radians() as f32, 1f64.to_radians() as f32)
+    );
+    assert_eq!(desk_with("trim_deg_per_m_s = 0").unwrap().trim_rate, 0.0);
 }
 
 #[test]
@@ -87,6 +91,17 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
     let e = refusal("trim_max_deg = 9");
     assert!(
         e.contains("startup.trim_max: expected below startup.catch_angle"),
+        "{e}"
+    );
+    // A limit of a trim that never runs, or one that leaves the rate nothing to do.
+    let e = refusal("trim_deg_per_m_s = 0\ntrim_max_deg = 2.0");
+    assert!(
+        e.contains("startup.trim_max_deg: given, but the trim is off (trim_deg_per_m_s = 0)"),
+        "{e}"
+    );
+    let e = refusal("trim_max_deg = 0");
+    assert!(
+        e.contains("startup.trim_max_deg: expected a number in (0, 90], found 0"),
         "{e}"
     );
     let e = refusal("homing = true\nhoming_duty = 1.5");
