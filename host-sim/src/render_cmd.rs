@@ -14,12 +14,38 @@ use twin::{Frame, Scenario};
 
 use crate::Subject;
 
-/// Longest episode `render` draws: it keeps every period (40 bytes) and draws each
-/// `--stride`-th into the GIF.
-const MAX_RENDER_HORIZON: u32 = 100_000;
+/// Longest episode drawn (`render`, `startup --render`): it keeps every period (40 bytes)
+/// and draws each `--stride`-th into the GIF.
+const MAX_RENDER_HORIZON: u64 = 100_000;
 /// Most frames of one animation: drawing them is the costly part (`docs/HOSTILE_INPUT.md`),
 /// so the most periods need a stride of 10.
-const MAX_FRAMES: usize = 10_000;
+const MAX_FRAMES: u64 = 10_000;
+/// Longest `--stride`.
+const MAX_STRIDE: usize = 1000;
+/// The `--stride` a drawing takes unless told: the GIF at half the periods.
+pub const DEFAULT_STRIDE: usize = 2;
+
+/// Refuses, before any episode runs, a drawing of `periods` periods (`periods_from` names
+/// the flags they come from) at every `stride`-th past what one may cost: at most
+/// [`MAX_RENDER_HORIZON`] periods kept, a stride of 1 to [`MAX_STRIDE`], at most
+/// [`MAX_FRAMES`] frames. Both commands that draw check here, so neither draws unbounded.
+pub fn bound(periods: u64, stride: usize, periods_from: &str) -> Result<()> {
+    anyhow::ensure!(
+        (1..=MAX_RENDER_HORIZON).contains(&periods),
+        "{periods_from} must be in [1, {MAX_RENDER_HORIZON}] periods to draw, got {periods}"
+    );
+    anyhow::ensure!(
+        (1..=MAX_STRIDE).contains(&stride),
+        "--stride must be in [1, {MAX_STRIDE}], got {stride}"
+    );
+    let frames = periods.div_ceil(stride as u64);
+    anyhow::ensure!(
+        frames <= MAX_FRAMES,
+        "{periods_from} / --stride must make at most {MAX_FRAMES} frames of the animation, \
+         got {frames} ({periods} / {stride})"
+    );
+    Ok(())
+}
 
 #[derive(Args)]
 pub struct RenderArgs {
@@ -43,27 +69,14 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0)]
     episode: u64,
     /// Draw every k-th period in the GIF (it plays in real time).
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = DEFAULT_STRIDE)]
     stride: usize,
 }
 
 /// Draws the episode `a` asks for.
 pub fn run(a: &RenderArgs) -> Result<()> {
     let (horizon, stride, out) = (a.horizon, a.stride, a.out.as_path());
-    anyhow::ensure!(
-        (1..=MAX_RENDER_HORIZON).contains(&horizon),
-        "--horizon must be in [1, {MAX_RENDER_HORIZON}] for render, got {horizon}"
-    );
-    anyhow::ensure!(
-        (1..=1000).contains(&stride),
-        "--stride must be in [1, 1000], got {stride}"
-    );
-    let frames = (horizon as usize).div_ceil(stride);
-    anyhow::ensure!(
-        frames <= MAX_FRAMES,
-        "--horizon / --stride must make at most {MAX_FRAMES} frames of the animation, got \
-         {frames} ({horizon} / {stride})"
-    );
+    bound(horizon.into(), stride, "--horizon")?;
     let (gif, png) = pictures(out)?;
     crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
     // Built and judged once, on the machine the episode runs on (`--rig`, or the policy's

@@ -85,6 +85,9 @@ pub struct StartupArgs {
     /// The episode --render draws.
     #[arg(long, default_value_t = 0, requires = "render")]
     episode: u32,
+    /// Draw every k-th period in --render's GIF (it plays in real time).
+    #[arg(long, default_value_t = crate::render_cmd::DEFAULT_STRIDE, requires = "render")]
+    stride: usize,
 }
 
 /// The true world: `--world`, at the board's period, or the board's own rig.
@@ -124,12 +127,17 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed}<{eta}")
             .context("the progress bar's template")?,
     );
+    let periods = within + (a.hold / tau).round() as u32;
+    if a.render.is_some() {
+        let from = "the episode --render draws (--within + --hold, after any --knock)";
+        crate::render_cmd::bound(periods.into(), a.stride, from)?;
+    }
     let runs = Runs {
         begin,
         startup,
         world: &world,
         board: &board,
-        periods: within + (a.hold / tau).round() as u32,
+        periods,
         zero_off: counts_off(a.zero_error, &world),
         cart_start: a.cart_start,
         knock,
@@ -159,7 +167,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     }
     // Drawn once the report is out: pictures that cannot be written lose no episodes.
     if let Some(out) = &a.render {
-        let (gif, png) = draw(&runs, &net, a.episode, out)?;
+        let (gif, png) = draw(&runs, &net, (a.episode, a.stride), out)?;
         // Beside the JSON, the pictures are named on standard error.
         let names = format!("{}\n{}", weights::shown(&gif), weights::shown(&png));
         if a.json {
@@ -242,8 +250,14 @@ fn knock(a: &StartupArgs) -> Result<Option<[f64; 2]>> {
     }
 }
 
-/// Draws episode `k` of `runs` with the float network into `out`; the pictures' paths.
-fn draw(runs: &Runs<'_>, net: &Net, k: u32, out: &std::path::Path) -> Result<(PathBuf, PathBuf)> {
+/// Draws episode `k` of `runs` with the float network into `out`, every `stride`-th period
+/// into the GIF; the pictures' paths.
+fn draw(
+    runs: &Runs<'_>,
+    net: &Net,
+    (k, stride): (u32, usize),
+    out: &std::path::Path,
+) -> Result<(PathBuf, PathBuf)> {
     let mut frames = Vec::new();
     let o = runs.episode(k, net, |f, _| frames.push(*f))?;
     let title = format!("start-up from {:?}, episode {k}", runs.begin);
@@ -252,7 +266,8 @@ fn draw(runs: &Runs<'_>, net: &Net, k: u32, out: &std::path::Path) -> Result<(Pa
         Some(b) => format!("{title}: balanced from {:.2} s", f64::from(b) * tau),
         None => format!("{title}: not balanced at the end"),
     };
-    crate::render_cmd::draw(out, &frames, &runs.world.rig.params, 2, (&title, &caption))
+    let params = &runs.world.rig.params;
+    crate::render_cmd::draw(out, &frames, params, stride, (&title, &caption))
 }
 
 /// What every episode of a run shares.

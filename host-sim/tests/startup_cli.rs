@@ -90,6 +90,8 @@ fn an_episode_is_drawn_beside_the_json_and_an_episode_past_the_run_is_refused() 
         dir.to_str().unwrap(),
         "--episode",
         "1",
+        "--stride",
+        "5",
     ]);
     assert_eq!(v["rows"][0]["episodes"], 2);
     let gif = std::fs::read(dir.join("episode.gif")).unwrap();
@@ -104,6 +106,40 @@ fn an_episode_is_drawn_beside_the_json_and_an_episode_past_the_run_is_refused() 
         "{err}"
     );
     assert!(!std::path::Path::new("x").exists());
+}
+
+/// The drawn episode is held to `render`'s bounds before any episode runs: an hour to
+/// balance and an hour held were 360,000 frames at 50 Hz (minutes of drawing, a GIF of
+/// gigabytes), where `render` stops at 10,000.
+#[test]
+fn a_drawing_past_renders_bounds_is_refused_before_any_episode() {
+    let refused = |args: &[&str], want: &str| {
+        let mut all = vec!["--episodes", "1000000", "--render", "never"];
+        all.extend(args);
+        let started = std::time::Instant::now();
+        let o = startup(&all);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert!(started.elapsed().as_secs() < 20, "{args:?}");
+        assert!(o.stdout.is_empty() && !std::path::Path::new("never").exists());
+    };
+    let from = "the episode --render draws (--within + --hold, after any --knock)";
+    refused(
+        &["--within", "3600", "--hold", "3600"],
+        &format!("{from} must be in [1, 100000] periods to draw, got 360000"),
+    );
+    refused(
+        &["--within", "100", "--hold", "302"],
+        &format!(
+            "{from} / --stride must make at most 10000 frames of the animation, got 10050 \
+             (20100 / 2)"
+        ),
+    );
+    refused(&["--stride", "0"], "--stride must be in [1, 1000], got 0");
+    let o = startup(&["--stride", "3"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--render"));
 }
 
 #[test]
