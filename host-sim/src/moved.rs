@@ -149,21 +149,20 @@ fn numbers(path: &str, v: &Json) -> Result<(), String> {
     }
 }
 
-/// A figure as the report shows it: four decimals, or an exponent where those would be
-/// hundreds of digits or none (`1e308`); any other value quoted.
+/// A value as the report shows it: a whole number as written, a real one shortest, as Rust
+/// reads it back (`{:?}`: `1e-320`, `2.5`, where four decimals showed `9.9999e-321` and
+/// `2.5000`); any other value quoted.
 fn shown(v: &Json) -> String {
-    match v.as_f64() {
-        Some(x) => fig(x),
-        None => weights::quote(&v.to_string()),
+    match v {
+        Json::Number(n) if n.is_f64() => n.as_f64().map_or_else(|| n.to_string(), fig),
+        Json::Number(n) => n.to_string(),
+        _ => weights::quote(&v.to_string()),
     }
 }
 
+/// A real number found or compared, shortest.
 fn fig(x: f64) -> String {
-    if x != 0.0 && !(1e-4..1e6).contains(&x.abs()) {
-        format!("{x:.4e}")
-    } else {
-        format!("{x:.4}")
-    }
+    format!("{x:?}")
 }
 
 /// The comparison of `old` with `new`, two versions of one results file.
@@ -226,13 +225,17 @@ fn entries(doc: &Json) -> Vec<(String, &Json)> {
     out
 }
 
-/// `controller on scenario at horizon`, or `study: label`.
+/// `controller on scenario at horizon`, or `study: label`: each as the row gives it, `?`
+/// where it gives none (a horizon of 2.5 is named `at 2.5`, not cut to `at 0`).
 fn name(row: &Json) -> String {
     let s = |k: &str| row.get(k).and_then(Json::as_str).unwrap_or("?").to_string();
     if row.get("study").is_some() {
         return format!("{}: {}", s("study"), s("label"));
     }
-    let h = row.get("horizon").and_then(Json::as_u64).unwrap_or(0);
+    let h = row.get("horizon").map_or("?".into(), |h| match h {
+        Json::Number(_) => shown(h),
+        other => other.to_string(),
+    });
     format!("{} on {} at {h}", s("controller"), s("scenario"))
 }
 
@@ -359,8 +362,8 @@ mod tests {
         assert_eq!(
             figures,
             &[
-                "rms_theta_deg 0.5000 -> 0.5200 (+-0.0100)",
-                "success_rate 0.9000 -> 0.9500 ([0.8800, 0.9200])"
+                "rms_theta_deg 0.5 -> 0.52 (+-0.01)",
+                "success_rate 0.9 -> 0.95 ([0.88, 0.92])"
             ]
         );
         let text = report("docs/results/x.json", &m);
@@ -406,7 +409,7 @@ mod tests {
         for (extra, why) in [
             (
                 json!({"episodes": -5}),
-                "expected `episodes` a whole count, found -5.0000",
+                "expected `episodes` a whole count, found -5",
             ),
             (
                 json!({"episodes": 10}),
@@ -414,7 +417,7 @@ mod tests {
             ),
             (
                 json!({"success_rate": 1e308}),
-                "in [0, 1], found 1.0000e308",
+                "in [0, 1], found 1e308",
             ),
             (
                 json!({"episodes": 0, "failures": 0}),
@@ -423,7 +426,7 @@ mod tests {
             (json!({"horizon": 0}), "`horizon` at least 1, found 0"),
             (
                 json!({"episodes": 1000, "success_rate": 1.0}),
-                "expected `success_rate` 0.9000 (100 failures of 1000), found 1.0000",
+                "expected `success_rate` 0.9 (100 failures of 1000), found 1.0",
             ),
             (
                 json!({"mean_steps": 501.0}),
@@ -443,14 +446,35 @@ mod tests {
             ),
             (json!({"success_ci95": [0.1, 0.2, 0.3]}), "an interval"),
             (json!({"period_s": -0.02}), "\"period_s\" above 0"),
+            // Shortest, as read: four decimals showed 9.9999e-321, 2.5000 and 0.0000.
+            (
+                json!({"rms_x_m": {"mean": 1e-320, "ci95": null}}),
+                "expected \"mean\" zero or a normal number, found 1e-320",
+            ),
+            (
+                json!({"episodes": 2.5}),
+                "expected `episodes` a whole count, found 2.5",
+            ),
+            (
+                json!({"success_rate": 0.00001, "episodes": 1000}),
+                "expected `success_rate` 0.9 (100 failures of 1000), found 1e-5",
+            ),
             (
                 json!({"heat": {"mean": 5e-324, "ci95": 0.0}}),
-                "expected \"mean\" zero or a normal number, found 4.9407e-324",
+                "expected \"mean\" zero or a normal number, found 5e-324",
             ),
         ] {
             let e = check(&r(extra)).unwrap_err();
             assert!(e.contains(why), "{e}");
         }
+        // A row is named by the horizon it gives, not one cut to a whole count.
+        let mut half = row(0.9, [0.88, 0.92], 0.5, 100);
+        half["horizon"] = json!(2.5);
+        let e = check(&json!({ "rows": [half] })).unwrap_err();
+        assert_eq!(
+            e,
+            "row \"policy on noise at 2.5\": expected `horizon` a whole count, found 2.5"
+        );
         let twice = json!({"rows": [row(0.9, [0.8, 1.0], 0.5, 1), row(0.9, [0.8, 1.0], 0.5, 1)]});
         let e = check(&twice).unwrap_err();
         assert!(e.contains("\"policy on noise at 500\" twice"), "{e}");
