@@ -80,13 +80,16 @@ impl Provenance {
         } else {
             ""
         };
+        // A results file's provenance is its writer's word: text from it (an argument with
+        // a line break or a `|`, a CPU's name with an escape) is escaped, never copied.
+        let text = weights::markdown::text;
         format!(
-            "- command: `{}`\n- run: {}, revision {}{changes}\n- machine: {} CPUs, {}\n",
-            self.command(),
-            self.date,
-            self.revision,
+            "- command: {}\n- run: {}, revision {}{changes}\n- machine: {} CPUs, {}\n",
+            weights::markdown::code(&self.command()),
+            text(&self.date),
+            text(&self.revision),
             self.nproc,
-            self.cpu
+            text(&self.cpu)
         )
     }
 }
@@ -202,6 +205,12 @@ mod tests {
         let want = "- command: `host-sim eval --json`\n\
                     - run: 2026-12-03T00:00:00Z, revision abc1234 with uncommitted changes\n\
                     - machine: 2 CPUs, AMD EPYC\n";
+        assert_eq!(p.markdown(), want);
+        p.argv.push("\u{1b}[2J`\n# injected | x".into());
+        (p.cpu, p.revision) = ("cpu\u{7}\n| evil |".into(), "<b>".into());
+        let want = "- command: `host-sim eval --json \\u{1b}[2J\\u{60}\\n# injected \\| x`\n\
+                    - run: 2026-12-03T00:00:00Z, revision \\<b> with uncommitted changes\n\
+                    - machine: 2 CPUs, cpu\\u{7}\\n\\| evil \\|\n";
         assert_eq!(p.markdown(), want);
     }
 }

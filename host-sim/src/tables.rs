@@ -333,7 +333,7 @@ fn render_from(spec: &Spec, results: &Results) -> Result<String, String> {
                     )
                 })
         };
-        let mut cells = vec![format!("`{name}`")];
+        let mut cells = vec![weights::markdown::code(name)];
         for c in &spec.success {
             cells.push(success(find(c)?, spec.brief));
         }
@@ -383,7 +383,9 @@ fn only_horizon(rows: &[Row]) -> Option<u32> {
 fn header(spec: &Spec) -> String {
     let mut names = vec!["scenario".to_string()];
     let mut align = vec!["---"];
-    for c in &spec.success {
+    // The marker's names, escaped as every text from a file is.
+    let text = weights::markdown::text;
+    for c in spec.success.iter().map(|c| text(c)) {
         names.push(if spec.brief {
             format!("{c} success")
         } else {
@@ -397,13 +399,13 @@ fn header(spec: &Spec) -> String {
     }
     if let Some([a, b]) = &spec.compare {
         for quantity in ["RMS theta deg", "RMS x m", "switches/s"] {
-            names.push(format!("{quantity} {a} / {b}"));
+            names.push(format!("{quantity} {} / {}", text(a), text(b)));
             align.push("---:");
         }
     }
     if let Some(c) = &spec.pil {
         for name in pil::COLUMNS {
-            names.push(format!("{c} {name}"));
+            names.push(format!("{} {name}", text(c)));
             align.push("---:");
         }
     }

@@ -144,16 +144,36 @@ fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, S
     (PathBuf::from(path), text, stale)
 }
 
-/// The names of the JSON files in docs/results/, sorted.
+/// The names of the JSON files in docs/results/, sorted. A name is its page's and a link's
+/// target as it is, so it must need no escaping there: ASCII letters, digits, `.`, `_` and
+/// `-` (a name with a line break and a `|` broke the list of pages and headed it anew; one
+/// that is not UTF-8 was passed over without a word).
 fn results_files(root: &Path) -> Result<Vec<String>> {
     let dir = root.join(RESULTS_DIR);
-    let mut files: Vec<String> = std::fs::read_dir(&dir)
-        .with_context(|| format!("listing {}", weights::shown(&dir)))?
-        .filter_map(|e| {
-            let name = e.ok()?.file_name().into_string().ok()?;
-            (name.ends_with(".json") && !name.starts_with('.')).then_some(name)
-        })
-        .collect();
+    let listing = |e: std::io::Error| {
+        weights::Error::Io(format!("listing {}: {e}", weights::shown(&dir)))
+    };
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(&dir).map_err(listing)? {
+        let name = entry.map_err(listing)?.file_name();
+        let bytes = name.as_encoded_bytes();
+        if !bytes.ends_with(b".json") || bytes.starts_with(b".") {
+            continue;
+        }
+        let plain = |n: &&str| {
+            n.bytes()
+                .all(|b| b.is_ascii_alphanumeric() || b"._-".contains(&b))
+        };
+        let Some(name) = name.to_str().filter(plain) else {
+            anyhow::bail!(
+                "{}: expected a results file named with ASCII letters, digits, `.`, `_` and \
+                 `-` (its page's name and a link's target), found {}",
+                weights::shown(&dir),
+                weights::quote(&name.to_string_lossy())
+            );
+        };
+        files.push(name.to_string());
+    }
     files.sort();
     Ok(files)
 }

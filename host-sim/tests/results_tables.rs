@@ -145,3 +145,59 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
     assert_eq!(a, stale, "a refused page left a document rewritten");
     let _ = std::fs::remove_dir_all(&root);
 }
+
+/// Text a results file gives reaches its page escaped: an argument with an escape sequence,
+/// a backtick and a line break, a CPU named with a bell, a controller with a line break,
+/// each a `|` besides, broke the page's table and headed it anew, with the control
+/// characters raw. A file's name is its page's name and a link's target, so a name that
+/// would need escaping there is refused before anything is written.
+#[test]
+fn text_from_a_results_file_is_escaped_and_an_unplain_name_refused() {
+    let hostile = JSON
+        .replace("\"policy\"", "\"lqr\\n# ctl \\u001b | x\"")
+        .replace(
+            "\"seed\": 0,",
+            "\"provenance\": {\"tool\": \"host-sim\", \"argv\": [\"\\u001b[2J`\\n# injected | x\"], \
+             \"date\": \"2026-12-07T08:52:11Z\", \"revision\": \"unknown\", \"dirty\": false, \
+             \"nproc\": 2, \"cpu\": \"cpu\\u0007\\n| evil |\"}, \"seed\": 0,",
+        );
+    let root = scratch("escaped", &[("docs/results/r.json", &hostile)]);
+    let o = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
+    assert!(o.status.success(), "{}", stderr(&o));
+    for page in ["docs/results/r.md", "docs/results/README.md"] {
+        let text = std::fs::read_to_string(root.join(page)).unwrap();
+        assert!(
+            !text.chars().any(|c| c.is_control() && c != '\n'),
+            "{text}"
+        );
+        for line in text.lines() {
+            assert!(!line.starts_with("# injected") && !line.starts_with("| evil"), "{text}");
+        }
+        // Every row of a table has its header's cells: no `|` of the input splits one.
+        let cells = |l: &str| l.matches('|').count() - l.matches("\\|").count();
+        let rows: Vec<&str> = text.lines().filter(|l| l.starts_with('|')).collect();
+        assert!(rows.iter().all(|l| cells(l) == cells(rows[0])), "{text}");
+    }
+    let page = std::fs::read_to_string(root.join("docs/results/r.md")).unwrap();
+    assert!(
+        page.contains("- command: `host-sim \\u{1b}[2J\\u{60}\\n# injected \\| x`\n"),
+        "{page}"
+    );
+    assert!(page.contains("| `noise` | lqr\\n# ctl \\u{1b} \\| x | "), "{page}");
+    assert!(page.contains("- machine: 2 CPUs, cpu\\u{7}\\n\\| evil \\|\n"), "{page}");
+    let _ = std::fs::remove_dir_all(&root);
+    for name in ["a\u{1b}[2Jb.json", "a|b\n## injected](javascript:x) <script>.json"] {
+        let root = scratch("unplain", &[(&format!("docs/results/{name}"), JSON)]);
+        let o = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains("expected a results file named with ASCII letters, digits"),
+            "{err}"
+        );
+        assert!(!err.trim_end().contains(['\n', '\u{1b}']), "{err}");
+        assert!(!root.join("docs/results/README.md").exists());
+        assert!(!root.join("docs/results/r.md").exists());
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}

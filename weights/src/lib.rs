@@ -28,6 +28,7 @@ pub mod feedback;
 pub mod files;
 pub mod json;
 pub mod levels;
+pub mod markdown;
 pub mod quant;
 pub mod shape;
 pub mod source;

@@ -7,6 +7,8 @@ use host_common::provenance::Provenance;
 use serde::Deserialize;
 use serde_json::Value as Json;
 
+use weights::markdown::{code, text};
+
 use super::pil;
 use super::values::{Format, show};
 use crate::eval::group;
@@ -22,7 +24,7 @@ pub fn path(file: &str) -> String {
 pub fn page(file: &str, json: &str, steps: &[&Step]) -> Result<String, String> {
     let doc: Json = weights::json::value(json).map_err(|e| format!("{file} is not JSON: {e}"))?;
     let name = file.rsplit('/').next().unwrap_or(file);
-    let mut s = format!("# {}\n\n", name.trim_end_matches(".json"));
+    let mut s = format!("# {}\n\n", text(name.trim_end_matches(".json")));
     match steps {
         [] => {}
         [one] => s += &format!("{}.\n\n", capitalised(&one.about)),
@@ -33,9 +35,12 @@ pub fn page(file: &str, json: &str, steps: &[&Step]) -> Result<String, String> {
             s += "\n";
         }
     }
+    // The link's target is the name as it is: `tables` takes only names that need no
+    // escaping there (`tables_cmd::results_files`).
     s += &format!(
-        "Written by `host-sim tables` from [`{name}`]({name}); do not edit. \
-         `scripts/regenerate.sh` measures it again (`docs/results/manifest.toml`).\n\n"
+        "Written by `host-sim tables` from [{}]({name}); do not edit. \
+         `scripts/regenerate.sh` measures it again (`docs/results/manifest.toml`).\n\n",
+        code(name)
     );
     s += &origin(&doc, steps).map_err(|e| format!("{file}: {e}"))?;
     let body = if doc.get("envelope").is_some() {
@@ -70,7 +75,7 @@ pub fn index(files: &[(String, String, Vec<&Step>)]) -> Result<String, String> {
         let when = first
             .and_then(|p| p.get("date")?.as_str())
             .map_or("before files recorded it".to_string(), |d| {
-                d.chars().take(10).collect()
+                text(&d.chars().take(10).collect::<String>())
             });
         let about = steps
             .first()
@@ -79,17 +84,20 @@ pub fn index(files: &[(String, String, Vec<&Step>)]) -> Result<String, String> {
         let page = page.rsplit('/').next().unwrap_or(&page);
         s += &format!(
             "| [{}]({page}) | {about} | {when} |\n",
-            page.trim_end_matches(".md")
+            text(page.trim_end_matches(".md"))
         );
     }
     Ok(s)
 }
 
-fn capitalised(text: &str) -> String {
-    let mut c = text.chars();
-    c.next()
+/// A manifest's words as a sentence's start, escaped ([`text`]).
+fn capitalised(words: &str) -> String {
+    let mut c = words.chars();
+    let up: String = c
+        .next()
         .map(|f| f.to_uppercase().chain(c).collect())
-        .unwrap_or_default()
+        .unwrap_or_default();
+    text(&up)
 }
 
 /// Where the file came from: its provenance (one run, or one per run for a file several
@@ -117,7 +125,7 @@ fn origin(doc: &Json, steps: &[&Step]) -> Result<String, String> {
              manifest makes it with:\n\n",
         );
         for st in steps {
-            s += &format!("- `{}`\n", st.run);
+            s += &format!("- {}\n", code(&st.run));
         }
         return Ok(s + "\n");
     };
@@ -197,8 +205,8 @@ fn rows(doc: &Json) -> Result<String, String> {
 /// One row of a results page: its figures, the motor's and the fallback's if the page has
 /// them.
 fn row_line(r: &Json, motor: bool, fallback: bool) -> Result<String, String> {
-    let text = |r: &Json, k: &str| r.get(k).and_then(Json::as_str).map(str::to_string);
-    let (Some(scenario), Some(controller)) = (text(r, "scenario"), text(r, "controller")) else {
+    let given = |r: &Json, k: &str| r.get(k).and_then(Json::as_str).map(str::to_string);
+    let (Some(scenario), Some(controller)) = (given(r, "scenario"), given(r, "controller")) else {
         return Err("a row without a scenario or controller".into());
     };
     let count = |k: &str| num(r, k).map_or("-".into(), |x| show(x, Format::Int));
@@ -206,8 +214,8 @@ fn row_line(r: &Json, motor: bool, fallback: bool) -> Result<String, String> {
     let bound = |i: usize| ci.and_then(|c| c.get(i)?.as_f64()).unwrap_or(f64::NAN);
     let success = num(r, "success_rate").ok_or("a row without a success_rate")?;
     let mut cells = vec![
-        format!("`{scenario}`"),
-        controller,
+        code(&scenario),
+        text(&controller),
         count("episodes"),
         format!(
             "{:.1}% [{:.1}, {:.1}]",
@@ -259,7 +267,8 @@ fn pil_checks(checks: &Json, rows: &[Json]) -> Result<String, String> {
                 format!("no row with the period of {c} on {s}")
             })?;
         let cells = pil::cells(c, period).join(" | ");
-        s += &format!("| `{scenario}` | {controller} | {horizon} | {cells} |\n");
+        let (scenario, controller) = (code(scenario), text(controller));
+        s += &format!("| {scenario} | {controller} | {horizon} | {cells} |\n");
     }
     Ok(s + "\n")
 }
@@ -292,7 +301,7 @@ fn envelope(doc: &Json) -> Result<String, String> {
         r.scenarios.len(),
         r.scenarios
             .iter()
-            .map(|n| format!("`{n}`"))
+            .map(|n| code(n))
             .collect::<Vec<_>>()
             .join(", ")
     );

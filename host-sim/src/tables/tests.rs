@@ -59,6 +59,14 @@ fn brief_scenarios_and_the_only_horizon() {
     let all = render(&spec("success=policy brief"), &one).unwrap();
     assert_eq!(all.lines().count(), 2 + 3, "{all}");
     assert!(all.ends_with("| `delay` | 100.0% |\n"), "{all}");
+    // A scenario named with a line break, a `|` and a backtick stays one cell of one line,
+    // and so does a controller named so by the marker.
+    let named = one
+        .replace("\"delay\"", "\"a|b\\n# c`\"")
+        .replace("\"policy\"", "\"p|q\"");
+    let all = render(&spec("success=p|q brief"), &named).unwrap();
+    assert!(all.starts_with("| scenario | p\\|q success |\n"), "{all}");
+    assert!(all.ends_with("| `a\\|b\\n# c\\u{60}` | 100.0% |\n"), "{all}");
 }
 
 #[test]
