@@ -24,12 +24,19 @@ pub struct Estimate {
 impl Estimate {
     /// Mean and 95% half-width of `values`; NaN mean for none.
     pub fn of(values: &[f64]) -> Estimate {
-        let n = values.len();
-        let mean = mean(values);
+        Estimate::of_each(values.len(), |i| values[i])
+    }
+
+    /// [`Estimate::of`] the `n` values `value(0)` to `value(n - 1)`, bit for bit, each
+    /// computed where it is summed (twice) rather than kept: a figure of ten million
+    /// episodes holds no list of them.
+    pub fn of_each(n: usize, value: impl Fn(usize) -> f64) -> Estimate {
+        let values = || (0..n).map(&value);
+        let mean = mean_of(n, values());
         let ci95 = if n < 2 {
             f64::NAN
         } else {
-            t975(n - 1) * sd(values) / (n as f64).sqrt()
+            t975(n - 1) * sd_about(n, mean, values()) / (n as f64).sqrt()
         };
         Estimate { mean, ci95 }
     }
@@ -46,10 +53,15 @@ impl Estimate {
 
 /// Arithmetic mean; NaN for no values.
 pub fn mean(v: &[f64]) -> f64 {
-    if v.is_empty() {
+    mean_of(v.len(), v.iter().copied())
+}
+
+/// The mean of the `n` values `v` yields, summed in order; NaN for none.
+fn mean_of(n: usize, v: impl Iterator<Item = f64>) -> f64 {
+    if n == 0 {
         return f64::NAN;
     }
-    v.iter().sum::<f64>() / v.len() as f64
+    v.sum::<f64>() / n as f64
 }
 
 /// Sample standard deviation (n - 1 in the denominator); NaN for fewer than two values.
@@ -57,8 +69,12 @@ pub fn sd(v: &[f64]) -> f64 {
     if v.len() < 2 {
         return f64::NAN;
     }
-    let m = mean(v);
-    (v.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (v.len() - 1) as f64).sqrt()
+    sd_about(v.len(), mean(v), v.iter().copied())
+}
+
+/// The sample standard deviation of the `n >= 2` values `v` yields, whose mean is `m`.
+fn sd_about(n: usize, m: f64, v: impl Iterator<Item = f64>) -> f64 {
+    (v.map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64).sqrt()
 }
 
 /// The median (the mean of the two middle values for an even count); NaN for none.

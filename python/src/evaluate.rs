@@ -126,15 +126,16 @@ const WAIT: Duration = Duration::from_millis(20);
 impl Job {
     /// Episodes `0..episodes`, in ranges of at most [`PERIODS_PER_RANGE`] periods a thread
     /// (one episode at the least). The threads are rayon's, as many as the machine runs at
-    /// once.
+    /// once. The list is allocated once, whole, as the command's is: grown range by range
+    /// it could take up to twice what it holds.
     fn episodes(&self, py: Python<'_>, episodes: u64) -> PyResult<Vec<EpisodeStats>> {
         let threads = std::thread::available_parallelism().map_or(1, |n| n.get() as u64);
         let per_range = (PERIODS_PER_RANGE * threads / u64::from(self.horizon)).max(1);
         let mut eps = Vec::new();
+        reserve(&mut eps, episodes as usize, "the episodes' statistics")?;
         let mut start = 0;
         while start < episodes {
             let end = start.saturating_add(per_range).min(episodes);
-            reserve(&mut eps, (end - start) as usize, "the episodes' statistics")?;
             eps.extend(self.range(py, start..end)?);
             start = end;
         }

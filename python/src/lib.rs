@@ -52,7 +52,7 @@ pub(crate) fn memory_error(what: &str, bytes: usize) -> PyErr {
 
 /// `v` with room for `more` items, or a `MemoryError` naming `what`.
 pub(crate) fn reserve<T>(v: &mut Vec<T>, more: usize, what: &str) -> PyResult<()> {
-    v.try_reserve(more)
+    v.try_reserve_exact(more)
         .map_err(|_| memory_error(what, more.saturating_mul(size_of::<T>())))
 }
 

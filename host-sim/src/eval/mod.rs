@@ -221,9 +221,12 @@ fn monitored(net: &Net) -> Aids {
 }
 
 /// Why a monitored run may take the network's envelope as given.
-/// Most episodes per row of `eval`: a row keeps each episode's statistics (48 bytes), so
-/// 480 MB at the limit.
+/// Most episodes per row of `eval`: a row keeps each episode's statistics
+/// ([`EPISODE_BYTES`]) and little besides, so 720 MB at the limit.
 pub const MAX_EPISODES: u64 = 10_000_000;
+/// What a row keeps per episode while its statistics are taken: the episode's
+/// [`EpisodeStats`], in one list allocated once (`docs/HOSTILE_INPUT.md`).
+pub const EPISODE_BYTES: usize = size_of::<EpisodeStats>();
 /// Longest episode `eval` runs, in periods (about 5.6 hours of control).
 pub const MAX_HORIZON: u32 = 1_000_000;
 
@@ -247,6 +250,8 @@ pub fn evaluate(
 
 /// Episodes `episodes` of one controller in one scenario, in parallel, in order: a caller
 /// may run a row's episodes range by range (and stop between ranges) and get the same row.
+/// Each chunk's episodes are written into their place in one list allocated once, where a
+/// parallel collect held every episode twice at its end.
 pub fn par_episodes(
     kind: ControllerKind,
     net: &Net,
@@ -257,13 +262,15 @@ pub fn par_episodes(
 ) -> Vec<EpisodeStats> {
     let first = episodes.start;
     let n = episodes.end.saturating_sub(first);
-    (0..n.div_ceil(CHUNK))
-        .into_par_iter()
-        .flat_map_iter(|c| {
-            let range = first + c * CHUNK..first + ((c + 1) * CHUNK).min(n);
-            self::episodes(kind, net, scenario, horizon, seed, range)
-        })
-        .collect()
+    let mut eps = vec![EpisodeStats::default(); n as usize];
+    eps.par_chunks_mut(CHUNK as usize)
+        .enumerate()
+        .for_each(|(c, out)| {
+            let start = first + c as u64 * CHUNK;
+            let range = start..start + out.len() as u64;
+            out.copy_from_slice(&self::episodes(kind, net, scenario, horizon, seed, range));
+        });
+    eps
 }
 
 /// The row of controller `kind`'s episodes `eps` (episode `i` of `seed` at `eps[i]`).
