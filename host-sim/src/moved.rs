@@ -415,10 +415,7 @@ mod tests {
                 json!({"episodes": 10}),
                 "expected at most 10 failures, found 100",
             ),
-            (
-                json!({"success_rate": 1e308}),
-                "in [0, 1], found 1e308",
-            ),
+            (json!({"success_rate": 1e308}), "in [0, 1], found 1e308"),
             (
                 json!({"episodes": 0, "failures": 0}),
                 "`episodes` at least 1",

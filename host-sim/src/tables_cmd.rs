@@ -150,9 +150,8 @@ fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, S
 /// that is not UTF-8 was passed over without a word).
 fn results_files(root: &Path) -> Result<Vec<String>> {
     let dir = root.join(RESULTS_DIR);
-    let listing = |e: std::io::Error| {
-        weights::Error::Io(format!("listing {}: {e}", weights::shown(&dir)))
-    };
+    let listing =
+        |e: std::io::Error| weights::Error::Io(format!("listing {}: {e}", weights::shown(&dir)));
     let mut files = Vec::new();
     for entry in std::fs::read_dir(&dir).map_err(listing)? {
         let name = entry.map_err(listing)?.file_name();

@@ -166,12 +166,12 @@ fn text_from_a_results_file_is_escaped_and_an_unplain_name_refused() {
     assert!(o.status.success(), "{}", stderr(&o));
     for page in ["docs/results/r.md", "docs/results/README.md"] {
         let text = std::fs::read_to_string(root.join(page)).unwrap();
-        assert!(
-            !text.chars().any(|c| c.is_control() && c != '\n'),
-            "{text}"
-        );
+        assert!(!text.chars().any(|c| c.is_control() && c != '\n'), "{text}");
         for line in text.lines() {
-            assert!(!line.starts_with("# injected") && !line.starts_with("| evil"), "{text}");
+            assert!(
+                !line.starts_with("# injected") && !line.starts_with("| evil"),
+                "{text}"
+            );
         }
         // Every row of a table has its header's cells: no `|` of the input splits one.
         let cells = |l: &str| l.matches('|').count() - l.matches("\\|").count();
@@ -183,10 +183,19 @@ fn text_from_a_results_file_is_escaped_and_an_unplain_name_refused() {
         page.contains("- command: `host-sim \\u{1b}[2J\\u{60}\\n# injected \\| x`\n"),
         "{page}"
     );
-    assert!(page.contains("| `noise` | lqr\\n# ctl \\u{1b} \\| x | "), "{page}");
-    assert!(page.contains("- machine: 2 CPUs, cpu\\u{7}\\n\\| evil \\|\n"), "{page}");
+    assert!(
+        page.contains("| `noise` | lqr\\n# ctl \\u{1b} \\| x | "),
+        "{page}"
+    );
+    assert!(
+        page.contains("- machine: 2 CPUs, cpu\\u{7}\\n\\| evil \\|\n"),
+        "{page}"
+    );
     let _ = std::fs::remove_dir_all(&root);
-    for name in ["a\u{1b}[2Jb.json", "a|b\n## injected](javascript:x) <script>.json"] {
+    for name in [
+        "a\u{1b}[2Jb.json",
+        "a|b\n## injected](javascript:x) <script>.json",
+    ] {
         let root = scratch("unplain", &[(&format!("docs/results/{name}"), JSON)]);
         let o = tables(&["--root", root.to_str().unwrap()], Path::new("/"));
         let err = stderr(&o);

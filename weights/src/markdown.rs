@@ -60,7 +60,10 @@ mod tests {
             "`\\u{1b}[2J\\u{60}\\n# injected \\| x`"
         );
         assert_eq!(text("cpu\u{7}\r\n| evil |"), "cpu\\u{7}\\r\\n\\| evil \\|");
-        assert_eq!(text("*a* _b_ ~c~ `d` &#27; [e]"), "\\*a\\* \\_b\\_ \\~c\\~ \\`d\\` \\&#27; \\[e\\]");
+        assert_eq!(
+            text("*a* _b_ ~c~ `d` &#27; [e]"),
+            "\\*a\\* \\_b\\_ \\~c\\~ \\`d\\` \\&#27; \\[e\\]"
+        );
         assert_eq!(code("back\\slash"), "`back\\\\slash`");
         assert_eq!(text("rtl\u{202e}ls\u{2028}"), "rtl\\u{202e}ls\\u{2028}");
         for hostile in [name, "\u{1b}[2J`\n#", "\u{0}\t\u{7f}\u{85}"] {

@@ -66,7 +66,10 @@ fn brief_scenarios_and_the_only_horizon() {
         .replace("\"policy\"", "\"p|q\"");
     let all = render(&spec("success=p|q brief"), &named).unwrap();
     assert!(all.starts_with("| scenario | p\\|q success |\n"), "{all}");
-    assert!(all.ends_with("| `a\\|b\\n# c\\u{60}` | 100.0% |\n"), "{all}");
+    assert!(
+        all.ends_with("| `a\\|b\\n# c\\u{60}` | 100.0% |\n"),
+        "{all}"
+    );
 }
 
 #[test]
