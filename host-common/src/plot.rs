@@ -57,7 +57,13 @@ pub fn line_chart(
         y_label,
         curves,
     )
-    .map_err(|e| anyhow::anyhow!("drawing {}: {e}", svg.display()))?;
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "drawing {}: {}",
+            weights::shown(&svg),
+            weights::excerpt(&e.to_string())
+        )
+    })?;
     draw(
         BitMapBackend::new(&png, (900, 540)).into_drawing_area(),
         title,
@@ -65,7 +71,13 @@ pub fn line_chart(
         y_label,
         curves,
     )
-    .map_err(|e| anyhow::anyhow!("drawing {}: {e}", png.display()))?;
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "drawing {}: {}",
+            weights::shown(&png),
+            weights::excerpt(&e.to_string())
+        )
+    })?;
     Ok(())
 }
 
