@@ -1,7 +1,7 @@
 //! What the two host tools, the trainer (`policy-export`) and the simulator (`host-sim`),
 //! share besides policy files (those are the `weights` crate's):
 //!
-//! - [`cli`]: command-line parsing whose refusals stay short and exit 2.
+//! - [`cli`]: command-line parsing whose refusals stay short, quote input escaped and exit 2.
 //! - [`kernel`]: which build of the vectorised host code runs on this CPU.
 //! - [`wide`]: the firmware's forward pass laid out for host SIMD, bit-identical: how both
 //!   tools run a policy one observation at a time.

@@ -9,7 +9,7 @@ use std::process::{Command, Output};
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::mkfifo;
+use hostile::{FORGED, mkfifo, refused_escaped};
 
 fn fixture(name: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -403,4 +403,24 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
         err.contains("--envelope is read by --controller monitored"),
         "{err}"
     );
+}
+
+/// The command-line parser's own refusals (a value a flag's parser refuses, a value not among
+/// a flag's choices, an unknown flag or subcommand) show the user's text escaped: clap quoted
+/// it raw, so a line break in it printed a forged error line of its own.
+#[test]
+fn the_parser_s_refusals_show_the_text_they_quote_escaped() {
+    let exe = Path::new(env!("CARGO_BIN_EXE_host-sim"));
+    let unknown = format!("--epi{FORGED}");
+    let command = format!("ev{FORGED}");
+    let cases: [(&[&str], &str); 5] = [
+        (&["eval", "--episodes", FORGED], "--episodes"),
+        (&["eval", "--controller", FORGED], "--controller"),
+        (&["eval", "--horizon", FORGED], "--horizon"),
+        (&["eval", &unknown], "--epi"),
+        (&[&command], "ev"),
+    ];
+    for (args, flag) in cases {
+        refused_escaped(exe, args, flag);
+    }
 }

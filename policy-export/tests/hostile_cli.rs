@@ -10,7 +10,7 @@ use std::process::{Command, Output};
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
 
-use hostile::{entries, mkfifo};
+use hostile::{FORGED, entries, mkfifo, refused_escaped};
 
 #[path = "hostile_cli/modes.rs"]
 mod modes;
@@ -475,4 +475,24 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         "{module}"
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The command-line parser's own refusals (a value a flag's parser refuses, a value not among
+/// a flag's choices, an unknown flag or subcommand) show the user's text escaped: clap quoted
+/// it raw, so a line break in it printed a forged error line of its own.
+#[test]
+fn the_parser_s_refusals_show_the_text_they_quote_escaped() {
+    let exe = std::path::Path::new(env!("CARGO_BIN_EXE_policy-export"));
+    let unknown = format!("--se{FORGED}");
+    let command = format!("tra{FORGED}");
+    let cases: [(&[&str], &str); 5] = [
+        (&["train", "--seeds", FORGED], "--seeds"),
+        (&["train", "--threads", FORGED], "--threads"),
+        (&["export", "--format", FORGED], "--format"),
+        (&["train", &unknown], "--se"),
+        (&[&command], "tra"),
+    ];
+    for (args, flag) in cases {
+        refused_escaped(exe, args, flag);
+    }
 }

@@ -421,3 +421,35 @@ pub fn with_stdout_closed(exe: &Path, args: &[OsString], cwd: &Path) -> (Option<
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
 }
+
+/// A line break, an escape sequence and a carriage return, as a value or in a flag's name:
+/// a message that copied it raw printed a forged error line, moved the cursor, or overwrote
+/// its own line. The CLI suites', not the hostile suites'.
+#[allow(dead_code)]
+pub const FORGED: &str = "a\u{1b}[2J\r\nerror: fake";
+
+/// [`FORGED`] as a message shows it, escaped.
+#[allow(dead_code)]
+pub const FORGED_SHOWN: &str = "a\\u{1b}[2J\\r\\nerror: fake";
+
+/// Holds the command-line parser's refusal of `args`, which hold [`FORGED`], to the rules:
+/// exit status 2 within the refusals' processor time; one line that begins `error`, the
+/// first, naming `flag` and showing the forged text escaped; no control character but the line
+/// breaks between clap's lines (its reason, tip, usage and pointer to `--help`).
+#[allow(dead_code)]
+#[track_caller]
+pub fn refused_escaped(exe: &Path, args: &[&str], flag: &str) {
+    let ran = run_counted(Command::new(exe).args(args));
+    let err = &ran.stderr;
+    let seen = format!("{args:?}: exit {:?}: {err:?}", ran.code);
+    assert_eq!(ran.code, Some(2), "{seen}");
+    assert!(ran.late().is_none(), "{seen}");
+    assert!(ran.stdout.is_empty(), "{seen}");
+    assert!(!err.chars().any(|c| c.is_control() && c != '\n'), "{seen}");
+    let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error")).collect();
+    assert_eq!(errors.len(), 1, "{seen}");
+    assert!(err.starts_with(errors[0]), "{seen}");
+    assert!(errors[0].starts_with("error: "), "{seen}");
+    assert!(errors[0].contains(flag), "{seen}");
+    assert!(errors[0].contains(FORGED_SHOWN), "{seen}");
+}
