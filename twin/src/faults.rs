@@ -35,6 +35,11 @@ impl Window {
         let every = self.every.max(1);
         k % every >= every.saturating_sub(self.periods)
     }
+
+    /// Whether it holds in every period: a stretch as long as its interval.
+    pub fn always(&self) -> bool {
+        self.periods >= self.every.max(1)
+    }
 }
 
 /// A scenario's faults; the default is none.
@@ -109,6 +114,16 @@ pub(crate) fn zero_counts((theta, x): (f64, f64), encoders: &Encoders) -> (i32, 
     (
         counts(x * f64::from(encoders.cart_counts_per_m)),
         counts(theta / pole_count(encoders)),
+    )
+}
+
+/// A zero error of `(theta, x)` (radians, metres) as `encoders` read it: the whole counts
+/// it adds ([`zero_counts`]), in radians and metres.
+pub(crate) fn zero_read(zero: (f64, f64), encoders: &Encoders) -> (f64, f64) {
+    let (cart, pole) = zero_counts(zero, encoders);
+    (
+        f64::from(pole) * pole_count(encoders),
+        f64::from(cart) / f64::from(encoders.cart_counts_per_m),
     )
 }
 

@@ -79,6 +79,20 @@ pub struct PartSpec {
     pub stiff_high: bool,
     /// The values at which it changes nothing.
     pub idle: Idle,
+    /// Its stretch of periods within an interval, if it has one.
+    pub stretch: Option<Stretch>,
+}
+
+/// A part's stretch of K periods of every EVERY (`stuck=K/EVERY`, `weak=F/K/EVERY`). A
+/// stretch as long as its interval holds in every period, whatever K, so K past EVERY is
+/// refused: it reads as more than K = EVERY and builds the same world.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stretch {
+    /// The field of K; EVERY is the next.
+    pub field: usize,
+    /// The part that builds this part's world in every period, if another does (`force=F`
+    /// for a weak motor): then K = EVERY is refused too, one world having one spelling.
+    pub always: Option<&'static str>,
 }
 
 /// The values at which a part changes nothing (`noise=0`, `length=1`, `zero=0/0`): written,
@@ -275,6 +289,7 @@ fn parse_part(raw: &str) -> Result<Part, String> {
         });
     }
     refuse_idle(spec, &values)?;
+    refuse_stretch(spec, &values)?;
     Ok(Part {
         spec,
         values,
@@ -282,13 +297,22 @@ fn parse_part(raw: &str) -> Result<Part, String> {
     })
 }
 
+/// Field `i`'s value or range, its fallback where it was left out (`None` where that is
+/// not a value).
+fn filled(spec: &PartSpec, values: &[Option<Span>], i: usize) -> Option<Span> {
+    values
+        .get(i)
+        .copied()
+        .flatten()
+        .or(match spec.fields[i].fallback {
+            Fallback::Value(v) => Some(Span { lo: v, hi: v }),
+            _ => None,
+        })
+}
+
 /// Refuses a part whose every value is a point at which it changes nothing ([`Idle`]).
 fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
-    let point = |i: usize| match (values.get(i).copied().flatten(), spec.fields[i].fallback) {
-        (Some(s), _) if s.is_point() => Some(s.lo),
-        (None, Fallback::Value(v)) => Some(v),
-        _ => None,
-    };
+    let point = |i: usize| filled(spec, values, i).filter(Span::is_point).map(|s| s.lo);
     let Some((fields, at)) = spec.idle_fields() else {
         return Ok(());
     };
@@ -301,6 +325,35 @@ fn refuse_idle(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
         spec.key,
         names.join(" and ")
     ))
+}
+
+/// Refuses a stretch that can be longer than its interval in a world drawn, and one as
+/// long as its interval where another part builds that world ([`Stretch`]).
+fn refuse_stretch(spec: &PartSpec, values: &[Option<Span>]) -> Result<(), String> {
+    let Some(stretch) = spec.stretch else {
+        return Ok(());
+    };
+    let span = |i: usize| filled(spec, values, i).expect("a stretch's fields have defaults");
+    let (k, every) = (span(stretch.field), span(stretch.field + 1));
+    let shown = |s: Span| match s.is_point() {
+        true => format!("{}", s.lo),
+        false => format!("{}..{}", s.lo, s.hi),
+    };
+    let (key, found) = (
+        spec.key,
+        format!("K {} and EVERY {}", shown(k), shown(every)),
+    );
+    match stretch.always {
+        Some(instead) if k.is_point() && every.is_point() && k.lo >= every.lo => Err(format!(
+            "{key} takes K periods of every EVERY: expected K below EVERY (K = EVERY is every \
+             period, the world {instead} builds: write that), found {found}"
+        )),
+        _ if k.hi > every.lo => Err(format!(
+            "{key} takes K periods of every EVERY: expected K at most EVERY in every world (K \
+             = EVERY is every period), found {found}"
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// One value or range of field `f` of part `key`.

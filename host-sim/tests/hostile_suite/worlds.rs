@@ -49,6 +49,14 @@ pub fn bad_specs() -> Vec<Case> {
         "encoder=1024+zero=0.1/0.09",
         // A discount the board's f32 holds as a subnormal.
         "encoder=2400/15000/1e-40",
+        // A stretch past its interval, which holds in every period whatever K; a weak motor
+        // in every period, which is `force=F`.
+        "stuck=10/5",
+        "weak=0.5/600/500",
+        "weak=0.5/500/500",
+        // Sensing parts where no reading they touch reaches the board.
+        "drop=1+noise",
+        "stuck=3/3+glitch",
     ];
     for spec in specs {
         for cmd in [
@@ -191,6 +199,16 @@ pub fn bad_rows() -> Vec<Case> {
             format!("{args:?}"),
             &args,
             &["one scenario spelt twice"],
+        ));
+    }
+    // One world by how it runs: readings stuck for good whatever K, a zero error through
+    // encoders by the whole counts it adds.
+    for specs in ["stuck=5/5,stuck=1/1", "encoder+zero=0.06,encoder+zero=0.07"] {
+        let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
+        cases.push(Case::new(
+            format!("{args:?}"),
+            &args,
+            &["which build one world on this machine"],
         ));
     }
     // One world on the machine the episodes run on: the desk's own dead time and encoders.

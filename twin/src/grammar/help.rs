@@ -1,6 +1,6 @@
 //! The parts' table as people read it: the syntax list, a flag's help, the Markdown table.
 
-use super::{Fallback, Field, PARTS, PartSpec};
+use super::{Fallback, Field, PARTS, PartSpec, Stretch};
 
 /// Every part's syntax, comma-separated: what an error lists and the help shows.
 pub fn syntax_list() -> String {
@@ -29,10 +29,11 @@ pub fn markdown_table() -> String {
     for p in PARTS {
         let values: Vec<String> = p.fields.iter().map(describe).collect();
         out.push_str(&format!(
-            "| `{}` | {}{} | {} |\n",
+            "| `{}` | {}{}{} | {} |\n",
             p.syntax,
             values.join("; "),
             idle(p),
+            stretch(p),
             p.doc
         ));
     }
@@ -60,4 +61,16 @@ fn idle(p: &PartSpec) -> String {
         "; not {} {at} (it would change nothing)",
         names.join(" and ")
     )
+}
+
+/// How long a part's stretch may be ([`super::Stretch`]), as the table shows it.
+fn stretch(p: &PartSpec) -> String {
+    match p.stretch {
+        None => String::new(),
+        Some(Stretch { always: None, .. }) => "; K at most EVERY".into(),
+        Some(Stretch {
+            always: Some(instead),
+            ..
+        }) => format!("; K below EVERY (in every period, it is `{instead}`)"),
+    }
 }

@@ -3,7 +3,7 @@
 
 use super::{
     CART_COUNTS_RANGE, CART_FRICTION_RANGE, FACTOR_RANGE, Fallback, Field, Idle, Kind,
-    PIVOT_FRICTION_RANGE, POLE_COUNTS_RANGE, PartSpec, field,
+    PIVOT_FRICTION_RANGE, POLE_COUNTS_RANGE, PartSpec, Stretch, field,
 };
 
 /// A factor on one of the rig's quantities: the parts that multiply when given twice.
@@ -32,6 +32,7 @@ pub const PARTS: &[PartSpec] = &[
               (on the positions before quantisation when read through encoders)",
         stiff_high: false,
         idle: Idle::First(0.0),
+        stretch: None,
     },
     PartSpec {
         key: "delay",
@@ -47,6 +48,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "N periods of actuator dead time, known to the controller",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "force",
@@ -56,6 +58,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the motor's stall force",
         stiff_high: false,
         idle: Idle::First(1.0),
+        stretch: None,
     },
     PartSpec {
         key: "damping",
@@ -66,6 +69,7 @@ pub const PARTS: &[PartSpec] = &[
               machine, where it is refused)",
         stiff_high: true,
         idle: Idle::First(1.0),
+        stretch: None,
     },
     PartSpec {
         key: "length",
@@ -75,6 +79,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the pole's length to its centre of mass",
         stiff_high: false,
         idle: Idle::First(1.0),
+        stretch: None,
     },
     PartSpec {
         key: "polemass",
@@ -84,6 +89,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the pole's mass",
         stiff_high: false,
         idle: Idle::First(1.0),
+        stretch: None,
     },
     PartSpec {
         key: "cartmass",
@@ -93,6 +99,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "F times the cart's mass",
         stiff_high: false,
         idle: Idle::First(1.0),
+        stretch: None,
     },
     PartSpec {
         key: "friction",
@@ -118,6 +125,7 @@ pub const PARTS: &[PartSpec] = &[
               at the pivot (Florian 2007's corrected equations)",
         stiff_high: true,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "encoder",
@@ -145,6 +153,7 @@ pub const PARTS: &[PartSpec] = &[
               the model-free alpha-beta filter of discount D",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "jitter",
@@ -157,6 +166,7 @@ pub const PARTS: &[PartSpec] = &[
               part",
         stiff_high: false,
         idle: Idle::First(0.0),
+        stretch: None,
     },
     PartSpec {
         key: "push",
@@ -175,6 +185,7 @@ pub const PARTS: &[PartSpec] = &[
         doc: "a push of IMPULSE N s every EVERY periods, to a random side",
         stiff_high: false,
         idle: Idle::First(0.0),
+        stretch: None,
     },
     PartSpec {
         key: "zero",
@@ -189,6 +200,7 @@ pub const PARTS: &[PartSpec] = &[
               refused where both round to none)",
         stiff_high: false,
         idle: Idle::Every(0.0),
+        stretch: None,
     },
     PartSpec {
         key: "glitch",
@@ -202,6 +214,7 @@ pub const PARTS: &[PartSpec] = &[
               exact sensing, the angle is off by N of the rig's pole counts)",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "stuck",
@@ -211,18 +224,27 @@ pub const PARTS: &[PartSpec] = &[
             interval(200.0),
         ],
         syntax: "stuck[=K[/EVERY]]",
-        doc: "the readings freeze for K periods of every EVERY: the last one before repeats",
+        doc: "the readings freeze for K periods of every EVERY: the last one before repeats \
+              (with K = EVERY, the first reading for good, so a glitch or drop that misses \
+              the first period is refused beside it)",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: Some(Stretch {
+            field: 0,
+            always: None,
+        }),
     },
     PartSpec {
         key: "drop",
         effect: crate::faults::drop,
         fields: &[interval(20.0)],
         syntax: "drop[=EVERY]",
-        doc: "every EVERY-th reading never arrives: the sensor returns an error",
+        doc: "every EVERY-th reading never arrives: the sensor returns an error (with EVERY \
+              1, none does, so noise, zero, glitch and jitter are refused beside it unless a \
+              stuck sensor repeats a reading)",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "late",
@@ -233,6 +255,7 @@ pub const PARTS: &[PartSpec] = &[
               motor holds the one before",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
     PartSpec {
         key: "weak",
@@ -246,6 +269,10 @@ pub const PARTS: &[PartSpec] = &[
         doc: "the motor gives F times its force for K periods of every EVERY",
         stiff_high: false,
         idle: Idle::First(1.0),
+        stretch: Some(Stretch {
+            field: 1,
+            always: Some("force=F"),
+        }),
     },
     PartSpec {
         key: "reset",
@@ -256,6 +283,7 @@ pub const PARTS: &[PartSpec] = &[
               counts, its predictor empty (its counters go on)",
         stiff_high: false,
         idle: Idle::Never,
+        stretch: None,
     },
 ];
 

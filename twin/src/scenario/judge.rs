@@ -7,7 +7,7 @@
 
 use super::Scenario;
 use super::words::world_of;
-use crate::faults::zero_counts;
+use crate::faults::{Window, zero_counts, zero_read};
 use crate::grammar::{Part, PartSpec, Span};
 use crate::machine::Machine;
 
@@ -111,7 +111,7 @@ fn reason(key: &PartSpec, with: &Scenario, factors: usize, machine: &Machine) ->
     if let Some(why) = scales_nothing(key, machine) {
         return why.to_string();
     }
-    if let Some(need) = NEEDS.iter().find(|n| n.key == key.key && (n.moot)(with)) {
+    if let Some(need) = (NEEDS.iter()).find(|n| n.keys.contains(&key.key) && (n.moot)(with)) {
         return (need.why)(with);
     }
     if key.key == "delay" {
@@ -138,21 +138,23 @@ pub(crate) fn scales_nothing(spec: &PartSpec, machine: &Machine) -> Option<&'sta
     )
 }
 
-/// A part whose effect needs something beside it: in a world where `moot` holds, the field
-/// the part sets changes nothing in any episode, and `clear` takes it out.
+/// Parts whose effect needs something beside them: in a world where `moot` holds, the
+/// fields `keys` set change nothing in any episode, and `clear` takes them out.
 struct Need {
-    key: &'static str,
+    keys: &'static [&'static str],
     moot: fn(&Scenario) -> bool,
     clear: fn(&mut Scenario),
     why: fn(&Scenario) -> String,
 }
 
-/// Every part a world can hold without effect ([`crate::world::World`]'s sensors): what is
-/// left out is a `reset` under exact sensing without dead time, which restarts nothing in
-/// the twin's episodes but restarts the monitor of a board in the loop.
+/// Every part a world can hold without effect ([`crate::world::World`]'s sensors). Left
+/// out, as the controller's rather than the world's: a `reset` under exact sensing without
+/// dead time, which restarts nothing in the twin's episodes but restarts the monitor of a
+/// board in the loop; a `glitch` of whole revolutions, which the observer reads as none
+/// and the alpha-beta filter does not.
 const NEEDS: &[Need] = &[
     Need {
-        key: "jitter",
+        keys: &["jitter"],
         moot: |s| s.jitter > 0.0 && !s.reads_counts(),
         clear: |s| s.jitter = 0.0,
         why: |_| {
@@ -162,7 +164,7 @@ const NEEDS: &[Need] = &[
         },
     },
     Need {
-        key: "zero",
+        keys: &["zero"],
         moot: |s| {
             let encoders = &s.rig.encoders;
             s.reads_counts() && (s.faults.zero).is_some_and(|z| zero_counts(z, encoders) == (0, 0))
@@ -177,13 +179,59 @@ const NEEDS: &[Need] = &[
             )
         },
     },
+    // Every reading lost: what a reading would have held reaches nothing. A stuck sensor
+    // repeats a reading the drop did not reach ([`crate::world::World::measure`]).
+    Need {
+        keys: &["noise", "zero", "glitch", "jitter"],
+        moot: |s| s.faults.drop.is_some_and(|w| w.always()) && s.faults.stuck.is_none(),
+        clear: |s| {
+            s.noise_std = [0.0; 4];
+            s.faults.zero = None;
+            s.faults.glitch = None;
+            s.jitter = 0.0;
+        },
+        why: |_| {
+            "where every reading is lost (drop=1, and no stuck sensor to repeat one); expected \
+             a drop that lets some through, or the part left out"
+                .into()
+        },
+    },
+    // Readings frozen for good at the first: a fault of later periods reaches nothing.
+    Need {
+        keys: &["glitch"],
+        moot: |s| frozen(s) && (s.faults.glitch).is_some_and(|(_, w)| !w.holds(0)),
+        clear: |s| s.faults.glitch = None,
+        why: |_| FROZEN.into(),
+    },
+    Need {
+        keys: &["drop"],
+        moot: |s| frozen(s) && (s.faults.drop).is_some_and(|w| !w.holds(0)),
+        clear: |s| s.faults.drop = None,
+        why: |_| FROZEN.into(),
+    },
 ];
 
-/// `s` as its episodes run: a field a part sets without effect there ([`NEEDS`]) taken out.
+/// Why a sensing fault that misses the first period changes nothing in a [`frozen`] world.
+const FROZEN: &str = "where the readings freeze for good at the first (stuck with K = EVERY), \
+     a period it misses; expected EVERY 1, or the part left out";
+
+/// Whether `s`'s readings freeze for good at the first period's: a stuck sensor in every
+/// period repeats the reading before, and the first has none before it.
+fn frozen(s: &Scenario) -> bool {
+    s.faults.stuck.is_some_and(|w| w.always())
+}
+
+/// `s` as its episodes run, in one form: a field a part sets without effect there
+/// ([`NEEDS`]) taken out, a stuck sensor in every period written as one stuck every
+/// period, a zero error read through encoders as the whole counts it adds.
 pub(super) fn in_effect(s: &Scenario) -> Scenario {
     let mut out = s.clone();
     for need in NEEDS.iter().filter(|n| (n.moot)(s)) {
         (need.clear)(&mut out);
+    }
+    out.faults.stuck = (out.faults.stuck).map(|w| if w.always() { Window::every(1) } else { w });
+    if out.reads_counts() {
+        out.faults.zero = (out.faults.zero).map(|z| zero_read(z, &out.rig.encoders));
     }
     out
 }
