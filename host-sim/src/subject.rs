@@ -1,0 +1,122 @@
+//! Which policy runs, on which machine: the flags `eval`, `agree`, `render`, `soak`,
+//! `envelope` and `startup` share.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use clap::Args;
+use host_sim::eval::{ControllerKind, Net};
+use twin::Machine;
+use weights::levels::GivenLevels;
+
+/// Which policy runs, on which machine.
+#[derive(Args)]
+pub struct Subject {
+    /// A policy instead of the shipped one (the `shipped` crate): a run directory, or a
+    /// checkpoint as PyTorch users save it (safetensors, torch.save zip, Stable-Baselines3
+    /// model.zip, ONNX; fc1/fc2/fc3, nn.Sequential indices, prefixed layouts), of any
+    /// supported width.
+    #[arg(long)]
+    pub policy: Option<PathBuf>,
+    /// Tensor-name prefix of the network in --policy, when it holds several.
+    #[arg(long, requires = "policy")]
+    pub prefix: Option<String>,
+    /// The duty level each output of --policy drives, for a checkpoint that records none
+    /// (PyTorch, Stable-Baselines3, ONNX): comma-separated fractions of the full push in
+    /// increasing order, one per output (`-1,-0.2,0,0.2,1`). A two-output checkpoint
+    /// without them drives the paper's two; a file that records other levels refuses them.
+    #[arg(long, requires = "policy", allow_hyphen_values = true)]
+    pub levels: Option<String>,
+    /// The machine the scenarios are built on (a rig file, `rigs/`): its physics, encoders,
+    /// dead time, track and continuous-time world. Without it, the rig the policy file
+    /// records, or Gymnasium's machine; a different one than the recorded is warned about.
+    #[arg(long)]
+    pub rig: Option<PathBuf>,
+    /// The runtime monitor's envelope for --controller monitored: the JSON `host-sim
+    /// envelope --json` prints (for --policy, measured with the same --policy). The shipped
+    /// policy's is compiled in.
+    #[arg(long)]
+    pub envelope: Option<PathBuf>,
+}
+
+impl Subject {
+    /// The files this subject reads, by flag: the policy's (a run directory's
+    /// `policy.safetensors`) and the rig file.
+    pub fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
+        let policy = self.policy.as_deref().map(weights::checkpoint::policy_file);
+        [
+            ("--policy", policy),
+            ("--rig", self.rig.clone()),
+            ("--envelope", self.envelope.clone()),
+        ]
+        .into_iter()
+        .filter_map(|(flag, p)| Some((flag, p?)))
+        .collect()
+    }
+
+    /// The levels of --levels, checked.
+    pub fn given(&self) -> Result<Option<GivenLevels>> {
+        let parse = |l: &str| GivenLevels::parse(l, "--levels");
+        Ok(self.levels.as_deref().map(parse).transpose()?)
+    }
+
+    /// [`Subject::load`] for `kinds` of controller: the network with its integer version if
+    /// one runs it, and the envelope of --envelope. Refused: the monitored controller for a
+    /// --policy without an --envelope measured for it.
+    pub fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
+        let monitored = kinds.iter().any(|k| k.monitored());
+        if self.envelope.is_some() && !monitored {
+            let found: Vec<String> = kinds.iter().map(ToString::to_string).collect();
+            anyhow::bail!(
+                "--envelope is read by --controller monitored or monitored-int alone; expected \
+                 one of them, found {}",
+                found.join(", ")
+            );
+        }
+        if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
+            anyhow::bail!(
+                "--controller monitored needs the envelope measured for --policy {}: give \
+                 --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
+                weights::shown(path)
+            );
+        }
+        let envelope = self
+            .envelope
+            .as_deref()
+            .map(host_sim::envelope::read)
+            .transpose()?;
+        let int = kinds.iter().any(|k| k.int());
+        let policy = kinds.iter().any(|k| k.needs_policy());
+        let (machine, net) = self.load(int, policy)?;
+        let net = match envelope {
+            Some(e) => net.with_envelope(e),
+            None => net,
+        };
+        Ok((machine, net))
+    }
+
+    /// The machine, and the network (with its integer version if `int`), loaded lazily by
+    /// the commands after their cheaper checks. Where nothing needs the policy (`policy`
+    /// false: baselines that take none of its levels), --rig is the machine and a policy's
+    /// own rig is no concern of it.
+    pub fn load(&self, int: bool, policy: bool) -> Result<(Machine, Net)> {
+        let given = self.rig.as_deref().map(twin::rigfile::load).transpose()?;
+        if let (Some(machine), false) = (given, policy) {
+            return Ok((machine, Net::shipped()));
+        }
+        let Some(path) = &self.policy else {
+            return Ok((
+                twin::rigfile::choose(given, Some(Machine::GYMNASIUM)),
+                Net::shipped(),
+            ));
+        };
+        let import =
+            weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
+        let source = format!("policy {}", weights::shown(path));
+        let recorded = twin::rigfile::recorded(&import.metadata, &source)?;
+        let machine = twin::rigfile::choose(given, recorded);
+        let net = Net::from_weights(&import.weights, int.then_some(&machine))
+            .with_context(|| format!("policy {}", weights::shown(path)))?;
+        Ok((machine, net))
+    }
+}
