@@ -184,7 +184,8 @@ pub fn simulate(a: &SimulateLogsArgs) -> Result<()> {
     )?;
     let truth = twin::rigfile::load(&a.world)?;
     let board = twin::rigfile::load(&a.rig)?;
-    crate::world_arg::same_period(&truth, &a.world, &board, Some(&a.rig))?;
+    let named = crate::world_arg::board_name(Some(&a.rig), false, "");
+    crate::world_arg::same_period(&truth, &a.world, &board, &named)?;
     if !((0.0..=100.0).contains(&a.jitter) && weights::plain(a.jitter)) {
         return Err(weights::Error::Input(format!(
             "--jitter: expected counts in [0, 100], zero or normal, found {:?}",

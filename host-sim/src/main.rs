@@ -27,6 +27,9 @@ mod world_arg;
 
 use subject::Subject;
 
+/// The board's machine without --policy or --rig, as messages name it.
+const GYMNASIUM: &str = "Gymnasium's machine";
+
 /// Most states `agree` compares: a hundred million take minutes.
 const MAX_AGREE_STATES: u64 = 100_000_000;
 
@@ -247,7 +250,9 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     let (machine, net) = a.subject.load_for(&controllers)?;
     let run_on = match (&world, &a.world) {
         (Some(w), Some(path)) => {
-            world_arg::same_period(w, path, &machine, a.subject.rig.as_deref())?;
+            let s = &a.subject;
+            let named = world_arg::board_name(s.rig.as_deref(), s.policy.is_some(), GYMNASIUM);
+            world_arg::check(w, path, &machine, &named)?;
             w
         }
         _ => &machine,

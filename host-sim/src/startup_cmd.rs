@@ -90,13 +90,19 @@ pub struct StartupArgs {
     stride: usize,
 }
 
-/// The true world: `--world`, at the board's period, or the board's own rig.
+/// The board's machine without --policy or --rig, as messages name it.
+const DESK: &str = "the identified desk rig the shipped desk policy runs on";
+
+/// The true world: `--world`, at the board's period and another than the board's, or the
+/// board's own rig.
 fn world(a: &StartupArgs, board: Machine) -> Result<Machine> {
     let Some(path) = &a.world else {
         return Ok(board);
     };
     let world = twin::rigfile::load(path)?;
-    crate::world_arg::same_period(&world, path, &board, a.subject.rig.as_deref())?;
+    let s = &a.subject;
+    let named = crate::world_arg::board_name(s.rig.as_deref(), s.policy.is_some(), DESK);
+    crate::world_arg::check(&world, path, &board, &named)?;
     Ok(world)
 }
 

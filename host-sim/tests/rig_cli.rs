@@ -151,7 +151,7 @@ fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
             "--rig",
             slow_board,
         ),
-        // The shipped policy records Gymnasium's machine, at 50 Hz.
+        // Without --rig and --policy, the board is Gymnasium's machine, at 50 Hz.
         (
             vec![
                 "eval",
@@ -160,7 +160,7 @@ fn a_world_of_another_period_than_its_board_is_refused_naming_both() {
                 "--world",
                 fast_world.to_str().unwrap(),
             ],
-            "the rig the policy records",
+            "Gymnasium's machine",
             "its world's, 0.01 s; found 0.02 s",
         ),
     ];
@@ -233,5 +233,87 @@ fn eval_and_render_judge_a_spec_on_the_rig_the_policy_records() {
         assert!(!o.stdout.is_empty(), "{args:?}: nothing printed");
     }
     assert!(pics.join("episode.png").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The desk rig with `from` replaced by `to`, written to `dir` as `name`.
+fn desk_with(dir: &Path, name: &str, from: &str, to: &str) -> PathBuf {
+    let desk = std::fs::read_to_string(repo().join("rigs/desk.toml")).unwrap();
+    assert!(desk.contains(from), "{from}");
+    let path = dir.join(name);
+    std::fs::write(&path, desk.replacen(from, to, 1)).unwrap();
+    path
+}
+
+/// `args`, refused with exit status 2 and a message holding `want`, before any output.
+fn refused(args: &[&str], want: &str) {
+    let o = run(args);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+    assert!(err.contains(want), "{args:?}: {err}");
+    assert!(o.stdout.is_empty(), "{args:?} printed on stdout");
+}
+
+/// A `--world` whose episodes run as on the board's own machine changes nothing: judged on
+/// the machines built, so a copy of the board's rig, or one that differs only where the board
+/// models its own (the end-stop margin), is refused; a world of other physics is taken.
+#[test]
+fn a_world_that_builds_the_boards_own_is_refused() {
+    let dir = scratch("own-world");
+    let copy = desk_with(&dir, "copy.toml", "", "");
+    let margin = desk_with(&dir, "margin.toml", "margin_m = 0.05", "margin_m = 0.08");
+    let heavier = desk_with(
+        &dir,
+        "heavier.toml",
+        "pole_mass_kg = 0.08",
+        "pole_mass_kg = 0.09",
+    );
+    let (desk, gym) = (
+        repo().join("rigs/desk.toml"),
+        repo().join("rigs/gymnasium.toml"),
+    );
+    let path = |p: &Path| p.to_str().unwrap().to_string();
+    let (desk, gym) = (path(&desk), path(&gym));
+    let eval = [
+        "eval",
+        "--controller",
+        "lqr",
+        "--episodes",
+        "1",
+        "--horizon",
+        "5",
+    ];
+    let own = "expected another machine than the board's, or --world left out; found the \
+               same physics, encoders, dead time and integration";
+    for world in [path(&copy), path(&margin)] {
+        let on_desk = [&eval[..], &["--rig", &desk, "--world", &world]].concat();
+        refused(&on_desk, &format!("and --rig {desk}: {own}"));
+        let startup = [
+            "startup",
+            "--episodes",
+            "1",
+            "--rig",
+            &desk,
+            "--world",
+            &world,
+        ];
+        refused(&startup, own);
+    }
+    refused(
+        &[&eval[..], &["--world", &gym]].concat(),
+        &format!("--world {gym} and Gymnasium's machine: {own}"),
+    );
+    for args in [
+        [&eval[..], &["--rig", &desk, "--world", &path(&heavier)]].concat(),
+        [&eval[..], &["--rig", &gym, "--world", &desk]].concat(),
+        [&eval[..], &["--world", &desk]].concat(),
+    ] {
+        let o = run(&args);
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
