@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::Args;
+use clap::{Args, ValueEnum};
 use host_sim::eval::{ControllerKind, Net};
 use twin::Machine;
 use weights::levels::GivenLevels;
@@ -66,11 +66,10 @@ impl Subject {
     pub fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
         let monitored = kinds.iter().any(|k| k.monitored());
         if self.envelope.is_some() && !monitored {
-            let found: Vec<String> = kinds.iter().map(ToString::to_string).collect();
             anyhow::bail!(
                 "--envelope is read by --controller monitored or monitored-int alone; expected \
                  one of them, found {}",
-                found.join(", ")
+                names(kinds)
             );
         }
         if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
@@ -87,12 +86,55 @@ impl Subject {
             .transpose()?;
         let int = kinds.iter().any(|k| k.int());
         let policy = kinds.iter().any(|k| k.needs_policy());
+        if !policy {
+            self.refuse_unread(kinds, None)?;
+        }
         let (machine, net) = self.load(int, policy)?;
+        if !policy {
+            self.refuse_unread(kinds, Some(&machine))?;
+        }
         let net = match envelope {
             Some(e) => net.with_envelope(e),
             None => net,
         };
         Ok((machine, net))
+    }
+
+    /// Refuses --policy, and --levels, where `kinds` (none of which runs the network or
+    /// rounds to its levels) leave them changing nothing: the file is then read for the rig
+    /// it records alone, which --rig replaces, or which is Gymnasium's, the machine without
+    /// it. `gives` is the machine the file gave, once read.
+    fn refuse_unread(&self, kinds: &[ControllerKind], gives: Option<&Machine>) -> Result<()> {
+        let Some(path) = &self.policy else {
+            return Ok(());
+        };
+        let readers: Vec<ControllerKind> = (ControllerKind::value_variants().iter())
+            .filter(|k| k.needs_policy())
+            .copied()
+            .collect();
+        let read_by = format!(
+            "is read by the controllers that run --policy's network or round to its levels \
+             ({}) alone",
+            names(&readers)
+        );
+        let (policy, found) = (weights::shown(path), names(kinds));
+        if self.levels.is_some() {
+            anyhow::bail!("--levels {read_by}; expected one of them, found {found}");
+        }
+        match (&self.rig, gives) {
+            (Some(rig), _) => anyhow::bail!(
+                "--policy {policy} {read_by}, and for the rig it records where no --rig gives \
+                 the machine; expected one of them, or --policy left out, found {found} and \
+                 --rig {}",
+                weights::shown(rig)
+            ),
+            (None, Some(m)) if *m == Machine::GYMNASIUM => anyhow::bail!(
+                "--policy {policy} {read_by}, and for the rig it records, which is Gymnasium's \
+                 machine (or none), the machine without it; expected one of them, or --policy \
+                 left out, found {found}"
+            ),
+            _ => Ok(()),
+        }
     }
 
     /// The machine, and the network (with its integer version if `int`), loaded lazily by
@@ -119,4 +161,10 @@ impl Subject {
             .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))
     }
+}
+
+/// Controllers as a command line names them, comma-separated.
+fn names(kinds: &[ControllerKind]) -> String {
+    let names: Vec<String> = kinds.iter().map(ToString::to_string).collect();
+    names.join(", ")
 }

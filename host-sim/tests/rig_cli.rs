@@ -191,26 +191,25 @@ fn eval_and_render_judge_a_spec_on_the_rig_the_policy_records() {
         pics.to_str().unwrap(),
     );
     let short = "length=0.15+friction=0/0.1";
-    let eval = |spec: &'static str| {
-        let head = [
-            "eval",
-            "--controller",
-            "lqr",
-            "--episodes",
-            "2",
-            "--horizon",
-            "20",
-        ];
-        [&head[..], &["--policy", policy, "--scenario", spec]].concat()
-    };
+    let head = [
+        "eval",
+        "--controller",
+        "lqr",
+        "--episodes",
+        "2",
+        "--horizon",
+        "20",
+    ];
+    let eval = |spec: &'static str| [&head[..], &["--policy", policy, "--scenario", spec]].concat();
     let refusals = [
         (
             eval("delay=1"),
             "scenario \"delay=1\": delay changes nothing on this machine, whose own dead time \
              is 1 period",
         ),
+        // --rig gives the machine, and no row runs the policy: it would change nothing.
         (
-            [&eval(short)[..], &["--rig", gym]].concat(),
+            [&head[..], &["--rig", gym, "--scenario", short]].concat(),
             "the pivot's friction damps a velocity",
         ),
     ];
@@ -315,5 +314,84 @@ fn a_world_that_builds_the_boards_own_is_refused() {
             String::from_utf8_lossy(&o.stderr)
         );
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `--policy` and `--levels` where no row runs the network or rounds to its levels change
+/// nothing, as `--envelope` without a monitored row: the file is read for the rig it
+/// records alone, which --rig replaces, or which a file that records none does not give.
+#[test]
+fn a_policy_that_no_row_reads_is_refused() {
+    let dir = scratch("unread");
+    let desk = repo().join("rigs/desk.toml");
+    let on_desk = run_dir(&dir, &std::fs::read_to_string(&desk).unwrap());
+    let bare = dir.join("bare.safetensors");
+    let weights = Weights::from_mlp(&POLICY, &firmware::controller::Levels::BANG_BANG).unwrap();
+    std::fs::write(&bare, to_safetensors(&weights, &BTreeMap::new()).unwrap()).unwrap();
+    let (desk, on_desk, bare) = (
+        desk.to_str().unwrap(),
+        on_desk.to_str().unwrap(),
+        bare.to_str().unwrap(),
+    );
+    fn eval<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+        let head = [
+            "eval",
+            "--scenario",
+            "nominal",
+            "--episodes",
+            "2",
+            "--horizon",
+            "20",
+        ];
+        [&head[..], extra].concat()
+    }
+    let read_by = "is read by the controllers that run --policy's network or round to its \
+                   levels (policy, policy-int, monitored, monitored-int, lqr-levels, \
+                   lqr-levels-predict) alone";
+    refused(
+        &eval(&["--policy", bare, "--controller", "lqr,rule"]),
+        &format!(
+            "--policy {bare} {read_by}, and for the rig it records, which is Gymnasium's \
+             machine (or none), the machine without it; expected one of them, or --policy left \
+             out, found lqr, rule"
+        ),
+    );
+    refused(
+        &eval(&["--policy", on_desk, "--rig", desk, "--controller", "lqr"]),
+        &format!("found lqr and --rig {desk}"),
+    );
+    refused(
+        &eval(&["--policy", on_desk, "--levels=-1,1", "--controller", "lqr"]),
+        &format!("--levels {read_by}; expected one of them, found lqr"),
+    );
+    let render = [
+        "render",
+        "--horizon",
+        "5",
+        "--controller",
+        "lqr",
+        "--policy",
+        bare,
+    ];
+    let out = dir.join("pics");
+    refused(
+        &[&render[..], &["--out", out.to_str().unwrap()]].concat(),
+        read_by,
+    );
+    assert!(!out.exists());
+    // The rig it records is the machine, as --rig would give it; a row of its levels reads it.
+    let json = |args: &[&str]| -> serde_json::Value {
+        let o = run(&[args, &["--json"]].concat());
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        serde_json::from_slice(&o.stdout).unwrap()
+    };
+    let by_policy = json(&eval(&["--policy", on_desk, "--controller", "lqr"]));
+    let by_rig = json(&eval(&["--rig", desk, "--controller", "lqr"]));
+    assert_eq!(by_policy["rows"], by_rig["rows"]);
+    json(&eval(&["--policy", bare, "--controller", "lqr-levels"]));
     std::fs::remove_dir_all(&dir).unwrap();
 }
