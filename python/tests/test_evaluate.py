@@ -109,6 +109,9 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
         (dict(horizon=[10, 10]), "horizon: expected each row once, found 10 twice"),
         (dict(scenario=["noise+delay", "delay+noise"]), '"noise+delay" and "delay+noise", one scenario spelt twice'),
         (dict(scenario=["noise", "noise=1"]), '"noise" and "noise=1", one scenario spelt twice'),
+        # Stuck in every period whatever K: one world, and K past EVERY a slip.
+        (dict(scenario=["stuck=5/5", "stuck=1/1"]), '"stuck=5/5" and "stuck=1/1", which build one world'),
+        (dict(scenario=["stuck=5/5", "stuck=9/5"]), "expected K at most EVERY in every world"),
     ]
     cases.append((dict(horizon=[10, 10.9]), "horizon must be a whole number of periods; found 10.9"))
     cases.append((dict(horizon=10.0), "horizon must be a whole number of periods; found 10.0"))

@@ -91,7 +91,8 @@ pub struct Stretch {
     /// The field of K; EVERY is the next.
     pub field: usize,
     /// The part that builds this part's world in every period, if another does (`force=F`
-    /// for a weak motor): then K = EVERY is refused too, one world having one spelling.
+    /// for a weak motor): then K = EVERY, given as single values, is refused too, one world
+    /// having one spelling (a domain's ranges that meet there draw it among others).
     pub always: Option<&'static str>,
 }
 
