@@ -186,31 +186,7 @@ pub fn bad_rows() -> Vec<Case> {
             Case::new(format!("{args:?}"), &args, &["expected each row once"])
         })
         .collect();
-    // One world however its spec is written: a default written out, -0, a factor's product.
-    for specs in [
-        "noise,noise=1",
-        "push=0.5/100,push",
-        "zero=0/1,zero=-0/1",
-        "length=2+length=2,length=4",
-        "length=0.9+length=1.6+length=1.5,length=1.5+length=1.6+length=0.9",
-    ] {
-        let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
-        cases.push(Case::new(
-            format!("{args:?}"),
-            &args,
-            &["one scenario spelt twice"],
-        ));
-    }
-    // One world by how it runs: readings stuck for good whatever K, a zero error through
-    // encoders by the whole counts it adds.
-    for specs in ["stuck=5/5,stuck=1/1", "encoder+zero=0.06,encoder+zero=0.07"] {
-        let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
-        cases.push(Case::new(
-            format!("{args:?}"),
-            &args,
-            &["which build one world on this machine"],
-        ));
-    }
+    cases.extend(one_world(&base));
     // One world on the machine the episodes run on: the desk's own dead time and encoders.
     let desk = repo("rigs/desk.toml");
     for (specs, want) in [
@@ -249,5 +225,35 @@ pub fn bad_rows() -> Vec<Case> {
         &args,
         &["expected `hard-candidates` on Gymnasium's machine"],
     ));
+    cases
+}
+
+/// Two specs of one world on Gymnasium's machine, as eval's rows (`base` its flags): however
+/// a spec is written (a default written out, -0, a factor's product), and by how the world
+/// runs (readings stuck for good whatever K, a zero error through encoders by the whole
+/// counts it adds).
+fn one_world(base: &[&str]) -> Vec<Case> {
+    let mut cases = Vec::new();
+    for (specs, want) in [
+        ("noise,noise=1", "one scenario spelt twice"),
+        ("push=0.5/100,push", "one scenario spelt twice"),
+        ("zero=0/1,zero=-0/1", "one scenario spelt twice"),
+        ("length=2+length=2,length=4", "one scenario spelt twice"),
+        (
+            "length=0.9+length=1.6+length=1.5,length=1.5+length=1.6+length=0.9",
+            "one scenario spelt twice",
+        ),
+        (
+            "stuck=5/5,stuck=1/1",
+            "which build one world on this machine",
+        ),
+        (
+            "encoder+zero=0.06,encoder+zero=0.07",
+            "which build one world on this machine",
+        ),
+    ] {
+        let args: Vec<&str> = base.iter().copied().chain(["--scenario", specs]).collect();
+        cases.push(Case::new(format!("{args:?}"), &args, &[want]));
+    }
     cases
 }
