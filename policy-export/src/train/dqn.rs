@@ -187,9 +187,7 @@ impl<const H: usize, const A: usize> Trainer<'_, H, A> {
                     return Ok(());
                 }
             }
-            if !periodic.pending() {
-                self.show(records, on_episode);
-            }
+            self.show(&records[..periodic.kept(records.len())], on_episode);
             if spent {
                 break;
             }

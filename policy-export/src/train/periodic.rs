@@ -57,9 +57,10 @@ impl<'scope, 'env, 'a: 'scope, const H: usize, const A: usize> Periodic<'scope, 
         }
     }
 
-    /// Whether an evaluation is under way: the episodes since its mark may yet be dropped.
-    pub fn pending(&self) -> bool {
-        self.pending.is_some()
+    /// The episodes no evaluation under way can drop: those up to its mark, or all of
+    /// `run` when none is under way.
+    pub fn kept(&self, run: usize) -> usize {
+        self.pending.as_ref().map_or(run, |(_, mark)| mark.episodes)
     }
 
     /// Evaluates `net`, the weights at `mark`, after waiting for the evaluation under way;
