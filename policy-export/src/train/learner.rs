@@ -2,11 +2,11 @@
 //! TD targets of a sampled batch, and the target network's cached Q-values.
 //!
 //! A step is the definition `reference` writes in plain loops: the batch's TD targets, the
-//! gradient of its mean loss summed over its rows in order, clipped, one Adam step. Where
-//! the run has a second core, each step's work is shared without changing a bit: the rows'
-//! own work (three forward passes, the backward pass to the hidden units) in two parts of
-//! the batch, then the weight gradients' sums in two shares of the parameters, each over
-//! every row, then Adam in two shares of the parameters. The target net's Q-values of a
+//! gradient of its mean loss summed over its rows in order, clipped, one Adam step. The
+//! rows' own work (three forward passes, the backward pass to the hidden units) runs in two
+//! parts of the batch and the weight gradients' sums in two shares of the parameters, each
+//! over every row, without changing a bit: the split once fed a second core, which the
+//! periodic evaluations now use instead (`super::periodic`). The target net's Q-values of a
 //! replay slot are cached while neither changes. `tests` hold this learner to `reference`
 //! bit for bit.
 
@@ -20,12 +20,10 @@ use crate::config::{Algo, Config, Init, TargetUpdate};
 use crate::nn::{self, AdamParams, Kernel, Ops, Packed, Part};
 
 mod batch;
-mod pair;
 #[cfg(test)]
 pub(crate) mod reference;
 
 use batch::{Batch, CachedQ, Nets};
-use pair::Pair;
 
 /// TD targets for a batch: `r + gamma * (1 - terminated) * Q_target(s', a')`, where `a'` is
 /// chosen by the online net (Double DQN) or by the target net itself (DQN). Truncated
@@ -76,8 +74,6 @@ pub struct Learner<const H: usize, const A: usize> {
     target_q: Vec<CachedQ<A>>,
     /// Bumped whenever the target net changes; 0 marks a never-filled cache entry.
     target_version: u64,
-    /// The core that takes a share of each step, where the run has one to itself.
-    pair: Option<Pair>,
 }
 
 impl<const H: usize, const A: usize> Learner<H, A> {
@@ -107,7 +103,6 @@ impl<const H: usize, const A: usize> Learner<H, A> {
             batch: Batch::new(cfg.batch_size),
             target_q: vec![CachedQ::EMPTY; if cached { cfg.buffer_size } else { 0 }],
             target_version: 1,
-            pair: spare_core().then(Pair::new),
         }
     }
 
@@ -126,25 +121,20 @@ impl<const H: usize, const A: usize> Learner<H, A> {
             scale: 1.0 / n as f32,
         };
         let [r0, r1] = self.batch.halves();
-        let pair = self.pair.as_ref();
-        both(pair, || r0.work(cfg, &nets), || r1.work(cfg, &nets));
+        r0.work(cfg, &nets);
+        r1.work(cfg, &nets);
         self.batch.cache(&self.idx, cache, version, buf);
         let [s0, s1] = nn::shares(&mut self.grad);
         let g = self.batch.grads();
-        both(pair, || self.ops.share(g, s0), || self.ops.share(g, s1));
+        self.ops.share(g, s0);
+        self.ops.share(g, s1);
         if cfg.grad_clip > 0.0 {
             nn::clip_grad_norm(&mut self.grad, cfg.grad_clip as f32);
         }
         self.steps += 1;
         let step = self.adam.at(self.steps);
-        let [mut first, mut second] =
-            split_parameters(&mut self.online, &self.grad, &mut self.m, &mut self.v);
-        let ops = self.ops;
-        both(
-            pair,
-            || ops.adam(&step, &mut first),
-            || ops.adam(&step, &mut second),
-        );
+        let mut parts = parameters(&mut self.online, &self.grad, &mut self.m, &mut self.v);
+        self.ops.adam(&step, &mut parts);
         self.online_packed.pack(&self.online);
         if cfg.target_update == TargetUpdate::Soft {
             let tau = cfg.tau as f32;
@@ -185,56 +175,25 @@ impl<const H: usize, const A: usize> Learner<H, A> {
     }
 }
 
-/// `a` and `b`, on two cores where `pair` gives a second.
-fn both<A, B: Send>(
-    pair: Option<&Pair>,
-    a: impl FnOnce() -> A,
-    b: impl FnOnce() -> B + Send,
-) -> (A, B) {
-    match pair {
-        Some(pair) => pair.join(a, b),
-        None => (a(), b()),
-    }
-}
-
-/// A network's parameters, gradients and moments in two shares of about equal size: the
-/// first layer and the first half of the second layer's weights, and the rest.
-fn split_parameters<'a, const H: usize, const A: usize>(
+/// A network's parameters, each tensor beside its gradient and its two moments.
+fn parameters<'a, const H: usize, const A: usize>(
     p: &'a mut Mlp<H, A>,
     g: &'a Mlp<H, A>,
     m: &'a mut Mlp<H, A>,
     v: &'a mut Mlp<H, A>,
-) -> [Vec<Part<'a>>; 2] {
-    let mut parts: Vec<Part<'a>> = p
-        .tensors_mut()
+) -> Vec<Part<'a>> {
+    p.tensors_mut()
         .into_iter()
         .zip(g.tensors())
         .zip(m.tensors_mut().into_iter().zip(v.tensors_mut()))
         .map(|((p, g), (m, v))| (p, g, m, v))
-        .collect();
-    // Tensors in order fc1.weight, fc1.bias, fc2.weight, ...: fc2.weight is the large one.
-    let rest = parts.split_off(2);
-    let mut second = Vec::with_capacity(5);
-    let mut first = parts;
-    for (i, (p, g, m, v)) in rest.into_iter().enumerate() {
-        if i == 0 {
-            let half = p.len() / 2;
-            let (p0, p1) = p.split_at_mut(half);
-            let (g0, g1) = g.split_at(half);
-            let (m0, m1) = m.split_at_mut(half);
-            let (v0, v1) = v.split_at_mut(half);
-            first.push((p0, g0, m0, v0));
-            second.push((p1, g1, m1, v1));
-        } else {
-            second.push((p, g, m, v));
-        }
-    }
-    [first, second]
+        .collect()
 }
 
-/// Whether a run may have a second core for its updates: the thread pool has one (the
-/// machine's cores, or `RAYON_NUM_THREADS`, `train --threads`), and the run is not one of
-/// several the pool runs side by side (seeds, a study), each of which keeps a core busy.
+/// Whether a run may have a second core for its periodic evaluations: the thread pool has
+/// one (the machine's cores, or `RAYON_NUM_THREADS`, `train --threads`), and the run is not
+/// one of several the pool runs side by side (seeds, a study), each of which keeps a core
+/// busy.
 pub(super) fn spare_core() -> bool {
     rayon::current_thread_index().is_none() && rayon::current_num_threads() >= 2
 }

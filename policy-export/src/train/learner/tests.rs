@@ -81,25 +81,19 @@ fn bits<const H: usize, const A: usize>(m: &Mlp<H, A>) -> Vec<u32> {
         .collect()
 }
 
-/// Runs `updates` steps of the fast learner (on one core or two, with every kernel this
-/// CPU runs) and of the reference learner from the same start, on the same batches, with
+/// Runs `updates` steps of the fast learner (with every kernel this CPU runs) and of the reference learner from the same start, on the same batches, with
 /// the target copied every 7 steps where it is copied; every step's weights and loss
 /// must agree bit for bit.
-fn fast_equals_reference<const H: usize, const A: usize>(
-    cfg: &Config,
-    updates: u64,
-    two_cores: bool,
-) {
+fn fast_equals_reference<const H: usize, const A: usize>(cfg: &Config, updates: u64) {
     let buf = filled(300, 300, 11, A);
     for kernel in Kernel::available() {
         let mut fast = Learner::<H, A>::new(cfg, kernel, 5);
-        fast.pair = two_cores.then(Pair::new);
         let mut plain = ReferenceLearner::<H, A>::new(cfg, &fast.online);
         let (mut r1, mut r2) = (Pcg64Mcg::new(9), Pcg64Mcg::new(9));
         for step in 1..=updates {
             let l1 = fast.update(cfg, &buf, &mut r1);
             let l2 = plain.update(cfg, &buf, &mut r2);
-            let at = format!("{kernel:?}, two cores {two_cores}, step {step}, width {H}");
+            let at = format!("{kernel:?}, step {step}, width {H}");
             assert_eq!(l1.to_bits(), l2.to_bits(), "loss: {at}");
             assert_eq!(bits(&fast.online), bits(&plain.online), "weights: {at}");
             assert_eq!(bits(&fast.target), bits(&plain.target), "target: {at}");
@@ -112,7 +106,7 @@ fn fast_equals_reference<const H: usize, const A: usize>(
 }
 
 /// The fast learner is the reference learner: parts of the batch, shares of the
-/// parameters, the second core and the target cache change no bit, for Double DQN and DQN,
+/// parameters and the target cache change no bit, for Double DQN and DQN,
 /// hard and soft targets, both losses, with and without the clip, batches the parts split
 /// evenly and not, two outputs and more.
 #[test]
@@ -131,13 +125,11 @@ fn the_fast_learner_equals_the_reference_learner_bit_for_bit() {
         batch_size: 64,
         ..Config::robust()
     };
-    for two_cores in [false, true] {
-        fast_equals_reference::<64, 2>(&paper, 40, two_cores);
-        fast_equals_reference::<16, 2>(&odd, 30, two_cores);
-        fast_equals_reference::<32, 2>(&soft, 30, two_cores);
-        fast_equals_reference::<64, 5>(&paper, 30, two_cores);
-        fast_equals_reference::<32, 7>(&soft, 30, two_cores);
-    }
+    fast_equals_reference::<64, 2>(&paper, 40);
+    fast_equals_reference::<16, 2>(&odd, 30);
+    fast_equals_reference::<32, 2>(&soft, 30);
+    fast_equals_reference::<64, 5>(&paper, 30);
+    fast_equals_reference::<32, 7>(&soft, 30);
 }
 
 /// The clip must act in the test above for it to test the clip: the first step clipped
