@@ -88,9 +88,7 @@ pub(super) fn run<const H: usize, const A: usize>(
                 r.show(&records, t.on_episode);
             }
         }
-        periodic
-            .into_selection()
-            .ok_or_else(|| anyhow::anyhow!("an evaluation was left unsettled"))
+        Ok::<_, anyhow::Error>(periodic.into_selection())
     })?;
     let wall_s = start.elapsed().as_secs_f64();
     let chosen = selection.choose(&r.learner, &records, t.evaluate_policy);

@@ -69,7 +69,8 @@ impl<'scope, 'env, 'a: 'scope, const H: usize, const A: usize> Periodic<'scope, 
         if let Some(stop) = self.settle() {
             return Some(stop);
         }
-        let mut selection = self.selection.take()?;
+        let mut selection = (self.selection.take())
+            .expect("the selection is back once the evaluation under way is settled");
         match self.scope {
             Some(scope) => {
                 let run = move || {
@@ -97,9 +98,9 @@ impl<'scope, 'env, 'a: 'scope, const H: usize, const A: usize> Periodic<'scope, 
         self.stops(perfect).then_some(mark)
     }
 
-    /// The selection, once the last evaluation is settled (`None` before).
-    pub fn into_selection(self) -> Option<Selection<'a, H, A>> {
-        self.selection
+    /// The selection; the caller has settled the last evaluation.
+    pub fn into_selection(self) -> Selection<'a, H, A> {
+        (self.selection).expect("the last evaluation is settled before the selection is taken")
     }
 
     /// Whether the run stops after an evaluation that was `perfect` or not: perfect and
