@@ -22,6 +22,10 @@ use std::sync::Mutex;
 
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 
+mod refusal;
+
+use refusal::refusal;
+
 /// The first error writing standard output, after which nothing more is written to it.
 static STDOUT_FAILED: Mutex<Option<std::io::Error>> = Mutex::new(None);
 
@@ -153,77 +157,6 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
             std::process::exit(2)
         }
     }
-}
-
-/// clap's refusal `e` of a command line given to `cmd`, as printed: clap's own lines (the
-/// reason, a tip, the usage, where to read more), but every piece of the user's text in them
-/// (a value, an unknown flag or subcommand) escaped and cut as [`weights::excerpt`] does, a
-/// value parser's reason as [`weights::located`] does, and each line cut at [`LINE_MAX`].
-/// clap quotes them raw: a line break in a value forged a line of its own (`--seeds
-/// $'a\nerror: fake'`), and its plain rendering dropped an escape, a carriage return or a
-/// backspace without a trace. The message is built again from clap's kind and context, each
-/// text escaped; a value parser's reason, which clap writes raw after the value, is escaped
-/// and put back where clap puts it. Any control character left after that (in a message
-/// clap holds whole, which quotes no input) is escaped too, line by line.
-fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
-    let mut bare = clap::Error::new(e.kind()).with_cmd(cmd);
-    let mut context = false;
-    for (kind, value) in e.context() {
-        bare.insert(kind, escaped_context(kind, value));
-        context = true;
-    }
-    // Cut in its middle, if long, so that its end (what was expected) survives.
-    let source = std::error::Error::source(e).map(|s| weights::located("", None, &s.to_string()));
-    let text = match source {
-        // A message clap holds whole (the program's own, or a mismatch of its definitions).
-        _ if !context => e.render().to_string(),
-        None => bare.render().to_string(),
-        // clap's `invalid value '...' for '--flag <FLAG>': REASON`, its first line.
-        Some(reason) if e.kind() == ErrorKind::ValueValidation => {
-            let text = bare.render().to_string();
-            let (head, rest) = text.split_once('\n').unwrap_or((&text, ""));
-            format!("{head}: {reason}\n{rest}")
-        }
-        Some(_) => e.render().to_string(),
-    };
-    text.lines().map(|l| cut(&escape_controls(l))).collect()
-}
-
-/// A piece of clap's context with the user's text in it escaped and cut: every text but the
-/// usage, which clap makes from the command alone and may lay out on several lines. A tip
-/// (`to pass '-x' as a value, use '-- -x'`) quotes the user's text inside clap's styling,
-/// which is dropped, as it is when printed.
-fn escaped_context(kind: ContextKind, value: &ContextValue) -> ContextValue {
-    match value {
-        _ if kind == ContextKind::Usage => value.clone(),
-        ContextValue::String(s) => ContextValue::String(weights::excerpt(s)),
-        ContextValue::Strings(v) => {
-            ContextValue::Strings(v.iter().map(|s| weights::excerpt(s)).collect())
-        }
-        ContextValue::StyledStr(s) => {
-            ContextValue::StyledStr(weights::excerpt(&s.to_string()).into())
-        }
-        ContextValue::StyledStrs(v) => ContextValue::StyledStrs(
-            v.iter()
-                .map(|s| weights::excerpt(&s.to_string()).into())
-                .collect(),
-        ),
-        _ => value.clone(),
-    }
-}
-
-/// `line` with every character that is not printable escaped as [`weights::quote`] escapes
-/// it (`\u{1b}`, `\n`), quotes and backslashes left as they are, and nothing cut.
-fn escape_controls(line: &str) -> String {
-    let mut out = String::with_capacity(line.len());
-    for c in line.chars() {
-        if matches!(c, '"' | '\\' | '\'') {
-            out.push(c);
-        } else {
-            out.extend(c.escape_debug());
-        }
-    }
-    out
 }
 
 /// Stands for the stray bytes of the one argument being traced, in the parse that finds the
@@ -441,79 +374,6 @@ mod tests {
         let args = [b"tool".as_slice(), b"run", b"--policy", bad_path]
             .map(|a| std::ffi::OsStr::from_bytes(a).to_owned());
         assert!(cmd.clone().try_get_matches_from(args).is_ok());
-    }
-
-    #[test]
-    fn refusals_show_the_users_text_escaped_on_clap_s_lines() {
-        use clap::{Arg, Command};
-        // A value parser that quotes the value raw, as std's and clap's own need not.
-        let raw = |s: &str| -> Result<String, String> { Err(format!("no good: {s}")) };
-        let cmd = Command::new("tool").subcommand(
-            Command::new("run")
-                .arg(Arg::new("mode").long("mode").value_parser(["fast", "slow"]))
-                .arg(
-                    Arg::new("count")
-                        .long("count")
-                        .value_parser(clap::value_parser!(u32)),
-                )
-                .arg(Arg::new("raw").long("raw").value_parser(raw))
-                .arg(Arg::new("label")),
-        );
-        let refusal = |argv: &[&str]| {
-            let e = cmd.clone().try_get_matches_from(argv).unwrap_err();
-            let lines = refusal(&e, &cmd);
-            let seen = format!("{argv:?}: {lines:#?}");
-            assert!(
-                lines.iter().all(|l| !l.chars().any(char::is_control)),
-                "{seen}"
-            );
-            let errors: Vec<&String> = lines.iter().filter(|l| l.contains("error")).collect();
-            assert!(
-                errors.len() == 1 && errors[0].starts_with("error: "),
-                "{seen}"
-            );
-            (errors[0].clone(), lines.join("\n"))
-        };
-        let forged = "a\nerror: fake\u{1b}[2J";
-        let shown = "a\\nerror: fake\\u{1b}[2J";
-        let (line, _) = refusal(&["tool", "run", "--count", forged]);
-        assert_eq!(
-            line,
-            format!(
-                "error: invalid value '{shown}' for '--count <count>': invalid digit found in string"
-            )
-        );
-        let (line, _) = refusal(&["tool", "run", "--raw", forged]);
-        assert_eq!(
-            line,
-            format!("error: invalid value '{shown}' for '--raw <raw>': no good: {shown}")
-        );
-        let (line, all) = refusal(&["tool", "run", "--mode", "fas\nt"]);
-        assert_eq!(line, "error: invalid value 'fas\\nt' for '--mode <mode>'");
-        assert!(all.contains("[possible values: fast, slow]"), "{all}");
-        let (line, all) = refusal(&["tool", "run", "--mod\ne", "fast"]);
-        assert_eq!(line, "error: unexpected argument '--mod\\ne' found");
-        assert!(all.contains("Usage: tool run"), "{all}");
-        // clap's tip quotes the flag twice.
-        let (_, all) = refusal(&["tool", "run", "x", "-\u{1b}[2J\ny"]);
-        assert!(all.contains("as a value, use '-- -"), "{all}");
-        let (line, all) = refusal(&["tool", "ru\nn"]);
-        assert_eq!(line, "error: unrecognized subcommand 'ru\\nn'");
-        assert!(
-            all.contains("tip: a similar subcommand exists: 'run'"),
-            "{all}"
-        );
-        let (line, _) = refusal(&["tool", "run", "--count"]);
-        assert_eq!(
-            line,
-            "error: a value is required for '--count <count>' but none was supplied"
-        );
-        // A long value is cut, and the reason after it survives.
-        let long = format!("{}\nend", "x".repeat(100_000));
-        let (line, _) = refusal(&["tool", "run", "--raw", &long]);
-        assert!(line.chars().count() <= LINE_MAX + 3, "{line}");
-        assert!(line.starts_with("error: invalid value 'xxx"), "{line}");
-        assert!(line.ends_with("xxx\\nend"), "{line}");
     }
 
     #[test]
