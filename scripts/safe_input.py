@@ -1,8 +1,8 @@
 """Input the careful way, for the repository's Python scripts, by the rules the Rust tools
-keep (docs/HOSTILE_INPUT.md): files are read only if they are regular files, without
-blocking on a FIFO and never past a size cap; every count has a bound; anything malformed
-ends the script with exit status 2 and one line saying what was expected and what was
-found, never a traceback.
+keep (docs/HOSTILE_INPUT.md, docs/FILES.md): files are read only if they are regular
+files, without blocking on a FIFO and never past a size cap; every count has a bound;
+anything malformed ends the script with exit status 2 and one line saying what was
+expected and what was found, never a traceback.
 
 Standard library only, so that a script can refuse bad input before it imports NumPy,
 Gymnasium or Unicorn (and on a machine without them).

@@ -1,4 +1,4 @@
-//! Outputs that cannot be written (`docs/HOSTILE_INPUT.md`): `render`, `identify` and
+//! Outputs that cannot be written (`docs/FILES.md`): `render`, `identify` and
 //! `startup --render` run with their files limited in size, so that a write fails as on a
 //! full disk (EFBIG). Each exits 1 naming
 //! the file it could not write, in the system's words and never plotters' Debug text, and
