@@ -335,6 +335,13 @@ mod tests {
                "rms_theta_deg": {"mean": theta, "ci95": 0.01}})
     }
 
+    fn one_row(extra: Json) -> Json {
+        let mut row = row(0.9, [0.88, 0.92], 0.5, 100);
+        let fields = extra.as_object().unwrap().clone();
+        row.as_object_mut().unwrap().extend(fields);
+        json!({ "rows": [row] })
+    }
+
     #[test]
     fn a_figure_moves_only_beyond_its_old_interval() {
         let old = json!({"seed": 0, "rows": [row(0.9, [0.88, 0.92], 0.50, 100)],
@@ -393,19 +400,12 @@ mod tests {
 
     #[test]
     fn files_no_tool_writes_are_refused_and_names_are_escaped() {
-        let r = |extra: Json| {
-            let mut row = row(0.9, [0.88, 0.92], 0.5, 100);
-            row.as_object_mut()
-                .unwrap()
-                .extend(extra.as_object().unwrap().clone());
-            json!({ "rows": [row] })
-        };
-        assert_eq!(check(&r(json!({"episodes": 1000}))), Ok(()));
+        assert_eq!(check(&one_row(json!({"episodes": 1000}))), Ok(()));
         // Figures that may be negative, and both shapes of an interval.
         let fine = json!({"overestimation": {"mean": -0.5, "ci95": 0.2}, "mean_steps_ci95": null,
                           "success_ci95": [0.0, 0.0], "worst": {"start": [-0.01, 0.02]},
                           "rms_x_m": {"mean": 1e-39, "ci95": null}});
-        assert_eq!(check(&r(fine)), Ok(()));
+        assert_eq!(check(&one_row(fine)), Ok(()));
         for (extra, why) in [
             (
                 json!({"episodes": -5}),
@@ -443,35 +443,10 @@ mod tests {
             ),
             (json!({"success_ci95": [0.1, 0.2, 0.3]}), "an interval"),
             (json!({"period_s": -0.02}), "\"period_s\" above 0"),
-            // Shortest, as read: four decimals showed 9.9999e-321, 2.5000 and 0.0000.
-            (
-                json!({"rms_x_m": {"mean": 1e-320, "ci95": null}}),
-                "expected \"mean\" zero or a normal number, found 1e-320",
-            ),
-            (
-                json!({"episodes": 2.5}),
-                "expected `episodes` a whole count, found 2.5",
-            ),
-            (
-                json!({"success_rate": 0.00001, "episodes": 1000}),
-                "expected `success_rate` 0.9 (100 failures of 1000), found 1e-5",
-            ),
-            (
-                json!({"heat": {"mean": 5e-324, "ci95": 0.0}}),
-                "expected \"mean\" zero or a normal number, found 5e-324",
-            ),
         ] {
-            let e = check(&r(extra)).unwrap_err();
+            let e = check(&one_row(extra)).unwrap_err();
             assert!(e.contains(why), "{e}");
         }
-        // A row is named by the horizon it gives, not one cut to a whole count.
-        let mut half = row(0.9, [0.88, 0.92], 0.5, 100);
-        half["horizon"] = json!(2.5);
-        let e = check(&json!({ "rows": [half] })).unwrap_err();
-        assert_eq!(
-            e,
-            "row \"policy on noise at 2.5\": expected `horizon` a whole count, found 2.5"
-        );
         let twice = json!({"rows": [row(0.9, [0.8, 1.0], 0.5, 1), row(0.9, [0.8, 1.0], 0.5, 1)]});
         let e = check(&twice).unwrap_err();
         assert!(e.contains("\"policy on noise at 500\" twice"), "{e}");
@@ -490,5 +465,35 @@ mod tests {
             text.contains("new: policy on \\u{1b}[2J\\nerror: fake at 500"),
             "{text}"
         );
+    }
+
+    #[test]
+    fn refused_figures_are_shown_shortest_and_rows_by_the_horizon_given() {
+        for (extra, why) in [
+            // Shortest, as read: four decimals showed 9.9999e-321, 2.5000 and 0.0000.
+            (
+                json!({"rms_x_m": {"mean": 1e-320, "ci95": null}}),
+                "expected \"mean\" zero or a normal number, found 1e-320",
+            ),
+            (
+                json!({"episodes": 2.5}),
+                "expected `episodes` a whole count, found 2.5",
+            ),
+            (
+                json!({"success_rate": 0.00001, "episodes": 1000}),
+                "expected `success_rate` 0.9 (100 failures of 1000), found 1e-5",
+            ),
+            (
+                json!({"heat": {"mean": 5e-324, "ci95": 0.0}}),
+                "expected \"mean\" zero or a normal number, found 5e-324",
+            ),
+        ] {
+            let e = check(&one_row(extra)).unwrap_err();
+            assert!(e.contains(why), "{e}");
+        }
+        // A row is named by the horizon it gives, not one cut to a whole count.
+        let e = check(&one_row(json!({"horizon": 2.5}))).unwrap_err();
+        let want = "row \"policy on noise at 2.5\": expected `horizon` a whole count, found 2.5";
+        assert_eq!(e, want);
     }
 }
