@@ -1,6 +1,6 @@
 //! clap's refusal of a command line, rendered with the user's text in it escaped and cut.
 
-use clap::error::{ContextKind, ContextValue, ErrorKind};
+use clap::error::{ContextKind, ContextValue};
 
 use super::cut;
 
@@ -27,13 +27,14 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
         // A message clap holds whole (the program's own, or a mismatch of its definitions).
         _ if !context => e.render().to_string(),
         None => bare.render().to_string(),
-        // clap's `invalid value '...' for '--flag <FLAG>': REASON`, its first line.
-        Some(reason) if e.kind() == ErrorKind::ValueValidation => {
+        // clap's `invalid value '...' for '--flag <FLAG>': REASON`, its first line; any
+        // other refusal with a reason and the user's text takes it the same way, since the
+        // whole rendering would copy that text raw.
+        Some(reason) => {
             let text = bare.render().to_string();
             let (head, rest) = text.split_once('\n').unwrap_or((&text, ""));
             format!("{head}: {reason}\n{rest}")
         }
-        Some(_) => e.render().to_string(),
     };
     text.lines().map(|l| cut(&escape_controls(l))).collect()
 }
