@@ -244,20 +244,22 @@ pub fn hidden_name(path: &Path, pid: u32, suffix: &str) -> String {
     format!(".{}.{pid}.{suffix}", hidden_stem(path))
 }
 
-/// `path`'s name, or past [`HIDDEN_WHOLE_MAX`] bytes its beginning, `~` and the 64-bit
-/// FNV-1a digest of the whole name in hexadecimal: at least 14 bytes longer than any name
-/// kept whole, so never one's stem.
+/// `path`'s name, or past [`HIDDEN_WHOLE_MAX`] bytes (or not UTF-8) its beginning, `~` and
+/// the 64-bit FNV-1a digest of the whole name's bytes in hexadecimal: at least 14 bytes
+/// longer than any name kept whole, so never one's stem. A name that is not UTF-8 is shown
+/// lossily, so two that differ only in their invalid bytes part by the digest alone.
 fn hidden_stem(path: &Path) -> String {
-    let name = path.file_name().unwrap_or_default().to_string_lossy();
-    if name.len() <= HIDDEN_WHOLE_MAX {
+    let raw = path.file_name().unwrap_or_default();
+    let name = raw.to_string_lossy();
+    if name.len() <= HIDDEN_WHOLE_MAX && raw.to_str().is_some() {
         return name.into_owned();
     }
-    let mut end = HIDDEN_WHOLE_MAX;
+    let mut end = HIDDEN_WHOLE_MAX.min(name.len());
     while !name.is_char_boundary(end) {
         end -= 1;
     }
     let digest = firmware::link::digest::Fnv::default()
-        .bytes(name.as_bytes())
+        .bytes(raw.as_encoded_bytes())
         .finish();
     format!("{}~{digest:016x}", &name[..end])
 }

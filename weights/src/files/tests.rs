@@ -214,3 +214,15 @@ fn a_read_the_system_fails_is_its_failure_a_path_that_cannot_be_opened_the_input
     let e = read_capped(Path::new("/nonexistent/summary.json"), 100).unwrap_err();
     assert!(e.is_input(), "{e}");
 }
+
+/// Two names that are not UTF-8 and differ only in their invalid bytes read alike lossily;
+/// their hidden names differ all the same.
+#[cfg(unix)]
+#[test]
+fn names_differing_only_in_invalid_bytes_have_hidden_names_of_their_own() {
+    use std::os::unix::ffi::OsStrExt;
+    let dir = scratch("invalid");
+    let [a, b] = [b"out\xff.rs", b"out\xfe.rs"].map(|n| dir.join(std::ffi::OsStr::from_bytes(n)));
+    assert_eq!(a.to_string_lossy(), b.to_string_lossy());
+    assert_ne!(temp_path(&a), temp_path(&b));
+}
