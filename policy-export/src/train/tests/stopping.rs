@@ -5,16 +5,31 @@ use super::{bits, small, strip};
 use crate::config::{Config, KernelChoice};
 use crate::train::{EvalResult, RunResult, run, train};
 
-#[test]
-fn patience_stops_the_run_when_the_evaluations_stop_finding_better() {
-    let cfg = Config {
+/// A run evaluated after every episode, stopped by three evaluations without a better one.
+fn patient() -> Config {
+    Config {
         eval_every: 1,
         eval_episodes: 2,
         eval_max_steps: 60,
         patience: 3,
         episodes: 200,
         ..small(KernelChoice::Auto)
-    };
+    }
+}
+
+/// A run evaluated after every episode, stopped by three perfect evaluations in a row.
+fn settling() -> Config {
+    Config {
+        patience: 0,
+        settle: 3,
+        episodes: 400,
+        ..patient()
+    }
+}
+
+#[test]
+fn patience_stops_the_run_when_the_evaluations_stop_finding_better() {
+    let cfg = patient();
     let run = train(&cfg, 5, &mut |_| {}).unwrap();
     // Replayed from the recorded evaluations: the first one three after the last best.
     let mut best: Option<&EvalResult> = None;
@@ -39,14 +54,7 @@ fn patience_stops_the_run_when_the_evaluations_stop_finding_better() {
 
 #[test]
 fn settling_stops_the_run_once_its_evaluations_hold_every_episode_in_a_row() {
-    let cfg = Config {
-        eval_every: 1,
-        eval_episodes: 2,
-        eval_max_steps: 60,
-        settle: 3,
-        episodes: 400,
-        ..small(KernelChoice::Auto)
-    };
+    let cfg = settling();
     let run = train(&cfg, 5, &mut |_| {}).unwrap();
     // Replayed: the third perfect evaluation of a run of them, and none before it.
     let perfect = |res: &EvalResult| res.min >= 60.0;
@@ -65,29 +73,12 @@ fn settling_stops_the_run_once_its_evaluations_hold_every_episode_in_a_row() {
 /// episodes learnt past a stopping evaluation are dropped, with their steps.
 #[test]
 fn evaluating_beside_the_learning_gives_the_waiting_runs_bits() {
-    let stopping = Config {
-        eval_every: 1,
-        eval_episodes: 2,
-        eval_max_steps: 60,
-        ..small(KernelChoice::Auto)
-    };
-    let patient = Config {
-        patience: 3,
-        episodes: 200,
-        ..stopping.clone()
-    };
-    let settling = Config {
-        settle: 3,
-        episodes: 400,
-        ..stopping.clone()
-    };
     let budget = Config {
         eval_every: 7,
         max_env_steps: 3_000,
-        episodes: 400,
-        ..stopping
+        ..settling()
     };
-    for (cfg, seed) in [(patient, 5), (settling, 5), (budget, 3)] {
+    for (cfg, seed) in [(patient(), 5), (settling(), 5), (budget, 3)] {
         let [waited, beside]: [RunResult; 2] =
             [false, true].map(|beside| run(&cfg, seed, &mut |_| {}, true, beside).unwrap());
         assert!(
@@ -110,14 +101,7 @@ fn evaluating_beside_the_learning_gives_the_waiting_runs_bits() {
 /// a stopping evaluation dropped.
 #[test]
 fn a_run_cut_back_shows_only_the_records_it_keeps() {
-    let cfg = Config {
-        eval_every: 1,
-        eval_episodes: 2,
-        eval_max_steps: 60,
-        patience: 3,
-        episodes: 200,
-        ..small(KernelChoice::Auto)
-    };
+    let cfg = patient();
     let mut shown = Vec::new();
     let r = run(&cfg, 5, &mut |e| shown.push(e.episode), true, true).unwrap();
     let kept: Vec<usize> = r.episodes.iter().map(|e| e.episode).collect();
