@@ -83,25 +83,28 @@ fn run_dir(dir: &Path, rig_toml: &str) -> PathBuf {
     run
 }
 
+/// `eval` of two nominal episodes of 20 periods, with `extra` after.
+fn short_eval<'a>(extra: &[&'a str]) -> Vec<&'a str> {
+    let head = [
+        "eval",
+        "--scenario",
+        "nominal",
+        "--episodes",
+        "2",
+        "--horizon",
+        "20",
+    ];
+    [&head[..], extra].concat()
+}
+
 #[test]
 fn eval_warns_when_rig_is_not_the_rig_the_policy_records_and_only_then() {
     let dir = scratch("warn");
     let desk = repo().join("rigs/desk.toml");
     let policy = run_dir(&dir, &std::fs::read_to_string(&desk).unwrap());
     let eval = |rig: Option<&Path>| {
-        let mut args = vec![
-            "eval",
-            "--policy",
-            policy.to_str().unwrap(),
-            "--controller",
-            "policy",
-            "--scenario",
-            "nominal",
-            "--episodes",
-            "2",
-            "--horizon",
-            "20",
-        ];
+        let mut args = short_eval(&["--policy", policy.to_str().unwrap()]);
+        args.extend(["--controller", "policy"]);
         if let Some(rig) = rig {
             args.extend(["--rig", rig.to_str().unwrap()]);
         }
@@ -333,23 +336,11 @@ fn a_policy_that_no_row_reads_is_refused() {
         on_desk.to_str().unwrap(),
         bare.to_str().unwrap(),
     );
-    fn eval<'a>(extra: &[&'a str]) -> Vec<&'a str> {
-        let head = [
-            "eval",
-            "--scenario",
-            "nominal",
-            "--episodes",
-            "2",
-            "--horizon",
-            "20",
-        ];
-        [&head[..], extra].concat()
-    }
     let read_by = "is read by the controllers that run --policy's network or round to its \
                    levels (policy, policy-int, monitored, monitored-int, lqr-levels, \
                    lqr-levels-predict) alone";
     refused(
-        &eval(&["--policy", bare, "--controller", "lqr,rule"]),
+        &short_eval(&["--policy", bare, "--controller", "lqr,rule"]),
         &format!(
             "--policy {bare} {read_by}, and for the rig it records, which is Gymnasium's \
              machine (or none), the machine without it; expected one of them, or --policy left \
@@ -357,11 +348,11 @@ fn a_policy_that_no_row_reads_is_refused() {
         ),
     );
     refused(
-        &eval(&["--policy", on_desk, "--rig", desk, "--controller", "lqr"]),
+        &short_eval(&["--policy", on_desk, "--rig", desk, "--controller", "lqr"]),
         &format!("found lqr and --rig {desk}"),
     );
     refused(
-        &eval(&["--policy", on_desk, "--levels=-1,1", "--controller", "lqr"]),
+        &short_eval(&["--policy", on_desk, "--levels=-1,1", "--controller", "lqr"]),
         &format!("--levels {read_by}; expected one of them, found lqr"),
     );
     let render = [
@@ -389,9 +380,14 @@ fn a_policy_that_no_row_reads_is_refused() {
         );
         serde_json::from_slice(&o.stdout).unwrap()
     };
-    let by_policy = json(&eval(&["--policy", on_desk, "--controller", "lqr"]));
-    let by_rig = json(&eval(&["--rig", desk, "--controller", "lqr"]));
+    let by_policy = json(&short_eval(&["--policy", on_desk, "--controller", "lqr"]));
+    let by_rig = json(&short_eval(&["--rig", desk, "--controller", "lqr"]));
     assert_eq!(by_policy["rows"], by_rig["rows"]);
-    json(&eval(&["--policy", bare, "--controller", "lqr-levels"]));
+    json(&short_eval(&[
+        "--policy",
+        bare,
+        "--controller",
+        "lqr-levels",
+    ]));
     std::fs::remove_dir_all(&dir).unwrap();
 }
