@@ -123,11 +123,16 @@ pub fn run(board: &mut impl Board) -> bool {
     // The nine-level policy's entry points too, by address, for their instruction counts.
     let levels: ForwardLevels = core::hint::black_box(selftest::selftest_forward_levels);
     let levels_int: ForwardLevelsInt = core::hint::black_box(selftest::selftest_forward_levels_int);
+    let refine: ForwardLevelsInt = core::hint::black_box(selftest::selftest_refine_int);
     selftest::levels_probes(
         |o, q| levels(Some(o), Some(q)),
         |o, q| levels_int(Some(o), Some(q)),
         |l| board.line(l),
     );
+    // The refined duty of a fixed decision, compared with the host's as the probes are.
+    let mut duty = [0; 9];
+    refine(Some(&[5, 3, 1, 0]), Some(&mut duty));
+    board.line(format_args!("refine: {}", duty[0]));
     ok &= paced_runs(board);
     ok &= startup_check(board);
     ok &= monitor_check(board, forward_int, monitored);

@@ -8,7 +8,7 @@
 
 use firmware::ConfigError;
 use firmware::cartpole::{CartPole, Params};
-use firmware::controller::{FaultCounters, Limits, Monitor, Policy, answer};
+use firmware::controller::{FaultCounters, Greedy, Limits, Monitor, Policy, Refined, answer};
 use firmware::estimator::Estimate;
 use firmware::loopback::{Outcome, run, run_with_encoders};
 use firmware::network::int::QMlp;
@@ -59,6 +59,35 @@ pub extern "C" fn selftest_forward_levels(obs: Option<&[f32; 4]>, q: Option<&mut
 pub extern "C" fn selftest_forward_levels_int(obs: Option<&[i16; 4]>, q: Option<&mut [i32; 9]>) {
     if let (Some(obs), Some(q)) = (obs, q) {
         *q = shipped::desk_int::POLICY_INT.forward(obs);
+    }
+}
+
+/// What [`Refined`] adds to a decision of the integer nine-level policy: the duty it
+/// drives, in thousandths (`out[0]`), having chosen output `at[0]` of scores that stand
+/// `at[1]` and `at[2]` below it on either side (`at[3]` unread). Output `at[0]` beyond the
+/// levels drives nothing (`i32::MIN`).
+// SAFETY: as for `selftest_forward`.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn selftest_refine_int(at: Option<&[i16; 4]>, out: Option<&mut [i32; 9]>) {
+    if let (Some(&[i, below, above, _]), Some(out)) = (at, out) {
+        let i = usize::from(i.unsigned_abs());
+        let mut q = [i32::MIN; 9];
+        if let Some(k) = i.checked_sub(1).and_then(|k| q.get_mut(k)) {
+            *k = -i32::from(below);
+        }
+        if let Some(k) = q.get_mut(i + 1) {
+            *k = -i32::from(above);
+        }
+        if let Some(k) = q.get_mut(i) {
+            *k = 0;
+        }
+        let policy = Refined(Greedy {
+            net: &shipped::desk_int::POLICY_INT,
+            levels: shipped::desk_int::LEVELS,
+        });
+        let duty = Policy::<[i16; 4]>::drive(&policy, &q, i);
+        out[0] = duty.map_or(i32::MIN, |d| d.thousandths().into());
     }
 }
 

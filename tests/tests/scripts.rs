@@ -418,6 +418,20 @@ fn the_forward_passes_keep_their_instruction_budgets() {
             "{symbol}: {n} instructions on the M0, budget 25,000"
         );
     }
+    // Refining a choice in integers: the chosen output, its rises below and above. Soft
+    // floats took about 2,000.
+    let decisions = ["5,3,1,0", "5,0,7,0", "1,32767,32767,0", "4,1,32767,0"];
+    let n = most_insns(
+        &py,
+        "thumbv6m-none-eabi",
+        "selftest_refine_int",
+        true,
+        &decisions,
+    );
+    assert!(
+        n <= 1_000,
+        "refining: {n} instructions on the M0, budget 1,000"
+    );
 }
 
 /// A whole balancing period of the desk board on the Cortex-M0 (the start-up around the

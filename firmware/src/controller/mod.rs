@@ -82,6 +82,7 @@ pub mod monitor;
 mod policy;
 pub mod predict;
 mod reading;
+mod refine;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
@@ -90,6 +91,7 @@ pub use monitor::{Assurance, Mode, Monitor};
 pub use policy::{Answer, Greedy, Policy, Scores, answer};
 pub use predict::Predictor;
 pub use reading::Reading;
+pub use refine::{Refined, Rises, between};
 
 /// Where the controller gets the plant's state, once per period: encoders through an
 /// estimator on a board, the simulated plant in the twin. Units as in Gymnasium: m, m/s, rad,

@@ -3,6 +3,7 @@
 
 use super::levels::{Duty, Levels};
 use super::reading::Reading;
+use super::refine::Rises;
 use crate::network::int::QMlp;
 use crate::network::{Mlp, OBS_DIM, argmax};
 
@@ -15,12 +16,21 @@ pub trait Scores: Copy + PartialEq + core::fmt::Debug {
     /// The output the scores choose: the largest, a tie to the lower index; `None` when a
     /// score is no number a decision can rest on.
     fn choice(&self) -> Option<usize>;
+    /// How far output `i`'s score stands above each neighbour's: what
+    /// [`Refined`](super::Refined) reads. `None` where `i` lacks a neighbour on either side,
+    /// and for scores that are not values (a baseline's push, no scores).
+    fn rises(&self, _i: usize) -> Option<Rises> {
+        None
+    }
 }
 
 impl<const A: usize> Scores for [f32; A] {
     const UNSCORED: [f32; A] = [f32::NAN; A];
     fn choice(&self) -> Option<usize> {
         self.iter().all(|q| q.is_finite()).then(|| argmax(self))
+    }
+    fn rises(&self, i: usize) -> Option<Rises> {
+        Rises::of_floats(self, i)
     }
 }
 
@@ -29,6 +39,9 @@ impl<const A: usize> Scores for [i32; A] {
     const UNSCORED: [i32; A] = [0; A];
     fn choice(&self) -> Option<usize> {
         Some(argmax(self))
+    }
+    fn rises(&self, i: usize) -> Option<Rises> {
+        Rises::of_ints(self, i)
     }
 }
 
@@ -50,6 +63,12 @@ pub trait Policy<O: Reading = [f32; OBS_DIM]> {
     fn scores(&mut self, obs: &O) -> Self::Scores;
     /// The duty output `i` drives; `None` beyond the outputs.
     fn duty(&self, i: usize) -> Option<Duty>;
+    /// The duty scores `q` drive, having chosen output `i`: its level, unless the policy
+    /// refines it ([`Refined`](super::Refined)).
+    #[inline]
+    fn drive(&self, _q: &Self::Scores, i: usize) -> Option<Duty> {
+        self.duty(i)
+    }
 }
 
 /// A Q-network choosing among its duty levels: output `i`'s Q-value is the value of driving
@@ -162,6 +181,6 @@ pub type Answer<Q> = (Q, Option<Duty>);
 #[inline(always)]
 pub fn answer<O: Reading, P: Policy<O>>(policy: &mut P, seen: &O) -> Answer<P::Scores> {
     let q = policy.scores(seen);
-    let duty = q.choice().and_then(|i| policy.duty(i));
+    let duty = q.choice().and_then(|i| policy.drive(&q, i));
     (q, duty)
 }

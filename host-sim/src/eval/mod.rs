@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::ops::Range;
 
+use firmware::controller::Refined;
 use twin::run::{Aids, Stream, episode_rng};
 use twin::{EpisodeStats, Frame, Scenario};
 use twin::{run_episode, run_episodes};
@@ -38,6 +39,11 @@ pub enum ControllerKind {
     Policy,
     /// Its integer version (int8 weights, no floating point in the forward pass).
     PolicyInt,
+    /// The Q-network, its chosen level moved to the peak of its scores between the
+    /// neighbouring levels (`firmware::controller::Refined`).
+    PolicyRefined,
+    /// The integer network, refined alike.
+    PolicyIntRefined,
     /// The Q-network under the runtime monitor: LQR outside its envelope, a safe stop
     /// where even LQR cannot recover, frozen encoders watched for.
     Monitored,
@@ -65,7 +71,11 @@ pub enum ControllerKind {
 impl ControllerKind {
     /// Whether the Q-network drives (in any form).
     pub fn runs_policy(self) -> bool {
-        self.int() || matches!(self, ControllerKind::Policy | ControllerKind::Monitored)
+        self.int()
+            || matches!(
+                self,
+                ControllerKind::Policy | ControllerKind::PolicyRefined | ControllerKind::Monitored
+            )
     }
 
     /// Whether the policy's duty levels shape its commands: the network drives, or a
@@ -82,7 +92,9 @@ impl ControllerKind {
     pub fn int(self) -> bool {
         matches!(
             self,
-            ControllerKind::PolicyInt | ControllerKind::MonitoredInt
+            ControllerKind::PolicyInt
+                | ControllerKind::PolicyIntRefined
+                | ControllerKind::MonitoredInt
         )
     }
 
@@ -100,6 +112,8 @@ impl fmt::Display for ControllerKind {
         f.write_str(match self {
             ControllerKind::Policy => "policy",
             ControllerKind::PolicyInt => "policy-int",
+            ControllerKind::PolicyRefined => "policy-refined",
+            ControllerKind::PolicyIntRefined => "policy-int-refined",
             ControllerKind::Monitored => "monitored",
             ControllerKind::MonitoredInt => "monitored-int",
             ControllerKind::Lqr => "lqr",
@@ -132,6 +146,12 @@ pub fn episode(
             run_episode(net, s, h, seed, episode, monitored(net), on_frame)
         }
         ControllerKind::PolicyInt => run_episode(int(net), s, h, seed, episode, true, on_frame),
+        ControllerKind::PolicyRefined => {
+            run_episode(Refined(net), s, h, seed, episode, true, on_frame)
+        }
+        ControllerKind::PolicyIntRefined => {
+            run_episode(Refined(int(net)), s, h, seed, episode, true, on_frame)
+        }
         ControllerKind::MonitoredInt => {
             run_episode(int(net), s, h, seed, episode, monitored(net), on_frame)
         }
@@ -183,6 +203,10 @@ pub fn episodes(
         ControllerKind::Policy => run_episodes(|_| net, s, h, seed, e, true),
         ControllerKind::Monitored => run_episodes(|_| net, s, h, seed, e, monitored(net)),
         ControllerKind::PolicyInt => run_episodes(|_| int(net), s, h, seed, e, true),
+        ControllerKind::PolicyRefined => run_episodes(|_| Refined(net), s, h, seed, e, true),
+        ControllerKind::PolicyIntRefined => {
+            run_episodes(|_| Refined(int(net)), s, h, seed, e, true)
+        }
         ControllerKind::MonitoredInt => run_episodes(|_| int(net), s, h, seed, e, monitored(net)),
         ControllerKind::Lqr => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, false),
         ControllerKind::LqrPredict => run_episodes(|_| Lqr::of(&s.rig), s, h, seed, e, true),

@@ -3,7 +3,7 @@
 use std::fmt;
 
 use anyhow::Result;
-use firmware::controller::{Duty, Levels, Limits, Policy, Scores};
+use firmware::controller::{Duty, Levels, Limits, Policy, Rises, Scores};
 use firmware::network::int::QMlp;
 use firmware::network::{MAX_OUTPUTS, Mlp, argmax};
 use host_common::wide::WideMlp;
@@ -56,6 +56,9 @@ impl Scores for Outputs<f32> {
         let q = self.values();
         (!q.is_empty() && q.iter().all(|v| v.is_finite())).then(|| argmax(q))
     }
+    fn rises(&self, i: usize) -> Option<Rises> {
+        Rises::of_floats(self.values(), i)
+    }
 }
 
 /// As a board's integer network: its largest output, whatever the values.
@@ -67,6 +70,9 @@ impl Scores for Outputs<i32> {
     fn choice(&self) -> Option<usize> {
         let q = self.values();
         (!q.is_empty()).then(|| argmax(q))
+    }
+    fn rises(&self, i: usize) -> Option<Rises> {
+        Rises::of_ints(self.values(), i)
     }
 }
 
