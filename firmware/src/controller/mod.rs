@@ -86,12 +86,12 @@ mod refine;
 
 pub use bridge::{Actuator, ActuatorError, Bridge};
 pub use faults::{FaultCounters, FaultFlags, Limits};
-pub use levels::{Command, Duty, Levels, check_levels, nearest};
+pub use levels::{Command, Duty, Levels, Rises, between, check_levels, nearest};
 pub use monitor::{Assurance, Mode, Monitor};
 pub use policy::{Answer, Greedy, Policy, Scores, answer};
 pub use predict::Predictor;
 pub use reading::Reading;
-pub use refine::{Refined, Rises, between};
+pub use refine::Refined;
 
 /// Where the controller gets the plant's state, once per period: encoders through an
 /// estimator on a board, the simulated plant in the twin. Units as in Gymnasium: m, m/s, rad,

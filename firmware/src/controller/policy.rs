@@ -1,9 +1,8 @@
 //! What decides a period: a [`Policy`] scores the sanitised reading, its [`Scores`] choose an
 //! output, and the output's duty level drives the motor.
 
-use super::levels::{Duty, Levels};
+use super::levels::{Duty, Levels, Rises};
 use super::reading::Reading;
-use super::refine::Rises;
 use crate::network::int::QMlp;
 use crate::network::{Mlp, OBS_DIM, argmax};
 

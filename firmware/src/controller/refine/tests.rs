@@ -1,5 +1,5 @@
 use super::*;
-use crate::controller::{Greedy, Levels, answer, nearest};
+use crate::controller::{Greedy, Levels, Rises, answer, between, nearest};
 use crate::network::Mlp;
 use proptest::prelude::*;
 
