@@ -355,4 +355,32 @@ mod tests {
             format!("{:?}", row(kind, &s, 200, 3, &eps))
         );
     }
+
+    /// Refining drives a two-level policy as it was, float and integer (both its levels are
+    /// ends, `firmware::controller::Refined`), and moves a nine-level one off its levels: the
+    /// simulator's scores reach the refinement (they once lacked the rises it reads).
+    #[test]
+    fn refining_moves_only_a_policy_with_levels_between_its_ends() {
+        let s = Scenario::parse("noise").unwrap();
+        let run = |kind, net: &Net| format!("{:?}", par_episodes(kind, net, &s, 200, 3, 0..8));
+        let two = Net::shipped();
+        assert_eq!(
+            run(ControllerKind::Policy, &two),
+            run(ControllerKind::PolicyRefined, &two)
+        );
+        assert_eq!(
+            run(ControllerKind::PolicyInt, &two),
+            run(ControllerKind::PolicyIntRefined, &two)
+        );
+        let nine = Net::shipped_desk();
+        let mut off = 0;
+        episode(ControllerKind::PolicyRefined, &nine, &s, 200, 3, 0, |f| {
+            let duty = match f.command {
+                firmware::controller::Command::Drive(d) => Some(d),
+                firmware::controller::Command::Coast => None,
+            };
+            off += usize::from(duty.is_some_and(|d| !nine.levels().contains(&d)));
+        });
+        assert!(off > 0, "no refined duty left the levels");
+    }
 }
