@@ -2,7 +2,8 @@
 //! `host_sim::eval::check_rows`'s).
 
 use anyhow::Result;
-use host_sim::eval::{MAX_EPISODES, MAX_HORIZON};
+use clap::ValueEnum;
+use host_sim::eval::{ControllerKind, MAX_EPISODES, MAX_HORIZON};
 
 use super::EvalArgs;
 
@@ -17,11 +18,21 @@ pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
         // a gate that always passes.
         let controllers = a.controllers();
         if !controllers.iter().any(|k| k.runs_policy()) {
-            let found: Vec<String> = controllers.iter().map(ToString::to_string).collect();
+            let names = |kinds: &mut dyn Iterator<Item = &ControllerKind>| {
+                kinds
+                    .map(ToString::to_string)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            };
+            let drivers = names(
+                &mut ControllerKind::value_variants()
+                    .iter()
+                    .filter(|k| k.runs_policy()),
+            );
             anyhow::bail!(
                 "--min-success judges the rows the network drives; expected a controller \
-                 among policy, policy-int, monitored, monitored-int, found {}",
-                found.join(", ")
+                 among {drivers}, found {}",
+                names(&mut controllers.iter())
             );
         }
     }

@@ -61,7 +61,8 @@ impl PilArgs {
                  rebuild the pil application)"
             );
         }
-        if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
+        // A target's application drives its levels as they are: it refines nothing.
+        if let Some(c) = controllers.iter().find(|c| !c.runs_policy() || c.refined()) {
             bail!(
                 "--pil runs the controllers policy, policy-int, monitored and monitored-int, \
                  found --controller {c}"

@@ -389,7 +389,8 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
         assert!(
             err.contains(&format!(
                 "--min-success judges the rows the network drives; expected a controller \
-                 among policy, policy-int, monitored, monitored-int, found {}",
+                 among policy, policy-int, policy-refined, policy-int-refined, monitored, \
+                 monitored-int, found {}",
                 controllers.replace(',', ", ")
             )),
             "{err}"

@@ -149,6 +149,11 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
             &["policy, policy-int, monitored and monitored-int"],
         ),
         Case::new(
+            "a refined policy, which no target runs".into(),
+            &eval(&[&"--pil", &echo, &"--controller", &"policy,policy-refined"]),
+            &["policy, policy-int, monitored and monitored-int, found --controller policy-refined"],
+        ),
+        Case::new(
             "a policy file".into(),
             &eval(&[&"--pil", &echo, &"--policy", &"/bin/cat"]),
             &["compiled into the target"],

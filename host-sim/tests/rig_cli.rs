@@ -337,8 +337,8 @@ fn a_policy_that_no_row_reads_is_refused() {
         bare.to_str().unwrap(),
     );
     let read_by = "is read by the controllers that run --policy's network or round to its \
-                   levels (policy, policy-int, monitored, monitored-int, lqr-levels, \
-                   lqr-levels-predict) alone";
+                   levels (policy, policy-int, policy-refined, policy-int-refined, monitored, \
+                   monitored-int, lqr-levels, lqr-levels-predict) alone";
     refused(
         &short_eval(&["--policy", bare, "--controller", "lqr,rule"]),
         &format!(

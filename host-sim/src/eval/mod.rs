@@ -98,6 +98,15 @@ impl ControllerKind {
         )
     }
 
+    /// Whether the chosen level is refined between its neighbours (`policy-refined`,
+    /// `policy-int-refined`).
+    pub fn refined(self) -> bool {
+        matches!(
+            self,
+            ControllerKind::PolicyRefined | ControllerKind::PolicyIntRefined
+        )
+    }
+
     /// Whether the runtime monitor decides who drives.
     pub fn monitored(self) -> bool {
         matches!(
