@@ -174,7 +174,7 @@ pub fn check_output_dir(dir: &Path, kind: &str) -> Result<()> {
             env!("CARGO_PKG_NAME")
         )))
     };
-    if dir.file_name().is_none() {
+    if dir.file_name().is_none() || weights::files::ends_in_dot(dir) {
         return refuse("it is not a directory's name".into());
     }
     let why = match std::fs::symlink_metadata(dir) {
@@ -201,7 +201,12 @@ pub fn check_output_dir(dir: &Path, kind: &str) -> Result<()> {
 /// dropped uncommitted.
 pub struct Staging {
     tmp: PathBuf,
+    /// The destination as given, for messages.
     dest: PathBuf,
+    /// The destination in its parent as resolved once, before any move: a path that runs
+    /// through the destination itself (`run/../run`) no longer leads there once the earlier
+    /// output is moved aside.
+    place: PathBuf,
     kind: &'static str,
 }
 
@@ -214,13 +219,16 @@ impl Staging {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        std::fs::create_dir_all(&parent).map_err(|e| {
-            Error::Input(format!(
-                "--out {}: creating {}: {e}",
-                weights::shown(dest),
-                weights::shown(&parent)
-            ))
-        })?;
+        let parent = std::fs::create_dir_all(&parent)
+            .and_then(|()| std::fs::canonicalize(&parent))
+            .map_err(|e| {
+                Error::Input(format!(
+                    "--out {}: creating {}: {e}",
+                    weights::shown(dest),
+                    weights::shown(&parent)
+                ))
+            })?;
+        let place = parent.join(dest.file_name().context("check_output_dir saw its name")?);
         for old in weights::files::stale(dest, &["partial", "old"]) {
             if old.extension().is_some_and(|e| e == "old") {
                 // An earlier output a killed commit moved aside: what its marker proves.
@@ -245,6 +253,7 @@ impl Staging {
         let staging = Staging {
             tmp,
             dest: dest.to_path_buf(),
+            place,
             kind,
         };
         marker::write(&staging.tmp, kind, &[])?;
@@ -261,17 +270,28 @@ impl Staging {
     /// output is moved aside and removed as far as its marker proves it the tool's: a file
     /// changed or added in between is kept there, named in the error.
     pub fn commit(self) -> Result<()> {
-        check_output_dir(&self.dest, self.kind)?;
+        check_output_dir(&self.place, self.kind)?;
         let entries = listing(&self.tmp).map_err(anyhow::Error::msg)?;
         marker::write(&self.tmp, self.kind, &entries)?;
         let old = self.tmp.with_extension("old");
-        let had_old = self.dest.exists();
+        let had_old = self.place.exists();
         if had_old {
-            std::fs::rename(&self.dest, &old)
+            std::fs::rename(&self.place, &old)
                 .with_context(|| format!("moving {} aside", weights::shown(&self.dest)))?;
         }
-        std::fs::rename(&self.tmp, &self.dest)
-            .with_context(|| format!("renaming onto {}", weights::shown(&self.dest)))?;
+        if let Err(e) = std::fs::rename(&self.tmp, &self.place) {
+            // Never a state with no output at the name: the earlier one goes back.
+            let back = had_old && std::fs::rename(&old, &self.place).is_ok();
+            bail!(
+                "renaming onto {}: {e}{}",
+                weights::shown(&self.dest),
+                if back {
+                    "; the earlier output is back in place"
+                } else {
+                    ""
+                }
+            );
+        }
         if had_old && let Err(why) = clear(&old, self.kind) {
             bail!(
                 "{} is written, but the earlier output moved aside to {} is kept: {why}",
@@ -299,6 +319,32 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    /// `run/../run` runs through the destination, which the commit moves aside: it replaces
+    /// the earlier output whole, as `run` does. `run/.` names no entry a rename can replace.
+    #[test]
+    fn a_destination_named_through_itself_is_replaced_whole_or_refused() {
+        let dir = scratch("through");
+        let dest = dir.join("run");
+        let write = |at: &Path, text: &[u8]| {
+            let st = Staging::new(at, "train").unwrap();
+            std::fs::write(st.path().join("summary.json"), text).unwrap();
+            st.commit().unwrap();
+        };
+        write(&dest, b"first");
+        write(&dest.join("..").join("run"), b"second");
+        assert_eq!(std::fs::read(dest.join("summary.json")).unwrap(), b"second");
+        let left: Vec<_> = std::fs::read_dir(&dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, ["run"]);
+        for dotted in [dest.join("."), dir.join("run/.")] {
+            let e = check_output_dir(&dotted, "train").unwrap_err().to_string();
+            assert!(e.contains("it is not a directory's name"), "{e}");
+        }
+        assert_eq!(std::fs::read(dest.join("summary.json")).unwrap(), b"second");
     }
 
     #[test]

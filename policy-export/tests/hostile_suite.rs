@@ -126,6 +126,11 @@ fn bad_file_outputs(s: &Scratch, input: &Path) -> Vec<(String, PathBuf, &'static
             "/".into(),
             "expected an output file name",
         ),
+        (
+            "dot-name".into(),
+            s.join("new/."),
+            "expected an output file name",
+        ),
     ]
 }
 

@@ -175,12 +175,19 @@ pub fn check_place(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Whether `path` as written ends in a `.` component (`run/.`): a name the path's
+/// components hide, which a rename onto it refuses after the work.
+pub fn ends_in_dot(path: &Path) -> bool {
+    let text = path.as_os_str().as_encoded_bytes();
+    text == b"." || text.ends_with(b"/.")
+}
+
 /// Checks that `path` can be an output: absent, or a regular file (which will be replaced),
 /// not the same file as any of `inputs`, in a place this process can write
 /// ([`check_place`]). Call it before the work that produces the output, so a bad `--out`
 /// costs nothing.
 pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
-    if path.file_name().is_none() {
+    if path.file_name().is_none() || ends_in_dot(path) {
         return Err(Error::Input(format!(
             "{}: expected an output file name",
             crate::shown(path)
