@@ -75,6 +75,8 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     labelled.push(("--rig", a.rig.clone()));
     crate::check_io(&labelled, &[("--out", &a.out)])?;
     let machine = twin::rigfile::load(&a.rig)?;
+    // Identification fits the physics alone; how the rig starts is the builder's, carried.
+    let startup = twin::rigfile::given_startup(&a.rig)?;
     let logs = read_logs(&a.logs)?;
     let inputs: Vec<&Path> = labelled.iter().map(|(_, p)| p.as_path()).collect();
     if let Some(dir) = &a.plots {
@@ -102,7 +104,7 @@ pub fn run(a: &IdentifyArgs) -> Result<()> {
     bar.finish_and_clear();
     let found = found?;
     let identified = identify::identified(&machine, &found);
-    let text = report::rig_file(&identified, &found, &logs);
+    let text = report::rig_file(&identified, &found, &logs) + &startup;
     // What is written must be a rig file every tool reads back.
     twin::rigfile::parse(&text, "the identified rig")?;
     let plots = write(a, &text, &found, &logs)?;

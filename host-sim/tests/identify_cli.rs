@@ -66,7 +66,10 @@ fn inputs(dir: &Path) -> [PathBuf; 3] {
     let paths = ["cart.log", "swing.log", "measured.toml"].map(|n| dir.join(n));
     std::fs::write(&paths[0], cart).unwrap();
     std::fs::write(&paths[1], swing).unwrap();
-    std::fs::write(&paths[2], twin::rigfile::to_toml(&measured)).unwrap();
+    // How the builder's rig starts, which identification carries into the identified file.
+    let startup =
+        "\n[startup]\nswing_up = false\nhoming = true\nhoming_duty = 0.2\ncatch_periods = 5\n";
+    std::fs::write(&paths[2], twin::rigfile::to_toml(&measured) + startup).unwrap();
     paths
 }
 
@@ -114,6 +117,10 @@ fn identify_writes_a_rig_near_the_truth_and_draws_the_fit() {
     assert_eq!(found.rig.encoders, measured.rig.encoders);
     assert_eq!(q.masscart, measured.rig.params.masscart);
     assert_eq!(q.x_threshold, measured.rig.params.x_threshold);
+    let (_, starts) = twin::rigfile::load_startup(&out).unwrap();
+    assert_eq!(starts.catch_periods, 5);
+    assert_eq!(starts.swing, None);
+    assert_eq!(starts.homing.map(|h| h.duty), Some(0.2));
     assert_eq!(
         entries(&plots),
         [

@@ -23,30 +23,65 @@
 
 use firmware::rig::Rig;
 use firmware::startup::{Homing, MAX_CATCH_PERIODS, Startup, Swing, periods};
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use weights::Result;
 
 use super::{Fields, radians};
 
-#[derive(Deserialize, Default)]
+#[derive(Deserialize, Serialize, Default)]
 #[serde(deny_unknown_fields)]
 pub(super) struct Table {
+    #[serde(skip_serializing_if = "Option::is_none")]
     zero_window_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     catch_angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     catch_rate_deg_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     catch_periods: Option<u16>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     release_angle_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_up: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_energy_gain_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_max_accel_m_s2: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_centring_per_s2: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_centring_per_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     swing_overshoot: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     trim_deg_per_m_s: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     trim_max_deg: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     homing: Option<bool>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     homing_duty: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
     homing_stall_s: Option<f64>,
+}
+
+impl Table {
+    /// The table as a rig file's `[startup]`, only the values it was given (the rest are
+    /// suggested from a rig's physics, which a rig written from another may not share);
+    /// empty when it was given none.
+    pub(super) fn to_toml(&self) -> Result<String> {
+        #[derive(Serialize)]
+        struct Wrapped<'a> {
+            startup: &'a Table,
+        }
+        let text = toml::to_string(&Wrapped { startup: self })
+            .map_err(|e| weights::Error::Input(format!("writing [startup]: {e}")))?;
+        Ok(if text.trim() == "[startup]" {
+            String::new()
+        } else {
+            format!("\n{text}")
+        })
+    }
 }
 
 impl Fields<'_> {
