@@ -184,6 +184,8 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
             import.describe()
         )]);
     }
+    // The summary's figures describe the policy its run wrote beside it, and no other.
+    crate::outdir::unchanged(&[&weights::checkpoint::policy_file(src), &summary_path])?;
     let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
     let s: Summary = weights::json::parse_bytes(&bytes).map_err(|e| {
         weights::Error::Input(format!(

@@ -203,6 +203,17 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
             && header.contains("cartpole_controller_init_mlp64(&ctl, &balance, &balance_rig)"),
         "{header}"
     );
+
+    // Another policy in the run's place: the summary describes the run's, not this one.
+    std::fs::copy(fixture("cleanrl.safetensors"), &st).unwrap();
+    let o = exe()
+        .arg("export")
+        .arg(&run)
+        .arg("--out")
+        .arg(&rs)
+        .output()
+        .unwrap();
+    assert_refused(&o, "policy.safetensors: expected the file its run wrote");
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
