@@ -112,6 +112,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     let knock = knock(a)?;
     let (board, mut startup, net) = board(&a.subject)?;
     let world = world(a, board)?;
+    check_world(a, &world)?;
     let begin = match a.start {
         StartArg::Hanging => Begin::Hanging,
         StartArg::Swinging => Begin::Swinging,
@@ -163,6 +164,8 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         seed: a.seed,
         within_s: a.within,
         hold_s: a.hold,
+        cart_start_m: a.cart_start,
+        zero_error_deg: a.zero_error,
         startup: format!("{startup:?}"),
         rows: vec![float, int],
     };
@@ -295,6 +298,26 @@ struct Runs<'a> {
 }
 
 /// `degrees` in whole counts of `world`'s pole encoder.
+/// `a`'s values that only the world can judge: a cart started on its track, and a zero
+/// error the pole's encoder counts (the `zero` scenario part is judged alike).
+fn check_world(a: &StartupArgs, world: &Machine) -> Result<()> {
+    let track = world.rig.params.x_threshold;
+    anyhow::ensure!(
+        a.cart_start <= track,
+        "--cart-start must be at most the world's track half-length, {track} m, found {:?}",
+        a.cart_start
+    );
+    let rev = world.rig.encoders.pole_counts_per_rev;
+    anyhow::ensure!(
+        a.zero_error == 0.0 || counts_off(a.zero_error, world) != 0,
+        "--zero-error {:?} degrees rounds to no count of the pole's encoder ({rev} counts a \
+         turn, {:.3} degrees a count); expected half a count or more, or 0",
+        a.zero_error,
+        360.0 / f64::from(rev)
+    );
+    Ok(())
+}
+
 fn counts_off(degrees: f64, world: &Machine) -> i32 {
     let rev = f64::from(world.rig.encoders.pole_counts_per_rev);
     (degrees / 360.0 * rev).round() as i32

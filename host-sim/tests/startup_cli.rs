@@ -171,6 +171,15 @@ fn bad_input_exits_2_naming_what_was_expected() {
         &["--cart-start=-0.1"],
         "--cart-start must be metres in [0, 10], found -0.1",
     );
+    // The desk's track: 0.4 m either side; its pole encoder: 2,400 counts a turn.
+    refused(
+        &["--cart-start", "10"],
+        "--cart-start must be at most the world's track half-length, 0.4 m, found 10.0",
+    );
+    refused(
+        &["--zero-error", "0.05"],
+        "--zero-error 0.05 degrees rounds to no count of the pole's encoder (2400 counts a turn",
+    );
     let knock = "--knock expects NEWTONS@SECONDS, newtons in (0, 1000] and seconds in (0, 3600]";
     for bad in [
         "40",

@@ -41,6 +41,9 @@ pub(super) struct Report {
     pub(super) seed: u64,
     pub(super) within_s: f64,
     pub(super) hold_s: f64,
+    /// `--cart-start`, m, and `--zero-error`, degrees: what the episodes began from.
+    pub(super) cart_start_m: f64,
+    pub(super) zero_error_deg: f64,
     pub(super) startup: String,
     pub(super) rows: Vec<Row>,
 }
