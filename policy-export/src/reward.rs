@@ -100,16 +100,24 @@ impl Reward {
                 ));
             }
             seen.push(key);
-            let idle = if key == "scale" { 1.0 } else { 0.0 };
+            // The value a part changes nothing at; fail-penalty's depends on the rest.
+            let idle = match key {
+                "scale" => Some(1.0),
+                "fail-penalty" => None,
+                _ => Some(0.0),
+            };
             let number = || -> Result<f64, String> {
                 value
                     .and_then(|v| v.parse::<f64>().ok())
                     .filter(|v| v.is_finite() && v.abs() <= 1e6 && weights::plain(*v))
-                    .filter(|v| key == "fail-penalty" || *v != idle)
+                    .filter(|v| idle != Some(*v))
                     .ok_or_else(|| {
+                        let other = idle
+                            .map(|i| format!(", other than {i} (which changes nothing)"))
+                            .unwrap_or_default();
                         format!(
                             "reward {shown}: {key} needs a number in [-1e6, 1e6], zero or \
-                             normal, other than {idle} (which changes nothing), e.g. {key}=2"
+                             normal{other}, e.g. {key}=2"
                         )
                     })
             };
@@ -131,6 +139,14 @@ impl Reward {
                     ));
                 }
             }
+        }
+        // Without morvan or a weight, every step's reward is 1, the terminating one's too.
+        let shaped = r.morvan || [r.upright, r.centre, r.effort, r.smooth, r.heat] != [0.0; 5];
+        if r.fail == Some(1.0) && !shaped {
+            return Err(format!(
+                "reward {shown}: fail-penalty=1 changes nothing where no other part shapes the \
+                 reward (the terminating step's is 1 already); expected another value"
+            ));
         }
         Ok(r)
     }
@@ -269,11 +285,21 @@ mod tests {
             ("env+env", "found \"env\" again"),
             ("smooth=0", "other than 0 (which changes nothing)"),
             ("scale=1", "other than 1"),
-            ("fail-penalty=5e-324", "zero or normal"),
+            ("fail-penalty=5e-324", "zero or normal, e.g."),
             ("upright=1e-40", "zero or normal"),
+            // Every step's reward is 1 here, the terminating one's too.
+            ("fail-penalty=1", "fail-penalty=1 changes nothing"),
         ] {
             let e = Reward::parse(spec).unwrap_err();
             assert!(e.contains(want), "{spec}: {e}");
+        }
+        // 0 takes the terminating step's 1 away; 1 does change a shaped reward's.
+        for spec in [
+            "fail-penalty=0",
+            "upright=1+fail-penalty=1",
+            "morvan+fail-penalty=1",
+        ] {
+            Reward::parse(spec).unwrap();
         }
     }
 }
