@@ -113,6 +113,27 @@ pub fn check_threads_env() -> Result<(), String> {
     Ok(())
 }
 
+/// Refuses a number in any argument, alone or as a part of a list or a spec (`--levels=-1,X`,
+/// `friction=X/0.1`), that is written with a non-zero digit and reads as zero
+/// ([`weights::reads_as_zero`]): every flag's own check passes a zero.
+fn check_numbers(args: &[OsString]) -> Result<(), String> {
+    let pieces = args.iter().filter_map(|a| a.to_str()).flat_map(|a| {
+        a.split([',', '+', '=', '@', '/', ':', ' '])
+            .map(move |piece| (a, piece))
+    });
+    for (arg, piece) in pieces {
+        if weights::reads_as_zero(piece) {
+            return Err(format!(
+                "{}: {piece} reads as 0, below the smallest number a board holds; expected 0 \
+                 written as 0, or a number of at least {:e}",
+                weights::quote(arg),
+                f32::MIN_POSITIVE
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Longest line of a refusal printed.
 const LINE_MAX: usize = 300;
 
@@ -132,7 +153,7 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
         .and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
     match parsed {
         Ok(t) => {
-            if let Err(e) = check_threads_env() {
+            if let Err(e) = check_threads_env().and_then(|()| check_numbers(&args)) {
                 crate::errln!("error: {e}");
                 std::process::exit(2)
             }

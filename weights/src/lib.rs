@@ -29,9 +29,12 @@ pub mod files;
 pub mod json;
 pub mod levels;
 pub mod markdown;
+mod numbers;
 pub mod quant;
 pub mod shape;
 pub mod source;
+
+pub use numbers::{plain, reads_as_zero};
 
 use firmware::controller::{Levels, check_levels};
 use firmware::network::{Mlp, SUPPORTED_SHAPES, TENSOR_NAMES, shapes};
@@ -84,14 +87,6 @@ pub fn excerpt(s: &str) -> String {
 /// cursor. Every message that names a file names it so.
 pub fn shown(path: &std::path::Path) -> String {
     excerpt(&path.to_string_lossy())
-}
-
-/// Whether an input number is one a person means: zero, or normal both in f64 and once a
-/// board holds it in f32. A subnormal (`5e-324`, or `1e-40`, which f32 keeps as one) is a
-/// slip, lost in the arithmetic, wherever a number comes in. Large values are the ranges'
-/// to refuse.
-pub fn plain(x: f64) -> bool {
-    x == 0.0 || (x.is_normal() && (x as f32).abs() >= f32::MIN_POSITIVE)
 }
 
 /// A parser's refusal of `text` (a TOML file's, say) as `line L, column C: MESSAGE`, from
@@ -322,25 +317,6 @@ pub fn probe_states() -> impl Iterator<Item = [f32; 4]> {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn a_plain_number_is_zero_or_normal_in_f64_and_in_f32() {
-        for x in [0.0, -0.0, 1.0, -2.5e-38, 1.2e-38, 1e300, -1e308] {
-            assert!(plain(x), "{x:e}");
-        }
-        // 1e-38 and 1e-40 are normal in f64 and subnormal in f32; 1e-50 is 0 there.
-        for x in [
-            5e-324,
-            2e-308,
-            1e-38,
-            -1e-40,
-            1e-50,
-            f64::NAN,
-            f64::INFINITY,
-        ] {
-            assert!(!plain(x), "{x:e}");
-        }
-    }
 
     #[test]
     fn new_checks_width_lengths_and_values() {

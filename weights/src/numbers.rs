@@ -1,0 +1,54 @@
+//! The numbers a person means: a check every number that comes in passes.
+
+/// Whether an input number is one a person means: zero, or normal both in f64 and once a
+/// board holds it in f32. A subnormal (`5e-324`, or `1e-40`, which f32 keeps as one) is a
+/// slip, lost in the arithmetic, wherever a number comes in. Large values are the ranges'
+/// to refuse.
+pub fn plain(x: f64) -> bool {
+    x == 0.0 || (x.is_normal() && (x as f32).abs() >= f32::MIN_POSITIVE)
+}
+
+/// Whether `text` is a number written with a non-zero digit that reads as zero (`1e-400`):
+/// below the range of f64, it parses to 0 and passes every check of [`plain`], as the
+/// value a person who wrote it did not mean.
+pub fn reads_as_zero(text: &str) -> bool {
+    let mantissa = text.split(['e', 'E']).next().unwrap_or_default();
+    text.parse::<f64>().is_ok_and(|x| x == 0.0)
+        && mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_plain_number_is_zero_or_normal_in_f64_and_in_f32() {
+        for x in [0.0, -0.0, 1.0, -2.5e-38, 1.2e-38, 1e300, -1e308] {
+            assert!(plain(x), "{x:e}");
+        }
+        // 1e-38 and 1e-40 are normal in f64 and subnormal in f32; 1e-50 is 0 there.
+        for x in [
+            5e-324,
+            2e-308,
+            1e-38,
+            -1e-40,
+            1e-50,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            assert!(!plain(x), "{x:e}");
+        }
+    }
+
+    #[test]
+    fn a_number_below_f64_reads_as_zero_and_a_zero_does_not() {
+        for text in ["1e-400", "-1e-400", "10e-400", "0.0001e-330", "1E-999"] {
+            assert!(reads_as_zero(text), "{text}");
+        }
+        for text in [
+            "0", "-0", "0.0", "0e5", "00", "5e-324", "1e-40", "abc", "", "inf", "1",
+        ] {
+            assert!(!reads_as_zero(text), "{text}");
+        }
+    }
+}
