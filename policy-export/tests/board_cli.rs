@@ -41,6 +41,9 @@ fn trial(mean: f64) -> serde_json::Value {
 /// Sets the run's `board_trial` to the f32 and int8 trial means given.
 fn set_board_trial(run: &Path, f32: f64, int8: f64) {
     let path = run.join("summary.json");
+    // A summary edited by hand: without the run's marker, whose digest would refuse it, the
+    // directory is one put together by hand, its summary read as it is.
+    let _ = std::fs::remove_file(run.join(".cartpole-run"));
     let mut s: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
     s["board_trial"] = serde_json::json!({ "episode": 20, "f32": trial(f32), "int8": trial(int8) });
     std::fs::write(&path, serde_json::to_vec_pretty(&s).unwrap()).unwrap();

@@ -14,10 +14,7 @@ fn a_number_that_reads_as_zero_is_refused_in_every_flag_and_spec() {
             &["train", "--grad-clip", "1e-400", "--print-config"][..],
             "1e-400",
         ),
-        (
-            &["train", "--gamma=-1E-999", "--print-config"],
-            "-1E-999",
-        ),
+        (&["train", "--gamma=-1E-999", "--print-config"], "-1E-999"),
         (
             &[
                 "train",
