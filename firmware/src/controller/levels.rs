@@ -189,7 +189,7 @@ impl Command {
 }
 
 /// How far a chosen output's score stands above its lower and its higher neighbour's
-/// ([`Scores::rises`]): as floats, or exactly, as integer scores differ. A rise below zero
+/// ([`Scores::rises`](super::Scores::rises)): as floats, or exactly, as integer scores differ. A rise below zero
 /// (an output that is no peak) has no integer form.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Rises {
@@ -220,57 +220,56 @@ fn around<T: Copy>(q: &[T], i: usize) -> Option<(T, T, T)> {
     Some((*q.get(i.checked_sub(1)?)?, *q.get(i)?, *q.get(i + 1)?))
 }
 
-/// The scale of [`between`]'s fraction `t`: sixteen bits, a peak within a hundredth of a
-/// thousandth of full duty.
-const ONE: u64 = 1 << 16;
+/// The parts [`between`] cuts a float network's fraction `t` into: an f32's precision.
+const FLOAT_PARTS: i64 = 1 << 24;
 
 /// The duty at the peak of the parabola through the points `(levels[k], score k)`, where
 /// the middle score stands `rise` above its neighbours' (both at least zero for a chosen
-/// level), to the nearest thousandth.
+/// level), to the nearest thousandth, and strictly between the midpoints the middle level
+/// shares with its neighbours, so that rounding it to the nearest level gives the middle one
+/// back (a peak on a midpoint, where a neighbour scores as the middle level, is moved a
+/// thousandth inside).
 ///
 /// The peak lies at `m1 + t (m2 - m1)`, `m1` and `m2` the midpoints of the lower and higher
 /// pair of levels and `t = r1 h2 / (r1 h2 + r2 h1)` (`r1`, `r2` the rises, `h1`, `h2` the
-/// gaps between the levels): the lower midpoint where the lower level scores as the middle
-/// one, the higher where the higher does. Integer scores find it in integers alone, as a
-/// board without floating point runs them. Rises that give no such `t` (negative, not
-/// numbers, both zero, or large enough to overflow) leave the middle level.
+/// gaps between the levels). Integer scores find it in integers alone, as a board without
+/// floating point runs them, exactly. Rises that give no such `t` (negative, not numbers,
+/// both zero, or large enough to overflow) leave the middle level.
 pub fn between(levels: [Duty; 3], rise: Rises) -> Duty {
     let [lo, mid, hi] = levels.map(|d| i64::from(d.thousandths()));
     let (h1, h2) = (mid - lo, hi - mid);
     if h1 <= 0 || h2 <= 0 {
         return levels[1];
     }
-    let t = match rise {
+    // t as a fraction below / sum.
+    let (below, sum) = match rise {
         Rises::Float(r1, r2) => {
             let (below, above) = (r1 * h2 as f32, r2 * h1 as f32);
             let t = below / (below + above);
-            if !(below >= 0.0 && above >= 0.0 && (0.0..=1.0).contains(&t)) {
+            if !(below.is_finite() && above.is_finite() && (0.0..=1.0).contains(&t)) {
                 return levels[1];
             }
-            (t * ONE as f32 + 0.5) as u64
+            ((t * FLOAT_PARTS as f32 + 0.5) as i64, FLOAT_PARTS)
         }
         Rises::Int(r1, r2) => {
-            // Each below 2^32 times 2^11, so the sum and its 2^16-fold fit 64 bits.
-            let (below, above) = (u64::from(r1) * h2 as u64, u64::from(r2) * h1 as u64);
-            let sum = below + above;
-            if sum == 0 {
+            // Each below 2^32 times 2^11, so every product below stays under 2^57.
+            let (below, above) = (i64::from(r1) * h2, i64::from(r2) * h1);
+            if below + above == 0 {
                 return levels[1];
             }
-            (below * ONE + sum / 2) / sum
+            (below, below + above)
         }
     };
-    // 2 ONE times the peak: ONE (lo + mid) + t (hi - lo), half away from zero.
-    let twice = (lo + mid) * ONE as i64 + t.min(ONE) as i64 * (hi - lo);
-    let half = (twice.unsigned_abs() + ONE) / (2 * ONE);
-    let peak = if twice < 0 {
-        -(half as i64)
-    } else {
-        half as i64
-    };
-    i16::try_from(peak)
-        .ok()
-        .and_then(Duty::from_thousandths)
-        .unwrap_or(levels[1])
+    // The peak is ((lo + mid) sum + below (hi - lo)) / (2 sum): rounded half away from zero.
+    let twice = (lo + mid) * sum + below * (hi - lo);
+    let peak = (twice.abs() + sum) / (2 * sum) * twice.signum();
+    let inside = (
+        (lo + mid).div_euclid(2) + 1,
+        (mid + hi + 1).div_euclid(2) - 1,
+    );
+    let peak = peak.clamp(inside.0, inside.1);
+    // Between two levels, so within [-1000, 1000].
+    Duty::from_thousandths(peak as i16).unwrap_or(levels[1])
 }
 
 #[cfg(test)]

@@ -32,10 +32,12 @@ fn a_quadratic_value_gives_its_own_peak() {
     );
 }
 
+/// A neighbour that scores as the chosen level puts the peak on their midpoint, which rounds
+/// to either: the duty stays a thousandth inside, the chosen level's.
 #[test]
-fn a_tie_with_a_neighbour_drives_the_midpoint_and_no_rise_the_level() {
+fn a_tie_with_a_neighbour_drives_a_thousandth_inside_the_midpoint_and_no_rise_the_level() {
     let l = [d(50), d(150), d(400)];
-    for (lower, higher, want) in [(0, 3, 100), (3, 0, 275), (0, 0, 150)] {
+    for (lower, higher, want) in [(0, 3, 101), (3, 0, 274), (0, 0, 150)] {
         assert_eq!(between(l, Rises::Int(lower, higher)), d(want));
         let float = Rises::Float(lower as f32, higher as f32);
         assert_eq!(between(l, float), d(want));
@@ -49,6 +51,7 @@ fn rises_that_are_no_peak_leave_the_level() {
         (f32::NAN, 1.0),
         (1.0, f32::NAN),
         (f32::INFINITY, 1.0),
+        (1.0, f32::INFINITY),
         (f32::INFINITY, f32::INFINITY),
         (-1.0, 1.0),
         (1.0, -1.0),
@@ -62,12 +65,12 @@ fn rises_that_are_no_peak_leave_the_level() {
 }
 
 proptest! {
-    /// Every peak the textbook formula finds, to the thousandth, from float scores and from
-    /// integer ones alike, and always one that rounding to the nearest level gives back as
-    /// the chosen level.
+    /// Every peak the textbook formula finds, to the thousandth, from integer scores and from
+    /// float ones of any size alike, a thousandth inside a midpoint it falls on; and always
+    /// one that rounding to the nearest level gives back as the chosen level.
     #[test]
     fn the_peak_is_the_textbook_vertex_and_rounds_back_to_the_chosen_level(
-        lo in -1000i16..=998, gaps in (1i16..=1000, 1i16..=1000),
+        lo in -1000i16..=998, gaps in (1i16..=2000, 1i16..=2000),
         rise in (1u32..=u32::MAX, 0u32..=u32::MAX), scale in 1e-9f64..1e-3,
     ) {
         let mid = lo.saturating_add(gaps.0).min(999);
@@ -75,19 +78,15 @@ proptest! {
         prop_assume!(lo < mid && mid < hi);
         let levels = [d(lo), d(mid), d(hi)];
         let x = [lo, mid, hi].map(f64::from);
-        let y = [-f64::from(rise.0), 0.0, -f64::from(rise.1)];
-        let want = vertex(x, y);
-        let got = between(levels, Rises::Int(rise.0, rise.1));
-        // Rounding to the thousandth, and t to the nearest 2^-16 of the midpoints' span.
-        let bound = 0.5 + (x[2] - x[0]) / f64::from(1u32 << 18) + 1e-9;
-        prop_assert!((f64::from(got.thousandths()) - want).abs() <= bound, "{got:?} against {want}");
-        // The same shape as float scores of any size.
-        let float = Rises::Float((f64::from(rise.0) * scale) as f32, (f64::from(rise.1) * scale) as f32);
-        let by_float = between(levels, float);
-        prop_assert!((by_float.thousandths() - got.thousandths()).abs() <= 1, "{by_float:?} against {got:?}");
+        let want = vertex(x, [-f64::from(rise.0), 0.0, -f64::from(rise.1)]);
         let (m1, m2) = (0.5 * (x[0] + x[1]), 0.5 * (x[1] + x[2]));
         prop_assert!(m1 - 1e-6 <= want && want <= m2 + 1e-6);
-        if want > m1 + 1.0 && want < m2 - 1.0 {
+        let near_midpoint = want - m1 < 1.0 || m2 - want < 1.0;
+        let bound = if near_midpoint { 1.0 } else { 0.5 } + 1e-9;
+        let float = Rises::Float((f64::from(rise.0) * scale) as f32, (f64::from(rise.1) * scale) as f32);
+        // The float scores' own rounding moves the peak by far less than a thousandth.
+        for (got, slack) in [(between(levels, Rises::Int(rise.0, rise.1)), 0.0), (between(levels, float), 1e-3)] {
+            prop_assert!((f64::from(got.thousandths()) - want).abs() <= bound + slack, "{got:?} against {want}");
             let of = |k: usize| levels.get(k).copied();
             prop_assert_eq!(nearest(of, got.fraction(), 1.0), Some(1));
         }
@@ -135,9 +134,10 @@ fn integer_scores_rise_without_overflow() {
     let rise = q.rises(1).unwrap();
     assert_eq!(rise, Rises::Int(u32::MAX, u32::MAX));
     assert_eq!(between([d(-10), d(0), d(10)], rise), d(0));
+    // The higher neighbour scores as the middle: a thousandth inside their midpoint.
     assert_eq!(
         between([d(-1000), d(0), d(1000)], Rises::Int(u32::MAX, 0)),
-        d(500)
+        d(499)
     );
     assert_eq!(q.rises(0), None);
     assert_eq!(q.rises(2), None);
