@@ -6,6 +6,7 @@ use clap::ValueEnum;
 use host_sim::eval::{ControllerKind, MAX_EPISODES, MAX_HORIZON};
 
 use super::EvalArgs;
+use crate::subject::names;
 
 /// Checks `eval`'s counts before any work.
 pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
@@ -18,21 +19,15 @@ pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
         // a gate that always passes.
         let controllers = a.controllers();
         if !controllers.iter().any(|k| k.runs_policy()) {
-            let names = |kinds: &mut dyn Iterator<Item = &ControllerKind>| {
-                kinds
-                    .map(ToString::to_string)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            };
-            let drivers = names(
-                &mut ControllerKind::value_variants()
-                    .iter()
-                    .filter(|k| k.runs_policy()),
-            );
+            let drivers: Vec<ControllerKind> = (ControllerKind::value_variants().iter())
+                .filter(|k| k.runs_policy())
+                .copied()
+                .collect();
             anyhow::bail!(
                 "--min-success judges the rows the network drives; expected a controller \
-                 among {drivers}, found {}",
-                names(&mut controllers.iter())
+                 among {}, found {}",
+                names(&drivers),
+                names(&controllers)
             );
         }
     }

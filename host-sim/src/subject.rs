@@ -164,7 +164,7 @@ impl Subject {
 }
 
 /// Controllers as a command line names them, comma-separated.
-fn names(kinds: &[ControllerKind]) -> String {
+pub(crate) fn names(kinds: &[ControllerKind]) -> String {
     let names: Vec<String> = kinds.iter().map(ToString::to_string).collect();
     names.join(", ")
 }

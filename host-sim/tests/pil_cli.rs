@@ -98,6 +98,45 @@ fn eval(rest: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
 }
 
 /// Places and flags the rules refuse before any target answers.
+/// What a target cannot run: a controller other than its policy's, a policy file, a
+/// monitor without an envelope, a shipped policy it lacks.
+fn bad_controllers(echo: &str) -> Vec<Case> {
+    vec![
+        Case::new(
+            "a baseline".into(),
+            &eval(&[&"--pil", &echo, &"--controller", &"lqr"]),
+            &["policy, policy-int, monitored and monitored-int"],
+        ),
+        Case::new(
+            "a refined policy, which no target runs".into(),
+            &eval(&[&"--pil", &echo, &"--controller", &"policy,policy-refined"]),
+            &["policy, policy-int, monitored and monitored-int, found --controller policy-refined"],
+        ),
+        Case::new(
+            "a policy file".into(),
+            &eval(&[&"--pil", &echo, &"--policy", &"/bin/cat"]),
+            &["compiled into the target"],
+        ),
+        Case::new(
+            "a monitor without an envelope".into(),
+            &eval(&[
+                &"--pil",
+                &echo,
+                &"--pil-policy",
+                &"desk",
+                &"--controller",
+                &"policy-int,monitored-int",
+            ]),
+            &["--pil-policy desk: no envelope"],
+        ),
+        Case::new(
+            "an unknown shipped policy".into(),
+            &eval(&[&"--pil", &echo, &"--pil-policy", &"gym"]),
+            &["--pil-policy"],
+        ),
+    ]
+}
+
 fn bad_places(s: &Scratch) -> Vec<Case> {
     let echo = "exec:/bin/cat";
     // A program whose name is not UTF-8 is started (and ends at once), not refused unread.
@@ -144,38 +183,6 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
             &["goes with --pil qemu"],
         ),
         Case::new(
-            "a baseline".into(),
-            &eval(&[&"--pil", &echo, &"--controller", &"lqr"]),
-            &["policy, policy-int, monitored and monitored-int"],
-        ),
-        Case::new(
-            "a refined policy, which no target runs".into(),
-            &eval(&[&"--pil", &echo, &"--controller", &"policy,policy-refined"]),
-            &["policy, policy-int, monitored and monitored-int, found --controller policy-refined"],
-        ),
-        Case::new(
-            "a policy file".into(),
-            &eval(&[&"--pil", &echo, &"--policy", &"/bin/cat"]),
-            &["compiled into the target"],
-        ),
-        Case::new(
-            "a monitor without an envelope".into(),
-            &eval(&[
-                &"--pil",
-                &echo,
-                &"--pil-policy",
-                &"desk",
-                &"--controller",
-                &"policy-int,monitored-int",
-            ]),
-            &["--pil-policy desk: no envelope"],
-        ),
-        Case::new(
-            "an unknown shipped policy".into(),
-            &eval(&[&"--pil", &echo, &"--pil-policy", &"gym"]),
-            &["--pil-policy"],
-        ),
-        Case::new(
             "no timeout".into(),
             &eval(&[&"--pil", &echo, &"--pil-timeout", &"0"]),
             &["must lie in"],
@@ -203,6 +210,7 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
 fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
     let s = Scratch::new("pil-cli");
     let mut cases = bad_places(&s);
+    cases.extend(bad_controllers("exec:/bin/cat"));
     let dir = s.join("targets");
     std::fs::create_dir(&dir).unwrap();
     for (name, bytes, want) in answers() {

@@ -41,6 +41,9 @@ impl<P: Policy> Policy for Recording<'_, P> {
     fn duty(&self, i: usize) -> Option<Duty> {
         self.inner.duty(i)
     }
+    fn drive(&self, q: &P::Scores, i: usize) -> Option<Duty> {
+        self.inner.drive(q, i)
+    }
 }
 
 /// Every observation `policy` is asked about in episodes `episodes` of each of `scenarios`

@@ -169,7 +169,8 @@ pub fn nearest(duty: impl Fn(usize) -> Option<Duty>, force: f32, full: f32) -> O
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Command {
-    /// Drive at this duty: a level the policy chose, or the monitor's fallback.
+    /// Drive at this duty: a level the policy chose (or a duty between its levels,
+    /// [`Refined`](super::Refined)), or the monitor's fallback.
     Drive(Duty),
     /// Duty off, for want of a decision: a rejected reading, scores that are not numbers,
     /// a stopped monitor.

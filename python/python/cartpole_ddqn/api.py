@@ -373,7 +373,8 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     ``policy`` is a loaded Policy (the shipped one by default), which drives its own duty
     levels (``levels``, if given, must be those); ``scenario``, ``horizon`` and
     ``controller`` may be lists (``controller`` among ``host-sim eval``'s controllers:
-    policy, policy-int, the monitored and LQR baselines, rule, random). At most ``MAX_EPISODES`` episodes of
+    policy, policy-int, either refined between its levels, the monitored and LQR baselines,
+    rule, random). At most ``MAX_EPISODES`` episodes of
     ``MAX_HORIZON`` periods; Ctrl-C (``KeyboardInterrupt``) stops it within a fraction of
     a second."""
     if policy is not None and not isinstance(policy, Policy):
