@@ -85,18 +85,20 @@ impl Manifest {
         Manifest::parse(&text).map_err(|e| anyhow::anyhow!("{PATH}: {e}"))
     }
 
-    /// The manifest in `text`, checked: names unique and plain, one line per command, a
-    /// printed output written by one step alone, known tools, a cost.
+    /// The manifest in `text`, checked: names unique and plain, every field a line that
+    /// `results steps` prints as one tab-separated field, an output in the repository and
+    /// written by one step (a results file's rows by several), known tools, a cost.
     pub fn parse(text: &str) -> Result<Manifest, String> {
         let m: Manifest =
             toml::from_str(text).map_err(|e| weights::located(text, e.span(), e.message()))?;
-        // Each output's writers and whether one prints it, counted once: a check per step
+        // Each output's writers and whether one prints it, gathered once: a check per step
         // over all steps was quadratic in the manifest's length.
-        let mut outputs: HashMap<&str, (usize, bool)> = HashMap::new();
+        let mut outputs: HashMap<&str, (Vec<&str>, bool)> = HashMap::new();
         for t in &m.steps {
             if let Some(o) = &t.output {
                 let e = outputs.entry(o.as_str()).or_default();
-                *e = (e.0 + 1, e.1 || t.stdout);
+                e.0.push(&t.name);
+                e.1 |= t.stdout;
             }
         }
         let mut names = HashSet::new();
@@ -109,59 +111,28 @@ impl Manifest {
             if !names.insert(s.name.as_str()) {
                 return Err(format!("{at}: a second step of that name"));
             }
-            // `results steps` prints them one step a line, tab-separated, to a terminal or a
-            // script: a control character would break the line or drive the terminal.
-            let lines = [
-                Some(&s.run),
-                s.prepare.as_ref(),
-                Some(&s.about),
-                s.output.as_ref(),
-            ];
-            if s.run.trim().is_empty()
-                || lines.iter().flatten().any(|l| l.contains(char::is_control))
-            {
-                return Err(format!(
-                    "{at}: expected a command, and no control character (a tab, a line break, \
-                     an escape) in run, prepare, about or output"
-                ));
-            }
-            if s.stdout && s.output.is_none() {
-                return Err(format!("{at}: stdout = true names no output"));
-            }
+            check_fields(s).map_err(|e| format!("{at}: {e}"))?;
             if let Some((writers, printed)) = s.output.as_deref().and_then(|o| outputs.get(o))
-                && *writers > 1
-                && *printed
+                && let Some(other) = writers.iter().find(|w| **w != s.name)
             {
-                return Err(format!(
-                    "{at}: its output is printed by one step and written by another"
-                ));
+                if *printed {
+                    return Err(format!(
+                        "{at}: its output is printed by one step and written by another"
+                    ));
+                }
+                // Two steps merge their rows into one results file (each under its labels);
+                // any other output the second would overwrite.
+                if !s.results().is_some_and(|r| r.ends_with(".json")) {
+                    return Err(format!(
+                        "{at}: output {} is step {}'s too; expected one step per output \
+                         (several merge their rows into one results file, docs/results/*.json, \
+                         alone)",
+                        weights::quote(s.output.as_deref().unwrap_or_default()),
+                        weights::quote(other)
+                    ));
+                }
             }
-            if let Some(n) = s.needs.iter().find(|n| !NEEDS.contains(&n.as_str())) {
-                return Err(format!(
-                    "{at}: needs {}, expected one of {}",
-                    weights::quote(n),
-                    NEEDS.join(", ")
-                ));
-            }
-            if let Some((k, n)) = s
-                .needs
-                .iter()
-                .enumerate()
-                .find(|(k, n)| s.needs[..*k].contains(n))
-            {
-                return Err(format!(
-                    "{at}: needs {} twice (items {} and {k})",
-                    weights::quote(n),
-                    s.needs[..k].iter().position(|m| m == n).unwrap_or(0)
-                ));
-            }
-            if !(s.cost.is_finite() && s.cost >= 0.0 && weights::plain(s.cost)) {
-                return Err(format!(
-                    "{at}: expected a cost of 0 or more CPU minutes, zero or a normal number, \
-                     found {:?}",
-                    s.cost
-                ));
-            }
+            check_needs_and_cost(s).map_err(|e| format!("{at}: {e}"))?;
         }
         Ok(m)
     }
@@ -173,6 +144,130 @@ impl Manifest {
             .filter(|s| s.output.as_deref() == Some(output))
             .collect()
     }
+}
+
+/// The fields `results steps` prints, by their keys.
+fn fields(s: &Step) -> [(&'static str, Option<&str>); 4] {
+    [
+        ("run", Some(s.run.as_str())),
+        ("prepare", s.prepare.as_deref()),
+        ("about", Some(s.about.as_str())),
+        ("output", s.output.as_deref()),
+    ]
+}
+
+/// Whether `c` ends a line somewhere: a control character (a tab, a line break, an escape,
+/// U+0085) or Unicode's line and paragraph separators, which editors and terminals break at.
+fn breaks(c: char) -> bool {
+    c.is_control() || c == '\u{2028}' || c == '\u{2029}'
+}
+
+/// Refuses a field `results steps` could not print as one field of its line, which
+/// `scripts/regenerate.sh` reads with `IFS=$'\t' read`: a break in it would cut the line, an
+/// empty field would vanish (runs of tabs are one separator to `read`, so the fields after it
+/// shift, and the step's prose ran as its command), and `-` is the line's mark for none. An
+/// output is a place in the repository that a step writes: a file or a directory's name.
+fn check_fields(s: &Step) -> Result<(), String> {
+    for (key, value) in fields(s) {
+        let Some(v) = value else { continue };
+        if let Some(c) = v.chars().find(|&c| breaks(c)) {
+            return Err(format!(
+                "{key}: expected no control character (a tab, a line break, an escape) and no \
+                 line or paragraph separator (U+2028, U+2029), found {}",
+                weights::quote(&c.to_string())
+            ));
+        }
+        let optional = matches!(key, "prepare" | "output");
+        let none = if optional {
+            "; leave the key out for none"
+        } else {
+            ""
+        };
+        if v.trim().is_empty() {
+            return Err(format!(
+                "{key}: expected {}, found {}{none}",
+                what(key),
+                weights::quote(v)
+            ));
+        }
+        if v == "-" && optional {
+            return Err(format!(
+                "{key}: expected {}, found \"-\", the steps' list's mark for none{none}",
+                what(key)
+            ));
+        }
+    }
+    if let Some(o) = s.output.as_deref() {
+        if let Some(why) = misplaced(o) {
+            return Err(format!(
+                "output: expected the file or directory written, a path in the repository from \
+                 its root, of plain parts; found {} ({why})",
+                weights::quote(o)
+            ));
+        }
+    }
+    if s.stdout && s.output.is_none() {
+        return Err("stdout = true names no output".into());
+    }
+    Ok(())
+}
+
+/// What a text field holds, as messages name it.
+fn what(key: &str) -> &'static str {
+    match key {
+        "output" => "a path from the repository's root",
+        "about" => "words",
+        _ => "a command",
+    }
+}
+
+/// Why an output is not a place in the repository a step writes: absolute, through `..`
+/// (outside, where `regenerate.sh` would rename a printed output onto it), through `.` or an
+/// empty part, or a directory's name ending in `/`.
+fn misplaced(o: &str) -> Option<&'static str> {
+    let parts = || o.split('/');
+    if o.starts_with('/') {
+        Some("an absolute path")
+    } else if o.ends_with('/') {
+        Some("a name ending in `/`")
+    } else if parts().any(|p| p == "..") {
+        Some("a `..` part")
+    } else if parts().any(|p| p.is_empty() || p == ".") {
+        Some("a `.` or empty part")
+    } else {
+        None
+    }
+}
+
+/// Refuses a tool beyond [`NEEDS`], one named twice, or a cost that is not a number of
+/// minutes.
+fn check_needs_and_cost(s: &Step) -> Result<(), String> {
+    if let Some(n) = s.needs.iter().find(|n| !NEEDS.contains(&n.as_str())) {
+        return Err(format!(
+            "needs {}, expected one of {}",
+            weights::quote(n),
+            NEEDS.join(", ")
+        ));
+    }
+    if let Some((k, n)) = s
+        .needs
+        .iter()
+        .enumerate()
+        .find(|(k, n)| s.needs[..*k].contains(n))
+    {
+        return Err(format!(
+            "needs {} twice (items {} and {k})",
+            weights::quote(n),
+            s.needs[..k].iter().position(|m| m == n).unwrap_or(0)
+        ));
+    }
+    if !(s.cost.is_finite() && s.cost >= 0.0 && weights::plain(s.cost)) {
+        return Err(format!(
+            "expected a cost of 0 or more CPU minutes, zero or a normal number, found {:?}",
+            s.cost
+        ));
+    }
+    Ok(())
 }
 
 #[cfg(test)]
@@ -272,5 +367,85 @@ cost = 0
             let e = Manifest::parse(&text).unwrap_err();
             assert!(e.contains(want), "{want}: {e}");
         }
+    }
+
+    /// Every field `results steps` prints is one tab-separated field that `regenerate.sh`'s
+    /// `IFS=$'\t' read` gives back: an empty one vanished there (the step's about ran as its
+    /// command), `-` is its none, a separator is a line break to an editor.
+    #[test]
+    fn refuses_a_field_the_steps_list_cannot_carry() {
+        let out = "output = \"docs/results/eval-x.json\"";
+        let cases = [
+            (
+                TWO.replace(out, "output = \"\""),
+                "\"eval-x\": output: expected",
+            ),
+            (
+                TWO.replace(out, "output = \"-\""),
+                "output: expected a path",
+            ),
+            (
+                TWO.replace(out, "output = \"/etc/passwd\""),
+                "(an absolute path)",
+            ),
+            (TWO.replace(out, "output = \"../../x\""), "(a `..` part)"),
+            (
+                TWO.replace(out, "output = \"docs/./x\""),
+                "(a `.` or empty part)",
+            ),
+            (
+                TWO.replace(out, "output = \"docs/\""),
+                "(a name ending in `/`)",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = 0\nprepare = \"\"\n"),
+                "\"tables\": prepare: expected a command, found \"\"; leave",
+            ),
+            (
+                TWO.replace("cost = 0\n", "cost = 0\nprepare = \"-\"\n"),
+                "prepare: expected a command, found \"-\", the steps' list's mark",
+            ),
+            (
+                TWO.replace("about = \"x\"", "about = \" \""),
+                "about: expected words, found \" \"",
+            ),
+            (
+                TWO.replace("about = \"x\"", "about = \"x\u{2028}y\""),
+                "about: expected no control character (a tab, a line break, an escape) and no line or paragraph separator (U+2028, U+2029), found \"\\u{2028}\"",
+            ),
+            (
+                TWO.replace("about = \"x\"", "about = \"x\u{2029}y\""),
+                "found \"\\u{2029}\"",
+            ),
+            (
+                TWO.replace("about = \"x\"", "about = \"x\u{85}y\""),
+                "found \"\\u{85}\"",
+            ),
+            (
+                TWO.replace("&& echo done", "&& echo \u{2028}"),
+                "run: expected no control",
+            ),
+            (
+                TWO.replace(out, "output = \"o\u{2028}\""),
+                "output: expected no control",
+            ),
+            (
+                TWO.replace(out, "output = \"runs/x\"")
+                    .replace("stdout = true\n", "")
+                    .replace("cost = 0\n", "cost = 0\noutput = \"runs/x\"\n"),
+                "step \"eval-x\": output \"runs/x\" is step \"tables\"'s too; expected one step per output",
+            ),
+        ];
+        for (text, want) in cases {
+            let e = Manifest::parse(&text).unwrap_err();
+            assert!(e.contains(want), "{want}: {e}");
+        }
+        // A results file takes its rows from several steps, each under its labels.
+        let shared = TWO.replace("stdout = true\n", "").replace(
+            "cost = 0\n",
+            "cost = 0\noutput = \"docs/results/eval-x.json\"\n",
+        );
+        let m = Manifest::parse(&shared).unwrap();
+        assert_eq!(m.producing("docs/results/eval-x.json").len(), 2);
     }
 }

@@ -210,3 +210,93 @@ fn text_from_a_results_file_is_escaped_and_an_unplain_name_refused() {
         let _ = std::fs::remove_dir_all(&root);
     }
 }
+
+/// `results steps` on a scratch root whose manifest is `manifest`.
+fn steps(name: &str, manifest: &str) -> Output {
+    let root = scratch(name, &[("docs/results/manifest.toml", manifest)]);
+    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+        .args(["results", "steps", "--root"])
+        .arg(&root)
+        .output()
+        .unwrap();
+    std::fs::remove_dir_all(&root).unwrap();
+    o
+}
+
+/// What `scripts/regenerate.sh` reads of each line (its own `read`): runs of tabs are one
+/// separator to it, so an empty field shifted the ones after it and the about ran.
+const READ: &str = "IFS=$'\\t' read -r name cost needs rebuild printed output prepare run about; \
+                    printf '%s|%s|%s|%s' \"$output\" \"$prepare\" \"$run\" \"$about\"";
+
+#[test]
+fn the_steps_read_back_field_for_field_and_a_field_they_cannot_carry_is_refused() {
+    let step = "[[step]]\nname = \"a\"\nabout = \"the about\"\nrun = \"echo hi\"\n\
+                prepare = \"true\"\noutput = \"o\"\ncost = 1\n";
+    let o = steps("steps-ok", step);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut bash = Command::new("bash")
+        .args(["-c", READ])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    use std::io::Write;
+    bash.stdin.take().unwrap().write_all(&o.stdout).unwrap();
+    let read = bash.wait_with_output().unwrap();
+    assert_eq!(
+        String::from_utf8_lossy(&read.stdout),
+        "o|true|echo hi|the about"
+    );
+    let cases = [
+        (
+            "output = \"o\"",
+            "output = \"\"",
+            "step \"a\": output: expected",
+        ),
+        (
+            "prepare = \"true\"",
+            "prepare = \"\"",
+            "step \"a\": prepare: expected a command",
+        ),
+        (
+            "output = \"o\"",
+            "output = \"-\"",
+            "step \"a\": output: expected",
+        ),
+        (
+            "prepare = \"true\"",
+            "prepare = \"-\"",
+            "the steps' list's mark for none",
+        ),
+        (
+            "output = \"o\"",
+            "output = \"/etc/passwd\"",
+            "(an absolute path)",
+        ),
+        ("output = \"o\"", "output = \"../../x\"", "(a `..` part)"),
+        (
+            "output = \"o\"",
+            "output = \"docs/\"\nstdout = true",
+            "(a name ending in `/`)",
+        ),
+        (
+            "the about",
+            "the\u{2028}about",
+            "step \"a\": about: expected no control",
+        ),
+    ];
+    for (k, (from, to, want)) in cases.into_iter().enumerate() {
+        let o = steps(&format!("steps-{k}"), &step.replace(from, to));
+        assert_eq!(o.status.code(), Some(2), "{to}: {}", stderr(&o));
+        assert!(o.stdout.is_empty(), "{to}: nothing printed");
+        assert!(stderr(&o).contains(want), "{want}: {}", stderr(&o));
+    }
+    let twice = format!("{step}{}", step.replace("\"a\"", "\"b\""));
+    let o = steps("steps-twice", &twice);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("step \"a\": output \"o\" is step \"b\"'s too"),
+        "{}",
+        stderr(&o)
+    );
+}
