@@ -222,6 +222,7 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
         "--states must be in [1, {MAX_AGREE_STATES}], got {}",
         a.states
     );
+    a.subject.refuse_envelope_in("agree")?;
     check_io(&a.subject.inputs(), &[])?;
     let (machine, net) = a.subject.load(true, true)?;
     let report = host_sim::agree::agreement(&net, &machine, a.states, a.seed)?;

@@ -190,6 +190,7 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
 
 /// `a`'s values, and its picture's paths, before any work.
 fn check(a: &StartupArgs) -> Result<()> {
+    a.subject.refuse_envelope_in("startup")?;
     anyhow::ensure!(
         (1..=MAX_EPISODES).contains(&a.episodes),
         "--episodes must be 1 to {MAX_EPISODES}, found {}",

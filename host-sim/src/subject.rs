@@ -65,12 +65,8 @@ impl Subject {
     /// --policy without an --envelope measured for it.
     pub fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
         let monitored = kinds.iter().any(|k| k.monitored());
-        if self.envelope.is_some() && !monitored {
-            anyhow::bail!(
-                "--envelope is read by --controller monitored or monitored-int alone; expected \
-                 one of them, found {}",
-                names(kinds)
-            );
+        if !monitored {
+            self.refuse_envelope(&format!("; expected one of them, found {}", names(kinds)))?;
         }
         if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
             anyhow::bail!(
@@ -98,6 +94,26 @@ impl Subject {
             None => net,
         };
         Ok((machine, net))
+    }
+
+    /// Refuses --envelope for a command without --controller (`agree`, `startup`), which runs
+    /// the network as float and integer and no monitored controller: the file was read by
+    /// nothing, the output as without it.
+    pub fn refuse_envelope_in(&self, command: &str) -> Result<()> {
+        self.refuse_envelope(&format!(
+            " (eval's, render's and soak's); host-sim {command} runs policy and policy-int, no \
+             monitored controller"
+        ))
+    }
+
+    /// Refuses --envelope where nothing reads it, `why` completing the message.
+    fn refuse_envelope(&self, why: &str) -> Result<()> {
+        match &self.envelope {
+            Some(_) => anyhow::bail!(
+                "--envelope is read by --controller monitored or monitored-int alone{why}"
+            ),
+            None => Ok(()),
+        }
     }
 
     /// Refuses --policy, and --levels, where `kinds` (none of which runs the network or
