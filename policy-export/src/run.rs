@@ -176,14 +176,13 @@ pub fn provenance(s: &Summary) -> Vec<String> {
 
 /// Where an exported policy came from: its run's summary, or the file and its layout.
 pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
-    let summary_path = src.join("summary.json");
-    if !(src.is_dir() && summary_path.is_file()) {
+    let Some(summary_path) = src.is_dir().then(|| summary_of(src)).flatten() else {
         return Ok(vec![format!(
             "source: {} ({})",
             src.file_name().unwrap_or_default().to_string_lossy(),
             import.describe()
         )]);
-    }
+    };
     // The summary's figures describe the policy its run wrote beside it, and no other.
     crate::outdir::unchanged(&[&weights::checkpoint::policy_file(src), &summary_path])?;
     let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
@@ -272,10 +271,17 @@ pub fn export_inputs(src: &Path) -> Vec<PathBuf> {
 }
 
 /// The `summary.json` of the policy at `src`: in a run directory, or beside a policy file.
+/// Whatever has that name is the summary, read as inputs are (a directory, a FIFO or a link
+/// to a device refused, naming what it is); only a name that does not exist is no summary.
+/// Taken as absent when not a regular file, a summary that was a directory lost the run's
+/// provenance from the module without a word.
 fn summary_of(src: &Path) -> Option<PathBuf> {
     let dir = if src.is_dir() { src } else { src.parent()? };
     let path = dir.join("summary.json");
-    path.is_file().then_some(path)
+    match std::fs::symlink_metadata(&path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        _ => Some(path),
+    }
 }
 
 /// What the run's summary says against putting the policy at `src` on a board, a line each:

@@ -14,6 +14,8 @@ use hostile::{FORGED, entries, mkfifo, refused_escaped};
 
 #[path = "hostile_cli/modes.rs"]
 mod modes;
+#[path = "hostile_cli/run_dir.rs"]
+mod run_dir;
 
 fn exe() -> Command {
     Command::new(env!("CARGO_BIN_EXE_policy-export"))
