@@ -145,7 +145,7 @@ pub fn parse<T: clap::Parser>() -> T {
 /// [`parse`], with the command changed by `edit` first: help made at run time (from a table
 /// of the parts a flag takes, say).
 pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Command) -> T {
-    let cmd = edit(T::command());
+    let cmd = negative_numbers(edit(T::command()));
     let args: Vec<OsString> = std::env::args_os().collect();
     let parsed = cmd
         .clone()
@@ -178,6 +178,28 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
             std::process::exit(2)
         }
     }
+}
+
+/// `cmd` with every argument that takes a value, in it and its subcommands, taking one that
+/// is a negative number (`--seed -1`, `--cart-start -0.1`): clap took it for a flag and said
+/// "unexpected argument '-1' found", naming neither the flag nor what it takes, where the
+/// flag's own parser or range check names both. A value that is no number (`--out -x`) is
+/// still a flag to clap.
+pub fn negative_numbers(mut cmd: clap::Command) -> clap::Command {
+    let valued: Vec<clap::Id> = (cmd.get_arguments())
+        .filter(|a| a.get_action().takes_values())
+        .map(|a| a.get_id().clone())
+        .collect();
+    for id in valued {
+        cmd = cmd.mut_arg(id, |a| a.allow_negative_numbers(true));
+    }
+    let subcommands: Vec<String> = (cmd.get_subcommands())
+        .map(|c| c.get_name().to_string())
+        .collect();
+    for name in subcommands {
+        cmd = cmd.mut_subcommand(name, negative_numbers);
+    }
+    cmd
 }
 
 /// Stands for the stray bytes of the one argument being traced, in the parse that finds the

@@ -71,7 +71,7 @@ pub struct StartupArgs {
     /// A push that may drop the pole once it is up: NEWTONS held on the cart for one period,
     /// SECONDS after power-on, towards a side drawn per episode. --within then counts from
     /// the push: the pole must be back up (swung up again, or never down) within it.
-    #[arg(long, value_name = "NEWTONS@SECONDS")]
+    #[arg(long, value_name = "NEWTONS@SECONDS", allow_hyphen_values = true)]
     knock: Option<String>,
     /// Seed of the starts and lifts.
     #[arg(long, default_value_t = 0)]

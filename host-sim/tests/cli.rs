@@ -142,6 +142,43 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A negative number given to a flag is its value, judged by the flag (clap took it for a
+/// flag: "unexpected argument '-1' found", naming neither the flag nor what it takes).
+#[test]
+fn a_negative_number_is_the_flags_value_and_refused_by_it() {
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["eval", "--seed", "-1"],
+            "invalid value '-1' for '--seed <SEED>': expected a whole number of 0 or more, \
+             found a negative one",
+        ),
+        (
+            &["soak", "--hours", "-1"],
+            "--hours must be a normal number of simulated hours in (0, 240], found -1.0",
+        ),
+        (
+            &["startup", "--cart-start", "-0.1"],
+            "--cart-start must be metres in [0, 10], found -0.1",
+        ),
+        (
+            &["startup", "--knock", "-5@1"],
+            "--knock expects NEWTONS@SECONDS, newtons in (0, 1000]",
+        ),
+        (
+            &["eval", "--horizon", "-1"],
+            "for '--horizon <HORIZON>': -1 is not in 0..=4294967295",
+        ),
+        // A value that is no number is still a flag: a missing value is named as before.
+        (
+            &["eval", "--seed", "--json"],
+            "a value is required for '--seed <SEED>' but none was supplied",
+        ),
+    ];
+    for (args, want) in cases {
+        refused(args, want);
+    }
+}
+
 /// A FIFO as a policy or a trajectory, and a trajectory with a bad hexadecimal state (named
 /// by its file and line).
 fn fifos_and_bad_states_are_refused(dir: &Path) {

@@ -22,7 +22,8 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
         context = true;
     }
     // Cut in its middle, if long, so that its end (what was expected) survives.
-    let source = std::error::Error::source(e).map(|s| weights::located("", None, &s.to_string()));
+    let source = std::error::Error::source(e)
+        .map(|s| weights::located("", None, &negative_whole(e, s.to_string())));
     let text = match source {
         // A message clap holds whole (the program's own, or a mismatch of its definitions).
         _ if !context => e.render().to_string(),
@@ -37,6 +38,23 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
         }
     };
     text.lines().map(|l| cut(&escape_controls(l))).collect()
+}
+
+/// A whole-number parser's `reason` for refusing `e`'s value, or what it means where the value
+/// is a negative whole number given to a flag that takes none (`--seed -1`): std's "invalid
+/// digit found in string" said neither.
+fn negative_whole(e: &clap::Error, reason: String) -> String {
+    let Some(ContextValue::String(value)) = e.get(ContextKind::InvalidValue) else {
+        return reason;
+    };
+    let digits = value.strip_prefix('-').unwrap_or_default();
+    if reason == "invalid digit found in string"
+        && !digits.is_empty()
+        && digits.bytes().all(|b| b.is_ascii_digit())
+    {
+        return "expected a whole number of 0 or more, found a negative one".into();
+    }
+    reason
 }
 
 /// A piece of clap's context with the user's text in it escaped and cut: every text but the
@@ -152,5 +170,49 @@ mod tests {
         assert!(line.chars().count() <= LINE_MAX + 3, "{line}");
         assert!(line.starts_with("error: invalid value 'xxx"), "{line}");
         assert!(line.ends_with("xxx\\nend"), "{line}");
+    }
+
+    /// Every valued flag of every subcommand takes a negative number as its value, which its
+    /// parser judges; anything else starting with `-` is still a flag.
+    #[test]
+    fn a_negative_number_is_a_flags_value_in_every_subcommand() {
+        use clap::{Arg, Command};
+        let cmd = super::super::negative_numbers(
+            Command::new("tool").subcommand(
+                Command::new("run")
+                    .arg(
+                        Arg::new("seed")
+                            .long("seed")
+                            .value_parser(clap::value_parser!(u64)),
+                    )
+                    .arg(
+                        Arg::new("at")
+                            .long("at")
+                            .value_parser(clap::value_parser!(f64)),
+                    ),
+            ),
+        );
+        let m = cmd
+            .clone()
+            .try_get_matches_from(["tool", "run", "--at", "-0.5"]);
+        let at = m
+            .unwrap()
+            .subcommand_matches("run")
+            .unwrap()
+            .get_one::<f64>("at")
+            .copied();
+        assert_eq!(at, Some(-0.5));
+        let e = (cmd.clone())
+            .try_get_matches_from(["tool", "run", "--seed", "-1"])
+            .unwrap_err();
+        assert_eq!(
+            refusal(&e, &cmd)[0],
+            "error: invalid value '-1' for '--seed <seed>': expected a whole number of 0 or \
+             more, found a negative one"
+        );
+        let e = (cmd.clone())
+            .try_get_matches_from(["tool", "run", "--seed", "-x"])
+            .unwrap_err();
+        assert_eq!(e.kind(), clap::error::ErrorKind::UnknownArgument);
     }
 }
