@@ -172,7 +172,7 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
                 crate::errln!("error: {}", not_utf8(&cmd, &args));
                 std::process::exit(2)
             }
-            for line in refusal(&e, &cmd) {
+            for line in refusal(&e, &cmd, &args) {
                 crate::errln!("{line}");
             }
             std::process::exit(2)

@@ -143,10 +143,11 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
 }
 
 /// A negative number given to a flag is its value, judged by the flag (clap took it for a
-/// flag: "unexpected argument '-1' found", naming neither the flag nor what it takes).
+/// flag: "unexpected argument '-1' found", naming neither the flag nor what it takes); an
+/// empty item of a list is named as found (clap said "none was supplied").
 #[test]
-fn a_negative_number_is_the_flags_value_and_refused_by_it() {
-    let cases: [(&[&str], &str); 6] = [
+fn a_negative_number_or_an_empty_item_is_refused_by_its_flag() {
+    let cases: [(&[&str], &str); 7] = [
         (
             &["eval", "--seed", "-1"],
             "invalid value '-1' for '--seed <SEED>': expected a whole number of 0 or more, \
@@ -167,6 +168,11 @@ fn a_negative_number_is_the_flags_value_and_refused_by_it() {
         (
             &["eval", "--horizon", "-1"],
             "for '--horizon <HORIZON>': -1 is not in 0..=4294967295",
+        ),
+        (
+            &["eval", "--controller", "lqr,"],
+            "'--controller <CONTROLLER>' takes a list separated by ',', and found an empty item \
+             in \"lqr,\"",
         ),
         // A value that is no number is still a flag: a missing value is named as before.
         (

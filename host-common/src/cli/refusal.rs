@@ -1,5 +1,7 @@
 //! clap's refusal of a command line, rendered with the user's text in it escaped and cut.
 
+use std::ffi::OsString;
+
 use clap::error::{ContextKind, ContextValue};
 
 use super::cut;
@@ -14,7 +16,7 @@ use super::cut;
 /// kind and context, each text escaped; a value parser's reason, which clap writes raw after
 /// the value, is escaped and put back where clap puts it. Any control character left after
 /// that (in a message clap holds whole, which quotes no input) is escaped too, line by line.
-pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
+pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Vec<String> {
     let mut bare = clap::Error::new(e.kind()).with_cmd(cmd);
     let mut context = false;
     for (kind, value) in e.context() {
@@ -37,7 +39,84 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command) -> Vec<String> {
             format!("{head}: {reason}\n{rest}")
         }
     };
+    let text = match empty_item(e, cmd, args) {
+        Some(line) => {
+            let rest = text.split_once('\n').map_or("", |(_, rest)| rest);
+            format!("{line}\n{rest}")
+        }
+        None => text,
+    };
     text.lines().map(|l| cut(&escape_controls(l))).collect()
+}
+
+/// clap's refusal `e` of an empty value, said again where one was given: an item of a list
+/// was empty (`--controller lqr,`), or the value was (`--seed=`), where clap said "a value is
+/// required ... but none was supplied". A flag given no value keeps clap's words.
+fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option<String> {
+    let text = |kind| match e.get(kind) {
+        Some(ContextValue::String(s)) => Some(s.as_str()),
+        _ => None,
+    };
+    let (shown, value) = (
+        text(ContextKind::InvalidArg)?,
+        text(ContextKind::InvalidValue)?,
+    );
+    if e.kind() != clap::error::ErrorKind::InvalidValue || !value.is_empty() {
+        return None;
+    }
+    let flag = shown.split(' ').next()?;
+    let by = list_separator(running(cmd, args), flag);
+    let args: Vec<String> = args
+        .iter()
+        .map(|a| a.to_string_lossy().into_owned())
+        .collect();
+    let given = args
+        .iter()
+        .enumerate()
+        .filter_map(|(i, a)| match a.strip_prefix(flag)? {
+            "" => args.get(i + 1).map(String::as_str),
+            v => v.strip_prefix('='),
+        });
+    let shown = weights::excerpt(shown);
+    for v in given {
+        if v.is_empty() {
+            return Some(format!(
+                "error: '{shown}' was given an empty value; expected one of its values"
+            ));
+        }
+        if let Some(by) = by
+            && v.split(by).any(str::is_empty)
+        {
+            return Some(format!(
+                "error: '{shown}' takes a list separated by '{by}', and found an empty item in \
+                 {} ('{by}' at its start or end, or two together); expected one of its values \
+                 in each",
+                weights::quote(v)
+            ));
+        }
+    }
+    None
+}
+
+/// The separator of the items of `flag`'s list in `cmd`, if it takes one.
+fn list_separator(cmd: &clap::Command, flag: &str) -> Option<char> {
+    (cmd.get_arguments())
+        .find(|a| super::named(a) == flag)
+        .and_then(clap::Arg::get_value_delimiter)
+}
+
+/// The subcommand `args` run, as far as clap matched them (`cmd` itself if none).
+fn running<'c>(cmd: &'c clap::Command, args: &[OsString]) -> &'c clap::Command {
+    let Ok(matched) = cmd.clone().ignore_errors(true).try_get_matches_from(args) else {
+        return cmd;
+    };
+    let (mut at, mut m) = (cmd, &matched);
+    while let Some((name, sub)) = m.subcommand()
+        && let Some(c) = at.find_subcommand(name)
+    {
+        (at, m) = (c, sub);
+    }
+    at
 }
 
 /// A whole-number parser's `reason` for refusing `e`'s value, or what it means where the value
@@ -117,7 +196,8 @@ mod tests {
         );
         let refusal = |argv: &[&str]| {
             let e = cmd.clone().try_get_matches_from(argv).unwrap_err();
-            let lines = refusal(&e, &cmd);
+            let os: Vec<OsString> = argv.iter().map(OsString::from).collect();
+            let lines = refusal(&e, &cmd, &os);
             let seen = format!("{argv:?}: {lines:#?}");
             assert!(
                 lines.iter().all(|l| !l.chars().any(char::is_control)),
@@ -206,7 +286,11 @@ mod tests {
             .try_get_matches_from(["tool", "run", "--seed", "-1"])
             .unwrap_err();
         assert_eq!(
-            refusal(&e, &cmd)[0],
+            refusal(
+                &e,
+                &cmd,
+                &["tool", "run", "--seed", "-1"].map(OsString::from)
+            )[0],
             "error: invalid value '-1' for '--seed <seed>': expected a whole number of 0 or \
              more, found a negative one"
         );
@@ -214,5 +298,45 @@ mod tests {
             .try_get_matches_from(["tool", "run", "--seed", "-x"])
             .unwrap_err();
         assert_eq!(e.kind(), clap::error::ErrorKind::UnknownArgument);
+    }
+
+    /// An empty item of a list, or an empty value, is said as such: clap said none was
+    /// supplied. A flag given no value keeps clap's words.
+    #[test]
+    fn an_empty_item_or_value_is_named_as_found() {
+        use clap::{Arg, Command};
+        let cmd = Command::new("tool").subcommand(
+            Command::new("run")
+                .arg(
+                    Arg::new("mode")
+                        .long("mode")
+                        .value_parser(["fast", "slow"])
+                        .value_delimiter(','),
+                )
+                .arg(Arg::new("one").long("one").value_parser(["a", "b"])),
+        );
+        let first = |argv: &[&str]| {
+            let e = cmd.clone().try_get_matches_from(argv).unwrap_err();
+            refusal(
+                &e,
+                &cmd,
+                &argv.iter().map(OsString::from).collect::<Vec<_>>(),
+            )[0]
+            .clone()
+        };
+        let item =
+            "error: '--mode <mode>' takes a list separated by ',', and found an empty item in";
+        for v in ["fast,", ",slow", "fast,,slow", ","] {
+            let line = first(&["tool", "run", "--mode", v]);
+            assert!(line.starts_with(&format!("{item} \"{v}\"")), "{v}: {line}");
+        }
+        assert_eq!(
+            first(&["tool", "run", "--one="]),
+            "error: '--one <one>' was given an empty value; expected one of its values"
+        );
+        assert_eq!(
+            first(&["tool", "run", "--one"]),
+            "error: a value is required for '--one <one>' but none was supplied"
+        );
     }
 }
