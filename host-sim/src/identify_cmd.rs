@@ -160,8 +160,9 @@ pub struct SimulateLogsArgs {
     /// period run the experiments.
     #[arg(long)]
     rig: PathBuf,
-    /// The cart experiment's sequence, and the encoders' jitter.
-    #[arg(long, default_value_t = 1)]
+    /// The cart experiment's sequence, and the encoders' jitter: a whole number in [0,
+    /// 4294967295], the 32 bits the board's sequence takes.
+    #[arg(long, default_value_t = 1, value_parser = seed32)]
     seed: u32,
     /// The standard deviation of a vibration or an edge's jitter on each reading, counts.
     #[arg(long, default_value_t = 0.5)]
@@ -175,6 +176,19 @@ pub struct SimulateLogsArgs {
     /// Where the two logs (cart, then swing) are written, as the board streams them.
     #[arg(long)]
     out: PathBuf,
+}
+
+/// A `--seed` of the cart experiment's sequence, which the board takes in 32 bits: std's
+/// "number too large to fit in target type" said no range.
+fn seed32(text: &str) -> Result<u32, String> {
+    text.parse::<u32>().map_err(|_| {
+        format!(
+            "expected a whole number in [0, {}] (the board's sequence takes a 32-bit seed), \
+             found {}",
+            u32::MAX,
+            weights::quote(text)
+        )
+    })
 }
 
 /// Writes the cart and swing experiments' logs `a` asks for; the inputs are checked, and the

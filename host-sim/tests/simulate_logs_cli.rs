@@ -107,3 +107,27 @@ fn a_board_of_another_period_or_a_wild_jitter_is_refused_and_nothing_written() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The cart experiment's seed is the board's 32 bits: one past them is refused with the range
+/// (std said "number too large to fit in target type", no range), and nothing written.
+#[test]
+fn a_seed_past_the_boards_32_bits_is_refused_naming_the_range() {
+    let dir = scratch("seed");
+    let out = dir.join("x.log");
+    let (world, measured) = (repo("rigs/desk.toml"), repo("rigs/desk-measured.toml"));
+    for seed in ["18446744073709551615", "4294967296", "-1"] {
+        let args = ["simulate-logs", "--world", s(&world), "--rig", s(&measured)];
+        let o = host_sim(&[&args[..], &["--out", s(&out), "--seed", seed]].concat());
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(
+            err.contains(&format!(
+                "for '--seed <SEED>': expected a whole number in [0, 4294967295] (the board's \
+                 sequence takes a 32-bit seed), found \"{seed}\""
+            )),
+            "{err}"
+        );
+        assert!(!out.exists());
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
