@@ -109,8 +109,33 @@ fn narrow(levels: &[f64]) -> std::result::Result<Vec<f32>, String> {
         ));
     }
     let narrowed: Vec<f32> = levels.iter().map(|&l| l as f32).collect();
+    if let Some(why) = collision(levels, &narrowed) {
+        return Err(why);
+    }
     check_levels(&narrowed).map_err(|e| e.to_string())?;
     Ok(narrowed)
+}
+
+/// The first two neighbouring levels that are not strictly increasing once rounded to the
+/// thousandths of the full push the board drives, named with what they round to: `-1,
+/// -0.9995` increase as written and were refused as "expected strictly increasing".
+fn collision(levels: &[f64], narrowed: &[f32]) -> Option<String> {
+    let duty = |l: f32| Duty::from_fraction(l).ok().map(Duty::thousandths);
+    let k = (1..narrowed.len()).find(
+        |&k| matches!((duty(narrowed[k - 1]), duty(narrowed[k])), (Some(a), Some(b)) if b <= a),
+    )?;
+    let (a, b) = (duty(narrowed[k - 1])?, duty(narrowed[k])?);
+    let one = |x: f64| show(&[x]).trim_matches(['[', ']']).to_string();
+    let round = |t: i16| one(f64::from(t) / 1000.0);
+    Some(format!(
+        "levels: expected strictly increasing once rounded to thousandths of the full push, as \
+         the board drives them; found {} and {} (items {} and {k}), which round to {} and {}",
+        one(levels[k - 1]),
+        one(levels[k]),
+        k - 1,
+        round(a),
+        round(b),
+    ))
 }
 
 /// `levels` for a message: `[-1, -0.2, 0, 0.2, 1]`, each shortest (`5e-324`, not its 324
@@ -165,11 +190,11 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
     let Some(text) = metadata.get(LEVELS_KEY) else {
         return Ok(None);
     };
-    let levels: Vec<f64> = serde_json::from_str(text).map_err(|e| {
+    let levels: Vec<f64> = serde_json::from_str(text).map_err(|_| {
         Error::Input(format!(
-            "the file's duty levels {}: expected a list of numbers ({})",
-            quote(text),
-            crate::excerpt(&e.to_string())
+            "the file's metadata `{LEVELS_KEY}`: expected a JSON list of numbers, such as \
+             [-1, 1], found {}",
+            quote(text)
         ))
     })?;
     if levels.len() != outputs {
@@ -236,6 +261,12 @@ mod tests {
             ("-1,1e-46,1", "found 1e-46"),
             ("-1,1e-50,1", "found 1e-50"),
             ("0.2,0.2004", "expected strictly increasing"),
+            (
+                "-1,-0.9995",
+                "levels: expected strictly increasing once rounded to thousandths of the full \
+                 push, as the board drives them; found -1 and -0.9995 (items 0 and 1), which \
+                 round to -1 and -1",
+            ),
             ("-1,0,1.5", "expected within [-1, 1], found 1.5"),
             // Beyond the range in f64, the full push or an infinity in f32: read as f32
             // first, the first two passed and the last was called infinite.
@@ -269,7 +300,9 @@ mod tests {
         let e = GivenLevels::new(&[0.5, -0.5], "levels").unwrap_err();
         assert_eq!(
             e.to_string(),
-            "levels [0.5, -0.5]: levels: expected strictly increasing"
+            "levels [0.5, -0.5]: levels: expected strictly increasing once rounded to \
+             thousandths of the full push, as the board drives them; found 0.5 and -0.5 (items 0 \
+             and 1), which round to 0.5 and -0.5"
         );
         let e = GivenLevels::new(&[-1.0, 5e-324], "levels").unwrap_err();
         assert_eq!(
@@ -354,8 +387,14 @@ mod tests {
     #[test]
     fn recorded_levels_that_are_no_levels_are_refused() {
         for (text, n, says) in [
-            ("[-1, 1", 2, "expected a list of numbers"),
-            ("\"-1,1\"", 2, "expected a list of numbers"),
+            (
+                "[-1, 1",
+                2,
+                "metadata `levels`: expected a JSON list of numbers, such as [-1, 1], found \
+                 \"[-1, 1\"",
+            ),
+            ("\"-1,1\"", 2, "expected a JSON list of numbers"),
+            (" -1 , 1 ", 2, "found \" -1 , 1 \""),
             (
                 "[-1, 0, 1]",
                 2,
