@@ -197,14 +197,14 @@ fn check_fields(s: &Step) -> Result<(), String> {
             ));
         }
     }
-    if let Some(o) = s.output.as_deref() {
-        if let Some(why) = misplaced(o) {
-            return Err(format!(
-                "output: expected the file or directory written, a path in the repository from \
-                 its root, of plain parts; found {} ({why})",
-                weights::quote(o)
-            ));
-        }
+    if let Some(o) = s.output.as_deref()
+        && let Some(why) = misplaced(o)
+    {
+        return Err(format!(
+            "output: expected the file or directory written, a path in the repository from its \
+             root, of plain parts; found {} ({why})",
+            weights::quote(o)
+        ));
     }
     if s.stdout && s.output.is_none() {
         return Err("stdout = true names no output".into());

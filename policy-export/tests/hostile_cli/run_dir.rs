@@ -2,14 +2,19 @@
 //! name is read as an input is, and a directory, a FIFO or a link to a device is refused,
 //! naming what it is: taken as absent, the module lost the run's provenance without a word.
 
+use std::path::Path;
+
 use super::{mkfifo, refused, scratch};
+
+/// What a summary is made, and how.
+type Kind<'a> = (&'a str, &'a dyn Fn(&Path));
 
 #[test]
 fn a_summary_that_is_not_a_regular_file_is_refused_not_taken_as_absent() {
     let dir = scratch("summary-kinds");
     let policy = concat!(env!("CARGO_MANIFEST_DIR"), "/../shipped/policy.safetensors");
     let out = dir.join("policy.rs");
-    let kinds: [(&str, &dyn Fn(&std::path::Path)); 3] = [
+    let kinds: [Kind; 3] = [
         ("a directory", &|p| std::fs::create_dir(p).unwrap()),
         ("a FIFO", &|p| mkfifo(p)),
         ("a device", &|p| {
