@@ -1,10 +1,11 @@
-//! A run directory's optional summary: absent only when no such name exists. Whatever has the
-//! name is read as an input is, and a directory, a FIFO or a link to a device is refused,
-//! naming what it is: taken as absent, the module lost the run's provenance without a word.
+//! A run directory's summary, which export copies into code: absent only when no such name
+//! exists (whatever has the name is read as an input is, and a directory, a FIFO or a link
+//! to a device is refused, naming what it is: taken as absent, the module lost the run's
+//! provenance without a word), and its figures checked before they are copied.
 
 use std::path::Path;
 
-use super::{mkfifo, refused, scratch};
+use super::{mkfifo, refused, run, scratch, stderr};
 
 /// What a summary is made, and how.
 type Kind<'a> = (&'a str, &'a dyn Fn(&Path));
@@ -41,5 +42,80 @@ fn a_summary_that_is_not_a_regular_file_is_refused_not_taken_as_absent() {
             assert!(!out.exists(), "{kind}: nothing written");
         }
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
+    let dir = scratch("figures");
+    let (run_dir, out) = (dir.join("run"), dir.join("policy.rs"));
+    let o = run(&[
+        "train",
+        "--episodes",
+        "5",
+        "--out",
+        run_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Edited by hand below: the marker, whose digests would refuse every edit, goes first.
+    std::fs::remove_file(run_dir.join(".cartpole-run")).unwrap();
+    let path = run_dir.join("summary.json");
+    let good: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    let export = [
+        "export",
+        run_dir.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ];
+    let max_steps = good["final_eval"]["max_steps"].as_u64().unwrap();
+    let over = (max_steps + 100) as f64;
+    for (key, value, says) in [
+        (
+            "min",
+            serde_json::json!(over),
+            "final_eval.min: expected a return from 0.0 to",
+        ),
+        ("episodes", 0.into(), "final_eval.episodes: expected 1 to"),
+        (
+            "mean",
+            (-5.0).into(),
+            "final_eval.min: expected a return from 0.0 to -5.0",
+        ),
+        ("max_steps", 0.into(), "final_eval.max_steps: expected 1 to"),
+        (
+            "mean",
+            1e308.into(),
+            "final_eval.mean: expected a return from",
+        ),
+        (
+            "mean",
+            5e-324.into(),
+            "final_eval.mean: expected zero or a normal number, found 5e-324",
+        ),
+    ] {
+        let mut bad = good.clone();
+        bad["final_eval"][key] = value;
+        std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
+        refused(&export, "summary.json: not a run summary");
+        refused(&export, says);
+        assert!(!out.exists());
+    }
+    let mut bad = good.clone();
+    bad["episodes_run"] = 0.into();
+    std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
+    refused(
+        &export,
+        "episodes_run: expected 1 to 5 (at most the configured episodes), found 0",
+    );
+    // The run's own figures pass, shown shortest.
+    std::fs::write(&path, serde_json::to_vec(&good).unwrap()).unwrap();
+    let o = run(&export);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let module = std::fs::read_to_string(&out).unwrap();
+    let mean = good["final_eval"]["mean"].as_f64().unwrap();
+    assert!(
+        module.contains(&format!("greedy evaluation: mean {mean:?}, min ")),
+        "{module}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
