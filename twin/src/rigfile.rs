@@ -417,18 +417,6 @@ pub fn load_startup(path: &Path) -> Result<(Machine, Startup)> {
     parse_startup(&text, &origin)
 }
 
-/// The `[startup]` table of the rig file at `path`, as written to carry it into a rig file
-/// made from this one (`host-sim identify`): only the values it gives; empty without any.
-pub fn given_startup(path: &Path) -> Result<String> {
-    let (text, origin) = read_text(path)?;
-    let f: File = from_toml(&text, &origin)?;
-    let fields = Fields { origin: &origin };
-    let machine = machine(&f, fields)?;
-    // Checked as a board checks it, so that only a start-up a board takes is carried.
-    fields.startup(&f.startup, &machine.rig)?;
-    f.startup.to_toml()
-}
-
 /// The text of the rig file at `path` (any path: its name need not be text, its contents
 /// must be), and how refusals of it name it, for [`parse`].
 pub fn read_text(path: &Path) -> Result<(String, String)> {
@@ -492,6 +480,7 @@ fn machine(f: &File, fields: Fields<'_>) -> Result<Machine> {
 
 mod misfit;
 mod startup;
+pub use startup::given_startup;
 mod write;
 pub use misfit::{MISFIT_HALF_WIDTH, Misfit, misfit};
 use write::radians;

@@ -21,6 +21,8 @@
 //! homing_stall_s = 0.25         # still this long: at the stop, or arrived
 //! ```
 
+use std::path::Path;
+
 use firmware::rig::Rig;
 use firmware::startup::{Homing, MAX_CATCH_PERIODS, Startup, Swing, periods};
 use serde::{Deserialize, Serialize};
@@ -63,6 +65,18 @@ pub(super) struct Table {
     homing_duty: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     homing_stall_s: Option<f64>,
+}
+
+/// The `[startup]` table of the rig file at `path`, as written to carry it into a rig file
+/// made from this one (`host-sim identify`): only the values it gives; empty without any.
+pub fn given_startup(path: &Path) -> Result<String> {
+    let (text, origin) = super::read_text(path)?;
+    let f: super::File = super::from_toml(&text, &origin)?;
+    let fields = Fields { origin: &origin };
+    let machine = super::machine(&f, fields)?;
+    // Checked as a board checks it, so that only a start-up a board takes is carried.
+    fields.startup(&f.startup, &machine.rig)?;
+    f.startup.to_toml()
 }
 
 impl Table {
