@@ -203,9 +203,26 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
             && header.contains("cartpole_controller_init_mlp64(&ctl, &balance, &balance_rig)"),
         "{header}"
     );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
 
-    // Another policy in the run's place: the summary describes the run's, not this one.
-    std::fs::copy(fixture("cleanrl.safetensors"), &st).unwrap();
+/// Another policy copied over a run's: the run's summary, seed and figures describe the
+/// policy the run wrote, which its marker's digest tells from this one.
+#[test]
+fn a_policy_copied_over_a_runs_is_not_exported_as_the_runs() {
+    let dir = scratch("copied");
+    let (run, rs) = (dir.join("run"), dir.join("exported.rs"));
+    let o = exe()
+        .args(["train", "--episodes", "3", "--out"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::copy(
+        fixture("cleanrl.safetensors"),
+        run.join("policy.safetensors"),
+    )
+    .unwrap();
     let o = exe()
         .arg("export")
         .arg(&run)
@@ -214,6 +231,7 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
         .output()
         .unwrap();
     assert_refused(&o, "policy.safetensors: expected the file its run wrote");
+    assert!(!rs.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
