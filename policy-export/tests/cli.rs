@@ -165,13 +165,7 @@ fn a_run_directory_exports_to_rust_and_c_bit_for_bit() {
 
     // Exporting the run directory reproduces the run's own policy.rs exactly.
     let rs = dir.join("exported.rs");
-    let o = exe()
-        .arg("export")
-        .arg(&run)
-        .arg("--out")
-        .arg(&rs)
-        .output()
-        .unwrap();
+    let o = export(&[run.to_str().unwrap(), "--out", rs.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(
         std::fs::read(&rs).unwrap(),
@@ -223,13 +217,7 @@ fn a_policy_copied_over_a_runs_is_not_exported_as_the_runs() {
         run.join("policy.safetensors"),
     )
     .unwrap();
-    let o = exe()
-        .arg("export")
-        .arg(&run)
-        .arg("--out")
-        .arg(&rs)
-        .output()
-        .unwrap();
+    let o = export(&[run.to_str().unwrap(), "--out", rs.to_str().unwrap()]);
     assert_refused(&o, "policy.safetensors: expected the file its run wrote");
     assert!(!rs.exists());
     std::fs::remove_dir_all(&dir).unwrap();
