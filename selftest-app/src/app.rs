@@ -129,10 +129,7 @@ pub fn run(board: &mut impl Board) -> bool {
         |o, q| levels_int(Some(o), Some(q)),
         |l| board.line(l),
     );
-    // The refined duty of a fixed decision, compared with the host's as the probes are.
-    let mut duty = [0; 9];
-    refine(Some(&[5, 3, 1, 0]), Some(&mut duty));
-    board.line(format_args!("probe-refine {}", duty[0]));
+    selftest::refine_probe(|a, o| refine(Some(a), Some(o)), |l| board.line(l));
     ok &= paced_runs(board);
     ok &= startup_check(board);
     ok &= monitor_check(board, forward_int, monitored);

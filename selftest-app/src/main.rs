@@ -56,6 +56,10 @@ fn main() -> std::process::ExitCode {
         |o, q| selftest_forward_levels_int(Some(o), Some(q)),
         |l| println!("{l}"),
     );
+    selftest::refine_probe(
+        |a, o| selftest::selftest_refine_int(Some(a), Some(o)),
+        |l| println!("{l}"),
+    );
     if ok {
         std::process::ExitCode::SUCCESS
     } else {

@@ -91,6 +91,17 @@ pub extern "C" fn selftest_refine_int(at: Option<&[i16; 4]>, out: Option<&mut [i
     }
 }
 
+/// The refined duty of a fixed decision of the integer nine-level policy (a `probe-refine`
+/// line), for the host to compare as it compares [`report`]'s.
+pub fn refine_probe(
+    refine: impl Fn(&[i16; 4], &mut [i32; 9]),
+    mut line: impl FnMut(core::fmt::Arguments<'_>),
+) {
+    let mut duty = [0; 9];
+    refine(&[5, 3, 1, 0], &mut duty);
+    line(format_args!("probe-refine {}", duty[0]));
+}
+
 /// The nine-level policy's outputs on every probe, f32 and int8 (`probe-levels`,
 /// `probe-levels-int` lines), for the host to compare bit for bit as it compares
 /// [`report`]'s.
