@@ -1,6 +1,6 @@
 //! `host-sim startup`: the shipped desk policy from power-on on the true desk rig, both
 //! arithmetics, a knock that drops the pole recovered, the same figures for the same seed,
-//! and bad input refused with exit 2.
+//! and bad input refused with exit 2 (a number that reads as zero, in `eval`'s scenarios too).
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
@@ -217,4 +217,27 @@ fn bad_input_exits_2_naming_what_was_expected() {
         "startup.release_angle: expected at most params.theta_threshold_radians",
     );
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A number below f64's range reads as zero, which every check of a part passes.
+#[test]
+fn a_number_that_reads_as_zero_is_refused_in_a_scenario_and_a_flag() {
+    for args in [
+        &[
+            "eval",
+            "--scenario",
+            "friction=1e-400/0.1",
+            "--controller",
+            "lqr",
+        ][..],
+        &["startup", "--zero-error", "1e-400"],
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("1e-400 reads as 0"), "{args:?}: {err}");
+    }
 }

@@ -1,6 +1,8 @@
 //! A policy file of five duty levels through `policy-export export`: float C, int8 C and
 //! int8 Rust. Each names the network's shape and carries the levels; the C headers compile
-//! with the system's C compiler (`CC`, else `cc`).
+//! with the system's C compiler (`CC`, else `cc`). A number that reads as zero is refused
+//! wherever the command line takes one, in a level list too: `1e-400`, below f64's range,
+//! passed every check as zero, which turned `--grad-clip` off and made a level the motor off.
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -80,4 +82,44 @@ fn a_five_level_policy_exports_to_c_and_to_int8_rust_and_c() {
         }
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn a_number_that_reads_as_zero_is_refused_in_every_flag_and_spec() {
+    let shipped = concat!(env!("CARGO_MANIFEST_DIR"), "/../shipped/policy.safetensors");
+    let out = std::env::temp_dir().join(format!("pe-numbers-{}.rs", std::process::id()));
+    let out = out.to_str().unwrap();
+    for (args, piece) in [
+        (
+            &["train", "--grad-clip", "1e-400", "--print-config"][..],
+            "1e-400",
+        ),
+        (&["train", "--gamma=-1E-999", "--print-config"], "-1E-999"),
+        (
+            &[
+                "train",
+                "--reward",
+                "upright=20+scale=1e-400",
+                "--print-config",
+            ],
+            "1e-400",
+        ),
+        (
+            &["export", shipped, "--out", out, "--levels=-1,10e-400"],
+            "10e-400",
+        ),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_policy-export"))
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains(&format!("{piece} reads as 0")),
+            "{args:?}: {err}"
+        );
+        assert!(o.stdout.is_empty(), "{args:?}");
+    }
+    assert!(!std::path::Path::new(out).exists());
 }
