@@ -319,9 +319,10 @@ fn check_world(a: &StartupArgs, world: &Machine) -> Result<()> {
     Ok(())
 }
 
+/// The pole counts a zero `degrees` off adds to what `world`'s encoder reads, as the `zero`
+/// scenario part adds them.
 fn counts_off(degrees: f64, world: &Machine) -> i32 {
-    let rev = f64::from(world.rig.encoders.pole_counts_per_rev);
-    (degrees / 360.0 * rev).round() as i32
+    twin::faults::zero_counts((degrees.to_radians(), 0.0), &world.rig.encoders).1
 }
 
 impl Runs<'_> {

@@ -109,7 +109,7 @@ impl Faults {
 /// The counts `(cart, pole)` a zero error of `(theta, x)` (radians, metres) adds to what
 /// `encoders` read: the nearest whole counts, so that an error within half a count of each
 /// adds none.
-pub(crate) fn zero_counts((theta, x): (f64, f64), encoders: &Encoders) -> (i32, i32) {
+pub fn zero_counts((theta, x): (f64, f64), encoders: &Encoders) -> (i32, i32) {
     let counts = |v: f64| v.round() as i32;
     (
         counts(x * f64::from(encoders.cart_counts_per_m)),
