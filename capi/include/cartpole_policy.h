@@ -263,10 +263,12 @@ enum cartpole_status {
                                         cartpole_controller_monitor, another rig than c's */
     CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative */
     CARTPOLE_ERR_LEVELS = -7,        /* duty levels not one per output, beyond [-1000, 1000]
-                                        or not strictly increasing */
+                                        or not strictly increasing; to
+                                        cartpole_controller_refine, a two-output policy */
     CARTPOLE_ERR_NO_STARTUP = -8,    /* cartpole_controller_phase without a start-up */
     CARTPOLE_ERR_FLAGS = -9          /* cartpole_controller_startup flags other than
-                                        CARTPOLE_STARTUP_* */
+                                        CARTPOLE_STARTUP_*, or cartpole_controller_refine's
+                                        on neither 0 nor 1 */
 };
 
 /* The shipped policies. */
@@ -458,6 +460,14 @@ int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *peri
  * CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_RIG (a rig no machine has, or not c's). */
 int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
                                 const struct cartpole_rig *rig);
+
+/* With on 1, *c's policy drives from its next step the duty between its levels where its
+ * scores peak (the parabola through the chosen output's score and its two neighbours';
+ * docs/CONTROL.md, "Between the levels"), never past the midpoints the chosen level shares
+ * with them; the end levels drive themselves. With on 0, its levels again (as initialised).
+ * Refused, writing nothing: CARTPOLE_ERR_FLAGS (on neither 0 nor 1), CARTPOLE_ERR_LEVELS (a
+ * policy of two outputs, both ends). */
+int cartpole_controller_refine(cartpole_controller_t *c, int on);
 
 /* cartpole_controller_startup's flags, or'ed. */
 #define CARTPOLE_STARTUP_SWING_UP 1 /* swing the pole up rather than wait for a hand */

@@ -10,7 +10,7 @@ mod common;
 
 use std::fmt::Write as _;
 
-use cartpole_policy::{CARTPOLE_ERR_LEVELS, CARTPOLE_ERR_NULL, CARTPOLE_OK};
+use cartpole_policy::{CARTPOLE_ERR_FLAGS, CARTPOLE_ERR_LEVELS, CARTPOLE_ERR_NULL, CARTPOLE_OK};
 use common::{EVERY, compile_and_run, manifest};
 use firmware::rig::Rig;
 use weights::quant::{self, Granularity};
@@ -25,6 +25,19 @@ const FIVE: [f32; 5] = [-1.0, -0.3, 0.0, 0.3, 1.0];
 /// least `margin` from every point halfway between two levels: there the f64 reference
 /// and the f32 (or int8) network may round to either.
 fn states(levels: &[f32], margin: f64) -> Vec<[f32; 4]> {
+    draw(levels, margin, |_| true)
+}
+
+/// [`states`] whose feedback rounds to a level between the ends, which a refined duty
+/// leaves.
+fn inner_states(levels: &[f32], margin: f64) -> Vec<[f32; 4]> {
+    let mid = |i: usize| (f64::from(levels[i]) + f64::from(levels[i + 1])) / 2.0;
+    let inner = (mid(0), mid(levels.len() - 2));
+    draw(levels, margin, |u| inner.0 < u && u < inner.1)
+}
+
+/// 150 states as [`states`] describes, of a feedback that `keep`s.
+fn draw(levels: &[f32], margin: f64, keep: impl Fn(f64) -> bool) -> Vec<[f32; 4]> {
     let mut seed: u64 = 0x2545_f491_4f6c_dd1d;
     let mut unit = || {
         seed = seed
@@ -39,7 +52,7 @@ fn states(levels: &[f32], margin: f64) -> Vec<[f32; 4]> {
         let near = levels
             .windows(2)
             .any(|p| (u - (f64::from(p[0]) + f64::from(p[1])) / 2.0).abs() < margin);
-        if !near {
+        if !near && keep(u) {
             out.push(s);
         }
     }
@@ -67,6 +80,51 @@ fn reference(levels: &[f32], s: &[f32; 4]) -> i64 {
         )
         .0;
     (f64::from(levels[best]) * 1000.0).round() as i64
+}
+
+fn thousandths(level: f32) -> f64 {
+    (f64::from(level) * 1000.0).round()
+}
+
+/// What the refined controller drives for `s`, in thousandths: the scores `l u - l^2 / 2`
+/// are a parabola in the level `l` peaking at the feedback `u`, so the parabola through any
+/// three levels' scores peaks at `u` itself, which the controller keeps a thousandth inside
+/// the midpoints the chosen level shares with its neighbours; an end level drives itself.
+fn refined(levels: &[f32], s: &[f32; 4]) -> f64 {
+    let chosen = reference(levels, s) as f64;
+    let t: Vec<f64> = levels.iter().map(|l| thousandths(*l)).collect();
+    let i = t.iter().position(|l| *l == chosen).unwrap();
+    if i == 0 || i == t.len() - 1 {
+        return chosen;
+    }
+    let inside = ((t[i - 1] + t[i]) / 2.0 + 1.0, (t[i] + t[i + 1]) / 2.0 - 1.0);
+    (feedback(s) * 1000.0).clamp(inside.0, inside.1)
+}
+
+/// Checks `out`, what `levels_controller.c refined` printed for `states`, against
+/// [`refined`] within `tolerance` thousandths (the network's rounding): the refusals first,
+/// then per period the pins driving the signed duty. Returns how many periods drove a duty
+/// other than a level.
+fn check_refined(out: &str, levels: &[f32], states: &[[f32; 4]], tolerance: f64) -> usize {
+    let want = format!("{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_NULL}\n");
+    assert!(out.starts_with(&want), "{out}");
+    let lines: Vec<_> = out[want.len()..].lines().collect();
+    assert_eq!(lines.len(), states.len());
+    let mut between = 0;
+    for (line, s) in lines.iter().zip(states) {
+        let f: Vec<i64> = line.split(' ').map(|v| v.parse().expect(line)).collect();
+        let (command, direction, duty, signed, faults) = (f[0], f[1], f[2], f[3], f[4]);
+        let r = refined(levels, s);
+        assert!((signed as f64 - r).abs() <= tolerance, "{line}: {r}");
+        assert_eq!(
+            (command, duty, faults),
+            (signed.signum(), signed.abs(), 0),
+            "{line}"
+        );
+        assert!(signed == 0 || direction == i64::from(signed > 0), "{line}");
+        between += usize::from(!levels.iter().any(|l| thousandths(*l) == r));
+    }
+    between
 }
 
 /// What `levels_controller.c` prints for `states`: `command direction duty signed_duty
@@ -140,6 +198,9 @@ fn a_float_policy_of_seven_levels_drives_the_feedback_rounded_to_its_levels() {
         );
     }
     assert_eq!(run(&text, init, 7, &args("refusals", &[])), refusals());
+    let states = inner_states(&SEVEN, 1e-4);
+    let out = run(&text, init, 7, &args("refined", &states));
+    assert_eq!(check_refined(&out, &SEVEN, &states, 1.0), states.len());
 }
 
 #[test]
@@ -155,4 +216,9 @@ fn an_int8_policy_of_five_levels_drives_the_feedback_rounded_to_its_levels() {
     let out = run(&text, init, 5, &args("steps", &states));
     assert_eq!(out, expected(&FIVE, &states));
     assert_eq!(run(&text, init, 5, &args("refusals", &[])), refusals());
+    // The peak moves by the scores' rounding over their rises near it: a twelfth of the
+    // 300-thousandth gap between the levels.
+    let states = inner_states(&FIVE, 0.05);
+    let out = run(&text, init, 5, &args("refined", &states));
+    assert_eq!(check_refined(&out, &FIVE, &states, 25.0), states.len());
 }

@@ -5,6 +5,8 @@
  *
  *   levels steps X V T W ...   INIT, then one cartpole_controller_step_state per state, each
  *                              printed as `command direction duty signed_duty faults`
+ *   levels refined X V T W ... the same, refined between the levels (cartpole_controller_refine),
+ *                              after the codes of refine calls it must refuse, writing nothing
  *   levels refusals            INIT's code on good levels, then on levels the library must
  *                              refuse, each code and whether the call wrote anything */
 #include <stdio.h>
@@ -61,9 +63,23 @@ static int refusals(void) {
     return 0;
 }
 
-static int steps(int argc, char **argv) {
+/* cartpole_controller_refine's refusals: each code, and whether *c is as it was. */
+static void refine_refusals(void) {
+    cartpole_controller_t before = ctl;
+    int code = cartpole_controller_refine(&ctl, 2);
+    printf("%d %d\n", code, memcmp(&before, &ctl, sizeof ctl) == 0);
+    code = cartpole_controller_refine(&ctl, -1);
+    printf("%d %d\n", code, memcmp(&before, &ctl, sizeof ctl) == 0);
+    printf("%d\n", cartpole_controller_refine(NULL, 1));
+}
+
+static int steps(int argc, char **argv, int refine) {
     int k, j;
     int code = INIT(&ctl, &test_policy, test_policy_levels, A, &test_policy_rig);
+    if (code == CARTPOLE_OK && refine) {
+        refine_refusals();
+        code = cartpole_controller_refine(&ctl, 1);
+    }
     if (code != CARTPOLE_OK) {
         printf("init %d\n", code);
         return 1;
@@ -84,7 +100,8 @@ static int steps(int argc, char **argv) {
 }
 
 int main(int argc, char **argv) {
-    if (argc >= 2 && strcmp(argv[1], "steps") == 0) return steps(argc, argv);
+    if (argc >= 2 && strcmp(argv[1], "steps") == 0) return steps(argc, argv, 0);
+    if (argc >= 2 && strcmp(argv[1], "refined") == 0) return steps(argc, argv, 1);
     if (argc >= 2 && strcmp(argv[1], "refusals") == 0) return refusals();
     return 2;
 }

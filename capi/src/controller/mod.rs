@@ -19,6 +19,7 @@
 //! int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *period_us);
 //! int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
 //!                                 const struct cartpole_rig *rig);
+//! int cartpole_controller_refine(cartpole_controller_t *c, int on);
 //! ```
 //!
 //! A step is [`Controller::step`](firmware::controller::Controller::step), the period the
@@ -38,7 +39,9 @@
 
 use core::ffi::c_int;
 
-use firmware::controller::{Assurance, Command, FaultCounters, FaultFlags, Limits, Scores};
+use firmware::controller::{
+    Assurance, Command, FaultCounters, FaultFlags, Limits, Policy as _, Scores,
+};
 use firmware::loopback::{Duty, Level};
 use firmware::network::{N_ACTIONS, OBS_DIM};
 use firmware::rig::Rig;
@@ -74,11 +77,14 @@ pub const CARTPOLE_ERR_RIG: c_int = -5;
 /// An envelope with a bound that is NaN, infinite or negative.
 pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 /// Duty levels the firmware refuses ([`firmware::controller::check_levels`]): not one per
-/// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing.
+/// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing; to
+/// `cartpole_controller_refine`, a policy of two outputs, which has no level between its
+/// ends to refine.
 pub const CARTPOLE_ERR_LEVELS: c_int = -7;
 /// `cartpole_controller_phase` on an instance without a start-up.
 pub const CARTPOLE_ERR_NO_STARTUP: c_int = -8;
-/// `cartpole_controller_startup` flags other than `CARTPOLE_STARTUP_*`.
+/// `cartpole_controller_startup` flags other than `CARTPOLE_STARTUP_*`, or
+/// `cartpole_controller_refine` asked for other than 0 or 1.
 pub const CARTPOLE_ERR_FLAGS: c_int = -9;
 
 /// `CARTPOLE_POLICY_F32`: the shipped float policy (`shipped::policy`).
@@ -140,6 +146,9 @@ trait Run {
     fn start_up(&mut self, startup: Startup, rig: &Rig) -> Result<(), c_int>;
     /// The start-up's phase and transitions, if it has one.
     fn startup(&self) -> Option<&Sequencer>;
+    /// Refines the policy's chosen level from the next period on, or stops; refused for a
+    /// policy of two outputs, both of them ends.
+    fn refine(&mut self, on: bool) -> Result<(), c_int>;
 }
 
 impl<K: Kind> Run for Slot<K> {
@@ -210,6 +219,15 @@ impl<K: Kind> Run for Slot<K> {
 
     fn record_overruns(&mut self, ticks: u32) {
         self.controller.record_overruns(ticks);
+    }
+
+    fn refine(&mut self, on: bool) -> Result<(), c_int> {
+        let p = self.controller.policy_mut();
+        if p.policy.duty(2).is_none() {
+            return Err(CARTPOLE_ERR_LEVELS);
+        }
+        p.refine = on;
+        Ok(())
     }
 
     fn period_us(&self) -> u32 {
@@ -380,6 +398,29 @@ pub extern "C" fn cartpole_controller_monitor(
     };
     let digest = firmware::link::digest::rig(&rig);
     status(instance_mut(c).and_then(|r| r.monitor(assurance, digest)))
+}
+
+/// With `on` 1, `c`'s policy drives from its next period the duty between its levels where
+/// its scores peak (`firmware::controller::Refined`: the parabola through the chosen
+/// output's score and its neighbours'); with 0, its levels again. Refused, writing nothing:
+/// [`CARTPOLE_ERR_FLAGS`] (`on` neither 0 nor 1), [`CARTPOLE_ERR_LEVELS`] (a policy of two
+/// outputs, both ends, which drive themselves).
+// SAFETY: as for `cartpole_controller_init`: one definition per C name.
+#[allow(unsafe_code)]
+#[unsafe(no_mangle)]
+pub extern "C" fn cartpole_controller_refine(
+    c: Option<&mut CartpoleController>,
+    on: c_int,
+) -> c_int {
+    let Some(c) = c else {
+        return CARTPOLE_ERR_NULL;
+    };
+    let on = match on {
+        0 => false,
+        1 => true,
+        _ => return CARTPOLE_ERR_FLAGS,
+    };
+    status(instance_mut(c).and_then(|r| r.refine(on)))
 }
 
 /// The machine of `rig` (NULL: the shipped policies'); refused as one no machine has.

@@ -7,7 +7,7 @@ use core::ffi::c_void;
 use core::mem::{MaybeUninit, align_of, size_of};
 
 use firmware::ConfigError;
-use firmware::controller::{Controller, Greedy, Policy};
+use firmware::controller::{Controller, Greedy, Policy, Refinable};
 use firmware::estimator::{Estimate, ObserverSensor};
 use firmware::loopback::{self, Latest, Pins};
 use firmware::network::Mlp;
@@ -71,8 +71,10 @@ impl<const H: usize, const A: usize> Kind for Int<H, A> {
     const MAGIC: u32 = magic_of(*b"CPi", H, A);
 }
 
-/// The controller C runs: one telemetry record, the period's own, is all C reads back.
-pub(crate) type Running<K> = Controller<<K as Kind>::Policy, Input<<K as Kind>::Reading>, Pins>;
+/// The controller C runs, its policy refined as C asks (`cartpole_controller_refine`): one
+/// telemetry record, the period's own, is all C reads back.
+pub(crate) type Running<K> =
+    Controller<Refinable<<K as Kind>::Policy>, Input<<K as Kind>::Reading>, Pins>;
 
 /// What an initialised `cartpole_controller_t` holds; `magic` first, where [`magic`] reads
 /// it whichever kind wrote it.
@@ -98,13 +100,17 @@ impl<K: Kind> Slot<K> {
 
     /// A controller of `policy` for `rig` as every Rust board builds one: the rig's
     /// observer behind the encoders, its predictor if it has dead time, its limits, pins not
-    /// yet driven. Solves the observer's gain: once, at start-up. Refused as the firmware
-    /// refuses the rig's observer, limits or predictor.
+    /// yet driven, its levels not refined. Solves the observer's gain: once, at start-up.
+    /// Refused as the firmware refuses the rig's observer, limits or predictor.
     pub(crate) fn new(policy: K::Policy, rig: &Rig) -> Result<Self, ConfigError> {
         let encoders = ObserverSensor::new(rig.observer()?, Latest::default());
         let options = Options {
             predict: true,
             monitor: None,
+        };
+        let policy = Refinable {
+            policy,
+            refine: false,
         };
         let controller = rig.controller(policy, Input::new(encoders), loopback::pins(), options)?;
         Ok(Slot {

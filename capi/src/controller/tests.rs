@@ -115,8 +115,17 @@ fn memory_init_did_not_write_is_refused_by_every_call() {
             CARTPOLE_ERR_UNINITIALISED
         );
         assert_eq!(
+            cartpole_controller_refine(Some(&mut c), 1),
+            CARTPOLE_ERR_UNINITIALISED
+        );
+        assert_eq!(
             cartpole_controller_init(Some(&mut c), CARTPOLE_POLICY_INT),
             CARTPOLE_OK
+        );
+        // The shipped policies' two outputs are both ends: nothing to refine.
+        assert_eq!(
+            cartpole_controller_refine(Some(&mut c), 1),
+            CARTPOLE_ERR_LEVELS
         );
         assert_eq!(
             cartpole_controller_step(Some(&mut c), 1, 2, Some(&mut out)),

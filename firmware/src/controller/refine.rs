@@ -29,12 +29,47 @@ impl<O: Reading, P: Policy<O>> Policy<O> for Refined<P> {
         self.0.duty(i)
     }
     fn drive(&self, q: &P::Scores, i: usize) -> Option<Duty> {
-        let level = self.0.drive(q, i)?;
-        let lower = i.checked_sub(1).and_then(|k| self.0.duty(k));
-        match (lower, self.0.duty(i + 1), q.rises(i)) {
-            (Some(lo), Some(hi), Some(rise)) => Some(between([lo, level, hi], rise)),
-            _ => Some(level),
+        refine(&self.0, q, i)
+    }
+}
+
+/// `P`, refined ([`Refined`]) or not as chosen while it runs: what a controller holds whose
+/// user chooses after it is built, as C does (`cartpole_controller_refine`) and a link
+/// target does for each episode's Start.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Refinable<P> {
+    /// The policy.
+    pub policy: P,
+    /// Whether its chosen level is refined.
+    pub refine: bool,
+}
+
+impl<O: Reading, P: Policy<O>> Policy<O> for Refinable<P> {
+    type Scores = P::Scores;
+    #[inline]
+    fn scores(&mut self, obs: &O) -> P::Scores {
+        self.policy.scores(obs)
+    }
+    fn duty(&self, i: usize) -> Option<Duty> {
+        self.policy.duty(i)
+    }
+    fn drive(&self, q: &P::Scores, i: usize) -> Option<Duty> {
+        if self.refine {
+            refine(&self.policy, q, i)
+        } else {
+            self.policy.drive(q, i)
         }
+    }
+}
+
+/// What `p` drives having chosen output `i` of scores `q`, moved to the peak of the
+/// parabola through `i`'s score and its neighbours'.
+fn refine<O: Reading, P: Policy<O>>(p: &P, q: &P::Scores, i: usize) -> Option<Duty> {
+    let level = p.drive(q, i)?;
+    let lower = i.checked_sub(1).and_then(|k| p.duty(k));
+    match (lower, p.duty(i + 1), q.rises(i)) {
+        (Some(lo), Some(hi), Some(rise)) => Some(between([lo, level, hi], rise)),
+        _ => Some(level),
     }
 }
 

@@ -129,6 +129,25 @@ fn a_refined_policy_moves_its_choice_and_leaves_the_ends() {
 }
 
 #[test]
+fn a_refinable_policy_drives_as_its_choice_says_from_the_next_period() {
+    let levels = Levels::new([-1.0, -0.5, -0.2, 0.0, 0.2, 0.5, 1.0]).unwrap();
+    let net = peaked();
+    let greedy = Greedy { net: &net, levels };
+    let mut p = Refinable {
+        policy: greedy,
+        refine: false,
+    };
+    let obs = [0.0; 4];
+    assert_eq!(answer(&mut p, &obs).1, Some(d(0)));
+    p.refine = true;
+    assert_eq!(answer(&mut p, &obs).1, Some(d(60)));
+    let q = answer(&mut p, &obs).0;
+    for i in 0..8 {
+        assert_eq!(p.drive(&q, i), Refined(greedy).drive(&q, i), "{i}");
+    }
+}
+
+#[test]
 fn integer_scores_rise_without_overflow() {
     let q = [i32::MIN, i32::MAX, i32::MIN];
     let rise = q.rises(1).unwrap();
