@@ -230,7 +230,8 @@ static int info(struct writer *w, const uint8_t *body, uint16_t seq)
  * again. */
 static int start(struct writer *w, const uint8_t *body, uint16_t seq)
 {
-    int sensing = body[0], predict = body[1] & 1, monitor = body[1] & 2, dead_time = body[2];
+    int sensing = body[0], predict = body[1] & 1, monitor = body[1] & 2, refine = body[1] & 4;
+    int dead_time = body[2];
     struct cartpole_rig rig = shipped_rig;
     if (!t.hello) {
         return refuse(w, R_NOT_STARTED);
@@ -251,6 +252,10 @@ static int start(struct writer *w, const uint8_t *body, uint16_t seq)
     t.running = t.fresh;
     /* Solved on every monitored Start: an instance of the C API keeps no gain for another. */
     if (monitor && cartpole_controller_monitor(&t.running, NULL, &rig) != CARTPOLE_OK) {
+        return refuse(w, R_UNSUPPORTED);
+    }
+    /* The shipped policy's two levels are both ends: the library refuses to refine them. */
+    if (refine && cartpole_controller_refine(&t.running, 1) != CARTPOLE_OK) {
         return refuse(w, R_UNSUPPORTED);
     }
     t.started = 1;
@@ -315,7 +320,7 @@ static int body_valid(int kind, const uint8_t *body, int len)
     }
     switch (kind) {
     case HELLO: return body[0] <= 1;
-    case START: return body[0] <= 2 && body[1] <= 3 && (body[0] == 2 || u32_at(body + 3) == 0);
+    case START: return body[0] <= 2 && body[1] <= 7 && (body[0] == 2 || u32_at(body + 3) == 0);
     case INFO: return body[0] <= 1;
     case REFUSED: return body[0] >= R_VERSION && body[0] <= R_UNSUPPORTED;
     default: return 1;

@@ -12,6 +12,7 @@ use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 use firmware::link::Format;
+use host_sim::eval::ControllerKind;
 use host_sim::pil::link::Session;
 use host_sim::pil::{Board, MACHINES, Place, handshake, run_row};
 use twin::Scenario;
@@ -33,7 +34,7 @@ fn rate(place: &Place, format: Format) -> Option<f64> {
         let (_, check) = run_row(
             &mut remote,
             &mut here,
-            (&info, false),
+            (&info, ControllerKind::Policy),
             &scenario,
             500,
             0,

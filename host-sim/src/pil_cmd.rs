@@ -61,14 +61,20 @@ impl PilArgs {
                  rebuild the pil application)"
             );
         }
-        // A target's application drives its levels as they are: it refines nothing.
-        if let Some(c) = controllers.iter().find(|c| !c.runs_policy() || c.refined()) {
+        if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
+            let runs: Vec<_> = ControllerKind::on_target().map(|k| k.to_string()).collect();
             bail!(
-                "--pil runs the controllers policy, policy-int, monitored and monitored-int, \
-                 found --controller {c}"
+                "--pil runs the controllers {}, found --controller {c}",
+                runs.join(", ")
             );
         }
         let board = self.pil_policy;
+        if let Some(c) = controllers.iter().find(|c| c.refined() && !board.refines()) {
+            bail!(
+                "--pil-policy {board}: its two levels are both ends, with nothing between them \
+                 to refine; found --controller {c} (run policy or policy-int)"
+            );
+        }
         if let Some(c) = controllers
             .iter()
             .find(|c| c.monitored() && !board.monitors())
@@ -122,7 +128,7 @@ pub fn run(a: &EvalArgs, place: &Place, jobs: &[(u32, &Scenario, ControllerKind)
         let (eps, check) = run_row(
             &mut target,
             &mut reference,
-            (&info, c.monitored()),
+            (&info, c),
             s,
             h,
             a.seed,

@@ -99,18 +99,24 @@ fn eval(rest: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
 
 /// Places and flags the rules refuse before any target answers.
 /// What a target cannot run: a controller other than its policy's, a policy file, a
-/// monitor without an envelope, a shipped policy it lacks.
+/// monitor without an envelope, refined levels of two, a shipped policy it lacks.
 fn bad_controllers(echo: &str) -> Vec<Case> {
     vec![
         Case::new(
             "a baseline".into(),
             &eval(&[&"--pil", &echo, &"--controller", &"lqr"]),
-            &["policy, policy-int, monitored and monitored-int"],
+            &[
+                "runs the controllers policy, policy-int, policy-refined, policy-int-refined, \
+                 monitored, monitored-int, found --controller lqr",
+            ],
         ),
         Case::new(
-            "a refined policy, which no target runs".into(),
+            "a refined policy of two levels, both ends".into(),
             &eval(&[&"--pil", &echo, &"--controller", &"policy,policy-refined"]),
-            &["policy, policy-int, monitored and monitored-int, found --controller policy-refined"],
+            &[
+                "--pil-policy shipped: its two levels are both ends, with nothing between them \
+               to refine; found --controller policy-refined",
+            ],
         ),
         Case::new(
             "a policy file".into(),

@@ -84,7 +84,8 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
                 handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
             for s in &scenarios {
                 let what = format!("{target} {format:?} {}", s.name);
-                let check = two_episodes_agree(&mut remote, &mut here, &info, s, &what);
+                let run = (&info, ControllerKind::Policy);
+                let check = two_episodes_agree(&mut remote, &mut here, run, s, &what);
                 let [median, _, worst] = check.time_ns;
                 assert!(median > 0, "{what}: the target's clock did not move");
                 // Under -icount the time counts instructions: with an FPU, or in integers,
@@ -108,16 +109,16 @@ fn on_every_target_the_pil_application_answers_as_the_controller_here() {
     }
 }
 
-/// Two episodes of 200 periods of `scenario` on the target and here: both run whole, and
-/// no answer of the target's differs from the reference's.
+/// Two episodes of 200 periods of `scenario` on the target and here, run by the controller
+/// `kind`: both run whole, and no answer of the target's differs from the reference's.
 fn two_episodes_agree(
     remote: &mut Session<impl Remote>,
     here: &mut Session<impl Remote>,
-    info: &Info,
+    run: (&Info, ControllerKind),
     scenario: &Scenario,
     what: &str,
 ) -> Check {
-    let (eps, check) = run_row(remote, here, (info, false), scenario, 200, 0, 2, || ()).unwrap();
+    let (eps, check) = run_row(remote, here, run, scenario, 200, 0, 2, || ()).unwrap();
     assert_eq!(eps.len(), 2, "{what}");
     assert!(check.periods >= 200, "{what}: {check:?}");
     assert_eq!(check.mismatches, 0, "{what}: {check:?}");
@@ -158,7 +159,7 @@ impl<R: Remote> Remote for Noting<R> {
 /// The nine-level desk policy (`pil-desk`) on every target in QEMU, on the desk rig it was
 /// trained for, in both formats: every answer equals the same target code's here, each
 /// carries nine scores, and the commands drive more than two of the policy's levels (a
-/// target that collapsed them to two would fail).
+/// target that collapsed them to two would fail); refined, duties between them.
 #[test]
 fn on_every_target_a_policy_of_nine_levels_answers_as_the_controller_here() {
     if skip_qemu() {
@@ -186,13 +187,26 @@ fn on_every_target_a_policy_of_nine_levels_answers_as_the_controller_here() {
             let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Desk).unwrap();
             for s in &scenarios {
                 let what = format!("{target} {format:?} {}", s.name);
-                two_episodes_agree(&mut remote, &mut here, &info, s, &what);
+                let run = (&info, ControllerKind::Policy);
+                two_episodes_agree(&mut remote, &mut here, run, s, &what);
             }
-            let seen = seen.borrow();
             let what = format!("{target} {format:?}");
-            assert_eq!(seen.scores, BTreeSet::from([9]), "{what}");
-            assert!(seen.duties.is_subset(&levels), "{what}: {:?}", seen.duties);
-            assert!(seen.duties.len() > 2, "{what}: only {:?}", seen.duties);
+            {
+                let seen = seen.borrow();
+                assert_eq!(seen.scores, BTreeSet::from([9]), "{what}");
+                assert!(seen.duties.is_subset(&levels), "{what}: {:?}", seen.duties);
+                assert!(seen.duties.len() > 2, "{what}: only {:?}", seen.duties);
+            }
+            // Refined, the duties leave the levels, as the reference's do.
+            let refined = match format {
+                Format::F32 => ControllerKind::PolicyRefined,
+                Format::Int8 => ControllerKind::PolicyIntRefined,
+            };
+            *seen.borrow_mut() = Seen::default();
+            let run = (&info, refined);
+            two_episodes_agree(&mut remote, &mut here, run, &scenarios[1], &what);
+            let between = seen.borrow().duties.difference(&levels).count();
+            assert!(between > 10, "{what} refined: {:?}", seen.borrow().duties);
         }
     }
 }
@@ -206,7 +220,17 @@ fn monitored_row(
     what: &str,
 ) {
     let frozen = Scenario::parse("encoder+stuck=25/100").unwrap();
-    let (eps, check) = run_row(remote, here, (info, true), &frozen, 200, 0, 2, || ()).unwrap();
+    let (eps, check) = run_row(
+        remote,
+        here,
+        (info, ControllerKind::Monitored),
+        &frozen,
+        200,
+        0,
+        2,
+        || (),
+    )
+    .unwrap();
     assert_eq!(check.mismatches, 0, "{what} monitored: {check:?}");
     assert!(
         eps.iter().all(|e| e.fallback > 0),
@@ -247,8 +271,17 @@ fn the_c_application_answers_as_the_rust_one() {
     for format in [Format::F32, Format::Int8] {
         let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
         for s in &scenarios {
-            let (_, check) =
-                run_row(&mut remote, &mut here, (&info, false), s, 300, 0, 3, || ()).unwrap();
+            let (_, check) = run_row(
+                &mut remote,
+                &mut here,
+                (&info, ControllerKind::Policy),
+                s,
+                300,
+                0,
+                3,
+                || (),
+            )
+            .unwrap();
             assert_eq!(check.mismatches, 0, "{format:?} {}: {check:?}", s.name);
             assert_eq!(check.overruns, 0, "{format:?} {}: {check:?}", s.name);
         }
@@ -274,7 +307,7 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
     ] {
         let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
         for s in &scenarios {
-            let run = (&info, kind.monitored());
+            let run = (&info, kind);
             let (eps, check) = run_row(&mut remote, &mut here, run, s, 400, 3, 8, || ()).unwrap();
             assert_eq!(check.mismatches, 0, "{}: {check:?}", s.name);
             let pil = Row::from_episodes(&kind.to_string(), &s.name, (400, s.params.tau), 3, &eps);
@@ -322,8 +355,17 @@ fn a_board_on_a_serial_port_gives_evals_rows() {
         Board::Shipped,
     )
     .unwrap();
-    let (eps, check) =
-        run_row(&mut remote, &mut here, (&info, false), &s, 300, 1, 4, || ()).unwrap();
+    let (eps, check) = run_row(
+        &mut remote,
+        &mut here,
+        (&info, ControllerKind::Policy),
+        &s,
+        300,
+        1,
+        4,
+        || (),
+    )
+    .unwrap();
     assert_eq!(check.mismatches, 0, "{check:?}");
     let kind = ControllerKind::Policy;
     let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 1, &eps);

@@ -239,14 +239,6 @@ fn eval_rows_are_what_todays_code_computes() {
     assert!(ran >= 20, "only {ran} rows re-derived");
 }
 
-/// The controllers a target runs.
-const PIL_KINDS: [ControllerKind; 4] = [
-    ControllerKind::Policy,
-    ControllerKind::PolicyInt,
-    ControllerKind::Monitored,
-    ControllerKind::MonitoredInt,
-];
-
 /// The value of `flag` in `words`, or `default`.
 fn flag<'a>(words: &[&'a str], flag: &str, default: &'a str) -> &'a str {
     words
@@ -276,8 +268,7 @@ fn processor_in_the_loop_rows_are_the_targets_code_run_here() {
                 episodes.to_string(),
                 "{file}"
             );
-            let kind = PIL_KINDS
-                .into_iter()
+            let kind = ControllerKind::on_target()
                 .find(|k| k.to_string() == controller)
                 .unwrap_or_else(|| panic!("{file}: `{controller}` runs on no target"));
             let s = Scenario::parse(&scenario).unwrap();
@@ -296,7 +287,7 @@ fn processor_in_the_loop_rows_are_the_targets_code_run_here() {
                 Board::Shipped,
             )
             .unwrap();
-            let run = (&info, kind.monitored());
+            let run = (&info, kind);
             let h = u32::try_from(horizon).unwrap();
             let (eps, check) = run_row(
                 &mut target,

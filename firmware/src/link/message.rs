@@ -107,6 +107,9 @@ pub struct Start {
     /// ([`Target::new`](super::Target::new): a board's `shipped::envelope::ENVELOPE`), its
     /// observer watching for frozen encoders; refused by a target that holds none.
     pub monitor: bool,
+    /// Whether the chosen level is refined between its neighbours
+    /// ([`crate::controller::Refined`]); refused by a target of two levels, both ends.
+    pub refine: bool,
     /// The periods of dead time the observer and predictor assume, in place of the rig's.
     pub dead_time: u8,
 }
@@ -268,7 +271,8 @@ impl Message {
                     Sensing::Observer => (1, 0.0),
                     Sensing::AlphaBeta(d) => (2, d),
                 };
-                let options = u8::from(s.predict) | u8::from(s.monitor) << 1;
+                let options =
+                    u8::from(s.predict) | u8::from(s.monitor) << 1 | u8::from(s.refine) << 2;
                 w.put(&[code, options, s.dead_time]);
                 w.put(&f32::to_le_bytes(discount));
             }
@@ -334,7 +338,7 @@ impl Message {
 
 fn decode_start(r: &mut Reader<'_>) -> Option<Start> {
     let (code, options, dead_time) = (r.u8()?, r.u8()?, r.u8()?);
-    if options > 0b11 {
+    if options > 0b111 {
         return None;
     }
     let discount = r.f32()?;
@@ -348,6 +352,7 @@ fn decode_start(r: &mut Reader<'_>) -> Option<Start> {
         sensing,
         predict: options & 1 != 0,
         monitor: options & 0b10 != 0,
+        refine: options & 0b100 != 0,
         dead_time,
     })
 }

@@ -5,7 +5,8 @@
 //! same code.
 
 use crate::controller::{
-    Assurance, Controller, FaultFlags, Greedy, Levels, Limits, Policy, Scores as _, StateSensor,
+    Assurance, Controller, FaultFlags, Greedy, Levels, Limits, Policy, Refinable, Scores as _,
+    StateSensor,
 };
 use crate::estimator::{Estimate, Observer};
 use crate::loopback::{Pins, pins};
@@ -48,9 +49,9 @@ pub fn period_ns(rig: &Rig) -> u32 {
 }
 
 type Float<'p, const H: usize, const A: usize> =
-    Controller<Greedy<&'p Mlp<H, A>, A>, LinkSensor<[f32; 4]>, Pins>;
+    Controller<Refinable<Greedy<&'p Mlp<H, A>, A>>, LinkSensor<[f32; 4]>, Pins>;
 type Int<'p, const H: usize, const A: usize> =
-    Controller<Greedy<&'p QMlp<H, A>, A>, LinkSensor<[i16; 4]>, Pins>;
+    Controller<Refinable<Greedy<&'p QMlp<H, A>, A>>, LinkSensor<[i16; 4]>, Pins>;
 
 /// The episode's controller, in the format Hello asked for.
 enum Running<'p, const H: usize, const A: usize> {
@@ -167,9 +168,14 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
     }
 
     /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
-    /// (if asked) predictor and runtime monitor, with the policy's envelope; `None` for a
-    /// Start the rig refuses, or one that asks for a monitor without an envelope.
+    /// (if asked) predictor and runtime monitor, with the policy's envelope, its levels
+    /// refined if asked; `None` for a Start the rig refuses, one that asks for a monitor
+    /// without an envelope, or for refined levels of a policy whose two are both ends.
     fn start(&mut self, start: Start) -> Option<Running<'p, H, A>> {
+        if start.refine && A <= 2 {
+            return None;
+        }
+
         let rig = Rig {
             dead_time: u32::from(start.dead_time),
             ..self.rig
@@ -201,7 +207,10 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
         Some(match self.format {
             Format::F32 => Running::F32(
                 rig.controller(
-                    self.policy,
+                    Refinable {
+                        policy: self.policy,
+                        refine: start.refine,
+                    },
                     LinkSensor::new(start.sensing, &rig, observer).ok()?,
                     pins(),
                     options,
@@ -210,7 +219,10 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
             ),
             Format::Int8 => Running::Int8(
                 rig.controller(
-                    self.policy_int,
+                    Refinable {
+                        policy: self.policy_int,
+                        refine: start.refine,
+                    },
                     LinkSensor::new(start.sensing, &rig, observer).ok()?,
                     pins(),
                     options,

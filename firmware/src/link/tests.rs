@@ -149,18 +149,21 @@ fn every_kind() -> Vec<Packet> {
             sensing: Sensing::Observer,
             predict: true,
             monitor: true,
+            refine: true,
             dead_time: u8::MAX,
         }),
         Message::Start(Start {
             sensing: Sensing::Exact,
             predict: false,
             monitor: false,
+            refine: false,
             dead_time: 0,
         }),
         Message::Start(Start {
             sensing: Sensing::AlphaBeta(0.5),
             predict: false,
             monitor: false,
+            refine: false,
             dead_time: 2,
         }),
         Message::Missed,
@@ -273,7 +276,7 @@ fn malformed_payloads_are_refused_for_what_they_are() {
     assert_eq!(frame_of(&[3, 0x01, 0, 0, 2]), [Err(Reason::Length)]);
     let start = |b: [u8; 7]| frame_of(&[&[3, 0x02, 0, 0][..], &b].concat());
     assert_eq!(start([3, 0, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
-    assert_eq!(start([1, 4, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
+    assert_eq!(start([1, 8, 0, 0, 0, 0, 0]), [Err(Reason::Length)]);
     assert_eq!(start([1, 0, 0, 0, 0, 0, 0x3F]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[3, 0x02, 0, 0, 1, 0]), [Err(Reason::Length)]);
     assert_eq!(frame_of(&[3, 0xFF, 0, 0, 0]), [Err(Reason::Length)]);
@@ -362,6 +365,7 @@ fn a_session_acts_on_readings_in_sequence_of_its_mode_and_refuses_the_rest() {
         sensing: Sensing::Observer,
         predict: true,
         monitor: false,
+        refine: false,
         dead_time: 1,
     };
     assert_eq!(

@@ -69,6 +69,13 @@ pub enum ControllerKind {
 }
 
 impl ControllerKind {
+    /// The controllers a target runs over the link (`eval --pil`): those in which the
+    /// Q-network drives.
+    pub fn on_target() -> impl Iterator<Item = ControllerKind> {
+        let all = <ControllerKind as clap::ValueEnum>::value_variants().iter();
+        all.copied().filter(|k| k.runs_policy())
+    }
+
     /// Whether the Q-network drives (in any form).
     pub fn runs_policy(self) -> bool {
         self.int()

@@ -4,6 +4,7 @@
 use std::fmt;
 
 use clap::ValueEnum;
+use firmware::link::Target;
 use firmware::rig::Rig;
 
 use super::link::{Local, Remote};
@@ -32,6 +33,18 @@ impl Board {
         match self {
             Board::Shipped => *shipped::target(1).rig(),
             Board::Desk => *shipped::desk_target(1).rig(),
+        }
+    }
+
+    /// Whether its policy has levels between its ends, which a refined controller moves
+    /// between (more than two outputs).
+    pub fn refines(self) -> bool {
+        fn between<const H: usize, const A: usize>(_: &Target<'_, H, A>) -> bool {
+            A > 2
+        }
+        match self {
+            Board::Shipped => between(&shipped::target(1)),
+            Board::Desk => between(&shipped::desk_target(1)),
         }
     }
 

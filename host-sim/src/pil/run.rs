@@ -12,6 +12,7 @@ use twin::{EpisodeStats, Scenario};
 
 use super::Board;
 use super::link::{Remote, Session};
+use crate::eval::ControllerKind;
 
 /// What the comparison with the software-in-the-loop reference and the target's clock
 /// found over a row's episodes.
@@ -109,14 +110,15 @@ pub fn handshake(
 }
 
 /// Episodes `0..episodes` of `seed` under `scenario`, `horizon` periods at most, with the
-/// target's commands moving the world (under its runtime monitor with `monitor`); each
+/// target's commands moving the world, as the row's controller `kind` asks (under the runtime
+/// monitor, refined between the levels; its format is `info`'s); each
 /// period compared with `reference`'s answer and timed on `info`'s clock. `progress` sees
 /// every finished episode.
 #[allow(clippy::too_many_arguments)]
 pub fn run_row(
     target: &mut Session<impl Remote>,
     reference: &mut Session<impl Remote>,
-    (info, monitor): (&Info, bool),
+    (info, kind): (&Info, ControllerKind),
     scenario: &Scenario,
     horizon: u32,
     seed: u64,
@@ -127,7 +129,8 @@ pub fn run_row(
         sensing: scenario.sensing,
         // As `eval`'s policy rows: the board is told its dead time.
         predict: true,
-        monitor,
+        monitor: kind.monitored(),
+        refine: kind.refined(),
         dead_time: scenario.delay() as u8,
     };
     let mut check = Check::default();

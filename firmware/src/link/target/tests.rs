@@ -3,7 +3,7 @@ use std::vec::Vec;
 
 use super::*;
 use crate::cartpole::{CartPole, State};
-use crate::controller::{Command, Duty, Levels};
+use crate::controller::{Command, Duty, Levels, Refined, answer};
 use crate::estimator::ObserverSensor;
 use crate::link::{Sensing, digest};
 use crate::loopback::{Latest, duty};
@@ -75,6 +75,7 @@ fn both<O: Estimate, P: crate::controller::Policy<O>, const A: usize>(
         sensing: Sensing::Observer,
         predict: true,
         monitor,
+        refine: false,
         dead_time,
     };
     assert_eq!(send(&mut t, 1, Message::Start(start)), Message::Started);
@@ -175,6 +176,7 @@ fn a_target_of_nine_levels_replies_with_nine_scores_and_refuses_a_monitor() {
         sensing: Sensing::Exact,
         predict: false,
         monitor: false,
+        refine: false,
         dead_time: 0,
     };
     assert_eq!(send(&mut t, 2, Message::Start(exact)), Message::Started);
@@ -197,6 +199,42 @@ fn a_target_of_nine_levels_replies_with_nine_scores_and_refuses_a_monitor() {
     };
     assert_eq!(
         send(&mut t, 4, Message::Start(monitored)),
+        Message::Refused(Reason::Unsupported)
+    );
+}
+
+#[test]
+fn a_start_that_asks_for_refined_levels_drives_between_them_where_there_are_any() {
+    let exact = Start {
+        sensing: Sensing::Exact,
+        predict: false,
+        monitor: false,
+        refine: true,
+        dead_time: 0,
+    };
+    let mut t = desk_target();
+    send(&mut t, 1, Message::Hello(Format::Int8));
+    assert_eq!(send(&mut t, 2, Message::Start(exact)), Message::Started);
+    let mut policy = Refined(Greedy {
+        net: &desk_int::POLICY_INT,
+        levels: desk::LEVELS,
+    });
+    let mut moved = 0;
+    for k in 0..40u16 {
+        let obs = [0.0, 0.0, 0.002 * (f32::from(k) - 20.0), 0.0];
+        let got = reply(send(&mut t, 3 + k, Message::State(obs)));
+        let want = answer(&mut policy, &crate::fixed::from_state(&obs))
+            .1
+            .unwrap();
+        assert_eq!(got.command, Command::Drive(want), "{obs:?}");
+        moved += usize::from(!desk::LEVELS.duties().contains(&want));
+    }
+    assert!(moved > 20, "only {moved} periods between the levels");
+    // The paper's two levels are both ends: nothing to refine.
+    let mut t = target();
+    send(&mut t, 1, Message::Hello(Format::F32));
+    assert_eq!(
+        send(&mut t, 2, Message::Start(exact)),
         Message::Refused(Reason::Unsupported)
     );
 }
@@ -259,6 +297,7 @@ fn a_refusal_stops_the_motor_until_the_next_start() {
         sensing: Sensing::Exact,
         predict: false,
         monitor: false,
+        refine: false,
         dead_time: 0,
     };
     let state = Message::State([0.0, 0.0, 0.01, 0.0]);
