@@ -114,8 +114,9 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     // handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
     // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`). With `desk`,
-    // the gentle desk policy drives its nine duty levels through the PWM, without the
-    // monitor: no envelope was measured for it.
+    // the gentle desk policy drives the duty between its nine levels where its scores peak
+    // (`Refined`, docs/CONTROL.md) through the PWM, without the monitor: no envelope was
+    // measured for it.
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let latest = Cell::new((0, 0));
     let sensor = ObserverSensor::<_, [i16; 4]>::new(observer, || latest.get());
@@ -126,10 +127,10 @@ async fn balance<A: firmware::controller::Actuator>(bridge: A) {
     );
     #[cfg(feature = "desk")]
     let (policy, monitor) = (
-        firmware::controller::Greedy {
+        firmware::controller::Refined(firmware::controller::Greedy {
             net: &shipped::desk_int::POLICY_INT,
             levels: shipped::desk_int::LEVELS,
-        },
+        }),
         None,
     );
     let options = Options {

@@ -75,8 +75,9 @@ pub async fn balance(p: Peripherals) -> ! {
     // panic handler's log) before the bridge is ever driven. The runtime monitor (LQR outside the
     // shipped policy's envelope, a latched stop, the observer watching for a frozen encoder)
     // is configured as the firmware compiles (`shipped::envelope::ASSURANCE`). With `desk`,
-    // the gentle desk policy drives its nine duty levels through the PWM, without the
-    // monitor: no envelope was measured for it.
+    // the gentle desk policy drives the duty between its nine levels where its scores peak
+    // (`Refined`, docs/CONTROL.md) through the PWM, without the monitor: no envelope was
+    // measured for it.
     let latest = Cell::new((0, 0));
     let observer = defmt::unwrap!(RIG.observer()).watching();
     let sensor = ObserverSensor::<_, [f32; 4]>::new(observer, || latest.get());
@@ -84,10 +85,10 @@ pub async fn balance(p: Peripherals) -> ! {
     let (policy, monitor) = (&shipped::policy::POLICY, Some(shipped::envelope::ASSURANCE));
     #[cfg(feature = "desk")]
     let (policy, monitor) = (
-        firmware::controller::Greedy {
+        firmware::controller::Refined(firmware::controller::Greedy {
             net: &shipped::desk::POLICY,
             levels: shipped::desk::LEVELS,
-        },
+        }),
         None,
     );
     let options = Options {
