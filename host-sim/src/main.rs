@@ -248,7 +248,13 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     // spec read on another machine could be refused there, or pass where it changes nothing.
     let counts = [a.horizon.len(), a.scenario.len(), controllers.len()];
     eval::check_count(counts, flags).map_err(anyhow::Error::msg)?;
-    let (machine, net) = a.subject.load_for(&controllers)?;
+    // A target holds its own policy, on the rig it was built for, which the handshake
+    // checks against the scenarios' machine: nothing is loaded here, and --rig alone is the
+    // machine (the shipped policy's Gymnasium rig is no concern of it).
+    let (machine, net) = match pil {
+        Some(_) => a.subject.load(false, false)?,
+        None => a.subject.load_for(&controllers)?,
+    };
     let run_on = match (&world, &a.world) {
         (Some(w), Some(path)) => {
             let s = &a.subject;

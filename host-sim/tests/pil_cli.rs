@@ -230,3 +230,28 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
     let n = run_all(&exe(), &s.0, &cases);
     assert_eq!(n, cases.len());
 }
+
+/// The target holds its own policy and rig: with `--pil-policy desk --rig` of the desk, no
+/// warning that the policy was trained for another rig (the shipped policy's, never run).
+#[test]
+fn a_target_of_its_own_rig_draws_no_warning_of_another() {
+    let desk = Path::new(env!("CARGO_MANIFEST_DIR")).join("../rigs/desk-identified.toml");
+    let out = std::process::Command::new(exe())
+        .args(eval(&[
+            &"--pil",
+            &"exec:/bin/true",
+            &"--pil-policy",
+            &"desk",
+            &"--rig",
+            &desk,
+        ]))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("ended (exit status: 0) without answering"),
+        "{err}"
+    );
+    assert!(!err.contains("trained for another rig"), "{err}");
+}
