@@ -123,12 +123,8 @@ fn check_numbers(args: &[OsString]) -> Result<(), String> {
     });
     for (arg, piece) in pieces {
         if weights::reads_as_zero(piece) {
-            return Err(format!(
-                "{}: {piece} reads as 0, below the smallest number a board holds; expected 0 \
-                 written as 0, or a number of at least {:e}",
-                weights::quote(arg),
-                f32::MIN_POSITIVE
-            ));
+            let why = weights::zero_in_disguise(piece);
+            return Err(format!("{}: {why}", weights::quote(arg)));
         }
     }
     Ok(())

@@ -438,13 +438,16 @@ pub fn parse_startup(text: &str, origin: &str) -> Result<(Machine, Startup)> {
 
 /// A rig file's text as TOML, refused past a rig file's size wherever the text comes from
 /// (a file, a policy file's metadata, a training configuration's `rig`), so that none costs
-/// more than a rig file may.
+/// more than a rig file may, and with a number that reads as zero (`1e-400`).
 fn from_toml<T: serde::de::DeserializeOwned>(text: &str, origin: &str) -> Result<T> {
     if text.len() as u64 > MAX_RIG_BYTES {
         return Err(Error::Input(format!(
             "{origin}: expected a rig file's text of at most {MAX_RIG_BYTES} bytes, found {}",
             text.len()
         )));
+    }
+    if let Some(why) = weights::hidden_zero(text) {
+        return Err(Error::Input(format!("{origin}: {why}")));
     }
     toml::from_str(text).map_err(|e| {
         let why = weights::located(text, e.span(), e.message());

@@ -190,6 +190,11 @@ fn recorded(metadata: &BTreeMap<String, String>, outputs: usize) -> Result<Optio
     let Some(text) = metadata.get(LEVELS_KEY) else {
         return Ok(None);
     };
+    if let Some(why) = crate::hidden_zero(text) {
+        return Err(Error::Input(format!(
+            "the file's metadata `{LEVELS_KEY}`: {why}"
+        )));
+    }
     let levels: Vec<f64> = serde_json::from_str(text).map_err(|_| {
         Error::Input(format!(
             "the file's metadata `{LEVELS_KEY}`: expected a JSON list of numbers, such as \
@@ -411,6 +416,12 @@ mod tests {
                 "[-1, 5e-324]",
                 2,
                 "expected each zero or a normal number, found 5e-324",
+            ),
+            // JSON reads it as 0, a level the file did not mean.
+            (
+                "[-1, 1e-400, 1]",
+                3,
+                "metadata `levels`: line 1, column 6: 1e-400 reads as 0",
             ),
         ] {
             let e = of_file(&meta(Some(text)), n, None).unwrap_err();

@@ -17,6 +17,46 @@ pub fn reads_as_zero(text: &str) -> bool {
         && mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b))
 }
 
+/// Why `piece`, which [`reads_as_zero`], is refused: wherever it comes in.
+pub fn zero_in_disguise(piece: &str) -> String {
+    format!(
+        "{piece} reads as 0, below the smallest number a board holds; expected 0 written as 0, \
+         or a number of at least {:e}",
+        f32::MIN_POSITIVE
+    )
+}
+
+/// The refusal of the first number of a TOML or JSON `text` that [`reads_as_zero`], outside
+/// its comments and strings, with its line and column: both parsers read `1e-400` as 0
+/// without a word.
+pub fn hidden_zero(text: &str) -> Option<String> {
+    let (mut start, mut quote, mut comment, mut escaped) = (None, None, false, false);
+    for (i, c) in text.char_indices().chain([(text.len(), '\n')]) {
+        let in_token =
+            quote.is_none() && !comment && (c.is_ascii_alphanumeric() || "+-._".contains(c));
+        if in_token {
+            start.get_or_insert(i);
+            continue;
+        }
+        if let Some(s) = start.take() {
+            let token = &text[s..i];
+            if reads_as_zero(&token.replace('_', "")) {
+                return Some(crate::located(text, Some(s..i), &zero_in_disguise(token)));
+            }
+        }
+        match (quote, c) {
+            (_, '\n') => (quote, comment) = (None, false),
+            (Some('"'), '\\') => escaped = !escaped,
+            (Some(q), c) if c == q && !escaped => quote = None,
+            (Some(_), _) => escaped = false,
+            (None, '"' | '\'') if !comment => quote = Some(c),
+            (None, '#') => comment = true,
+            _ => {}
+        }
+    }
+    None
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -50,5 +90,24 @@ mod tests {
         ] {
             assert!(!reads_as_zero(text), "{text}");
         }
+    }
+
+    #[test]
+    fn a_toml_number_that_reads_as_zero_is_found_where_it_is_and_nowhere_else() {
+        let text = "a = 1\nb = [0.5, 1_0e-40_0, 2] # 1e-400 in a comment\n";
+        let found = hidden_zero(text).unwrap();
+        assert!(
+            found.starts_with("line 2, column 11: 1_0e-40_0 reads as 0"),
+            "{found}"
+        );
+        for clean in [
+            "x = 0.0\ny = -0e5 # 1e-400\n",
+            "s = \"1e-400\"\nt = '1e-999'\n",
+            "u = \"a \\\" 1e-400\" # \"\nv = 5e-324\n",
+            "[t.k1e-400]\nk = 1979-05-27\n",
+        ] {
+            assert_eq!(hidden_zero(clean), None, "{clean}");
+        }
+        assert!(hidden_zero("w = \"x\"\nz = +1e-400").is_some());
     }
 }

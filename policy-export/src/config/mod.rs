@@ -441,9 +441,12 @@ impl Config {
         }
     }
 
-    /// Overlays the keys of a TOML document; an unknown key or a wrongly typed value is an
-    /// error that names it.
+    /// Overlays the keys of a TOML document; an unknown key, a wrongly typed value or a
+    /// number that reads as zero (`1e-400`) is an error that names it.
     pub fn overlay_toml(&self, text: &str, origin: &str) -> Result<Config, ConfigError> {
+        if let Some(why) = weights::hidden_zero(text) {
+            return Err(ConfigError(format!("{origin}: {why}")));
+        }
         let file: toml::Table = toml::from_str(text).map_err(|e| {
             let why = weights::located(text, e.span(), e.message());
             ConfigError(format!("{origin}: {why}"))

@@ -200,6 +200,14 @@ fn toml_overlays_known_keys_and_rejects_unknown_ones() {
         .overlay_toml("gamma = \"high\"\n", "t.toml")
         .unwrap_err();
     assert!(e.0.contains("t.toml"), "{e}");
+    // TOML reads 1e-400 as 0, which turns clipping off.
+    let e = Config::paper()
+        .overlay_toml("gamma = 0.9 # 1e-400\ngrad_clip = 1e-400\n", "t.toml")
+        .unwrap_err();
+    assert!(
+        e.0.starts_with("t.toml: line 2, column 13: 1e-400 reads as 0"),
+        "{e}"
+    );
     // A parser message that quotes a huge line is cut.
     let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
     let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();

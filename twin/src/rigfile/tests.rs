@@ -319,6 +319,14 @@ fn rig_text_from_anywhere_is_held_to_a_rig_files_size_and_refused_with_its_reaso
         &format!("cart_mass_kg = \"{}\"", "x".repeat(300)),
     );
     assert_ne!(long, desk, "the desk rig's cart mass is written as 0.6");
+    // TOML reads 1e-400 as 0: a friction meant tiny, read as none.
+    let tiny = desk.replace("cart_coulomb = 0.0", "cart_coulomb = 1e-400");
+    assert_ne!(tiny, desk, "the desk rig's friction is written as 0.0");
+    let e = parse(&tiny, "rig t").unwrap_err().to_string();
+    assert!(
+        e.starts_with("rig t: line 24, column 16: 1e-400 reads as 0"),
+        "{e}"
+    );
     let e = parse(&long, "rig t").unwrap_err().to_string();
     assert!(
         e.starts_with("rig t: line ") && e.contains("expected f64"),
