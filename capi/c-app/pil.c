@@ -7,7 +7,8 @@
  * c-pil.elf` drives it and compares every answer with the Rust reference (docs/PIL.md).
  *
  * What the C API has no call for is refused with reason 10: a Missed reading, the
- * alpha-beta filter, a dead time without the predictor. */
+ * alpha-beta filter, a dead time without the predictor; and what it refuses: refined
+ * levels, the shipped policy's two being both ends. */
 
 #include <stdint.h>
 #include <string.h>
@@ -250,12 +251,12 @@ static int start(struct writer *w, const uint8_t *body, uint16_t seq)
         t.fresh_dead_time = dead_time;
     }
     t.running = t.fresh;
-    /* Solved on every monitored Start: an instance of the C API keeps no gain for another. */
-    if (monitor && cartpole_controller_monitor(&t.running, NULL, &rig) != CARTPOLE_OK) {
-        return refuse(w, R_UNSUPPORTED);
-    }
     /* The shipped policy's two levels are both ends: the library refuses to refine them. */
     if (refine && cartpole_controller_refine(&t.running, 1) != CARTPOLE_OK) {
+        return refuse(w, R_UNSUPPORTED);
+    }
+    /* Solved on every monitored Start: an instance of the C API keeps no gain for another. */
+    if (monitor && cartpole_controller_monitor(&t.running, NULL, &rig) != CARTPOLE_OK) {
         return refuse(w, R_UNSUPPORTED);
     }
     t.started = 1;

@@ -261,10 +261,11 @@ enum cartpole_status {
     CARTPOLE_ERR_RIG = -5,           /* a struct cartpole_rig field no machine has, or no
                                         finite observer gain for the rig; to
                                         cartpole_controller_monitor, another rig than c's */
-    CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative */
+    CARTPOLE_ERR_ENVELOPE = -6,      /* an envelope bound NaN, infinite or negative; the
+                                        runtime monitor and refined levels together */
     CARTPOLE_ERR_LEVELS = -7,        /* duty levels not one per output, beyond [-1000, 1000]
-                                        or not strictly increasing; to
-                                        cartpole_controller_refine, a two-output policy */
+                                        or not strictly increasing; refined levels asked of
+                                        a two-output policy */
     CARTPOLE_ERR_NO_STARTUP = -8,    /* cartpole_controller_phase without a start-up */
     CARTPOLE_ERR_FLAGS = -9          /* cartpole_controller_startup flags other than
                                         CARTPOLE_STARTUP_*, or cartpole_controller_refine's
@@ -457,7 +458,8 @@ int cartpole_controller_period_us(const cartpole_controller_t *c, uint32_t *peri
  * stop the controller (duty off) until it is initialised again. The observer then watches
  * for frozen encoders. rig must be the machine c was initialised for (NAME_rig; NULL: the
  * shipped policies'). Solves the LQR gain: call it at start-up. Refused, writing nothing:
- * CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_RIG (a rig no machine has, or not c's). */
+ * CARTPOLE_ERR_ENVELOPE (also for an instance whose levels are refined), CARTPOLE_ERR_RIG (a
+ * rig no machine has, or not c's). */
 int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4],
                                 const struct cartpole_rig *rig);
 
@@ -465,8 +467,9 @@ int cartpole_controller_monitor(cartpole_controller_t *c, const float envelope[4
  * scores peak (the parabola through the chosen output's score and its two neighbours';
  * docs/CONTROL.md, "Between the levels"), never past the midpoints the chosen level shares
  * with them; the end levels drive themselves. With on 0, its levels again (as initialised).
- * Refused, writing nothing: CARTPOLE_ERR_FLAGS (on neither 0 nor 1), CARTPOLE_ERR_LEVELS (a
- * policy of two outputs, both ends). */
+ * Refused, writing nothing: CARTPOLE_ERR_FLAGS (on neither 0 nor 1); with on 1,
+ * CARTPOLE_ERR_LEVELS (a policy of two outputs, both ends) and CARTPOLE_ERR_ENVELOPE (under
+ * the runtime monitor, whose envelope is measured for the plain levels). */
 int cartpole_controller_refine(cartpole_controller_t *c, int on);
 
 /* cartpole_controller_startup's flags, or'ed. */

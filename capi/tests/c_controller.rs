@@ -432,12 +432,14 @@ fn refused_calls_return_their_codes_and_write_nothing() {
                 offset_of!(CartpolePhase, fell),
                 offset_of!(CartpolePhase, trim)
             ),
-            format!("zeroed {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
-            format!("garbage {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!("zeroed {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!("garbage {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
             format!("kinds {0} {0} {0}", CARTPOLE_ERR_POLICY_KIND),
-            format!("after-bad-kinds {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"),
+            format!(
+                "after-bad-kinds {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} {uninit} 1"
+            ),
             format!("init-null {null}"),
-            format!("null {null} {null} {null} {null} {null} {null} 1"),
+            format!("null {null} {null} {null} {null} {null} {null} {null} 1"),
             format!("init {CARTPOLE_OK}"),
             format!("null-outputs {null} {null} {null} {null} 1"),
             // A negative bound is refused; a huge one is an envelope the policy never leaves.

@@ -10,7 +10,9 @@ mod common;
 
 use std::fmt::Write as _;
 
-use cartpole_policy::{CARTPOLE_ERR_FLAGS, CARTPOLE_ERR_LEVELS, CARTPOLE_ERR_NULL, CARTPOLE_OK};
+use cartpole_policy::{
+    CARTPOLE_ERR_ENVELOPE, CARTPOLE_ERR_FLAGS, CARTPOLE_ERR_LEVELS, CARTPOLE_ERR_NULL, CARTPOLE_OK,
+};
 use common::{EVERY, compile_and_run, manifest};
 use firmware::rig::Rig;
 use weights::quant::{self, Granularity};
@@ -104,9 +106,12 @@ fn refined(levels: &[f32], s: &[f32; 4]) -> f64 {
 /// Checks `out`, what `levels_controller.c refined` printed for `states`, against
 /// [`refined`] within `tolerance` thousandths (the network's rounding): the refusals first,
 /// then per period the pins driving the signed duty. Returns how many periods drove a duty
-/// other than a level.
+/// other than a level (a refined one may land on a level where the feedback does).
 fn check_refined(out: &str, levels: &[f32], states: &[[f32; 4]], tolerance: f64) -> usize {
-    let want = format!("{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_NULL}\n");
+    let envelope = format!("{CARTPOLE_OK} {CARTPOLE_ERR_ENVELOPE} 1\n");
+    let want = format!(
+        "{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_FLAGS} 1\n{CARTPOLE_ERR_NULL}\n{envelope}{envelope}"
+    );
     assert!(out.starts_with(&want), "{out}");
     let lines: Vec<_> = out[want.len()..].lines().collect();
     assert_eq!(lines.len(), states.len());
@@ -122,7 +127,7 @@ fn check_refined(out: &str, levels: &[f32], states: &[[f32; 4]], tolerance: f64)
             "{line}"
         );
         assert!(signed == 0 || direction == i64::from(signed > 0), "{line}");
-        between += usize::from(!levels.iter().any(|l| thousandths(*l) == r));
+        between += usize::from(!levels.iter().any(|l| thousandths(*l) == signed as f64));
     }
     between
 }
@@ -200,7 +205,9 @@ fn a_float_policy_of_seven_levels_drives_the_feedback_rounded_to_its_levels() {
     assert_eq!(run(&text, init, 7, &args("refusals", &[])), refusals());
     let states = inner_states(&SEVEN, 1e-4);
     let out = run(&text, init, 7, &args("refined", &states));
-    assert_eq!(check_refined(&out, &SEVEN, &states, 1.0), states.len());
+    assert!(check_refined(&out, &SEVEN, &states, 1.0) > states.len() * 9 / 10);
+    let out = run(&text, init, 7, &args("unrefined", &states));
+    assert_eq!(out, expected(&SEVEN, &states));
 }
 
 #[test]
@@ -220,5 +227,5 @@ fn an_int8_policy_of_five_levels_drives_the_feedback_rounded_to_its_levels() {
     // 300-thousandth gap between the levels.
     let states = inner_states(&FIVE, 0.05);
     let out = run(&text, init, 5, &args("refined", &states));
-    assert_eq!(check_refined(&out, &FIVE, &states, 25.0), states.len());
+    assert!(check_refined(&out, &FIVE, &states, 25.0) > states.len() * 9 / 10);
 }

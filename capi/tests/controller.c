@@ -167,7 +167,7 @@ static void refused_calls(const char *what, cartpole_controller_t *c) {
     cartpole_command_t out;
     cartpole_counters_t n;
     uint32_t us;
-    int r[6];
+    int r[7];
     memset(&out, UNWRITTEN, sizeof out);
     memset(&n, UNWRITTEN, sizeof n);
     memset(&us, UNWRITTEN, sizeof us);
@@ -177,7 +177,8 @@ static void refused_calls(const char *what, cartpole_controller_t *c) {
     r[3] = cartpole_controller_record_overruns(c, 1);
     r[4] = cartpole_controller_period_us(c, &us);
     r[5] = cartpole_controller_monitor(c, NULL, NULL);
-    printf("%s %d %d %d %d %d %d %d\n", what, r[0], r[1], r[2], r[3], r[4], r[5],
+    r[6] = cartpole_controller_refine(c, 1);
+    printf("%s %d %d %d %d %d %d %d %d\n", what, r[0], r[1], r[2], r[3], r[4], r[5], r[6],
            unwritten(&out, sizeof out) && unwritten(&n, sizeof n) && unwritten(&us, sizeof us));
 }
 

@@ -7,6 +7,9 @@
  *                              printed as `command direction duty signed_duty faults`
  *   levels refined X V T W ... the same, refined between the levels (cartpole_controller_refine),
  *                              after the codes of refine calls it must refuse, writing nothing
+ *                              (and of the runtime monitor beside the refinement)
+ *   levels unrefined X V T W . the same, refined and then not, and half way through refined
+ *                              and initialised again: the levels as they are
  *   levels refusals            INIT's code on good levels, then on levels the library must
  *                              refuse, each code and whether the call wrote anything */
 #include <stdio.h>
@@ -63,7 +66,12 @@ static int refusals(void) {
     return 0;
 }
 
-/* cartpole_controller_refine's refusals: each code, and whether *c is as it was. */
+static int init(void) {
+    return INIT(&ctl, &test_policy, test_policy_levels, A, &test_policy_rig);
+}
+
+/* The refusals of cartpole_controller_refine, and of the runtime monitor beside it: each
+ * code, and whether ctl is as it was. Leaves ctl refined. */
 static void refine_refusals(void) {
     cartpole_controller_t before = ctl;
     int code = cartpole_controller_refine(&ctl, 2);
@@ -71,20 +79,37 @@ static void refine_refusals(void) {
     code = cartpole_controller_refine(&ctl, -1);
     printf("%d %d\n", code, memcmp(&before, &ctl, sizeof ctl) == 0);
     printf("%d\n", cartpole_controller_refine(NULL, 1));
+    code = cartpole_controller_monitor(&ctl, NULL, &test_policy_rig);
+    before = ctl;
+    printf("%d %d", code, cartpole_controller_refine(&ctl, 1));
+    printf(" %d\n", memcmp(&before, &ctl, sizeof ctl) == 0);
+    code = init();
+    code = code ? code : cartpole_controller_refine(&ctl, 1);
+    before = ctl;
+    printf("%d %d", code, cartpole_controller_monitor(&ctl, NULL, &test_policy_rig));
+    printf(" %d\n", memcmp(&before, &ctl, sizeof ctl) == 0);
 }
 
+/* `refine` 1: refined after its refusals; 2: refined, then not, and half way through
+ * refined and initialised again, which drives the levels as they are. */
 static int steps(int argc, char **argv, int refine) {
     int k, j;
-    int code = INIT(&ctl, &test_policy, test_policy_levels, A, &test_policy_rig);
-    if (code == CARTPOLE_OK && refine) {
-        refine_refusals();
+    int code = init();
+    if (code == CARTPOLE_OK && refine == 1) refine_refusals();
+    if (code == CARTPOLE_OK && refine == 2) {
         code = cartpole_controller_refine(&ctl, 1);
+        code = code ? code : cartpole_controller_refine(&ctl, 0);
     }
     if (code != CARTPOLE_OK) {
         printf("init %d\n", code);
         return 1;
     }
     for (k = 2; k + 3 < argc; k += 4) {
+        if (refine == 2 && k == 2 + 4 * ((argc - 2) / 8)) {
+            code = cartpole_controller_refine(&ctl, 1);
+            code = code ? code : init();
+            if (code != CARTPOLE_OK) return 1;
+        }
         float state[4];
         cartpole_command_t cmd;
         for (j = 0; j < 4; j++) state[j] = strtof(argv[k + j], NULL);
@@ -102,6 +127,7 @@ static int steps(int argc, char **argv, int refine) {
 int main(int argc, char **argv) {
     if (argc >= 2 && strcmp(argv[1], "steps") == 0) return steps(argc, argv, 0);
     if (argc >= 2 && strcmp(argv[1], "refined") == 0) return steps(argc, argv, 1);
+    if (argc >= 2 && strcmp(argv[1], "unrefined") == 0) return steps(argc, argv, 2);
     if (argc >= 2 && strcmp(argv[1], "refusals") == 0) return refusals();
     return 2;
 }

@@ -40,7 +40,7 @@
 use core::ffi::c_int;
 
 use firmware::controller::{
-    Assurance, Command, FaultCounters, FaultFlags, Limits, Policy as _, Scores,
+    Assurance, Command, FaultCounters, FaultFlags, Limits, RefineRefused, Scores,
 };
 use firmware::loopback::{Duty, Level};
 use firmware::network::{N_ACTIONS, OBS_DIM};
@@ -74,12 +74,14 @@ pub const CARTPOLE_ERR_INPUT: c_int = -4;
 /// observer the firmware refuses (its Kalman gain not finite); to
 /// `cartpole_controller_monitor`, also a rig other than the instance's.
 pub const CARTPOLE_ERR_RIG: c_int = -5;
-/// An envelope with a bound that is NaN, infinite or negative.
+/// An envelope with a bound that is NaN, infinite or negative; the runtime monitor and the
+/// refinement together (`cartpole_controller_monitor` on a refined instance, or
+/// `cartpole_controller_refine` on a monitored one): its envelope is measured for the
+/// policy's plain levels.
 pub const CARTPOLE_ERR_ENVELOPE: c_int = -6;
 /// Duty levels the firmware refuses ([`firmware::controller::check_levels`]): not one per
-/// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing; to
-/// `cartpole_controller_refine`, a policy of two outputs, which has no level between its
-/// ends to refine.
+/// output, beyond `[-1000, 1000]` thousandths, or not strictly increasing; refinement asked
+/// of a policy of two outputs, which has no level between its ends.
 pub const CARTPOLE_ERR_LEVELS: c_int = -7;
 /// `cartpole_controller_phase` on an instance without a start-up.
 pub const CARTPOLE_ERR_NO_STARTUP: c_int = -8;
@@ -146,8 +148,8 @@ trait Run {
     fn start_up(&mut self, startup: Startup, rig: &Rig) -> Result<(), c_int>;
     /// The start-up's phase and transitions, if it has one.
     fn startup(&self) -> Option<&Sequencer>;
-    /// Refines the policy's chosen level from the next period on, or stops; refused for a
-    /// policy of two outputs, both of them ends.
+    /// Refines the policy's chosen level from the next period on, or stops; refused as
+    /// the firmware refuses it ([`RefineRefused`]).
     fn refine(&mut self, on: bool) -> Result<(), c_int>;
 }
 
@@ -197,6 +199,10 @@ impl<K: Kind> Run for Slot<K> {
         if rig != self.rig {
             return Err(CARTPOLE_ERR_RIG);
         }
+        // The envelope is measured for the policy's plain levels.
+        if self.controller.refines() {
+            return Err(CARTPOLE_ERR_ENVELOPE);
+        }
         self.controller.sensor_mut().watch();
         self.controller.set_monitor(assurance);
         Ok(())
@@ -222,12 +228,10 @@ impl<K: Kind> Run for Slot<K> {
     }
 
     fn refine(&mut self, on: bool) -> Result<(), c_int> {
-        let p = self.controller.policy_mut();
-        if p.policy.duty(2).is_none() {
-            return Err(CARTPOLE_ERR_LEVELS);
-        }
-        p.refine = on;
-        Ok(())
+        self.controller.refine(on).map_err(|why| match why {
+            RefineRefused::NoInnerLevel => CARTPOLE_ERR_LEVELS,
+            RefineRefused::Monitored => CARTPOLE_ERR_ENVELOPE,
+        })
     }
 
     fn period_us(&self) -> u32 {
@@ -371,8 +375,8 @@ pub extern "C" fn cartpole_controller_period_us(
 /// designed for `rig` outside it and after runs of faulty readings, a latched stop beyond
 /// what LQR can recover; the observer watches for frozen encoders. `rig` must be the machine
 /// `c` was initialised for (NULL: the shipped policies'). Solves the LQR gain: call it at
-/// start-up. Refused, writing nothing: an envelope bound NaN, infinite or negative
-/// ([`CARTPOLE_ERR_ENVELOPE`]), a rig no machine has or not the instance's
+/// start-up. Refused, writing nothing: an envelope bound NaN, infinite or negative, or an
+/// instance whose levels are refined ([`CARTPOLE_ERR_ENVELOPE`]), a rig no machine has or not the instance's
 /// ([`CARTPOLE_ERR_RIG`]).
 // SAFETY: as for `cartpole_controller_init`: one definition per C name.
 #[allow(unsafe_code)]
@@ -403,8 +407,9 @@ pub extern "C" fn cartpole_controller_monitor(
 /// With `on` 1, `c`'s policy drives from its next period the duty between its levels where
 /// its scores peak (`firmware::controller::Refined`: the parabola through the chosen
 /// output's score and its neighbours'); with 0, its levels again. Refused, writing nothing:
-/// [`CARTPOLE_ERR_FLAGS`] (`on` neither 0 nor 1), [`CARTPOLE_ERR_LEVELS`] (a policy of two
-/// outputs, both ends, which drive themselves).
+/// [`CARTPOLE_ERR_FLAGS`] (`on` neither 0 nor 1); with `on` 1, [`CARTPOLE_ERR_LEVELS`] (a
+/// policy of two outputs, both ends, which drive themselves) and [`CARTPOLE_ERR_ENVELOPE`]
+/// (under the runtime monitor).
 // SAFETY: as for `cartpole_controller_init`: one definition per C name.
 #[allow(unsafe_code)]
 #[unsafe(no_mangle)]

@@ -91,7 +91,7 @@ pub use monitor::{Assurance, Mode, Monitor};
 pub use policy::{Answer, Greedy, Policy, Scores, answer};
 pub use predict::Predictor;
 pub use reading::Reading;
-pub use refine::{Refinable, Refined};
+pub use refine::{Refinable, RefineRefused, Refined};
 
 /// Where the controller gets the plant's state, once per period: encoders through an
 /// estimator on a board, the simulated plant in the twin. Units as in Gymnasium: m, m/s, rad,
@@ -412,12 +412,6 @@ where
     /// The policy.
     pub fn policy(&self) -> &P {
         &self.policy
-    }
-
-    /// The policy, to change how it drives from the next period on (a [`Refinable`]'s
-    /// choice).
-    pub fn policy_mut(&mut self) -> &mut P {
-        &mut self.policy
     }
 
     /// The sensor.

@@ -68,6 +68,11 @@ pub trait Policy<O: Reading = [f32; OBS_DIM]> {
     fn drive(&self, _q: &Self::Scores, i: usize) -> Option<Duty> {
         self.duty(i)
     }
+    /// Whether it has a level between two others, which [`Refined`](super::Refined) moves
+    /// its duty between: more than two outputs.
+    fn refinable(&self) -> bool {
+        self.duty(2).is_some()
+    }
 }
 
 /// A Q-network choosing among its duty levels: output `i`'s Q-value is the value of driving

@@ -12,6 +12,7 @@
 use super::levels::{Duty, between};
 use super::policy::{Policy, Scores};
 use super::reading::Reading;
+use super::{Actuator, Controller, StateSensor};
 
 /// `P`, its chosen level moved to the peak of the parabola through the scores of that level
 /// and its two neighbours ([`between`]). An end level (full push, or the lowest or highest
@@ -59,6 +60,41 @@ impl<O: Reading, P: Policy<O>> Policy<O> for Refinable<P> {
         } else {
             self.policy.drive(q, i)
         }
+    }
+}
+
+/// Why a controller refused to refine its policy's chosen level.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum RefineRefused {
+    /// The policy has no level between two others (two outputs, both ends).
+    NoInnerLevel,
+    /// The runtime monitor runs: its envelope is measured for the policy's plain levels
+    /// (`host-sim envelope`), and says nothing of refined ones.
+    Monitored,
+}
+
+impl<P, S, A, const N: usize> Controller<Refinable<P>, S, A, N>
+where
+    P: Policy<S::Reading>,
+    S: StateSensor,
+    A: Actuator,
+{
+    /// Refines the policy's chosen level from the next period on, or (`on` false) drives
+    /// its levels again; refused, changing nothing, as [`RefineRefused`] says.
+    pub fn refine(&mut self, on: bool) -> Result<(), RefineRefused> {
+        if on && !self.policy.policy.refinable() {
+            return Err(RefineRefused::NoInnerLevel);
+        }
+        if on && self.mode().is_some() {
+            return Err(RefineRefused::Monitored);
+        }
+        self.policy.refine = on;
+        Ok(())
+    }
+
+    /// Whether the policy's chosen level is refined.
+    pub fn refines(&self) -> bool {
+        self.policy.refine
     }
 }
 

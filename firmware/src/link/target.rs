@@ -64,8 +64,8 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
     /// A target holding `policy`, its integer version `policy_int`, the duty `levels` their
     /// outputs drive, `rig` and the envelope its runtime monitor lets the policy drive in
     /// (the board's `POLICY`, `POLICY_INT`, `LEVELS`, `RIG` and `ENVELOPE`; with no
-    /// envelope, a Start that asks for the monitor is refused), timing periods on a clock
-    /// of `clock_hz` ticks a second.
+    /// envelope, a Start that asks for the monitor is refused, and with two levels one that
+    /// asks for them refined), timing periods on a clock of `clock_hz` ticks a second.
     pub fn new(
         policy: &'p Mlp<H, A>,
         policy_int: &'p QMlp<H, A>,
@@ -145,6 +145,12 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
         &self.rig
     }
 
+    /// Whether the target's policy has levels between its ends, so that a Start may ask for
+    /// them refined.
+    pub fn refines(&self) -> bool {
+        self.policy.refinable()
+    }
+
     /// Whether the target holds an envelope, so that a Start may ask for the runtime
     /// monitor.
     pub fn monitors(&self) -> bool {
@@ -170,12 +176,9 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
     /// The episode's controller: the rig with the Start's dead time, its sensor, limits and
     /// (if asked) predictor and runtime monitor, with the policy's envelope, its levels
     /// refined if asked; `None` for a Start the rig refuses, one that asks for a monitor
-    /// without an envelope, or for refined levels of a policy whose two are both ends.
+    /// without an envelope, or refined levels the controller refuses (two levels, or under
+    /// the monitor: [`Controller::refine`]).
     fn start(&mut self, start: Start) -> Option<Running<'p, H, A>> {
-        if start.refine && A <= 2 {
-            return None;
-        }
-
         let rig = Rig {
             dead_time: u32::from(start.dead_time),
             ..self.rig
@@ -204,12 +207,12 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
             predict: start.predict,
             monitor,
         };
-        Some(match self.format {
+        let mut running = match self.format {
             Format::F32 => Running::F32(
                 rig.controller(
                     Refinable {
                         policy: self.policy,
-                        refine: start.refine,
+                        refine: false,
                     },
                     LinkSensor::new(start.sensing, &rig, observer).ok()?,
                     pins(),
@@ -221,7 +224,7 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
                 rig.controller(
                     Refinable {
                         policy: self.policy_int,
-                        refine: start.refine,
+                        refine: false,
                     },
                     LinkSensor::new(start.sensing, &rig, observer).ok()?,
                     pins(),
@@ -229,7 +232,13 @@ impl<'p, const H: usize, const A: usize> Target<'p, H, A> {
                 )
                 .ok()?,
             ),
-        })
+        };
+        let refined = match &mut running {
+            Running::Idle => Ok(()),
+            Running::F32(c) => c.refine(start.refine),
+            Running::Int8(c) => c.refine(start.refine),
+        };
+        refined.ok().map(|()| running)
     }
 
     /// One controller period on `m`; `None` when no episode runs.

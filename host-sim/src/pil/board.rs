@@ -4,7 +4,6 @@
 use std::fmt;
 
 use clap::ValueEnum;
-use firmware::link::Target;
 use firmware::rig::Rig;
 
 use super::link::{Local, Remote};
@@ -39,12 +38,9 @@ impl Board {
     /// Whether its policy has levels between its ends, which a refined controller moves
     /// between (more than two outputs).
     pub fn refines(self) -> bool {
-        fn between<const H: usize, const A: usize>(_: &Target<'_, H, A>) -> bool {
-            A > 2
-        }
         match self {
-            Board::Shipped => between(&shipped::target(1)),
-            Board::Desk => between(&shipped::desk_target(1)),
+            Board::Shipped => shipped::target(1).refines(),
+            Board::Desk => shipped::desk_target(1).refines(),
         }
     }
 

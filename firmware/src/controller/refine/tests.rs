@@ -141,10 +141,15 @@ fn a_refinable_policy_drives_as_its_choice_says_from_the_next_period() {
     assert_eq!(answer(&mut p, &obs).1, Some(d(0)));
     p.refine = true;
     assert_eq!(answer(&mut p, &obs).1, Some(d(60)));
-    let q = answer(&mut p, &obs).0;
-    for i in 0..8 {
-        assert_eq!(p.drive(&q, i), Refined(greedy).drive(&q, i), "{i}");
-    }
+    assert!(p.refinable());
+    p.refine = false;
+    assert_eq!(answer(&mut p, &obs).1, Some(d(0)));
+    let two = Mlp::<1, 2>::zeroed();
+    let bang = Greedy {
+        net: &two,
+        levels: Levels::BANG_BANG,
+    };
+    assert!(!bang.refinable());
 }
 
 #[test]

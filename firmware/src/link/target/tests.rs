@@ -237,6 +237,23 @@ fn a_start_that_asks_for_refined_levels_drives_between_them_where_there_are_any(
         send(&mut t, 2, Message::Start(exact)),
         Message::Refused(Reason::Unsupported)
     );
+    // An envelope is measured for the plain levels: the monitor runs them alone.
+    let (f, i) = (&desk::POLICY, &desk_int::POLICY_INT);
+    let mut t = Target::new(f, i, desk::LEVELS, desk::RIG, Some(ENVELOPE), CLOCK_HZ);
+    send(&mut t, 1, Message::Hello(Format::F32));
+    let monitored = Start {
+        monitor: true,
+        ..exact
+    };
+    assert_eq!(
+        send(&mut t, 2, Message::Start(monitored)),
+        Message::Refused(Reason::Unsupported)
+    );
+    let plain = Start {
+        refine: false,
+        ..monitored
+    };
+    assert_eq!(send(&mut t, 3, Message::Start(plain)), Message::Started);
 }
 
 #[test]
