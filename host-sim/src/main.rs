@@ -240,7 +240,7 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     inputs.extend(a.world.clone().map(|w| ("--world", w)));
     check_io(&inputs, &[])?;
     let controllers = a.controllers();
-    let pil = a.pil.place(a.subject.policy.is_some(), &controllers)?;
+    let pil = a.pil.place(&a.subject, &controllers)?;
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
     let flags = ["--horizon", "--scenario", "--controller"];
     // Counted before the policy loads, each spec a row at least; built and judged once the

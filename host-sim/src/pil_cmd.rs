@@ -17,6 +17,7 @@ use serde::Serialize;
 use twin::Scenario;
 
 use crate::EvalArgs;
+use crate::subject::Subject;
 
 /// Longest wait for one answer `--pil-timeout` may set, s.
 const MAX_TIMEOUT_S: f64 = 3600.0;
@@ -37,9 +38,9 @@ pub struct PilArgs {
     #[arg(long, value_name = "PATH", requires = "pil")]
     pub pil_elf: Option<PathBuf>,
     /// The shipped policy the target holds, and the reference here with it: `shipped` (two
-    /// levels; the `pil` application) or `desk` (the nine-level desk policy on the desk rig,
-    /// whose scenarios need `--rig rigs/desk-identified.toml`; the `pil-desk` application;
-    /// no envelope, so no monitored controller).
+    /// levels, so no refined controller; the `pil` application) or `desk` (the nine-level
+    /// desk policy on the desk rig, whose scenarios need `--rig rigs/desk-identified.toml`;
+    /// the `pil-desk` application; no envelope, so no monitored controller).
     #[arg(long, value_enum, default_value_t = Board::Shipped, requires = "pil")]
     pub pil_policy: Board,
     /// Seconds to wait for each answer of the target before giving up (exit 2).
@@ -49,16 +50,27 @@ pub struct PilArgs {
 
 impl PilArgs {
     /// Where the controller runs, checked with the rest of `eval`'s input before any work:
-    /// the target runs the policy compiled into it, so no `--policy`, and only its rows.
-    pub fn place(&self, policy: bool, controllers: &[ControllerKind]) -> Result<Option<Place>> {
+    /// the target runs the policy compiled into it with its envelope, so no `--policy` or
+    /// `--envelope` of `subject`'s, and only its rows.
+    pub fn place(
+        &self,
+        subject: &Subject,
+        controllers: &[ControllerKind],
+    ) -> Result<Option<Place>> {
         let Some(spec) = &self.pil else {
             return Ok(None);
         };
-        if policy {
+        if subject.policy.is_some() {
             bail!(
                 "--pil runs the policy compiled into the target's application, found --policy \
                  (choose a shipped one with --pil-policy, or export yours into shipped/src and \
                  rebuild the pil application)"
+            );
+        }
+        if subject.envelope.is_some() {
+            bail!(
+                "--pil runs the runtime monitor with the envelope compiled into the target's \
+                 application, found --envelope (leave it out)"
             );
         }
         if let Some(c) = controllers.iter().find(|c| !c.runs_policy()) {
@@ -72,7 +84,7 @@ impl PilArgs {
         if let Some(c) = controllers.iter().find(|c| c.refined() && !board.refines()) {
             bail!(
                 "--pil-policy {board}: its two levels are both ends, with nothing between them \
-                 to refine; found --controller {c} (run policy or policy-int)"
+                 to refine; found --controller {c} (run the unrefined ones)"
             );
         }
         if let Some(c) = controllers

@@ -99,7 +99,8 @@ fn eval(rest: &[&dyn AsRef<std::ffi::OsStr>]) -> Vec<OsString> {
 
 /// Places and flags the rules refuse before any target answers.
 /// What a target cannot run: a controller other than its policy's, a policy file, a
-/// monitor without an envelope, refined levels of two, a shipped policy it lacks.
+/// monitor without an envelope, refined levels of two, an envelope file, a shipped policy it
+/// lacks.
 fn bad_controllers(echo: &str) -> Vec<Case> {
     vec![
         Case::new(
@@ -122,6 +123,11 @@ fn bad_controllers(echo: &str) -> Vec<Case> {
             "a policy file".into(),
             &eval(&[&"--pil", &echo, &"--policy", &"/bin/cat"]),
             &["compiled into the target"],
+        ),
+        Case::new(
+            "an envelope file".into(),
+            &eval(&[&"--pil", &echo, &"--envelope", &"/bin/cat"]),
+            &["envelope compiled into the target's application, found --envelope"],
         ),
         Case::new(
             "a monitor without an envelope".into(),

@@ -1,10 +1,11 @@
 //! A board's whole control periods for counting instructions: the start-up
-//! (`firmware::startup`) around the controller of the integer nine-level desk policy, read
-//! through the watching observer with its predictor, as the RP2040 board runs with `desk`.
+//! (`firmware::startup`) around the controller of the integer nine-level desk policy, its
+//! duty refined between the levels, read through the watching observer with its predictor,
+//! as the RP2040 board runs with `desk`.
 
 use core::cell::Cell;
 
-use firmware::controller::Greedy;
+use firmware::controller::{Greedy, Refined};
 use firmware::estimator::ObserverSensor;
 use firmware::rig::Options;
 use firmware::startup::{Phase, Sequencer, Startup};
@@ -28,10 +29,10 @@ pub extern "C" fn selftest_startup_periods(periods: Option<&[i16; 4]>, out: Opti
     };
     let latest = Cell::new((0, 0));
     let sensor = ObserverSensor::<_, [i16; 4]>::new(observer.watching(), || latest.get());
-    let policy = Greedy {
+    let policy = Refined(Greedy {
         net: &POLICY_INT,
         levels: LEVELS,
-    };
+    });
     let options = Options {
         predict: true,
         monitor: None,

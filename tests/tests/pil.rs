@@ -4,7 +4,8 @@
 //! and dead time; the application built for the host must give `eval`'s rows; and so must
 //! a board on the far end of a serial port (a pseudo-terminal pair). The C application
 //! (`capi/c-app`) on the Cortex-M4F must answer as the Rust one. Under the runtime monitor
-//! too, through a frozen encoder.
+//! too, through a frozen encoder; refined between the nine levels of the desk policy, and
+//! refused for the shipped policy's two.
 //!
 //! Needs QEMU as `qemu.rs` does; `CARTPOLE_SKIP_QEMU=1` skips the QEMU part, loudly.
 
@@ -16,7 +17,7 @@ use std::time::Duration;
 
 use e2e::{build_app, mcu_targets, repo, runners};
 use firmware::controller::Command as Drive;
-use firmware::link::{Format, Info, Message, Scores};
+use firmware::link::{Format, Info, Message, Scores, Sensing, Start};
 use host_sim::eval::{self, ControllerKind, Net, Row};
 use host_sim::pil::link::{Remote, Session};
 use host_sim::pil::{Board, Check, ICOUNT, MACHINES, Place, handshake, run_row};
@@ -286,6 +287,28 @@ fn the_c_application_answers_as_the_rust_one() {
             assert_eq!(check.overruns, 0, "{format:?} {}: {check:?}", s.name);
         }
         monitored_row(&mut remote, &mut here, &info, &format!("C {format:?}"));
+        // Refined levels: the shipped policy's two are both ends, so both refuse them, as
+        // the same reason, and the next episode runs.
+        let refine = Start {
+            sensing: Sensing::Observer,
+            predict: true,
+            monitor: false,
+            refine: true,
+            dead_time: 0,
+        };
+        let refused = |e: anyhow::Error| e.to_string();
+        let (c, rust) = (remote.start(refine), here.start(refine));
+        let (c, rust) = (c.map_err(refused), rust.map_err(refused));
+        assert_eq!(c, rust, "C {format:?}");
+        assert!(c.is_err_and(|e| e.contains("refused")), "C {format:?}");
+        let run = (&info, ControllerKind::Policy);
+        two_episodes_agree(
+            &mut remote,
+            &mut here,
+            run,
+            &scenarios[0],
+            "C after a refusal",
+        );
     }
     std::fs::remove_dir_all(&out).unwrap();
 }
