@@ -65,10 +65,28 @@ fn parse(bytes: &[u8]) -> Result<(usize, Metadata)> {
     // The header is JSON, which the safetensors crate reads into maps where the last of a
     // key given twice (a tensor, `levels`, `rig`) wins without a word: weighed first, such
     // a header is refused.
-    let text = bytes.get(8..8 + len as usize).map(std::str::from_utf8);
-    if let Some(Ok(text)) = text {
-        crate::json::weight(text)
-            .map_err(|e| Error::Input(format!("not a safetensors file: its header: {e}")))?;
+    let declared = |what: String| {
+        Error::Input(format!(
+            "not a safetensors file: its header declares {len} bytes, {what}"
+        ))
+    };
+    match bytes.get(8..8 + len as usize).map(std::str::from_utf8) {
+        None => {
+            let after = bytes.len() - 8;
+            return Err(declared(format!("more than the {after} after its length")));
+        }
+        // The declared length runs past the JSON into the tensors' bytes.
+        Some(Err(e)) => {
+            let at = e.valid_up_to();
+            return Err(declared(format!(
+                "and byte {at} of them is not UTF-8 text: expected the header's JSON alone, \
+                 found a header whose length runs into the data, or another kind of file"
+            )));
+        }
+        Some(Ok(text)) => {
+            crate::json::weight(text)
+                .map_err(|e| Error::Input(format!("not a safetensors file: its header: {e}")))?;
+        }
     }
     SafeTensors::read_metadata(bytes).map_err(|e| {
         Error::Input(format!(

@@ -312,6 +312,23 @@ fn headers_and_garbage_are_refused_before_parsing() {
     let mut junk = 4u64.to_le_bytes().to_vec();
     junk.extend_from_slice(b"nope");
     assert!(err(&junk, None).contains("not a safetensors file"));
+    let mut long = 100u64.to_le_bytes().to_vec();
+    long.extend_from_slice(b"{}");
+    let e = err(&long, None);
+    assert!(
+        e.contains("declares 100 bytes, more than the 2 after its length"),
+        "{e}"
+    );
+    // A length that runs past the JSON into the tensors' bytes.
+    let w = Weights::new(16, crate::BANG_BANG.to_vec(), values()).unwrap();
+    let mut file = to_safetensors(&w, &BTreeMap::new()).unwrap();
+    let len = u64::from_le_bytes(*file.first_chunk::<8>().unwrap());
+    file[..8].copy_from_slice(&(len + 100).to_le_bytes());
+    let e = err(&file, None);
+    assert!(
+        e.contains("not UTF-8 text: expected the header's JSON alone"),
+        "{e}"
+    );
 }
 
 #[test]
