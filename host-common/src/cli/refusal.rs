@@ -24,8 +24,10 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -
         context = true;
     }
     // Cut in its middle, if long, so that its end (what was expected) survives.
-    let source = std::error::Error::source(e)
-        .map(|s| weights::located("", None, &negative_whole(e, s.to_string())));
+    let source = std::error::Error::source(e).map(|s| {
+        let reason = whole_reason(e, running(cmd, args), s.to_string());
+        weights::located("", None, &reason)
+    });
     let text = match source {
         // A message clap holds whole (the program's own, or a mismatch of its definitions).
         _ if !context => e.render().to_string(),
@@ -120,9 +122,10 @@ fn running<'c>(cmd: &'c clap::Command, args: &[OsString]) -> &'c clap::Command {
 }
 
 /// A whole-number parser's `reason` for refusing `e`'s value, or what it means where the value
-/// is a negative whole number given to a flag that takes none (`--seed -1`): std's "invalid
-/// digit found in string" said neither.
-fn negative_whole(e: &clap::Error, reason: String) -> String {
+/// is a negative whole number given to a flag that takes none (`--seed -1`), or one beyond
+/// what the flag of `cmd` holds: std's "invalid digit found in string" and "number too large
+/// to fit in target type" said neither.
+fn whole_reason(e: &clap::Error, cmd: &clap::Command, reason: String) -> String {
     let Some(ContextValue::String(value)) = e.get(ContextKind::InvalidValue) else {
         return reason;
     };
@@ -133,7 +136,36 @@ fn negative_whole(e: &clap::Error, reason: String) -> String {
     {
         return "expected a whole number of 0 or more, found a negative one".into();
     }
+    if reason == "number too large to fit in target type"
+        && let Some(max) = largest(e, cmd)
+    {
+        return format!("expected a whole number of at most {max}, found a larger one");
+    }
     reason
+}
+
+/// The largest value the flag `e` refused takes, if it takes a whole number of a type whose
+/// parse says none.
+fn largest(e: &clap::Error, cmd: &clap::Command) -> Option<u64> {
+    let Some(ContextValue::String(shown)) = e.get(ContextKind::InvalidArg) else {
+        return None;
+    };
+    let flag = shown.split(' ').next()?;
+    let arg = (cmd.get_arguments()).find(|a| super::named(a) == flag)?;
+    let id = arg.get_value_parser().type_id();
+    use std::any::TypeId;
+    [
+        (TypeId::of::<u8>(), u64::from(u8::MAX)),
+        (TypeId::of::<u16>(), u64::from(u16::MAX)),
+        (TypeId::of::<u32>(), u64::from(u32::MAX)),
+        (TypeId::of::<u64>(), u64::MAX),
+        (TypeId::of::<usize>(), usize::MAX as u64),
+        (TypeId::of::<i32>(), i32::MAX as u64),
+        (TypeId::of::<i64>(), i64::MAX as u64),
+    ]
+    .into_iter()
+    .find(|(t, _)| id == *t)
+    .map(|(_, max)| max)
 }
 
 /// A piece of clap's context with the user's text in it escaped and cut: every text but the
@@ -298,6 +330,14 @@ mod tests {
             .try_get_matches_from(["tool", "run", "--seed", "-x"])
             .unwrap_err();
         assert_eq!(e.kind(), clap::error::ErrorKind::UnknownArgument);
+        // Past the type's range: std's reason said no range.
+        let big = ["tool", "run", "--seed", "18446744073709551616"];
+        let e = (cmd.clone()).try_get_matches_from(big).unwrap_err();
+        assert_eq!(
+            refusal(&e, &cmd, &big.map(OsString::from))[0],
+            "error: invalid value '18446744073709551616' for '--seed <seed>': expected a whole \
+             number of at most 18446744073709551615, found a larger one"
+        );
     }
 
     /// An empty item of a list, or an empty value, is said as such: clap said none was
