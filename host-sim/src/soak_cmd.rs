@@ -68,6 +68,13 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
     let (machine, net) = a.subject.load_for(&[a.controller])?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let tau = scenario.params.tau;
+    // Less than a period ran one, and reported the hours it ran, not those asked for.
+    anyhow::ensure!(
+        a.hours * 3600.0 >= tau,
+        "--hours {} is less than one period of {tau} s; expected at least {:e}",
+        a.hours,
+        tau / 3600.0
+    );
     let periods = (a.hours * 3600.0 / tau).ceil();
     anyhow::ensure!(
         periods <= u32::MAX as f64,
