@@ -89,10 +89,11 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
 
 /// Each results file's page, rendered, with a stale entry if it differs from the page on disk
 /// (or there is none). The manifest titles the pages; a root without one gets untitled pages.
+/// A manifest that is a link to nothing is one that cannot be read, not none.
 fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
-    let manifest = match root.join(manifest::PATH).exists() {
-        true => Some(Manifest::load(root)?),
-        false => None,
+    let manifest = match root.join(manifest::PATH).symlink_metadata() {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+        _ => Some(Manifest::load(root)?),
     };
     let mut files = Vec::new();
     for file in results_files(root)? {

@@ -144,6 +144,17 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
     let a = std::fs::read_to_string(root.join("docs/A.md")).unwrap();
     assert_eq!(a, stale, "a refused page left a document rewritten");
     let _ = std::fs::remove_dir_all(&root);
+    // A manifest that links to nothing is not taken for none.
+    let root = scratch("dangling", &[("docs/A.md", stale)]);
+    std::os::unix::fs::symlink(
+        root.join("gone.toml"),
+        root.join("docs/results/manifest.toml"),
+    )
+    .unwrap();
+    let o = tables(&[], &root);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("manifest.toml"), "{}", stderr(&o));
+    let _ = std::fs::remove_dir_all(&root);
 }
 
 /// Text a results file gives reaches its page escaped: an argument with an escape sequence,
