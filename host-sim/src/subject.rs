@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 
 use anyhow::{Context, Result};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use host_sim::eval::{ControllerKind, Net};
 use twin::Machine;
 use weights::levels::GivenLevels;
@@ -124,10 +124,7 @@ impl Subject {
         let Some(path) = &self.policy else {
             return Ok(());
         };
-        let readers: Vec<ControllerKind> = (ControllerKind::value_variants().iter())
-            .filter(|k| k.needs_policy())
-            .copied()
-            .collect();
+        let readers: Vec<ControllerKind> = ControllerKind::reading_policy().collect();
         let read_by = format!(
             "is read by the controllers that run --policy's network or round to its levels \
              ({}) alone",

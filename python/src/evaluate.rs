@@ -57,6 +57,7 @@ pub fn evaluate_json(
         .map(|c| kind(c))
         .collect::<PyResult<Vec<_>>>()?;
     let given = crate::given_machine(rig.as_deref())?;
+    refuse_unread(policy, levels.is_some(), given.is_some(), &kinds)?;
     let shipped;
     let policy = match policy {
         Some(p) => p,
@@ -93,6 +94,43 @@ pub fn evaluate_json(
         }
     }
     serde_json::to_string(&out).map_err(value_error)
+}
+
+/// Refuses `policy` and `levels` where no controller of `kinds` runs the network or rounds to
+/// its levels, so that they change nothing: the policy is then read for its machine alone,
+/// which `rig` (`given`) replaces, or which is Gymnasium's, the machine without it.
+fn refuse_unread(
+    policy: Option<&Policy>,
+    levels: bool,
+    given: bool,
+    kinds: &[ControllerKind],
+) -> PyResult<()> {
+    let Some(policy) = policy else {
+        return Ok(());
+    };
+    if kinds.iter().any(|k| k.needs_policy()) {
+        return Ok(());
+    }
+    let names = |ks: &mut dyn Iterator<Item = ControllerKind>| {
+        ks.map(|k| k.to_string()).collect::<Vec<_>>().join(", ")
+    };
+    let read_by = format!(
+        "is read by the controllers that run its network or round to its levels ({}) alone",
+        names(&mut ControllerKind::reading_policy())
+    );
+    let found = names(&mut kinds.iter().copied());
+    if levels {
+        return Err(value_error(format!(
+            "levels {read_by}; expected one of them, found {found}"
+        )));
+    }
+    if given || policy.machine == Machine::GYMNASIUM {
+        return Err(value_error(format!(
+            "policy {read_by}, and for the machine it records where no rig is given, other \
+             than Gymnasium's; expected one of them, or no policy, found {found}"
+        )));
+    }
+    Ok(())
 }
 
 /// Refuses more than `MAX_ROWS` rows of `horizons` x `scenarios` x `controllers` lists:

@@ -40,6 +40,18 @@ def test_refusals_raise_value_error():
         cartpole_ddqn.evaluate(cartpole_ddqn.load(REPO / "shipped" / "policy.safetensors"), controller="monitored")
 
 
+def test_a_policy_no_controller_reads_is_refused_as_the_command_refuses_it():
+    """Given with baselines alone, it changed nothing, without a word."""
+    shipped = cartpole_ddqn.load(REPO / "shipped" / "policy.safetensors")
+    read_by = "is read by the controllers that run its network or round to its levels"
+    with pytest.raises(ValueError, match=f"^policy {read_by} .* found lqr, rule$"):
+        cartpole_ddqn.evaluate(shipped, controller=["lqr", "rule"], episodes=1, horizon=2)
+    with pytest.raises(ValueError, match=f"^levels {read_by}"):
+        cartpole_ddqn.evaluate(shipped, controller="lqr", episodes=1, horizon=2, levels=[-1, 1])
+    rows = cartpole_ddqn.evaluate(shipped, controller=["lqr", "policy"], episodes=1, horizon=2)
+    assert [r["controller"] for r in rows] == ["lqr", "policy"]
+
+
 @pytest.mark.parametrize("episodes", [1.5, 2.0, "3", None])
 def test_a_count_of_episodes_that_is_no_int_raises_type_error(episodes):
     """As a float seed does: 1.5 is not cut to 1."""

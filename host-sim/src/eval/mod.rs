@@ -76,6 +76,12 @@ impl ControllerKind {
         all.copied().filter(|k| k.runs_policy())
     }
 
+    /// The controllers that read a policy: its network, or its levels ([`Self::needs_policy`]).
+    pub fn reading_policy() -> impl Iterator<Item = ControllerKind> {
+        let all = <ControllerKind as clap::ValueEnum>::value_variants().iter();
+        all.copied().filter(|k| k.needs_policy())
+    }
+
     /// Whether the Q-network drives (in any form).
     pub fn runs_policy(self) -> bool {
         self.int()

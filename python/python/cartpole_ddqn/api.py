@@ -374,7 +374,8 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     levels (``levels``, if given, must be those); ``scenario``, ``horizon`` and
     ``controller`` may be lists (``controller`` among ``host-sim eval``'s controllers:
     policy, policy-int, either refined between its levels, the monitored and LQR baselines,
-    rule, random). At most ``MAX_EPISODES`` episodes of
+    rule, random); a policy or levels none of them reads is refused (``ValueError``), as
+    the command refuses them. At most ``MAX_EPISODES`` episodes of
     ``MAX_HORIZON`` periods; Ctrl-C (``KeyboardInterrupt``) stops it within a fraction of
     a second."""
     if policy is not None and not isinstance(policy, Policy):
