@@ -14,7 +14,7 @@ use embedded_hal::pwm::{ErrorType as PwmErrorType, SetDutyCycle};
 
 use crate::cartpole::{CartPole, State};
 use crate::config::ConfigError;
-use crate::controller::{Bridge, Controller, Limits, Policy, StateSensor};
+use crate::controller::{Actuator, Bridge, Command, Controller, Limits, Policy, StateSensor};
 use crate::estimator::{Counter, Estimate, ObserverSensor};
 use crate::rig::{Options, Rig};
 
@@ -107,6 +107,15 @@ pub fn duty(bridge: &Pins) -> f64 {
     }
 }
 
+/// The motor duty a bridge driven with `command` sets ([`duty`]): what a simulated world
+/// applies, whether the controller ran beside it or on a target across a link.
+pub fn command_duty(command: Command) -> f64 {
+    let mut bridge = pins();
+    // The simulated pins cannot fail.
+    let _ = bridge.drive(command);
+    duty(&bridge)
+}
+
 /// How one closed-loop episode ended.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Outcome {
@@ -189,6 +198,17 @@ mod tests {
 
     fn limits() -> Limits {
         Rig::GYMNASIUM.limits().unwrap()
+    }
+
+    /// A level the pins set in thousandths reaches the world exactly, not as its f32.
+    #[test]
+    fn a_commands_duty_is_its_thousandths() {
+        use crate::controller::Duty as Level;
+        let drive = |t| command_duty(Command::Drive(Level::from_thousandths(t).unwrap()));
+        assert_eq!(drive(-150), -0.15);
+        assert_ne!(drive(-150), f64::from(-0.15f32));
+        assert_eq!((drive(1000), drive(-1000), drive(0)), (1.0, -1.0, 0.0));
+        assert_eq!(command_duty(Command::Coast), 0.0);
     }
 
     #[test]

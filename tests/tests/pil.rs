@@ -340,6 +340,40 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
     }
 }
 
+/// The desk policy's target code, run here as a board would run it, gives `eval`'s rows of
+/// the desk policy, refined or not: the target's `Refinable` drives as eval's `Refined`, and
+/// the world applies a level between the paper's two (-0.15) as the board's pins set it,
+/// not as its nearest f32.
+#[test]
+fn the_desk_target_gives_evals_rows_refined_or_not() {
+    let desk = twin::rigfile::load(&repo().join("rigs/desk-identified.toml")).unwrap();
+    let specs = ["nominal", "encoder", "noise+push"].map(String::from);
+    let scenarios = Scenario::words_on(&specs, &desk).unwrap();
+    let net = Net::shipped_desk();
+    let mut target = Session::new(Board::Desk.reference());
+    let mut here = Session::new(Board::Desk.reference());
+    for (format, kind) in [
+        (Format::F32, ControllerKind::Policy),
+        (Format::F32, ControllerKind::Policy),
+        (Format::F32, ControllerKind::PolicyRefined),
+        (Format::Int8, ControllerKind::PolicyIntRefined),
+        (Format::Int8, ControllerKind::PolicyInt),
+    ] {
+        let info = handshake(&mut target, &mut here, format, &scenarios, Board::Desk).unwrap();
+        for s in &scenarios {
+            let run = (&info, kind);
+            let (eps, _) = run_row(&mut target, &mut here, run, s, 300, 3, 4, || ()).unwrap();
+            let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 3, &eps);
+            assert_eq!(
+                pil,
+                eval::evaluate(kind, &net, s, 300, 3, 4),
+                "{kind} {}",
+                s.name
+            );
+        }
+    }
+}
+
 /// A board on the far end of a pseudo-terminal: the link's target on the bytes it reads,
 /// until the host's end closes.
 fn board_on(mut port: serialport::TTYPort) {

@@ -5,6 +5,7 @@
 use anyhow::{Context, Result, bail, ensure};
 use firmware::controller::FaultFlags;
 use firmware::link::{Format, Info, Reply, Scores, Start, digest};
+use firmware::loopback::command_duty;
 use firmware::rig::Rig;
 use serde::Serialize;
 use twin::run::{Draws, Tally};
@@ -158,7 +159,7 @@ pub fn run_row(
                 });
             }
             times.push(u64::from(got.ticks) * 1_000_000_000 / u64::from(info.clock_hz));
-            let t = world.apply(f64::from(got.command.level()));
+            let t = world.apply(command_duty(got.command));
             let fallback = got.faults.contains(FaultFlags::FALLBACK);
             tally.period(
                 &scenario.params,
