@@ -263,14 +263,36 @@ pub fn between(levels: [Duty; 3], rise: Rises) -> Duty {
     };
     // The peak is ((lo + mid) sum + below (hi - lo)) / (2 sum): rounded half away from zero.
     let twice = (lo + mid) * sum + below * (hi - lo);
-    let peak = (twice.abs() + sum) / (2 * sum) * twice.signum();
+    let peak = short_quotient(twice.unsigned_abs() + sum as u64, 2 * sum as u64) as i64;
+    let peak = peak * twice.signum();
     let inside = (
         (lo + mid).div_euclid(2) + 1,
         (mid + hi + 1).div_euclid(2) - 1,
     );
-    let peak = peak.clamp(inside.0, inside.1);
+    // Not `clamp`, whose check of its bounds' order would leave a panic in the code.
+    let peak = peak.max(inside.0).min(inside.1);
     // Between two levels, so within [-1000, 1000].
     Duty::from_thousandths(peak as i16).unwrap_or(levels[1])
+}
+
+/// The bits of [`between`]'s quotient: `|twice| <= 4000 sum`, so it is at most 2,500.
+const QUOTIENT_BITS: u32 = 12;
+
+/// `n / d` where the quotient is below `2^QUOTIENT_BITS` and `d << QUOTIENT_BITS` fits:
+/// twelve shift-and-subtract steps, where a Cortex-M0 (no divide instruction) would run a
+/// general 64-bit division, the most of the refinement's instructions.
+fn short_quotient(n: u64, d: u64) -> u64 {
+    let mut step = d << (QUOTIENT_BITS - 1);
+    let (mut q, mut r) = (0, n);
+    for _ in 0..QUOTIENT_BITS {
+        q <<= 1;
+        if r >= step {
+            r -= step;
+            q |= 1;
+        }
+        step >>= 1;
+    }
+    q
 }
 
 #[cfg(test)]
@@ -332,6 +354,20 @@ mod tests {
             (1e30, 1),
         ] {
             assert_eq!(nearest(two, force, 10.0), Some(want), "{force}");
+        }
+    }
+
+    proptest::proptest! {
+        /// The division [`between`] runs is the general one wherever its quotient has the
+        /// bits it allows: a divisor as large as the integer rises give, and as small as 2.
+        #[test]
+        fn the_short_quotient_is_the_quotient(
+            d in proptest::prop_oneof![2u64..1000, 2u64..(1 << 45)],
+            q in 0u64..(1 << QUOTIENT_BITS),
+            r in 0u64..u64::MAX,
+        ) {
+            let n = q * d + r % d;
+            proptest::prop_assert_eq!(short_quotient(n, d), n / d);
         }
     }
 

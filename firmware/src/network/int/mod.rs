@@ -170,13 +170,16 @@ impl<const H: usize, const A: usize> QMlp<H, A> {
                     *y = r.apply(acc.wrapping_add(*b));
                 }
             }
-            let mut q = [0i32; A];
-            for k in (0..A).step_by(2) {
-                // An odd last row is paired with itself, its second sum dropped.
-                let next = (k + 1).min(A - 1);
-                let acc = thumb::dot2(&self.fc3_weight[k], &self.fc3_weight[next], &h2);
-                q[k] = acc[0].wrapping_add(self.fc3_bias[k]);
-                q[next] = acc[usize::from(next != k)].wrapping_add(self.fc3_bias[next]);
+            let mut q = self.fc3_bias;
+            let (pairs, odd) = self.fc3_weight.as_chunks::<2>();
+            for (q, [wa, wb]) in q.chunks_exact_mut(2).zip(pairs) {
+                for (q, acc) in q.iter_mut().zip(thumb::dot2(wa, wb, &h2)) {
+                    *q = q.wrapping_add(acc);
+                }
+            }
+            // An odd last row alone: paired with itself, it would be summed twice.
+            if let ([w], Some(q)) = (odd, q.last_mut()) {
+                *q = q.wrapping_add(thumb::dot1(w, &h2));
             }
             return q;
         }
@@ -220,15 +223,14 @@ fn input<const H: usize>(
     r: &[Requant; H],
     obs: &[i16; OBS_DIM],
 ) -> [u8; H] {
-    let mut y = [0u8; H];
-    for (((y, w), b), r) in y.iter_mut().zip(w).zip(b).zip(r) {
+    // Built in place: a zeroed array filled afterwards costs the M0 a memset and a copy.
+    core::array::from_fn(|k| {
         let mut acc = 0i32;
-        for (w, x) in w.iter().zip(obs) {
+        for (w, x) in w[k].iter().zip(obs) {
             acc += i32::from(*w) * i32::from(*x);
         }
-        *y = r.apply(acc.wrapping_add(*b));
-    }
-    y
+        r[k].apply(acc.wrapping_add(b[k]))
+    })
 }
 
 /// `sum w[i] * x[i]` of int8 weights and u8 activations. It cannot overflow for `N` up to

@@ -27,7 +27,17 @@ pub fn dot2<const N: usize>(wa: &[i8; N], wb: &[i8; N], x: &[u8; N]) -> [i32; 2]
     [both as u32 as i32, (both >> 32) as u32 as i32]
 }
 
+/// `w . x` for `N` a non-zero multiple of 8: an odd row's, which [`dot2`] would compute twice.
+#[inline]
+pub fn dot1<const N: usize>(w: &[i8; N], x: &[u8; N]) -> i32 {
+    const { assert!(N > 0 && N.is_multiple_of(8) && N < 1 << 24) };
+    // SAFETY: the routine reads `N` bytes below each end pointer, which the two arrays hold,
+    // writes no memory and follows the AAPCS (it saves r4 and r5).
+    unsafe { cartpole_ddqn_dot1_i8u8(w.as_ptr_range().end, x.as_ptr_range().end, N) }
+}
+
 unsafe extern "C" {
+    fn cartpole_ddqn_dot1_i8u8(w_end: *const i8, x_end: *const u8, n: usize) -> i32;
     fn cartpole_ddqn_dot2_i8u8(
         wa_end: *const i8,
         wb_end: *const i8,
@@ -68,4 +78,32 @@ core::arch::global_asm!(
     "pop {{r4, r5, r6, r7}}",
     "bx lr",
     ".size cartpole_ddqn_dot2_i8u8, . - cartpole_ddqn_dot2_i8u8",
+);
+
+// r0, r1: the ends of the row and of the activations; r2 = n, the index as in the routine
+// above. The sum returns in r0.
+core::arch::global_asm!(
+    ".syntax unified",
+    ".thumb",
+    ".section .text.cartpole_ddqn_dot1_i8u8,\"ax\",%progbits",
+    ".global cartpole_ddqn_dot1_i8u8",
+    ".type cartpole_ddqn_dot1_i8u8,%function",
+    ".thumb_func",
+    "cartpole_ddqn_dot1_i8u8:",
+    "push {{r4, r5}}",
+    "rsbs r2, r2, #0",
+    "movs r3, #0",
+    "1:",
+    ".rept 8",
+    "ldrb r4, [r1, r2]",
+    "ldrsb r5, [r0, r2]",
+    "muls r5, r4, r5",
+    "adds r3, r3, r5",
+    "adds r2, r2, #1",
+    ".endr",
+    "bne 1b",
+    "movs r0, r3",
+    "pop {{r4, r5}}",
+    "bx lr",
+    ".size cartpole_ddqn_dot1_i8u8, . - cartpole_ddqn_dot1_i8u8",
 );
