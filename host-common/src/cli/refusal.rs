@@ -144,17 +144,19 @@ fn whole_reason(e: &clap::Error, cmd: &clap::Command, reason: String) -> String 
     reason
 }
 
-/// The largest value the flag `e` refused takes, if it takes a whole number of a type whose
-/// parse says none.
+/// The largest value the flag `e` refused takes, by asking its own parser (which may hold a
+/// range narrower than its type: `--threads` takes 1 to 256 in a u16), if it takes a whole
+/// number of a type whose parse said none.
 fn largest(e: &clap::Error, cmd: &clap::Command) -> Option<u64> {
     let Some(ContextValue::String(shown)) = e.get(ContextKind::InvalidArg) else {
         return None;
     };
     let flag = shown.split(' ').next()?;
     let arg = (cmd.get_arguments()).find(|a| super::named(a) == flag)?;
-    let id = arg.get_value_parser().type_id();
+    let parser = arg.get_value_parser();
+    let id = parser.type_id();
     use std::any::TypeId;
-    [
+    let (_, top) = [
         (TypeId::of::<u8>(), u64::from(u8::MAX)),
         (TypeId::of::<u16>(), u64::from(u16::MAX)),
         (TypeId::of::<u32>(), u64::from(u32::MAX)),
@@ -164,8 +166,30 @@ fn largest(e: &clap::Error, cmd: &clap::Command) -> Option<u64> {
         (TypeId::of::<i64>(), i64::MAX as u64),
     ]
     .into_iter()
-    .find(|(t, _)| id == *t)
-    .map(|(_, max)| max)
+    .find(|(t, _)| id == *t)?;
+    // The parser alone, on a flag of its own.
+    let probe = clap::Command::new("probe").arg(
+        clap::Arg::new("value")
+            .long("value")
+            .value_parser(parser.clone()),
+    );
+    let takes = |n: u64| {
+        let args = ["probe".to_string(), format!("--value={n}")];
+        probe.clone().try_get_matches_from(args).is_ok()
+    };
+    // A value it takes, from the top down by powers of two; then the last one below the
+    // first it refuses above, halving (a parser's values are a range).
+    let below = |k: u32| 1u64.checked_shl(k).map_or(top, |p| p.min(top));
+    let k = (0..=64).rev().find(|&k| takes(below(k)))?;
+    let (mut lo, mut hi) = (below(k), below(k + 1));
+    if lo == hi || takes(hi) {
+        return Some(hi);
+    }
+    while hi - lo > 1 {
+        let mid = lo + (hi - lo) / 2;
+        if takes(mid) { lo = mid } else { hi = mid }
+    }
+    Some(lo)
 }
 
 /// A piece of clap's context with the user's text in it escaped and cut: every text but the
@@ -301,6 +325,11 @@ mod tests {
                         Arg::new("at")
                             .long("at")
                             .value_parser(clap::value_parser!(f64)),
+                    )
+                    .arg(
+                        Arg::new("threads")
+                            .long("threads")
+                            .value_parser(clap::value_parser!(u16).range(1..=256)),
                     ),
             ),
         );
@@ -337,6 +366,14 @@ mod tests {
             refusal(&e, &cmd, &big.map(OsString::from))[0],
             "error: invalid value '18446744073709551616' for '--seed <seed>': expected a whole \
              number of at most 18446744073709551615, found a larger one"
+        );
+        // The flag's own range, not its type's.
+        let big = ["tool", "run", "--threads", "99999999999999999999"];
+        let e = (cmd.clone()).try_get_matches_from(big).unwrap_err();
+        assert_eq!(
+            refusal(&e, &cmd, &big.map(OsString::from))[0],
+            "error: invalid value '99999999999999999999' for '--threads <threads>': expected a \
+             whole number of at most 256, found a larger one"
         );
     }
 
