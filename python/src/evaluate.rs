@@ -105,9 +105,6 @@ fn refuse_unread(
     given: bool,
     kinds: &[ControllerKind],
 ) -> PyResult<()> {
-    let Some(policy) = policy else {
-        return Ok(());
-    };
     if kinds.iter().any(|k| k.needs_policy()) {
         return Ok(());
     }
@@ -124,6 +121,9 @@ fn refuse_unread(
             "levels {read_by}; expected one of them, found {found}"
         )));
     }
+    let Some(policy) = policy else {
+        return Ok(());
+    };
     if given || policy.machine == Machine::GYMNASIUM {
         return Err(value_error(format!(
             "policy {read_by}, and for the machine it records where no rig is given, other \

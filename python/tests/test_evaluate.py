@@ -48,6 +48,8 @@ def test_a_policy_no_controller_reads_is_refused_as_the_command_refuses_it():
         cartpole_ddqn.evaluate(shipped, controller=["lqr", "rule"], episodes=1, horizon=2)
     with pytest.raises(ValueError, match=f"^levels {read_by}"):
         cartpole_ddqn.evaluate(shipped, controller="lqr", episodes=1, horizon=2, levels=[-1, 1])
+    with pytest.raises(ValueError, match=f"^levels {read_by}"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=2, levels=[-1, 1])
     rows = cartpole_ddqn.evaluate(shipped, controller=["lqr", "policy"], episodes=1, horizon=2)
     assert [r["controller"] for r in rows] == ["lqr", "policy"]
 
