@@ -354,7 +354,6 @@ fn the_desk_target_gives_evals_rows_refined_or_not() {
     let mut here = Session::new(Board::Desk.reference());
     for (format, kind) in [
         (Format::F32, ControllerKind::Policy),
-        (Format::F32, ControllerKind::Policy),
         (Format::F32, ControllerKind::PolicyRefined),
         (Format::Int8, ControllerKind::PolicyIntRefined),
         (Format::Int8, ControllerKind::PolicyInt),
@@ -362,7 +361,8 @@ fn the_desk_target_gives_evals_rows_refined_or_not() {
         let info = handshake(&mut target, &mut here, format, &scenarios, Board::Desk).unwrap();
         for s in &scenarios {
             let run = (&info, kind);
-            let (eps, _) = run_row(&mut target, &mut here, run, s, 300, 3, 4, || ()).unwrap();
+            let (eps, check) = run_row(&mut target, &mut here, run, s, 300, 3, 4, || ()).unwrap();
+            assert_eq!(check.mismatches, 0, "{kind} {}: {check:?}", s.name);
             let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 3, &eps);
             assert_eq!(
                 pil,
