@@ -275,11 +275,12 @@ pub fn between(levels: [Duty; 3], rise: Rises) -> Duty {
     Duty::from_thousandths(peak as i16).unwrap_or(levels[1])
 }
 
-/// The bits of [`between`]'s quotient: `|twice| <= 4000 sum`, so it is at most 2,500.
-const QUOTIENT_BITS: u32 = 12;
+/// The bits of [`between`]'s quotient, the peak's magnitude rounded: the levels lie in
+/// [-1000, 1000] and `below <= sum`, so `|twice| <= 2000 sum` and it is at most 1000.
+const QUOTIENT_BITS: u32 = 10;
 
 /// `n / d` where the quotient is below `2^QUOTIENT_BITS` and `d << QUOTIENT_BITS` fits:
-/// twelve shift-and-subtract steps, where a Cortex-M0 (no divide instruction) would run a
+/// ten shift-and-subtract steps, where a Cortex-M0 (no divide instruction) would run a
 /// general 64-bit division, the most of the refinement's instructions.
 fn short_quotient(n: u64, d: u64) -> u64 {
     let mut step = d << (QUOTIENT_BITS - 1);
@@ -368,6 +369,18 @@ mod tests {
         ) {
             let n = q * d + r % d;
             proptest::prop_assert_eq!(short_quotient(n, d), n / d);
+        }
+    }
+
+    /// The divisors [`between`] gives: the float path's one, and the integer path's largest
+    /// (rises of `u32::MAX` across gaps of 2000), at the largest quotient the bits hold.
+    #[test]
+    fn the_short_quotient_at_the_divisors_between_gives() {
+        let top = (1 << QUOTIENT_BITS) - 1;
+        for d in [2 * FLOAT_PARTS as u64, 2 * 2000 * u64::from(u32::MAX)] {
+            for n in [0, d - 1, d, top * d, top * d + d - 1] {
+                assert_eq!(short_quotient(n, d), n / d, "{n} / {d}");
+            }
         }
     }
 

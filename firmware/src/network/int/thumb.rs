@@ -1,5 +1,6 @@
-//! Two rows' int8 x u8 dot products in hand-written Thumb code, for every Cortex-M core
-//! (ARMv6-M's instruction set, which the larger cores execute too).
+//! Int8 x u8 dot products of two rows at once (and of an odd row alone) in hand-written Thumb
+//! code, for every Cortex-M core (ARMv6-M's instruction set, which the larger cores execute
+//! too).
 //!
 //! Compiled from Rust, LLVM keeps the unrolled loop's constant offsets in stack slots on the
 //! M0's eight low registers and reloads them for every multiply-accumulate. Here each
