@@ -21,7 +21,8 @@
 //!   commands name `runs/rig-study/`): each policy is trained for the
 //!   identified rig by a step of about a minute (`runs/rig-study/`, not committed) and
 //!   evaluated for 10,000,000 periods a row: too long here. What it was trained for is re-derived instead: the identified rig file,
-//!   from the board's experiments simulated on the true rig.
+//!   from the board's experiments simulated on the true rig. The desk policy is the shipped
+//!   crate's `desk` too, so one row of its file (the int8 board, refined) runs again from it.
 //! - `sb3-dqn.json`: its SB3 rows need Stable-Baselines3's trained `model.zip`, which is not
 //!   committed, and PyTorch; only the shipped policy's rows beside them are re-derived.
 //! - `docs/reproduction/results.json`: 660 training runs; one seed of each of its two
@@ -245,6 +246,41 @@ fn flag<'a>(words: &[&'a str], flag: &str, default: &'a str) -> &'a str {
         .iter()
         .position(|w| *w == flag)
         .map_or(default, |i| words[i + 1])
+}
+
+/// The desk policy of the rig study is the shipped crate's `desk` (the manifest exports one
+/// to the other), so one row of its file runs again from that: the int8 board refined
+/// between its levels through the encoders, its quantisation and refinement both.
+#[test]
+fn the_shipped_desk_policys_refined_board_row_is_todays() {
+    let (m, file, run) = (
+        manifest(),
+        "docs/results/rig-desk-trained.json",
+        "runs/rig-study/desk-policy",
+    );
+    let export = &m.producing("shipped/src/desk.rs")[0];
+    assert!(export.words().unwrap().contains(&run), "{export:?}");
+    let w = weights::Weights::from_mlp(&shipped::desk::POLICY, &shipped::desk::LEVELS).unwrap();
+    let rig = std::fs::read_to_string(repo().join("rigs/desk-identified.toml")).unwrap();
+    let meta = [(twin::rigfile::METADATA_KEY.to_string(), rig)].into();
+    let policy = scratch("desk").join("policy.safetensors");
+    std::fs::write(
+        &policy,
+        weights::checkpoint::to_safetensors(&w, &meta).unwrap(),
+    )
+    .unwrap();
+    let words = steps_of(&m, file)[0].words().unwrap();
+    let shown = policy.display().to_string();
+    let words: Vec<&str> = words
+        .iter()
+        .map(|w| if *w == run { shown.as_str() } else { w })
+        .collect();
+    let doc = read_json(&repo().join(file));
+    let is = |r: &&Json| r["controller"] == "policy-int-refined" && r["scenario"] == "encoder";
+    let row = doc["rows"].as_array().unwrap().iter().find(is).unwrap();
+    let today = run_host_sim(&build_tool("host-sim"), &restricted(file, &words[1..], row));
+    assert_same_row(file, row, &today["rows"][0]);
+    std::fs::remove_dir_all(policy.parent().unwrap()).unwrap();
 }
 
 #[test]
