@@ -130,6 +130,7 @@ pub fn run(board: &mut impl Board) -> bool {
         |l| board.line(l),
     );
     selftest::refine_probe(|a, o| refine(Some(a), Some(o)), |l| board.line(l));
+    ok &= levels_int_check(board, levels_int);
     ok &= paced_runs(board);
     ok &= startup_check(board);
     ok &= monitor_check(board, forward_int, monitored);
@@ -137,6 +138,30 @@ pub fn run(board: &mut impl Board) -> bool {
     instruction_report(board, forward, [forward_int, monitored]);
     board.line(format_args!("{}", if ok { "PASS" } else { "FAIL" }));
     ok
+}
+
+/// The nine-level integer policy's forward pass through the target's kernels (its odd last
+/// row has one of its own on Arm) against the portable definition, on the random
+/// observations of [`selftest::int_check`]. Whether none differs.
+fn levels_int_check(board: &mut impl Board, levels_int: ForwardLevelsInt) -> bool {
+    if !selftest::OWN_INT_KERNELS {
+        board.line(format_args!(
+            "int, nine levels: the portable forward pass itself on this target"
+        ));
+        return true;
+    }
+    let kernel = |obs: &[i16; 4]| {
+        let mut q = [0; 9];
+        levels_int(Some(obs), Some(&mut q));
+        q
+    };
+    let bad = selftest::int_check(&shipped::desk_int::POLICY_INT, kernel);
+    board.line(format_args!(
+        "int, nine levels: {bad} of {} random observations differ from the portable forward \
+         pass",
+        selftest::INT_CASES
+    ));
+    bad == 0
 }
 
 /// The start-up from power-on around the desk board's controller: the pole zeroed hanging,

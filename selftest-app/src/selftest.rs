@@ -184,7 +184,10 @@ pub const OWN_DOT: bool = cfg!(all(target_arch = "arm", target_abi = "eabihf"));
 /// Cortex-M0) and through `net`'s [`QMlp::forward_portable`] (the definition). A third are
 /// anywhere in the `i16` range, the rest within +-0.5 units, where a balancing run lives.
 /// Meaningful where [`OWN_INT_KERNELS`]; elsewhere `forward` is the definition itself.
-pub fn int_check<const H: usize>(net: &QMlp<H>, kernel: impl Fn(&[i16; 4]) -> [i32; 2]) -> u32 {
+pub fn int_check<const H: usize, const A: usize>(
+    net: &QMlp<H, A>,
+    kernel: impl Fn(&[i16; 4]) -> [i32; A],
+) -> u32 {
     let mut rng = Pcg32::seed_from_u64(0x1A7);
     let mut bad = 0;
     for case in 0..INT_CASES {
