@@ -43,7 +43,7 @@ fn against(rig: &Rig, predictor: Option<Predictor>) -> (Decisions, Decisions) {
         let command = reference.step();
         let q = reference.last().unwrap().q.map(f32::to_bits);
         want.push((command.level() as i32, q));
-        s = advance(&rig.params, &s, f64::from(command.level()), 0.0);
+        s = advance(&rig.params, &s, loopback::command_duty(command), 0.0);
     }
     (got, want)
 }
