@@ -6,7 +6,7 @@ use clap::ValueEnum;
 use host_sim::eval::{ControllerKind, MAX_EPISODES, MAX_HORIZON};
 
 use super::EvalArgs;
-use crate::subject::names;
+use host_sim::eval::names;
 
 /// Checks `eval`'s counts before any work.
 pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 use clap::Args;
-use host_sim::eval::{ControllerKind, Net};
+use host_sim::eval::{ControllerKind, Net, names};
 use twin::Machine;
 use weights::levels::GivenLevels;
 
@@ -124,12 +124,7 @@ impl Subject {
         let Some(path) = &self.policy else {
             return Ok(());
         };
-        let readers: Vec<ControllerKind> = ControllerKind::reading_policy().collect();
-        let read_by = format!(
-            "is read by the controllers that run --policy's network or round to its levels \
-             ({}) alone",
-            names(&readers)
-        );
+        let read_by = ControllerKind::read_by();
         let (policy, found) = (weights::shown(path), names(kinds));
         if self.levels.is_some() {
             anyhow::bail!("--levels {read_by}; expected one of them, found {found}");
@@ -174,10 +169,4 @@ impl Subject {
             .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))
     }
-}
-
-/// Controllers as a command line names them, comma-separated.
-pub(crate) fn names(kinds: &[ControllerKind]) -> String {
-    let names: Vec<String> = kinds.iter().map(ToString::to_string).collect();
-    names.join(", ")
 }

@@ -336,7 +336,7 @@ fn a_policy_that_no_row_reads_is_refused() {
         on_desk.to_str().unwrap(),
         bare.to_str().unwrap(),
     );
-    let read_by = "is read by the controllers that run --policy's network or round to its \
+    let read_by = "is read by the controllers that run its network or round to its \
                    levels (policy, policy-int, policy-refined, policy-int-refined, monitored, \
                    monitored-int, lqr-levels, lqr-levels-predict) alone";
     refused(

@@ -108,14 +108,7 @@ fn refuse_unread(
     if kinds.iter().any(|k| k.needs_policy()) {
         return Ok(());
     }
-    let names = |ks: &mut dyn Iterator<Item = ControllerKind>| {
-        ks.map(|k| k.to_string()).collect::<Vec<_>>().join(", ")
-    };
-    let read_by = format!(
-        "is read by the controllers that run its network or round to its levels ({}) alone",
-        names(&mut ControllerKind::reading_policy())
-    );
-    let found = names(&mut kinds.iter().copied());
+    let (read_by, found) = (ControllerKind::read_by(), host_sim::eval::names(kinds));
     if levels {
         return Err(value_error(format!(
             "levels {read_by}; expected one of them, found {found}"

@@ -76,10 +76,16 @@ impl ControllerKind {
         all.copied().filter(|k| k.runs_policy())
     }
 
-    /// The controllers that read a policy: its network, or its levels ([`Self::needs_policy`]).
-    pub fn reading_policy() -> impl Iterator<Item = ControllerKind> {
+    /// The words that refuse a policy, or its levels, given to controllers none of which
+    /// reads it (`eval --policy`, Python's `evaluate(policy)`): which do
+    /// ([`Self::needs_policy`]).
+    pub fn read_by() -> String {
         let all = <ControllerKind as clap::ValueEnum>::value_variants().iter();
-        all.copied().filter(|k| k.needs_policy())
+        let readers: Vec<ControllerKind> = all.copied().filter(|k| k.needs_policy()).collect();
+        format!(
+            "is read by the controllers that run its network or round to its levels ({}) alone",
+            names(&readers)
+        )
     }
 
     /// Whether the Q-network drives (in any form).
@@ -148,6 +154,12 @@ impl fmt::Display for ControllerKind {
             ControllerKind::Random => "random",
         })
     }
+}
+
+/// Controllers' names as the command line gives them, in a list.
+pub fn names(kinds: &[ControllerKind]) -> String {
+    let names: Vec<String> = kinds.iter().map(ToString::to_string).collect();
+    names.join(", ")
 }
 
 /// Runs episode `episode` with controller `kind`; `on_frame` sees every period.
