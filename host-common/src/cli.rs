@@ -22,8 +22,10 @@ use std::sync::Mutex;
 
 use clap::error::{ContextKind, ContextValue, ErrorKind};
 
+mod joined;
 mod refusal;
 
+use joined::numbers_joined;
 use refusal::refusal;
 
 /// The first error writing standard output, after which nothing more is written to it.
@@ -142,7 +144,7 @@ pub fn parse<T: clap::Parser>() -> T {
 /// of the parts a flag takes, say).
 pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Command) -> T {
     let cmd = negative_numbers(edit(T::command()));
-    let args: Vec<OsString> = std::env::args_os().collect();
+    let args = numbers_joined(&cmd, std::env::args_os().collect());
     let parsed = cmd
         .clone()
         .try_get_matches_from(&args)
