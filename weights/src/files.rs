@@ -187,10 +187,14 @@ pub fn ends_in_dot(path: &Path) -> bool {
 /// ([`check_place`]). Call it before the work that produces the output, so a bad `--out`
 /// costs nothing.
 pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
-    if path.file_name().is_none() || ends_in_dot(path) {
+    // A trailing `/` names a directory, which a file cannot be written as: its name
+    // (`file_name` reads past the slash) passed, and the write failed after the work.
+    let slash = path.as_os_str().as_encoded_bytes().ends_with(b"/");
+    if path.file_name().is_none() || ends_in_dot(path) || slash {
         return Err(Error::Input(format!(
-            "{}: expected an output file name",
-            crate::shown(path)
+            "{}: expected an output file name{}",
+            crate::shown(path),
+            if slash { ", found a path ending in '/'" } else { "" }
         )));
     }
     match std::fs::symlink_metadata(path) {

@@ -120,6 +120,12 @@ fn outputs_never_replace_directories_devices_or_inputs() {
     let other = dir.join(".").join("in.bin");
     assert!(check_output(&other, &[&input]).is_err());
     assert!(check_output(&dir.join("new.rs"), &[&input]).is_ok());
+    // A name ending in '/', which a file cannot be written as, whatever is there.
+    for slashed in ["new.h/", "in.bin/", "new/deeper/"] {
+        let e = check_output(&dir.join(slashed), &[]).unwrap_err();
+        assert!(e.is_input(), "{e}");
+        assert!(e.to_string().contains("found a path ending in '/'"), "{e}");
+    }
     assert_eq!(std::fs::read(&input).unwrap(), b"weights");
     std::fs::remove_dir_all(&dir).unwrap();
 }
