@@ -81,11 +81,8 @@ impl PilArgs {
             );
         }
         let board = self.pil_policy;
-        if let Some(c) = controllers.iter().find(|c| c.refined() && !board.refines()) {
-            bail!(
-                "--pil-policy {board}: its two levels are both ends, with nothing between them \
-                 to refine; found --controller {c} (run the unrefined ones)"
-            );
+        if let Some(why) = host_sim::eval::unrefinable(controllers, board.refines()) {
+            bail!("--pil-policy {board}: {why}");
         }
         if let Some(c) = controllers
             .iter()

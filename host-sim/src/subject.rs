@@ -89,6 +89,12 @@ impl Subject {
         if !policy {
             self.refuse_unread(kinds, Some(&machine))?;
         }
+        if let Some(why) = host_sim::eval::unrefinable(kinds, net.levels().len() > 2) {
+            let whose = (self.policy.as_deref()).map_or("the shipped policy".into(), |p| {
+                format!("--policy {}", weights::shown(p))
+            });
+            anyhow::bail!("{whose}: {why}");
+        }
         let net = match envelope {
             Some(e) => net.with_envelope(e),
             None => net,

@@ -147,7 +147,7 @@ fn hostile_counts_scenarios_and_inputs_are_refused_up_front() {
 /// empty item of a list is named as found (clap said "none was supplied").
 #[test]
 fn a_negative_number_or_an_empty_item_is_refused_by_its_flag() {
-    let cases: [(&[&str], &str); 7] = [
+    let cases: [(&[&str], &str); 9] = [
         (
             &["eval", "--seed", "-1"],
             "invalid value '-1' for '--seed <SEED>': expected a whole number of 0 or more, \
@@ -178,6 +178,15 @@ fn a_negative_number_or_an_empty_item_is_refused_by_its_flag() {
         (
             &["eval", "--seed", "--json"],
             "a value is required for '--seed <SEED>' but none was supplied",
+        ),
+        // Any spelling a float takes, which clap took for short flags ('-1', '-.').
+        (
+            &["startup", "--cart-start", "-1e-5"],
+            "--cart-start must be metres in [0, 10], found -1e-5",
+        ),
+        (
+            &["soak", "--hours", "-.5"],
+            "--hours must be a normal number of simulated hours in (0, 240], found -0.5",
         ),
     ];
     for (args, want) in cases {
@@ -451,6 +460,18 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
 
 /// `agree` and `startup` run the network as float and integer and take no --controller: an
 /// envelope given them was read by nothing and their output was as without it.
+/// A refined controller of a policy of two levels, both ends: its rows were the unrefined
+/// ones', bit for bit, without a word.
+#[test]
+fn a_refined_controller_of_two_levels_is_refused() {
+    let why = "its two levels are both ends, with nothing between them to refine; found \
+               policy-int-refined (run the unrefined controller)";
+    refused(
+        &["eval", "--controller", "policy,policy-int-refined"],
+        &format!("the shipped policy: {why}"),
+    );
+}
+
 #[test]
 fn an_envelope_where_no_monitored_controller_runs_is_refused() {
     let envelope = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results/envelope.json");

@@ -67,6 +67,10 @@ pub fn evaluate_json(
         }
     };
     same_levels(policy, levels)?;
+    let refinable = policy.net.levels().len() > 2;
+    if let Some(why) = eval::unrefinable(&kinds, refinable) {
+        return Err(value_error(format!("policy: {why}")));
+    }
     let machine = given.unwrap_or(policy.machine);
     // Counted before the specs are parsed, each a row at least: a parse costs far more.
     check_count(horizons.len(), scenarios.len(), kinds.len())?;

@@ -54,6 +54,12 @@ def test_a_policy_no_controller_reads_is_refused_as_the_command_refuses_it():
     assert [r["controller"] for r in rows] == ["lqr", "policy"]
 
 
+def test_a_refined_controller_is_refused_for_a_policy_of_two_levels():
+    """Both its levels are ends: the row would be the unrefined one's, bit for bit."""
+    with pytest.raises(ValueError, match="its two levels are both ends"):
+        cartpole_ddqn.evaluate(controller=["policy", "policy-refined"], episodes=1, horizon=2)
+
+
 @pytest.mark.parametrize("episodes", [1.5, 2.0, "3", None])
 def test_a_count_of_episodes_that_is_no_int_raises_type_error(episodes):
     """As a float seed does: 1.5 is not cut to 1."""

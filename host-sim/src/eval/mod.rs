@@ -156,6 +156,16 @@ impl fmt::Display for ControllerKind {
     }
 }
 
+/// The words that refuse a refined controller among `kinds` for a policy that is not
+/// `refinable` (two levels, both ends: such a row is the unrefined one's, bit for bit).
+pub fn unrefinable(kinds: &[ControllerKind], refinable: bool) -> Option<String> {
+    let c = kinds.iter().find(|k| k.refined()).filter(|_| !refinable)?;
+    Some(format!(
+        "its two levels are both ends, with nothing between them to refine; found {c} (run \
+         the unrefined controller)"
+    ))
+}
+
 /// Controllers' names as the command line gives them, in a list.
 pub fn names(kinds: &[ControllerKind]) -> String {
     let names: Vec<String> = kinds.iter().map(ToString::to_string).collect();
