@@ -152,6 +152,13 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     })?;
     let bad =
         |why: String| weights::Error::Input(format!("envelope {}: {why}", weights::shown(path)));
+    // The parser reads `1e-400` as 0 without a word.
+    if let Some(why) = std::str::from_utf8(&bytes)
+        .ok()
+        .and_then(weights::hidden_zero)
+    {
+        return Err(bad(why));
+    }
     let e: Envelope = weights::json::parse_bytes(&bytes).map_err(|e| {
         bad(format!(
             "expected the JSON `host-sim envelope --json` prints, {e}"

@@ -135,13 +135,15 @@ fn bad_input_exits_2_before_any_work() {
         // Below f32's least subnormal: a zero once narrowed, so refused before.
         ("c.json", r#"{"envelope": [1, 1, 5e-324, 1]}"#),
         ("d.json", r#"{"envelope": [1, 1e-50, 1, 1]}"#),
+        // A zero to the parser, without a word.
+        ("e.json", r#"{"envelope": [1, 1, 1e-400, 1]}"#),
     ]
     .map(|(name, text)| {
         let path = dir.join(name);
         std::fs::write(&path, text).unwrap();
         path.to_str().unwrap().to_owned()
     });
-    let [not_json, negative, tiny, tinier] = files.each_ref().map(String::as_str);
+    let [not_json, negative, tiny, tinier, zero] = files.each_ref().map(String::as_str);
     let monitored = ["eval", "--controller", "monitored"];
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
@@ -163,6 +165,10 @@ fn bad_input_exits_2_before_any_work() {
         (
             [&monitored[..], &["--envelope", tinier]].concat(),
             "expected each limit zero or a normal number, found 1e-50",
+        ),
+        (
+            [&monitored[..], &["--envelope", zero]].concat(),
+            "line 1, column 21: 1e-400 reads as 0",
         ),
         (
             vec!["envelope", "--policy", fixture, "--out", "x.rs"],

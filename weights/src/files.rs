@@ -194,7 +194,11 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
         return Err(Error::Input(format!(
             "{}: expected an output file name{}",
             crate::shown(path),
-            if slash { ", found a path ending in '/'" } else { "" }
+            if slash {
+                ", found a path ending in '/'"
+            } else {
+                ""
+            }
         )));
     }
     match std::fs::symlink_metadata(path) {

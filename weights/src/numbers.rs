@@ -27,13 +27,14 @@ pub fn zero_in_disguise(piece: &str) -> String {
 }
 
 /// The refusal of the first number of a TOML or JSON `text` that [`reads_as_zero`], outside
-/// its comments and strings, with its line and column: both parsers read `1e-400` as 0
-/// without a word.
+/// its comments, with its line and column: both parsers read `1e-400` as 0 without a word.
+/// Inside a string a number is a piece of a spec (`levels = "-1,1e-400,1"`, `reward =
+/// "env+scale=1e-400"`), cut where the command line's pieces are cut.
 pub fn hidden_zero(text: &str) -> Option<String> {
     let (mut start, mut quote, mut comment, mut escaped) = (None, None, false, false);
     for (i, c) in text.char_indices().chain([(text.len(), '\n')]) {
-        let in_token =
-            quote.is_none() && !comment && (c.is_ascii_alphanumeric() || "+-._".contains(c));
+        let joins = if quote.is_some() { "-._" } else { "+-._" };
+        let in_token = !comment && !escaped && (c.is_ascii_alphanumeric() || joins.contains(c));
         if in_token {
             start.get_or_insert(i);
             continue;
@@ -102,12 +103,26 @@ mod tests {
         );
         for clean in [
             "x = 0.0\ny = -0e5 # 1e-400\n",
-            "s = \"1e-400\"\nt = '1e-999'\n",
-            "u = \"a \\\" 1e-400\" # \"\nv = 5e-324\n",
+            "s = \"a1e-400\"\nt = 'run-1e-999'\n",
+            "u = \"a \\\" x1e-400\" # \" 1e-400\nv = 5e-324\n",
             "[t.k1e-400]\nk = 1979-05-27\n",
+            "w = \"env+scale=1e-5\"\n",
         ] {
             assert_eq!(hidden_zero(clean), None, "{clean}");
         }
         assert!(hidden_zero("w = \"x\"\nz = +1e-400").is_some());
+        // A spec in a string, cut as the command line cuts its pieces.
+        for (spec, column) in [
+            ("levels = \"-1,1e-400,1\"", 14),
+            ("reward = \"env+fail-penalty=1e-400\"", 28),
+            ("s = '1e-999'", 6),
+            ("u = \"\\n1e-400\"", 8),
+        ] {
+            let found = hidden_zero(spec).unwrap_or_default();
+            assert!(
+                found.starts_with(&format!("line 1, column {column}: ")),
+                "{spec}: {found}"
+            );
+        }
     }
 }

@@ -208,6 +208,14 @@ fn toml_overlays_known_keys_and_rejects_unknown_ones() {
         e.0.starts_with("t.toml: line 2, column 13: 1e-400 reads as 0"),
         "{e}"
     );
+    // And so inside a spec a string holds: levels of -1, 0 and 1 trained, recorded as such.
+    let e = Config::paper()
+        .overlay_toml("levels = \"-1,1e-400,1\"\n", "t.toml")
+        .unwrap_err();
+    assert!(
+        e.0.starts_with("t.toml: line 1, column 14: 1e-400 reads as 0"),
+        "{e}"
+    );
     // A parser message that quotes a huge line is cut.
     let long = format!("gamma = [{}\n", "1, ".repeat(100_000));
     let e = Config::paper().overlay_toml(&long, "big.toml").unwrap_err();
