@@ -158,6 +158,7 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
     std::fs::copy("/bin/true", &odd).unwrap();
     let mut odd_place = OsString::from("exec:");
     odd_place.push(&odd);
+    std::fs::write(s.join("garbage.elf"), [0x5a; 64]).unwrap();
     vec![
         Case::new(
             "a program named in bytes that are not UTF-8".into(),
@@ -183,6 +184,16 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
                 &s.join("none"),
             ]),
             &["no application at"],
+        ),
+        Case::new(
+            "an application that is no ELF file, which QEMU ran".into(),
+            &eval(&[
+                &"--pil",
+                &"qemu:thumbv6m-none-eabi",
+                &"--pil-elf",
+                &s.join("garbage.elf"),
+            ]),
+            &["expected a 32-bit ELF application for Arm (thumbv6m-none-eabi), found no ELF"],
         ),
         Case::new(
             "missing program".into(),
@@ -225,6 +236,19 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
     cases.extend(bad_controllers("exec:/bin/cat"));
     let dir = s.join("targets");
     std::fs::create_dir(&dir).unwrap();
+    // A target that writes escape sequences and forged lines on its standard error: shown
+    // escaped (the harness refuses any raw control character), named as the target's.
+    let noisy = dir.join("noisy");
+    let body = "#!/bin/sh\nprintf '\\033[2J error: forged\\n' >&2\nexit 3\n";
+    std::fs::write(&noisy, body).unwrap();
+    std::fs::set_permissions(&noisy, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let place = format!("exec:{}", noisy.display());
+    let says = "noisy says: \"\\u{1b}[2J error: forged\"";
+    cases.push(Case::new(
+        "noisy".into(),
+        &eval(&[&"--pil", &place]),
+        &[says],
+    ));
     for (name, bytes, want) in answers() {
         let place = format!("exec:{}", target(&dir, name, &bytes).display());
         // Only the silent target is to be timed out. The others' bytes must decide however
@@ -260,4 +284,34 @@ fn a_target_of_its_own_rig_draws_no_warning_of_another() {
         "{err}"
     );
     assert!(!err.contains("trained for another rig"), "{err}");
+}
+
+/// A target's own children end with it: a script's `sleep` outlived the run, reparented.
+#[test]
+fn a_silent_targets_children_end_with_it() {
+    let s = Scratch::new("pil-group");
+    let (script, pid) = (s.join("sleeper"), s.join("pid"));
+    let body = format!(
+        "#!/bin/sh\nsleep 30 &\necho $! > '{}'\nwait\n",
+        pid.display()
+    );
+    std::fs::write(&script, body).unwrap();
+    std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
+    let place = format!("exec:{}", script.display());
+    let args = eval(&[&"--pil", &place, &"--pil-timeout", &"1"]);
+    let out = std::process::Command::new(exe())
+        .args(args)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let child = std::fs::read_to_string(&pid).unwrap();
+    // Gone, or a zombie nobody has reaped yet: no longer running either way.
+    let stat = std::fs::read_to_string(format!("/proc/{}/stat", child.trim()));
+    let state = stat
+        .ok()
+        .and_then(|t| t.rsplit(") ").next().map(|r| r.chars().next()));
+    assert!(
+        matches!(state, None | Some(Some('Z'))),
+        "sleep {child}: {state:?}"
+    );
 }

@@ -126,6 +126,8 @@ pub struct Process {
     child: Child,
     input: ChildStdin,
     frames: Receiver<Result<Packet, Reason>>,
+    /// Ends when the target's standard error has been shown.
+    errors: Receiver<()>,
     timeout: Duration,
     what: String,
 }
@@ -134,15 +136,21 @@ impl Process {
     /// Starts `command`; `what` names it in messages; answers later than `timeout` end the
     /// run.
     pub fn spawn(mut command: Command, what: String, timeout: Duration) -> Result<Process> {
+        use std::os::unix::process::CommandExt;
+        // A group of its own, ended whole: a script's children outlived it.
         let mut child = command
+            .process_group(0)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
-            .stderr(Stdio::inherit())
+            .stderr(Stdio::piped())
             .spawn()
             .with_context(|| format!("could not start {what}"))?;
-        let (Some(input), Some(mut output)) = (child.stdin.take(), child.stdout.take()) else {
+        let (Some(input), Some(mut output), Some(errors)) =
+            (child.stdin.take(), child.stdout.take(), child.stderr.take())
+        else {
             bail!("{what} has no standard input or output");
         };
+        let errors = forward_escaped(errors, what.clone());
         let (tx, frames) = channel();
         // Bytes are read as they come and gathered into frames, so that an answer's wait
         // can time out.
@@ -163,6 +171,7 @@ impl Process {
             child,
             input,
             frames,
+            errors,
             timeout,
             what,
         })
@@ -198,7 +207,39 @@ impl Remote for Process {
 
 impl Drop for Process {
     fn drop(&mut self) {
+        let group = rustix::process::Pid::from_child(&self.child);
+        let _ = rustix::process::kill_process_group(group, rustix::process::Signal::KILL);
         let _ = self.child.kill();
         let _ = self.child.wait();
+        // Its last words before this tool's: bounded, should a process outside its group
+        // hold the pipe open.
+        let _ = self.errors.recv_timeout(Duration::from_secs(1));
     }
 }
+
+/// Lines a target writes on its standard error, on this process's, each escaped and cut
+/// ([`weights::quote`]) and named as the target's: a target could clear the screen, or
+/// forge this tool's `error:` lines. At most [`TARGET_LINES`] lines; the receiver hears when
+/// the last is shown.
+fn forward_escaped(errors: std::process::ChildStderr, what: String) -> Receiver<()> {
+    let (done, ended) = channel();
+    std::thread::spawn(move || {
+        use std::io::BufRead;
+        let lines = std::io::BufReader::new(errors).split(b'\n');
+        for (k, line) in lines.map_while(Result::ok).enumerate() {
+            let text = String::from_utf8_lossy(&line);
+            match k.cmp(&TARGET_LINES) {
+                std::cmp::Ordering::Less => {
+                    host_common::errln!("{what} says: {}", weights::quote(&text))
+                }
+                std::cmp::Ordering::Equal => host_common::errln!("{what} says more, not shown"),
+                std::cmp::Ordering::Greater => {}
+            }
+        }
+        let _ = done.send(());
+    });
+    ended
+}
+
+/// Lines of a target's standard error shown.
+const TARGET_LINES: usize = 100;

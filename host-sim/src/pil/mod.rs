@@ -130,6 +130,7 @@ impl Place {
                     );
                 };
                 let app = board.app();
+                let elf_given = elf.is_some();
                 let elf = elf.map_or_else(|| default_elf(target, app), Path::to_path_buf);
                 if !elf.is_file() {
                     bail!(
@@ -137,6 +138,14 @@ impl Place {
                          -p selftest-app --bin {app} --target {target}`, or give --pil-elf)",
                         weights::shown(&elf)
                     );
+                }
+                if let Err(why) = elf_for(&elf, target) {
+                    let given = if elf_given {
+                        "--pil-elf"
+                    } else {
+                        "the application"
+                    };
+                    bail!("{given} {}: {why}", weights::shown(&elf));
                 }
                 Place::Qemu { machine, elf }
             }
@@ -201,6 +210,33 @@ fn default_elf(target: &str, app: &str) -> PathBuf {
         PathBuf::from,
     );
     dir.join(target).join("release").join(app)
+}
+
+/// Refuses an application at `elf` that is no 32-bit ELF file for `target`'s processor
+/// (Arm, or RISC-V), before QEMU runs it: QEMU ran any bytes, and dumped its registers.
+fn elf_for(elf: &Path, target: &str) -> Result<(), String> {
+    use std::io::Read;
+    let (machine, name) = match target.starts_with("riscv") {
+        true => (243u16, "RISC-V"),
+        false => (40, "Arm"),
+    };
+    let mut head = [0u8; 20];
+    let read = std::fs::File::open(elf).and_then(|f| f.take(20).read(&mut head));
+    let found = match read {
+        Err(e) => format!("a file that cannot be read: {e}"),
+        Ok(n) if n < 20 || head[..4] != *b"\x7fELF" => "no ELF file".into(),
+        Ok(_) if head[4] != 1 => "a 64-bit ELF file".into(),
+        Ok(_) if u16::from_le_bytes([head[18], head[19]]) != machine => {
+            format!(
+                "an ELF file for machine {}",
+                u16::from_le_bytes([head[18], head[19]])
+            )
+        }
+        Ok(_) => return Ok(()),
+    };
+    Err(format!(
+        "expected a 32-bit ELF application for {name} ({target}), found {found}"
+    ))
 }
 
 #[cfg(test)]
