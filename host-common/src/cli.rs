@@ -119,14 +119,20 @@ pub fn check_threads_env() -> Result<(), String> {
 /// `friction=X/0.1`), that is written with a non-zero digit and reads as zero
 /// ([`weights::reads_as_zero`]): every flag's own check passes a zero.
 fn check_numbers(args: &[OsString]) -> Result<(), String> {
-    let pieces = args.iter().filter_map(|a| a.to_str()).flat_map(|a| {
-        a.split([',', '+', '=', '@', '/', ':', ' '])
-            .map(move |piece| (a, piece))
-    });
-    for (arg, piece) in pieces {
-        if weights::reads_as_zero(piece) {
+    let text: Vec<Option<&str>> = args.iter().map(|a| a.to_str()).collect();
+    for (i, arg) in text.iter().enumerate() {
+        let Some(arg) = arg else { continue };
+        let pieces = arg.split([',', '+', '=', '@', '/', ':', ' ']);
+        if let Some(piece) = pieces.into_iter().find(|p| weights::reads_as_zero(p)) {
             let why = weights::zero_in_disguise(piece);
-            return Err(format!("{}: {why}", weights::quote(arg)));
+            // A value given apart from its flag is shown with it.
+            let flag = i.checked_sub(1).and_then(|k| text[k]);
+            let flag = flag.filter(|f| f.starts_with("--") && !f.contains('='));
+            let shown = flag.map_or_else(
+                || weights::quote(arg),
+                |f| format!("{f} {}", weights::quote(arg)),
+            );
+            return Err(format!("{shown}: {why}"));
         }
     }
     Ok(())

@@ -239,5 +239,8 @@ fn a_number_that_reads_as_zero_is_refused_in_a_scenario_and_a_flag() {
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(err.contains("1e-400 reads as 0"), "{args:?}: {err}");
+        // The flag named, its value given apart from it.
+        let flag = args[1];
+        assert!(err.starts_with(&format!("error: {flag} \"")), "{args:?}: {err}");
     }
 }

@@ -130,11 +130,21 @@ fn whole_reason(e: &clap::Error, cmd: &clap::Command, reason: String) -> String 
         return reason;
     };
     let digits = value.strip_prefix('-').unwrap_or_default();
-    if reason == "invalid digit found in string"
-        && !digits.is_empty()
-        && digits.bytes().all(|b| b.is_ascii_digit())
-    {
+    let whole = !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit());
+    if reason == "invalid digit found in string" && whole && digits.bytes().any(|b| b != b'0') {
         return "expected a whole number of 0 or more, found a negative one".into();
+    }
+    // `-0`, `1e3`, `0x10`, `1_000`, `1.0`, ``: std said "invalid digit found in string".
+    if [
+        "invalid digit found in string",
+        "cannot parse integer from empty string",
+    ]
+    .contains(&reason.as_str())
+    {
+        return "expected a whole number of 0 or more in decimal digits alone, such as 42".into();
+    }
+    if reason == "invalid float literal" {
+        return "expected a number in decimal, such as 0.5, -2 or 1e-3".into();
     }
     if reason == "number too large to fit in target type"
         && let Some(max) = largest(e, cmd)
@@ -272,7 +282,8 @@ mod tests {
         assert_eq!(
             line,
             format!(
-                "error: invalid value '{shown}' for '--count <count>': invalid digit found in string"
+                "error: invalid value '{shown}' for '--count <count>': expected a whole number \
+                 of 0 or more in decimal digits alone, such as 42"
             )
         );
         let (line, _) = refusal(&["tool", "run", "--raw", forged]);
@@ -366,6 +377,37 @@ mod tests {
             refusal(&e, &cmd, &big.map(OsString::from))[0],
             "error: invalid value '18446744073709551616' for '--seed <seed>': expected a whole \
              number of at most 18446744073709551615, found a larger one"
+        );
+        // Spellings std's parser named no expectation for.
+        for (value, want) in [
+            (
+                "-0",
+                "expected a whole number of 0 or more in decimal digits alone, such as 42",
+            ),
+            (
+                "1e3",
+                "expected a whole number of 0 or more in decimal digits alone, such as 42",
+            ),
+            (
+                "0x10",
+                "expected a whole number of 0 or more in decimal digits alone, such as 42",
+            ),
+            (
+                "1_000",
+                "expected a whole number of 0 or more in decimal digits alone, such as 42",
+            ),
+        ] {
+            let args = ["tool", "run", "--seed", value];
+            let e = (cmd.clone()).try_get_matches_from(args).unwrap_err();
+            let line = refusal(&e, &cmd, &args.map(OsString::from))[0].clone();
+            assert!(line.ends_with(want), "{value}: {line}");
+        }
+        let args = ["tool", "run", "--at", "0x10"];
+        let e = (cmd.clone()).try_get_matches_from(args).unwrap_err();
+        let line = refusal(&e, &cmd, &args.map(OsString::from))[0].clone();
+        assert!(
+            line.ends_with("expected a number in decimal, such as 0.5, -2 or 1e-3"),
+            "{line}"
         );
         // The flag's own range, not its type's.
         let big = ["tool", "run", "--threads", "99999999999999999999"];
