@@ -135,6 +135,11 @@ def test_a_row_asked_for_twice_is_refused_as_the_command_refuses_it():
     ]
     cases.append((dict(horizon=[10, 10.9]), "horizon must be a whole number of periods; found 10.9"))
     cases.append((dict(horizon=10.0), "horizon must be a whole number of periods; found 10.0"))
+    # Past the native conversion's range: an OverflowError named neither.
+    top = cartpole_ddqn.MAX_HORIZON
+    for h in (2**40, -1, 0, [10, 10**30], np.uint64(2**64 - 1)):
+        found = h[-1] if isinstance(h, list) else h
+        cases.append((dict(horizon=h), f"horizon must be in [1, {top}]; found {found}"))
     for kwargs, why in cases:
         with pytest.raises(ValueError, match=re.escape(why)):
             cartpole_ddqn.evaluate(**{"controller": "lqr", "episodes": 1, "horizon": 10, **kwargs})

@@ -334,11 +334,16 @@ def _names(values, what):
 
 
 def _horizon(h):
-    """A horizon as a whole number of periods: 200.7 is refused, not cut to 200."""
+    """A horizon as a whole number of periods in [1, MAX_HORIZON]: 200.7 is refused, not cut
+    to 200, and 2**40 named with the range, where the native conversion's OverflowError
+    named neither."""
     try:
-        return operator.index(h)
+        whole = operator.index(h)
     except TypeError:
         raise ValueError(f"horizon must be a whole number of periods; found {_short(h)}") from None
+    if not 1 <= whole <= MAX_HORIZON:
+        raise ValueError(f"horizon must be in [1, {MAX_HORIZON}]; found {whole}")
+    return whole
 
 
 # The native worlds take a seed as an unsigned 64-bit integer.
