@@ -321,21 +321,44 @@ fn the_host_build_of_the_pil_application_gives_evals_rows() {
     let mut here = reference();
     let mut scenarios = scenarios();
     scenarios.push(Scenario::parse("encoder+glitch+stuck+late+weak=0.5").unwrap());
-    let net = Net::shipped();
-    for (format, kind) in [
+    let runs = [
         (Format::F32, ControllerKind::Policy),
         (Format::Int8, ControllerKind::PolicyInt),
         (Format::F32, ControllerKind::Monitored),
         (Format::Int8, ControllerKind::MonitoredInt),
-    ] {
-        let info = handshake(&mut remote, &mut here, format, &scenarios, Board::Shipped).unwrap();
-        for s in &scenarios {
+    ];
+    let ends = (&mut remote, &mut here);
+    rows_are_evals(
+        ends,
+        Board::Shipped,
+        &Net::shipped(),
+        &scenarios,
+        &runs,
+        (400, 8),
+    );
+}
+
+/// Each row of `runs` (a format and a controller) on each of `scenarios`, `episodes` of
+/// `horizon` periods of seed 3 run through `target` (no answer differing from `here`'s),
+/// equals `eval`'s row of `net`.
+fn rows_are_evals(
+    (target, here): (&mut Session<impl Remote>, &mut Session<impl Remote>),
+    board: Board,
+    net: &Net,
+    scenarios: &[Scenario],
+    runs: &[(Format, ControllerKind)],
+    (horizon, episodes): (u32, u64),
+) {
+    for &(format, kind) in runs {
+        let info = handshake(target, here, format, scenarios, board).unwrap();
+        for s in scenarios {
             let run = (&info, kind);
-            let (eps, check) = run_row(&mut remote, &mut here, run, s, 400, 3, 8, || ()).unwrap();
-            assert_eq!(check.mismatches, 0, "{}: {check:?}", s.name);
-            let pil = Row::from_episodes(&kind.to_string(), &s.name, (400, s.params.tau), 3, &eps);
-            let here = eval::evaluate(kind, &net, s, 400, 3, 8);
-            assert_eq!(pil, here, "{kind} {}", s.name);
+            let (eps, check) = run_row(target, here, run, s, horizon, 3, episodes, || ()).unwrap();
+            assert_eq!(check.mismatches, 0, "{kind} {}: {check:?}", s.name);
+            let span = (horizon, s.params.tau);
+            let pil = Row::from_episodes(&kind.to_string(), &s.name, span, 3, &eps);
+            let want = eval::evaluate(kind, net, s, horizon, 3, episodes);
+            assert_eq!(pil, want, "{kind} {}", s.name);
         }
     }
 }
@@ -349,29 +372,23 @@ fn the_desk_target_gives_evals_rows_refined_or_not() {
     let desk = twin::rigfile::load(&repo().join("rigs/desk-identified.toml")).unwrap();
     let specs = ["nominal", "encoder", "noise+push"].map(String::from);
     let scenarios = Scenario::words_on(&specs, &desk).unwrap();
-    let net = Net::shipped_desk();
     let mut target = Session::new(Board::Desk.reference());
     let mut here = Session::new(Board::Desk.reference());
-    for (format, kind) in [
+    let runs = [
         (Format::F32, ControllerKind::Policy),
         (Format::F32, ControllerKind::PolicyRefined),
         (Format::Int8, ControllerKind::PolicyIntRefined),
         (Format::Int8, ControllerKind::PolicyInt),
-    ] {
-        let info = handshake(&mut target, &mut here, format, &scenarios, Board::Desk).unwrap();
-        for s in &scenarios {
-            let run = (&info, kind);
-            let (eps, check) = run_row(&mut target, &mut here, run, s, 300, 3, 4, || ()).unwrap();
-            assert_eq!(check.mismatches, 0, "{kind} {}: {check:?}", s.name);
-            let pil = Row::from_episodes(&kind.to_string(), &s.name, (300, s.params.tau), 3, &eps);
-            assert_eq!(
-                pil,
-                eval::evaluate(kind, &net, s, 300, 3, 4),
-                "{kind} {}",
-                s.name
-            );
-        }
-    }
+    ];
+    let ends = (&mut target, &mut here);
+    rows_are_evals(
+        ends,
+        Board::Desk,
+        &Net::shipped_desk(),
+        &scenarios,
+        &runs,
+        (300, 4),
+    );
 }
 
 /// A board on the far end of a pseudo-terminal: the link's target on the bytes it reads,
