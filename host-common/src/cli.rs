@@ -123,15 +123,16 @@ fn check_numbers(args: &[OsString]) -> Result<(), String> {
     for (i, arg) in text.iter().enumerate() {
         let Some(arg) = arg else { continue };
         let pieces = arg.split([',', '+', '=', '@', '/', ':', ' ']);
-        if let Some(piece) = pieces.into_iter().find(|p| weights::reads_as_zero(p)) {
+        let mut numbers = pieces.flat_map(|p| p.split(".."));
+        if let Some(piece) = numbers.find(|p| weights::reads_as_zero(p)) {
             let why = weights::zero_in_disguise(piece);
-            // A value given apart from its flag is shown with it.
-            let flag = i.checked_sub(1).and_then(|k| text[k]);
-            let flag = flag.filter(|f| f.starts_with("--") && !f.contains('='));
-            let shown = flag.map_or_else(
-                || weights::quote(arg),
-                |f| format!("{f} {}", weights::quote(arg)),
-            );
+            // A value given apart from its flag is named by it; a flag holds its own.
+            let before = i.checked_sub(1).and_then(|k| text[k]);
+            let flag = before.filter(|f| f.starts_with("--") && !f.contains('='));
+            let shown = match flag.filter(|_| !arg.starts_with("--")) {
+                Some(f) => format!("{f} {}", weights::quote(arg)),
+                None => weights::quote(arg),
+            };
             return Err(format!("{shown}: {why}"));
         }
     }
@@ -421,6 +422,26 @@ mod tests {
         let args = [b"tool".as_slice(), b"run", b"--policy", bad_path]
             .map(|a| std::ffi::OsStr::from_bytes(a).to_owned());
         assert!(cmd.clone().try_get_matches_from(args).is_ok());
+    }
+
+    /// A number that reads as zero is found at a range's end too, and named by the flag
+    /// its value follows, not by a flag before a flag.
+    #[test]
+    fn a_zero_in_disguise_is_found_in_ranges_and_named_by_its_flag() {
+        let check = |args: &[&str]| {
+            let args: Vec<OsString> = args.iter().map(OsString::from).collect();
+            check_numbers(&args).unwrap_err()
+        };
+        let e = check(&["tool", "--set", "domain=glitch=1e-400..0.3"]);
+        assert!(
+            e.starts_with("--set \"domain=glitch=1e-400..0.3\": 1e-400 reads"),
+            "{e}"
+        );
+        let e = check(&["tool", "--json", "--zero-error=1e-400"]);
+        assert!(
+            e.starts_with("\"--zero-error=1e-400\": 1e-400 reads"),
+            "{e}"
+        );
     }
 
     #[test]

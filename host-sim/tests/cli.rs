@@ -460,18 +460,6 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
 
 /// `agree` and `startup` run the network as float and integer and take no --controller: an
 /// envelope given them was read by nothing and their output was as without it.
-/// A refined controller of a policy of two levels, both ends: its rows were the unrefined
-/// ones', bit for bit, without a word.
-#[test]
-fn a_refined_controller_of_two_levels_is_refused() {
-    let why = "its two levels are both ends, with nothing between them to refine; found \
-               policy-int-refined (run the unrefined controller)";
-    refused(
-        &["eval", "--controller", "policy,policy-int-refined"],
-        &format!("the shipped policy: {why}"),
-    );
-}
-
 #[test]
 fn an_envelope_where_no_monitored_controller_runs_is_refused() {
     let envelope = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results/envelope.json");

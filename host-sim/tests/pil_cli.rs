@@ -193,7 +193,9 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
                 &"--pil-elf",
                 &s.join("garbage.elf"),
             ]),
-            &["expected a 32-bit ELF application for Arm (thumbv6m-none-eabi), found no ELF"],
+            &[
+                "expected a 32-bit little-endian ELF application for Arm (thumbv6m-none-eabi), found no",
+            ],
         ),
         Case::new(
             "missing program".into(),

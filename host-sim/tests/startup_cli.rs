@@ -241,6 +241,9 @@ fn a_number_that_reads_as_zero_is_refused_in_a_scenario_and_a_flag() {
         assert!(err.contains("1e-400 reads as 0"), "{args:?}: {err}");
         // The flag named, its value given apart from it.
         let flag = args[1];
-        assert!(err.starts_with(&format!("error: {flag} \"")), "{args:?}: {err}");
+        assert!(
+            err.starts_with(&format!("error: {flag} \"")),
+            "{args:?}: {err}"
+        );
     }
 }

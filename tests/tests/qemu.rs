@@ -65,6 +65,29 @@ fn overruns(stdout: &str, format: &str) -> u32 {
 }
 
 /// Runs the self-test on `target`; its output, once every common check passed.
+/// The report's lines on `target`'s renderings of its own (the VFP dot product on
+/// hard-float cores, the integer kernels on Arm), compared with the portable definitions;
+/// where the target runs the definitions themselves, there is nothing to compare, and the
+/// report says so.
+fn own_kernel_lines(target: &str) -> [String; 3] {
+    let (own_dot, own_int) = (target.ends_with("eabihf"), target.starts_with("thumb"));
+    let kernel = |own: bool, what: &str, cases: &str, portable: &str| match own {
+        true => format!("{what}: 0 of {cases} differ"),
+        false => format!("{what}: the portable {portable} itself on this target"),
+    };
+    let forward = "random observations";
+    [
+        kernel(own_dot, "dot", "1000 random vector pairs", "order"),
+        kernel(own_int, "int", &format!("300 {forward}"), "forward pass"),
+        kernel(
+            own_int,
+            "int, nine levels",
+            &format!("300 {forward}"),
+            "forward pass",
+        ),
+    ]
+}
+
 fn run_on(target: &str) -> Option<String> {
     if std::env::var_os("CARTPOLE_SKIP_QEMU").is_some_and(|v| v == "1") {
         eprintln!("SKIPPED: CARTPOLE_SKIP_QEMU=1, firmware not run on {target}");
@@ -113,28 +136,8 @@ fn run_on(target: &str) -> Option<String> {
         expected_probe_lines(),
         "{target} Q-values differ from the host's"
     );
-    // Where the target has renderings of its own (the VFP dot product on hard-float cores,
-    // the integer kernels on Arm), they are compared with the portable definitions; where
-    // the target runs the definitions themselves, there is nothing to compare, and the
-    // report says so.
-    let (own_dot, own_int) = (target.ends_with("eabihf"), target.starts_with("thumb"));
-    let dot = if own_dot {
-        "dot: 0 of 1000 random vector pairs differ"
-    } else {
-        "dot: the portable order itself on this target"
-    };
-    let int = if own_int {
-        "int: 0 of 300 random observations differ"
-    } else {
-        "int: the portable forward pass itself on this target"
-    };
-    let levels_int = if own_int {
-        "int, nine levels: 0 of 300 random observations differ"
-    } else {
-        "int, nine levels: the portable forward pass itself on this target"
-    };
-    for line in [dot, int, levels_int] {
-        assert!(stdout.contains(line), "{target}: {stdout}");
+    for line in own_kernel_lines(target) {
+        assert!(stdout.contains(&line), "{target}: {stdout}");
     }
     for format in ["f32", "int8"] {
         assert!(

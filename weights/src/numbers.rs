@@ -40,9 +40,14 @@ pub fn hidden_zero(text: &str) -> Option<String> {
             continue;
         }
         if let Some(s) = start.take() {
-            let token = &text[s..i];
-            if reads_as_zero(&token.replace('_', "")) {
-                return Some(crate::located(text, Some(s..i), &zero_in_disguise(token)));
+            // A range's ends (`1e-400..0.5`) each.
+            let mut at = s;
+            for end in text[s..i].split("..") {
+                if reads_as_zero(&end.replace('_', "")) {
+                    let span = at..at + end.len();
+                    return Some(crate::located(text, Some(span), &zero_in_disguise(end)));
+                }
+                at += end.len() + 2;
             }
         }
         match (quote, c) {
@@ -117,6 +122,8 @@ mod tests {
             ("reward = \"env+fail-penalty=1e-400\"", 28),
             ("s = '1e-999'", 6),
             ("u = \"\\n1e-400\"", 8),
+            ("domain = \"glitch=1e-400..0.3\"", 18),
+            ("r = [0.5, 2e-999..1]", 11),
         ] {
             let found = hidden_zero(spec).unwrap_or_default();
             assert!(

@@ -225,13 +225,24 @@ fn forward_escaped(errors: std::process::ChildStderr, what: String) -> Receiver<
     let (done, ended) = channel();
     std::thread::spawn(move || {
         use std::io::BufRead;
-        let lines = std::io::BufReader::new(errors).split(b'\n');
-        for (k, line) in lines.map_while(Result::ok).enumerate() {
+        let mut reader = std::io::BufReader::new(errors);
+        let mut line = Vec::new();
+        // Read in pieces of at most a line's length, so an endless line costs no memory;
+        // past the last line shown the rest is drained, so the target never blocks on it.
+        for k in 0.. {
+            line.clear();
+            let piece = (&mut reader)
+                .take(TARGET_LINE_BYTES)
+                .read_until(b'\n', &mut line);
+            if !matches!(piece, Ok(1..)) {
+                break;
+            }
             let text = String::from_utf8_lossy(&line);
             match k.cmp(&TARGET_LINES) {
-                std::cmp::Ordering::Less => {
-                    host_common::errln!("{what} says: {}", weights::quote(&text))
-                }
+                std::cmp::Ordering::Less => host_common::errln!(
+                    "{what} says: {}",
+                    weights::quote(text.trim_end_matches('\n'))
+                ),
                 std::cmp::Ordering::Equal => host_common::errln!("{what} says more, not shown"),
                 std::cmp::Ordering::Greater => {}
             }
@@ -240,6 +251,9 @@ fn forward_escaped(errors: std::process::ChildStderr, what: String) -> Receiver<
     });
     ended
 }
+
+/// Bytes of a target's line shown as one: a longer one is shown in pieces.
+const TARGET_LINE_BYTES: u64 = 1024;
 
 /// Lines of a target's standard error shown.
 const TARGET_LINES: usize = 100;

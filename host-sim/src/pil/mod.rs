@@ -212,20 +212,21 @@ fn default_elf(target: &str, app: &str) -> PathBuf {
     dir.join(target).join("release").join(app)
 }
 
-/// Refuses an application at `elf` that is no 32-bit ELF file for `target`'s processor
-/// (Arm, or RISC-V), before QEMU runs it: QEMU ran any bytes, and dumped its registers.
+/// Refuses an application at `elf` that is no 32-bit little-endian ELF file for `target`'s
+/// processor family (Arm, or RISC-V), before QEMU runs it: QEMU ran any bytes, and dumped its registers.
 fn elf_for(elf: &Path, target: &str) -> Result<(), String> {
     use std::io::Read;
     let (machine, name) = match target.starts_with("riscv") {
         true => (243u16, "RISC-V"),
         false => (40, "Arm"),
     };
-    let mut head = [0u8; 20];
-    let read = std::fs::File::open(elf).and_then(|f| f.take(20).read(&mut head));
+    let mut head = Vec::with_capacity(20);
+    let read = std::fs::File::open(elf).and_then(|f| f.take(20).read_to_end(&mut head));
     let found = match read {
         Err(e) => format!("a file that cannot be read: {e}"),
         Ok(n) if n < 20 || head[..4] != *b"\x7fELF" => "no ELF file".into(),
-        Ok(_) if head[4] != 1 => "a 64-bit ELF file".into(),
+        // Class 1, 32-bit; data 1, little-endian: every target here.
+        Ok(_) if head[4..6] != [1, 1] => "an ELF file not 32-bit and little-endian".into(),
         Ok(_) if u16::from_le_bytes([head[18], head[19]]) != machine => {
             format!(
                 "an ELF file for machine {}",
@@ -235,7 +236,7 @@ fn elf_for(elf: &Path, target: &str) -> Result<(), String> {
         Ok(_) => return Ok(()),
     };
     Err(format!(
-        "expected a 32-bit ELF application for {name} ({target}), found {found}"
+        "expected a 32-bit little-endian ELF application for {name} ({target}), found {found}"
     ))
 }
 
