@@ -136,10 +136,7 @@ impl Process {
     /// Starts `command`; `what` names it in messages; answers later than `timeout` end the
     /// run.
     pub fn spawn(mut command: Command, what: String, timeout: Duration) -> Result<Process> {
-        use std::os::unix::process::CommandExt;
-        // A group of its own, ended whole: a script's children outlived it.
         let mut child = command
-            .process_group(0)
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
@@ -207,14 +204,43 @@ impl Remote for Process {
 
 impl Drop for Process {
     fn drop(&mut self) {
-        let group = rustix::process::Pid::from_child(&self.child);
-        let _ = rustix::process::kill_process_group(group, rustix::process::Signal::KILL);
+        // The processes it started too (a script's `sleep` outlived the run). Not a process
+        // group of its own, which would keep a terminal's Ctrl-C from reaching them.
+        for pid in descendants(self.child.id()) {
+            let _ = rustix::process::kill_process(pid, rustix::process::Signal::KILL);
+        }
         let _ = self.child.kill();
         let _ = self.child.wait();
         // Its last words before this tool's: bounded, should a process outside its group
         // hold the pipe open.
         let _ = self.errors.recv_timeout(Duration::from_secs(1));
     }
+}
+
+/// Every process below `root`, found by their parents in `/proc` (none where it cannot be
+/// read): gathered whole before any is ended, which would hand its children to init.
+fn descendants(root: u32) -> Vec<rustix::process::Pid> {
+    let parent_of = |entry: std::fs::DirEntry| {
+        let pid: i32 = entry.file_name().to_str()?.parse().ok()?;
+        let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
+        // `pid (name) state ppid ...`, the name holding any bytes but its last `)`.
+        let ppid = stat.rsplit_once(") ")?.1.split(' ').nth(1)?.parse().ok()?;
+        Some((pid, ppid))
+    };
+    let Ok(dir) = std::fs::read_dir("/proc") else {
+        return Vec::new();
+    };
+    let links: Vec<(i32, i32)> = dir.filter_map(|e| parent_of(e.ok()?)).collect();
+    let mut found = vec![root as i32];
+    let mut k = 0;
+    while let Some(&parent) = found.get(k) {
+        found.extend(links.iter().filter(|l| l.1 == parent).map(|l| l.0));
+        k += 1;
+    }
+    found[1..]
+        .iter()
+        .filter_map(|&p| rustix::process::Pid::from_raw(p))
+        .collect()
 }
 
 /// Lines a target writes on its standard error, on this process's, each escaped and cut
