@@ -64,13 +64,13 @@ impl Subject {
     /// one runs it, and the envelope of --envelope. Refused: the monitored controller for a
     /// --policy without an --envelope measured for it.
     pub fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
-        let monitored = kinds.iter().any(|k| k.monitored());
-        if !monitored {
+        let monitored = kinds.iter().find(|k| k.monitored());
+        if monitored.is_none() {
             self.refuse_envelope(&format!("; expected one of them, found {}", names(kinds)))?;
         }
-        if let (Some(path), None, true) = (&self.policy, &self.envelope, monitored) {
+        if let (Some(path), None, Some(k)) = (&self.policy, &self.envelope, monitored) {
             anyhow::bail!(
-                "--controller monitored needs the envelope measured for --policy {}: give \
+                "--controller {k} needs the envelope measured for --policy {}: give \
                  --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
                 weights::shown(path)
             );

@@ -150,6 +150,17 @@ fn bad_input_exits_2_before_any_work() {
             [&monitored[..], &["--policy", fixture]].concat(),
             "--controller monitored needs the envelope measured for --policy",
         ),
+        // Named as given: it said `monitored`.
+        (
+            vec![
+                "eval",
+                "--controller",
+                "policy-int,monitored-int",
+                "--policy",
+                fixture,
+            ],
+            "--controller monitored-int needs the envelope measured for --policy",
+        ),
         (
             [&monitored[..], &["--envelope", not_json]].concat(),
             "expected the JSON `host-sim envelope --json` prints",
