@@ -198,12 +198,12 @@ fn check(a: &StartupArgs) -> Result<()> {
     );
     anyhow::ensure!(
         a.zero_error.abs() <= 10.0 && weights::plain(a.zero_error),
-        "--zero-error must be degrees in [-10, 10], found {:?}",
+        "--zero-error must be degrees in [-10, 10], zero or normal, found {:?}",
         a.zero_error
     );
     anyhow::ensure!(
         (0.0..=10.0).contains(&a.cart_start) && weights::plain(a.cart_start),
-        "--cart-start must be metres in [0, 10], found {:?}",
+        "--cart-start must be metres in [0, 10], zero or normal, found {:?}",
         a.cart_start
     );
     // A millisecond at least: less is no duration a board's period can count.

@@ -159,7 +159,7 @@ fn a_negative_number_or_an_empty_item_is_refused_by_its_flag() {
         ),
         (
             &["startup", "--cart-start", "-0.1"],
-            "--cart-start must be metres in [0, 10], found -0.1",
+            "--cart-start must be metres in [0, 10], zero or normal, found -0.1",
         ),
         (
             &["startup", "--knock", "-5@1"],
@@ -182,7 +182,7 @@ fn a_negative_number_or_an_empty_item_is_refused_by_its_flag() {
         // Any spelling a float takes, which clap took for short flags ('-1', '-.').
         (
             &["startup", "--cart-start", "-1e-5"],
-            "--cart-start must be metres in [0, 10], found -1e-5",
+            "--cart-start must be metres in [0, 10], zero or normal, found -1e-5",
         ),
         (
             &["soak", "--hours", "-.5"],

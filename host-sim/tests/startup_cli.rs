@@ -161,15 +161,20 @@ fn bad_input_exits_2_naming_what_was_expected() {
     );
     refused(
         &["--zero-error", "-12"],
-        "--zero-error must be degrees in [-10, 10], found -12.0",
+        "--zero-error must be degrees in [-10, 10], zero or normal, found -12.0",
     );
     refused(
         &["--zero-error", "nan"],
-        "--zero-error must be degrees in [-10, 10], found NaN",
+        "--zero-error must be degrees in [-10, 10], zero or normal, found NaN",
     );
     refused(
         &["--cart-start=-0.1"],
-        "--cart-start must be metres in [0, 10], found -0.1",
+        "--cart-start must be metres in [0, 10], zero or normal, found -0.1",
+    );
+    // Inside the range, but subnormal: the message said only the range, which holds it.
+    refused(
+        &["--cart-start", "1e-45"],
+        "--cart-start must be metres in [0, 10], zero or normal, found 1e-45",
     );
     // The desk's track: 0.4 m either side; its pole encoder: 2,400 counts a turn.
     refused(
