@@ -281,31 +281,37 @@ fn a_target_of_its_own_rig_draws_no_warning_of_another() {
         .unwrap();
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
-    assert!(
-        err.contains("ended (exit status: 0) without answering"),
-        "{err}"
-    );
+    // Which the host sees first: the exit, or its output closing.
+    let ended = [
+        "ended (exit status: 0) without answering",
+        "closed the link",
+    ];
+    assert!(ended.iter().any(|e| err.contains(e)), "{err}");
     assert!(!err.contains("trained for another rig"), "{err}");
 }
 
 /// A target's own children end with it: a script's `sleep` outlived the run, reparented.
 #[test]
-fn a_silent_targets_children_end_with_it() {
+fn a_targets_children_end_with_it() {
     let s = Scratch::new("pil-group");
     let (script, pid) = (s.join("sleeper"), s.join("pid"));
+    // It answers by echoing, refused at once, once its child has started and been written
+    // down: no timeout to race on a busy host.
     let body = format!(
-        "#!/bin/sh\nsleep 30 &\necho $! > '{}'\nwait\n",
+        "#!/bin/sh\nsleep 30 &\necho $! > '{}'\nexec cat\n",
         pid.display()
     );
     std::fs::write(&script, body).unwrap();
     std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
     let place = format!("exec:{}", script.display());
-    let args = eval(&[&"--pil", &place, &"--pil-timeout", &"1"]);
+    let args = eval(&[&"--pil", &place, &"--pil-timeout", &"600"]);
     let out = std::process::Command::new(exe())
         .args(args)
         .output()
         .unwrap();
-    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("where Info was due"), "{err}");
     let child = std::fs::read_to_string(&pid).unwrap();
     // Gone, or a zombie nobody has reaped yet: no longer running either way.
     let stat = std::fs::read_to_string(format!("/proc/{}/stat", child.trim()));

@@ -205,9 +205,16 @@ impl Remote for Process {
 impl Drop for Process {
     fn drop(&mut self) {
         // The processes it started too (a script's `sleep` outlived the run). Not a process
-        // group of its own, which would keep a terminal's Ctrl-C from reaching them.
-        for pid in descendants(self.child.id()) {
-            let _ = rustix::process::kill_process(pid, rustix::process::Signal::KILL);
+        // group of its own, which would keep a terminal's Ctrl-C from reaching them. Each is
+        // stopped first, so that none starts another while they are gathered.
+        use rustix::process::{Pid, Signal, kill_process};
+        let _ = kill_process(Pid::from_child(&self.child), Signal::STOP);
+        let below = descendants(self.child.id());
+        for &pid in &below {
+            let _ = kill_process(pid, Signal::STOP);
+        }
+        for pid in below {
+            let _ = kill_process(pid, Signal::KILL);
         }
         let _ = self.child.kill();
         let _ = self.child.wait();
