@@ -162,7 +162,7 @@ impl Subject {
         }
         let Some(path) = &self.policy else {
             return Ok((
-                twin::rigfile::choose(given, Some(Machine::GYMNASIUM)),
+                twin::rigfile::choose_warned(given, Some(Machine::GYMNASIUM)),
                 Net::shipped(),
             ));
         };
@@ -170,7 +170,7 @@ impl Subject {
             weights::checkpoint::load_with(path, self.prefix.as_deref(), self.given()?.as_ref())?;
         let source = format!("policy {}", weights::shown(path));
         let recorded = twin::rigfile::recorded(&import.metadata, &source)?;
-        let machine = twin::rigfile::choose(given, recorded);
+        let machine = twin::rigfile::choose_warned(given, recorded);
         let net = Net::from_weights(&import.weights, int.then_some(&machine))
             .with_context(|| format!("policy {}", weights::shown(path)))?;
         Ok((machine, net))

@@ -5,6 +5,8 @@
 use std::path::Path;
 
 use anyhow::Result;
+use twin::Machine;
+use twin::rigfile::OtherRig;
 use weights::checkpoint::Import;
 use weights::quant::{self, Granularity};
 use weights::source;
@@ -44,20 +46,31 @@ pub struct Rendered {
     pub int8: Option<(usize, String)>,
 }
 
-/// The network of `import` (named `source` in refusals) as `lang` source under `name`,
-/// int8-quantised with `quant`, with `provenance` in its header, for the rig file at `rig`
-/// (without one, the rig the policy file records, or Gymnasium's machine).
-pub fn render(
+/// The machine to export the network of `import` (named `source` in refusals) for: the rig
+/// file at `rig` or, without one, the rig the policy file records, or Gymnasium's machine;
+/// with [`OtherRig`] when the two differ, for the caller to warn in its own words.
+pub fn machine(
     import: &Import,
     source: &str,
-    provenance: &[String],
     rig: Option<&Path>,
+) -> Result<(Machine, Option<OtherRig>)> {
+    let given = rig.map(twin::rigfile::load).transpose()?;
+    Ok(twin::rigfile::choose(
+        given,
+        twin::rigfile::recorded(&import.metadata, source)?,
+    ))
+}
+
+/// The network of `import` as `lang` source under `name`,
+/// int8-quantised with `quant`, with `provenance` in its header, for `machine` ([`machine`]).
+pub fn render(
+    import: &Import,
+    provenance: &[String],
+    machine: &Machine,
     lang: Language,
     quant: Option<Granularity>,
     name: &str,
 ) -> Result<Rendered> {
-    let given = rig.map(twin::rigfile::load).transpose()?;
-    let machine = twin::rigfile::choose(given, twin::rigfile::recorded(&import.metadata, source)?);
     let r = &machine.rig;
     let Some(g) = quant else {
         let text = match lang {
@@ -66,7 +79,7 @@ pub fn render(
         };
         return Ok(Rendered { text, int8: None });
     };
-    let q = twin::calibrate::quantise_policy(&import.weights, g, &machine)?;
+    let q = twin::calibrate::quantise_policy(&import.weights, g, machine)?;
     let text = match lang {
         Language::Rust => quant::rust_module(&q, name, provenance, r)?,
         Language::C => quant::c_header(&q, name, provenance, r)?,

@@ -455,15 +455,9 @@ fn cmd_export(a: &ExportArgs) -> Result<()> {
         Some(GranularityArg::PerTensor) => Granularity::PerTensor,
     });
     let source = format!("SRC {}", weights::shown(&a.src));
-    let r = export::render(
-        &import,
-        &source,
-        &prov,
-        a.rig.as_deref(),
-        lang,
-        granularity,
-        &name,
-    )?;
+    let (machine, other) = export::machine(&import, &source, a.rig.as_deref())?;
+    twin::rigfile::warn(other);
+    let r = export::render(&import, &prov, &machine, lang, granularity, &name)?;
     write_atomic(&a.out, r.text.as_bytes())?;
     let (out, params, how) = (
         weights::shown(&a.out),

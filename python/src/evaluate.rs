@@ -62,7 +62,7 @@ pub fn evaluate_json(
     let policy = match policy {
         Some(p) => p,
         None => {
-            shipped = crate::policy::shipped(None)?;
+            shipped = crate::policy::shipped(py, None)?;
             &shipped
         }
     };
@@ -71,7 +71,10 @@ pub fn evaluate_json(
     if let Some(why) = eval::unrefinable(&kinds, refinable) {
         return Err(value_error(format!("policy: {why}")));
     }
-    let machine = given.unwrap_or(policy.machine);
+    let (machine, other) = twin::rigfile::choose(given, Some(policy.machine));
+    if kinds.iter().any(|k| k.needs_policy()) {
+        crate::warn_other_rig(py, other)?;
+    }
     // Counted before the specs are parsed, each a row at least: a parse costs far more.
     check_count(horizons.len(), scenarios.len(), kinds.len())?;
     // A spec asked for twice is named as such before a world two specs build is.

@@ -35,6 +35,7 @@ type Shapes = BTreeMap<String, Vec<usize>>;
 // One argument per keyword of the Python function (`cartpole_ddqn.export`).
 #[allow(clippy::too_many_arguments)]
 pub fn export(
+    py: Python<'_>,
     out: PathBuf,
     fmt: &str,
     path: Option<PathBuf>,
@@ -74,11 +75,13 @@ pub fn export(
             ));
         }
     };
+    let (machine, other) = exporter::machine(&import, &source, rig.as_deref())
+        .map_err(|e| value_error(format!("{e:#}")))?;
+    crate::warn_other_rig(py, other)?;
     let r = exporter::render(
         &import,
-        &source,
         &provenance,
-        rig.as_deref(),
+        &machine,
         lang,
         int.then_some(granularity),
         &name,

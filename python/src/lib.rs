@@ -107,6 +107,21 @@ pub(crate) fn given_machine(rig: Option<&Path>) -> PyResult<Option<Machine>> {
         .map_err(value_error)
 }
 
+/// A Python `UserWarning` (which a caller can catch or filter) when the policy runs on
+/// another machine than it was trained for.
+pub(crate) fn warn_other_rig(
+    py: Python<'_>,
+    other: Option<twin::rigfile::OtherRig>,
+) -> PyResult<()> {
+    let Some(o) = other else {
+        return Ok(());
+    };
+    let text = std::ffi::CString::new(o.warning("rig=")).map_err(value_error)?;
+    let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
+    // Named at the caller of the package's wrapper, which calls this module.
+    PyErr::warn(py, &category, &text, 2)
+}
+
 /// The machine of the rig file at `rig`, or Gymnasium's.
 pub(crate) fn machine(rig: Option<&Path>) -> PyResult<Machine> {
     Ok(given_machine(rig)?.unwrap_or(Machine::GYMNASIUM))

@@ -32,6 +32,7 @@ pub struct Policy {
 #[pyfunction]
 #[pyo3(signature = (path, prefix=None, rig=None, levels=None))]
 pub fn load(
+    py: Python<'_>,
     path: PathBuf,
     prefix: Option<&str>,
     rig: Option<PathBuf>,
@@ -42,7 +43,8 @@ pub fn load(
     let import = checkpoint::load_with(&path, prefix, levels.as_ref()).map_err(file_error)?;
     let source = format!("policy {}", weights::shown(&path));
     let recorded = twin::rigfile::recorded(&import.metadata, &source).map_err(value_error)?;
-    let machine = twin::rigfile::choose(given, recorded);
+    let (machine, other) = twin::rigfile::choose(given, recorded);
+    crate::warn_other_rig(py, other)?;
     let net = Net::from_weights(&import.weights, None)
         .map_err(|e| value_error(format!("{source}: {e:#}")))?;
     Ok(Policy {
@@ -55,10 +57,13 @@ pub fn load(
 /// The policy compiled into the firmware, on Gymnasium's machine or `rig`'s.
 #[pyfunction]
 #[pyo3(signature = (rig=None))]
-pub fn shipped(rig: Option<PathBuf>) -> PyResult<Policy> {
+pub fn shipped(py: Python<'_>, rig: Option<PathBuf>) -> PyResult<Policy> {
+    let given = crate::given_machine(rig.as_deref())?;
+    let (machine, other) = twin::rigfile::choose(given, Some(Machine::GYMNASIUM));
+    crate::warn_other_rig(py, other)?;
     Ok(Policy {
         import: None,
-        machine: crate::machine(rig.as_deref())?,
+        machine,
         net: Arc::new(Net::shipped()),
     })
 }

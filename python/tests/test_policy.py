@@ -3,6 +3,7 @@ NumPy forward pass and the simulator's command line."""
 
 import json
 import re
+import warnings
 
 import numpy as np
 import pytest
@@ -172,3 +173,22 @@ def test_five_outputs_without_their_levels_are_refused(tmp_path, levels, says):
     write_safetensors(path, five_outputs())
     with pytest.raises(ValueError, match=says):
         cartpole_ddqn.load(path, levels=levels)
+
+
+def test_a_policy_run_on_another_rig_gives_a_python_warning(tmp_path, capfd):
+    """The command line's warning, which was printed raw and named `--rig`, as a `UserWarning`
+    a caller can catch or filter; and none where no policy is read."""
+    desk = REPO / "rigs" / "desk.toml"
+    want = "trained for another rig than rig= gives"
+    with pytest.warns(UserWarning, match=want) as caught:
+        cartpole_ddqn.load(SHIPPED, rig=desk)
+        cartpole_ddqn.shipped(rig=desk)
+        cartpole_ddqn.evaluate(episodes=1, horizon=5, rig=desk)
+        cartpole_ddqn.export(SHIPPED, tmp_path / "p.h", fmt="c", rig=desk)
+    assert len(caught) == 4
+    assert all(w.filename == __file__ for w in caught)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cartpole_ddqn.evaluate(episodes=1, horizon=5, rig=desk, controller="lqr")
+        cartpole_ddqn.load(SHIPPED)
+    assert "warning" not in capfd.readouterr().err
