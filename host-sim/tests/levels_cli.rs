@@ -109,20 +109,31 @@ fn the_rounded_lqr_drives_the_policys_levels() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// A refined controller of a policy of two levels, both ends: its rows were the unrefined
-/// ones', bit for bit, without a word.
+/// A refined controller, or the LQR rounded to the levels, of a policy of two levels, both
+/// ends: its rows were the unrefined (or bang-bang) ones', bit for bit, without a word.
 #[test]
-fn a_refined_controller_of_two_levels_is_refused() {
-    let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
-        .args(["eval", "--controller", "policy,policy-int-refined"])
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert_eq!(o.status.code(), Some(2), "{err}");
-    let why = "error: the shipped policy: its two levels are both ends, with nothing between \
-               them to refine; found policy-int-refined (run the unrefined controller)";
-    assert_eq!(err.trim_end(), why);
-    assert!(o.stdout.is_empty());
+fn a_controller_between_two_levels_is_refused() {
+    for (asked, why) in [
+        (
+            "policy,policy-int-refined",
+            "to refine; found policy-int-refined, which would run as policy-int (run that)",
+        ),
+        (
+            "lqr,lqr-levels-predict",
+            "to round to; found lqr-levels-predict, which would run as lqr-predict (run that)",
+        ),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["eval", "--controller", asked])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        let head = "error: the shipped policy: its two levels are both ends, with nothing \
+                    between them ";
+        assert_eq!(err.trim_end(), format!("{head}{why}"));
+        assert!(o.stdout.is_empty());
+    }
 }
 
 /// Exit 2, within the refusals' processor time, with each of `want` in a short message that

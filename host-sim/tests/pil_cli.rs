@@ -116,7 +116,7 @@ fn bad_controllers(echo: &str) -> Vec<Case> {
             &eval(&[&"--pil", &echo, &"--controller", &"policy,policy-refined"]),
             &[
                 "--pil-policy shipped: its two levels are both ends, with nothing between them \
-               to refine; found policy-refined (run the unrefined controller)",
+               to refine; found policy-refined, which would run as policy (run that)",
             ],
         ),
         Case::new(

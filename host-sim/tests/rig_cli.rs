@@ -370,7 +370,7 @@ fn a_policy_that_no_row_reads_is_refused() {
         read_by,
     );
     assert!(!out.exists());
-    // The rig it records is the machine, as --rig would give it; a row of its levels reads it.
+    // The rig it records is the machine, as --rig would give it; a row of the network reads it.
     let json = |args: &[&str]| -> serde_json::Value {
         let o = run(&[args, &["--json"]].concat());
         assert!(
@@ -383,11 +383,6 @@ fn a_policy_that_no_row_reads_is_refused() {
     let by_policy = json(&short_eval(&["--policy", on_desk, "--controller", "lqr"]));
     let by_rig = json(&short_eval(&["--rig", desk, "--controller", "lqr"]));
     assert_eq!(by_policy["rows"], by_rig["rows"]);
-    json(&short_eval(&[
-        "--policy",
-        bare,
-        "--controller",
-        "lqr-levels",
-    ]));
+    json(&short_eval(&["--policy", bare, "--controller", "policy"]));
     std::fs::remove_dir_all(&dir).unwrap();
 }

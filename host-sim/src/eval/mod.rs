@@ -126,6 +126,18 @@ impl ControllerKind {
         )
     }
 
+    /// The controller this one runs as where the levels are two, both ends: refining
+    /// between them, or rounding the LQR's duty to them, leaves the ends alone.
+    pub fn on_two_levels(self) -> Option<ControllerKind> {
+        Some(match self {
+            ControllerKind::PolicyRefined => ControllerKind::Policy,
+            ControllerKind::PolicyIntRefined => ControllerKind::PolicyInt,
+            ControllerKind::LqrLevels => ControllerKind::Lqr,
+            ControllerKind::LqrLevelsPredict => ControllerKind::LqrPredict,
+            _ => return None,
+        })
+    }
+
     /// Whether the runtime monitor decides who drives.
     pub fn monitored(self) -> bool {
         matches!(
@@ -156,13 +168,22 @@ impl fmt::Display for ControllerKind {
     }
 }
 
-/// The words that refuse a refined controller among `kinds` for a policy that is not
-/// `refinable` (two levels, both ends: such a row is the unrefined one's, bit for bit).
+/// The words that refuse a controller among `kinds` that works between the levels, for a
+/// policy that is not `refinable` (two levels, both ends): such a row is another
+/// controller's ([`ControllerKind::on_two_levels`]), bit for bit.
 pub fn unrefinable(kinds: &[ControllerKind], refinable: bool) -> Option<String> {
-    let c = kinds.iter().find(|k| k.refined()).filter(|_| !refinable)?;
+    let (c, same) = kinds
+        .iter()
+        .find_map(|&k| Some((k, k.on_two_levels()?)))
+        .filter(|_| !refinable)?;
+    let what = if c.refined() {
+        "to refine"
+    } else {
+        "to round to"
+    };
     Some(format!(
-        "its two levels are both ends, with nothing between them to refine; found {c} (run \
-         the unrefined controller)"
+        "its two levels are both ends, with nothing between them {what}; found {c}, which \
+         would run as {same} (run that)"
     ))
 }
 
