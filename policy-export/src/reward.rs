@@ -140,6 +140,12 @@ impl Reward {
                 }
             }
         }
+        if r.scale == 0.0 {
+            return Err(format!(
+                "reward {shown}: scale=0 makes every reward 0, leaving nothing to learn; \
+                 expected a scale other than 0 and 1"
+            ));
+        }
         // Without morvan or a weight, every step's reward is 1, the terminating one's too.
         let shaped = r.morvan || [r.upright, r.centre, r.effort, r.smooth, r.heat] != [0.0; 5];
         if r.fail == Some(1.0) && !shaped {
@@ -285,6 +291,9 @@ mod tests {
             ("env+env", "found \"env\" again"),
             ("smooth=0", "other than 0 (which changes nothing)"),
             ("scale=1", "other than 1"),
+            // Every reward 0, the failing step's too: nothing to learn, without a word.
+            ("env+scale=0", "scale=0 makes every reward 0"),
+            ("upright=1+scale=-0", "scale=0 makes every reward 0"),
             ("fail-penalty=5e-324", "zero or normal, e.g."),
             ("upright=1e-40", "zero or normal"),
             // Every step's reward is 1 here, the terminating one's too.

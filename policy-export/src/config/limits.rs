@@ -11,7 +11,7 @@
 use std::fmt;
 use std::ops::RangeInclusive;
 
-use super::{Config, ConfigError, TargetUpdate};
+use super::{Config, ConfigError, TargetUpdate, Unit};
 
 /// Largest TOML file `--config` reads: room for a rig's text (64 KiB) and every key beside
 /// it. A TOML document costs about 80 bytes a byte while it is parsed, whatever the keys.
@@ -223,6 +223,7 @@ impl Config {
             );
         }
         errs.extend(self.domains_on_rig());
+        errs.extend(self.decay_that_never_moves());
         if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
             errs.push(format!(
                 "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
@@ -234,6 +235,23 @@ impl Config {
 }
 
 impl Config {
+    /// A decay so long that epsilon never leaves `eps_start` in the longest run the
+    /// configuration allows (`exp(-t / eps_decay)` rounds to 1): `eps_end`, and the decay
+    /// itself, would then be read by nothing, as where the two ends are equal.
+    fn decay_that_never_moves(&self) -> Option<String> {
+        let (t, unit) = match self.eps_unit {
+            Unit::Episodes => (self.episodes as f64, "episodes"),
+            Unit::Steps => (self.episodes as f64 * f64::from(self.max_steps), "steps"),
+        };
+        ((-t / self.eps_decay).exp() == 1.0 && decays(self)).then(|| {
+            format!(
+                "eps_decay ({:?}) leaves epsilon at eps_start for the whole run ({t} {unit} at \
+                 most), so eps_end is never approached; expected a decay the run can move",
+                self.eps_decay
+            )
+        })
+    }
+
     /// Each domain key's refusal on the machine trained for (`rig`): a domain's factors
     /// scale that machine, whose motor may have no damping. Judged once the rig reads (a rig
     /// that does not is refused by its own key) and the domain parses (refused by its own).

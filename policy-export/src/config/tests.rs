@@ -123,6 +123,19 @@ fn bad_values_are_named() {
     );
     bad(|c| c.adam_eps = 1e-50, "adam_eps must be a normal f32 > 0");
     bad(|c| c.tau = 0.0, "tau must be in (0, 1]");
+    // Epsilon stayed at eps_start for the whole run: eps_end was read by nothing.
+    bad(
+        |c| c.eps_decay = 1e300,
+        "eps_decay (1e300) leaves epsilon at eps_start for the whole run (60000 steps at most)",
+    );
+}
+
+#[test]
+fn a_decay_the_longest_run_can_move_is_taken() {
+    let mut c = Config::paper();
+    // exp(-60000 / 1e19) is below 1 in f64.
+    c.eps_decay = 1e19;
+    c.validate().unwrap();
 }
 
 #[test]
