@@ -207,9 +207,15 @@ fn documents(root: &Path) -> Result<Vec<PathBuf>> {
         .with_context(|| format!("listing {}", weights::shown(&root.join("docs"))))?
         .map(|e| e.map(|e| Path::new("docs").join(e.file_name())))
         .collect::<std::io::Result<_>>()?;
-    docs.retain(|d| d.extension().is_some_and(|x| x == "md") && root.join(d).is_file());
+    // Every document is read, so one that is no regular file (a FIFO, a directory, a link to
+    // nothing or to a device) is refused by name where it was skipped without a word.
+    let hidden = |d: &PathBuf| {
+        d.file_name()
+            .is_some_and(|n| n.as_encoded_bytes().starts_with(b"."))
+    };
+    docs.retain(|d| d.extension().is_some_and(|x| x == "md") && !hidden(d));
     docs.sort();
-    if root.join("README.md").is_file() {
+    if root.join("README.md").symlink_metadata().is_ok() {
         docs.insert(0, PathBuf::from("README.md"));
     }
     Ok(docs)

@@ -157,6 +157,38 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// A document that is no regular file (a directory, a FIFO, a link to nothing or to a
+/// device) was skipped without a word: each is refused by name, nothing written.
+#[test]
+fn a_document_that_is_no_regular_file_is_refused() {
+    let stale = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
+    let makers: [(&str, &str, fn(&Path)); 4] = [
+        ("dir", "found a directory", |p| {
+            std::fs::create_dir(p).unwrap()
+        }),
+        ("fifo", "found a FIFO", |p| {
+            let made = std::process::Command::new("mkfifo").arg(p).status();
+            assert!(made.unwrap().success());
+        }),
+        ("gone", "docs/Z.md", |p| {
+            std::os::unix::fs::symlink(p.with_extension("gone"), p).unwrap()
+        }),
+        ("device", "docs/Z.md", |p| {
+            std::os::unix::fs::symlink("/dev/zero", p).unwrap()
+        }),
+    ];
+    for (name, want, make) in makers {
+        let root = scratch(&format!("odd-{name}"), &[("docs/A.md", stale)]);
+        make(&root.join("docs/Z.md"));
+        let o = tables(&[], &root);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{name}: {}", stderr(&o));
+        let a = std::fs::read_to_string(root.join("docs/A.md")).unwrap();
+        assert_eq!(a, stale, "{name}: a refusal left a document rewritten");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+}
+
 /// Text a results file gives reaches its page escaped: an argument with an escape sequence,
 /// a backtick and a line break, a CPU named with a bell, a controller with a line break,
 /// each a `|` besides, broke the page's table and headed it anew, with the control
