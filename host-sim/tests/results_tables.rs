@@ -157,12 +157,15 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// A kind of file, the words that refuse it, and how to make one.
+type Maker = (&'static str, &'static str, fn(&Path));
+
 /// A document that is no regular file (a directory, a FIFO, a link to nothing or to a
 /// device) was skipped without a word: each is refused by name, nothing written.
 #[test]
 fn a_document_that_is_no_regular_file_is_refused() {
     let stale = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
-    let makers: [(&str, &str, fn(&Path)); 4] = [
+    let makers: [Maker; 4] = [
         ("dir", "found a directory", |p| {
             std::fs::create_dir(p).unwrap()
         }),
