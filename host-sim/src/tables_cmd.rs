@@ -32,7 +32,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
         None => find_root(&std::env::current_dir()?)?,
     };
     check_pages_apart(&root)?;
-    let mut updates: Vec<(PathBuf, String, Vec<Stale>)> = Vec::new();
+    let mut updates: Vec<Generated> = Vec::new();
     for doc in documents(&root)? {
         let text = read_text(&root.join(&doc))
             .with_context(|| format!("reading {}", weights::shown(&doc)))?;
@@ -90,7 +90,7 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
 /// Each results file's page, rendered, with a stale entry if it differs from the page on disk
 /// (or there is none). The manifest titles the pages; a root without one gets untitled pages.
 /// A manifest that is a link to nothing is one that cannot be read, not none.
-fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
+fn results_pages(root: &Path) -> Result<Vec<Generated>> {
     let manifest = match root.join(manifest::PATH).symlink_metadata() {
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
         _ => Some(Manifest::load(root)?),
@@ -106,11 +106,11 @@ fn results_pages(root: &Path) -> Result<Vec<(PathBuf, String, Vec<Stale>)>> {
     for (name, json, steps) in &files {
         let page = pages::page(name, json, steps).map_err(anyhow::Error::msg)?;
         let what = format!("the page differs from {name}");
-        out.push(generated(root, &pages::path(name), page, what));
+        out.push(generated(root, &pages::path(name), page, what)?);
     }
     let index = pages::index(&files).map_err(anyhow::Error::msg)?;
     let what = format!("the list of results pages differs from {RESULTS_DIR}");
-    out.push(generated(root, pages::INDEX, index, what));
+    out.push(generated(root, pages::INDEX, index, what)?);
     Ok(out)
 }
 
@@ -134,16 +134,42 @@ fn check_pages_apart(root: &Path) -> Result<()> {
     Ok(weights::files::check_apart(&files, &[])?)
 }
 
-/// A generated file's new text, with a stale entry (`what`) if the file on disk differs.
-fn generated(root: &Path, path: &str, text: String, what: String) -> (PathBuf, String, Vec<Stale>) {
-    let old = std::fs::read(root.join(path)).unwrap_or_default();
+/// A generated file's new text, with a stale entry (`what`) if the file on disk differs;
+/// refused if what stands at its place is no regular file (a FIFO there was opened and
+/// waited on for ever, even by `--check`).
+fn generated(root: &Path, path: &str, text: String, what: String) -> Result<Generated> {
+    let place = root.join(path);
+    let old = match place.symlink_metadata() {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Vec::new(),
+        // Cut at one byte past the new text: a page that long differs whatever follows.
+        Ok(m) if m.is_file() => prefix(&place, text.len() as u64 + 1)?,
+        Ok(m) => anyhow::bail!(
+            "{}: expected a regular file or none, to write its page in, found {}",
+            weights::shown(&place),
+            weights::files::kind(&m.file_type())
+        ),
+        Err(e) => anyhow::bail!("{}: {e}", weights::shown(&place)),
+    };
     let stale = if old == text.as_bytes() {
         Vec::new()
     } else {
         vec![Stale { line: 1, what }]
     };
-    (PathBuf::from(path), text, stale)
+    Ok((PathBuf::from(path), text, stale))
 }
+
+/// Up to `n` bytes of the regular file at `path`.
+fn prefix(path: &Path, n: u64) -> Result<Vec<u8>> {
+    use std::io::Read;
+    let mut bytes = Vec::new();
+    std::fs::File::open(path)
+        .and_then(|f| f.take(n).read_to_end(&mut bytes))
+        .with_context(|| format!("reading {}", weights::shown(path)))?;
+    Ok(bytes)
+}
+
+/// A place's path, its new text and how it differs from what is there.
+type Generated = (PathBuf, String, Vec<Stale>);
 
 /// The names of the JSON files in docs/results/, sorted. A name is its page's and a link's
 /// target as it is, so it must need no escaping there: ASCII letters, digits, `.`, `_` and

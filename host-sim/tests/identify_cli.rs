@@ -177,6 +177,11 @@ fn malformed_rows_are_refused(dir: &Path, [cart, swing, rig]: [&Path; 3], out: &
         ("10,1,5".to_string(), "expected 4 columns"),
         ("11,1,5,0".to_string(), "period: expected 10, found 11"),
         (over, "at most a revolution"),
+        // Parsed as 0 without a word.
+        (
+            format!("10,1e-400,{},{}", f[2], f[3]),
+            "duty: expected a number from -1 to 1",
+        ),
     ] {
         lines[header + 11] = replacement;
         std::fs::write(&bad, lines.join("\n") + "\n").unwrap();

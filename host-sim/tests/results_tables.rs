@@ -161,7 +161,8 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
 type Maker = (&'static str, &'static str, fn(&Path));
 
 /// A document that is no regular file (a directory, a FIFO, a link to nothing or to a
-/// device) was skipped without a word: each is refused by name, nothing written.
+/// device) was skipped without a word, and a FIFO as a page hung: each is refused by name,
+/// nothing written.
 #[test]
 fn a_document_that_is_no_regular_file_is_refused() {
     let stale = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
@@ -188,6 +189,21 @@ fn a_document_that_is_no_regular_file_is_refused() {
         assert!(stderr(&o).contains(want), "{name}: {}", stderr(&o));
         let a = std::fs::read_to_string(root.join("docs/A.md")).unwrap();
         assert_eq!(a, stale, "{name}: a refusal left a document rewritten");
+        let _ = std::fs::remove_dir_all(&root);
+    }
+    // A FIFO where a page goes was opened and waited on for ever, `--check` too.
+    for page in ["docs/results/r.md", "docs/results/README.md"] {
+        let root = scratch("odd-page", &[("docs/A.md", stale)]);
+        (makers[1].2)(&root.join(page));
+        for args in [&["--check"][..], &[]] {
+            let o = tables(args, &root);
+            assert_eq!(o.status.code(), Some(2), "{page}: {}", stderr(&o));
+            assert!(
+                stderr(&o).contains("found a FIFO"),
+                "{page}: {}",
+                stderr(&o)
+            );
+        }
         let _ = std::fs::remove_dir_all(&root);
     }
 }

@@ -191,10 +191,12 @@ impl Log {
                 "period: expected {expected}, found {period} (the period numbers must run from 0 without gaps)"
             )));
         }
+        // `1e-400` parses as 0, which a board's log never writes so.
         let duty = fields[1]
             .parse::<f64>()
             .ok()
-            .filter(|d| (-1.0..=1.0).contains(d) && weights::plain(*d));
+            .filter(|d| (-1.0..=1.0).contains(d) && weights::plain(*d))
+            .filter(|_| !weights::reads_as_zero(fields[1]));
         let duty = duty.ok_or_else(|| field(1, "duty", "a number from -1 to 1, zero or normal"))?;
         let cart: i32 = fields[2]
             .parse()
