@@ -3,6 +3,8 @@ Gymnasium's CartPole pushed with the level's force), the checks `--levels` makes
 policy of five levels acting through the environment as `evaluate` runs it."""
 
 import re
+from decimal import Decimal
+from fractions import Fraction
 
 import gymnasium as gym
 import numpy as np
@@ -102,6 +104,28 @@ def test_levels_that_are_no_list_of_numbers_raise_type_error_naming_levels(tmp_p
     ]
     for call in calls:
         with pytest.raises(TypeError, match=r"^levels must be a list of duty levels, numbers .*" + re.escape(found)):
+            call()
+    assert not out.exists()
+
+
+@pytest.mark.parametrize(
+    "item, words",
+    [
+        (Decimal("1e-400"), "reads as 0 in a float"),
+        (Fraction(1, 10**400), "reads as 0 in a float"),
+        (10**400, "within float's range"),
+    ],
+)
+def test_a_level_float_cannot_hold_raises_value_error_naming_levels(tmp_path, item, words):
+    """Each became a level of 0 (or an OverflowError naming nothing) without a word."""
+    out = tmp_path / "never.rs"
+    calls = [
+        lambda: cartpole_ddqn.TwinEnv(levels=[-1, item, 1]),
+        lambda: cartpole_ddqn.load(tmp_path / "missing.safetensors", levels=[-1, item, 1]),
+        lambda: cartpole_ddqn.export(tmp_path / "missing.safetensors", out, levels=[-1, item, 1]),
+    ]
+    for call in calls:
+        with pytest.raises(ValueError, match=r"^levels.*" + re.escape(words)):
             call()
     assert not out.exists()
 

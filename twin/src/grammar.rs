@@ -369,10 +369,12 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
         let v = match f.kind {
             // `-0` reads as 0: the two build one world, and a world's key (its `Debug`
             // text, `words::refuse_same_world`) must not tell them apart.
+            // `1e-400` too is a zero in disguise, wherever the spec came from (Python's
+            // `scenario=`, a TOML escape), not only on a command line.
             Kind::Real => t
                 .parse::<f64>()
                 .ok()
-                .filter(|v| weights::plain(*v))
+                .filter(|v| weights::plain(*v) && !weights::reads_as_zero(t))
                 .map(|v| v + 0.0),
             Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
         };

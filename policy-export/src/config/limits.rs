@@ -124,7 +124,15 @@ impl Limit {
                 Err(format!("{key} must be {be}, got {got}"))
             }
         };
-        let parsed = |r: Result<(), String>| r.map_err(|e| format!("{key}: {e}"));
+        // A spec's numbers as they arrive, after any TOML escape (`1e\u002d400`) the
+        // check of the file's text cannot see through: each would parse as 0.
+        let parsed = |r: Result<(), String>| {
+            let hidden = match v {
+                Value::Text(s) => weights::hidden_zero(s),
+                _ => None,
+            };
+            hidden.map_or(r, Err).map_err(|e| format!("{key}: {e}"))
+        };
         match (self, v) {
             (Limit::Count(r), Value::Whole(n)) => must(
                 r.contains(&n),

@@ -192,9 +192,17 @@ def _level(v):
     text = isinstance(v, (str, bytes, bytearray))
     if not text and not (isinstance(v, numbers.Complex) and not isinstance(v, numbers.Real)):
         try:
-            return float(v)
+            f = float(v)
+        except OverflowError:
+            raise ValueError(f"levels must be {_LEVELS} within float's range; found the item {_short(v)}") from None
         except (TypeError, ValueError):
             pass
+        else:
+            # A Decimal("1e-400") or a Fraction that small becomes 0 in a float, a level the
+            # caller did not write.
+            if f == 0 and v != 0:
+                raise ValueError(f"levels: the item {_short(v)} reads as 0 in a float; expected 0 written as 0, or a number of at least 1.1754944e-38")
+            return f
     raise TypeError(f"levels must be {_LEVELS}; found the item {_short(v)} ({type(v).__name__})")
 
 

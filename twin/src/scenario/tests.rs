@@ -123,6 +123,11 @@ fn bad_specs_are_rejected_with_the_reason() {
         // One quantity's factors multiply: each is fine, their product is not.
         ("length=999+length=999", "length comes to 9.98"),
         ("length=1e300", "found \"1e300\""),
+        // Read as 0 where no command line's check saw it (Python's `scenario=`).
+        (
+            "noise=1e-400",
+            "scale must be zero or a normal number in [0, 1000], found \"1e-400\"",
+        ),
         (
             "push=1e9",
             "impulse must be zero or a normal number in [0, 1000]",
