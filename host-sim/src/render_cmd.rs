@@ -77,7 +77,7 @@ pub struct RenderArgs {
 pub fn run(a: &RenderArgs) -> Result<()> {
     let (horizon, stride, out) = (a.horizon, a.stride, a.out.as_path());
     bound(horizon.into(), stride, "--horizon")?;
-    let (gif, png) = pictures(out)?;
+    let (gif, png) = pictures("--out", out)?;
     crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
     // Built and judged once, on the machine the episode runs on (`--rig`, or the policy's
     // own rig), not read first on another one.
@@ -99,15 +99,16 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     Ok(())
 }
 
-/// The two pictures' paths in `out`, once `out` is found to be a directory or a new path:
+/// The two pictures' paths in `out` (`flag`'s), once `out` is found to be a directory or a new path:
 /// checked before the work, and replaced whole.
-pub fn pictures(out: &Path) -> Result<(PathBuf, PathBuf)> {
+pub fn pictures(flag: &str, out: &Path) -> Result<(PathBuf, PathBuf)> {
+    weights::files::check_dir_name(flag, out)?;
     let (gif, png) = (out.join("episode.gif"), out.join("episode.png"));
     if let Ok(m) = std::fs::symlink_metadata(out)
         && !m.is_dir()
     {
         anyhow::bail!(
-            "--out {}: expected a directory (or a new path), found {}",
+            "{flag} {}: expected a directory (or a new path), found {}",
             weights::shown(out),
             weights::files::kind(&m.file_type())
         );
@@ -126,7 +127,8 @@ pub fn draw(
     stride: usize,
     (title, caption): (&str, &str),
 ) -> Result<(PathBuf, PathBuf)> {
-    let (gif, png) = pictures(out)?;
+    // Checked as the command's own flag before the work; `out` is what it named.
+    let (gif, png) = pictures("--out", out)?;
     let mut batch = Batch::default();
     batch.dir(out)?;
     let gif_tmp = batch.file(&gif)?;

@@ -220,7 +220,7 @@ fn check(a: &StartupArgs) -> Result<()> {
             a.episodes,
             a.episode
         );
-        let (gif, png) = crate::render_cmd::pictures(out)?;
+        let (gif, png) = crate::render_cmd::pictures("--render", out)?;
         let mut inputs = a.subject.inputs();
         inputs.extend(a.world.clone().map(|w| ("--world", w)));
         crate::check_io(&inputs, &[("--render", &gif), ("--render", &png)])?;

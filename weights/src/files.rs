@@ -182,6 +182,23 @@ pub fn ends_in_dot(path: &Path) -> bool {
     text == b"." || text.ends_with(b"/.")
 }
 
+/// Refuses a directory output (`flag`'s) whose last component is `.` or `..` after others
+/// (`out/new/.`, `out/new/..`): the first was refused by the system after the work, the
+/// second made `out/new` and wrote in `out`. `.` and `..` alone name a directory that is.
+pub fn check_dir_name(flag: &str, path: &Path) -> Result<()> {
+    let text = path.as_os_str().as_encoded_bytes();
+    let last = text.rsplit(|&b| b == b'/').next().unwrap_or_default();
+    if text.contains(&b'/') && (last == b"." || last == b"..") {
+        return Err(Error::Input(format!(
+            "{flag} {}: expected a directory named by its own name, found a path ending in \
+             '/{}'",
+            crate::shown(path),
+            String::from_utf8_lossy(last)
+        )));
+    }
+    Ok(())
+}
+
 /// Checks that `path` can be an output: absent, or a regular file (which will be replaced),
 /// not the same file as any of `inputs`, in a place this process can write
 /// ([`check_place`]). Call it before the work that produces the output, so a bad `--out`

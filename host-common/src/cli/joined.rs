@@ -1,4 +1,4 @@
-//! Negative numbers in every spelling as their flags' values.
+//! Negative numbers, lists and ranges in every spelling as their flags' values.
 
 use std::ffi::OsString;
 
@@ -32,16 +32,24 @@ pub(super) fn numbers_joined(cmd: &clap::Command, args: Vec<OsString>) -> Vec<Os
             continue;
         };
         match rest.next() {
-            Some(v)
-                if v.to_str()
-                    .is_some_and(|n| n.starts_with('-') && n.parse::<f64>().is_ok()) =>
-            {
+            Some(v) if v.to_str().is_some_and(negative) => {
                 out.push(format!("{flag}={}", v.to_string_lossy()).into());
             }
             next => out.extend(std::iter::once(flag.into()).chain(next)),
         }
     }
     out
+}
+
+/// Whether `arg` reads as a negative value rather than a flag: a number a float parser
+/// takes (`-inf` too), or `-` before anything but a letter or another `-` (a list `-5,10`, a
+/// range `-1..3`, a spelling the flag's own parser names: `-0x10`, `-1_0`, `-.`).
+fn negative(arg: &str) -> bool {
+    let Some(rest) = arg.strip_prefix('-') else {
+        return false;
+    };
+    let first = rest.chars().next();
+    arg.parse::<f64>().is_ok() || first.is_some_and(|c| c != '-' && !c.is_alphabetic())
 }
 
 #[cfg(test)]
@@ -64,12 +72,18 @@ mod tests {
             let out = numbers_joined(&cmd, args);
             out.into_iter().map(|a| a.into_string().unwrap()).collect()
         };
-        for n in ["-1e-5", "-.5", "-inf", "-NaN", "-1E-400", "-1"] {
+        for n in [
+            "-1e-5", "-.5", "-inf", "-NaN", "-1E-400", "-1", "-5,10", "-1..3", "-0x10", "-1_0",
+            "-\u{661}", "-.",
+        ] {
             let want = ["tool", "run", &format!("--at={n}")];
             assert_eq!(joined(&["tool", "run", "--at", n]), want, "{n}");
         }
         for kept in [
             &["tool", "run", "--at", "-x"][..],
+            &["tool", "run", "--at", "-\u{e9}"],
+            &["tool", "run", "--at", "--quiet"],
+            &["tool", "run", "--at", "-"],
             &["tool", "run", "--quiet", "-1e-5"],
             &["tool", "run", "--", "--at", "-1e-5"],
             &["tool", "run", "--at"],

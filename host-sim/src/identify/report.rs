@@ -144,6 +144,7 @@ pub fn plot_paths(dir: &Path, logs: &[Log]) -> Vec<[PathBuf; 2]> {
 /// Checks that the plots can be written: `dir` a directory or a new path, each plot a
 /// regular file or none, none of them an input.
 pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Result<()> {
+    weights::files::check_dir_name("--plots", dir)?;
     if let Ok(m) = std::fs::symlink_metadata(dir)
         && !m.is_dir()
     {

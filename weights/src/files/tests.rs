@@ -232,3 +232,22 @@ fn names_differing_only_in_invalid_bytes_have_hidden_names_of_their_own() {
     assert_eq!(a.to_string_lossy(), b.to_string_lossy());
     assert_ne!(temp_path(&a), temp_path(&b));
 }
+
+/// A directory output ending in `/.` or `/..` after others is refused (the system refused
+/// the first after the work; the second made a directory and wrote in its parent); `.` and
+/// `..` alone, and `..` leading, name directories that are.
+#[test]
+fn a_directory_ending_in_a_dot_is_refused() {
+    for bad in ["new/.", "new/..", "a/b/..", "/tmp/x/."] {
+        let e = check_dir_name("--plots", Path::new(bad))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with(&format!("--plots {bad}: expected a directory")),
+            "{e}"
+        );
+    }
+    for good in [".", "..", "../plots", "./plots", "plots", "a/.b", "a/..c"] {
+        check_dir_name("--plots", Path::new(good)).unwrap();
+    }
+}
