@@ -12,8 +12,9 @@ use host_sim::eval::names;
 pub(super) fn check_eval(a: &EvalArgs) -> Result<()> {
     if let Some(m) = a.min_success {
         anyhow::ensure!(
-            (0.0..=1.0).contains(&m) && weights::plain(m),
-            "--min-success must lie in [0, 1], zero or normal, got {m:?}"
+            // At 0 every row passes: a gate that checks nothing.
+            m > 0.0 && m <= 1.0 && weights::plain(m),
+            "--min-success must lie in (0, 1], normal, got {m:?}"
         );
         // It judges the network's rows alone: without one it checked nothing and exited 0,
         // a gate that always passes.

@@ -129,7 +129,7 @@ struct EvalArgs {
     /// Print one JSON object with a `rows` array instead of the table.
     #[arg(long)]
     json: bool,
-    /// Exit 1 if the network's success rate falls below this in any row (0 to 1).
+    /// Exit 1 if the network's success rate falls below this in any row (above 0, at most 1).
     #[arg(long)]
     min_success: Option<f64>,
     #[command(flatten)]

@@ -122,6 +122,15 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         startup.swing = None;
     }
     let tau = board.rig.params.tau;
+    // Rounded to no period, it judged episodes at no time and reported 0%.
+    for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
+        anyhow::ensure!(
+            (s / tau).round() >= 1.0,
+            "{flag} {s:?} s rounds to no period of {tau:?} s; expected at least half a period \
+             ({:?} s)",
+            tau / 2.0
+        );
+    }
     // The clock of --within starts at the knock, if one comes.
     let knock = knock.map(|[force, at]| Knock {
         period: (at / tau).round() as u32,

@@ -157,6 +157,11 @@ fn bad_input_exits_2_naming_what_was_expected() {
         &["--hold=-1"],
         "--hold must be seconds in [0.001, 3600], found -1.0",
     );
+    // Rounded to no period: judged at no time, 0% reported.
+    refused(
+        &["--within", "0.001", "--hold", "1"],
+        "--within 0.001 s rounds to no period of 0.02 s; expected at least half a period",
+    );
     refused(
         &["--zero-error", "-12"],
         "--zero-error must be degrees in [-10, 10], zero or normal, found -12.0",
@@ -281,4 +286,19 @@ fn a_drawing_directory_ending_in_a_dot_is_refused_first() {
         }
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Episodes too short to take the zero report no zero error (`null`, `-`): it was i64's
+/// largest, 9223372036854775807 counts, as if measured.
+#[test]
+fn a_zero_never_taken_is_reported_as_none() {
+    let o = startup(&["--episodes", "1", "--within", "1", "--hold", "1", "--json"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    for row in v["rows"].as_array().unwrap() {
+        assert!(row["zero_error_counts"].is_null(), "{row}");
+        assert!(row["centre_error_counts"].is_null(), "{row}");
+    }
+    let table = startup(&["--episodes", "1", "--within", "1", "--hold", "1"]);
+    assert!(!String::from_utf8_lossy(&table.stdout).contains("9223372036854775807"));
 }

@@ -33,8 +33,9 @@ pub struct TrainArgs {
     /// Run directory (omit to train without writing anything).
     #[arg(long)]
     pub out: Option<PathBuf>,
-    /// Print the final configuration as TOML and exit.
-    #[arg(long)]
+    /// Print the final configuration as TOML and exit. The run's own flags (`--out`,
+    /// `--seed`, `--seeds`, `--threads`) are no part of it, so it takes none of them.
+    #[arg(long, conflicts_with_all = ["out", "seed", "seeds", "threads"])]
     pub print_config: bool,
     /// Threads to use (default: one per core): with one, a run learns on one core instead
     /// of splitting each batch over two. Only the time changes, never a result.

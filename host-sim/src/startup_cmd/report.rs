@@ -20,9 +20,9 @@ pub(super) struct Row {
     into_margin: u32,
     end_stop_contacts: u32,
     /// The largest error of the hanging zero, pole counts, and of the cart's centre, cart
-    /// counts.
-    zero_error_counts: i64,
-    centre_error_counts: i64,
+    /// counts; none (`null`) where an episode never took it.
+    zero_error_counts: Option<i64>,
+    centre_error_counts: Option<i64>,
     /// At steady balance (an episode's second half): the cart's RMS distance from the
     /// centre, m, median and 99th percentile over the episodes; the mean |duty|.
     steady_rms_x_m: [f64; 2],
@@ -91,13 +91,18 @@ pub(super) fn summarise(
     }
 }
 
-/// The largest |error| `of` the outcomes, `i64::MAX` where one never took its zero.
-fn worst(outcomes: &[Outcome], of: impl Fn(&Outcome) -> Option<i64>) -> i64 {
+/// The largest |error| `of` the outcomes; none where one never took its zero (it was shown
+/// as i64's largest, 9223372036854775807 counts, as if measured).
+fn worst(outcomes: &[Outcome], of: impl Fn(&Outcome) -> Option<i64>) -> Option<i64> {
     outcomes
         .iter()
-        .map(|o| of(o).map_or(i64::MAX, i64::abs))
-        .max()
-        .unwrap_or(0)
+        .map(|o| of(o).map(i64::abs))
+        .try_fold(0, |m, e| Some(m.max(e?)))
+}
+
+/// A count for the table, `-` for none.
+fn shown(count: Option<i64>) -> String {
+    count.map_or_else(|| "-".into(), |c| c.to_string())
 }
 
 /// The `q` quantile of `sorted` (the nearest rank below); NaN for none.
@@ -146,8 +151,8 @@ pub(super) fn table(r: &Report) -> String {
             format!("{:.3}/{:.3}", w.track_used_m[0], w.track_used_m[1]),
             w.into_margin,
             w.end_stop_contacts,
-            w.zero_error_counts,
-            w.centre_error_counts,
+            shown(w.zero_error_counts),
+            shown(w.centre_error_counts),
             format!("{:.3}/{:.3}", w.steady_rms_x_m[0], w.steady_rms_x_m[1]),
             100.0 * w.steady_mean_abs_duty,
             format!("{}/{}/{}", w.catches, w.misses, w.falls),

@@ -249,3 +249,21 @@ fn a_domain_whose_parts_build_only_the_machine_is_refused() {
         }
     }
 }
+
+/// The run's own flags are no part of the printed configuration: given with
+/// `--print-config`, each was accepted and changed nothing (no run directory, no seed).
+#[test]
+fn print_config_takes_none_of_the_runs_own_flags() {
+    for (flag, value) in [
+        ("--out", "never"),
+        ("--seed", "7"),
+        ("--seeds", "0..3"),
+        ("--threads", "2"),
+    ] {
+        let o = run(&["train", "--print-config", flag, value]);
+        assert_eq!(o.status.code(), Some(2), "{flag}: {}", stderr(&o));
+        let want = format!("'--print-config' cannot be used with '{flag}");
+        assert!(stderr(&o).contains(&want), "{flag}: {}", stderr(&o));
+        assert!(o.stdout.is_empty() && !std::path::Path::new("never").exists());
+    }
+}
