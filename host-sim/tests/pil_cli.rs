@@ -290,16 +290,20 @@ fn a_target_of_its_own_rig_draws_no_warning_of_another() {
     assert!(!err.contains("trained for another rig"), "{err}");
 }
 
-/// A target's own children end with it: a script's `sleep` outlived the run, reparented.
+/// A target's own children end with it: a script's `sleep` outlived the run, reparented; so
+/// did a daemon that forked twice and started a session of its own.
 #[test]
 fn a_targets_children_end_with_it() {
     let s = Scratch::new("pil-group");
-    let (script, pid) = (s.join("sleeper"), s.join("pid"));
-    // It answers by echoing, refused at once, once its child has started and been written
-    // down: no timeout to race on a busy host.
+    let (script, pid, daemon) = (s.join("sleeper"), s.join("pid"), s.join("daemon"));
+    // It answers by echoing, refused at once, once its child and its daemon have started
+    // and been written down: no timeout to race on a busy host.
     let body = format!(
-        "#!/bin/sh\nsleep 30 &\necho $! > '{}'\nexec cat\n",
-        pid.display()
+        "#!/bin/sh\nsleep 30 &\necho $! > '{pid}'\n\
+         ( setsid sh -c 'echo $$ > \"{daemon}\"; exec sleep 30' & )\n\
+         while [ ! -s '{daemon}' ]; do :; done\nexec cat\n",
+        pid = pid.display(),
+        daemon = daemon.display()
     );
     std::fs::write(&script, body).unwrap();
     std::fs::set_permissions(&script, std::fs::Permissions::from_mode(0o755)).unwrap();
@@ -312,9 +316,11 @@ fn a_targets_children_end_with_it() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(err.contains("where Info was due"), "{err}");
-    let child = std::fs::read_to_string(&pid).unwrap();
-    let ended = ended_or_killed(child.trim());
-    assert!(ended.is_ok(), "sleep {child}: {ended:?}");
+    for file in [&pid, &daemon] {
+        let child = std::fs::read_to_string(file).unwrap();
+        let ended = ended_or_killed(child.trim());
+        assert!(ended.is_ok(), "{}: {child}: {ended:?}", file.display());
+    }
 }
 
 /// Whether a process is gone, a zombie nobody has reaped yet, or holds a KILL it has not yet

@@ -130,12 +130,16 @@ pub struct Process {
     errors: Receiver<()>,
     timeout: Duration,
     what: String,
+    /// What the target and every process it starts carry in their environment.
+    mark: super::reap::Mark,
 }
 
 impl Process {
     /// Starts `command`; `what` names it in messages; answers later than `timeout` end the
     /// run.
     pub fn spawn(mut command: Command, what: String, timeout: Duration) -> Result<Process> {
+        let mark = super::reap::Mark::new();
+        mark.set(&mut command);
         let mut child = command
             .stdin(Stdio::piped())
             .stdout(Stdio::piped())
@@ -171,6 +175,7 @@ impl Process {
             errors,
             timeout,
             what,
+            mark,
         })
     }
 
@@ -204,50 +209,11 @@ impl Remote for Process {
 
 impl Drop for Process {
     fn drop(&mut self) {
-        // The processes it started too (a script's `sleep` outlived the run). Not a process
-        // group of its own, which would keep a terminal's Ctrl-C from reaching them. Each is
-        // stopped first, so that none starts another while they are gathered.
-        use rustix::process::{Pid, Signal, kill_process};
-        let _ = kill_process(Pid::from_child(&self.child), Signal::STOP);
-        let below = descendants(self.child.id());
-        for &pid in &below {
-            let _ = kill_process(pid, Signal::STOP);
-        }
-        for pid in below {
-            let _ = kill_process(pid, Signal::KILL);
-        }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        super::reap::end(&mut self.child, &self.mark);
         // Its last words before this tool's: bounded, should a process outside its group
         // hold the pipe open.
         let _ = self.errors.recv_timeout(Duration::from_secs(1));
     }
-}
-
-/// Every process below `root`, found by their parents in `/proc` (none where it cannot be
-/// read): gathered whole before any is ended, which would hand its children to init.
-fn descendants(root: u32) -> Vec<rustix::process::Pid> {
-    let parent_of = |entry: std::fs::DirEntry| {
-        let pid: i32 = entry.file_name().to_str()?.parse().ok()?;
-        let stat = std::fs::read_to_string(entry.path().join("stat")).ok()?;
-        // `pid (name) state ppid ...`, the name holding any bytes but its last `)`.
-        let ppid = stat.rsplit_once(") ")?.1.split(' ').nth(1)?.parse().ok()?;
-        Some((pid, ppid))
-    };
-    let Ok(dir) = std::fs::read_dir("/proc") else {
-        return Vec::new();
-    };
-    let links: Vec<(i32, i32)> = dir.filter_map(|e| parent_of(e.ok()?)).collect();
-    let mut found = vec![root as i32];
-    let mut k = 0;
-    while let Some(&parent) = found.get(k) {
-        found.extend(links.iter().filter(|l| l.1 == parent).map(|l| l.0));
-        k += 1;
-    }
-    found[1..]
-        .iter()
-        .filter_map(|&p| rustix::process::Pid::from_raw(p))
-        .collect()
 }
 
 /// Lines a target writes on its standard error, on this process's, each escaped and cut

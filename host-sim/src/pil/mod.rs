@@ -20,6 +20,7 @@ use anyhow::{Result, bail};
 
 mod board;
 pub mod link;
+mod reap;
 mod run;
 pub mod serial;
 
