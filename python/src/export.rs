@@ -60,10 +60,10 @@ pub fn export(
         out: &out,
     };
     let label = label.unwrap_or("state dict");
-    let (import, provenance, source) = match (path, shapes, tensor) {
+    let (import, provenance, source) = match (&path, shapes, tensor) {
         (Some(p), None, None) => {
-            let (import, provenance) = from_file(&p, &found)?;
-            (import, provenance, format!("source {}", weights::shown(&p)))
+            let (import, provenance) = from_file(p, &found)?;
+            (import, provenance, format!("source {}", weights::shown(p)))
         }
         (None, Some(s), Some(t)) => {
             let (import, provenance) = from_tensors(&s, &t, label, &found)?;
@@ -88,6 +88,14 @@ pub fn export(
     )
     .map_err(|e| value_error(format!("{e:#}")))?;
     write_atomic(&out, r.text.as_bytes()).map_err(file_error)?;
+    // What the command line warns of a run's policy, as the command does once written.
+    for w in path
+        .as_deref()
+        .map(policy_export::run::board_warnings)
+        .unwrap_or_default()
+    {
+        crate::warn(py, w.strip_prefix("warning: ").unwrap_or(&w))?;
+    }
     Ok(import.describe())
 }
 

@@ -113,10 +113,15 @@ pub(crate) fn warn_other_rig(
     py: Python<'_>,
     other: Option<twin::rigfile::OtherRig>,
 ) -> PyResult<()> {
-    let Some(o) = other else {
-        return Ok(());
-    };
-    let text = std::ffi::CString::new(o.warning("rig=")).map_err(value_error)?;
+    match other {
+        Some(o) => warn(py, &o.warning("rig=")),
+        None => Ok(()),
+    }
+}
+
+/// `text` as a Python `UserWarning`, where the tools print a warning on standard error.
+pub(crate) fn warn(py: Python<'_>, text: &str) -> PyResult<()> {
+    let text = std::ffi::CString::new(text).map_err(value_error)?;
     let category = py.get_type::<pyo3::exceptions::PyUserWarning>();
     // Named at the caller of the package's wrapper, which calls this module.
     PyErr::warn(py, &category, &text, 2)

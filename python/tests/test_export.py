@@ -220,3 +220,14 @@ def test_entries_that_are_not_arrays_are_refused_unconverted(tmp_path):
     with pytest.raises(ValueError):
         cartpole_ddqn.export(tensors, out=tmp_path / "y.rs", prefix="network.", levels=range(10**10))
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_runs_policy_without_board_figures_gives_the_commands_warning(tools, tmp_path):
+    """The command warns that the run never tried the policy as an int8 board runs it;
+    Python's export said nothing."""
+    run_dir = tmp_path / "run"
+    run(tools["policy-export"], "train", "--episodes", "2", "--max-steps", "5", "--out", run_dir)
+    with pytest.warns(UserWarning, match=r"summary\.json has no board-level trial figures") as caught:
+        cartpole_ddqn.export(run_dir, tmp_path / "p.rs")
+    assert len(caught) == 1 and caught[0].filename == __file__
+    assert (tmp_path / "p.rs").is_file()

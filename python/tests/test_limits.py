@@ -187,3 +187,26 @@ def test_provenance_reads_argv_no_further_than_a_command_line_holds():
             cartpole_ddqn.provenance("x", argv)
     # A byte sys.argv escapes (not UTF-8) is recorded as U+FFFD, as the tools record theirs.
     assert cartpole_ddqn.provenance("x", ["runs/\udcff", 10])["argv"] == ["runs/\ufffd", "10"]
+
+
+@pytest.mark.parametrize(
+    "make",
+    [cartpole_ddqn.TwinEnv, cartpole_ddqn.SwingUpEnv, lambda **k: cartpole_ddqn.TwinVectorEnv(2, **k)],
+)
+def test_max_episode_steps_past_its_range_or_a_bool_names_the_argument(make):
+    """2**64 raised the native conversion's OverflowError, naming nothing; True ran as 1."""
+    top = cartpole_ddqn.MAX_HORIZON
+    with pytest.raises(ValueError, match=rf"^max_episode_steps must be in \[1, {top}\]; found {2**64}$"):
+        make(max_episode_steps=2**64)
+    with pytest.raises(TypeError, match=r"^max_episode_steps must be an int \(a whole number of periods\); found True"):
+        make(max_episode_steps=True)
+
+
+def test_a_bool_is_no_count():
+    """True is an int to Python, and each of these ran as 1."""
+    with pytest.raises(TypeError, match=r"^episodes must be an int"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=True, horizon=2)
+    with pytest.raises(ValueError, match=r"^horizon must be a whole number of periods; found True"):
+        cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=True)
+    with pytest.raises(ValueError, match=r"^num_envs must be a whole number"):
+        cartpole_ddqn.TwinVectorEnv(num_envs=True)

@@ -346,6 +346,9 @@ def _horizon(h):
     to 200, and 2**40 named with the range, where the native conversion's OverflowError
     named neither."""
     try:
+        # True is an int to Python, and ran as a horizon of 1.
+        if isinstance(h, (bool, np.bool_)):
+            raise TypeError
         whole = operator.index(h)
     except TypeError:
         raise ValueError(f"horizon must be a whole number of periods; found {_short(h)}") from None
@@ -359,17 +362,28 @@ _SEEDS = 2**64
 
 
 def _whole(value, name, least, most, kind="a whole number"):
-    """``value``, a Python int (a bool among them) or a NumPy integer, as a Python int in
-    [least, most]: TypeError for what is no int, as a float is refused, not truncated;
-    ValueError naming the range for an int outside it, before the native module's
-    conversion would raise an OverflowError that names neither."""
+    """``value``, a Python int or a NumPy integer, as a Python int in [least, most]:
+    TypeError for what is no int, as a float is refused, not truncated, and for a bool, an
+    int to Python that ran as a count of 1; ValueError naming the range for an int outside
+    it, before the native module's conversion would raise an OverflowError that names
+    neither."""
     try:
+        if isinstance(value, (bool, np.bool_)):
+            raise TypeError
         whole = operator.index(value)
     except TypeError:
         raise TypeError(f"{name} must be an int ({kind}); found {_short(value)} ({type(value).__name__})") from None
     if not least <= whole <= most:
         raise ValueError(f"{name} must be in [{least}, {most}]; found {whole}")
     return whole
+
+
+def _steps(max_episode_steps):
+    """An environment's ``max_episode_steps`` (None: no truncation), checked here: 2**64
+    raised the native conversion's OverflowError, naming nothing."""
+    if max_episode_steps is None:
+        return None
+    return _whole(max_episode_steps, "max_episode_steps", 1, MAX_HORIZON, "a whole number of periods")
 
 
 def _seed(seed, most=_SEEDS - 1, name="seed"):

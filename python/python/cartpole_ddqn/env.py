@@ -24,7 +24,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from . import _native
-from .api import _SEEDS, _items, _levels, _seed, _short
+from .api import _SEEDS, _items, _levels, _seed, _short, _steps
 
 # The most worlds a vector environment holds.
 MAX_ENVS = _native.MAX_ENVS
@@ -118,7 +118,7 @@ class TwinEnv(gymnasium.Env):
 
     def __init__(self, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
                  envelope=None, levels=None):
-        self._twin = _native.Twin(scenario, domain, rig, max_episode_steps, predict,
+        self._twin = _native.Twin(scenario, domain, rig, _steps(max_episode_steps), predict,
                                   _envelope(envelope), _levels(levels))
         self._monitored = envelope is not None
         self._twin.reset(0)
@@ -193,10 +193,12 @@ class TwinVectorEnv(VectorEnv):
 
     def __init__(self, num_envs=1, scenario=None, domain=None, rig=None, max_episode_steps=None, predict=True,
                  envelope=None, levels=None):
-        if not isinstance(num_envs, (int, np.integer)) or not 1 <= num_envs <= MAX_ENVS:
+        # True is an int to Python: it ran as one world.
+        bad_type = not isinstance(num_envs, (int, np.integer)) or isinstance(num_envs, (bool, np.bool_))
+        if bad_type or not 1 <= num_envs <= MAX_ENVS:
             raise ValueError(f"num_envs must be a whole number in [1, {MAX_ENVS}]; found {num_envs!r}")
         self.num_envs = int(num_envs)
-        self._twin = _native.VecTwin(scenario, domain, rig, max_episode_steps, predict,
+        self._twin = _native.VecTwin(scenario, domain, rig, _steps(max_episode_steps), predict,
                                      _envelope(envelope), _levels(levels))
         self._monitored = envelope is not None
         probe = _native.Twin(scenario, domain, rig, None, predict, None, _levels(levels))
@@ -275,7 +277,7 @@ class SwingUpEnv(gymnasium.Env):
     metadata = {"render_modes": []}
 
     def __init__(self, rig=None, max_episode_steps=None, levels=None):
-        self._world = _native.SwingUp(rig, max_episode_steps, _levels(levels))
+        self._world = _native.SwingUp(rig, _steps(max_episode_steps), _levels(levels))
         self.tau, _, end = self._world.world
         big = np.finfo(np.float32).max
         # The episode ends past the margin, but the end stops hold the cart.
