@@ -89,6 +89,10 @@ impl Manifest {
     /// `results steps` prints as one tab-separated field, an output in the repository and
     /// written by one step (a results file's rows by several), known tools, a cost.
     pub fn parse(text: &str) -> Result<Manifest, String> {
+        // The parser reads a cost of `1e-400` as 0, which it refuses written so.
+        if let Some(why) = weights::hidden_zero(text) {
+            return Err(why);
+        }
         let m: Manifest =
             toml::from_str(text).map_err(|e| weights::located(text, e.span(), e.message()))?;
         // Each output's writers and whether one prints it, gathered once: a check per step
@@ -350,6 +354,11 @@ cost = 0
             (
                 TWO.replace("cost = 0\n", "cost = 5e-324\n"),
                 "zero or a normal number, found 5e-324",
+            ),
+            // Read as 0 by the parser, as if written so.
+            (
+                TWO.replace("cost = 0\n", "cost = 1e-400\n"),
+                "1e-400 reads as 0",
             ),
             (
                 TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"qemu\", \"qemu\"]\n"),

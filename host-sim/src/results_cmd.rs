@@ -8,7 +8,7 @@ use clap::{Args, Subcommand};
 use host_sim::manifest::Manifest;
 use host_sim::moved;
 
-use crate::tables_cmd::{find_root, read_text};
+use crate::tables_cmd::{find_root, read_results};
 
 #[derive(Args)]
 pub struct ResultsArgs {
@@ -73,7 +73,7 @@ pub fn run(a: &ResultsArgs) -> Result<()> {
         }
         Action::Moved { old, new, name } => {
             let json = |p: &PathBuf| -> Result<serde_json::Value> {
-                let text = read_text(p)?;
+                let text = read_results(p)?;
                 weights::json::value(&text).map_err(|e| {
                     anyhow!("{}: expected a results file's JSON, {e}", weights::shown(p))
                 })

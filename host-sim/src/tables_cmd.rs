@@ -36,8 +36,9 @@ pub fn run(a: &TablesArgs) -> Result<bool> {
     for doc in documents(&root)? {
         let text = read_text(&root.join(&doc))
             .with_context(|| format!("reading {}", weights::shown(&doc)))?;
-        let load =
-            |file: &str| read_text(&root.join(file)).map_err(|e| format!("reading {file}: {e:#}"));
+        let load = |file: &str| {
+            read_results(&root.join(file)).map_err(|e| format!("reading {file}: {e:#}"))
+        };
         let (new, stale) = tables::update(&text, load)
             .map_err(|r| anyhow!("{}:{}: {}", weights::shown(&doc), r.line, r.message))?;
         updates.push((doc, new, stale));
@@ -98,7 +99,7 @@ fn results_pages(root: &Path) -> Result<Vec<Generated>> {
     let mut files = Vec::new();
     for file in results_files(root)? {
         let name = format!("{RESULTS_DIR}{file}");
-        let json = read_text(&root.join(&name)).with_context(|| format!("reading {name}"))?;
+        let json = read_results(&root.join(&name)).with_context(|| format!("reading {name}"))?;
         let steps = manifest.as_ref().map_or(Vec::new(), |m| m.producing(&name));
         files.push((name, json, steps));
     }
@@ -212,6 +213,16 @@ pub fn read_text(path: &Path) -> Result<String> {
     let bytes = weights::files::read_capped(path, MAX_TEXT_BYTES)?;
     String::from_utf8(bytes)
         .map_err(|e| anyhow!("{}: expected UTF-8 text, {e}", weights::shown(path)))
+}
+
+/// A results file's text, refused if a number in it reads as zero (`1e-400`): the JSON
+/// parser reads it as 0, which a table or `results moved` then showed as measured.
+pub fn read_results(path: &Path) -> Result<String> {
+    let text = read_text(path)?;
+    if let Some(why) = weights::hidden_zero(&text) {
+        anyhow::bail!("{}: {why}", weights::shown(path));
+    }
+    Ok(text)
 }
 
 /// The nearest directory at or above `dir` with a Cargo.toml and the results directory.

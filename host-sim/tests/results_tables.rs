@@ -157,6 +157,40 @@ fn a_bad_marker_or_a_missing_file_exits_2_and_writes_nothing() {
     let _ = std::fs::remove_dir_all(&root);
 }
 
+/// A number in a results file that reads as zero (`1e-400`) was read as 0 and shown as
+/// measured, by a table and by `results moved`: refused by name, nothing written.
+#[test]
+fn a_hidden_zero_in_a_results_file_is_refused() {
+    let doc = "<!-- results: docs/results/r.json success=policy -->\n<!-- /results -->\n";
+    let root = scratch("zero", &[("docs/A.md", doc)]);
+    let r = root.join("docs/results/r.json");
+    let old = root.join("old.json");
+    std::fs::write(&old, JSON).unwrap();
+    std::fs::write(&r, JSON.replace("\"mean\": 0.5", "\"mean\": 1e-400")).unwrap();
+    for o in [
+        tables(&[], &root),
+        Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["results", "moved"])
+            .args([&old, &r])
+            .output()
+            .unwrap(),
+    ] {
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("r.json: line 3, column"),
+            "{}",
+            stderr(&o)
+        );
+        assert!(stderr(&o).contains("1e-400 reads as 0"), "{}", stderr(&o));
+        assert!(o.stdout.is_empty());
+    }
+    assert_eq!(
+        std::fs::read_to_string(root.join("docs/A.md")).unwrap(),
+        doc
+    );
+    let _ = std::fs::remove_dir_all(&root);
+}
+
 /// A kind of file, the words that refuse it, and how to make one.
 type Maker = (&'static str, &'static str, fn(&Path));
 

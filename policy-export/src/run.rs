@@ -186,6 +186,17 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     // The summary's figures describe the policy its run wrote beside it, and no other.
     crate::outdir::unchanged(&[&weights::checkpoint::policy_file(src), &summary_path])?;
     let bytes = read_capped(&summary_path, MAX_POLICY_BYTES)?;
+    // The parser reads `1e-400` as 0, which went into the module as a measured minimum.
+    if let Some(why) = std::str::from_utf8(&bytes)
+        .ok()
+        .and_then(weights::hidden_zero)
+    {
+        return Err(weights::Error::Input(format!(
+            "{}: not a run summary: {why}",
+            weights::shown(&summary_path)
+        ))
+        .into());
+    }
     let s: Summary = weights::json::parse_bytes(&bytes).map_err(|e| {
         weights::Error::Input(format!(
             "{}: not a run summary: {e}",

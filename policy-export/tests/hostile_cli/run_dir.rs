@@ -100,6 +100,13 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         refused(&export, says);
         assert!(!out.exists());
     }
+    // Read as 0, it went into the module as the measured minimum.
+    let text = serde_json::to_string(&good).unwrap();
+    let min = format!("\"min\":{}", good["final_eval"]["min"]);
+    assert!(text.contains(&min), "{text}");
+    std::fs::write(&path, text.replacen(&min, "\"min\":1e-400", 1)).unwrap();
+    refused(&export, "1e-400 reads as 0");
+    assert!(!out.exists());
     let mut bad = good.clone();
     bad["episodes_run"] = 0.into();
     std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
