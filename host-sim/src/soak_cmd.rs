@@ -71,7 +71,7 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
     // Less than a period ran one, and reported the hours it ran, not those asked for.
     anyhow::ensure!(
         a.hours * 3600.0 >= tau,
-        "--hours {} is less than one period of {tau} s; expected at least {:e}",
+        "--hours {:?} is less than one period of {tau} s; expected at least {:e}",
         a.hours,
         tau / 3600.0
     );

@@ -251,6 +251,16 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
         &eval(&[&"--pil", &place]),
         &[says],
     ));
+    // A script whose interpreter is missing: "No such file or directory" named the script,
+    // which was there.
+    let orphan = dir.join("orphan");
+    std::fs::write(&orphan, "#!/nonexistent/interpreter\n").unwrap();
+    std::fs::set_permissions(&orphan, std::fs::Permissions::from_mode(0o755)).unwrap();
+    cases.push(Case::new(
+        "no interpreter".into(),
+        &eval(&[&"--pil", &format!("exec:{}", orphan.display())]),
+        &["the program that runs it (its #! line's interpreter, or its loader) was not found"],
+    ));
     for (name, bytes, want) in answers() {
         let place = format!("exec:{}", target(&dir, name, &bytes).display());
         // Only the silent target is to be timed out. The others' bytes must decide however

@@ -69,7 +69,7 @@ fn bad_input_exits_2_naming_what_was_expected() {
         (&["--hours", "nan"], "--hours"),
         (
             &["--hours", "1e-10"],
-            "--hours 0.0000000001 is less than one period of 0.02 s; expected at least 5.5",
+            "--hours 1e-10 is less than one period of 0.02 s; expected at least 5.5",
         ),
         (&["--scenario", "bogus"], "unknown part"),
         (&["--controller", "nobody"], "controller"),

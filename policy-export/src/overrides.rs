@@ -54,7 +54,9 @@ fn parse_range(s: &str) -> Result<Range<u64>, String> {
         (Ok(a), Ok(b)) => (a, b),
         _ => {
             return Err(format!(
-                "expected two whole numbers START..END, found {shown}"
+                "expected two whole numbers START..END, each in decimal digits and at most {}, \
+                 found {shown}",
+                u64::MAX
             ));
         }
     };
@@ -102,9 +104,11 @@ pub fn build_config(args: &TrainArgs) -> Result<Config> {
     // A value from the file is named by the file; the flags name their own.
     let checked = cfg.validate().and_then(|()| cfg.unread(&preset));
     checked.map_err(|e| match &args.config {
+        // The inner error's words alone: its Display says "invalid configuration" too.
         Some(path) => ConfigError(format!(
-            "--config {} with the flags: {e}",
-            weights::shown(path)
+            "--config {} with the flags: {}",
+            weights::shown(path),
+            e.0
         )),
         None => e,
     })?;

@@ -71,6 +71,19 @@ fn invalid_hyperparameters_exit_2_before_any_work() {
         .output()
         .unwrap();
     assert_refused(&o, "unknown key \"learning_rate\"");
+    // A value of the file's, judged with the flags: said once, "invalid configuration".
+    std::fs::write(&toml, "gamma = 1.5\n").unwrap();
+    let o = exe()
+        .args(["train", "--config"])
+        .arg(&toml)
+        .output()
+        .unwrap();
+    let want = format!(
+        "error: invalid configuration: --config {} with the flags: gamma must be",
+        toml.display()
+    );
+    assert!(stderr(&o).starts_with(&want), "{}", stderr(&o));
+    assert_eq!(stderr(&o).matches("invalid configuration").count(), 1);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 

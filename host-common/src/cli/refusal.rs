@@ -68,6 +68,15 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
     }
     let flag = shown.split(' ').next()?;
     let by = list_separator(running(cmd, args), flag);
+    // A path or a number has no values to list: "one of its values" named none.
+    let listed = (running(cmd, args).get_arguments())
+        .find(|a| super::named(a) == flag)
+        .is_some_and(|a| !a.get_possible_values().is_empty());
+    let expected = if listed {
+        "one of its values"
+    } else {
+        "a value"
+    };
     let args: Vec<String> = args
         .iter()
         .map(|a| a.to_string_lossy().into_owned())
@@ -83,7 +92,7 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
     for v in given {
         if v.is_empty() {
             return Some(format!(
-                "error: '{shown}' was given an empty value; expected one of its values"
+                "error: '{shown}' was given an empty value; expected {expected}"
             ));
         }
         if let Some(by) = by
@@ -91,8 +100,8 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
         {
             return Some(format!(
                 "error: '{shown}' takes a list separated by '{by}', and found an empty item in \
-                 {} ('{by}' at its start or end, or two together); expected one of its values \
-                 in each",
+                 {} ('{by}' at its start or end, or two together); expected {expected} in \
+                 each",
                 weights::quote(v)
             ));
         }
@@ -442,7 +451,12 @@ mod tests {
                         .value_parser(["fast", "slow"])
                         .value_delimiter(','),
                 )
-                .arg(Arg::new("one").long("one").value_parser(["a", "b"])),
+                .arg(Arg::new("one").long("one").value_parser(["a", "b"]))
+                .arg(
+                    Arg::new("out")
+                        .long("out")
+                        .value_parser(clap::value_parser!(std::path::PathBuf)),
+                ),
         );
         let first = |argv: &[&str]| {
             let e = cmd.clone().try_get_matches_from(argv).unwrap_err();
@@ -462,6 +476,11 @@ mod tests {
         assert_eq!(
             first(&["tool", "run", "--one="]),
             "error: '--one <one>' was given an empty value; expected one of its values"
+        );
+        // A path has no values to list.
+        assert_eq!(
+            first(&["tool", "run", "--out="]),
+            "error: '--out <out>' was given an empty value; expected a value"
         );
         assert_eq!(
             first(&["tool", "run", "--one"]),

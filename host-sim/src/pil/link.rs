@@ -8,7 +8,7 @@ use std::process::{Child, ChildStdin, Command, Stdio};
 use std::sync::mpsc::{Receiver, RecvTimeoutError, channel};
 use std::time::Duration;
 
-use anyhow::{Context, Result, anyhow, bail};
+use anyhow::{Result, anyhow, bail};
 use firmware::link::{
     Format, FrameReader, Info, MAX_FRAME, Measurement, Message, Packet, Reason, Reply, Start,
     Target, frame,
@@ -145,7 +145,19 @@ impl Process {
             .stdout(Stdio::piped())
             .stderr(Stdio::piped())
             .spawn()
-            .with_context(|| format!("could not start {what}"))?;
+            .map_err(|e| {
+                // The program is there (the place was checked): the system's "No such file
+                // or directory" is of what runs it, the program its `#!` line names.
+                let there = std::path::Path::new(command.get_program()).is_file();
+                if e.kind() == std::io::ErrorKind::NotFound && there {
+                    anyhow!(
+                        "could not start {what}: the program that runs it (its #! line's \
+                         interpreter, or its loader) was not found"
+                    )
+                } else {
+                    anyhow!("could not start {what}: {e}")
+                }
+            })?;
         let (Some(input), Some(mut output), Some(errors)) =
             (child.stdin.take(), child.stdout.take(), child.stderr.take())
         else {
