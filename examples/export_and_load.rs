@@ -34,7 +34,8 @@ fn export(
     let provenance = policy_export::run::source_provenance(src, import)?;
     let name = default_name(lang, quant.is_some());
     let source = format!("policy {}", src.display());
-    let r = render(import, &source, &provenance, None, lang, quant, name)?;
+    let (machine, _) = policy_export::export::machine(import, &source, None)?;
+    let r = render(import, &provenance, &machine, lang, quant, name)?;
     write_atomic(&dir.join(file), r.text.as_bytes())?;
     println!("wrote {file}: {name}, {} bytes of source", r.text.len());
     Ok(r.text)
