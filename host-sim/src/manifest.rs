@@ -90,7 +90,7 @@ impl Manifest {
     /// written by one step (a results file's rows by several), known tools, a cost.
     pub fn parse(text: &str) -> Result<Manifest, String> {
         // The parser reads a cost of `1e-400` as 0, which it refuses written so.
-        if let Some(why) = weights::hidden_zero(text) {
+        if let Some(why) = weights::hidden_zero_in_numbers(text) {
             return Err(why);
         }
         let m: Manifest =
@@ -298,6 +298,8 @@ cost = 0
     fn reads_steps_their_words_and_results() {
         let m = Manifest::parse(TWO).unwrap();
         assert_eq!(m.steps.len(), 2);
+        // Words are no number: only a cost written `1e-400` is refused.
+        Manifest::parse(&TWO.replace("about = \"x\"", "about = \"below 1e-400\"")).unwrap();
         let words = m.steps[0].words().unwrap();
         assert_eq!(
             words,

@@ -94,7 +94,8 @@ pub fn run(a: &RenderArgs) -> Result<()> {
         stats.steps,
         if stats.success { "balanced" } else { "fell" }
     );
-    let (gif, png) = draw(out, &frames, &scenario.params, stride, (&title, &caption))?;
+    let at = ("--out", out);
+    let (gif, png) = draw(at, &frames, &scenario.params, stride, (&title, &caption))?;
     host_common::outln!("{}\n{}", weights::shown(&gif), weights::shown(&png));
     Ok(())
 }
@@ -116,19 +117,18 @@ pub fn pictures(flag: &str, out: &Path) -> Result<(PathBuf, PathBuf)> {
     Ok((gif, png))
 }
 
-/// Draws `frames` into `out`'s `episode.gif` (every `stride`-th period, titled `title`)
-/// and `episode.png` (titled `caption`), each under a temporary name, and puts both in
+/// Draws `frames` into `out`'s (`flag`'s) `episode.gif` (every `stride`-th period, titled
+/// `title`) and `episode.png` (titled `caption`), each under a temporary name, and puts both in
 /// place together ([`Batch`]): a failure leaves the old pair (or none, and no
 /// directory it created) and names the picture that failed; their paths.
 pub fn draw(
-    out: &Path,
+    (flag, out): (&str, &Path),
     frames: &[Frame],
     params: &Params,
     stride: usize,
     (title, caption): (&str, &str),
 ) -> Result<(PathBuf, PathBuf)> {
-    // Checked as the command's own flag before the work; `out` is what it named.
-    let (gif, png) = pictures("--out", out)?;
+    let (gif, png) = pictures(flag, out)?;
     let mut batch = Batch::default();
     batch.dir(out)?;
     let gif_tmp = batch.file(&gif)?;

@@ -2,7 +2,7 @@
 //! (`firmware::startup`): the hanging zero, the swing-up or a hand's lift, the catch, the
 //! balance; how often and how fast the pole is up, and what it cost the track.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::{Args, ValueEnum};
@@ -122,28 +122,23 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
         startup.swing = None;
     }
     let tau = board.rig.params.tau;
-    // Rounded to no period, it judged episodes at no time and reported 0%.
-    for (flag, s) in [("--within", a.within), ("--hold", a.hold)] {
-        anyhow::ensure!(
-            (s / tau).round() >= 1.0,
-            "{flag} {s:?} s rounds to no period of {tau:?} s; expected at least half a period \
-             ({:?} s)",
-            tau / 2.0
-        );
-    }
+    let (within, hold) = (
+        periods_of("--within", a.within, tau)?,
+        periods_of("--hold", a.hold, tau)?,
+    );
     // The clock of --within starts at the knock, if one comes.
     let knock = knock.map(|[force, at]| Knock {
         period: (at / tau).round() as u32,
         force,
     });
     let from = knock.map_or(0, |k| k.period);
-    let within = from + (a.within / tau).round() as u32;
+    let within = from + within;
     let margin = f64::from(board.rig.limits().map_err(anyhow::Error::msg)?.max_abs()[0]);
     let bar = ProgressBar::new(2 * u64::from(a.episodes)).with_style(
         ProgressStyle::with_template("{bar:40} {pos}/{len} episodes {elapsed}<{eta}")
             .context("the progress bar's template")?,
     );
-    let periods = within + (a.hold / tau).round() as u32;
+    let periods = within + hold;
     if a.render.is_some() {
         let from = "the episode --render draws (--within + --hold, after any --knock)";
         crate::render_cmd::bound(periods.into(), a.stride, from)?;
@@ -186,15 +181,33 @@ pub fn run(a: &StartupArgs) -> Result<bool> {
     // Drawn once the report is out: pictures that cannot be written lose no episodes.
     if let Some(out) = &a.render {
         let (gif, png) = draw(&runs, &net, (a.episode, a.stride), out)?;
-        // Beside the JSON, the pictures are named on standard error.
-        let names = format!("{}\n{}", weights::shown(&gif), weights::shown(&png));
-        if a.json {
-            host_common::errln!("{names}");
-        } else {
-            host_common::outln!("{names}");
-        }
+        name_pictures(a.json, &gif, &png);
     }
     Ok(true)
+}
+
+/// The pictures' paths: on standard error beside the JSON (`json`), on standard output
+/// below the table.
+fn name_pictures(json: bool, gif: &Path, png: &Path) {
+    let names = format!("{}\n{}", weights::shown(gif), weights::shown(png));
+    if json {
+        host_common::errln!("{names}");
+    } else {
+        host_common::outln!("{names}");
+    }
+}
+
+/// `flag`'s `seconds` in periods of `tau`, refused where they round to none: it judged
+/// episodes at no time and reported 0%.
+fn periods_of(flag: &str, seconds: f64, tau: f64) -> Result<u32> {
+    let periods = (seconds / tau).round();
+    anyhow::ensure!(
+        periods >= 1.0,
+        "{flag} {seconds:?} s rounds to no period of {tau:?} s; expected at least half a \
+         period ({:?} s)",
+        tau / 2.0
+    );
+    Ok(periods as u32)
 }
 
 /// `a`'s values, and its picture's paths, before any work.
@@ -286,7 +299,13 @@ fn draw(
         None => format!("{title}: not balanced at the end"),
     };
     let params = &runs.world.rig.params;
-    crate::render_cmd::draw(out, &frames, params, stride, (&title, &caption))
+    crate::render_cmd::draw(
+        ("--render", out),
+        &frames,
+        params,
+        stride,
+        (&title, &caption),
+    )
 }
 
 /// What every episode of a run shares.

@@ -89,7 +89,7 @@ impl Subject {
         if !policy {
             self.refuse_unread(kinds, Some(&machine))?;
         }
-        if let Some(why) = host_sim::eval::unrefinable(kinds, net.levels().len() > 2) {
+        if let Some(why) = host_sim::eval::idle_between(kinds, net.levels()) {
             let whose = (self.policy.as_deref()).map_or("the shipped policy".into(), |p| {
                 format!("--policy {}", weights::shown(p))
             });

@@ -219,7 +219,7 @@ pub fn read_text(path: &Path) -> Result<String> {
 /// parser reads it as 0, which a table or `results moved` then showed as measured.
 pub fn read_results(path: &Path) -> Result<String> {
     let text = read_text(path)?;
-    if let Some(why) = weights::hidden_zero(&text) {
+    if let Some(why) = weights::hidden_zero_in_numbers(&text) {
         anyhow::bail!("{}: {why}", weights::shown(path));
     }
     Ok(text)

@@ -128,15 +128,8 @@ fn slots(s: &Scratch, log: &Path) -> Vec<Slot> {
         with_bad(os(&[&"identify", log, &"--rig", rig, &"--out", &out]))
     };
     let simulate = |world: &dyn AsRef<std::ffi::OsStr>, rig: &dyn AsRef<std::ffi::OsStr>| {
-        with_bad(os(&[
-            &"simulate-logs",
-            &"--world",
-            world,
-            &"--rig",
-            rig,
-            &"--out",
-            &out,
-        ]))
+        let (w, r, o) = (&"--world", &"--rig", &"--out");
+        with_bad(os(&[&"simulate-logs", w, world, r, rig, o, &out]))
     };
     vec![
         ("eval-policy", policy(), eval("--policy")),

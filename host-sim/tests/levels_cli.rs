@@ -31,9 +31,10 @@ fn constant(pick: usize) -> [Vec<f32>; 6] {
 
 /// `torch.onnx.export` of `tensors` (`Gemm`s and `Relu`s): no levels recorded.
 fn onnx(tensors: &[Vec<f32>; 6]) -> Vec<u8> {
+    let outputs = tensors[5].len();
     let net: Vec<_> = tensors
         .iter()
-        .zip(shapes(64, 5))
+        .zip(shapes(64, outputs))
         .map(|(v, s)| {
             let bytes = v.iter().flat_map(|x| x.to_le_bytes()).collect();
             (v.clone(), bytes, s.dims().to_vec())
@@ -91,21 +92,25 @@ fn the_rounded_lqr_drives_the_policys_levels() {
     let dir = scratch("rounded");
     let file = dir.join("policy.onnx");
     std::fs::write(&file, onnx(&constant(3))).unwrap();
-    let mean = |levels: &str| {
+    let mean = |file: &Path, levels: &str| {
         mean_abs_duty(
             &Command::new(env!("CARGO_BIN_EXE_host-sim"))
                 .args(["eval", "--scenario", "nominal", "--episodes", "4"])
                 .args(["--controller", "lqr-levels", "--json", "--policy"])
-                .arg(&file)
+                .arg(file)
                 .args(["--levels", levels])
                 .output()
                 .unwrap(),
         )
     };
-    let coarse = mean("-1,-0.9,-0.8,-0.7,1");
+    let coarse = mean(&file, "-1,-0.9,-0.8,-0.7,1");
     assert!(coarse >= 0.7 - 1e-9, "mean |duty| {coarse}");
-    let fine = mean(FIVE);
+    let fine = mean(&file, FIVE);
     assert!(fine < 0.5, "mean |duty| {fine}");
+    // Two levels of half the push are no bang-bang LQR: taken, and driven.
+    let half = dir.join("half.onnx");
+    std::fs::write(&half, onnx(&shapes(64, 2).map(|s| vec![0.0; s.len()]))).unwrap();
+    assert_eq!(mean(&half, "-0.5,0.5"), 0.5);
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -116,11 +121,13 @@ fn a_controller_between_two_levels_is_refused() {
     for (asked, why) in [
         (
             "policy,policy-int-refined",
-            "to refine; found policy-int-refined, which would run as policy-int (run that)",
+            "both ends, with nothing between them to refine; found policy-int-refined, which \
+             would run as policy-int (run that)",
         ),
         (
             "lqr,lqr-levels-predict",
-            "to round to; found lqr-levels-predict, which would run as lqr-predict (run that)",
+            "the full push each way, to which rounding leaves the bang-bang LQR's duty alone; \
+             found lqr-levels-predict, which would run as lqr-predict (run that)",
         ),
     ] {
         let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
@@ -129,8 +136,7 @@ fn a_controller_between_two_levels_is_refused() {
             .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(2), "{err}");
-        let head = "error: the shipped policy: its two levels are both ends, with nothing \
-                    between them ";
+        let head = "error: the shipped policy: its two levels are ";
         assert_eq!(err.trim_end(), format!("{head}{why}"));
         assert!(o.stdout.is_empty());
     }

@@ -150,7 +150,7 @@ fn bad_controllers(echo: &str) -> Vec<Case> {
 }
 
 fn bad_places(s: &Scratch) -> Vec<Case> {
-    let echo = "exec:/bin/cat";
+    let (echo, m0) = ("exec:/bin/cat", "qemu:thumbv6m-none-eabi");
     // A program whose name is not UTF-8 is started (and ends at once), not refused unread.
     let odd = s
         .join("t")
@@ -177,22 +177,12 @@ fn bad_places(s: &Scratch) -> Vec<Case> {
         ),
         Case::new(
             "missing elf".into(),
-            &eval(&[
-                &"--pil",
-                &"qemu:thumbv6m-none-eabi",
-                &"--pil-elf",
-                &s.join("none"),
-            ]),
+            &eval(&[&"--pil", &m0, &"--pil-elf", &s.join("none")]),
             &["no application at"],
         ),
         Case::new(
             "an application that is no ELF file, which QEMU ran".into(),
-            &eval(&[
-                &"--pil",
-                &"qemu:thumbv6m-none-eabi",
-                &"--pil-elf",
-                &s.join("garbage.elf"),
-            ]),
+            &eval(&[&"--pil", &m0, &"--pil-elf", &s.join("garbage.elf")]),
             &[
                 "expected a 32-bit little-endian ELF application for Arm (thumbv6m-none-eabi), found no",
             ],
@@ -250,6 +240,14 @@ fn bad_places_and_misbehaving_targets_are_refused_by_the_rules() {
         "noisy".into(),
         &eval(&[&"--pil", &place]),
         &[says],
+    ));
+    // A bare name is the file checked in the working directory, not one the search path
+    // finds (it was looked for there, and not found).
+    std::fs::copy(&noisy, s.join("bare")).unwrap();
+    cases.push(Case::new(
+        "a bare name".into(),
+        &eval(&[&"--pil", &"exec:bare"]),
+        &["bare says: \"\\u{1b}[2J error: forged\""],
     ));
     // A script whose interpreter is missing: "No such file or directory" named the script,
     // which was there.

@@ -157,11 +157,6 @@ fn bad_input_exits_2_naming_what_was_expected() {
         &["--hold=-1"],
         "--hold must be seconds in [0.001, 3600], found -1.0",
     );
-    // Rounded to no period: judged at no time, 0% reported.
-    refused(
-        &["--within", "0.001", "--hold", "1"],
-        "--within 0.001 s rounds to no period of 0.02 s; expected at least half a period",
-    );
     refused(
         &["--zero-error", "-12"],
         "--zero-error must be degrees in [-10, 10], zero or normal, found -12.0",
@@ -299,6 +294,27 @@ fn a_zero_never_taken_is_reported_as_none() {
         assert!(row["zero_error_counts"].is_null(), "{row}");
         assert!(row["centre_error_counts"].is_null(), "{row}");
     }
+    let rows = v["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), 2);
     let table = startup(&["--episodes", "1", "--within", "1", "--hold", "1"]);
-    assert!(!String::from_utf8_lossy(&table.stdout).contains("9223372036854775807"));
+    assert!(table.status.success());
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(!text.contains("9223372036854775807"), "{text}");
+    // The zero and centre columns, the eighth and ninth of the row.
+    let row = text.lines().find(|l| l.trim_start().starts_with("f32"));
+    let cells: Vec<&str> = row.unwrap().split_whitespace().collect();
+    assert_eq!(cells[7..9], ["-", "-"], "{row:?}");
+}
+
+/// A time that rounds to no period judged episodes at no time and reported 0%.
+#[test]
+fn a_time_that_rounds_to_no_period_is_refused() {
+    for (flag, other) in [("--within", "--hold"), ("--hold", "--within")] {
+        let o = startup(&[flag, "0.001", other, "1"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        let want = format!("{flag} 0.001 s rounds to no period of 0.02 s; expected at least half");
+        assert!(err.contains(&want), "{err}");
+        assert!(o.stdout.is_empty());
+    }
 }

@@ -140,21 +140,35 @@ impl Reward {
                 }
             }
         }
-        if r.scale == 0.0 {
+        r.check_whole(&shown)?;
+        Ok(r)
+    }
+
+    /// Refuses what the parts (`shown`) make together of nothing: every reward 0, or a
+    /// fail penalty of 1 where the terminating step's reward is 1 already.
+    fn check_whole(&self, shown: &str) -> Result<(), String> {
+        if self.scale == 0.0 {
             return Err(format!(
                 "reward {shown}: scale=0 makes every reward 0, leaving nothing to learn; \
                  expected a scale other than 0 and 1"
             ));
         }
         // Without morvan or a weight, every step's reward is 1, the terminating one's too.
-        let shaped = r.morvan || [r.upright, r.centre, r.effort, r.smooth, r.heat] != [0.0; 5];
-        if r.fail == Some(1.0) && !shaped {
+        let weights = [
+            self.upright,
+            self.centre,
+            self.effort,
+            self.smooth,
+            self.heat,
+        ];
+        let shaped = self.morvan || weights != [0.0; 5];
+        if self.fail == Some(1.0) && !shaped {
             return Err(format!(
                 "reward {shown}: fail-penalty=1 changes nothing where no other part shapes the \
                  reward (the terminating step's is 1 already); expected another value"
             ));
         }
-        Ok(r)
+        Ok(())
     }
 
     /// Whether the learner sees the task's own reward.

@@ -189,7 +189,7 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
     // The parser reads `1e-400` as 0, which went into the module as a measured minimum.
     if let Some(why) = std::str::from_utf8(&bytes)
         .ok()
-        .and_then(weights::hidden_zero)
+        .and_then(weights::hidden_zero_in_numbers)
     {
         return Err(weights::Error::Input(format!(
             "{}: not a run summary: {why}",

@@ -67,11 +67,14 @@ pub fn evaluate_json(
         }
     };
     same_levels(policy, levels)?;
-    let refinable = policy.net.levels().len() > 2;
-    if let Some(why) = eval::unrefinable(&kinds, refinable) {
+    if let Some(why) = eval::idle_between(&kinds, policy.net.levels()) {
         return Err(value_error(format!("policy: {why}")));
     }
-    let (machine, other) = twin::rigfile::choose(given, Some(policy.machine));
+    // Warned of against the rig the policy was trained for, not the one it was loaded for.
+    let (machine, other) = match given {
+        Some(g) => twin::rigfile::choose(Some(g), policy.trained_for()?),
+        None => (policy.machine, None),
+    };
     if kinds.iter().any(|k| k.needs_policy()) {
         crate::warn_other_rig(py, other)?;
     }

@@ -68,6 +68,17 @@ pub fn shipped(py: Python<'_>, rig: Option<PathBuf>) -> PyResult<Policy> {
     })
 }
 
+impl Policy {
+    /// The machine the policy was trained for: the rig its file records (none for a file
+    /// that records none), Gymnasium's for the shipped policy.
+    pub fn trained_for(&self) -> PyResult<Option<Machine>> {
+        match &self.import {
+            None => Ok(Some(Machine::GYMNASIUM)),
+            Some(i) => twin::rigfile::recorded(&i.metadata, "policy").map_err(value_error),
+        }
+    }
+}
+
 #[pymethods]
 impl Policy {
     /// Q-values `[n, A]` of readings `[n, 4]`, one column per duty level; `MemoryError` if

@@ -191,4 +191,10 @@ def test_a_policy_run_on_another_rig_gives_a_python_warning(tmp_path, capfd):
         warnings.simplefilter("error")
         cartpole_ddqn.evaluate(episodes=1, horizon=5, rig=desk, controller="lqr")
         cartpole_ddqn.load(SHIPPED)
+    # Judged against the rig it was trained for, not the one it was loaded for.
+    with pytest.warns(UserWarning):
+        on_desk = cartpole_ddqn.load(SHIPPED, rig=desk)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        cartpole_ddqn.evaluate(on_desk, episodes=1, horizon=5, rig=REPO / "rigs" / "gymnasium.toml")
     assert "warning" not in capfd.readouterr().err

@@ -182,16 +182,20 @@ pub fn ends_in_dot(path: &Path) -> bool {
     text == b"." || text.ends_with(b"/.")
 }
 
-/// Refuses a directory output (`flag`'s) whose last component is `.` or `..` after others
-/// (`out/new/.`, `out/new/..`): the first was refused by the system after the work, the
-/// second made `out/new` and wrote in `out`. `.` and `..` alone name a directory that is.
+/// Refuses a directory output (`flag`'s) that does not exist and whose last component is
+/// `.` or `..` after others (`out/new/.`, `out/new/../`): the first was refused by the
+/// system after the work, the second made `out/new` and wrote in `out`. One that exists
+/// (`a/.`, `../..`) is the directory it names.
 pub fn check_dir_name(flag: &str, path: &Path) -> Result<()> {
     let text = path.as_os_str().as_encoded_bytes();
-    let last = text.rsplit(|&b| b == b'/').next().unwrap_or_default();
-    if text.contains(&b'/') && (last == b"." || last == b"..") {
+    // Trailing slashes name the same directory: `new/../` is `new/..`.
+    let trimmed = &text[..text.iter().rposition(|&b| b != b'/').map_or(0, |i| i + 1)];
+    let last = trimmed.rsplit(|&b| b == b'/').next().unwrap_or_default();
+    let dotted = trimmed.contains(&b'/') && (last == b"." || last == b"..");
+    if dotted && !path.is_dir() {
         return Err(Error::Input(format!(
-            "{flag} {}: expected a directory named by its own name, found a path ending in \
-             '/{}'",
+            "{flag} {}: expected a directory named by its own name, found a new path ending \
+             in '/{}'",
             crate::shown(path),
             String::from_utf8_lossy(last)
         )));

@@ -31,10 +31,23 @@ pub fn zero_in_disguise(piece: &str) -> String {
 /// Inside a string a number is a piece of a spec (`levels = "-1,1e-400,1"`, `reward =
 /// "env+scale=1e-400"`), cut where the command line's pieces are cut.
 pub fn hidden_zero(text: &str) -> Option<String> {
+    scan(text, true)
+}
+
+/// [`hidden_zero`] of the numbers a file holds as numbers alone, for a file whose strings
+/// are free text (a run summary's rig file and its comments, a manifest's words), where a
+/// `1e-400` read as 0 is no number of the file's.
+pub fn hidden_zero_in_numbers(text: &str) -> Option<String> {
+    scan(text, false)
+}
+
+/// [`hidden_zero`], looking inside strings too if `in_strings`.
+fn scan(text: &str, in_strings: bool) -> Option<String> {
     let (mut start, mut quote, mut comment, mut escaped) = (None, None, false, false);
     for (i, c) in text.char_indices().chain([(text.len(), '\n')]) {
         let joins = if quote.is_some() { "-._" } else { "+-._" };
-        let in_token = !comment && !escaped && (c.is_ascii_alphanumeric() || joins.contains(c));
+        let read = !comment && !escaped && (in_strings || quote.is_none());
+        let in_token = read && (c.is_ascii_alphanumeric() || joins.contains(c));
         if in_token {
             start.get_or_insert(i);
             continue;
@@ -84,6 +97,18 @@ mod tests {
         ] {
             assert!(!plain(x), "{x:e}");
         }
+    }
+
+    #[test]
+    fn free_text_is_no_number() {
+        let text = "{\"rig\": \"# a comment: 1e-400\", \"min\": 5}";
+        assert!(hidden_zero(text).is_some());
+        assert_eq!(hidden_zero_in_numbers(text), None);
+        let at = hidden_zero_in_numbers("{\"about\": \"1e-400\",\n\"min\": 1e-400}").unwrap();
+        assert!(
+            at.starts_with("line 2, column 8: 1e-400 reads as 0"),
+            "{at}"
+        );
     }
 
     #[test]

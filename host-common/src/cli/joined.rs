@@ -2,10 +2,11 @@
 
 use std::ffi::OsString;
 
-/// `args` with each number written after a flag that takes a value joined to it
-/// (`--hours -1e-5` as `--hours=-1e-5`): clap takes a negative number for a value only in
-/// the form `-1.5` ([`super::negative_numbers`]), and any other (`-1e-5`, `-.5`, `-inf`) for short
-/// flags, naming neither the flag nor the number. Nothing after `--` is touched.
+/// `args` with each negative value ([`negative`]) written after a flag that takes a value
+/// joined to it (`--hours -1e-5` as `--hours=-1e-5`, `--seeds -1..3` as `--seeds=-1..3`):
+/// clap takes a negative number for a value only in the form `-1.5`
+/// ([`super::negative_numbers`]), and any other (`-1e-5`, `-.5`, `-inf`, a list `-5,10`)
+/// for short flags, naming neither the flag nor the value. Nothing after `--` is touched.
 pub(super) fn numbers_joined(cmd: &clap::Command, args: Vec<OsString>) -> Vec<OsString> {
     fn valued(cmd: &clap::Command, into: &mut Vec<String>) {
         let longs = cmd

@@ -69,9 +69,8 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
     let flag = shown.split(' ').next()?;
     let by = list_separator(running(cmd, args), flag);
     // A path or a number has no values to list: "one of its values" named none.
-    let listed = (running(cmd, args).get_arguments())
-        .find(|a| super::named(a) == flag)
-        .is_some_and(|a| !a.get_possible_values().is_empty());
+    let listed =
+        arg_named(running(cmd, args), flag).is_some_and(|a| !a.get_possible_values().is_empty());
     let expected = if listed {
         "one of its values"
     } else {
@@ -107,6 +106,11 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
         }
     }
     None
+}
+
+/// The argument of `cmd` the command line names `flag`.
+fn arg_named<'c>(cmd: &'c clap::Command, flag: &str) -> Option<&'c clap::Arg> {
+    cmd.get_arguments().find(|a| super::named(a) == flag)
 }
 
 /// The separator of the items of `flag`'s list in `cmd`, if it takes one.
@@ -171,7 +175,7 @@ fn largest(e: &clap::Error, cmd: &clap::Command) -> Option<u64> {
         return None;
     };
     let flag = shown.split(' ').next()?;
-    let arg = (cmd.get_arguments()).find(|a| super::named(a) == flag)?;
+    let arg = arg_named(cmd, flag)?;
     let parser = arg.get_value_parser();
     let id = parser.type_id();
     use std::any::TypeId;

@@ -15,7 +15,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use std::ops::Range;
 
-use firmware::controller::Refined;
+use firmware::controller::{Duty, Refined};
 use twin::run::{Aids, Stream, episode_rng};
 use twin::{EpisodeStats, Frame, Scenario};
 use twin::{run_episode, run_episodes};
@@ -126,8 +126,9 @@ impl ControllerKind {
         )
     }
 
-    /// The controller this one runs as where the levels are two, both ends: refining
-    /// between them, or rounding the LQR's duty to them, leaves the ends alone.
+    /// The controller this one runs as where the levels are two ([`unrefinable`] says
+    /// which two): refining between them, or rounding the LQR's duty to them, changes
+    /// nothing.
     pub fn on_two_levels(self) -> Option<ControllerKind> {
         Some(match self {
             ControllerKind::PolicyRefined => ControllerKind::Policy,
@@ -168,22 +169,35 @@ impl fmt::Display for ControllerKind {
     }
 }
 
-/// The words that refuse a controller among `kinds` that works between the levels, for a
-/// policy that is not `refinable` (two levels, both ends): such a row is another
-/// controller's ([`ControllerKind::on_two_levels`]), bit for bit.
+/// The words that refuse a controller among `kinds` whose rows would be another's
+/// ([`ControllerKind::on_two_levels`]), bit for bit, for a policy of `levels`: see
+/// [`unrefinable`] and [`unrounded`].
+pub fn idle_between(kinds: &[ControllerKind], levels: &[Duty]) -> Option<String> {
+    unrefinable(kinds, levels.len() > 2).or_else(|| unrounded(kinds, levels))
+}
+
+/// The words that refuse a refined controller among `kinds` for a policy that is not
+/// `refinable` (two levels: nothing lies between them).
 pub fn unrefinable(kinds: &[ControllerKind], refinable: bool) -> Option<String> {
-    let (c, same) = kinds
-        .iter()
-        .find_map(|&k| Some((k, k.on_two_levels()?)))
-        .filter(|_| !refinable)?;
-    let what = if c.refined() {
-        "to refine"
-    } else {
-        "to round to"
-    };
+    let c = kinds.iter().find(|k| k.refined()).filter(|_| !refinable)?;
     Some(format!(
-        "its two levels are both ends, with nothing between them {what}; found {c}, which \
-         would run as {same} (run that)"
+        "its two levels are both ends, with nothing between them to refine; found {c}, which \
+         would run as {} (run that)",
+        c.on_two_levels()?
+    ))
+}
+
+/// The words that refuse the LQR rounded to `levels` among `kinds` where they are the full
+/// push each way: rounding leaves the bang-bang LQR's duty alone (two levels of half the
+/// push are another controller).
+pub fn unrounded(kinds: &[ControllerKind], levels: &[Duty]) -> Option<String> {
+    let c = (kinds.iter())
+        .find(|k| !k.refined() && k.on_two_levels().is_some())
+        .filter(|_| levels == [Duty::LEFT, Duty::RIGHT])?;
+    Some(format!(
+        "its two levels are the full push each way, to which rounding leaves the bang-bang \
+         LQR's duty alone; found {c}, which would run as {} (run that)",
+        c.on_two_levels()?
     ))
 }
 

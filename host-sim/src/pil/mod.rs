@@ -182,7 +182,11 @@ impl Place {
                 c.args(machine.args).args(QEMU_ARGS).arg("-kernel").arg(elf);
                 (c, format!("QEMU ({})", machine.target))
             }
-            Place::Exec(path) => (Command::new(path), weights::shown(path)),
+            // The file checked, not one the search path finds: a bare `tgt` is `./tgt`.
+            Place::Exec(path) => (
+                Command::new(Path::new(".").join(path)),
+                weights::shown(path),
+            ),
             Place::Serial(path) => return Ok(Box::new(serial::Serial::open(path, timeout)?)),
         };
         Ok(Box::new(link::Process::spawn(command, what, timeout)?))

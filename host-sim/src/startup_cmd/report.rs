@@ -20,7 +20,7 @@ pub(super) struct Row {
     into_margin: u32,
     end_stop_contacts: u32,
     /// The largest error of the hanging zero, pole counts, and of the cart's centre, cart
-    /// counts; none (`null`) where an episode never took it.
+    /// counts, over the episodes that took them; none (`null`, `-`) where none did.
     zero_error_counts: Option<i64>,
     centre_error_counts: Option<i64>,
     /// At steady balance (an episode's second half): the cart's RMS distance from the
@@ -91,13 +91,10 @@ pub(super) fn summarise(
     }
 }
 
-/// The largest |error| `of` the outcomes; none where one never took its zero (it was shown
-/// as i64's largest, 9223372036854775807 counts, as if measured).
+/// The largest |error| `of` the outcomes that took their zero; none where none did (it was
+/// shown as i64's largest, 9223372036854775807 counts, as if measured, where one did not).
 fn worst(outcomes: &[Outcome], of: impl Fn(&Outcome) -> Option<i64>) -> Option<i64> {
-    outcomes
-        .iter()
-        .map(|o| of(o).map(i64::abs))
-        .try_fold(0, |m, e| Some(m.max(e?)))
+    outcomes.iter().filter_map(|o| of(o).map(i64::abs)).max()
 }
 
 /// A count for the table, `-` for none.

@@ -244,14 +244,15 @@ impl Config {
 
 impl Config {
     /// A decay so long that epsilon never leaves `eps_start` in the longest run the
-    /// configuration allows (`exp(-t / eps_decay)` rounds to 1): `eps_end`, and the decay
-    /// itself, would then be read by nothing, as where the two ends are equal.
+    /// configuration allows (it is at its end what it was at the start): `eps_end`, and the
+    /// decay itself, would then be read by nothing, as where the two ends are equal.
     fn decay_that_never_moves(&self) -> Option<String> {
         let (t, unit) = match self.eps_unit {
             Unit::Episodes => (self.episodes as f64, "episodes"),
             Unit::Steps => (self.episodes as f64 * f64::from(self.max_steps), "steps"),
         };
-        ((-t / self.eps_decay).exp() == 1.0 && decays(self)).then(|| {
+        let epsilon = |t| crate::train::epsilon(self, t);
+        (epsilon(t) == epsilon(0.0) && decays(self)).then(|| {
             format!(
                 "eps_decay ({:?}) leaves epsilon at eps_start for the whole run ({t} {unit} at \
                  most), so eps_end is never approached; expected a decay the run can move",

@@ -201,7 +201,7 @@ def _level(v):
             # A Decimal("1e-400") or a Fraction that small becomes 0 in a float, a level the
             # caller did not write.
             if f == 0 and v != 0:
-                raise ValueError(f"levels: the item {_short(v)} reads as 0 in a float; expected 0 written as 0, or a number of at least 1.1754944e-38")
+                raise ValueError(f"levels: the item {_short(v)} reads as 0 in a float; expected 0 written as 0, or a level a float holds")
             return f
     raise TypeError(f"levels must be {_LEVELS}; found the item {_short(v)} ({type(v).__name__})")
 
@@ -361,14 +361,15 @@ def _horizon(h):
 _SEEDS = 2**64
 
 
-def _whole(value, name, least, most, kind="a whole number"):
+def _whole(value, name, least, most, kind="a whole number", bools=False):
     """``value``, a Python int or a NumPy integer, as a Python int in [least, most]:
-    TypeError for what is no int, as a float is refused, not truncated, and for a bool, an
-    int to Python that ran as a count of 1; ValueError naming the range for an int outside
+    TypeError for what is no int, as a float is refused, not truncated, and for a bool
+    unless ``bools`` (an int to Python, it ran as a count of 1; Gymnasium takes one as a
+    seed); ValueError naming the range for an int outside
     it, before the native module's conversion would raise an OverflowError that names
     neither."""
     try:
-        if isinstance(value, (bool, np.bool_)):
+        if isinstance(value, (bool, np.bool_)) and not bools:
             raise TypeError
         whole = operator.index(value)
     except TypeError:
@@ -389,7 +390,7 @@ def _steps(max_episode_steps):
 def _seed(seed, most=_SEEDS - 1, name="seed"):
     """A seed as Gymnasium's ``reset(seed=)`` takes one, an int of at least 0, returned as a
     Python int for Gymnasium's seeding: 1.7 would replay seed 1's episodes."""
-    return _whole(seed, name, 0, most, "a whole number, as Gymnasium takes one")
+    return _whole(seed, name, 0, most, "a whole number, as Gymnasium takes one", bools=True)
 
 
 def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0, controller="policy", rig=None,

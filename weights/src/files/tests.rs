@@ -233,13 +233,17 @@ fn names_differing_only_in_invalid_bytes_have_hidden_names_of_their_own() {
     assert_ne!(temp_path(&a), temp_path(&b));
 }
 
-/// A directory output ending in `/.` or `/..` after others is refused (the system refused
-/// the first after the work; the second made a directory and wrote in its parent); `.` and
-/// `..` alone, and `..` leading, name directories that are.
+/// A new directory output ending in `/.` or `/..` after others, with trailing slashes or
+/// not, is refused (the system refused the first after the work; the second made a
+/// directory and wrote in its parent); one that exists, and `.` and `..` alone, name
+/// directories that are.
 #[test]
-fn a_directory_ending_in_a_dot_is_refused() {
-    for bad in ["new/.", "new/..", "a/b/..", "/tmp/x/."] {
-        let e = check_dir_name("--plots", Path::new(bad))
+fn a_new_directory_ending_in_a_dot_is_refused() {
+    let d = scratch("dots");
+    let new = d.join("new");
+    for end in [".", "..", "./", "../", ".//"] {
+        let bad = format!("{}/{end}", new.display());
+        let e = check_dir_name("--plots", Path::new(&bad))
             .unwrap_err()
             .to_string();
         assert!(
@@ -247,7 +251,14 @@ fn a_directory_ending_in_a_dot_is_refused() {
             "{e}"
         );
     }
-    for good in [".", "..", "../plots", "./plots", "plots", "a/.b", "a/..c"] {
+    let a = d.join("a");
+    std::fs::create_dir_all(a.join("b")).unwrap();
+    for good in [".", "..", "../..", "./plots", "plots", "a/.b", "a/..c", "/"] {
         check_dir_name("--plots", Path::new(good)).unwrap();
     }
+    for there in [a.join("."), a.join("b/.."), a.join("b/../")] {
+        check_dir_name("--plots", &there).unwrap();
+    }
+    assert!(!new.exists());
+    std::fs::remove_dir_all(&d).unwrap();
 }

@@ -1,0 +1,51 @@
+//! Values as they arrive, after any TOML escape the check of a file's text cannot see
+//! through, and values that leave a mode read by nothing.
+
+use super::super::Config;
+
+/// The configuration `f` makes of the paper's is refused with `want` among its words.
+fn refused(f: fn(&mut Config), want: &str) {
+    let mut c = Config::paper();
+    f(&mut c);
+    let e = c.validate().unwrap_err().to_string();
+    assert!(e.contains(want), "{e:?} lacks {want:?}");
+}
+
+#[test]
+fn a_spec_that_reads_as_zero_is_refused_as_it_arrives() {
+    // `1e\u002d400` in a file hid these from the check of its text.
+    refused(
+        |c| c.levels = "-1,1e-400,1".into(),
+        "levels: line 1, column 4: 1e-400",
+    );
+    refused(
+        |c| c.domain = "noise=1e-400".into(),
+        "domain: line 1, column 7: 1e-400",
+    );
+    refused(
+        |c| c.reward = "env+effort=1e-400".into(),
+        "reward: line 1, column 12: 1e-400",
+    );
+}
+
+#[test]
+fn a_decay_that_never_moves_epsilon_is_refused_and_one_that_does_is_taken() {
+    // Epsilon stayed at eps_start for the whole run: eps_end was read by nothing.
+    refused(
+        |c| c.eps_decay = 1e300,
+        "eps_decay (1e300) leaves epsilon at eps_start for the whole run (60000 steps at most)",
+    );
+    // The decay factor moves below 1, but epsilon, a hundredth above its end, does not.
+    refused(
+        |c| (c.eps_end, c.eps_decay) = (c.eps_start - 0.01, 3e19),
+        "eps_decay (3e19) leaves epsilon at eps_start",
+    );
+    refused(
+        |c| (c.eps_unit, c.eps_decay) = (super::super::Unit::Episodes, 1e300),
+        "for the whole run (300 episodes at most)",
+    );
+    let mut c = Config::paper();
+    // exp(-60000 / 1e15) is below 1 in f64, and epsilon moves with it.
+    c.eps_decay = 1e15;
+    c.validate().unwrap();
+}
