@@ -109,8 +109,13 @@ impl Manifest {
         for s in &m.steps {
             let at = format!("step {}", weights::quote(&s.name));
             let named = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || "-.".contains(c);
-            if s.name.is_empty() || !s.name.chars().all(named) {
-                return Err(format!("{at}: expected a name of a-z, 0-9, `-` and `.`"));
+            // `-` alone is the steps' list's mark for none, and a leading `-` an option's.
+            let leads = s.name.starts_with(|c: char| c.is_ascii_alphanumeric());
+            if !leads || !s.name.chars().all(named) {
+                return Err(format!(
+                    "{at}: expected a name of a-z, 0-9, `-` and `.`, starting with a letter or \
+                     a digit"
+                ));
             }
             if !names.insert(s.name.as_str()) {
                 return Err(format!("{at}: a second step of that name"));
@@ -163,7 +168,14 @@ fn fields(s: &Step) -> [(&'static str, Option<&str>); 4] {
 /// Whether `c` ends a line somewhere: a control character (a tab, a line break, an escape,
 /// U+0085) or Unicode's line and paragraph separators, which editors and terminals break at.
 fn breaks(c: char) -> bool {
-    c.is_control() || c == '\u{2028}' || c == '\u{2029}'
+    c.is_control() || c == '\u{2028}' || c == '\u{2029}' || invisible(c)
+}
+
+/// Whether `c` is a format character a terminal shows as nothing while it reorders or hides
+/// what follows (U+202E turned a printed command around): Unicode's bidirectional controls,
+/// zero-width characters and the byte-order mark.
+fn invisible(c: char) -> bool {
+    matches!(c, '\u{200B}'..='\u{200F}' | '\u{202A}'..='\u{202E}' | '\u{2060}'..='\u{2069}' | '\u{FEFF}')
 }
 
 /// Refuses a field `results steps` could not print as one field of its line, which
@@ -176,8 +188,9 @@ fn check_fields(s: &Step) -> Result<(), String> {
         let Some(v) = value else { continue };
         if let Some(c) = v.chars().find(|&c| breaks(c)) {
             return Err(format!(
-                "{key}: expected no control character (a tab, a line break, an escape) and no \
-                 line or paragraph separator (U+2028, U+2029), found {}",
+                "{key}: expected no control character (a tab, a line break, an escape), no \
+                 line or paragraph separator (U+2028, U+2029) and no invisible format \
+                 character (U+202E), found {}",
                 weights::quote(&c.to_string())
             ));
         }
@@ -227,7 +240,8 @@ fn what(key: &str) -> &'static str {
 
 /// Why an output is not a place in the repository a step writes: absolute, through `..`
 /// (outside, where `regenerate.sh` would rename a printed output onto it), through `.` or an
-/// empty part, or a directory's name ending in `/`.
+/// empty part, a directory's name ending in `/`, a part a command would read as an option
+/// (`-rf`), or the repository's `.git`.
 fn misplaced(o: &str) -> Option<&'static str> {
     let parts = || o.split('/');
     if o.starts_with('/') {
@@ -238,6 +252,10 @@ fn misplaced(o: &str) -> Option<&'static str> {
         Some("a `..` part")
     } else if parts().any(|p| p.is_empty() || p == ".") {
         Some("a `.` or empty part")
+    } else if parts().any(|p| p.starts_with('-')) {
+        Some("a part starting with `-`, which a command reads as an option")
+    } else if parts().any(|p| p == ".git") {
+        Some("the repository's own `.git`")
     } else {
         None
     }
@@ -275,188 +293,4 @@ fn check_needs_and_cost(s: &Step) -> Result<(), String> {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-
-    const TWO: &str = r#"
-[[step]]
-name = "eval-x"
-about = "x"
-run = "host-sim eval --scenario noise+delay=2 --json"
-output = "docs/results/eval-x.json"
-stdout = true
-cost = 1.5
-
-[[step]]
-name = "tables"
-about = "the documents"
-run = "host-sim tables && echo done"
-cost = 0
-"#;
-
-    #[test]
-    fn reads_steps_their_words_and_results() {
-        let m = Manifest::parse(TWO).unwrap();
-        assert_eq!(m.steps.len(), 2);
-        // Words are no number: only a cost written `1e-400` is refused.
-        Manifest::parse(&TWO.replace("about = \"x\"", "about = \"below 1e-400\"")).unwrap();
-        let words = m.steps[0].words().unwrap();
-        assert_eq!(
-            words,
-            ["host-sim", "eval", "--scenario", "noise+delay=2", "--json"]
-        );
-        assert_eq!(m.steps[0].results(), Some("docs/results/eval-x.json"));
-        assert_eq!(m.steps[1].words(), None, "`&&` is the shell's");
-        assert_eq!(m.steps[1].results(), None);
-        assert_eq!(m.producing("docs/results/eval-x.json")[0].name, "eval-x");
-    }
-
-    #[test]
-    fn refuses_what_the_script_could_not_run() {
-        let cases = [
-            (
-                TWO.replace("\"tables\"", "\"eval-x\""),
-                "a second step of that name",
-            ),
-            (
-                TWO.replace("\"tables\"", "\"T\\u001b\""),
-                "step \"T\\u{1b}\": expected a name of a-z",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = -1\n"),
-                "a cost of 0 or more",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"gpu\"]\n"),
-                "needs \"gpu\"",
-            ),
-            (
-                TWO.replace(
-                    "stdout = true\ncost = 1.5",
-                    "cost = 1.5\nstdout = true\nrebuilt = 1",
-                ),
-                "unknown field",
-            ),
-            (
-                TWO.replace("output = \"docs/results/eval-x.json\"\n", ""),
-                "names no output",
-            ),
-            (
-                TWO.replace("run = \"host-sim tables", "run = \"\\thost-sim tables"),
-                "no control character",
-            ),
-            (
-                TWO.replace("about = \"x\"", "about = \"x\\u001b[2J\\u0007y\""),
-                "no control character",
-            ),
-            (
-                TWO.replace("eval-x.json\"", "eval-x\\u001b.json\""),
-                "no control character",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = 5e-324\n"),
-                "zero or a normal number, found 5e-324",
-            ),
-            // Read as 0 by the parser, as if written so.
-            (
-                TWO.replace("cost = 0\n", "cost = 1e-400\n"),
-                "1e-400 reads as 0",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = 0\nneeds = [\"qemu\", \"qemu\"]\n"),
-                "needs \"qemu\" twice (items 0 and 1)",
-            ),
-            (
-                TWO.replace(
-                    "cost = 0\n",
-                    "cost = 0\noutput = \"docs/results/eval-x.json\"\n",
-                ),
-                "printed by one step and written by another",
-            ),
-        ];
-        for (text, want) in cases {
-            let e = Manifest::parse(&text).unwrap_err();
-            assert!(e.contains(want), "{want}: {e}");
-        }
-    }
-
-    /// Every field `results steps` prints is one tab-separated field that `regenerate.sh`'s
-    /// `IFS=$'\t' read` gives back: an empty one vanished there (the step's about ran as its
-    /// command), `-` is its none, a separator is a line break to an editor.
-    #[test]
-    fn refuses_a_field_the_steps_list_cannot_carry() {
-        let out = "output = \"docs/results/eval-x.json\"";
-        let cases = [
-            (
-                TWO.replace(out, "output = \"\""),
-                "\"eval-x\": output: expected",
-            ),
-            (
-                TWO.replace(out, "output = \"-\""),
-                "output: expected a path",
-            ),
-            (
-                TWO.replace(out, "output = \"/etc/passwd\""),
-                "(an absolute path)",
-            ),
-            (TWO.replace(out, "output = \"../../x\""), "(a `..` part)"),
-            (
-                TWO.replace(out, "output = \"docs/./x\""),
-                "(a `.` or empty part)",
-            ),
-            (
-                TWO.replace(out, "output = \"docs/\""),
-                "(a name ending in `/`)",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = 0\nprepare = \"\"\n"),
-                "\"tables\": prepare: expected a command, found \"\"; leave",
-            ),
-            (
-                TWO.replace("cost = 0\n", "cost = 0\nprepare = \"-\"\n"),
-                "prepare: expected a command, found \"-\", the steps' list's mark",
-            ),
-            (
-                TWO.replace("about = \"x\"", "about = \" \""),
-                "about: expected words, found \" \"",
-            ),
-            (
-                TWO.replace("about = \"x\"", "about = \"x\u{2028}y\""),
-                "about: expected no control character (a tab, a line break, an escape) and no line or paragraph separator (U+2028, U+2029), found \"\\u{2028}\"",
-            ),
-            (
-                TWO.replace("about = \"x\"", "about = \"x\u{2029}y\""),
-                "found \"\\u{2029}\"",
-            ),
-            (
-                TWO.replace("about = \"x\"", "about = \"x\u{85}y\""),
-                "found \"\\u{85}\"",
-            ),
-            (
-                TWO.replace("&& echo done", "&& echo \u{2028}"),
-                "run: expected no control",
-            ),
-            (
-                TWO.replace(out, "output = \"o\u{2028}\""),
-                "output: expected no control",
-            ),
-            (
-                TWO.replace(out, "output = \"runs/x\"")
-                    .replace("stdout = true\n", "")
-                    .replace("cost = 0\n", "cost = 0\noutput = \"runs/x\"\n"),
-                "step \"eval-x\": output \"runs/x\" is step \"tables\"'s too; expected one step per output",
-            ),
-        ];
-        for (text, want) in cases {
-            let e = Manifest::parse(&text).unwrap_err();
-            assert!(e.contains(want), "{want}: {e}");
-        }
-        // A results file takes its rows from several steps, each under its labels.
-        let shared = TWO.replace("stdout = true\n", "").replace(
-            "cost = 0\n",
-            "cost = 0\noutput = \"docs/results/eval-x.json\"\n",
-        );
-        let m = Manifest::parse(&shared).unwrap();
-        assert_eq!(m.producing("docs/results/eval-x.json").len(), 2);
-    }
-}
+mod tests;
