@@ -11,6 +11,7 @@ use pyo3::prelude::*;
 
 use crate::lane::{Handed, Lane, Worlds};
 use crate::{MAX_ENVS, WORLDS_PER_CHECK, interruptible, value_error};
+use twin::Machine;
 use twin::run::Aids;
 
 /// The worlds of a scenario or a domain (not both) on the machine of `rig` (Gymnasium's
@@ -106,8 +107,26 @@ impl Setup {
         predict: bool,
         envelope: Option<PathBuf>,
     ) -> PyResult<Setup> {
+        let machine = crate::machine(rig.as_deref())?;
+        let worlds = worlds(scenario, domain, rig)?;
+        // Without dead time the predictor has nothing to advance a reading over: the
+        // observation was the same either way, as `train --compensate` is refused.
+        if !predict && worlds.most_dead_time() == 0 {
+            return Err(value_error(
+                "predict=False changes nothing where no world has dead time (the predictor \
+                 has none to advance the reading over); leave predict out",
+            ));
+        }
+        // The shipped envelope was measured on Gymnasium's machine: on another it bounds
+        // readings of another plant.
+        if envelope.as_deref() == Some(Path::new(SHIPPED)) && machine != Machine::GYMNASIUM {
+            return Err(value_error(
+                "envelope=\"shipped\" was measured on Gymnasium's machine, and rig= gives \
+                 another; measure one on the rig (`host-sim envelope --rig`) and give its file",
+            ));
+        }
         Ok(Setup {
-            worlds: worlds(scenario, domain, rig)?,
+            worlds,
             levels: self::levels(levels)?,
             horizon: horizon(max_episode_steps)?,
             aids: Aids {

@@ -34,6 +34,14 @@ pub enum Worlds {
 }
 
 impl Worlds {
+    /// The most dead time any of its worlds has, periods.
+    pub fn most_dead_time(&self) -> u32 {
+        match self {
+            Worlds::Fixed(s) => s.delay(),
+            Worlds::Random(d) => d.most_dead_time(),
+        }
+    }
+
     /// The world of episode `episode` of `seed`.
     fn scenario(&self, seed: u64, episode: u64) -> Scenario {
         match self {

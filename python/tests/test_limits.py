@@ -210,3 +210,15 @@ def test_a_bool_is_no_count():
         cartpole_ddqn.evaluate(controller="lqr", episodes=1, horizon=True)
     with pytest.raises(ValueError, match=r"^num_envs must be a whole number"):
         cartpole_ddqn.TwinVectorEnv(num_envs=True)
+
+
+def test_arguments_that_change_nothing_or_mismatch_their_machine_are_refused():
+    """predict=False without dead time gave the same observations as predict=True; the
+    shipped envelope, measured on Gymnasium's machine, bounded the desk's readings."""
+    with pytest.raises(ValueError, match=r"^predict=False changes nothing where no world has dead time"):
+        cartpole_ddqn.TwinEnv(predict=False)
+    with pytest.raises(ValueError, match=r"^envelope=\"shipped\" was measured on Gymnasium's machine"):
+        cartpole_ddqn.TwinEnv(envelope="shipped", rig=REPO / "rigs" / "desk.toml")
+    # With dead time, the reading itself is another observation.
+    cartpole_ddqn.TwinEnv(scenario="delay=2", predict=False)
+    cartpole_ddqn.TwinVectorEnv(2, domain="delay=0..2", predict=False)
