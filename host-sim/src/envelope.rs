@@ -132,6 +132,14 @@ fn one(net: &Net, s: &Scenario, horizon: u32, seed: u64, e: u64) -> Visited {
     v
 }
 
+/// The factors on each channel's quantile `envelope --margin` takes.
+pub const MARGINS: std::ops::RangeInclusive<f64> = 1.0..=10.0;
+
+/// Whether `q` is a share `envelope --quantile` takes: a normal number in (0, 1].
+pub fn quantile_taken(q: f64) -> bool {
+    q > 0.0 && weights::plain(q) && q <= 1.0
+}
+
 /// Largest envelope file read: a report is under a kilobyte.
 const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
 
@@ -143,6 +151,13 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     struct Envelope {
         // Read in f64: in f32, `5e-324` would be a zero before it could be refused.
         envelope: [f64; 4],
+        // What the report says of its measurement, where it says it (a file written by hand
+        // holds the envelope alone): checked, since a report that contradicts itself was
+        // taken without a word.
+        quantile: Option<f64>,
+        margin: Option<f64>,
+        balanced: Option<u64>,
+        episodes_run: Option<u64>,
     }
     // Every message names the file as an envelope's: the command line and the Python
     // package both read it, and a bare path says nothing of which argument it was.
@@ -164,6 +179,9 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
             "expected the JSON `host-sim envelope --json` prints, {e}"
         ))
     })?;
+    if let Some(why) = contradiction(&e.quantile, &e.margin, (e.balanced, e.episodes_run)) {
+        return Err(bad(why));
+    }
     // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
     if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
         return Err(bad(format!(
@@ -175,6 +193,29 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     let limits = e.envelope.map(|x| x as f32);
     // The firmware's refusal names the channel; the values are the file's.
     Limits::new(limits).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
+}
+
+/// What in a report's account of its measurement no `host-sim envelope` run could have
+/// written: a quantile or margin the command refuses, more episodes balanced than ran.
+fn contradiction(
+    quantile: &Option<f64>,
+    margin: &Option<f64>,
+    (balanced, run): (Option<u64>, Option<u64>),
+) -> Option<String> {
+    if let Some(q) = quantile.filter(|&q| !quantile_taken(q)) {
+        return Some(format!(
+            "expected a quantile in (0, 1], normal, found {q:?}"
+        ));
+    }
+    if let Some(m) = margin.filter(|m| !MARGINS.contains(m)) {
+        return Some(format!("expected a margin in [1, 10], found {m:?}"));
+    }
+    match (balanced, run) {
+        (Some(b), Some(r)) if b > r => Some(format!(
+            "expected at most the episodes run ({r}) balanced, found {b}"
+        )),
+        _ => None,
+    }
 }
 
 /// What `host-sim envelope --json` reports.

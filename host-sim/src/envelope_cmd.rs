@@ -141,12 +141,12 @@ fn check(a: &EnvelopeArgs) -> Result<()> {
         a.horizon
     );
     ensure!(
-        a.quantile > 0.0 && weights::plain(a.quantile) && a.quantile <= 1.0,
+        host_sim::envelope::quantile_taken(a.quantile),
         "--quantile must be a normal number in (0, 1], got {:?}",
         a.quantile
     );
     ensure!(
-        a.margin.is_finite() && a.margin >= 1.0 && a.margin <= 10.0,
+        host_sim::envelope::MARGINS.contains(&a.margin),
         "--margin must be in [1, 10], got {:?}",
         a.margin
     );

@@ -214,3 +214,46 @@ fn bad_input_exits_2_before_any_work() {
     assert!(!std::path::Path::new("x.rs").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A report whose account of its measurement no `envelope` run could have written (a
+/// quantile of 5, a margin of 0.5, more episodes balanced than ran) was taken for its limits
+/// without a word; one written by hand, the limits alone, still is.
+#[test]
+fn a_report_that_contradicts_itself_is_refused() {
+    let dir = std::env::temp_dir().join(format!("hs-envelope-odd-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let limits = r#""envelope": [2, 3, 0.2, 5]"#;
+    for (extra, want) in [
+        (
+            r#""quantile": 5"#,
+            "expected a quantile in (0, 1], normal, found 5.0",
+        ),
+        (
+            r#""margin": 0.5"#,
+            "expected a margin in [1, 10], found 0.5",
+        ),
+        (
+            r#""balanced": 1000, "episodes_run": 2"#,
+            "expected at most the episodes run (2) balanced, found 1000",
+        ),
+        ("", ""),
+    ] {
+        let file = dir.join("e.json");
+        let sep = if extra.is_empty() { "" } else { ", " };
+        std::fs::write(&file, format!("{{{limits}{sep}{extra}}}")).unwrap();
+        let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
+            .args(["eval", "--controller", "monitored", "--episodes", "1"])
+            .args(["--horizon", "5", "--envelope"])
+            .arg(&file)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        if want.is_empty() {
+            assert!(o.status.success(), "{err}");
+        } else {
+            assert_eq!(o.status.code(), Some(2), "{err}");
+            assert!(err.contains(want), "{err}");
+        }
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
