@@ -97,6 +97,27 @@ impl Case {
                  the same states in both"
             );
         }
+        self.agrees_with_itself(differs)
+    }
+
+    /// Refuses a case whose own fields disagree, which replay reported as the plant's
+    /// mismatch (exit 1): the initial state against the first of the states, the step that
+    /// terminated against the flags.
+    fn agrees_with_itself(&self, differs: impl Fn(&(&[f64; 4], &[f64; 4])) -> bool) -> Result<()> {
+        let first = &self.exact_states()[0];
+        if differs(&(&self.initial_state, first)) {
+            bail!(
+                "initial_state is {:?} but states row 0 is {first:?}; expected the same state",
+                self.initial_state
+            );
+        }
+        let flagged = (self.terminated.iter().position(|&t| t)).map(|i| i as u32 + 1);
+        ensure!(
+            flagged == self.terminated_at,
+            "terminated_at is {:?} but the first step flagged terminated is {flagged:?}; \
+             expected the same",
+            self.terminated_at
+        );
         Ok(())
     }
 }
@@ -309,6 +330,33 @@ mod tests {
             "{e}"
         );
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// A case whose fields disagree was replayed and reported as the plant's mismatch.
+    #[test]
+    fn a_case_that_contradicts_itself_is_refused() {
+        let good = r#"{"initial_state":[0,0,0,0],"actions":[1],"states":[[0,0,0,0],[0,0,0,0]],"terminated":[false],"terminated_at":null}"#;
+        parse(good, "t").unwrap();
+        for (from, to, want) in [
+            (
+                "\"initial_state\":[0,0,0,0]",
+                "\"initial_state\":[0,0,1,0]",
+                "initial_state is",
+            ),
+            (
+                "\"terminated_at\":null",
+                "\"terminated_at\":1",
+                "terminated_at is Some(1)",
+            ),
+            (
+                "[false]",
+                "[true]",
+                "the first step flagged terminated is Some(1)",
+            ),
+        ] {
+            let e = format!("{:#}", parse(&good.replace(from, to), "t").unwrap_err());
+            assert!(e.starts_with("t:1: ") && e.contains(want), "{e}");
+        }
     }
 
     #[test]
