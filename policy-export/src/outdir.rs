@@ -238,6 +238,9 @@ pub struct Staging {
     /// output is moved aside.
     place: PathBuf,
     kind: &'static str,
+    /// The directories above it that `new` made, deepest first: a run that fails leaves
+    /// none of them behind.
+    made: Vec<PathBuf>,
 }
 
 impl Staging {
@@ -249,6 +252,10 @@ impl Staging {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
+        let made: Vec<PathBuf> = (parent.ancestors())
+            .take_while(|a| !a.as_os_str().is_empty() && a.symlink_metadata().is_err())
+            .map(Path::to_path_buf)
+            .collect();
         let parent = std::fs::create_dir_all(&parent)
             .and_then(|()| std::fs::canonicalize(&parent))
             .map_err(|e| {
@@ -285,6 +292,7 @@ impl Staging {
             dest: dest.to_path_buf(),
             place,
             kind,
+            made,
         };
         marker::write(&staging.tmp, kind, &[])?;
         Ok(staging)
@@ -335,8 +343,12 @@ impl Staging {
 
 impl Drop for Staging {
     fn drop(&mut self) {
-        // Only this process's own staging directory, created by `new`.
+        // Only this process's own staging directory, created by `new`, and the directories
+        // it made above, each only if empty (a committed output is in one of them).
         let _ = std::fs::remove_dir_all(&self.tmp);
+        for dir in &self.made {
+            let _ = std::fs::remove_dir(dir);
+        }
     }
 }
 
@@ -349,6 +361,21 @@ mod tests {
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
         d
+    }
+
+    /// A run that fails leaves none of the directories made to hold it (a `train` that
+    /// stopped on a non-finite loss left `new/deeper/`); one committed keeps them.
+    #[test]
+    fn the_directories_made_for_a_run_go_with_it_unless_it_is_committed() {
+        let dir = scratch("made");
+        let dest = dir.join("new/deeper/run");
+        drop(Staging::new(&dest, "train").unwrap());
+        assert!(!dir.join("new").exists());
+        let st = Staging::new(&dest, "train").unwrap();
+        std::fs::write(st.path().join("a"), b"x").unwrap();
+        st.commit().unwrap();
+        assert!(dest.join("a").is_file());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     /// `run/../run` runs through the destination, which the commit moves aside: it replaces
