@@ -22,11 +22,11 @@ pub(super) fn quantise_weights(w: &[f32], scale: f64) -> impl Iterator<Item = i8
         .map(move |v| (f64::from(*v) / scale).round().clamp(-127.0, 127.0) as i8)
 }
 
-fn quantise_bias(name: &str, b: f32, scale: f64) -> Result<i32> {
+pub(super) fn quantise_bias(name: &str, b: f32, scale: f64) -> Result<i32> {
     let q = (f64::from(b) / scale).round();
     if q.abs() >= f64::from(1u32 << 30) {
         return Err(Error::Input(format!(
-            "tensor `{name}`: bias {b} is {q:e} units of its accumulator, expected under 2^30: \
+            "tensor `{name}`: bias {b:?} is {q:e} units of its accumulator, expected under 2^30: \
              the weights of that unit are tiny beside its bias"
         )));
     }

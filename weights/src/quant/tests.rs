@@ -2,7 +2,7 @@ use firmware::fixed::from_state as fixed_obs;
 use firmware::rig::Rig;
 use shipped::policy::POLICY;
 
-use super::quantiser::{adaptive_round, quantise_weights, requant, symmetric};
+use super::quantiser::{adaptive_round, quantise_bias, quantise_weights, requant, symmetric};
 use super::*;
 use crate::Weights;
 
@@ -331,4 +331,17 @@ fn a_policy_of_seven_levels_keeps_its_decisions_and_its_advantages() {
             "{g:?}: advantage error {err} against {size}"
         );
     }
+}
+
+/// A bias too large for the accumulator is named shortest: `{}` wrote -3e38 with its 39
+/// digits.
+#[test]
+fn a_bias_past_the_accumulator_is_named_shortest() {
+    let e = quantise_bias("fc1.bias", -3e38, 1.0)
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("tensor `fc1.bias`: bias -3e38 is -3.0000000054977558e38 units"),
+        "{e}"
+    );
 }
