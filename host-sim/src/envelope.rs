@@ -208,7 +208,8 @@ fn contradiction(
         ));
     }
     if let Some(m) = margin.filter(|m| !MARGINS.contains(m)) {
-        return Some(format!("expected a margin in [1, 10], found {m:?}"));
+        let (lo, hi) = (MARGINS.start(), MARGINS.end());
+        return Some(format!("expected a margin in [{lo}, {hi}], found {m:?}"));
     }
     match (balanced, run) {
         (Some(b), Some(r)) if b > r => Some(format!(

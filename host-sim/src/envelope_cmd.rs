@@ -147,7 +147,9 @@ fn check(a: &EnvelopeArgs) -> Result<()> {
     );
     ensure!(
         host_sim::envelope::MARGINS.contains(&a.margin),
-        "--margin must be in [1, 10], got {:?}",
+        "--margin must be in [{}, {}], got {:?}",
+        host_sim::envelope::MARGINS.start(),
+        host_sim::envelope::MARGINS.end(),
         a.margin
     );
     Ok(())

@@ -1,5 +1,13 @@
 use super::*;
 
+/// Each manifest text is refused with its words among the message's.
+fn refused<const N: usize>(cases: [(String, &str); N]) {
+    for (text, want) in cases {
+        let e = Manifest::parse(&text).unwrap_err();
+        assert!(e.contains(want), "{want}: {e}");
+    }
+}
+
 const TWO: &str = r#"
 [[step]]
 name = "eval-x"
@@ -20,7 +28,7 @@ cost = 0
 /// repository's own history, and a command printed turned around (U+202E).
 #[test]
 fn refuses_what_a_script_would_misread() {
-    for (text, want) in [
+    let cases = [
         (
             TWO.replace("name = \"tables\"", "name = \"-\""),
             "starting with a letter",
@@ -37,10 +45,8 @@ fn refuses_what_a_script_would_misread() {
             TWO.replace("echo done", "echo \u{202e}enod"),
             "no invisible format",
         ),
-    ] {
-        let e = Manifest::parse(&text).unwrap_err();
-        assert!(e.contains(want), "{want}: {e}");
-    }
+    ];
+    refused(cases);
 }
 
 #[test]
@@ -123,10 +129,7 @@ fn refuses_what_the_script_could_not_run() {
             "printed by one step and written by another",
         ),
     ];
-    for (text, want) in cases {
-        let e = Manifest::parse(&text).unwrap_err();
-        assert!(e.contains(want), "{want}: {e}");
-    }
+    refused(cases);
 }
 
 /// Every field `results steps` prints is one tab-separated field that `regenerate.sh`'s
@@ -196,10 +199,7 @@ fn refuses_a_field_the_steps_list_cannot_carry() {
             "step \"eval-x\": output \"runs/x\" is step \"tables\"'s too; expected one step per output",
         ),
     ];
-    for (text, want) in cases {
-        let e = Manifest::parse(&text).unwrap_err();
-        assert!(e.contains(want), "{want}: {e}");
-    }
+    refused(cases);
     // A results file takes its rows from several steps, each under its labels.
     let shared = TWO.replace("stdout = true\n", "").replace(
         "cost = 0\n",
