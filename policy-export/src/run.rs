@@ -217,6 +217,7 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
 /// an evaluation of no episodes or a subnormal mean went unread.
 fn check_figures(s: &Summary) -> std::result::Result<(), String> {
     let (e, c) = (&s.final_eval, &s.config);
+    c.within_limits().map_err(|e| format!("config: {}", e.0))?;
     let count = |field: &str, n: u64, most: u64, what: &str| {
         if (1..=most).contains(&n) {
             Ok(())
@@ -255,6 +256,13 @@ fn check_figures(s: &Summary) -> std::result::Result<(), String> {
     if let Some((field, x)) = returns.iter().find(|(_, x)| !weights::plain(*x)) {
         return Err(format!(
             "{field}: expected zero or a normal number, found {x:?}"
+        ));
+    }
+    // An episode's return is its steps, one reward each; a fraction is no episode's.
+    if e.min.fract() != 0.0 {
+        return Err(format!(
+            "final_eval.min: expected a whole number of steps, found {:?}",
+            e.min
         ));
     }
     let order = [
@@ -366,7 +374,10 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
     let meta = BTreeMap::from([
         ("format".to_string(), "pt".to_string()),
         ("seed".to_string(), seed.to_string()),
-        ("width".to_string(), r.policy.width().to_string()),
+        (
+            weights::checkpoint::WIDTH_KEY.to_string(),
+            r.policy.width().to_string(),
+        ),
         ("config".to_string(), weights_config(cfg)?),
         (
             twin::rigfile::METADATA_KEY.to_string(),

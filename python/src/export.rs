@@ -87,8 +87,8 @@ pub fn export(
         &name,
     )
     .map_err(|e| value_error(format!("{e:#}")))?;
-    write_atomic(&out, r.text.as_bytes()).map_err(file_error)?;
-    // What the command line warns of a run's policy, as the command does once written.
+    // What the command line warns of a run's policy; before writing, so that a warning
+    // raised as an error (`-W error`) leaves no file behind.
     for w in path
         .as_deref()
         .map(policy_export::run::board_warnings)
@@ -96,6 +96,7 @@ pub fn export(
     {
         crate::warn(py, w.strip_prefix("warning: ").unwrap_or(&w))?;
     }
+    write_atomic(&out, r.text.as_bytes()).map_err(file_error)?;
     Ok(import.describe())
 }
 

@@ -4,6 +4,7 @@ in-memory state dicts; nothing written on a refusal."""
 import subprocess
 import sys
 import tracemalloc
+import warnings
 
 import numpy as np
 import pytest
@@ -231,3 +232,9 @@ def test_a_runs_policy_without_board_figures_gives_the_commands_warning(tools, t
         cartpole_ddqn.export(run_dir, tmp_path / "p.rs")
     assert len(caught) == 1 and caught[0].filename == __file__
     assert (tmp_path / "p.rs").is_file()
+    # Raised as an error, the warning stops the export before anything is written.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(UserWarning):
+            cartpole_ddqn.export(run_dir, tmp_path / "q.rs")
+    assert not (tmp_path / "q.rs").exists()

@@ -45,6 +45,9 @@ use crate::files::{MAX_POLICY_BYTES, read_capped};
 use crate::levels::{self, GivenLevels};
 use crate::{Error, Result, Weights, quote};
 
+/// The metadata key under which the trainer records its network's hidden width.
+pub const WIDTH_KEY: &str = "width";
+
 /// The kind of file a network was read from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
@@ -225,6 +228,7 @@ fn from_dict(dict: &StateDict, found: Found, format: Format) -> Result<Import> {
     }
     let levels = levels::of_file(&metadata, chosen.outputs, given)?;
     let weights = checked_weights(tensors, levels, &chosen.tensors)?;
+    width_agrees(&metadata, weights.width())?;
     Ok(Import {
         weights,
         prefix: chosen.prefix.to_string(),
@@ -234,6 +238,18 @@ fn from_dict(dict: &StateDict, found: Found, format: Format) -> Result<Import> {
         metadata,
         format,
     })
+}
+
+/// Refuses a file whose recorded width is not its tensors': a file edited, or put together
+/// from two, whose metadata no longer describes its network.
+fn width_agrees(metadata: &BTreeMap<String, String>, width: usize) -> Result<()> {
+    match metadata.get(WIDTH_KEY) {
+        Some(w) if w.parse::<usize>() != Ok(width) => Err(Error::Input(format!(
+            "the file's metadata `{WIDTH_KEY}` is {}; its tensors are {width} wide",
+            quote(w)
+        ))),
+        _ => Ok(()),
+    }
 }
 
 /// The network of `tensors` (canonical order, named `names` in the file) on `levels`, with

@@ -92,6 +92,11 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
             5e-324.into(),
             "final_eval.mean: expected zero or a normal number, found 5e-324",
         ),
+        (
+            "min",
+            0.5.into(),
+            "final_eval.min: expected a whole number of steps, found 0.5",
+        ),
     ] {
         let mut bad = good.clone();
         bad["final_eval"][key] = value;
@@ -114,6 +119,11 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         &export,
         "episodes_run: expected 1 to 5 (at most the configured episodes), found 0",
     );
+    // A recorded configuration past the trainer's limits was never a run's.
+    let mut bad = good.clone();
+    bad["config"]["episodes"] = 2_000_000_000_000u64.into();
+    std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
+    refused(&export, "not a run summary: config: episodes");
     // The run's own figures pass, shown shortest.
     std::fs::write(&path, serde_json::to_vec(&good).unwrap()).unwrap();
     let o = run(&export);

@@ -357,6 +357,27 @@ fn a_header_key_given_twice_is_refused_not_the_last_taken() {
 }
 
 #[test]
+fn a_recorded_width_is_the_tensors_or_the_file_is_refused() {
+    let w = Weights::new(16, crate::BANG_BANG.to_vec(), values()).unwrap();
+    let with = |width: &str| {
+        let meta = BTreeMap::from([(WIDTH_KEY.to_string(), width.to_string())]);
+        import(&to_safetensors(&w, &meta).unwrap(), None)
+    };
+    assert_eq!(with("16").unwrap().weights, w);
+    for (width, says) in [
+        (
+            "128",
+            "metadata `width` is \"128\"; its tensors are 16 wide",
+        ),
+        ("16.0", "is \"16.0\""),
+        ("", "is \"\""),
+    ] {
+        let e = with(width).unwrap_err();
+        assert!(e.is_input() && e.to_string().contains(says), "{width}: {e}");
+    }
+}
+
+#[test]
 fn the_canonical_file_round_trips_and_is_byte_deterministic() {
     let w = Weights::new(16, crate::BANG_BANG.to_vec(), values()).unwrap();
     let meta: BTreeMap<String, String> =
