@@ -145,8 +145,9 @@ const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
 
 /// The envelope of a file `host-sim envelope --json` printed, as the monitor takes it:
 /// refused (naming the file) unless it is such a report whose four bounds are finite and
-/// not negative.
-pub fn read(path: &Path) -> weights::Result<Limits> {
+/// not negative. For the monitor of the policy of digest `policy` ([`Net::digest`]), also
+/// refused when the report records that it was measured for another.
+pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
     #[derive(Deserialize)]
     struct Envelope {
         // Read in f64: in f32, `5e-324` would be a zero before it could be refused.
@@ -158,6 +159,7 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
         margin: Option<f64>,
         balanced: Option<u64>,
         episodes_run: Option<u64>,
+        policy_digest: Option<String>,
     }
     // Every message names the file as an envelope's: the command line and the Python
     // package both read it, and a bare path says nothing of which argument it was.
@@ -182,6 +184,19 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     if let Some(why) = contradiction(&e.quantile, &e.margin, (e.balanced, e.episodes_run)) {
         return Err(bad(why));
     }
+    if let Some(text) = &e.policy_digest {
+        let recorded = parse_digest(text).ok_or_else(|| {
+            bad(format!(
+                "expected policy_digest as 0x and 16 hex digits, found {}",
+                weights::quote(text)
+            ))
+        })?;
+        if let Some(p) = policy.filter(|&p| p != recorded) {
+            return Err(bad(format!(
+                "measured for the policy of digest {recorded:#018x}, not this one                  ({p:#018x}): measure its own with host-sim envelope --policy ... --json"
+            )));
+        }
+    }
     // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
     if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
         return Err(bad(format!(
@@ -193,6 +208,19 @@ pub fn read(path: &Path) -> weights::Result<Limits> {
     let limits = e.envelope.map(|x| x as f32);
     // The firmware's refusal names the channel; the values are the file's.
     Limits::new(limits).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
+}
+
+/// A digest as a report writes it, [`show_digest`].
+fn parse_digest(text: &str) -> Option<u64> {
+    let hex = text.strip_prefix("0x")?;
+    let digits = hex.len() == 16 && hex.bytes().all(|b| b.is_ascii_hexdigit());
+    digits.then(|| u64::from_str_radix(hex, 16).ok()).flatten()
+}
+
+/// A digest as a report writes it: `0x` and 16 hex digits (JSON's numbers cannot hold 64
+/// bits exactly in every reader).
+fn show_digest(digest: u64) -> String {
+    format!("{digest:#018x}")
 }
 
 /// What in a report's account of its measurement no `host-sim envelope` run could have
@@ -242,14 +270,17 @@ pub struct Report {
     pub quantiles: [[f32; 4]; 4],
     /// The envelope, `[x, x_dot, theta, theta_dot]`.
     pub envelope: [f32; 4],
+    /// The policy measured, as a target's link names it ([`Net::digest`]).
+    pub policy_digest: String,
     /// The command that measured it, when, where.
     pub provenance: Provenance,
 }
 
 impl Report {
-    /// The report of `v` with its envelope.
+    /// The report of `v`, measured for the policy of digest `policy`, with its envelope.
     pub fn of(
         v: &Visited,
+        policy: u64,
         names: Vec<String>,
         run: (u64, u32),
         quantile: f64,
@@ -267,6 +298,7 @@ impl Report {
             margin,
             quantiles: [0.99, 0.999, 0.9999, 1.0].map(|q| v.quantile(q)),
             envelope: v.envelope(quantile, margin),
+            policy_digest: show_digest(policy),
             provenance,
         }
     }
@@ -333,7 +365,7 @@ mod tests {
         let path = std::env::temp_dir().join(format!("envelope-{}.json", std::process::id()));
         let junk = "\\u001b[2J\\u0007".repeat(3_000);
         std::fs::write(&path, format!("{{\"envelope\": \"{junk}\"}}")).unwrap();
-        let e = read(&path).unwrap_err().to_string();
+        let e = read_for(&path, None).unwrap_err().to_string();
         std::fs::remove_file(&path).unwrap();
         assert!(e.contains("expected the JSON"), "{e}");
         assert!(e.len() < 600 && !e.chars().any(char::is_control), "{e}");

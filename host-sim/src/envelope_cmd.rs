@@ -6,12 +6,11 @@ use std::path::PathBuf;
 
 use anyhow::{Result, ensure};
 use clap::Args;
-use firmware::link::digest;
 use host_common::provenance::Provenance;
 use host_sim::envelope::{Report, rust_module, visited};
 use host_sim::eval::ControllerKind;
 use indicatif::{ProgressBar, ProgressStyle};
-use shipped::policy::{LEVELS, POLICY, RIG};
+use shipped::policy::RIG;
 use weights::files::write_atomic;
 
 use crate::Subject;
@@ -91,6 +90,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
     let provenance = Provenance::of_this_run("host-sim");
     let report = Report::of(
         &v,
+        net.digest(),
         names,
         (a.episodes, a.horizon),
         a.quantile,
@@ -114,9 +114,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
                 v.periods, v.balanced, v.episodes
             ),
         ];
-        // The policy as the link names it: its network and the duty of each output.
-        let policy = digest::policy(digest::mlp(&POLICY), &LEVELS);
-        let text = rust_module(report.envelope, policy, &RIG, &provenance);
+        let text = rust_module(report.envelope, net.digest(), &RIG, &provenance);
         write_atomic(out, text.as_bytes())?;
         host_common::errln!("{}", weights::shown(out));
     }

@@ -75,11 +75,6 @@ impl Subject {
                 weights::shown(path)
             );
         }
-        let envelope = self
-            .envelope
-            .as_deref()
-            .map(host_sim::envelope::read)
-            .transpose()?;
         let int = kinds.iter().any(|k| k.int());
         let policy = kinds.iter().any(|k| k.needs_policy());
         if !policy {
@@ -95,8 +90,11 @@ impl Subject {
             });
             anyhow::bail!("{whose}: {why}");
         }
-        let net = match envelope {
-            Some(e) => net.with_envelope(e),
+        let net = match self.envelope.as_deref() {
+            Some(path) => {
+                let envelope = host_sim::envelope::read_for(path, Some(net.digest()))?;
+                net.with_envelope(envelope)
+            }
             None => net,
         };
         Ok((machine, net))

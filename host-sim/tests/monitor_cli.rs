@@ -120,7 +120,54 @@ fn a_policy_files_envelope_is_measured_and_monitors_it() {
         "monitored",
     ]);
     assert_eq!(r[0]["failures"], 0, "{}", r[0]);
+    another_policys_envelope_is_refused(&report, &file);
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// The report names the policy it measured as the shipped module does (the same policy
+/// read from its file here), and `eval` refuses it for another policy, or a digest that is
+/// none.
+fn another_policys_envelope_is_refused(report: &serde_json::Value, file: &std::path::Path) {
+    let shipped = std::fs::read_to_string(repo("shipped/src/envelope.rs")).unwrap();
+    let digest = report["policy_digest"].as_str().unwrap();
+    assert!(
+        shipped.contains(&format!("POLICY_DIGEST: u64 = {digest};")),
+        "{digest}"
+    );
+    let other = repo("weights/tests/fixtures/cleanrl.safetensors");
+    let eval = |envelope: &std::path::Path| {
+        run(&[
+            "eval",
+            "--policy",
+            other.to_str().unwrap(),
+            "--envelope",
+            envelope.to_str().unwrap(),
+            "--controller",
+            "monitored",
+            "--episodes",
+            "1",
+        ])
+    };
+    let o = eval(file);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains(&format!(
+            "measured for the policy of digest {digest}, not this one"
+        )),
+        "{err}"
+    );
+    let mut edited = report.clone();
+    edited["policy_digest"] = "0x12".into();
+    let bad = file.with_file_name("edited.json");
+    std::fs::write(&bad, serde_json::to_vec(&edited).unwrap()).unwrap();
+    let o = eval(&bad);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("expected policy_digest as 0x and 16 hex digits, found \"0x12\""),
+        "{err}"
+    );
 }
 
 #[test]

@@ -80,7 +80,9 @@ fn envelope(path: Option<PathBuf>) -> PyResult<Option<Limits>> {
     match path {
         None => Ok(None),
         Some(p) if p == Path::new(SHIPPED) => Ok(Some(shipped::envelope::ENVELOPE)),
-        Some(p) => host_sim::envelope::read(&p).map(Some).map_err(value_error),
+        Some(p) => host_sim::envelope::read_for(&p, None)
+            .map(Some)
+            .map_err(value_error),
     }
 }
 

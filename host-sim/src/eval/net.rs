@@ -4,6 +4,7 @@ use std::fmt;
 
 use anyhow::Result;
 use firmware::controller::{Duty, Levels, Limits, Policy, Rises, Scores};
+use firmware::link::digest;
 use firmware::network::int::QMlp;
 use firmware::network::{MAX_OUTPUTS, Mlp, argmax};
 use host_common::wide::WideMlp;
@@ -24,6 +25,7 @@ pub struct Net {
     int: Option<Box<dyn IntForward>>,
     levels: Vec<Duty>,
     envelope: Option<Limits>,
+    digest: u64,
 }
 
 /// The scores of a network whose output count is known only at run time: the first `n`
@@ -120,6 +122,7 @@ impl ForShape for Build<'_> {
             int,
             levels: levels.duties().to_vec(),
             envelope: None,
+            digest: digest::policy(digest::mlp(&mlp), &levels),
         })
     }
 }
@@ -133,6 +136,7 @@ impl Net {
             int: Some(Box::new(POLICY_INT.clone())),
             levels: Levels::BANG_BANG.duties().to_vec(),
             envelope: Some(ENVELOPE),
+            digest: digest::policy(digest::mlp(&POLICY), &Levels::BANG_BANG),
         }
     }
 
@@ -144,6 +148,7 @@ impl Net {
             int: Some(Box::new(shipped::desk_int::POLICY_INT.clone())),
             levels: shipped::desk::LEVELS.duties().to_vec(),
             envelope: None,
+            digest: digest::policy(digest::mlp(&shipped::desk::POLICY), &shipped::desk::LEVELS),
         }
     }
 
@@ -196,6 +201,12 @@ impl Net {
     /// The duty level of each output.
     pub fn levels(&self) -> &[Duty] {
         &self.levels
+    }
+
+    /// The policy as a target's link names it ([`digest::policy`] of the float network):
+    /// what an envelope records it was measured for.
+    pub fn digest(&self) -> u64 {
+        self.digest
     }
 }
 
