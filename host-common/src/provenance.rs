@@ -24,7 +24,7 @@ pub struct Provenance {
     pub argv: Vec<String>,
     /// When it ran: UTC, RFC 3339 to the second.
     pub date: String,
-    /// `git rev-parse --short HEAD` where it ran, or [`UNKNOWN`].
+    /// `git rev-parse --short HEAD` of the checkout the tool was built from, or [`UNKNOWN`].
     pub revision: String,
     /// Whether tracked files differed from that revision (`git status`): the code that ran
     /// was the revision with those changes. False where git is not there to say.
@@ -47,8 +47,7 @@ impl Provenance {
         )
     }
 
-    /// A run of `tool` with `argv`, now, on this machine, in the current directory's
-    /// checkout.
+    /// A run of `tool` with `argv`, now, on this machine, of the revision it was built from.
     pub fn new(tool: &str, argv: Vec<String>) -> Provenance {
         let seconds = SystemTime::now()
             .duration_since(UNIX_EPOCH)
@@ -94,10 +93,18 @@ impl Provenance {
     }
 }
 
-/// The short revision of HEAD and whether tracked files differ from it.
+/// The short revision of HEAD and whether tracked files differ from it, in the checkout the
+/// tool was built from: the code that ran. Never the working directory's, which is any
+/// checkout a user stands in: its configuration runs commands (`core.fsmonitor`) and its
+/// index is rewritten by a status that refreshes it. Unknown where the source is gone.
 fn revision() -> (String, bool) {
     let git = |args: &[&str]| {
-        let out = Command::new("git").args(args).output().ok()?;
+        let out = Command::new("git")
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(["--no-optional-locks", "-c", "core.fsmonitor=false"])
+            .args(args)
+            .output()
+            .ok()?;
         out.status
             .success()
             .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())

@@ -1,6 +1,7 @@
 //! A results file says where it came from: `eval --json` and `envelope --json` record the
 //! command line after the program's name (so that it runs again), the date, the revision
-//! `git` reports for the directory it ran in, the CPUs and the CPU's model.
+//! `git` reports for the checkout the tool was built from (never the directory it runs in,
+//! whose configuration would run), the CPUs and the CPU's model.
 
 use std::path::Path;
 use std::process::Command;
@@ -8,10 +9,13 @@ use std::process::Command;
 use serde_json::Value as Json;
 
 fn run(args: &[&str]) -> Json {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    run_in(&Path::new(env!("CARGO_MANIFEST_DIR")).join(".."), args)
+}
+
+fn run_in(dir: &Path, args: &[&str]) -> Json {
     let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(args)
-        .current_dir(&root)
+        .current_dir(dir)
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -70,4 +74,39 @@ fn eval_and_envelope_record_their_command_revision_and_machine() {
             "{p}"
         );
     }
+}
+
+/// Run inside a checkout that is not the tool's, the tool records its own revision and
+/// leaves that checkout alone: its `core.fsmonitor` command does not run, its index is not
+/// rewritten.
+#[test]
+fn a_checkout_the_tool_runs_in_is_neither_asked_nor_touched() {
+    let dir = std::env::temp_dir().join(format!("hs-git-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let ran = dir.join("FSMONITOR_RAN");
+    let git = |args: &[&str]| {
+        let o = Command::new("git")
+            .args(["-c", "user.name=t", "-c", "user.email=t@t"])
+            .args(args)
+            .current_dir(&dir)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    };
+    git(&["init", "-q"]);
+    std::fs::write(dir.join("a"), "a").unwrap();
+    git(&["add", "a"]);
+    git(&["commit", "-q", "-m", "a"]);
+    let monitor = format!("touch {}; false", ran.display());
+    git(&["config", "core.fsmonitor", &monitor]);
+    // A file changed since the index was written: a status would refresh the index.
+    std::fs::write(dir.join("a"), "b").unwrap();
+    let index = std::fs::read(dir.join(".git/index")).unwrap();
+    let args = ["eval", "--json", "--episodes", "1", "--horizon", "5"];
+    let doc = run_in(&dir, &args);
+    assert_eq!(doc["provenance"]["revision"], revision().as_str());
+    assert!(!ran.exists(), "the checkout's core.fsmonitor ran");
+    assert_eq!(std::fs::read(dir.join(".git/index")).unwrap(), index);
+    std::fs::remove_dir_all(&dir).unwrap();
 }
