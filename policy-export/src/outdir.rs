@@ -177,6 +177,9 @@ pub fn check_output_dir(dir: &Path, kind: &str) -> Result<()> {
     if dir.file_name().is_none() || weights::files::ends_in_dot(dir) {
         return refuse("it is not a directory's name".into());
     }
+    // The name itself, as the commit finds it: with a trailing slash (`LINK/`) the system
+    // follows a link, which passed here and was refused only after the run.
+    let dir = &dir.components().collect::<PathBuf>();
     let why = match std::fs::symlink_metadata(dir) {
         Err(e)
             if matches!(

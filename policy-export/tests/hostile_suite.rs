@@ -10,6 +10,8 @@ use std::process::Command;
 
 #[path = "../../host-common/tests/support/hostile.rs"]
 mod hostile;
+#[path = "hostile_suite/links.rs"]
+mod links;
 
 use hostile::{Bad, Case, Format, Scratch, run_all, uniform_policy, with_stdout_closed};
 
@@ -189,6 +191,7 @@ fn bad_outputs(s: &Scratch) -> Vec<Case> {
         ),
         ("proc", "/proc/cartpole/run".into(), &["refuses"]),
     ];
+    cases.extend(links::linked_with_a_slash(s));
     for (label, out, want) in dirs {
         for cmd in [
             &["train", "--episodes", "1"][..],
