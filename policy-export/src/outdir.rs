@@ -19,8 +19,10 @@ use weights::Error;
 use weights::files::{check_place, kind};
 
 mod marker;
+mod runs;
 use marker::{Found, Listing};
 pub use marker::{MARKER, MAX_MARKER_BYTES};
+pub use runs::{outside_runs, unchanged};
 
 /// Most entries an output directory may hold to be replaced (a `--seeds` run at its limit
 /// has about 50,000).
@@ -197,36 +199,6 @@ pub fn check_output_dir(dir: &Path, kind: &str) -> Result<()> {
         Ok(()) => Ok(()),
         Err(why) => refuse(why),
     }
-}
-
-/// Checks `files`, each in an output directory of this tool's or a directory of one (a
-/// run's `seed-N/`), against the marker there: refused, naming it, where a file is not the
-/// one the tool wrote (replaced, changed, or never listed). Files no marker covers pass: a
-/// directory put together by hand proves nothing either way.
-pub fn unchanged(files: &[&Path]) -> Result<()> {
-    for file in files {
-        let Some(dir) = file.parent() else { continue };
-        let marked = dir.ancestors().take(2).find_map(|root| {
-            let name = file.strip_prefix(root).ok()?.to_string_lossy().into_owned();
-            ["train", "reproduce"]
-                .into_iter()
-                .find_map(|kind| marker::read(root, kind, std::slice::from_ref(&name)).ok())
-        });
-        if let Some(m) = marked
-            && m.listing == Listing::Entries
-            && m.found != [Found::Owned]
-        {
-            bail!(Error::Input(format!(
-                "{}: expected the file its run wrote, as its {MARKER} lists it, found {}",
-                weights::shown(file),
-                match m.found.first() {
-                    Some(Found::Changed) => "one of another size or content",
-                    _ => "one the marker does not list",
-                }
-            )));
-        }
-    }
-    Ok(())
 }
 
 /// An output directory being written: a hidden sibling of the destination, marked as this

@@ -238,3 +238,16 @@ def test_a_runs_policy_without_board_figures_gives_the_commands_warning(tools, t
         with pytest.raises(UserWarning):
             cartpole_ddqn.export(run_dir, tmp_path / "q.rs")
     assert not (tmp_path / "q.rs").exists()
+
+
+def test_export_writes_nothing_into_a_runs_directory(tools, tmp_path):
+    """The run's marker proves its other files: overwritten by an export, any junk in its
+    place read as no marker."""
+    run_dir = tmp_path / "run"
+    run(tools["policy-export"], "train", "--episodes", "2", "--max-steps", "5", "--out", run_dir)
+    marker = (run_dir / ".cartpole-run").read_bytes()
+    for name in (".cartpole-run", "metrics.csv", "notes.rs"):
+        with pytest.raises(ValueError, match="expected a path outside the output directories"):
+            cartpole_ddqn.export(run_dir, run_dir / name)
+    assert (run_dir / ".cartpole-run").read_bytes() == marker
+    assert not (run_dir / "notes.rs").exists()

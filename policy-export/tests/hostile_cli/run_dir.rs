@@ -136,3 +136,47 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Export writes nothing into a run's directory (its marker, which proves the rest, was
+/// overwritten, and then any junk in its place read as no marker), and a marker that is
+/// none this tool wrote is refused, not taken as absent.
+#[test]
+fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
+    let dir = scratch("marked");
+    let run_dir = dir.join("run");
+    let o = run(&[
+        "train",
+        "--episodes",
+        "2",
+        "--max-steps",
+        "5",
+        "--out",
+        run_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let marker = run_dir.join(".cartpole-run");
+    let written = std::fs::read(&marker).unwrap();
+    let src = run_dir.to_str().unwrap();
+    for name in [".cartpole-run", "metrics.csv", "notes.rs"] {
+        let out = run_dir.join(name);
+        refused(
+            &["export", src, "--out", out.to_str().unwrap()],
+            "expected a path outside the output directories of policy-export",
+        );
+    }
+    assert_eq!(std::fs::read(&marker).unwrap(), written);
+    assert!(!run_dir.join("notes.rs").exists());
+    let out = dir.join("policy.rs");
+    let export = ["export", src, "--out", out.to_str().unwrap()];
+    std::fs::write(&marker, b"junk").unwrap();
+    refused(
+        &export,
+        ".cartpole-run: expected the marker its run wrote, or none: its .cartpole-run is not a \
+         marker this tool wrote",
+    );
+    assert!(!out.exists());
+    std::fs::remove_file(&marker).unwrap();
+    let o = run(&export);
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
