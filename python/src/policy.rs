@@ -10,6 +10,7 @@ use host_sim::eval::Net;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray2};
 use pyo3::prelude::*;
 use twin::Machine;
+use weights::Weights;
 use weights::checkpoint::{self, Import};
 
 use crate::{file_error, interruptible, reserve, value_error};
@@ -23,6 +24,8 @@ pub struct Policy {
     pub machine: Machine,
     /// Shared with the evaluation threads, which may outlive an interrupted call.
     pub net: Arc<Net>,
+    /// The largest reading the network takes ([`weights::Weights::reading_bound`]).
+    bound: f32,
 }
 
 /// The network at `path` (a policy file or a run directory), `prefix` choosing among several
@@ -48,6 +51,7 @@ pub fn load(
     let net = Net::from_weights(&import.weights, None)
         .map_err(|e| value_error(format!("{source}: {e:#}")))?;
     Ok(Policy {
+        bound: import.weights.reading_bound(),
         import: Some(import),
         machine,
         net: Arc::new(net),
@@ -61,10 +65,13 @@ pub fn shipped(py: Python<'_>, rig: Option<PathBuf>) -> PyResult<Policy> {
     let given = crate::given_machine(rig.as_deref())?;
     let (machine, other) = twin::rigfile::choose(given, Some(Machine::GYMNASIUM));
     crate::warn_other_rig(py, other)?;
+    let weights = Weights::from_mlp(&::shipped::policy::POLICY, &::shipped::policy::LEVELS)
+        .map_err(value_error)?;
     Ok(Policy {
         import: None,
         machine,
         net: Arc::new(Net::shipped()),
+        bound: weights.reading_bound(),
     })
 }
 
@@ -108,6 +115,13 @@ impl Policy {
         reserve(&mut a, rows.len(), "the actions")?;
         self.each(py, &rows, |v| a.push(argmax(v) as i64))?;
         Ok(PyArray1::from_vec(py, a))
+    }
+
+    /// The largest reading (each channel within plus or minus it) whose forward pass stays
+    /// within f32's range.
+    #[getter]
+    fn reading_bound(&self) -> f32 {
+        self.bound
     }
 
     /// The duty level each output drives, as a fraction of the full push.

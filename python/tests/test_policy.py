@@ -84,6 +84,25 @@ def test_readings_that_are_no_finite_real_numbers_are_refused_naming_obs(obs, fo
     assert policy.q_values(obs.reshape(2, 3, 4)).shape == (2, 3, 2)
 
 
+def test_readings_whose_sums_leave_float32_are_refused_naming_obs():
+    """Finite alone, 1e37 overflowed inside the network: the Q-values were -inf and NaN, or
+    the last biases alone. The bound is the weights': past it some sum can overflow, at it
+    none does (an independent float64 pass over the shipped weights agrees)."""
+    policy = cartpole_ddqn.shipped()
+    bound = policy._native.reading_bound
+    assert 1e20 < bound < 1e37
+    over = with_value(1e37, at=(2, 1), dtype=np.float64)
+    for call in (policy.q_values, policy.act):
+        with pytest.raises(ValueError, match=re.escape("found 1e+37 at [2, 1]")) as e:
+            call(over)
+        assert f"within +-{bound:.3e}" in str(e.value)
+    at = np.full((1, 4), bound, dtype=np.float32) * np.array([1, -1, 1, -1], dtype=np.float32)
+    q = policy.q_values(at)
+    assert np.isfinite(q).all()
+    want = numpy_q(read_safetensors(SHIPPED), at.astype(np.float64))
+    assert np.allclose(q, want, rtol=1e-3)
+
+
 def test_loaded_policy_evaluates_as_the_command_line_does(tools):
     args = ["--scenario", "noise+delay=2", "--controller", "policy", "--episodes", "40", "--horizon", "300"]
     want = json.loads(run(tools["host-sim"], "eval", "--policy", SHIPPED, "--json", *args))["rows"]

@@ -30,6 +30,7 @@ pub mod json;
 pub mod levels;
 pub mod markdown;
 mod numbers;
+mod overflow;
 pub mod quant;
 pub mod shape;
 pub mod source;

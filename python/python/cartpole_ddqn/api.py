@@ -43,7 +43,7 @@ class Policy:
 
     def q_values(self, obs):
         source, given = _readings(obs)
-        q = _by_range(source, given, (len(self.levels),), np.float32, self._native.q_values)
+        q = _by_range(source, given, (len(self.levels),), np.float32, self._native)
         return q.reshape(given.shape[:-1] + q.shape[-1:])
 
     @property
@@ -53,7 +53,7 @@ class Policy:
 
     def act(self, obs):
         source, given = _readings(obs)
-        actions = _by_range(source, given, (), np.int64, self._native.act).reshape(given.shape[:-1])
+        actions = _by_range(source, given, (), np.int64, self._native, act=True).reshape(given.shape[:-1])
         return int(actions) if actions.ndim == 0 else actions
 
     def __repr__(self):
@@ -83,26 +83,27 @@ def _readings(obs):
     return source, given
 
 
-def _by_range(source, given, tail, dtype, run):
-    """``run`` (the network's native call on float32 readings ``[m, 4]``, giving ``[m,
-    *tail]``) on every reading of ``given``, into one array ``[n, *tail]`` of ``dtype``
+def _by_range(source, given, tail, dtype, native, act=False):
+    """The network's native call (``act`` or ``q_values`` of ``native`` on float32 readings
+    ``[m, 4]``, giving ``[m, *tail]``) on every reading of ``given``, into one array ``[n, *tail]`` of ``dtype``
     (MemoryError if it cannot be allocated). The readings are converted and checked
     ``_ROWS`` at a time, as the network runs them: a pass over a batch of 10^8 before the
     first range heard Ctrl-C only seconds later, and held a float32 copy of it whole."""
     n = given.size // 4
     out = np.empty((n, *tail), dtype=dtype)
+    run = native.act if act else native.q_values
     for start in range(0, n, _ROWS):
         end = min(start + _ROWS, n)
-        out[start:end] = run(_checked(source, given, start, end))
+        out[start:end] = run(_checked(source, given, start, end, native.reading_bound))
     return out
 
 
-def _checked(source, given, start, end):
+def _checked(source, given, start, end, bound):
     """Readings ``start..end`` of ``given`` (in C order) as the network takes them, float32
     ``[m, 4]``, refused with ValueError naming ``obs`` and the first as ``source`` holds it
-    where they are not finite in float32 (NaN, an infinity, 1e300): the network answered
-    them all the same, and NaN turns every ReLU off, so its answer was a constant no state
-    chose."""
+    where they are not finite in float32 (NaN, an infinity, 1e300) or past ``bound``, where
+    the network's sums can leave float32's range: the network answered them all the same,
+    and NaN turns every ReLU off, so its answer was a constant no state chose."""
     # Past float32's range a value becomes an infinity: refused below, shown as given.
     with np.errstate(over="ignore"):
         readings = given.flat[4 * start : 4 * end].astype(np.float32, copy=False).reshape(-1, 4)
@@ -110,6 +111,13 @@ def _checked(source, given, start, end):
     if not finite.all():
         k = 4 * start + int(np.argmin(finite))
         raise ValueError(f"obs: expected readings finite in float32; found {_item(source, k)} at {_at(source, k)}")
+    within = np.abs(readings) <= bound
+    if not within.all():
+        k = 4 * start + int(np.argmin(within))
+        raise ValueError(
+            f"obs: expected readings within +-{bound:.3e}, past which the network's sums can leave "
+            f"float32's range; found {_item(source, k)} at {_at(source, k)}"
+        )
     return readings
 
 
