@@ -193,7 +193,8 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
         })?;
         if let Some(p) = policy.filter(|&p| p != recorded) {
             return Err(bad(format!(
-                "measured for the policy of digest {recorded:#018x}, not this one                  ({p:#018x}): measure its own with host-sim envelope --policy ... --json"
+                "measured for the policy of digest {recorded:#018x}, not this one \
+                 ({p:#018x}): measure its own with host-sim envelope --policy ... --json"
             )));
         }
     }

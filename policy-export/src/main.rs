@@ -369,8 +369,19 @@ impl SeedProgress<'_> {
     }
 }
 
-/// One line per seed.
+/// One line per seed; a warning where the run took no gradient step (too short for
+/// `learning_starts` or `train_every`): its policy is the network's initialisation.
 fn print_summary(s: &Summary) {
+    if s.grad_steps == 0 {
+        host_common::errln!(
+            "warning: seed {}: the run took no gradient step in its {} env steps \
+             (learning_starts {}, train_every {}): the policy is the network as initialised",
+            s.seed,
+            s.env_steps,
+            s.config.learning_starts,
+            s.config.train_every
+        );
+    }
     host_common::outln!(
         "seed {:>3}: {} episodes, final mean100 {:>6.1}, solved@195 {:>4}, policy at {} env \
          steps, greedy eval {:>6.1} (min {:>3}) over {} x {} steps, {:.1} s, {:.1} us/step",

@@ -104,6 +104,7 @@ fn the_fast_preset_keeps_its_budget_and_reports_both_returns() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("no gradient step"), "{}", stderr(&o));
     let s: serde_json::Value =
         serde_json::from_slice(&std::fs::read(run.join("summary.json")).unwrap()).unwrap();
     assert_eq!(s["config"]["reward"], "morvan");
@@ -135,6 +136,32 @@ fn the_fast_preset_keeps_its_budget_and_reports_both_returns() {
     assert_eq!(
         last.split(',').nth(8).unwrap().parse::<u64>().unwrap(),
         steps
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A run too short to reach `learning_starts` trains nothing, and says so.
+#[test]
+fn a_run_that_took_no_gradient_step_says_its_policy_is_untrained() {
+    let dir = scratch("untrained");
+    let run = dir.join("run");
+    let o = exe()
+        .args(["train", "--episodes", "2", "--max-steps", "5", "--out"])
+        .arg(&run)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let s: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(run.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(s["grad_steps"], 0);
+    assert!(
+        stderr(&o).contains(&format!(
+            "warning: seed 0: the run took no gradient step in its {} env steps \
+             (learning_starts 32",
+            s["env_steps"]
+        )),
+        "{}",
+        stderr(&o)
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -324,11 +324,17 @@ const fn modal(
 /// The keys read in one mode alone. Hard target updates never read `tau` (the weights came
 /// out identical for any), soft ones never the period; an exploration that starts at its
 /// floor has no decay; without periodic evaluations nothing stops a run early or has
-/// snapshots for finalists; without finalists there is no trial; in worlds without dead time
+/// snapshots for finalists; without finalists there is no trial; without a discount above 0
+/// no target network enters the loss; in worlds without dead time
 /// the predictor has nothing to advance the readings over.
 const MODAL: &[Modal] = &[
     modal("eps_decay", "eps_start", "other than eps_end", decays),
     modal("eps_unit", "eps_start", "other than eps_end", decays),
+    modal("algo", "gamma", "above 0", bootstraps),
+    modal("target_update", "gamma", "above 0", bootstraps),
+    modal("tau", "gamma", "above 0", bootstraps),
+    modal("target_period", "gamma", "above 0", bootstraps),
+    modal("target_period_unit", "gamma", "above 0", bootstraps),
     modal("tau", "target_update", "soft", soft),
     modal("target_period", "target_update", "hard", hard),
     modal("target_period_unit", "target_update", "hard", hard),
@@ -348,6 +354,12 @@ const MODAL: &[Modal] = &[
         reads: has_dead_time,
     },
 ];
+
+/// Whether the loss looks past the next reward: with `gamma` 0 the target network (how it
+/// is chosen, copied or averaged) never enters it, and the weights came out the same.
+fn bootstraps(c: &Config) -> bool {
+    c.gamma > 0.0
+}
 
 fn soft(c: &Config) -> bool {
     c.target_update == TargetUpdate::Soft

@@ -49,3 +49,28 @@ fn a_decay_that_never_moves_epsilon_is_refused_and_one_that_does_is_taken() {
     c.eps_decay = 1e15;
     c.validate().unwrap();
 }
+
+/// With no discount the loss never looks past the next reward: the target network, and
+/// every key that chooses, copies or averages it, changes nothing (the weights came out the
+/// same for each).
+#[test]
+fn without_a_discount_the_target_networks_keys_are_unread() {
+    let zero = |toml: &str| {
+        let mut c = Config::paper().overlay_toml(toml, "t.toml").unwrap();
+        c.unread(&Config::paper()).map_err(|e| e.0)
+    };
+    let e = zero("gamma = 0\nalgo = \"dqn\"\n").unwrap_err();
+    assert_eq!(
+        e,
+        "algo = \"dqn\" is read only when gamma is above 0; gamma = 0.0 ignores it"
+    );
+    let e = zero("gamma = -0.0\ntarget_update = \"soft\"\ntau = 0.5\n").unwrap_err();
+    assert!(
+        e.contains("target_update = \"soft\" is read only when gamma"),
+        "{e}"
+    );
+    assert!(e.contains("tau = 0.5 is read only when gamma"), "{e}");
+    // Their defaults ask for nothing; a discount reads them all.
+    assert_eq!(zero("gamma = 0\n"), Ok(()));
+    assert_eq!(zero("gamma = 0.5\nalgo = \"dqn\"\n"), Ok(()));
+}
