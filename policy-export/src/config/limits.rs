@@ -259,6 +259,11 @@ impl Config {
             Unit::Episodes => (self.episodes as f64, "episodes"),
             Unit::Steps => (self.episodes as f64 * f64::from(self.max_steps), "steps"),
         };
+        // A step budget ends the run sooner, and an episode takes a step at least.
+        let t = match self.max_env_steps {
+            0 => t,
+            budget => t.min(budget as f64),
+        };
         let epsilon = |t| crate::train::epsilon(self, t);
         (epsilon(t) == epsilon(0.0) && decays(self)).then(|| {
             format!(

@@ -44,7 +44,14 @@ fn a_decay_that_never_moves_epsilon_is_refused_and_one_that_does_is_taken() {
         |c| (c.eps_unit, c.eps_decay) = (super::super::Unit::Episodes, 1e300),
         "for the whole run (300 episodes at most)",
     );
+    // A step budget ends the run sooner: 1e19 moves epsilon in 60,000 steps, not in 100.
+    refused(
+        |c| (c.max_env_steps, c.eps_decay) = (100, 1e19),
+        "for the whole run (100 steps at most)",
+    );
     let mut c = Config::paper();
+    c.eps_decay = 1e19;
+    c.validate().unwrap();
     // exp(-60000 / 1e15) is below 1 in f64, and epsilon moves with it.
     c.eps_decay = 1e15;
     c.validate().unwrap();
