@@ -203,13 +203,38 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
             weights::shown(&summary_path)
         ))
     })?;
-    check_figures(&s).map_err(|e| {
-        weights::Error::Input(format!(
-            "{}: not a run summary: {e}",
-            weights::shown(&summary_path)
-        ))
-    })?;
+    check_figures(&s)
+        .and_then(|()| same_run(&s, &import.metadata))
+        .map_err(|e| {
+            weights::Error::Input(format!(
+                "{}: not a run summary: {e}",
+                weights::shown(&summary_path)
+            ))
+        })?;
     Ok(provenance(&s))
+}
+
+/// Why a summary cannot be the run of the policy file whose `metadata` the trainer wrote:
+/// another seed or configuration (a file beside another run's summary, with no marker to
+/// tell, was exported as that run's). A file that records neither (not the trainer's)
+/// says nothing either way.
+fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Result<(), String> {
+    if let Some(seed) = metadata.get(SEED_KEY).filter(|&m| *m != s.seed.to_string()) {
+        return Err(format!(
+            "seed: the policy file records seed {}, the summary {}",
+            weights::quote(seed),
+            s.seed
+        ));
+    }
+    let Some(recorded) = metadata.get(CONFIG_KEY) else {
+        return Ok(());
+    };
+    let json = |text: &str| serde_json::from_str::<serde_json::Value>(text).ok();
+    let summary = weights_config(&s.config).ok().and_then(|c| json(&c));
+    match json(recorded) {
+        Some(file) if Some(&file) == summary.as_ref() => Ok(()),
+        _ => Err("config: the policy file records another configuration than the summary".into()),
+    }
 }
 
 /// Why the figures a summary gives for the provenance cannot be a run's, if they cannot:
@@ -266,7 +291,7 @@ fn check_figures(s: &Summary) -> std::result::Result<(), String> {
         ));
     }
     let order = [
-        ("final_eval.min", 0.0, e.min, e.mean),
+        ("final_eval.min", 1.0, e.min, e.mean),
         ("final_eval.mean", e.min, e.mean, f64::from(e.max_steps)),
     ];
     match order
@@ -274,8 +299,8 @@ fn check_figures(s: &Summary) -> std::result::Result<(), String> {
         .find(|(_, low, x, high)| !(low <= x && x <= high))
     {
         Some((field, low, x, high)) => Err(format!(
-            "{field}: expected a return from {low:?} to {high:?} (0 <= min <= mean <= \
-             max_steps), found {x:?}"
+            "{field}: expected a return from {low:?} to {high:?} (1 <= min <= mean <= \
+             max_steps: an episode takes a step at least), found {x:?}"
         )),
         None => Ok(()),
     }
@@ -356,6 +381,10 @@ fn weights_config(cfg: &Config) -> Result<String> {
     Ok(serde_json::to_string(&v)?)
 }
 
+/// The policy file's metadata keys for its run's seed and configuration.
+const SEED_KEY: &str = "seed";
+const CONFIG_KEY: &str = "config";
+
 /// Writes one run's files into `dir` (a [`crate::outdir::Staging`] path or one of its
 /// `seed-N`).
 pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<Summary> {
@@ -373,12 +402,12 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
     )?;
     let meta = BTreeMap::from([
         ("format".to_string(), "pt".to_string()),
-        ("seed".to_string(), seed.to_string()),
+        (SEED_KEY.to_string(), seed.to_string()),
         (
             weights::checkpoint::WIDTH_KEY.to_string(),
             r.policy.width().to_string(),
         ),
-        ("config".to_string(), weights_config(cfg)?),
+        (CONFIG_KEY.to_string(), weights_config(cfg)?),
         (
             twin::rigfile::METADATA_KEY.to_string(),
             twin::rigfile::to_toml(&cfg.machine()?),

@@ -73,13 +73,13 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         (
             "min",
             serde_json::json!(over),
-            "final_eval.min: expected a return from 0.0 to",
+            "final_eval.min: expected a return from 1.0 to",
         ),
         ("episodes", 0.into(), "final_eval.episodes: expected 1 to"),
         (
             "mean",
             (-5.0).into(),
-            "final_eval.min: expected a return from 0.0 to -5.0",
+            "final_eval.min: expected a return from 1.0 to -5.0",
         ),
         ("max_steps", 0.into(), "final_eval.max_steps: expected 1 to"),
         (
@@ -97,6 +97,13 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
             0.5.into(),
             "final_eval.min: expected a whole number of steps, found 0.5",
         ),
+        // No episode takes no step; `-0.0` went into the module as the minimum.
+        (
+            "min",
+            0.0.into(),
+            "final_eval.min: expected a return from 1.0",
+        ),
+        ("min", (-0.0).into(), "found -0.0"),
     ] {
         let mut bad = good.clone();
         bad["final_eval"][key] = value;
@@ -119,6 +126,28 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         &export,
         "episodes_run: expected 1 to 5 (at most the configured episodes), found 0",
     );
+    // Another run's seed or configuration, beside this policy file.
+    for (key, value, says) in [
+        (
+            "seed",
+            12345.into(),
+            "seed: the policy file records seed \"0\", the summary 12345",
+        ),
+        (
+            "config",
+            serde_json::json!({"algo": "dqn"}),
+            "config: the policy file records another",
+        ),
+    ] {
+        let mut bad = good.clone();
+        if key == "seed" {
+            bad[key] = value;
+        } else {
+            bad[key]["algo"] = value["algo"].clone();
+        }
+        std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
+        refused(&export, says);
+    }
     // A recorded configuration past the trainer's limits was never a run's.
     let mut bad = good.clone();
     bad["config"]["episodes"] = 2_000_000_000_000u64.into();
