@@ -105,6 +105,7 @@ impl Manifest {
                 e.1 |= t.stdout;
             }
         }
+        nested(&m.steps)?;
         let mut names = HashSet::new();
         for s in &m.steps {
             let at = format!("step {}", weights::quote(&s.name));
@@ -261,6 +262,31 @@ fn misplaced(o: &str) -> Option<&'static str> {
     }
 }
 
+/// Refuses an output inside another step's (a file in `train`'s run directory): the step
+/// that writes it adds a file the run did not write, and the next `train` refuses to
+/// replace the run. Compared by components, sorted, so that whatever lies inside an output
+/// follows it at once and neighbours alone are compared.
+fn nested(steps: &[Step]) -> Result<(), String> {
+    let mut places: Vec<(Vec<&str>, &Step)> = steps
+        .iter()
+        .filter_map(|s| Some((s.output.as_deref()?.split('/').collect(), s)))
+        .collect();
+    places.sort_by(|a, b| a.0.cmp(&b.0));
+    for w in places.windows(2) {
+        let ((outer, a), (inner, b)) = (&w[0], &w[1]);
+        if inner.len() > outer.len() && inner.starts_with(outer) {
+            return Err(format!(
+                "step {}: output {} lies inside step {}'s output {}; expected a place of its own",
+                weights::quote(&b.name),
+                weights::quote(&inner.join("/")),
+                weights::quote(&a.name),
+                weights::quote(&outer.join("/"))
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Refuses a tool beyond [`NEEDS`], one named twice, or a cost that is not a number of
 /// minutes.
 fn check_needs_and_cost(s: &Step) -> Result<(), String> {
@@ -283,7 +309,8 @@ fn check_needs_and_cost(s: &Step) -> Result<(), String> {
             s.needs[..k].iter().position(|m| m == n).unwrap_or(0)
         ));
     }
-    if !(s.cost.is_finite() && s.cost >= 0.0 && weights::plain(s.cost)) {
+    // `-0.0` passed `>= 0` and was shown as the step's cost.
+    if !(s.cost.is_finite() && s.cost.is_sign_positive() && weights::plain(s.cost)) {
         return Err(format!(
             "expected a cost of 0 or more CPU minutes, zero or a normal number, found {:?}",
             s.cost

@@ -128,6 +128,19 @@ fn refuses_what_the_script_could_not_run() {
             ),
             "printed by one step and written by another",
         ),
+        (
+            TWO.replace("cost = 0\n", "cost = -0.0\n"),
+            "a cost of 0 or more CPU minutes, zero or a normal number, found -0.0",
+        ),
+        // A file in the other's directory: the next run of that step refuses to replace it.
+        (
+            TWO.replace(
+                "cost = 0\n",
+                "cost = 0\noutput = \"docs/results/eval-x.json/extra.txt\"\n",
+            ),
+            "step \"tables\": output \"docs/results/eval-x.json/extra.txt\" lies inside step \
+             \"eval-x\"'s output \"docs/results/eval-x.json\"",
+        ),
     ];
     refused(cases);
 }
