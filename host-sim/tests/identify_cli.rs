@@ -136,6 +136,25 @@ fn identify_writes_a_rig_near_the_truth_and_draws_the_fit() {
     );
     let png = std::fs::read(plots.join("identify-1-cart.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
+    // A fit of the swing alone would leave the first fit's plots beside its own.
+    let again = |logs: &[&Path]| {
+        let mut args: Vec<PathBuf> = logs.iter().map(|p| p.to_path_buf()).collect();
+        args.extend([flag("--rig"), rig.clone(), flag("--out"), out.clone()]);
+        args.extend([flag("--plots"), plots.clone()]);
+        args
+    };
+    let alone = again(&[&swing]);
+    let alone: Vec<&Path> = alone.iter().map(PathBuf::as_path).collect();
+    refused(
+        &plots,
+        &alone,
+        &["expected a directory without another fit's plots, found \
+             \"identify-1-cart-residuals.png\", \"identify-1-cart-residuals.svg\", \
+             \"identify-1-cart.png\" and 5 more"],
+    );
+    let both = again(&[&cart, &swing]);
+    let both: Vec<&Path> = both.iter().map(PathBuf::as_path).collect();
+    assert!(run(&both).status.success());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

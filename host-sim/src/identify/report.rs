@@ -154,11 +154,41 @@ pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Resul
             weights::files::kind(&m.file_type())
         )));
     }
-    for png in plot_paths(dir, logs).iter().flatten() {
-        check_output(png, inputs)?;
-        check_output(&png.with_extension("svg"), inputs)?;
+    let ours: Vec<PathBuf> = plot_paths(dir, logs)
+        .into_iter()
+        .flatten()
+        .flat_map(|png| [png.with_extension("svg"), png])
+        .collect();
+    for path in &ours {
+        check_output(path, inputs)?;
     }
-    Ok(())
+    others(dir, &ours)
+}
+
+/// Refuses a plots directory holding another fit's plots that this one would leave beside
+/// its own (a fit of four logs, then of two: the directory described both).
+fn others(dir: &Path, ours: &[PathBuf]) -> weights::Result<()> {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(());
+    };
+    let ours: std::collections::HashSet<&std::ffi::OsStr> =
+        ours.iter().filter_map(|p| p.file_name()).collect();
+    let mut theirs: Vec<String> = entries
+        .filter_map(|e| e.ok().map(|e| e.file_name()))
+        .filter(|n| !ours.contains(n.as_os_str()))
+        .map(|n| n.to_string_lossy().into_owned())
+        .filter(|n| n.starts_with("identify-") && (n.ends_with(".png") || n.ends_with(".svg")))
+        .collect();
+    theirs.sort();
+    if theirs.is_empty() {
+        return Ok(());
+    }
+    Err(weights::Error::Input(format!(
+        "--plots {}: expected a directory without another fit's plots, found {}, which this \
+         fit does not replace: remove them or give another directory",
+        weights::shown(dir),
+        weights::few(theirs.iter().map(|n| weights::quote(n)), 3)
+    )))
 }
 
 fn curve(label: String, mean: Vec<f64>, dashed: bool) -> Curve {
