@@ -60,6 +60,13 @@ def test_a_refined_controller_is_refused_for_a_policy_of_two_levels():
         cartpole_ddqn.evaluate(controller=["policy", "policy-refined"], episodes=1, horizon=2)
 
 
+@pytest.mark.parametrize("policy", ["shipped/policy.safetensors", 0])
+def test_a_policy_that_is_no_policy_raises_type_error(policy):
+    """A path is for cartpole_ddqn.load; evaluate takes what it returns."""
+    with pytest.raises(TypeError, match=r"^policy: expected a Policy from cartpole_ddqn.load, or None; found "):
+        cartpole_ddqn.evaluate(policy=policy, episodes=1, horizon=2)
+
+
 @pytest.mark.parametrize("episodes", [1.5, 2.0, "3", None])
 def test_a_count_of_episodes_that_is_no_int_raises_type_error(episodes):
     """As a float seed does: 1.5 is not cut to 1."""

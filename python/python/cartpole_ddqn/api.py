@@ -415,7 +415,7 @@ def evaluate(policy=None, scenario="nominal", episodes=1000, horizon=500, seed=0
     ``MAX_HORIZON`` periods; Ctrl-C (``KeyboardInterrupt``) stops it within a fraction of
     a second."""
     if policy is not None and not isinstance(policy, Policy):
-        raise ValueError(f"expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
+        raise TypeError(f"policy: expected a Policy from cartpole_ddqn.load, or None; found {type(policy).__name__}")
     episodes = _whole(episodes, "episodes", 1, MAX_EPISODES)
     seed = _seed(seed)
     given = ((horizon, "horizon"), (scenario, "scenario"), (controller, "controller"))
