@@ -145,7 +145,7 @@ const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
 
 /// The envelope of a file `host-sim envelope --json` printed, as the monitor takes it:
 /// refused (naming the file) unless it is such a report whose four bounds are finite and
-/// above 0. For the monitor of the policy of digest `policy` ([`Net::digest`]), also
+/// not negative. For the monitor of the policy of digest `policy` ([`Net::digest`]), also
 /// refused when the report records that it was measured for another.
 pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
     #[derive(Deserialize)]
@@ -198,19 +198,14 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
             )));
         }
     }
-    // A subnormal limit (`1e-40`) is a slip, as every number that comes in; a zero one (or
-    // `-0.0`) leaves the policy no reading, and the fallback decided every period.
-    if let Some(x) = e
-        .envelope
-        .iter()
-        .find(|&&x| !(weights::plain(x) && x > 0.0))
-    {
+    // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
+    if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
         return Err(bad(format!(
-            "expected each limit a normal number above 0, found {x:?}"
+            "expected each limit zero or a normal number, found {x:?}"
         )));
     }
-    // `plain` holds in f32 too, so each narrows to a normal f32 (or an infinity, which the
-    // firmware refuses).
+    // `plain` holds in f32 too, so each narrows to a zero or a normal f32 (or an infinity,
+    // which the firmware refuses).
     let limits = e.envelope.map(|x| x as f32);
     // The firmware's refusal names the channel; the values are the file's.
     Limits::new(limits).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
