@@ -6,6 +6,7 @@
 //! Nothing here enters a figure: the date is the one wall-clock field of a results file, and
 //! comparisons of results (tests, `host-sim moved`) look at rows only.
 
+use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::{SystemTime, UNIX_EPOCH};
 
@@ -96,11 +97,24 @@ impl Provenance {
 /// The short revision of HEAD and whether tracked files differ from it, in the checkout the
 /// tool was built from: the code that ran. Never the working directory's, which is any
 /// checkout a user stands in: its configuration runs commands (`core.fsmonitor`) and its
-/// index is rewritten by a status that refreshes it. Unknown where the source is gone.
+/// index is rewritten by a status that refreshes it. Git is given no environment of the
+/// caller's (`GIT_DIR` would send it elsewhere) and may not look above the workspace (a
+/// repository around it is not its); unknown where the workspace is no checkout of its own.
 fn revision() -> (String, bool) {
+    let unknown = (UNKNOWN.to_string(), false);
+    let Ok(root) = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .canonicalize()
+    else {
+        return unknown;
+    };
+    let ceiling = root.parent().unwrap_or(&root).to_path_buf();
     let git = |args: &[&str]| {
         let out = Command::new("git")
-            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .current_dir(&root)
+            .env_clear()
+            .env("PATH", std::env::var_os("PATH").unwrap_or_default())
+            .env("GIT_CEILING_DIRECTORIES", &ceiling)
             .args(["--no-optional-locks", "-c", "core.fsmonitor=false"])
             .args(args)
             .output()
@@ -109,13 +123,16 @@ fn revision() -> (String, bool) {
             .success()
             .then(|| String::from_utf8_lossy(&out.stdout).trim().to_string())
     };
+    if git(&["rev-parse", "--show-toplevel"]).map(PathBuf::from) != Some(root.clone()) {
+        return unknown;
+    }
     match git(&["rev-parse", "--short", "HEAD"]) {
         Some(rev) if !rev.is_empty() => {
             let dirty = git(&["status", "--porcelain", "--untracked-files=no"])
                 .is_some_and(|s| !s.is_empty());
             (rev, dirty)
         }
-        _ => (UNKNOWN.to_string(), false),
+        _ => unknown,
     }
 }
 

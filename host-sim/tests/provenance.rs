@@ -9,12 +9,13 @@ use std::process::Command;
 use serde_json::Value as Json;
 
 fn run(args: &[&str]) -> Json {
-    run_in(&Path::new(env!("CARGO_MANIFEST_DIR")).join(".."), args)
+    run_in(&Path::new(env!("CARGO_MANIFEST_DIR")).join(".."), args, &[])
 }
 
-fn run_in(dir: &Path, args: &[&str]) -> Json {
+fn run_in(dir: &Path, args: &[&str], envs: &[(&str, &Path)]) -> Json {
     let o = Command::new(env!("CARGO_BIN_EXE_host-sim"))
         .args(args)
+        .envs(envs.iter().copied())
         .current_dir(dir)
         .output()
         .unwrap();
@@ -87,7 +88,14 @@ fn a_checkout_the_tool_runs_in_is_neither_asked_nor_touched() {
     let ran = dir.join("FSMONITOR_RAN");
     let git = |args: &[&str]| {
         let o = Command::new("git")
-            .args(["-c", "user.name=t", "-c", "user.email=t@t"])
+            .args([
+                "-c",
+                "user.name=t",
+                "-c",
+                "user.email=t@t",
+                "-c",
+                "commit.gpgsign=false",
+            ])
             .args(args)
             .current_dir(&dir)
             .output()
@@ -104,9 +112,13 @@ fn a_checkout_the_tool_runs_in_is_neither_asked_nor_touched() {
     std::fs::write(dir.join("a"), "b").unwrap();
     let index = std::fs::read(dir.join(".git/index")).unwrap();
     let args = ["eval", "--json", "--episodes", "1", "--horizon", "5"];
-    let doc = run_in(&dir, &args);
-    assert_eq!(doc["provenance"]["revision"], revision().as_str());
-    assert!(!ran.exists(), "the checkout's core.fsmonitor ran");
-    assert_eq!(std::fs::read(dir.join(".git/index")).unwrap(), index);
+    // Stood in, or named by the caller's GIT_DIR, which would send git there.
+    let git_dir = dir.join(".git");
+    for envs in [&[][..], &[("GIT_DIR", git_dir.as_path())]] {
+        let doc = run_in(&dir, &args, envs);
+        assert_eq!(doc["provenance"]["revision"], revision().as_str());
+        assert!(!ran.exists(), "the checkout's core.fsmonitor ran");
+        assert_eq!(std::fs::read(dir.join(".git/index")).unwrap(), index);
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }

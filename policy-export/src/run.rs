@@ -216,8 +216,10 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
 
 /// Why a summary cannot be the run of the policy file whose `metadata` the trainer wrote:
 /// another seed or configuration (a file beside another run's summary, with no marker to
-/// tell, was exported as that run's). A file that records neither (not the trainer's)
-/// says nothing either way.
+/// tell, was exported as that run's), naming the first key that differs. The file's
+/// configuration is read as the summary's is (a key an older version did not write takes
+/// its default, as there); a file that records neither, or a configuration this version
+/// cannot read, says nothing either way.
 fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Result<(), String> {
     if let Some(seed) = metadata.get(SEED_KEY).filter(|&m| *m != s.seed.to_string()) {
         return Err(format!(
@@ -226,14 +228,30 @@ fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Re
             s.seed
         ));
     }
-    let Some(recorded) = metadata.get(CONFIG_KEY) else {
+    // The file leaves the kernel out ([`weights_config`]): the summary's, which no comparison
+    // reads, lets it read as a configuration.
+    let file = metadata.get(CONFIG_KEY).and_then(|text| {
+        let mut v: serde_json::Value = serde_json::from_str(text).ok()?;
+        let kernel = serde_json::to_value(s.config.kernel).ok()?;
+        v.as_object_mut()?.entry("kernel").or_insert(kernel);
+        serde_json::from_value::<Config>(v).ok()
+    });
+    let recorded = |c: &Config| {
+        weights_config(c)
+            .ok()
+            .and_then(|t| serde_json::from_str(&t).ok())
+    };
+    let (Some(serde_json::Value::Object(file)), Some(serde_json::Value::Object(summary))) =
+        (file.as_ref().and_then(recorded), recorded(&s.config))
+    else {
         return Ok(());
     };
-    let json = |text: &str| serde_json::from_str::<serde_json::Value>(text).ok();
-    let summary = weights_config(&s.config).ok().and_then(|c| json(&c));
-    match json(recorded) {
-        Some(file) if Some(&file) == summary.as_ref() => Ok(()),
-        _ => Err("config: the policy file records another configuration than the summary".into()),
+    match summary.iter().find(|(k, v)| file.get(*k) != Some(v)) {
+        Some((key, v)) => Err(format!(
+            "config.{key}: the policy file records {}, the summary {v}",
+            file.get(key).map_or("none".into(), ToString::to_string)
+        )),
+        None => Ok(()),
     }
 }
 
@@ -279,9 +297,7 @@ fn check_figures(s: &Summary) -> std::result::Result<(), String> {
     }
     let returns = [("final_eval.min", e.min), ("final_eval.mean", e.mean)];
     if let Some((field, x)) = returns.iter().find(|(_, x)| !weights::plain(*x)) {
-        return Err(format!(
-            "{field}: expected zero or a normal number, found {x:?}"
-        ));
+        return Err(format!("{field}: expected a normal number, found {x:?}"));
     }
     // An episode's return is its steps, one reward each; a fraction is no episode's.
     if e.min.fract() != 0.0 {

@@ -60,11 +60,23 @@ pub fn unchanged(files: &[&Path]) -> Result<()> {
     Ok(())
 }
 
-/// Refuses an output file (`flag` names it) inside an output directory of this tool's: it
-/// would replace a file the run wrote (its marker, which proves the others, or its
-/// metrics), or add one, after which `train` or `reproduce` refuses to replace the run.
+/// Refuses an output file (`flag` names it) inside an output directory of this tool's, at
+/// any depth: it would replace a file the run wrote (its marker, which proves the others,
+/// or its metrics), or add one, after which `train` or `reproduce` refuses to replace the
+/// run. The directory is judged as the system resolves it (`runs/x/../y.rs` is in `runs`);
+/// one that does not exist yet is inside none.
 pub fn outside_runs(flag: &str, out: &Path) -> Result<()> {
-    match marked_dir(out) {
+    let parent = match out.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    let Ok(parent) = parent.canonicalize() else {
+        return Ok(());
+    };
+    match parent
+        .ancestors()
+        .find(|d| std::fs::symlink_metadata(d.join(MARKER)).is_ok())
+    {
         Some(dir) => bail!(Error::Input(format!(
             "{flag} {}: expected a path outside the output directories of {}; {} holds its \
              {MARKER}, which lists what its run wrote",

@@ -45,34 +45,59 @@ fn a_summary_that_is_not_a_regular_file_is_refused_not_taken_as_absent() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// A trained run, its marker taken away (its digests would refuse every edit by hand), its
+/// summary as written, and the export of it.
+struct Edited {
+    dir: std::path::PathBuf,
+    run_dir: std::path::PathBuf,
+    out: std::path::PathBuf,
+    good: serde_json::Value,
+}
+
+impl Edited {
+    fn new(name: &str) -> Edited {
+        let dir = scratch(name);
+        let (run_dir, out) = (dir.join("run"), dir.join("policy.rs"));
+        let o = run(&[
+            "train",
+            "--episodes",
+            "5",
+            "--out",
+            run_dir.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        std::fs::remove_file(run_dir.join(".cartpole-run")).unwrap();
+        let good = serde_json::from_slice(&std::fs::read(run_dir.join("summary.json")).unwrap());
+        Edited {
+            dir,
+            run_dir,
+            out,
+            good: good.unwrap(),
+        }
+    }
+
+    fn export(&self) -> [&str; 4] {
+        let out = self.out.to_str().unwrap();
+        ["export", self.run_dir.to_str().unwrap(), "--out", out]
+    }
+
+    /// Writes `summary` as the run's and checks that export refuses it with `says`.
+    fn refused(&self, summary: &serde_json::Value, says: &str) {
+        let path = self.run_dir.join("summary.json");
+        std::fs::write(&path, serde_json::to_vec(summary).unwrap()).unwrap();
+        refused(&self.export(), says);
+        assert!(!self.out.exists());
+    }
+}
+
 #[test]
 fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
-    let dir = scratch("figures");
-    let (run_dir, out) = (dir.join("run"), dir.join("policy.rs"));
-    let o = run(&[
-        "train",
-        "--episodes",
-        "5",
-        "--out",
-        run_dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    // Edited by hand below: the marker, whose digests would refuse every edit, goes first.
-    std::fs::remove_file(run_dir.join(".cartpole-run")).unwrap();
-    let path = run_dir.join("summary.json");
-    let good: serde_json::Value = serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
-    let export = [
-        "export",
-        run_dir.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
-    let max_steps = good["final_eval"]["max_steps"].as_u64().unwrap();
-    let over = (max_steps + 100) as f64;
+    let e = Edited::new("figures");
+    let over = (e.good["final_eval"]["max_steps"].as_u64().unwrap() + 100) as f64;
     for (key, value, says) in [
         (
             "min",
-            serde_json::json!(over),
+            over.into(),
             "final_eval.min: expected a return from 1.0 to",
         ),
         ("episodes", 0.into(), "final_eval.episodes: expected 1 to"),
@@ -90,7 +115,7 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         (
             "mean",
             5e-324.into(),
-            "final_eval.mean: expected zero or a normal number, found 5e-324",
+            "final_eval.mean: expected a normal number, found 5e-324",
         ),
         (
             "min",
@@ -105,65 +130,76 @@ fn a_run_summarys_figures_are_checked_before_export_copies_them_into_code() {
         ),
         ("min", (-0.0).into(), "found -0.0"),
     ] {
-        let mut bad = good.clone();
+        let mut bad = e.good.clone();
         bad["final_eval"][key] = value;
-        std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
-        refused(&export, "summary.json: not a run summary");
-        refused(&export, says);
-        assert!(!out.exists());
+        e.refused(&bad, "summary.json: not a run summary");
+        e.refused(&bad, says);
     }
     // Read as 0, it went into the module as the measured minimum.
-    let text = serde_json::to_string(&good).unwrap();
-    let min = format!("\"min\":{}", good["final_eval"]["min"]);
-    assert!(text.contains(&min), "{text}");
-    std::fs::write(&path, text.replacen(&min, "\"min\":1e-400", 1)).unwrap();
-    refused(&export, "1e-400 reads as 0");
-    assert!(!out.exists());
-    let mut bad = good.clone();
+    let text = serde_json::to_string(&e.good).unwrap();
+    let min = format!("\"min\":{}", e.good["final_eval"]["min"]);
+    let hidden = text.replacen(&min, "\"min\":1e-400", 1);
+    std::fs::write(e.run_dir.join("summary.json"), hidden).unwrap();
+    refused(&e.export(), "1e-400 reads as 0");
+    let mut bad = e.good.clone();
     bad["episodes_run"] = 0.into();
-    std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
-    refused(
-        &export,
+    e.refused(
+        &bad,
         "episodes_run: expected 1 to 5 (at most the configured episodes), found 0",
     );
-    // Another run's seed or configuration, beside this policy file.
-    for (key, value, says) in [
-        (
-            "seed",
-            12345.into(),
-            "seed: the policy file records seed \"0\", the summary 12345",
-        ),
-        (
-            "config",
-            serde_json::json!({"algo": "dqn"}),
-            "config: the policy file records another",
-        ),
-    ] {
-        let mut bad = good.clone();
-        if key == "seed" {
-            bad[key] = value;
-        } else {
-            bad[key]["algo"] = value["algo"].clone();
-        }
-        std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
-        refused(&export, says);
-    }
-    // A recorded configuration past the trainer's limits was never a run's.
-    let mut bad = good.clone();
-    bad["config"]["episodes"] = 2_000_000_000_000u64.into();
-    std::fs::write(&path, serde_json::to_vec(&bad).unwrap()).unwrap();
-    refused(&export, "not a run summary: config: episodes");
     // The run's own figures pass, shown shortest.
-    std::fs::write(&path, serde_json::to_vec(&good).unwrap()).unwrap();
-    let o = run(&export);
+    let path = e.run_dir.join("summary.json");
+    std::fs::write(&path, serde_json::to_vec(&e.good).unwrap()).unwrap();
+    let o = run(&e.export());
     assert!(o.status.success(), "{}", stderr(&o));
-    let module = std::fs::read_to_string(&out).unwrap();
-    let mean = good["final_eval"]["mean"].as_f64().unwrap();
+    let module = std::fs::read_to_string(&e.out).unwrap();
+    let mean = e.good["final_eval"]["mean"].as_f64().unwrap();
     assert!(
         module.contains(&format!("greedy evaluation: mean {mean:?}, min ")),
         "{module}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
+    std::fs::remove_dir_all(&e.dir).unwrap();
+}
+
+/// Another run's seed or configuration beside this policy file, or one past the trainer's
+/// limits, is no summary of it; a run of an older version, whose files lack the keys added
+/// since, is its own run's.
+#[test]
+fn a_summary_of_another_run_is_refused_and_an_older_runs_taken() {
+    let e = Edited::new("other-run");
+    let mut bad = e.good.clone();
+    bad["seed"] = 12345.into();
+    e.refused(
+        &bad,
+        "seed: the policy file records seed \"0\", the summary 12345",
+    );
+    let mut bad = e.good.clone();
+    bad["config"]["algo"] = "dqn".into();
+    e.refused(
+        &bad,
+        "config.algo: the policy file records \"ddqn\", the summary \"dqn\"",
+    );
+    let mut bad = e.good.clone();
+    bad["config"]["episodes"] = 2_000_000_000_000u64.into();
+    e.refused(&bad, "not a run summary: config: episodes");
+    // An older version wrote neither `levels` nor `patience`, and recorded the kernel.
+    let policy = e.run_dir.join("policy.safetensors");
+    let import = weights::checkpoint::load(&policy, None).unwrap();
+    let mut meta = import.metadata.clone();
+    let mut config: serde_json::Value = serde_json::from_str(&meta["config"]).unwrap();
+    let mut older = e.good.clone();
+    for key in ["levels", "patience"] {
+        config.as_object_mut().unwrap().remove(key);
+        older["config"].as_object_mut().unwrap().remove(key);
+    }
+    config["kernel"] = e.good["config"]["kernel"].clone();
+    meta.insert("config".into(), config.to_string());
+    let file = weights::checkpoint::to_safetensors(&import.weights, &meta).unwrap();
+    std::fs::write(&policy, file).unwrap();
+    std::fs::write(e.run_dir.join("summary.json"), older.to_string()).unwrap();
+    let o = run(&e.export());
+    assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_dir_all(&e.dir).unwrap();
 }
 
 /// Export writes nothing into a run's directory (its marker, which proves the rest, was
@@ -186,7 +222,13 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
     let marker = run_dir.join(".cartpole-run");
     let written = std::fs::read(&marker).unwrap();
     let src = run_dir.to_str().unwrap();
-    for name in [".cartpole-run", "metrics.csv", "notes.rs"] {
+    std::fs::create_dir_all(run_dir.join("sub/deeper")).unwrap();
+    for name in [
+        ".cartpole-run",
+        "metrics.csv",
+        "notes.rs",
+        "sub/deeper/x.rs",
+    ] {
         let out = run_dir.join(name);
         refused(
             &["export", src, "--out", out.to_str().unwrap()],
@@ -195,6 +237,11 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
     }
     assert_eq!(std::fs::read(&marker).unwrap(), written);
     assert!(!run_dir.join("notes.rs").exists());
+    std::fs::remove_dir_all(run_dir.join("sub")).unwrap();
+    // Beside the run, named through it, is outside it.
+    let beside = run_dir.join("../beside.rs");
+    let o = run(&["export", src, "--out", beside.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
     let out = dir.join("policy.rs");
     let export = ["export", src, "--out", out.to_str().unwrap()];
     std::fs::write(&marker, b"junk").unwrap();
