@@ -193,8 +193,10 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
         })?;
         if let Some(p) = policy.filter(|&p| p != recorded) {
             return Err(bad(format!(
-                "measured for the policy of digest {recorded:#018x}, not this one \
-                 ({p:#018x}): measure its own with host-sim envelope --policy ... --json"
+                "measured for the policy of digest {}, not this one ({}): measure its own \
+                 with host-sim envelope --policy ... --json",
+                show_digest(recorded),
+                show_digest(p)
             )));
         }
     }
@@ -218,8 +220,8 @@ fn parse_digest(text: &str) -> Option<u64> {
     digits.then(|| u64::from_str_radix(hex, 16).ok()).flatten()
 }
 
-/// A digest as a report writes it: `0x` and 16 hex digits (JSON's numbers cannot hold 64
-/// bits exactly in every reader).
+/// A digest as a report and the shipped module write it: `0x` and 16 hex digits (JSON's
+/// numbers cannot hold 64 bits exactly in every reader).
 fn show_digest(digest: u64) -> String {
     format!("{digest:#018x}")
 }
@@ -310,6 +312,8 @@ impl Report {
 /// checked as it is compiled. `provenance` lines go into its header, escaped.
 pub fn rust_module(envelope: [f32; 4], digest: u64, rig: &Rig, provenance: &[String]) -> String {
     let gain = balance_gain(&rig.params).map(|k| k as f32);
+    // A Rust literal as the report writes it, so that the two read alike.
+    let digest = show_digest(digest);
     let mut s = String::from(
         "//! The shipped policy's envelope: where the runtime monitor\n\
          //! ([`firmware::controller::monitor`]) lets it drive, and the monitor's configuration.\n\
@@ -324,7 +328,7 @@ pub fn rust_module(envelope: [f32; 4], digest: u64, rig: &Rig, provenance: &[Str
          /// FNV-1a 64 digest of the policy the envelope was measured for, as the link's\n\
          /// handshake names it ([`firmware::link::digest::policy`] of\n\
          /// [`super::policy::POLICY`] and [`super::policy::LEVELS`]).\n\
-         pub const POLICY_DIGEST: u64 = {digest:#018x};\n\n\
+         pub const POLICY_DIGEST: u64 = {digest};\n\n\
          /// Per-channel bound on `|reading|`, `[x, x_dot, theta, theta_dot]`.\n\
          pub const ENVELOPE: Limits = match Limits::new({envelope:?}) {{\n    \
          Ok(l) => l,\n    Err(_) => panic!(\"the envelope is no limits\"),\n}};\n\n\

@@ -105,7 +105,6 @@ impl Manifest {
                 e.1 |= t.stdout;
             }
         }
-        nested(&m.steps)?;
         let mut names = HashSet::new();
         for s in &m.steps {
             let at = format!("step {}", weights::quote(&s.name));
@@ -144,6 +143,8 @@ impl Manifest {
             }
             check_needs_and_cost(s).map_err(|e| format!("{at}: {e}"))?;
         }
+        // After each step's own checks, which name a malformed output (`runs/x/`) as such.
+        nested(&m.steps)?;
         Ok(m)
     }
 

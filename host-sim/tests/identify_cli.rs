@@ -136,26 +136,32 @@ fn identify_writes_a_rig_near_the_truth_and_draws_the_fit() {
     );
     let png = std::fs::read(plots.join("identify-1-cart.png")).unwrap();
     assert_eq!(&png[..8], b"\x89PNG\r\n\x1a\n");
-    // A fit of the swing alone would leave the first fit's plots beside its own.
+    another_fits_plots_are_refused([&cart, &swing, &rig], &out, &plots);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A fit of the swing alone into the plots of the fit of both would leave those beside its
+/// own: refused, naming them; the fit of both again replaces its own.
+fn another_fits_plots_are_refused([cart, swing, rig]: [&Path; 3], out: &Path, plots: &Path) {
+    let flag = |s: &str| PathBuf::from(s);
     let again = |logs: &[&Path]| {
         let mut args: Vec<PathBuf> = logs.iter().map(|p| p.to_path_buf()).collect();
-        args.extend([flag("--rig"), rig.clone(), flag("--out"), out.clone()]);
-        args.extend([flag("--plots"), plots.clone()]);
+        args.extend([flag("--rig"), rig.into(), flag("--out"), out.into()]);
+        args.extend([flag("--plots"), plots.into()]);
         args
     };
-    let alone = again(&[&swing]);
+    let alone = again(&[swing]);
     let alone: Vec<&Path> = alone.iter().map(PathBuf::as_path).collect();
     refused(
-        &plots,
+        plots,
         &alone,
         &["expected a directory without another fit's plots, found \
              \"identify-1-cart-residuals.png\", \"identify-1-cart-residuals.svg\", \
              \"identify-1-cart.png\" and 5 more"],
     );
-    let both = again(&[&cart, &swing]);
+    let both = again(&[cart, swing]);
     let both: Vec<&Path> = both.iter().map(PathBuf::as_path).collect();
     assert!(run(&both).status.success());
-    let _ = std::fs::remove_dir_all(&dir);
 }
 
 /// Exit 2, `wants` in the message, nothing on stdout and no file but the inputs.

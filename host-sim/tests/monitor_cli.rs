@@ -170,13 +170,10 @@ fn another_policys_envelope_is_refused(report: &serde_json::Value, file: &std::p
     );
 }
 
-#[test]
-fn bad_input_exits_2_before_any_work() {
-    let fixture = repo("weights/tests/fixtures/cleanrl.safetensors");
-    let fixture = fixture.to_str().unwrap();
-    let dir = std::env::temp_dir().join(format!("hs-envelope-bad-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let files = [
+/// Envelope files no monitor can take, written in `dir`: not JSON, a negative limit, two
+/// below f32's least normal, one the parser reads as 0.
+fn bad_envelopes(dir: &std::path::Path) -> [String; 5] {
+    [
         ("a.json", r#"{"envelope": [1, 2, "x", 3]}"#),
         ("b.json", r#"{"envelope": [1, -2, 3, 3]}"#),
         // Below f32's least subnormal: a zero once narrowed, so refused before.
@@ -189,7 +186,16 @@ fn bad_input_exits_2_before_any_work() {
         let path = dir.join(name);
         std::fs::write(&path, text).unwrap();
         path.to_str().unwrap().to_owned()
-    });
+    })
+}
+
+#[test]
+fn bad_input_exits_2_before_any_work() {
+    let fixture = repo("weights/tests/fixtures/cleanrl.safetensors");
+    let fixture = fixture.to_str().unwrap();
+    let dir = std::env::temp_dir().join(format!("hs-envelope-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let files = bad_envelopes(&dir);
     let [not_json, negative, tiny, tinier, zero] = files.each_ref().map(String::as_str);
     let monitored = ["eval", "--controller", "monitored"];
     let cases: Vec<(Vec<&str>, &str)> = vec![
