@@ -89,7 +89,7 @@ def test_readings_whose_sums_leave_float32_are_refused_naming_obs():
     the last biases alone. The bound is the weights': past it some sum can overflow, at it
     none does (an independent float64 pass over the shipped weights agrees)."""
     policy = cartpole_ddqn.shipped()
-    bound = policy._native.reading_bound
+    bound = policy.reading_bound
     assert 1e20 < bound < 1e37
     over = with_value(1e37, at=(2, 1), dtype=np.float64)
     for call in (policy.q_values, policy.act):

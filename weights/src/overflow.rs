@@ -68,6 +68,56 @@ mod tests {
         assert_eq!(uniform(0.0, 1.0).reading_bound(), f32::MAX);
     }
 
+    /// Weights of every sign and size, and each unit's bound summed another way: over the
+    /// typed network's rows, slopes and offsets apart.
+    #[test]
+    fn the_bound_is_the_smallest_over_every_units_sum() {
+        let mut state = 0x2545_f491_4f6c_dd1d_u64;
+        let mut draw = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 40) as f32 / (1u64 << 24) as f32 * 8.0 - 4.0
+        };
+        let sizes = [16 * 4, 16, 16 * 16, 16, 2 * 16, 2];
+        let tensors = sizes.map(|n| (0..n).map(|_| draw()).collect());
+        let w = Weights::new(16, BANG_BANG.to_vec(), tensors).unwrap();
+        let m = w.to_mlp::<16, 2>().unwrap();
+        let abs = |x: f32| f64::from(x.abs());
+        let layer = |rows: Vec<Vec<f32>>, b: &[f32], below: &[(f64, f64)]| -> Vec<(f64, f64)> {
+            rows.iter()
+                .zip(b)
+                .map(|(row, &b)| {
+                    let slope: f64 = row.iter().zip(below).map(|(&w, u)| abs(w) * u.0).sum();
+                    let offset: f64 = row.iter().zip(below).map(|(&w, u)| abs(w) * u.1).sum();
+                    (slope, offset + abs(b))
+                })
+                .collect()
+        };
+        let l1 = layer(
+            m.fc1_weight.iter().map(|r| r.to_vec()).collect(),
+            &m.fc1_bias,
+            &[(1.0, 0.0); 4],
+        );
+        let l2 = layer(
+            m.fc2_weight.iter().map(|r| r.to_vec()).collect(),
+            &m.fc2_bias,
+            &l1,
+        );
+        let l3 = layer(
+            m.fc3_weight.iter().map(|r| r.to_vec()).collect(),
+            &m.fc3_bias,
+            &l2,
+        );
+        let want = [l1, l2, l3]
+            .concat()
+            .iter()
+            .map(|(s, c)| (1e37 - c) / s)
+            .fold(f64::INFINITY, f64::min) as f32;
+        let got = w.reading_bound();
+        assert!((got / want - 1.0).abs() < 1e-6, "{got} against {want}");
+    }
+
     /// At the bound the f32 forward pass is finite; past f32's range for the sums, it is
     /// not: the bound is what separates them for a network whose sums all grow together.
     #[test]

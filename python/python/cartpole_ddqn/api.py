@@ -51,6 +51,12 @@ class Policy:
         """The duty level each output drives, a fraction of the full push."""
         return self._native.levels
 
+    @property
+    def reading_bound(self):
+        """The largest reading (each channel within plus or minus it) ``q_values`` and ``act``
+        take: past it a sum of the network can leave float32's range."""
+        return self._native.reading_bound
+
     def act(self, obs):
         source, given = _readings(obs)
         actions = _by_range(source, given, (), np.int64, self._native, act=True).reshape(given.shape[:-1])
