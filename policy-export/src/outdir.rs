@@ -22,7 +22,7 @@ mod marker;
 mod runs;
 use marker::{Found, Listing};
 pub use marker::{MARKER, MAX_MARKER_BYTES};
-pub use runs::{outside_runs, unchanged};
+pub use runs::unchanged;
 
 /// Most entries an output directory may hold to be replaced (a `--seeds` run at its limit
 /// has about 50,000).

@@ -53,7 +53,6 @@ pub fn export(
     let name = name.unwrap_or_else(|| exporter::default_name(lang, int).to_string());
     exporter::check_name(lang, &name).map_err(value_error)?;
     let levels = crate::given_levels(levels)?;
-    policy_export::outdir::outside_runs("out", &out).map_err(|e| value_error(format!("{e:#}")))?;
     let found = Found {
         prefix,
         levels: levels.as_ref(),

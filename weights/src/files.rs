@@ -114,9 +114,35 @@ pub fn check_io(inputs: &[(&str, &Path)], outputs: &[(&str, &Path)]) -> Result<(
     }
     let all: Vec<&Path> = inputs.iter().map(|(_, p)| *p).collect();
     for (label, path) in outputs {
-        check_output(path, &all).map_err(|e| labelled(label, e))?;
+        check_output(path, &all)
+            .and_then(|()| outside_runs(path))
+            .map_err(|e| labelled(label, e))?;
     }
     Ok(())
+}
+
+/// The marker an output directory of `policy-export` (`train`, `reproduce`) holds: the list
+/// of what its run wrote, each file with its size and digest, which proves them.
+pub const RUN_MARKER: &str = ".cartpole-run";
+
+/// Refuses an output at or inside an output directory of `policy-export` (one holding
+/// [`RUN_MARKER`]), at any depth, as the system resolves it: it would replace a file the run
+/// wrote (the marker itself, which proves the others) or add one, after which the next
+/// `train` to that directory refuses to replace it. A directory not made yet is judged by
+/// where it would be made (`new/../RUN/x` is in `RUN`: `new` is made, then left).
+pub fn outside_runs(path: &Path) -> Result<()> {
+    match apart::resolved(path)
+        .ancestors()
+        .find(|d| std::fs::symlink_metadata(d.join(RUN_MARKER)).is_ok())
+    {
+        Some(run) => Err(Error::Input(format!(
+            "{}: expected a path outside the output directories of policy-export; {} holds \
+             its {RUN_MARKER}, which lists what its run wrote",
+            crate::shown(path),
+            crate::shown(run)
+        ))),
+        None => Ok(()),
+    }
 }
 
 /// Checks that `path` can be read: a regular file this process can open (without blocking,

@@ -145,6 +145,10 @@ pub fn plot_paths(dir: &Path, logs: &[Log]) -> Vec<[PathBuf; 2]> {
 /// regular file or none, none of them an input.
 pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Result<()> {
     weights::files::check_dir_name("--plots", dir)?;
+    weights::files::outside_runs(dir).map_err(|e| match e {
+        weights::Error::Input(m) => weights::Error::Input(format!("--plots {m}")),
+        other => other,
+    })?;
     if let Ok(m) = std::fs::symlink_metadata(dir)
         && !m.is_dir()
     {

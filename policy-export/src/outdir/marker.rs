@@ -19,7 +19,7 @@ use serde::{Deserialize, Serialize};
 use weights::files::{open_regular, write_atomic};
 
 /// The marker file of an output directory.
-pub const MARKER: &str = ".cartpole-run";
+pub const MARKER: &str = weights::files::RUN_MARKER;
 /// Largest marker read: a `--seeds` run of 10,000 seeds lists about 50,000 entries, in about
 /// 5 MB.
 pub const MAX_MARKER_BYTES: u64 = 16 << 20;

@@ -1,7 +1,8 @@
 //! The files of an output directory as inputs: what `export` reads of a run is checked
-//! against the run's marker, and what it writes stays out of every run.
+//! against the run's marker (what it writes stays out of every run:
+//! `weights::files::outside_runs`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Result, bail};
 use weights::Error;
@@ -11,18 +12,18 @@ use super::marker::{self, Found, Listing, MARKER};
 /// The kinds of output directory a marker can mark.
 const KINDS: [&str; 2] = ["train", "reproduce"];
 
-/// The directory holding a marker that covers `file`: its own or its parent's (a run's
-/// `seed-N/`), where a marker exists at all.
-fn marked_dir(file: &Path) -> Option<&Path> {
-    let dir = file.parent()?;
-    let dir = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
-    };
-    dir.ancestors()
+/// The directory holding a marker that covers `file`, as the system resolves it (`.` in a
+/// run's `seed-N/`, or a link to it, was read as no run): its own or its parent's (a run's
+/// `seed-N/`), where a marker exists at all; with `file` as resolved.
+fn marked_dir(file: &Path) -> Option<(PathBuf, PathBuf)> {
+    let file = file.canonicalize().ok()?;
+    let root = file
+        .parent()?
+        .ancestors()
         .take(2)
-        .find(|d| std::fs::symlink_metadata(d.join(MARKER)).is_ok())
+        .find(|d| std::fs::symlink_metadata(d.join(MARKER)).is_ok())?
+        .to_path_buf();
+    Some((root, file))
 }
 
 /// Checks `files`, each in an output directory of this tool's or a directory of one (a
@@ -33,12 +34,12 @@ fn marked_dir(file: &Path) -> Option<&Path> {
 /// nothing either way.
 pub fn unchanged(files: &[&Path]) -> Result<()> {
     for file in files {
-        let Some(root) = marked_dir(file) else {
+        let Some((root, resolved)) = marked_dir(file) else {
             continue;
         };
-        let name = file.strip_prefix(root).unwrap_or(file);
+        let name = resolved.strip_prefix(&root).unwrap_or(&resolved);
         let name = name.to_string_lossy().into_owned();
-        let read = KINDS.map(|kind| marker::read(root, kind, std::slice::from_ref(&name)));
+        let read = KINDS.map(|kind| marker::read(&root, kind, std::slice::from_ref(&name)));
         let m = match read {
             [Ok(m), _] | [_, Ok(m)] => m,
             [Err(why), _] => bail!(Error::Input(format!(
@@ -58,32 +59,4 @@ pub fn unchanged(files: &[&Path]) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// Refuses an output file (`flag` names it) inside an output directory of this tool's, at
-/// any depth: it would replace a file the run wrote (its marker, which proves the others,
-/// or its metrics), or add one, after which `train` or `reproduce` refuses to replace the
-/// run. The directory is judged as the system resolves it (`runs/x/../y.rs` is in `runs`);
-/// one that does not exist yet is inside none.
-pub fn outside_runs(flag: &str, out: &Path) -> Result<()> {
-    let parent = match out.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    let Ok(parent) = parent.canonicalize() else {
-        return Ok(());
-    };
-    match parent
-        .ancestors()
-        .find(|d| std::fs::symlink_metadata(d.join(MARKER)).is_ok())
-    {
-        Some(dir) => bail!(Error::Input(format!(
-            "{flag} {}: expected a path outside the output directories of {}; {} holds its \
-             {MARKER}, which lists what its run wrote",
-            weights::shown(out),
-            env!("CARGO_PKG_NAME"),
-            weights::shown(dir)
-        ))),
-        None => Ok(()),
-    }
 }

@@ -228,6 +228,7 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
         "metrics.csv",
         "notes.rs",
         "sub/deeper/x.rs",
+        "new/x.rs",
     ] {
         let out = run_dir.join(name);
         refused(
@@ -236,7 +237,7 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
         );
     }
     assert_eq!(std::fs::read(&marker).unwrap(), written);
-    assert!(!run_dir.join("notes.rs").exists());
+    assert!(!run_dir.join("notes.rs").exists() && !run_dir.join("new").exists());
     std::fs::remove_dir_all(run_dir.join("sub")).unwrap();
     // Beside the run, named through it, is outside it.
     let beside = run_dir.join("../beside.rs");
@@ -254,5 +255,57 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
     std::fs::remove_file(&marker).unwrap();
     let o = run(&export);
     assert!(o.status.success(), "{}", stderr(&o));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A seed's directory of a `--seeds` run named as `.` from inside it, or through a link,
+/// is the run's: its summary, edited since, is refused as by its plain name (it went into
+/// the module as fact).
+#[test]
+fn a_seeds_directory_is_its_run_s_however_it_is_named() {
+    let dir = scratch("seed-named");
+    let run_dir = dir.join("run");
+    let o = run(&[
+        "train",
+        "--episodes",
+        "2",
+        "--max-steps",
+        "5",
+        "--seeds",
+        "0..2",
+        "--out",
+        run_dir.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let seed = run_dir.join("seed-1");
+    let summary = seed.join("summary.json");
+    let text = std::fs::read_to_string(&summary).unwrap();
+    std::fs::write(&summary, format!("{text} ")).unwrap();
+    let link = dir.join("link");
+    std::os::unix::fs::symlink(&seed, &link).unwrap();
+    let out = dir.join("p.rs");
+    for (src, cwd) in [
+        (seed.as_path(), &dir),
+        (Path::new("."), &seed),
+        (&link, &dir),
+    ] {
+        let ran = super::hostile::run_counted(
+            super::exe()
+                .args([
+                    "export",
+                    src.to_str().unwrap(),
+                    "--out",
+                    out.to_str().unwrap(),
+                ])
+                .current_dir(cwd),
+        );
+        assert_eq!(ran.code, Some(2), "{src:?}: {}", ran.stderr);
+        assert!(
+            ran.stderr.contains("expected the file its run wrote"),
+            "{}",
+            ran.stderr
+        );
+    }
+    assert!(!out.exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

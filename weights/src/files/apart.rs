@@ -43,7 +43,7 @@ pub fn check_apart(files: &[(&str, &Path)], dirs: &[(&str, &Path)]) -> Result<()
 
 /// `path` made absolute, the part of it that exists with its links resolved, the rest as
 /// written (`..` in it taken lexically).
-fn resolved(path: &Path) -> PathBuf {
+pub(crate) fn resolved(path: &Path) -> PathBuf {
     let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
     let mut existing = abs.as_path();
     let mut rest = Vec::new();
