@@ -216,10 +216,10 @@ pub fn source_provenance(src: &Path, import: &Import) -> Result<Vec<String>> {
 
 /// Why a summary cannot be the run of the policy file whose `metadata` the trainer wrote:
 /// another seed or configuration (a file beside another run's summary, with no marker to
-/// tell, was exported as that run's), naming the first key that differs. The file's
-/// configuration is read as the summary's is (a key an older version did not write takes
-/// its default, as there); a file that records neither, or a configuration this version
-/// cannot read, says nothing either way.
+/// tell, was exported as that run's), naming the first key that differs. Keys are compared
+/// where both record them: an older version's file lacks the keys added since, or holds
+/// some removed since; a file that records neither seed nor configuration (not the
+/// trainer's) says nothing either way.
 fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Result<(), String> {
     if let Some(seed) = metadata.get(SEED_KEY).filter(|&m| *m != s.seed.to_string()) {
         return Err(format!(
@@ -228,28 +228,26 @@ fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Re
             s.seed
         ));
     }
-    // The file leaves the kernel out ([`weights_config`]): the summary's, which no comparison
-    // reads, lets it read as a configuration.
-    let file = metadata.get(CONFIG_KEY).and_then(|text| {
-        let mut v: serde_json::Value = serde_json::from_str(text).ok()?;
-        let kernel = serde_json::to_value(s.config.kernel).ok()?;
-        v.as_object_mut()?.entry("kernel").or_insert(kernel);
-        serde_json::from_value::<Config>(v).ok()
-    });
-    let recorded = |c: &Config| {
-        weights_config(c)
-            .ok()
-            .and_then(|t| serde_json::from_str(&t).ok())
-    };
-    let (Some(serde_json::Value::Object(file)), Some(serde_json::Value::Object(summary))) =
-        (file.as_ref().and_then(recorded), recorded(&s.config))
-    else {
+    let Some(text) = metadata.get(CONFIG_KEY) else {
         return Ok(());
     };
-    match summary.iter().find(|(k, v)| file.get(*k) != Some(v)) {
+    let Ok(serde_json::Value::Object(file)) = serde_json::from_str(text) else {
+        return Err(format!(
+            "config: the policy file records {}, not a configuration",
+            weights::quote(text)
+        ));
+    };
+    let summary = s.config.recorded().map_err(|e| e.to_string())?;
+    let differs = summary
+        .as_object()
+        .into_iter()
+        .flatten()
+        .filter(|(key, _)| *key != "kernel")
+        .find(|(key, v)| file.get(*key).is_some_and(|f| f != *v));
+    match differs {
         Some((key, v)) => Err(format!(
             "config.{key}: the policy file records {}, the summary {v}",
-            file.get(key).map_or("none".into(), ToString::to_string)
+            file[key]
         )),
         None => Ok(()),
     }

@@ -199,6 +199,16 @@ fn a_summary_of_another_run_is_refused_and_an_older_runs_taken() {
     std::fs::write(e.run_dir.join("summary.json"), older.to_string()).unwrap();
     let o = run(&e.export());
     assert!(o.status.success(), "{}", stderr(&o));
+    // A value no configuration takes is no match for the summary's, not a key to skip.
+    std::fs::remove_file(&e.out).unwrap();
+    config["algo"] = "DQN".into();
+    meta.insert("config".into(), config.to_string());
+    let file = weights::checkpoint::to_safetensors(&import.weights, &meta).unwrap();
+    std::fs::write(&policy, file).unwrap();
+    refused(
+        &e.export(),
+        "config.algo: the policy file records \"DQN\", the summary \"ddqn\"",
+    );
     std::fs::remove_dir_all(&e.dir).unwrap();
 }
 
