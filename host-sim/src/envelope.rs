@@ -146,8 +146,9 @@ const MAX_ENVELOPE_BYTES: u64 = 64 * 1024;
 /// The envelope of a file `host-sim envelope --json` printed, as the monitor takes it:
 /// refused (naming the file) unless it is such a report whose four bounds are finite and
 /// not negative. For the monitor of the policy of digest `policy` ([`Net::digest`]), also
-/// refused when the report records that it was measured for another.
-pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
+/// refused when the report records that it was measured for another. With the digest of
+/// the rig it was measured on, where the report records one.
+pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<(Limits, Option<u64>)> {
     #[derive(Deserialize)]
     struct Envelope {
         // Read in f64: in f32, `5e-324` would be a zero before it could be refused.
@@ -160,6 +161,7 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
         balanced: Option<u64>,
         episodes_run: Option<u64>,
         policy_digest: Option<String>,
+        rig_digest: Option<String>,
     }
     // Every message names the file as an envelope's: the command line and the Python
     // package both read it, and a bare path says nothing of which argument it was.
@@ -209,8 +211,36 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<Limits> {
     // `plain` holds in f32 too, so each narrows to a zero or a normal f32 (or an infinity,
     // which the firmware refuses).
     let limits = e.envelope.map(|x| x as f32);
+    let rig = match &e.rig_digest {
+        Some(text) => Some(parse_digest(text).ok_or_else(|| {
+            bad(format!(
+                "expected rig_digest as 0x and 16 hex digits, found {}",
+                weights::quote(text)
+            ))
+        })?),
+        None => None,
+    };
     // The firmware's refusal names the channel; the values are the file's.
-    Limits::new(limits).map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))
+    let limits = Limits::new(limits)
+        .map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))?;
+    Ok((limits, rig))
+}
+
+/// Refuses an envelope measured on the rig of digest `measured` for a board of `rig`, where
+/// they differ: it bounds the readings of another plant (the shipped one, measured on
+/// Gymnasium's machine, ran the desk rig's monitor).
+pub fn measured_on(measured: Option<u64>, rig: &Rig) -> Result<(), String> {
+    let this = firmware::link::digest::rig(rig);
+    match measured {
+        Some(m) if m != this => Err(format!(
+            "the runtime monitor's envelope was measured on another machine (rig digest {}), \
+             not this one ({}): measure one on it (host-sim envelope --rig FILE --json) and \
+             give it with --envelope (envelope= in Python)",
+            show_digest(m),
+            show_digest(this)
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// A digest as a report writes it, [`show_digest`].
@@ -222,7 +252,7 @@ fn parse_digest(text: &str) -> Option<u64> {
 
 /// A digest as a report and the shipped module write it: `0x` and 16 hex digits (JSON's
 /// numbers cannot hold 64 bits exactly in every reader).
-fn show_digest(digest: u64) -> String {
+pub fn show_digest(digest: u64) -> String {
     format!("{digest:#018x}")
 }
 
@@ -275,15 +305,18 @@ pub struct Report {
     pub envelope: [f32; 4],
     /// The policy measured, as a target's link names it ([`Net::digest`]).
     pub policy_digest: String,
+    /// The rig it was measured on ([`firmware::link::digest::rig`]).
+    pub rig_digest: String,
     /// The command that measured it, when, where.
     pub provenance: Provenance,
 }
 
 impl Report {
-    /// The report of `v`, measured for the policy of digest `policy`, with its envelope.
+    /// The report of `v`, measured for the policy of digest `policy` on the rig of digest
+    /// `rig`, with its envelope.
     pub fn of(
         v: &Visited,
-        policy: u64,
+        (policy, rig): (u64, u64),
         names: Vec<String>,
         run: (u64, u32),
         quantile: f64,
@@ -302,6 +335,7 @@ impl Report {
             quantiles: [0.99, 0.999, 0.9999, 1.0].map(|q| v.quantile(q)),
             envelope: v.envelope(quantile, margin),
             policy_digest: show_digest(policy),
+            rig_digest: show_digest(rig),
             provenance,
         }
     }

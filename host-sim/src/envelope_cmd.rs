@@ -6,6 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::{Result, ensure};
 use clap::Args;
+use firmware::link::digest;
 use host_common::provenance::Provenance;
 use host_sim::envelope::{Report, rust_module, visited};
 use host_sim::eval::ControllerKind;
@@ -90,7 +91,7 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
     let provenance = Provenance::of_this_run("host-sim");
     let report = Report::of(
         &v,
-        net.digest(),
+        (net.digest(), digest::rig(&machine.rig)),
         names,
         (a.episodes, a.horizon),
         a.quantile,

@@ -92,11 +92,15 @@ impl Subject {
         }
         let net = match self.envelope.as_deref() {
             Some(path) => {
-                let envelope = host_sim::envelope::read_for(path, Some(net.digest()))?;
-                net.with_envelope(envelope)
+                let (envelope, rig) = host_sim::envelope::read_for(path, Some(net.digest()))?;
+                net.with_envelope(envelope, rig)
             }
             None => net,
         };
+        if monitored.is_some() {
+            net.check_envelope_on(&machine.rig)
+                .map_err(|why| anyhow::anyhow!("--controller {}: {why}", names(kinds)))?;
+        }
         Ok((machine, net))
     }
 

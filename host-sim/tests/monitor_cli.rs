@@ -310,3 +310,40 @@ fn a_report_that_contradicts_itself_is_refused() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// An envelope bounds the readings of the plant it was measured on: the shipped one
+/// (Gymnasium's machine) ran the desk rig's monitor, and so did a file measured there.
+#[test]
+fn an_envelope_measured_on_another_machine_is_refused() {
+    let desk = repo("rigs/desk.toml");
+    let desk = desk.to_str().unwrap();
+    let monitored = [
+        "eval",
+        "--controller",
+        "monitored",
+        "--episodes",
+        "1",
+        "--horizon",
+        "5",
+    ];
+    let says = "the runtime monitor's envelope was measured on another machine";
+    let o = run(&[&monitored[..], &["--rig", desk]].concat());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(says), "{err}");
+    // The committed measurement of the shipped policy, on Gymnasium's machine.
+    let file = repo("docs/results/envelope.json");
+    let policy = repo("shipped/policy.safetensors");
+    let with = [
+        "--policy",
+        policy.to_str().unwrap(),
+        "--envelope",
+        file.to_str().unwrap(),
+    ];
+    let o = run(&[&monitored[..], &with, &["--rig", desk]].concat());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains(says), "{err}");
+    let o = run(&[&monitored[..], &with].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

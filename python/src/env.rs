@@ -75,14 +75,17 @@ fn motor(lane: &Lane) -> [f64; 4] {
 }
 
 /// The runtime monitor's envelope: none, the shipped policy's (`"shipped"`), or the file
-/// `host-sim envelope --json` wrote for another policy.
-fn envelope(path: Option<PathBuf>) -> PyResult<Option<Limits>> {
+/// `host-sim envelope --json` wrote for another policy; refused where the file records
+/// another rig than `machine`'s.
+fn envelope(path: Option<PathBuf>, machine: &Machine) -> PyResult<Option<Limits>> {
     match path {
         None => Ok(None),
         Some(p) if p == Path::new(SHIPPED) => Ok(Some(shipped::envelope::ENVELOPE)),
-        Some(p) => host_sim::envelope::read_for(&p, None)
-            .map(Some)
-            .map_err(value_error),
+        Some(p) => {
+            let (limits, rig) = host_sim::envelope::read_for(&p, None).map_err(value_error)?;
+            host_sim::envelope::measured_on(rig, &machine.rig).map_err(value_error)?;
+            Ok(Some(limits))
+        }
     }
 }
 
@@ -133,7 +136,7 @@ impl Setup {
             horizon: horizon(max_episode_steps)?,
             aids: Aids {
                 predict,
-                envelope: self::envelope(envelope)?,
+                envelope: self::envelope(envelope, &machine)?,
             },
         })
     }

@@ -244,6 +244,12 @@ fn network(
     kinds: &[ControllerKind],
     machine: &Machine,
 ) -> PyResult<Option<Arc<Net>>> {
+    if kinds.iter().any(|k| k.monitored()) {
+        policy
+            .net
+            .check_envelope_on(&machine.rig)
+            .map_err(value_error)?;
+    }
     let Some(import) = &policy.import else {
         return Ok(None);
     };

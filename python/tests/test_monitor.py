@@ -10,7 +10,7 @@ import pytest
 
 import cartpole_ddqn
 
-from conftest import run
+from conftest import REPO, run
 
 # A frozen encoder now and then: the monitor's fallback decides about a tenth of the periods.
 SCENARIO, EPISODES, HORIZON, SEED = "encoder+stuck", 12, 1000, 3
@@ -99,3 +99,17 @@ def test_a_bad_envelope_raises_value_error_naming_it(tmp_path, envelope, words):
     bad.write_text('{"envelope": [1, 2, -3, 4]}')
     with pytest.raises(ValueError, match="bad.json"):
         cartpole_ddqn.TwinEnv(envelope=bad)
+
+
+@pytest.mark.filterwarnings("ignore:the policy was trained for another rig")
+def test_an_envelope_measured_on_another_machine_is_refused():
+    """The shipped envelope, and the committed file of it, were measured on Gymnasium's
+    machine: on the desk rig they bound the readings of another plant."""
+    desk = REPO / "rigs" / "desk.toml"
+    measured = REPO / "docs" / "results" / "envelope.json"
+    says = "envelope was measured on another machine"
+    with pytest.raises(ValueError, match=says):
+        cartpole_ddqn.evaluate(controller="monitored", rig=desk, episodes=1, horizon=2)
+    with pytest.raises(ValueError, match=says):
+        cartpole_ddqn.TwinEnv(rig=desk, envelope=measured)
+    cartpole_ddqn.TwinEnv(envelope=measured)

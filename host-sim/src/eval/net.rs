@@ -25,6 +25,8 @@ pub struct Net {
     int: Option<Box<dyn IntForward>>,
     levels: Vec<Duty>,
     envelope: Option<Limits>,
+    /// The rig the envelope was measured on ([`digest::rig`]), where that is known.
+    envelope_rig: Option<u64>,
     digest: u64,
 }
 
@@ -122,6 +124,7 @@ impl ForShape for Build<'_> {
             int,
             levels: levels.duties().to_vec(),
             envelope: None,
+            envelope_rig: None,
             digest: digest::policy(digest::mlp(&mlp), &levels),
         })
     }
@@ -136,6 +139,7 @@ impl Net {
             int: Some(Box::new(POLICY_INT.clone())),
             levels: Levels::BANG_BANG.duties().to_vec(),
             envelope: Some(ENVELOPE),
+            envelope_rig: Some(digest::rig(&shipped::policy::RIG)),
             digest: digest::policy(digest::mlp(&POLICY), &Levels::BANG_BANG),
         }
     }
@@ -148,6 +152,7 @@ impl Net {
             int: Some(Box::new(shipped::desk_int::POLICY_INT.clone())),
             levels: shipped::desk::LEVELS.duties().to_vec(),
             envelope: None,
+            envelope_rig: None,
             digest: digest::policy(digest::mlp(&shipped::desk::POLICY), &shipped::desk::LEVELS),
         }
     }
@@ -182,10 +187,18 @@ impl Net {
         self.envelope
     }
 
-    /// The same network with the envelope `host-sim envelope` measured for it.
-    pub fn with_envelope(mut self, envelope: Limits) -> Net {
+    /// The same network with the envelope `host-sim envelope` measured for it, on the rig
+    /// of digest `rig` where the report records it.
+    pub fn with_envelope(mut self, envelope: Limits, rig: Option<u64>) -> Net {
         self.envelope = Some(envelope);
+        self.envelope_rig = rig;
         self
+    }
+
+    /// Refuses the envelope for a board of `rig` when it was measured on another machine
+    /// ([`crate::envelope::measured_on`]).
+    pub fn check_envelope_on(&self, rig: &firmware::rig::Rig) -> Result<(), String> {
+        crate::envelope::measured_on(self.envelope_rig, rig)
     }
 
     /// The float network's Q-values.
