@@ -150,6 +150,8 @@ fn another_fits_plots_are_refused([cart, swing, rig]: [&Path; 3], out: &Path, pl
         args.extend([flag("--plots"), plots.into()]);
         args
     };
+    // A user's own picture of the set-up is no fit's plot.
+    std::fs::write(plots.join("identify-setup-photo.png"), b"mine").unwrap();
     let alone = again(&[swing]);
     let alone: Vec<&Path> = alone.iter().map(PathBuf::as_path).collect();
     refused(
@@ -162,6 +164,7 @@ fn another_fits_plots_are_refused([cart, swing, rig]: [&Path; 3], out: &Path, pl
     let both = again(&[cart, swing]);
     let both: Vec<&Path> = both.iter().map(PathBuf::as_path).collect();
     assert!(run(&both).status.success());
+    assert_eq!(std::fs::read(plots.join("identify-setup-photo.png")).unwrap(), b"mine");
 }
 
 /// Exit 2, `wants` in the message, nothing on stdout and no file but the inputs.

@@ -66,6 +66,7 @@ def with_value(value, at=(1, 2), dtype=np.float32):
         ([0, 0, 10**400, 0], "finite in float32; found 1000000000000"),
         ([[0, 0, 0, 0], [0, 0, 0, "x"]], "that are real numbers; found <U21 readings, the first '0' at [0, 0]"),
         (np.array([1 + 2j, 0, 0, 0]), "that are real numbers; found complex128 readings, the first (1+2j) at [0]"),
+        (np.array([True, False, False, True]), "that are real numbers; found bool readings, the first True at [0]"),
     ],
 )
 def test_readings_that_are_no_finite_real_numbers_are_refused_naming_obs(obs, found):

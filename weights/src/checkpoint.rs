@@ -244,8 +244,10 @@ fn from_dict(dict: &StateDict, found: Found, format: Format) -> Result<Import> {
 /// from two, whose metadata no longer describes its network.
 fn width_agrees(metadata: &BTreeMap<String, String>, width: usize) -> Result<()> {
     match metadata.get(WIDTH_KEY) {
-        Some(w) if w.parse::<usize>() != Ok(width) => Err(Error::Input(format!(
-            "the file's metadata `{WIDTH_KEY}` is {}; its tensors are {width} wide",
+        // As the trainer writes it: `+64`, `064` or `64 ` name the same width only by a
+        // lenient reading.
+        Some(w) if *w != width.to_string() => Err(Error::Input(format!(
+            "the file's metadata `{WIDTH_KEY}` is {}, expected {width}, the width of its tensors",
             quote(w)
         ))),
         _ => Ok(()),

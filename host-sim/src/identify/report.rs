@@ -169,6 +169,19 @@ pub fn check_plots(dir: &Path, logs: &[Log], inputs: &[&Path]) -> weights::Resul
     others(dir, &ours)
 }
 
+/// Whether `name` is one [`plot_paths`] gives some fit: `identify-N-...` as a PNG or SVG
+/// (a user's `identify-setup.png` is not).
+fn drawn_by_a_fit(name: &str) -> bool {
+    let Some((n, _)) = name
+        .strip_prefix("identify-")
+        .and_then(|rest| rest.split_once('-'))
+    else {
+        return false;
+    };
+    let numbered = !n.is_empty() && n.bytes().all(|b| b.is_ascii_digit());
+    numbered && (name.ends_with(".png") || name.ends_with(".svg"))
+}
+
 /// Refuses a plots directory holding another fit's plots that this one would leave beside
 /// its own (a fit of four logs, then of two: the directory described both).
 fn others(dir: &Path, ours: &[PathBuf]) -> weights::Result<()> {
@@ -181,7 +194,7 @@ fn others(dir: &Path, ours: &[PathBuf]) -> weights::Result<()> {
         .filter_map(|e| e.ok().map(|e| e.file_name()))
         .filter(|n| !ours.contains(n.as_os_str()))
         .map(|n| n.to_string_lossy().into_owned())
-        .filter(|n| n.starts_with("identify-") && (n.ends_with(".png") || n.ends_with(".svg")))
+        .filter(|n| drawn_by_a_fit(n))
         .collect();
     theirs.sort();
     if theirs.is_empty() {

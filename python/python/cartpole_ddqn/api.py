@@ -83,7 +83,8 @@ def _readings(obs):
             f"obs: expected readings shaped [..., 4] ([x, x_dot, theta, theta_dot]); found shape {source.shape}"
         )
     given = _real_items(source) if source.dtype == object else source
-    if given.dtype.kind not in "biuf":
+    # A bool is no reading: True would be read as 1 metre.
+    if given.dtype.kind not in "iuf":
         first = f", the first {_item(given, 0)} at {[0] * given.ndim}" if given.size else ""
         raise ValueError(f"{_NOT_REAL} {given.dtype} readings{first}")
     return source, given

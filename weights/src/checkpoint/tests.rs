@@ -367,10 +367,13 @@ fn a_recorded_width_is_the_tensors_or_the_file_is_refused() {
     for (width, says) in [
         (
             "128",
-            "metadata `width` is \"128\"; its tensors are 16 wide",
+            "metadata `width` is \"128\", expected 16, the width of its tensors",
         ),
         ("16.0", "is \"16.0\""),
         ("", "is \"\""),
+        ("+16", "is \"+16\""),
+        ("016", "is \"016\""),
+        ("16 ", "is \"16 \""),
     ] {
         let e = with(width).unwrap_err();
         assert!(e.is_input() && e.to_string().contains(says), "{width}: {e}");
