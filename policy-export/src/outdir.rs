@@ -269,7 +269,8 @@ impl Staging {
             kind,
             made,
         };
-        marker::write(&staging.tmp, kind, &[])?;
+        marker::write(&staging.tmp, kind, &[])
+            .with_context(|| format!("marking {}", weights::shown(&staging.tmp)))?;
         Ok(staging)
     }
 
@@ -320,7 +321,10 @@ impl Drop for Staging {
     fn drop(&mut self) {
         // Only this process's own staging directory, created by `new`, and the directories
         // it made above, each only if empty (a committed output is in one of them).
-        let _ = std::fs::remove_dir_all(&self.tmp);
+        // One made unreadable (under `umask 777`) cannot be listed, but is empty.
+        if std::fs::remove_dir_all(&self.tmp).is_err() {
+            let _ = std::fs::remove_dir(&self.tmp);
+        }
         for dir in &self.made {
             let _ = std::fs::remove_dir(dir);
         }
