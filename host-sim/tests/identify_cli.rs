@@ -164,7 +164,10 @@ fn another_fits_plots_are_refused([cart, swing, rig]: [&Path; 3], out: &Path, pl
     let both = again(&[cart, swing]);
     let both: Vec<&Path> = both.iter().map(PathBuf::as_path).collect();
     assert!(run(&both).status.success());
-    assert_eq!(std::fs::read(plots.join("identify-setup-photo.png")).unwrap(), b"mine");
+    assert_eq!(
+        std::fs::read(plots.join("identify-setup-photo.png")).unwrap(),
+        b"mine"
+    );
 }
 
 /// Exit 2, `wants` in the message, nothing on stdout and no file but the inputs.
