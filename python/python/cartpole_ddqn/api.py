@@ -53,8 +53,7 @@ class Policy:
 
     @property
     def reading_bound(self):
-        """The largest reading (each channel within plus or minus it) ``q_values`` and ``act``
-        take: past it a sum of the network can leave float32's range."""
+        """The largest reading, each channel within +- it, past which a network sum can leave float32."""
         return self._native.reading_bound
 
     def act(self, obs):
