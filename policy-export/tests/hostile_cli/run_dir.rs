@@ -212,6 +212,13 @@ fn a_summary_of_another_run_is_refused_and_an_older_runs_taken() {
     std::fs::remove_dir_all(&e.dir).unwrap();
 }
 
+/// A run of two five-step episodes, with `extra` flags, written to `out`.
+fn tiny_run(out: &Path, extra: &[&str]) {
+    let base = ["train", "--episodes", "2", "--max-steps", "5", "--out"];
+    let o = run(&[&base[..], &[out.to_str().unwrap()], extra].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// Export writes nothing into a run's directory (its marker, which proves the rest, was
 /// overwritten, and then any junk in its place read as no marker), and a marker that is
 /// none this tool wrote is refused, not taken as absent.
@@ -219,16 +226,7 @@ fn a_summary_of_another_run_is_refused_and_an_older_runs_taken() {
 fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
     let dir = scratch("marked");
     let run_dir = dir.join("run");
-    let o = run(&[
-        "train",
-        "--episodes",
-        "2",
-        "--max-steps",
-        "5",
-        "--out",
-        run_dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    tiny_run(&run_dir, &[]);
     let marker = run_dir.join(".cartpole-run");
     let written = std::fs::read(&marker).unwrap();
     let src = run_dir.to_str().unwrap();
@@ -275,18 +273,7 @@ fn export_keeps_out_of_a_run_and_reads_its_marker_as_an_input() {
 fn a_seeds_directory_is_its_run_s_however_it_is_named() {
     let dir = scratch("seed-named");
     let run_dir = dir.join("run");
-    let o = run(&[
-        "train",
-        "--episodes",
-        "2",
-        "--max-steps",
-        "5",
-        "--seeds",
-        "0..2",
-        "--out",
-        run_dir.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
+    tiny_run(&run_dir, &["--seeds", "0..2"]);
     let seed = run_dir.join("seed-1");
     let summary = seed.join("summary.json");
     let text = std::fs::read_to_string(&summary).unwrap();
