@@ -237,12 +237,11 @@ fn same_run(s: &Summary, metadata: &BTreeMap<String, String>) -> std::result::Re
             weights::quote(text)
         ));
     };
-    let summary = s.config.recorded().map_err(|e| e.to_string())?;
+    let summary = weights_config(&s.config).map_err(|e| e.to_string())?;
     let differs = summary
         .as_object()
         .into_iter()
         .flatten()
-        .filter(|(key, _)| *key != "kernel")
         .find(|(key, v)| file.get(*key).is_some_and(|f| f != *v));
     match differs {
         Some((key, v)) => Err(format!(
@@ -387,12 +386,12 @@ pub const INT8_SHORTFALL: f64 = 0.01;
 /// is left out: every kernel trains the same bits, so a file must not differ by the machine
 /// that made it (`summary.json` says which ran). Otherwise as files record it
 /// ([`Config::recorded`]).
-fn weights_config(cfg: &Config) -> Result<String> {
+fn weights_config(cfg: &Config) -> serde_json::Result<serde_json::Value> {
     let mut v = cfg.recorded()?;
     if let Some(map) = v.as_object_mut() {
         map.remove("kernel");
     }
-    Ok(serde_json::to_string(&v)?)
+    Ok(v)
 }
 
 /// The policy file's metadata keys for its run's seed and configuration.
@@ -421,7 +420,7 @@ pub fn write_run(dir: &Path, cfg: &Config, seed: u64, r: &RunResult) -> Result<S
             weights::checkpoint::WIDTH_KEY.to_string(),
             r.policy.width().to_string(),
         ),
-        (CONFIG_KEY.to_string(), weights_config(cfg)?),
+        (CONFIG_KEY.to_string(), weights_config(cfg)?.to_string()),
         (
             twin::rigfile::METADATA_KEY.to_string(),
             twin::rigfile::to_toml(&cfg.machine()?),
