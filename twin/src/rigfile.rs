@@ -176,6 +176,17 @@ impl Fields<'_> {
         )))
     }
 
+    /// A count: [`check`](Self::check)ed as a number, named as the whole number it is.
+    fn whole(self, field: &str, value: u32, (lo, hi): (f64, f64)) -> Result<u32> {
+        self.check(field, f64::from(value), (lo, hi), false)
+            .map(|v| v as u32)
+            .map_err(|_| {
+                self.refuse(format!(
+                    "{field}: expected a whole number in [{lo}, {hi}], found {value}"
+                ))
+            })
+    }
+
     fn refuse(self, what: String) -> Error {
         Error::Input(format!("{}: {what}", self.origin))
     }
@@ -270,17 +281,13 @@ impl Fields<'_> {
 
     /// The encoders, within the bounds a scenario's encoders have.
     fn encoders(self, e: &FileEncoders) -> Result<Encoders> {
-        let counts = |field: &str, v: u32, range: (f64, f64)| {
-            self.check(field, f64::from(v), range, false)
-                .map(|v| v as u32)
-        };
         Ok(Encoders {
-            cart_counts_per_m: counts(
+            cart_counts_per_m: self.whole(
                 "encoders.cart_counts_per_m",
                 e.cart_counts_per_m,
                 CART_COUNTS_RANGE,
             )?,
-            pole_counts_per_rev: counts(
+            pole_counts_per_rev: self.whole(
                 "encoders.pole_counts_per_rev",
                 e.pole_counts_per_rev,
                 POLE_COUNTS_RANGE,
@@ -291,7 +298,7 @@ impl Fields<'_> {
     /// The periods of dead time, at most what the predictor bridges.
     fn dead_time(self, periods: u32) -> Result<u32> {
         let max = f64::from(crate::scenario::MAX_DELAY);
-        Ok(self.check("dead_time_periods", f64::from(periods), (0.0, max), false)? as u32)
+        self.whole("dead_time_periods", periods, (0.0, max))
     }
 
     /// The observer's tuning, the default where the file has none.
