@@ -28,7 +28,13 @@ pub const MAX_WEIGHT: u64 = 5_000_000;
 
 /// `text` parsed as a `T`, or why not (serde's message, cut and escaped).
 pub fn parse<T: DeserializeOwned>(text: &str) -> Result<T, String> {
-    serde_json::from_str(text).map_err(|e| crate::excerpt(&e.to_string()))
+    serde_json::from_str(unmarked(text)).map_err(|e| crate::excerpt(&e.to_string()))
+}
+
+/// `text` without a leading byte-order mark, which some editors on Windows write and which
+/// the TOML reader takes: refused here, a file would read in one format and not the other.
+fn unmarked(text: &str) -> &str {
+    text.strip_prefix('\u{feff}').unwrap_or(text)
 }
 
 /// `bytes` as UTF-8 text parsed as a `T` ([`parse`]), or why not.
@@ -50,7 +56,7 @@ pub fn value(text: &str) -> Result<Value, String> {
 /// enclosing objects', while its values are); refused past [`MAX_WEIGHT`], with a
 /// key given twice in one object, or if it is not JSON.
 pub fn weight(text: &str) -> Result<u64, String> {
-    let mut de = serde_json::Deserializer::from_str(text);
+    let mut de = serde_json::Deserializer::from_str(unmarked(text));
     let seen = Cell::new(0);
     Counter(&seen)
         .deserialize(&mut de)
@@ -174,6 +180,10 @@ mod tests {
         assert!(value(r#"{"a": 1, "b": {"a": 2}}"#).is_ok());
         let e = value("[1] x").unwrap_err();
         assert!(e.contains("trailing characters"), "{e}");
+        // A byte-order mark first, as the TOML reader takes it; not elsewhere.
+        assert_eq!(value("\u{feff}{\"a\": 1}").unwrap()["a"], 1);
+        assert_eq!(parse::<Vec<u8>>("\u{feff}[7]"), Ok(vec![7]));
+        assert!(value("[\u{feff}1]").is_err());
         let e = parse::<Vec<u8>>("[1, 300]").unwrap_err();
         assert!(e.contains("u8"), "{e}");
     }
