@@ -26,7 +26,7 @@ mod joined;
 mod refusal;
 
 use joined::numbers_joined;
-use refusal::refusal;
+use refusal::{plus_signed, refusal};
 
 /// The first error writing standard output, after which nothing more is written to it.
 static STDOUT_FAILED: Mutex<Option<std::io::Error>> = Mutex::new(None);
@@ -152,13 +152,16 @@ pub fn parse<T: clap::Parser>() -> T {
 pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Command) -> T {
     let cmd = negative_numbers(edit(T::command()));
     let args = numbers_joined(&cmd, std::env::args_os().collect());
-    let parsed = cmd
-        .clone()
-        .try_get_matches_from(&args)
-        .and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
+    let matched = cmd.clone().try_get_matches_from(&args);
+    let signed = matched.as_ref().ok().and_then(|m| plus_signed(&cmd, m));
+    let parsed =
+        matched.and_then(|mut m| <T as clap::FromArgMatches>::from_arg_matches_mut(&mut m));
     match parsed {
         Ok(t) => {
-            if let Err(e) = check_threads_env().and_then(|()| check_numbers(&args)) {
+            let checked = signed
+                .map_or(Ok(()), Err)
+                .and_then(|()| check_threads_env());
+            if let Err(e) = checked.and_then(|()| check_numbers(&args)) {
                 crate::errln!("error: {e}");
                 std::process::exit(2)
             }

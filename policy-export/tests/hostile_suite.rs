@@ -386,7 +386,13 @@ fn bad_numbers() -> Vec<Case> {
             ));
         }
     }
-    for v in ["0", "1", "1001", "-3", "x", "99999999999999999999"] {
+    let args = os(&[&"export", &"--out", &"x.rs", &"-dash.safetensors"]);
+    cases.push(Case::new(
+        "export -dash.safetensors".into(),
+        &args,
+        &["unexpected argument '-dash.safetensors' found"],
+    ));
+    for v in ["0", "1", "1001", "-3", "x", "99999999999999999999", "+3"] {
         let args = os(&[&"reproduce", &"--seeds", &v]);
         cases.push(Case::new(
             format!("reproduce --seeds {v}"),
