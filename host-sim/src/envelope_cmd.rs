@@ -14,7 +14,7 @@ use indicatif::{ProgressBar, ProgressStyle};
 use shipped::policy::RIG;
 use weights::files::write_atomic;
 
-use crate::Subject;
+use crate::subject::{Monitor, Subject};
 
 /// Most episodes per scenario.
 const MAX_EPISODES: u64 = 100_000;
@@ -57,10 +57,6 @@ pub struct EnvelopeArgs {
 /// Measures and writes; every argument and the output's place are checked first.
 pub fn run(a: &EnvelopeArgs) -> Result<()> {
     check(a)?;
-    ensure!(
-        a.subject.envelope.is_none(),
-        "host-sim envelope measures an envelope and takes none: found --envelope"
-    );
     if let (Some(policy), Some(_)) = (&a.subject.policy, &a.out) {
         anyhow::bail!(
             "--out writes the shipped crate's module, the shipped policy's envelope: for --policy {} \
@@ -71,7 +67,9 @@ pub fn run(a: &EnvelopeArgs) -> Result<()> {
     let outputs: Vec<(&str, &std::path::Path)> =
         a.out.iter().map(|p| ("--out", p.as_path())).collect();
     crate::check_io(&a.subject.inputs(), &outputs)?;
-    let (machine, net) = a.subject.load_for(&[ControllerKind::Policy])?;
+    let (machine, net) = a
+        .subject
+        .load_for(&[ControllerKind::Policy], &Monitor::default())?;
     let scenarios = crate::parse_scenarios(&a.scenario, &machine)?;
     let bar = ProgressBar::new(scenarios.len() as u64).with_style(
         ProgressStyle::with_template("{bar:30} {pos}/{len} scenarios, {elapsed} (eta {eta}) {msg}")

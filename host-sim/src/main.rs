@@ -25,7 +25,7 @@ mod subject;
 mod tables_cmd;
 mod world_arg;
 
-use subject::Subject;
+use subject::{Monitor, Subject};
 
 /// The board's machine without --policy or --rig, as messages name it.
 const GYMNASIUM: &str = "Gymnasium's machine";
@@ -118,6 +118,8 @@ struct EvalArgs {
     controller: Option<Vec<ControllerKind>>,
     #[command(flatten)]
     subject: Subject,
+    #[command(flatten)]
+    monitor: Monitor,
     /// The true machine the episodes run in (a rig file), when the board models another
     /// (the one --rig or the policy gives, as its observer, predictor and LQR gain do):
     /// a policy trained for one rig run on another, or a rig identified from a true one.
@@ -222,7 +224,6 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
         "--states must be in [1, {MAX_AGREE_STATES}], got {}",
         a.states
     );
-    a.subject.refuse_envelope_in("agree")?;
     check_io(&a.subject.inputs(), &[])?;
     let (machine, net) = a.subject.load(true, true)?;
     let report = host_sim::agree::agreement(&net, &machine, a.states, a.seed)?;
@@ -237,10 +238,11 @@ fn run_agree(a: &AgreeArgs) -> Result<()> {
 fn run_eval(a: &EvalArgs) -> Result<bool> {
     eval_cmd::check_eval(a)?;
     let mut inputs = a.subject.inputs();
+    inputs.extend(a.monitor.inputs());
     inputs.extend(a.world.clone().map(|w| ("--world", w)));
     check_io(&inputs, &[])?;
     let controllers = a.controllers();
-    let pil = a.pil.place(&a.subject, &controllers)?;
+    let pil = a.pil.place(&a.subject, &a.monitor, &controllers)?;
     let world = a.world.as_deref().map(twin::rigfile::load).transpose()?;
     let flags = ["--horizon", "--scenario", "--controller"];
     // Counted before the policy loads, each spec a row at least; built and judged once the
@@ -253,7 +255,7 @@ fn run_eval(a: &EvalArgs) -> Result<bool> {
     // machine (the shipped policy's Gymnasium rig is no concern of it).
     let (machine, net) = match pil {
         Some(_) => a.subject.load(false, false)?,
-        None => a.subject.load_for(&controllers)?,
+        None => a.subject.load_for(&controllers, &a.monitor)?,
     };
     let run_on = match (&world, &a.world) {
         (Some(w), Some(path)) => {

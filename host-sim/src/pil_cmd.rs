@@ -17,7 +17,7 @@ use serde::Serialize;
 use twin::Scenario;
 
 use crate::EvalArgs;
-use crate::subject::Subject;
+use crate::subject::{Monitor, Subject};
 
 /// Longest wait for one answer `--pil-timeout` may set, s.
 const MAX_TIMEOUT_S: f64 = 3600.0;
@@ -55,6 +55,7 @@ impl PilArgs {
     pub fn place(
         &self,
         subject: &Subject,
+        monitor: &Monitor,
         controllers: &[ControllerKind],
     ) -> Result<Option<Place>> {
         let Some(spec) = &self.pil else {
@@ -67,7 +68,7 @@ impl PilArgs {
                  rebuild the pil application)"
             );
         }
-        if subject.envelope.is_some() {
+        if monitor.envelope.is_some() {
             bail!(
                 "--pil runs the runtime monitor with the envelope compiled into the target's \
                  application, found --envelope (leave it out)"

@@ -12,7 +12,7 @@ use host_sim::eval::{self, ControllerKind};
 use host_sim::render;
 use twin::{Frame, Scenario};
 
-use crate::Subject;
+use crate::subject::{Monitor, Subject};
 
 /// Longest episode drawn (`render`, `startup --render`): it keeps every period (40 bytes)
 /// and draws each `--stride`-th into the GIF.
@@ -57,6 +57,8 @@ pub struct RenderArgs {
     controller: ControllerKind,
     #[command(flatten)]
     subject: Subject,
+    #[command(flatten)]
+    monitor: Monitor,
     /// One scenario spec (see `eval`).
     #[arg(long, default_value = "nominal")]
     scenario: String,
@@ -78,10 +80,16 @@ pub fn run(a: &RenderArgs) -> Result<()> {
     let (horizon, stride, out) = (a.horizon, a.stride, a.out.as_path());
     bound(horizon.into(), stride, "--horizon")?;
     let (gif, png) = pictures("--out", out)?;
-    crate::check_io(&a.subject.inputs(), &[("--out", &gif), ("--out", &png)])?;
+    let inputs: Vec<_> = a
+        .subject
+        .inputs()
+        .into_iter()
+        .chain(a.monitor.inputs())
+        .collect();
+    crate::check_io(&inputs, &[("--out", &gif), ("--out", &png)])?;
     // Built and judged once, on the machine the episode runs on (`--rig`, or the policy's
     // own rig), not read first on another one.
-    let (machine, net) = a.subject.load_for(&[a.controller])?;
+    let (machine, net) = a.subject.load_for(&[a.controller], &a.monitor)?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let (controller, seed, episode) = (a.controller, a.seed, a.episode);
     let mut frames = Vec::new();

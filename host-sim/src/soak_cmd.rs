@@ -13,7 +13,7 @@ use host_sim::eval::{self, ControllerKind};
 use serde::Serialize;
 use twin::Scenario;
 
-use crate::Subject;
+use crate::subject::{Monitor, Subject};
 
 /// Longest soak, simulated hours: ten days.
 const MAX_HOURS: f64 = 240.0;
@@ -31,6 +31,8 @@ pub struct SoakArgs {
     controller: ControllerKind,
     #[command(flatten)]
     subject: Subject,
+    #[command(flatten)]
+    monitor: Monitor,
     /// Seed of the start, noise and pushes (episode 0 of it, as in `eval`).
     #[arg(long, default_value_t = 0)]
     seed: u64,
@@ -65,7 +67,7 @@ pub fn run(a: &SoakArgs) -> Result<bool> {
         "--hours must be a normal number of simulated hours in (0, {MAX_HOURS}], found {:?}",
         a.hours
     );
-    let (machine, net) = a.subject.load_for(&[a.controller])?;
+    let (machine, net) = a.subject.load_for(&[a.controller], &a.monitor)?;
     let scenario = Scenario::parse_on(&a.scenario, &machine).map_err(anyhow::Error::msg)?;
     let tau = scenario.params.tau;
     // Less than a period ran one, and reported the hours it ran, not those asked for.

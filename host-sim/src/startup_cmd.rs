@@ -19,7 +19,7 @@ use twin::Frame;
 use twin::startup::{Begin, Events, Knock, Outcome, power_on};
 use twin::{Integration, Machine};
 
-use crate::Subject;
+use crate::subject::{Monitor, Subject};
 
 mod report;
 use report::{Report, summarise, table};
@@ -212,7 +212,6 @@ fn periods_of(flag: &str, seconds: f64, tau: f64) -> Result<u32> {
 
 /// `a`'s values, and its picture's paths, before any work.
 fn check(a: &StartupArgs) -> Result<()> {
-    a.subject.refuse_envelope_in("startup")?;
     anyhow::ensure!(
         (1..=MAX_EPISODES).contains(&a.episodes),
         "--episodes must be 1 to {MAX_EPISODES}, found {}",
@@ -413,7 +412,10 @@ fn board(s: &Subject) -> Result<(Machine, Startup, Net)> {
         .map(twin::rigfile::load_startup)
         .transpose()?;
     let (machine, net) = match &s.policy {
-        Some(_) => s.load_for(&[ControllerKind::Policy, ControllerKind::PolicyInt])?,
+        Some(_) => s.load_for(
+            &[ControllerKind::Policy, ControllerKind::PolicyInt],
+            &Monitor::default(),
+        )?,
         None => {
             let rig = shipped::desk::RIG;
             let desk = Machine {

@@ -1,5 +1,6 @@
 //! Which policy runs, on which machine: the flags `eval`, `agree`, `render`, `soak`,
-//! `envelope` and `startup` share.
+//! `envelope` and `startup` share; and the envelope of the commands that run a monitored
+//! controller (`eval`, `render`, `soak`).
 
 use std::path::PathBuf;
 
@@ -32,6 +33,11 @@ pub struct Subject {
     /// records, or Gymnasium's machine; a different one than the recorded is warned about.
     #[arg(long)]
     pub rig: Option<PathBuf>,
+}
+
+/// The envelope a monitored controller keeps, where one may run.
+#[derive(Args, Default)]
+pub struct Monitor {
     /// The runtime monitor's envelope for --controller monitored: the JSON `host-sim
     /// envelope --json` prints (for --policy, measured with the same --policy). The shipped
     /// policy's is compiled in.
@@ -39,19 +45,22 @@ pub struct Subject {
     pub envelope: Option<PathBuf>,
 }
 
+impl Monitor {
+    /// The file read, by flag.
+    pub fn inputs(&self) -> impl Iterator<Item = (&'static str, PathBuf)> {
+        self.envelope.clone().map(|p| ("--envelope", p)).into_iter()
+    }
+}
+
 impl Subject {
     /// The files this subject reads, by flag: the policy's (a run directory's
     /// `policy.safetensors`) and the rig file.
     pub fn inputs(&self) -> Vec<(&'static str, PathBuf)> {
         let policy = self.policy.as_deref().map(weights::checkpoint::policy_file);
-        [
-            ("--policy", policy),
-            ("--rig", self.rig.clone()),
-            ("--envelope", self.envelope.clone()),
-        ]
-        .into_iter()
-        .filter_map(|(flag, p)| Some((flag, p?)))
-        .collect()
+        [("--policy", policy), ("--rig", self.rig.clone())]
+            .into_iter()
+            .filter_map(|(flag, p)| Some((flag, p?)))
+            .collect()
     }
 
     /// The levels of --levels, checked.
@@ -61,14 +70,18 @@ impl Subject {
     }
 
     /// [`Subject::load`] for `kinds` of controller: the network with its integer version if
-    /// one runs it, and the envelope of --envelope. Refused: the monitored controller for a
+    /// one runs it, and the envelope of `monitor`. Refused: the monitored controller for a
     /// --policy without an --envelope measured for it.
-    pub fn load_for(&self, kinds: &[ControllerKind]) -> Result<(Machine, Net)> {
+    pub fn load_for(&self, kinds: &[ControllerKind], monitor: &Monitor) -> Result<(Machine, Net)> {
         let monitored = kinds.iter().find(|k| k.monitored());
-        if monitored.is_none() {
-            self.refuse_envelope(&format!("; expected one of them, found {}", names(kinds)))?;
+        if let (Some(_), None) = (&monitor.envelope, monitored) {
+            anyhow::bail!(
+                "--envelope is read by --controller monitored or monitored-int alone; expected \
+                 one of them, found {}",
+                names(kinds)
+            );
         }
-        if let (Some(path), None, Some(k)) = (&self.policy, &self.envelope, monitored) {
+        if let (Some(path), None, Some(k)) = (&self.policy, &monitor.envelope, monitored) {
             anyhow::bail!(
                 "--controller {k} needs the envelope measured for --policy {}: give \
                  --envelope FILE, the JSON `host-sim envelope --policy ... --json` prints",
@@ -90,7 +103,7 @@ impl Subject {
             });
             anyhow::bail!("{whose}: {why}");
         }
-        let net = match self.envelope.as_deref() {
+        let net = match monitor.envelope.as_deref() {
             Some(path) => {
                 let (envelope, rig) = host_sim::envelope::read_for(path, Some(net.digest()))?;
                 net.with_envelope(envelope, rig)
@@ -102,26 +115,6 @@ impl Subject {
                 .map_err(|why| anyhow::anyhow!("--controller {}: {why}", names(kinds)))?;
         }
         Ok((machine, net))
-    }
-
-    /// Refuses --envelope for a command without --controller (`agree`, `startup`), which runs
-    /// the network as float and integer and no monitored controller: the file was read by
-    /// nothing, the output as without it.
-    pub fn refuse_envelope_in(&self, command: &str) -> Result<()> {
-        self.refuse_envelope(&format!(
-            " (eval's, render's and soak's); host-sim {command} runs policy and policy-int, no \
-             monitored controller"
-        ))
-    }
-
-    /// Refuses --envelope where nothing reads it, `why` completing the message.
-    fn refuse_envelope(&self, why: &str) -> Result<()> {
-        match &self.envelope {
-            Some(_) => anyhow::bail!(
-                "--envelope is read by --controller monitored or monitored-int alone{why}"
-            ),
-            None => Ok(()),
-        }
     }
 
     /// Refuses --policy, and --levels, where `kinds` (none of which runs the network or

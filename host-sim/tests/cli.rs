@@ -458,23 +458,21 @@ fn min_success_judges_every_row_the_network_drives_and_an_envelope_needs_the_mon
     );
 }
 
-/// `agree` and `startup` run the network as float and integer and take no --controller: an
-/// envelope given them was read by nothing and their output was as without it.
+/// `agree`, `envelope` and `startup` run no monitored controller: they take no --envelope
+/// and offer none in their help (the file was read by nothing, their output as without it).
 #[test]
 fn an_envelope_where_no_monitored_controller_runs_is_refused() {
     let envelope = concat!(env!("CARGO_MANIFEST_DIR"), "/../docs/results/envelope.json");
-    let read_by = "--envelope is read by --controller monitored or monitored-int alone (eval's, \
-                   render's and soak's); host-sim";
-    let cases: [(&str, &[&str]); 2] = [
-        ("agree", &["agree", "--states", "1", "--envelope", envelope]),
-        (
-            "startup",
-            &["startup", "--episodes", "1", "--envelope", envelope],
-        ),
-    ];
-    for (command, args) in cases {
-        let runs = format!("{command} runs policy and policy-int, no monitored controller");
-        refused(args, &format!("{read_by} {runs}"));
+    for command in ["agree", "envelope", "startup"] {
+        refused(
+            &[command, "--envelope", envelope],
+            "unexpected argument '--envelope' found",
+        );
+        let help = String::from_utf8(run(&[command, "--help"]).stdout).unwrap();
+        assert!(
+            help.contains("--policy <") && !help.contains("--envelope <"),
+            "{help}"
+        );
     }
 }
 

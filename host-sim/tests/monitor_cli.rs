@@ -238,7 +238,6 @@ fn bad_input_exits_2_before_any_work() {
             vec!["envelope", "--policy", fixture, "--out", "x.rs"],
             "--out writes the shipped crate's module",
         ),
-        (vec!["envelope", "--envelope", negative], "takes none"),
         (
             vec!["envelope", "--quantile", "0"],
             "--quantile must be a normal number in (0, 1]",
