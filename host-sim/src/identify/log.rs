@@ -198,12 +198,14 @@ impl Log {
             .ok()
             .filter(|d| (-1.0..=1.0).contains(d) && plain(d));
         let duty = duty.ok_or_else(|| field(1, "duty", "a number from -1 to 1, zero or normal"))?;
-        let cart: i32 = fields[2]
-            .parse()
-            .map_err(|_| field(2, "cart_counts", "a whole number of counts"))?;
-        let pole: i32 = fields[3]
-            .parse()
-            .map_err(|_| field(3, "pole_counts", "a whole number of counts"))?;
+        // A board's counters are 32-bit: the range named, or the largest 64-bit counts read
+        // as "not a whole number".
+        let counts = |i, name| {
+            let range = format!("a whole number of counts in [{}, {}]", i32::MIN, i32::MAX);
+            field(i, name, &range)
+        };
+        let cart: i32 = (fields[2].parse()).map_err(|_| counts(2, "cart_counts"))?;
+        let pole: i32 = (fields[3].parse()).map_err(|_| counts(3, "pole_counts"))?;
         if let (Some(&c), Some(&p)) = (self.cart.last(), self.pole.last()) {
             let per_rev = i64::from(self.encoders.pole_counts_per_rev);
             let jump = (i64::from(pole) - i64::from(p)).abs();

@@ -133,6 +133,20 @@ fn wrong_columns_gaps_and_jumps_are_refused_naming_the_line() {
         &[&at, "pole_counts", "at most a revolution (2400 counts)"],
     );
 
+    // Whole, but past a board's 32-bit counter: the range named.
+    let huge = replace_line(
+        &cart,
+        line,
+        &format!("40,{},{},{}", row[1], i64::MAX, row[3]),
+    );
+    assert_names(
+        &refusal(&huge, &machine),
+        &[
+            &at,
+            "cart_counts: expected a whole number of counts in [-2147483648, 2147483647]",
+        ],
+    );
+
     let cart_jump = replace_line(
         &cart,
         line,
