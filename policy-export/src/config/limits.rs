@@ -240,6 +240,7 @@ impl Config {
         }
         errs.extend(self.domains_on_rig());
         errs.extend(self.decay_that_never_moves());
+        errs.extend(self.decay_over_at_once());
         if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
             errs.push(format!(
                 "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
@@ -270,6 +271,23 @@ impl Config {
                 "eps_decay ({:?}) leaves epsilon at eps_start for the whole run ({t} {unit} at \
                  most), so eps_end is never approached; expected a decay the run can move",
                 self.eps_decay
+            )
+        })
+    }
+
+    /// The mirror of [`Self::decay_that_never_moves`]: a decay so short that epsilon is at
+    /// `eps_end` from the second step (or episode) on, so `eps_start` is read once.
+    fn decay_over_at_once(&self) -> Option<String> {
+        let epsilon = |t| crate::train::epsilon(self, t);
+        (epsilon(1.0) == epsilon(f64::INFINITY) && decays(self)).then(|| {
+            format!(
+                "eps_decay ({:?}) takes epsilon to eps_end within one {}, so eps_start is read \
+                 once; expected a decay over more of the run",
+                self.eps_decay,
+                match self.eps_unit {
+                    Unit::Episodes => "episode",
+                    Unit::Steps => "step",
+                }
             )
         })
     }

@@ -29,7 +29,7 @@ fn a_spec_that_reads_as_zero_is_refused_as_it_arrives() {
 }
 
 #[test]
-fn a_decay_that_never_moves_epsilon_is_refused_and_one_that_does_is_taken() {
+fn a_decay_that_never_moves_epsilon_or_is_over_at_once_is_refused_and_one_that_does_is_taken() {
     // Epsilon stayed at eps_start for the whole run: eps_end was read by nothing.
     refused(
         |c| c.eps_decay = 1e300,
@@ -49,7 +49,18 @@ fn a_decay_that_never_moves_epsilon_is_refused_and_one_that_does_is_taken() {
         |c| (c.max_env_steps, c.eps_decay) = (100, 1e19),
         "for the whole run (100 steps at most)",
     );
+    // The mirror: at eps_end from the second step on, eps_start read once.
+    refused(
+        |c| c.eps_decay = 1e-300,
+        "eps_decay (1e-300) takes epsilon to eps_end within one step, so eps_start is read once",
+    );
+    refused(
+        |c| (c.eps_unit, c.eps_decay) = (super::super::Unit::Episodes, 0.02),
+        "within one episode",
+    );
     let mut c = Config::paper();
+    c.eps_decay = 0.05;
+    c.validate().unwrap();
     c.eps_decay = 1e19;
     c.validate().unwrap();
     // exp(-60000 / 1e15) is below 1 in f64, and epsilon moves with it.
