@@ -110,10 +110,7 @@ pub fn to_f32(name: &str, t: &Tensor) -> Result<(Vec<f32>, Option<String>)> {
             .chunks_exact(4)
             .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
             .collect(),
-        Dtype::F64 => d
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8")) as f32)
-            .collect(),
+        Dtype::F64 => narrowed(d).map_err(refuse)?,
         Dtype::BF16 => d
             .chunks_exact(2)
             .map(|c| f32::from_bits(u32::from(u16::from_le_bytes([c[0], c[1]])) << 16))
@@ -125,6 +122,26 @@ pub fn to_f32(name: &str, t: &Tensor) -> Result<(Vec<f32>, Option<String>)> {
     };
     let from = (dtype != Dtype::F32).then(|| format!("{dtype:?}"));
     Ok((v, from))
+}
+
+/// F64 elements rounded to f32, refusing one that is finite but past f32's range, which
+/// would round to an infinity and be called one.
+fn narrowed(d: &[u8]) -> std::result::Result<Vec<f32>, String> {
+    let wide = d
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8")));
+    let mut v = Vec::with_capacity(d.len() / 8);
+    for (i, x) in wide.enumerate() {
+        if x.is_finite() && (x as f32).is_infinite() {
+            return Err(format!(
+                "element {i} is {x:e}, past float32's range (+-{:e}); expected a value float32 \
+                 holds",
+                f32::MAX
+            ));
+        }
+        v.push(x as f32);
+    }
+    Ok(v)
 }
 
 /// The tensor's elements in row-major order, little-endian: a dense tensor's bytes as they

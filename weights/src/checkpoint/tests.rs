@@ -275,6 +275,24 @@ fn other_float_types_are_converted_and_said() {
         assert_eq!(got.converted_from, Some(format!("{dtype:?}")));
         if dtype == Dtype::F64 {
             assert_eq!(got.weights.tensors(), &v);
+            // Finite as given, past f32's range: named so, not as the infinity it rounds to.
+            let mut bytes = bytes.clone();
+            bytes[2][8..16].copy_from_slice(&3.5e38f64.to_le_bytes());
+            let views = names
+                .iter()
+                .zip(shapes(16, 2))
+                .zip(&bytes)
+                .map(|((n, s), b)| {
+                    (
+                        n.clone(),
+                        TensorView::new(dtype, s.dims().to_vec(), b).unwrap(),
+                    )
+                });
+            let e = err(&safetensors::serialize(views, None).unwrap(), None);
+            assert!(
+                e.contains("\"fc2.weight\": element 1 is 3.5e38, past float32's range"),
+                "{e}"
+            );
         } else {
             assert!(
                 got.weights
