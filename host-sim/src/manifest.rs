@@ -243,7 +243,7 @@ fn what(key: &str) -> &'static str {
 /// Why an output is not a place in the repository a step writes: absolute, through `..`
 /// (outside, where `regenerate.sh` would rename a printed output onto it), through `.` or an
 /// empty part, a directory's name ending in `/`, a part a command would read as an option
-/// (`-rf`), or the repository's `.git`.
+/// (`-rf`), the repository's `.git`, or a character past ASCII.
 fn misplaced(o: &str) -> Option<&'static str> {
     let parts = || o.split('/');
     if o.starts_with('/') {
@@ -258,6 +258,10 @@ fn misplaced(o: &str) -> Option<&'static str> {
         Some("a part starting with `-`, which a command reads as an option")
     } else if parts().any(|p| p == ".git") {
         Some("the repository's own `.git`")
+    } else if !o.is_ascii() {
+        Some(
+            "a character past ASCII: `r\u{e9}s` and `re\u{301}s` are two names here, one where file systems normalise them (macOS's)",
+        )
     } else {
         None
     }

@@ -41,6 +41,11 @@ fn refuses_what_a_script_would_misread() {
             TWO.replace("docs/results/eval-x.json\"", ".git/config\""),
             "own `.git`",
         ),
+        // One name in NFC and in NFD: two outputs on Linux, one on macOS.
+        (
+            TWO.replace("eval-x.json\"", "re\u{301}s.json\""),
+            "a character past ASCII",
+        ),
         (
             TWO.replace("echo done", "echo \u{202e}enod"),
             "no invisible format",
