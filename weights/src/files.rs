@@ -182,23 +182,26 @@ pub fn check_place(path: &Path) -> Result<()> {
                 kind(&meta.file_type())
             )));
         }
-        let probe = dir.join(hidden_name(path, std::process::id(), "probe"));
-        return std::fs::OpenOptions::new()
-            .write(true)
-            .create_new(true)
-            .open(&probe)
-            .map(|_| {
-                let _ = std::fs::remove_file(&probe);
-            })
-            .map_err(|e| {
-                Error::Input(format!(
-                    "{}: expected a directory this process can write in, but {} refuses: {e}",
-                    crate::shown(path),
-                    crate::shown(dir)
-                ))
-            });
+        return writable(dir, path).map_err(|e| {
+            Error::Input(format!(
+                "{}: expected a directory this process can write in, but {} refuses: {e}",
+                crate::shown(path),
+                crate::shown(dir)
+            ))
+        });
     }
     Ok(())
+}
+
+/// Whether this process can create and remove entries in `dir`, tried (permissions cannot
+/// tell: [`check_place`]) with a hidden `.NAME.PID.probe` for `path`, removed at once.
+pub fn writable(dir: &Path, path: &Path) -> std::io::Result<()> {
+    let probe = dir.join(hidden_name(path, std::process::id(), "probe"));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+        .and_then(|_| std::fs::remove_file(&probe))
 }
 
 /// Whether `path` as written ends in a `.` component (`run/.`): a name the path's

@@ -5,6 +5,8 @@
 
 use std::path::Path;
 
+use std::process::Command;
+
 use super::{mkfifo, refused, run, scratch, stderr};
 
 /// What a summary is made, and how.
@@ -304,5 +306,63 @@ fn a_seeds_directory_is_its_run_s_however_it_is_named() {
         );
     }
     assert!(!out.exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `policy-export` as a user permissions hold: `nobody` through `setpriv` where the tests run
+/// as root (as CI does), which no permission stops; itself otherwise.
+fn unprivileged() -> Command {
+    use std::os::unix::fs::MetadataExt;
+    let exe = env!("CARGO_BIN_EXE_policy-export");
+    if std::fs::metadata("/proc/self").unwrap().uid() != 0 {
+        return Command::new(exe);
+    }
+    let mut c = Command::new("setpriv");
+    c.args([
+        "--reuid=65534",
+        "--regid=65534",
+        "--clear-groups",
+        "--",
+        exe,
+    ]);
+    c
+}
+
+/// An earlier run made read-only is refused before the work: its files could not be removed
+/// once the new run was in place, which was found after a whole training (exit 1, the
+/// earlier run kept aside under a hidden name).
+#[test]
+fn a_read_only_earlier_run_is_refused_before_the_work() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scratch("read-only-run");
+    let mode = |p: &Path, m: u32| std::fs::set_permissions(p, PermissionsExt::from_mode(m));
+    mode(&dir, 0o777).unwrap();
+    let run_dir = dir.join("run");
+    let train = [
+        "train",
+        "--episodes",
+        "3",
+        "--max-steps",
+        "10",
+        "--out",
+        run_dir.to_str().unwrap(),
+    ];
+    let made = unprivileged().args(train).output().unwrap();
+    assert!(made.status.success(), "{}", stderr(&made));
+    mode(&run_dir, 0o555).unwrap();
+    let ran = super::hostile::run_counted(unprivileged().args(train));
+    assert_eq!(ran.code, Some(2), "{}", ran.stderr);
+    assert!(
+        ran.stderr
+            .contains("cannot be written in (Permission denied")
+            && ran
+                .stderr
+                .contains("make it writable, or choose another --out"),
+        "{}",
+        ran.stderr
+    );
+    assert!(ran.late().is_none(), "{:?}", ran.cpu);
+    mode(&run_dir, 0o755).unwrap();
+    assert_eq!(super::entries(&dir), ["run"]);
     std::fs::remove_dir_all(&dir).unwrap();
 }
