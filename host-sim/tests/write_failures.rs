@@ -303,3 +303,51 @@ fn tables_on_a_full_disk_rewrites_no_document() {
     assert_eq!(read(&a), doc.as_bytes());
     assert_eq!(entries(&t.join("docs/results")), ["r.json"]);
 }
+
+/// Under a umask that takes the owner's own access (`umask 777`), every output is refused
+/// before the work, and nothing made: a directory made for `render --out` could not be
+/// written in, which it found after drawing (exit 1), and a user the permissions hold
+/// could not read what it wrote. Root, which no permission stops, is refused alike.
+#[test]
+fn a_umask_that_takes_the_owners_access_is_refused_before_the_work() {
+    let dir = Scratch::new("umask");
+    let out = dir.join("pics/new");
+    let under = |mask: &str, args: &[&str]| {
+        let script = format!("umask {mask} && exec \"$0\" \"$@\"");
+        let mut c = Command::new("sh");
+        c.args(["-c", &script, exe()]).args(args);
+        hostile::run_counted(&mut c)
+    };
+    let render = [
+        "render",
+        "--controller",
+        "lqr",
+        "--horizon",
+        "20",
+        "--out",
+        s(&out),
+    ];
+    let (world, rig) = (repo("rigs/desk.toml"), repo("rigs/desk-measured.toml"));
+    let logs = [
+        "simulate-logs",
+        "--world",
+        &world,
+        "--rig",
+        &rig,
+        "--out",
+        s(&out),
+    ];
+    for (mask, args) in [("777", &render[..]), ("200", &render), ("777", &logs)] {
+        let ran = under(mask, args);
+        assert_eq!(ran.code, Some(2), "{mask} {args:?}: {}", ran.stderr);
+        assert!(
+            ran.stderr
+                .contains(&format!("the process's umask 0{mask} takes"))
+                && ran.stderr.contains("such as 0022 or 0077"),
+            "{}",
+            ran.stderr
+        );
+        assert!(ran.late().is_none(), "{:?}", ran.cpu);
+        assert!(entries(&dir.0).is_empty(), "{:?}", entries(&dir.0));
+    }
+}

@@ -156,6 +156,15 @@ pub fn check_input(path: &Path) -> Result<()> {
 /// ignores them; a read-only mount or `/proc` refuses anyway), so it is tried: a hidden
 /// `.NAME.PID.probe` is created there and removed at once.
 pub fn check_place(path: &Path) -> Result<()> {
+    if let Some(mask) = umask().filter(|m| m & 0o700 != 0) {
+        return Err(Error::Input(format!(
+            "{}: the process's umask {mask:04o} takes from this process the directories and \
+             files it makes (a directory made for the output could not be written in, after \
+             the work); expected one that leaves their owner read, write and search, such as \
+             0022 or 0077",
+            crate::shown(path)
+        )));
+    }
     for dir in path.ancestors().skip(1) {
         let dir = if dir.as_os_str().is_empty() {
             Path::new(".")
@@ -191,6 +200,14 @@ pub fn check_place(path: &Path) -> Result<()> {
         });
     }
     Ok(())
+}
+
+/// The process's file mode creation mask, as Linux reports it (`None` elsewhere): read, not
+/// set and restored, which would change it for other threads in between.
+fn umask() -> Option<u32> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find_map(|l| l.strip_prefix("Umask:"))?;
+    u32::from_str_radix(line.trim(), 8).ok()
 }
 
 /// Whether this process can create and remove entries in `dir`, tried (permissions cannot
