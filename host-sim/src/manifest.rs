@@ -243,7 +243,7 @@ fn what(key: &str) -> &'static str {
 /// Why an output is not a place in the repository a step writes: absolute, through `..`
 /// (outside, where `regenerate.sh` would rename a printed output onto it), through `.` or an
 /// empty part, a directory's name ending in `/`, a part a command would read as an option
-/// (`-rf`), the repository's `.git`, or a character past ASCII.
+/// (`-rf`), the repository's `.git`, the manifest, or a part not [`plain`].
 fn misplaced(o: &str) -> Option<&'static str> {
     let parts = || o.split('/');
     if o.starts_with('/') {
@@ -258,13 +258,23 @@ fn misplaced(o: &str) -> Option<&'static str> {
         Some("a part starting with `-`, which a command reads as an option")
     } else if parts().any(|p| p == ".git") {
         Some("the repository's own `.git`")
-    } else if !o.is_ascii() {
+    } else if parts().any(|p| !p.chars().all(plain) || p.ends_with('.') || p.len() > 255) {
         Some(
-            "a character past ASCII: `r\u{e9}s` and `re\u{301}s` are two names here, one where file systems normalise them (macOS's)",
+            "a part of other characters than a-z, 0-9, `.`, `_` and `-`, ending in `.` or past \
+             255 bytes: a file system that ignores case or normalises Unicode takes `runs/X` \
+             or `re\u{301}s` for `runs/x` or `r\u{e9}s`, and a shell reads `$` or `*`",
         )
+    } else if o == PATH {
+        Some("the manifest itself")
     } else {
         None
     }
+}
+
+/// Whether `c` may be part of an output's name: one place on every file system, as its
+/// name says, and nothing a shell reads.
+fn plain(c: char) -> bool {
+    c.is_ascii_lowercase() || c.is_ascii_digit() || "._-".contains(c)
 }
 
 /// Refuses an output inside another step's (a file in `train`'s run directory): the step

@@ -44,7 +44,25 @@ fn refuses_what_a_script_would_misread() {
         // One name in NFC and in NFD: two outputs on Linux, one on macOS.
         (
             TWO.replace("eval-x.json\"", "re\u{301}s.json\""),
-            "a character past ASCII",
+            "a part of other characters than a-z",
+        ),
+        // One place where case is ignored (macOS, Windows): `.GIT` is the repository's.
+        (
+            TWO.replace("docs/results/eval-x.json\"", "DOCS/results/eval-x.json\""),
+            "takes `runs/X`",
+        ),
+        (
+            TWO.replace("docs/results/eval-x.json\"", ".GIT/config\""),
+            "a part of other characters",
+        ),
+        (
+            TWO.replace("eval-x.json\"", "$(id).json\""),
+            "a shell reads",
+        ),
+        (TWO.replace("eval-x.json\"", "x.\""), "ending in `.`"),
+        (
+            TWO.replace("docs/results/eval-x.json\"", "docs/results/manifest.toml\""),
+            "the manifest itself",
         ),
         (
             TWO.replace("echo done", "echo \u{202e}enod"),
