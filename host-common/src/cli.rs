@@ -101,7 +101,7 @@ pub fn check_threads_env() -> Result<(), String> {
             continue;
         };
         if v.to_str()
-            .and_then(|t| t.parse::<usize>().ok())
+            .and_then(weights::whole::<usize>)
             .is_some_and(|n| n <= MAX_THREADS)
         {
             continue;

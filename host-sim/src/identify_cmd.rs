@@ -181,7 +181,7 @@ pub struct SimulateLogsArgs {
 /// A `--seed` of the cart experiment's sequence, which the board takes in 32 bits: std's
 /// "number too large to fit in target type" said no range.
 fn seed32(text: &str) -> Result<u32, String> {
-    text.parse::<u32>().map_err(|_| {
+    weights::whole::<u32>(text).ok_or_else(|| {
         format!(
             "expected a whole number in [0, {}] (the board's sequence takes a 32-bit seed), \
              found {}",

@@ -344,6 +344,7 @@ fn a_thread_count_from_the_environment_is_checked_and_help_into_a_full_disk_fail
     for (var, threads, code) in [
         ("RAYON_NUM_THREADS", "100000", 2),
         ("RAYON_NUM_THREADS", "x", 2),
+        ("RAYON_NUM_THREADS", "+2", 2),
         ("RAYON_RS_NUM_CPUS", "100000", 2),
         ("RAYON_NUM_THREADS", "2", 0),
     ] {

@@ -50,8 +50,8 @@ fn parse_range(s: &str) -> Result<Range<u64>, String> {
     let (a, b) = s
         .split_once("..")
         .ok_or_else(|| format!("found {shown}; expected START..END, e.g. 0..10"))?;
-    let (a, b): (u64, u64) = match (a.parse(), b.parse()) {
-        (Ok(a), Ok(b)) => (a, b),
+    let (a, b): (u64, u64) = match (weights::whole(a), weights::whole(b)) {
+        (Some(a), Some(b)) => (a, b),
         _ => {
             return Err(format!(
                 "expected two whole numbers START..END, each in decimal digits and at most {}, \

@@ -58,7 +58,7 @@ fn huge_counts_are_refused_before_any_allocation() {
     let max = "18446744073709551615";
     let seeds = format!("0..{max}");
     let long = "x".repeat(100_000);
-    let cases: [(&[&str], &str); 18] = [
+    let cases: [(&[&str], &str); 20] = [
         (
             &["train", "--episodes", max],
             "episodes must be in [1, 1000000]",
@@ -125,6 +125,8 @@ fn huge_counts_are_refused_before_any_allocation() {
             "--study: expected each study once, found table1 twice",
         ),
         (&["train", "--seeds", &long], "expected START..END"),
+        (&["train", "--seeds", "+0..2"], "each in decimal digits"),
+        (&["train", "--seeds", "0..+2"], "each in decimal digits"),
     ];
     for (args, want) in cases {
         refused(args, want);

@@ -376,7 +376,7 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
                 .ok()
                 .filter(|v| weights::plain(*v) && !weights::reads_as_zero(t))
                 .map(|v| v + 0.0),
-            Kind::Whole | Kind::LogWhole => t.parse::<u64>().ok().map(|v| v as f64),
+            Kind::Whole | Kind::LogWhole => weights::whole::<u64>(t).map(|v| v as f64),
         };
         v.filter(|v| (f.lo..=f.hi).contains(v)).ok_or_else(|| {
             let kind = match f.kind {

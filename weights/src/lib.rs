@@ -35,7 +35,9 @@ pub mod quant;
 pub mod shape;
 pub mod source;
 
-pub use numbers::{hidden_zero, hidden_zero_in_numbers, plain, reads_as_zero, zero_in_disguise};
+pub use numbers::{
+    hidden_zero, hidden_zero_in_numbers, plain, reads_as_zero, whole, zero_in_disguise,
+};
 
 use firmware::controller::{Levels, check_levels};
 use firmware::network::{Mlp, SUPPORTED_SHAPES, TENSOR_NAMES, shapes};

@@ -8,6 +8,13 @@ pub fn plain(x: f64) -> bool {
     x == 0.0 || (x.is_normal() && (x as f32).abs() >= f32::MIN_POSITIVE)
 }
 
+/// `text` as a whole number written in decimal digits alone, if it fits a `T`: `str::parse`
+/// also takes a leading `+`, which every refusal of a whole number says it is not.
+pub fn whole<T: std::str::FromStr>(text: &str) -> Option<T> {
+    let digits = !text.is_empty() && text.bytes().all(|b| b.is_ascii_digit());
+    digits.then(|| text.parse().ok()).flatten()
+}
+
 /// Whether `text` is a number written with a non-zero digit that reads as zero (`1e-400`):
 /// below the range of f64, it parses to 0 and passes every check of [`plain`], as the
 /// value a person who wrote it did not mean.
@@ -155,6 +162,15 @@ mod tests {
                 found.starts_with(&format!("line 1, column {column}: ")),
                 "{spec}: {found}"
             );
+        }
+    }
+
+    #[test]
+    fn a_whole_number_is_digits_alone() {
+        assert_eq!(whole::<u32>("0042"), Some(42));
+        assert_eq!(whole::<u32>("4294967295"), Some(u32::MAX));
+        for refused in ["+3", "-0", "", " 1", "1_000", "1e3", "4294967296", "\u{661}"] {
+            assert_eq!(whole::<u32>(refused), None, "{refused}");
         }
     }
 }

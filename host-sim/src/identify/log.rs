@@ -93,7 +93,7 @@ impl Keys {
                 format!("{key}: expected once per log, found again"),
             )
         };
-        let count = |v: &str| v.parse::<u32>().ok().filter(|&c| c > 0);
+        let count = |v: &str| weights::whole::<u32>(v).filter(|&c| c > 0);
         match key {
             KEY_EXPERIMENT => {
                 let e = Experiment::from_name(value).ok_or_else(|| bad("\"cart\" or \"swing\""))?;
@@ -108,11 +108,13 @@ impl Keys {
                 self.period_s.replace(p).map_or(Ok(()), |_| Err(twice()))
             }
             KEY_CART_COUNTS => {
-                let c = count(value).ok_or_else(|| bad("a positive whole number"))?;
+                let c = count(value)
+                    .ok_or_else(|| bad(&format!("a whole number in [1, {}]", u32::MAX)))?;
                 self.cart.replace(c).map_or(Ok(()), |_| Err(twice()))
             }
             KEY_POLE_COUNTS => {
-                let c = count(value).ok_or_else(|| bad("a positive whole number"))?;
+                let c = count(value)
+                    .ok_or_else(|| bad(&format!("a whole number in [1, {}]", u32::MAX)))?;
                 self.pole.replace(c).map_or(Ok(()), |_| Err(twice()))
             }
             KEY_POLE_ZERO if value == POLE_ZERO_HANGING => {
@@ -183,9 +185,8 @@ impl Log {
                 quote(fields[i])
             ))
         };
-        let period: usize = fields[0]
-            .parse()
-            .map_err(|_| field(0, "period", "a period number"))?;
+        let period: usize = weights::whole(fields[0])
+            .ok_or_else(|| field(0, "period", &format!("a period number in [0, {MAX_ROWS})")))?;
         if period != expected {
             return Err(at(format!(
                 "period: expected {expected}, found {period} (the period numbers must run from 0 without gaps)"
