@@ -169,6 +169,10 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
         }
         Err(e) => {
             // Printed through this module, so that a full disk is exit status 1 here too.
+            if let Some(arg) = clustered(&e, &args) {
+                crate::errln!("{}", refusal::unexpected(arg, None));
+                std::process::exit(2)
+            }
             if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
                 write_stdout(format_args!("{}", e.render()));
                 std::process::exit(i32::from(status_after(0)))
@@ -186,6 +190,23 @@ pub fn parse_with<T: clap::Parser>(edit: impl FnOnce(clap::Command) -> clap::Com
             std::process::exit(2)
         }
     }
+}
+
+/// The argument that asked for the help or the version as the first of a cluster of short
+/// flags (`-hello.pt`, a file's name), where no argument asked for it alone: clap printed
+/// the help, exit 0, and did nothing.
+fn clustered<'a>(e: &clap::Error, args: &'a [OsString]) -> Option<&'a str> {
+    if !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
+        return None;
+    }
+    let before = args.iter().skip(1).take_while(|a| *a != "--");
+    let text: Vec<&str> = before.filter_map(|a| a.to_str()).collect();
+    let asked = ["-h", "--help", "-V", "--version", "help"];
+    if text.iter().any(|a| asked.contains(a)) {
+        return None;
+    }
+    text.into_iter()
+        .find(|a| a.len() > 2 && (a.starts_with("-h") || a.starts_with("-V")))
 }
 
 /// `cmd` with every argument that takes a value, in it and its subcommands, taking one that

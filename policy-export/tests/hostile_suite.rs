@@ -392,6 +392,12 @@ fn bad_numbers() -> Vec<Case> {
         &args,
         &["unexpected argument '-dash.safetensors' found"],
     ));
+    // A file's name that starts as the help flag does printed the help, exit 0.
+    for name in ["-hello.pt", "-Vx.pt"] {
+        let args = os(&[&"export", &"--out", &"x.rs", &name]);
+        let want = format!("unexpected argument '{name}' found");
+        cases.push(Case::new(format!("export {name}"), &args, &[want.leak()]));
+    }
     for v in ["0", "1", "1001", "-3", "x", "99999999999999999999", "+3"] {
         let args = os(&[&"reproduce", &"--seeds", &v]);
         cases.push(Case::new(

@@ -169,7 +169,16 @@ mod tests {
     fn a_whole_number_is_digits_alone() {
         assert_eq!(whole::<u32>("0042"), Some(42));
         assert_eq!(whole::<u32>("4294967295"), Some(u32::MAX));
-        for refused in ["+3", "-0", "", " 1", "1_000", "1e3", "4294967296", "\u{661}"] {
+        for refused in [
+            "+3",
+            "-0",
+            "",
+            " 1",
+            "1_000",
+            "1e3",
+            "4294967296",
+            "\u{661}",
+        ] {
             assert_eq!(whole::<u32>(refused), None, "{refused}");
         }
     }

@@ -46,10 +46,13 @@ pub(super) fn refusal(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -
             let rest = text.split_once('\n').map_or("", |(_, rest)| rest);
             format!("{line}\n{rest}")
         }
-        None => dash_led(e, args).map_or(text.clone(), |(part, whole)| {
-            text.replace(&format!("'{part}'"), &format!("'{whole}'"))
-                .replace(&format!("'-- {part}'"), &format!("'-- {whole}'"))
-        }),
+        None => match dash_led(e, cmd, args) {
+            Some(head) => {
+                let usage = text.find("Usage:").map_or("", |i| &text[i..]);
+                format!("{head}\n\n{usage}")
+            }
+            None => text,
+        },
     };
     text.lines().map(|l| cut(&escape_controls(l))).collect()
 }
@@ -111,23 +114,41 @@ fn empty_item(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option
     None
 }
 
-/// The short flag clap refused as unknown (`-d`) and, escaped, the one argument it came from
-/// (`-dash.safetensors`, a file's name): clap quoted the fragment, which the user never wrote.
-fn dash_led(e: &clap::Error, args: &[OsString]) -> Option<(String, String)> {
+/// The refusal and a tip for the argument clap refused as an unknown short flag (`-d`): the
+/// first before any `--` that starts with it (`-dash.safetensors`, a file's name), named
+/// whole and escaped, where clap quoted the fragment, which the user never wrote, and
+/// offered `-- -d`. The tip is `--out=-dash.rs` for a flag's value, as `--` cannot give one.
+fn dash_led(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option<String> {
     let Some(ContextValue::String(part)) = e.get(ContextKind::InvalidArg) else {
         return None;
     };
     if e.kind() != clap::error::ErrorKind::UnknownArgument || part.starts_with("--") {
         return None;
     }
-    let mut from =
-        args.iter().skip(1).filter_map(|a| a.to_str()).filter(|a| {
-            a.len() > part.len() && a.starts_with(part.as_str()) && !a.starts_with("--")
-        });
-    match (from.next(), from.next()) {
-        (Some(whole), None) => Some((part.clone(), weights::excerpt(whole))),
-        _ => None,
+    let before = args.iter().take_while(|a| *a != "--");
+    let text: Vec<&str> = before.map(|a| a.to_str().unwrap_or_default()).collect();
+    let at = (1..text.len()).find(|&i| text[i].starts_with(part.as_str()))?;
+    if text[at] == part {
+        return None;
     }
+    let valued = |f: &&str| {
+        f.starts_with("--")
+            && arg_named(running(cmd, args), f).is_some_and(|a| a.get_action().takes_values())
+    };
+    Some(unexpected(text[at], Some(text[at - 1]).filter(valued)))
+}
+
+/// The refusal of `arg`, an argument starting with `-` that is no flag, escaped, with how
+/// to give it: as `flag`'s value, if it follows one that takes a value, else as a name.
+pub(super) fn unexpected(arg: &str, flag: Option<&str>) -> String {
+    let whole = weights::excerpt(arg);
+    let tip = match flag {
+        Some(flag) => format!("to give it as {flag}'s value, write '{flag}={whole}'"),
+        None => {
+            format!("a name that starts with '-' goes after '--' ('-- {whole}') or as './{whole}'")
+        }
+    };
+    format!("error: unexpected argument '{whole}' found\n\n  tip: {tip}")
 }
 
 /// The argument of `cmd` the command line names `flag`.

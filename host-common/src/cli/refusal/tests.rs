@@ -54,9 +54,9 @@ fn refusals_show_the_users_text_escaped_on_clap_s_lines() {
     let (line, all) = refusal(&["tool", "run", "--mod\ne", "fast"]);
     assert_eq!(line, "error: unexpected argument '--mod\\ne' found");
     assert!(all.contains("Usage: tool run"), "{all}");
-    // clap's tip quotes the flag twice.
+    // The tip quotes the argument twice.
     let (_, all) = refusal(&["tool", "run", "x", "-\u{1b}[2J\ny"]);
-    assert!(all.contains("as a value, use '-- -"), "{all}");
+    assert!(all.contains("goes after '--' ('-- -\\u{1b}[2J\\ny')"), "{all}");
     let (line, all) = refusal(&["tool", "ru\nn"]);
     assert_eq!(line, "error: unrecognized subcommand 'ru\\nn'");
     assert!(
@@ -248,6 +248,30 @@ fn a_dash_led_argument_is_named_whole() {
         "error: unexpected argument '-dash\\u{1b}.bin' found"
     );
     assert!(!lines.iter().any(|l| l.contains("'-d'")), "{lines:?}");
+    // The first of several, up to `--`; a flag's value offered as `--flag=...`; the fragment
+    // itself, given as such, kept.
+    for (args, first, tip) in [
+        (
+            &["tool", "run", "-dx", "-dy"][..],
+            "'-dx'",
+            "after '--' ('-- -dx')",
+        ),
+        (
+            &["tool", "run", "--seed", "-dx"],
+            "'-dx'",
+            "write '--seed=-dx'",
+        ),
+        (&["tool", "run", "-d", "--", "-dx"], "'-d'", ""),
+    ] {
+        let args = args.iter().map(OsString::from).collect::<Vec<_>>();
+        let e = (cmd.clone()).try_get_matches_from(&args).unwrap_err();
+        let lines = refusal(&e, &cmd, &args);
+        assert_eq!(
+            lines[0],
+            format!("error: unexpected argument {first} found")
+        );
+        assert!(lines.iter().any(|l| l.contains(tip)), "{lines:?}");
+    }
 }
 
 /// A whole number with a `+` is refused as not digits alone, in a subcommand too; a float

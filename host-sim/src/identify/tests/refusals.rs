@@ -158,11 +158,24 @@ fn wrong_columns_gaps_and_jumps_are_refused_naming_the_line() {
     );
 
     // A header's count past 32 bits, a `+` and a huge period number: each named by its range.
-    let counts = cart.lines().find(|l| l.contains("cart_counts_per_m")).unwrap();
+    let counts = cart
+        .lines()
+        .find(|l| l.contains("cart_counts_per_m"))
+        .unwrap();
     let huge = cart.replace(counts, "# cart_counts_per_m: 4294967296");
-    assert_names(&refusal(&huge, &machine), &["a whole number in [1, 4294967295]"]);
-    let period = replace_line(&cart, line, &format!("+40,{},{},{}", row[1], row[2], row[3]));
-    assert_names(&refusal(&period, &machine), &[&at, "period: expected a period number in [0, "]);
+    assert_names(
+        &refusal(&huge, &machine),
+        &["a whole number in [1, 4294967295]"],
+    );
+    let period = replace_line(
+        &cart,
+        line,
+        &format!("+40,{},{},{}", row[1], row[2], row[3]),
+    );
+    assert_names(
+        &refusal(&period, &machine),
+        &[&at, "period: expected a period number in [0, "],
+    );
 
     let header = cart.replace(firmware::identify::COLUMNS, "period,duty,cart,pole");
     assert_names(&refusal(&header, &machine), &["expected the header row"]);
