@@ -202,10 +202,19 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<(Limits, Op
             )));
         }
     }
-    // A subnormal limit (`1e-40`) is a slip, as every number that comes in.
+    if let Some(x) = e.envelope.iter().find(|x| weights::past_f32(**x)) {
+        return Err(bad(format!(
+            "expected each limit within float32's range (+-{:e}), found {x:e}",
+            f32::MAX
+        )));
+    }
+    // A subnormal limit (`1e-40`; `1e-39`, normal in f64 alone) is a slip, as every number
+    // that comes in.
     if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
         return Err(bad(format!(
-            "expected each limit zero or a normal number, found {x:?}"
+            "expected each limit zero or a normal number, in float32 too (at least {:e}), \
+             found {x:?}",
+            f32::MIN_POSITIVE
         )));
     }
     // `plain` holds in f32 too, so each narrows to a zero or a normal f32 (or an infinity,

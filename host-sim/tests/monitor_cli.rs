@@ -172,15 +172,18 @@ fn another_policys_envelope_is_refused(report: &serde_json::Value, file: &std::p
 
 /// Envelope files no monitor can take, written in `dir`: not JSON, a negative limit, two
 /// below f32's least normal, one the parser reads as 0.
-fn bad_envelopes(dir: &std::path::Path) -> [String; 5] {
+fn bad_envelopes(dir: &std::path::Path) -> [String; 6] {
     [
         ("a.json", r#"{"envelope": [1, 2, "x", 3]}"#),
         ("b.json", r#"{"envelope": [1, -2, 3, 3]}"#),
         // Below f32's least subnormal: a zero once narrowed, so refused before.
         ("c.json", r#"{"envelope": [1, 1, 5e-324, 1]}"#),
-        ("d.json", r#"{"envelope": [1, 1e-50, 1, 1]}"#),
+        // Normal in f64, a subnormal once narrowed.
+        ("d.json", r#"{"envelope": [1, 1e-39, 1, 1]}"#),
         // A zero to the parser, without a word.
         ("e.json", r#"{"envelope": [1, 1, 1e-400, 1]}"#),
+        // Finite, an infinity once narrowed.
+        ("f.json", r#"{"envelope": [1, 1, 1, 3.5e38]}"#),
     ]
     .map(|(name, text)| {
         let path = dir.join(name);
@@ -196,7 +199,7 @@ fn bad_input_exits_2_before_any_work() {
     let dir = std::env::temp_dir().join(format!("hs-envelope-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let files = bad_envelopes(&dir);
-    let [not_json, negative, tiny, tinier, zero] = files.each_ref().map(String::as_str);
+    let [not_json, negative, tiny, tinier, zero, huge] = files.each_ref().map(String::as_str);
     let monitored = ["eval", "--controller", "monitored"];
     let cases: Vec<(Vec<&str>, &str)> = vec![
         (
@@ -224,11 +227,15 @@ fn bad_input_exits_2_before_any_work() {
         ),
         (
             [&monitored[..], &["--envelope", tiny]].concat(),
-            "expected each limit zero or a normal number, found 5e-324",
+            "expected each limit zero or a normal number, in float32 too (at least 1.1754944e-38), found 5e-324",
         ),
         (
             [&monitored[..], &["--envelope", tinier]].concat(),
-            "expected each limit zero or a normal number, found 1e-50",
+            "in float32 too (at least 1.1754944e-38), found 1e-39",
+        ),
+        (
+            [&monitored[..], &["--envelope", huge]].concat(),
+            "expected each limit within float32's range (+-3.4028235e38), found 3.5e38",
         ),
         (
             [&monitored[..], &["--envelope", zero]].concat(),

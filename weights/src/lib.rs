@@ -36,7 +36,7 @@ pub mod shape;
 pub mod source;
 
 pub use numbers::{
-    hidden_zero, hidden_zero_in_numbers, plain, reads_as_zero, whole, zero_in_disguise,
+    hidden_zero, hidden_zero_in_numbers, past_f32, plain, reads_as_zero, whole, zero_in_disguise,
 };
 
 use firmware::controller::{Levels, check_levels};

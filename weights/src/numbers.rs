@@ -8,6 +8,12 @@ pub fn plain(x: f64) -> bool {
     x == 0.0 || (x.is_normal() && (x as f32).abs() >= f32::MIN_POSITIVE)
 }
 
+/// Whether `x` is finite but past f32's range: narrowed, it becomes an infinity, and a
+/// refusal of that would call a number given finite infinite.
+pub fn past_f32(x: f64) -> bool {
+    x.is_finite() && (x as f32).is_infinite()
+}
+
 /// `text` as a whole number written in decimal digits alone, if it fits a `T`: `str::parse`
 /// also takes a leading `+`, which every refusal of a whole number says it is not.
 pub fn whole<T: std::str::FromStr>(text: &str) -> Option<T> {

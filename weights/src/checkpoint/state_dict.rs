@@ -132,7 +132,7 @@ fn narrowed(d: &[u8]) -> std::result::Result<Vec<f32>, String> {
         .map(|c| f64::from_le_bytes(c.try_into().expect("chunks of 8")));
     let mut v = Vec::with_capacity(d.len() / 8);
     for (i, x) in wide.enumerate() {
-        if x.is_finite() && (x as f32).is_infinite() {
+        if crate::past_f32(x) {
             return Err(format!(
                 "element {i} is {x:e}, past float32's range (+-{:e}); expected a value float32 \
                  holds",

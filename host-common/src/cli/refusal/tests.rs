@@ -56,7 +56,10 @@ fn refusals_show_the_users_text_escaped_on_clap_s_lines() {
     assert!(all.contains("Usage: tool run"), "{all}");
     // The tip quotes the argument twice.
     let (_, all) = refusal(&["tool", "run", "x", "-\u{1b}[2J\ny"]);
-    assert!(all.contains("goes after '--' ('-- -\\u{1b}[2J\\ny')"), "{all}");
+    assert!(
+        all.contains("goes after '--' ('-- -\\u{1b}[2J\\ny')"),
+        "{all}"
+    );
     let (line, all) = refusal(&["tool", "ru\nn"]);
     assert_eq!(line, "error: unrecognized subcommand 'ru\\nn'");
     assert!(
