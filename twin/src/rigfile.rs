@@ -65,7 +65,9 @@ struct File {
     track_half_length_m: f64,
     end_stop_margin_m: f64,
     period_s: f64,
-    dead_time_periods: u32,
+    // Counts are read as any TOML value and judged by `Fields::whole`: serde named a Rust
+    // type ("invalid type: floating point `1.5`, expected u32") and no range.
+    dead_time_periods: toml::Value,
     encoders: FileEncoders,
     actuator: Actuator,
     #[serde(default)]
@@ -98,8 +100,8 @@ struct Identified {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct FileEncoders {
-    cart_counts_per_m: u32,
-    pole_counts_per_rev: u32,
+    cart_counts_per_m: toml::Value,
+    pole_counts_per_rev: toml::Value,
 }
 
 #[derive(Deserialize)]
@@ -176,15 +178,15 @@ impl Fields<'_> {
         )))
     }
 
-    /// A count: [`check`](Self::check)ed as a number, named as the whole number it is.
-    fn whole(self, field: &str, value: u32, (lo, hi): (f64, f64)) -> Result<u32> {
-        self.check(field, f64::from(value), (lo, hi), false)
-            .map(|v| v as u32)
-            .map_err(|_| {
-                self.refuse(format!(
-                    "{field}: expected a whole number in [{lo}, {hi}], found {value}"
-                ))
-            })
+    /// A count: a TOML integer in `[lo, hi]` (within u32's range), or why not.
+    fn whole(self, field: &str, value: &toml::Value, (lo, hi): (f64, f64)) -> Result<u32> {
+        match value.as_integer() {
+            Some(n) if (lo..=hi).contains(&(n as f64)) => Ok(n as u32),
+            _ => Err(self.refuse(format!(
+                "{field}: expected a whole number in [{lo}, {hi}], found {}",
+                weights::excerpt(&value.to_string())
+            ))),
+        }
     }
 
     fn refuse(self, what: String) -> Error {
@@ -284,19 +286,19 @@ impl Fields<'_> {
         Ok(Encoders {
             cart_counts_per_m: self.whole(
                 "encoders.cart_counts_per_m",
-                e.cart_counts_per_m,
+                &e.cart_counts_per_m,
                 CART_COUNTS_RANGE,
             )?,
             pole_counts_per_rev: self.whole(
                 "encoders.pole_counts_per_rev",
-                e.pole_counts_per_rev,
+                &e.pole_counts_per_rev,
                 POLE_COUNTS_RANGE,
             )?,
         })
     }
 
     /// The periods of dead time, at most what the predictor bridges.
-    fn dead_time(self, periods: u32) -> Result<u32> {
+    fn dead_time(self, periods: &toml::Value) -> Result<u32> {
         let max = f64::from(crate::scenario::MAX_DELAY);
         self.whole("dead_time_periods", periods, (0.0, max))
     }
@@ -435,7 +437,7 @@ fn machine(f: &File, fields: Fields<'_>) -> Result<Machine> {
     let rig = Rig {
         params,
         encoders: fields.encoders(&f.encoders)?,
-        dead_time: fields.dead_time(f.dead_time_periods)?,
+        dead_time: fields.dead_time(&f.dead_time_periods)?,
         end_stop_margin: margin,
         tuning: fields.tuning(f.observer.as_ref())?,
     };

@@ -111,6 +111,29 @@ impl KeyLimit {
 }
 
 impl Limit {
+    /// What a whole-number limit takes, as its refusals say it; `None` for the others.
+    fn counts(&self) -> Option<String> {
+        match self {
+            Limit::Count(r) => Some(format!("in [{}, {}]", r.start(), r.end())),
+            Limit::OneOf(set) => Some(format!("one of {set:?}")),
+            _ => None,
+        }
+    }
+
+    /// Checks `key`'s value as a TOML file gives it, where its limit takes a whole number:
+    /// one that is none, or past the range, is refused as the limit says, where the
+    /// conversion to the key's type named a Rust type ("invalid type: floating point `1.5`,
+    /// expected usize") and no range.
+    pub fn check_toml(&self, key: &str, v: &toml::Value) -> Result<(), String> {
+        let Some(counts) = self.counts() else {
+            return Ok(());
+        };
+        match v.as_integer().and_then(|i| u64::try_from(i).ok()) {
+            Some(n) => self.check(key, Value::Whole(n)),
+            None => Err(format!("{key} must be a whole number {counts}, got {v}")),
+        }
+    }
+
     /// Checks one value of `key`; the error is a sentence that names the key.
     pub fn check(&self, key: &str, v: Value<'_>) -> Result<(), String> {
         // The kernels compute in f32: a value must stay positive and finite there.
@@ -134,14 +157,12 @@ impl Limit {
             hidden.map_or(r, Err).map_err(|e| format!("{key}: {e}"))
         };
         match (self, v) {
-            (Limit::Count(r), Value::Whole(n)) => must(
-                r.contains(&n),
-                &format_args!("in [{}, {}]", r.start(), r.end()),
-                &n,
-            ),
+            (Limit::Count(r), Value::Whole(n)) => {
+                must(r.contains(&n), &self.counts().unwrap_or_default(), &n)
+            }
             (Limit::OneOf(set), Value::Whole(n)) => must(
                 set.iter().any(|&w| w as u64 == n),
-                &format_args!("one of {set:?}"),
+                &self.counts().unwrap_or_default(),
                 &n,
             ),
             (Limit::PositiveInF32, Value::Real(x)) => must(

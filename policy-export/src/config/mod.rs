@@ -454,6 +454,9 @@ impl Config {
         let mut merged = toml::Table::try_from(self)
             .map_err(|e| ConfigError(format!("internal: config is not TOML: {e}")))?;
         for (k, v) in file {
+            if let Some(l) = LIMITS.iter().find(|l| l.key == k) {
+                (l.limit.check_toml(&k, &v)).map_err(|e| ConfigError(format!("{origin}: {e}")))?;
+            }
             if !merged.contains_key(&k) {
                 let known: Vec<&str> = merged.keys().map(String::as_str).collect();
                 return Err(ConfigError(format!(
@@ -464,9 +467,15 @@ impl Config {
             }
             merged.insert(k, v);
         }
-        merged
-            .try_into()
-            .map_err(|e| ConfigError(format!("{origin}: {}", excerpt(&e.to_string()))))
+        merged.try_into().map_err(|e: toml::de::Error| {
+            // serde's reason, then "in `key`" on a line of its own: one line, key first.
+            let text = e.to_string();
+            let mut lines = text.lines();
+            let why = excerpt(lines.next().unwrap_or_default());
+            let key = lines.find_map(|l| l.strip_prefix("in `")?.strip_suffix('`'));
+            let key = key.map_or(String::new(), |k| format!("{}: ", excerpt(k)));
+            ConfigError(format!("{origin}: {key}{why}"))
+        })
     }
 }
 

@@ -40,7 +40,7 @@ pub(super) struct Table {
     #[serde(skip_serializing_if = "Option::is_none")]
     catch_rate_deg_s: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
-    catch_periods: Option<u16>,
+    catch_periods: Option<toml::Value>,
     #[serde(skip_serializing_if = "Option::is_none")]
     release_angle_deg: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -116,13 +116,16 @@ impl Fields<'_> {
         if let Some(r) = value("catch_rate_deg_s", t.catch_rate_deg_s, 1e4)? {
             s.catch_rate = narrow("catch_rate_deg_s", radians(r))?;
         }
-        if let Some(n) = t.catch_periods {
-            if !(1..=MAX_CATCH_PERIODS).contains(&n) {
-                return Err(self.refuse(format!(
-                    "startup.catch_periods: expected 1 to {MAX_CATCH_PERIODS} periods, found {n}"
-                )));
-            }
-            s.catch_periods = n;
+        if let Some(v) = &t.catch_periods {
+            let n = v.as_integer().and_then(|n| u16::try_from(n).ok());
+            s.catch_periods = n
+                .filter(|n| (1..=MAX_CATCH_PERIODS).contains(n))
+                .ok_or_else(|| {
+                    self.refuse(format!(
+                    "startup.catch_periods: expected 1 to {MAX_CATCH_PERIODS} periods, found {}",
+                    weights::excerpt(&v.to_string())
+                ))
+                })?;
         }
         if let Some(a) = value("release_angle_deg", t.release_angle_deg, 90.0)? {
             s.release_angle = narrow("release_angle_deg", radians(a))?;

@@ -192,6 +192,22 @@ const BAD_RIGS: &[(&str, &str, &str)] = &[
         "dead_time_periods = 40",
         "dead_time_periods: expected a whole number in [0, 16], found 40<end>",
     ),
+    // No whole number, or past u32: serde named a Rust type ("expected u32").
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 1.5",
+        "dead_time_periods: expected a whole number in [0, 16], found 1.5<end>",
+    ),
+    (
+        "dead_time_periods = 1",
+        "dead_time_periods = 4294967296",
+        "found 4294967296<end>",
+    ),
+    (
+        "cart_counts_per_m = 15000",
+        "cart_counts_per_m = 1.5e4",
+        "encoders.cart_counts_per_m: expected a whole number in [16, 67108864], found 15000.0<end>",
+    ),
     (
         "pole_counts_per_rev = 2400",
         "pole_counts_per_rev = 4",

@@ -92,3 +92,36 @@ fn without_a_discount_the_target_networks_keys_are_unread() {
     assert_eq!(zero("gamma = 0\n"), Ok(()));
     assert_eq!(zero("gamma = 0.5\nalgo = \"dqn\"\n"), Ok(()));
 }
+
+/// A whole-number key given as no whole number, or past its type, is refused by its limit
+/// (the range named), not by the conversion to its Rust type ("expected usize"); a key
+/// without a limit by the conversion, on one line, the key first.
+#[test]
+fn a_count_that_is_no_whole_number_is_refused_by_its_limit() {
+    let refusal = |toml: &str| Config::paper().overlay_toml(toml, "t.toml").unwrap_err().0;
+    for (toml, want) in [
+        (
+            "episodes = 1.5",
+            "t.toml: episodes must be a whole number in [1, 1000000], got 1.5",
+        ),
+        (
+            "buffer_size = -5",
+            "buffer_size must be a whole number in [1, 5000000], got -5",
+        ),
+        (
+            "max_steps = 4294967296",
+            "max_steps must be in [1, 1000000], got 4294967296",
+        ),
+        (
+            "width = \"64\"",
+            "width must be a whole number one of [16, 64, 128], got \"64\"",
+        ),
+        (
+            "learning_starts = 1.5",
+            "t.toml: learning_starts: invalid type: floating point",
+        ),
+    ] {
+        let e = refusal(toml);
+        assert!(e.contains(want) && !e.contains('\\'), "{toml}: {e}");
+    }
+}

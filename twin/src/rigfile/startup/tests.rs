@@ -60,7 +60,8 @@ fn regions_a_board_cannot_run_are_refused_naming_the_field() {
     );
     let e = refusal("catch_angle_deg = -1.0");
     assert!(e.contains("startup.catch_angle_deg"), "{e}");
-    for n in [0, 501, 65535] {
+    // Past u16 and no whole number alike: serde named a Rust type ("expected u16").
+    for n in ["0", "501", "65535", "70000", "2.5", "-1", "\"3\""] {
         let e = refusal(&format!("catch_periods = {n}"));
         assert!(
             e.contains(&format!(
