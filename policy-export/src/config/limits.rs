@@ -121,7 +121,7 @@ impl Limit {
     }
 
     /// Checks `key`'s value as a TOML file gives it, where its limit takes a whole number:
-    /// one that is none, or past the range, is refused as the limit says, where the
+    /// one that is none, or past every count's type, is refused as the limit says, where the
     /// conversion to the key's type named a Rust type ("invalid type: floating point `1.5`,
     /// expected usize") and no range.
     pub fn check_toml(&self, key: &str, v: &toml::Value) -> Result<(), String> {
@@ -129,7 +129,10 @@ impl Limit {
             return Ok(());
         };
         match v.as_integer().and_then(|i| u64::try_from(i).ok()) {
-            Some(n) => self.check(key, Value::Whole(n)),
+            // Past u32, the narrowest count's type, and so past every limit: refused now as
+            // `validate` would; within it, the range is `validate`'s, as a flag's is.
+            Some(n) if n > u64::from(u32::MAX) => self.check(key, Value::Whole(n)),
+            Some(_) => Ok(()),
             None => Err(format!("{key} must be a whole number {counts}, got {v}")),
         }
     }
@@ -260,8 +263,12 @@ impl Config {
             );
         }
         errs.extend(self.domains_on_rig());
-        errs.extend(self.decay_that_never_moves());
-        errs.extend(self.decay_over_at_once());
+        // Judged of a decay its own limit takes: `eps_decay = 0` was refused twice.
+        let own = super::LIMITS.iter().find(|l| l.key == "eps_decay");
+        if own.is_none_or(|l| l.check(self).is_ok()) {
+            errs.extend(self.decay_that_never_moves());
+            errs.extend(self.decay_over_at_once());
+        }
         if self.finalists > 0 && (self.finalist_episodes == 0 || self.finalist_max_steps == 0) {
             errs.push(format!(
                 "finalists ({}) need finalist_episodes and finalist_max_steps >= 1, got {} and {}",
@@ -496,8 +503,10 @@ impl Config {
                 .try_into()
                 .map_err(|e| ConfigError(format!("internal: config from TOML: {e}")))?;
         };
+        // Reals shortest (`1e-300`), where TOML writes every decimal place out.
         let shown = |key: &str| match &now[key] {
             toml::Value::String(s) => weights::quote(s),
+            toml::Value::Float(x) => format!("{x:?}"),
             v => v.to_string(),
         };
         let errs: Vec<String> = unread

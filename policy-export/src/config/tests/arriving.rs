@@ -58,6 +58,14 @@ fn a_decay_that_never_moves_epsilon_or_is_over_at_once_is_refused_and_one_that_d
         |c| (c.eps_unit, c.eps_decay) = (super::super::Unit::Episodes, 0.02),
         "within one episode",
     );
+    // A decay its own limit refuses is refused once, by that limit.
+    let mut c = Config::paper();
+    c.eps_decay = 0.0;
+    let e = c.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("eps_decay must be > 0") && !e.contains("takes epsilon"),
+        "{e}"
+    );
     let mut c = Config::paper();
     c.eps_decay = 0.05;
     c.validate().unwrap();
