@@ -143,13 +143,9 @@ pub fn parse(text: &str, origin: &str) -> Result<Vec<Case>> {
         if line.trim().is_empty() {
             continue;
         }
-        let case: Case = serde_json::from_str(line).map_err(|e| {
-            anyhow::anyhow!(
-                "{origin}:{}: not a trajectory case: {}",
-                n + 1,
-                weights::excerpt(&e.to_string())
-            )
-        })?;
+        // As every JSON the tools read: a leading byte-order mark taken.
+        let case: Case = weights::json::parse(line)
+            .map_err(|e| anyhow::anyhow!("{origin}:{}: not a trajectory case: {e}", n + 1))?;
         case.validate()
             .with_context(|| format!("{origin}:{}", n + 1))?;
         cases.push(case);
@@ -337,6 +333,8 @@ mod tests {
     fn a_case_that_contradicts_itself_is_refused() {
         let good = r#"{"initial_state":[0,0,0,0],"actions":[1],"states":[[0,0,0,0],[0,0,0,0]],"terminated":[false],"terminated_at":null}"#;
         parse(good, "t").unwrap();
+        // A leading byte-order mark, as every JSON the tools read takes it.
+        assert_eq!(parse(&format!("\u{feff}{good}"), "t").unwrap().len(), 1);
         for (from, to, want) in [
             (
                 "\"initial_state\":[0,0,0,0]",

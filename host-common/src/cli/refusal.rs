@@ -237,9 +237,13 @@ pub(super) fn plus_signed(cmd: &clap::Command, m: &clap::ArgMatches) -> Option<S
             continue;
         };
         if let Some(v) = raw.filter_map(|v| v.to_str()).find(|v| v.starts_with('+')) {
-            let (value, flag) = (weights::quote(v), super::named(arg));
+            // As clap words its other refusals of a value.
+            let value = weights::excerpt(v);
+            let names = arg.get_value_names().unwrap_or_default();
+            let name = names.first().map_or(arg.get_id().as_str(), |n| n.as_str());
+            let flag = super::named(arg);
             return Some(format!(
-                "invalid value {value} for '{flag}': {DIGITS_ALONE}"
+                "invalid value '{value}' for '{flag} <{name}>': {DIGITS_ALONE}"
             ));
         }
     }

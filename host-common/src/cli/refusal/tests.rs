@@ -287,7 +287,7 @@ fn a_plus_signed_whole_number_is_refused() {
         .unwrap();
     assert_eq!(
         plus_signed(&cmd, &m).unwrap(),
-        format!("invalid value \"+3\" for '--seed': {DIGITS_ALONE}")
+        format!("invalid value '+3' for '--seed <seed>': {DIGITS_ALONE}")
     );
     for args in [["tool", "run", "--seed=3"], ["tool", "run", "--at=+0.5"]] {
         let m = (cmd.clone()).try_get_matches_from(args).unwrap();
