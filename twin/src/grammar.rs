@@ -383,8 +383,14 @@ fn parse_span(key: &str, f: &Field, text: &str) -> Result<Span, String> {
                 Kind::Real => "zero or a normal number",
                 Kind::Whole | Kind::LogWhole => "a whole number",
             };
+            // `delay=+2` and `noise=1e+0` arrive cut at their `+`, which joins parts.
+            let joins = if t.is_empty() || t.ends_with(['e', 'E']) {
+                " (a `+` joins a spec's parts: write numbers without one)"
+            } else {
+                ""
+            };
             format!(
-                "{name} must be {kind} in [{}, {}], found {}",
+                "{name} must be {kind} in [{}, {}], found {}{joins}",
                 f.lo,
                 f.hi,
                 weights::quote(t)

@@ -133,6 +133,9 @@ fn bad_specs_are_rejected_with_the_reason() {
         ),
         ("delay=-1", "delay must be a whole number"),
         ("delay=1.5", "delay must be a whole number"),
+        // Cut at the `+` that joins parts.
+        ("delay=+2", "found \"\" (a `+` joins a spec's parts"),
+        ("noise=1e+0", "found \"1e\" (a `+` joins"),
         (
             "encoder=8",
             "encoder counts per revolution must be a whole number in [16, 16777216]",
