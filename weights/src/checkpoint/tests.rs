@@ -259,36 +259,28 @@ fn other_float_types_are_converted_and_said() {
                     .collect()
             })
             .collect();
-        let views: Vec<_> = names
-            .iter()
-            .zip(shapes(16, 2))
-            .zip(&bytes)
-            .map(|((n, s), b)| {
-                (
-                    n.clone(),
-                    TensorView::new(dtype, s.dims().to_vec(), b).unwrap(),
-                )
-            })
-            .collect();
-        assert_eq!(bytes[0].len(), 64 * width);
-        let got = import(&safetensors::serialize(views, None).unwrap(), None).unwrap();
-        assert_eq!(got.converted_from, Some(format!("{dtype:?}")));
-        if dtype == Dtype::F64 {
-            assert_eq!(got.weights.tensors(), &v);
-            // Finite as given, past f32's range: named so, not as the infinity it rounds to.
-            let mut bytes = bytes.clone();
-            bytes[2][8..16].copy_from_slice(&3.5e38f64.to_le_bytes());
+        let file = |bytes: &[Vec<u8>]| {
             let views = names
                 .iter()
                 .zip(shapes(16, 2))
-                .zip(&bytes)
+                .zip(bytes)
                 .map(|((n, s), b)| {
                     (
                         n.clone(),
                         TensorView::new(dtype, s.dims().to_vec(), b).unwrap(),
                     )
                 });
-            let e = err(&safetensors::serialize(views, None).unwrap(), None);
+            safetensors::serialize(views, None).unwrap()
+        };
+        assert_eq!(bytes[0].len(), 64 * width);
+        let got = import(&file(&bytes), None).unwrap();
+        assert_eq!(got.converted_from, Some(format!("{dtype:?}")));
+        if dtype == Dtype::F64 {
+            assert_eq!(got.weights.tensors(), &v);
+            // Finite as given, past f32's range: named so, not as the infinity it rounds to.
+            let mut bytes = bytes.clone();
+            bytes[2][8..16].copy_from_slice(&3.5e38f64.to_le_bytes());
+            let e = err(&file(&bytes), None);
             assert!(
                 e.contains("\"fc2.weight\": element 1 is 3.5e38, past float32's range"),
                 "{e}"
