@@ -53,6 +53,7 @@ use crate::nn::{Kernel, Loss};
 mod deploy;
 mod keys;
 mod limits;
+mod modal;
 
 pub use deploy::{
     RIG_LEVELS, deploy_domain, deploy_eval_domain, deploy_finalist_domain, rig_effort,
