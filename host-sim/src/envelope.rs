@@ -202,24 +202,7 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<(Limits, Op
             )));
         }
     }
-    if let Some(x) = e.envelope.iter().find(|x| weights::past_f32(**x)) {
-        return Err(bad(format!(
-            "expected each limit within float32's range (+-{:e}), found {x:e}",
-            f32::MAX
-        )));
-    }
-    // A subnormal limit (`1e-40`; `1e-39`, normal in f64 alone) is a slip, as every number
-    // that comes in.
-    if let Some(x) = e.envelope.iter().find(|x| !weights::plain(**x)) {
-        return Err(bad(format!(
-            "expected each limit zero or a normal number, in float32 too (at least {:e}), \
-             found {x:?}",
-            f32::MIN_POSITIVE
-        )));
-    }
-    // `plain` holds in f32 too, so each narrows to a zero or a normal f32 (or an infinity,
-    // which the firmware refuses).
-    let limits = e.envelope.map(|x| x as f32);
+    let limits = narrowed(&e.envelope).map_err(bad)?;
     let rig = match &e.rig_digest {
         Some(text) => Some(parse_digest(text).ok_or_else(|| {
             bad(format!(
@@ -233,6 +216,26 @@ pub fn read_for(path: &Path, policy: Option<u64>) -> weights::Result<(Limits, Op
     let limits = Limits::new(limits)
         .map_err(|why| bad(format!("{why}, found the limits {:?}", e.envelope)))?;
     Ok((limits, rig))
+}
+
+/// The limits of a report, each a zero or a normal f32, or why not.
+fn narrowed(envelope: &[f64; 4]) -> Result<[f32; 4], String> {
+    if let Some(x) = envelope.iter().find(|x| weights::past_f32(**x)) {
+        return Err(format!(
+            "expected each limit within float32's range (+-{:e}), found {x:e}",
+            f32::MAX
+        ));
+    }
+    // A subnormal limit (`1e-40`; `1e-39`, normal in f64 alone) is a slip, as every number
+    // that comes in.
+    if let Some(x) = envelope.iter().find(|x| !weights::plain(**x)) {
+        return Err(format!(
+            "expected each limit zero or a normal number, in float32 too (at least {:e}), \
+             found {x:?}",
+            f32::MIN_POSITIVE
+        ));
+    }
+    Ok(envelope.map(|x| x as f32))
 }
 
 /// Refuses an envelope measured on the rig of digest `measured` for a board of `rig`, where

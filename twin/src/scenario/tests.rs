@@ -96,79 +96,82 @@ fn an_encoder_spec_reads_through_the_observer_or_a_filter_of_its_discount() {
     assert_eq!(gym.rig.encoders, firmware::rig::Rig::GYMNASIUM.encoders);
 }
 
+/// Specs refused, and a piece of each refusal.
+const BAD_SPECS: &[(&str, &str)] = &[
+    (
+        "wind",
+        "unknown part \"wind\" (expected nominal, or parts joined by + from noise",
+    ),
+    ("force", "force needs a value, e.g. force=F"),
+    (
+        "force=-1",
+        "factor must be zero or a normal number in [0.001, 1000], found \"-1\"",
+    ),
+    (
+        "push=0.5/0",
+        "push interval must be a whole number in [1, 4294967295], found \"0\"",
+    ),
+    (
+        "noise=x",
+        "scale must be zero or a normal number in [0, 1000], found \"x\"",
+    ),
+    (
+        "force=0",
+        "factor must be zero or a normal number in [0.001, 1000], found \"0\"",
+    ),
+    // One quantity's factors multiply: each is fine, their product is not.
+    ("length=999+length=999", "length comes to 9.98"),
+    ("length=1e300", "found \"1e300\""),
+    (
+        "push=1e9",
+        "impulse must be zero or a normal number in [0, 1000]",
+    ),
+    (
+        "delay=17",
+        "delay must be a whole number in [0, 16], found \"17\"",
+    ),
+    ("delay=-1", "delay must be a whole number"),
+    ("delay=1.5", "delay must be a whole number"),
+    // Cut at the `+` that joins parts.
+    ("delay=+2", "found \"\" (a `+` joins a spec's parts"),
+    ("noise=1e+0", "found \"1e\" (a `+` joins"),
+    (
+        "encoder=8",
+        "encoder counts per revolution must be a whole number in [16, 16777216]",
+    ),
+    (
+        "encoder=",
+        "encoder counts per revolution must be a whole number in [16, 16777216], found \"\"",
+    ),
+    (
+        "friction=2",
+        "cart coefficient must be zero or a normal number in [0, 1]",
+    ),
+    (
+        "friction=0.1/0.5",
+        "pivot coefficient must be zero or a normal number in [0, 0.1]",
+    ),
+    ("friction=0.1/0.01/3", "friction takes at most 2 values"),
+    (
+        "length=0.5..0.9",
+        "takes single values, not ranges or shares",
+    ),
+    ("noise@0.5", "takes single values, not ranges or shares"),
+    // Gymnasium's machine has no motor damping to scale.
+    (
+        "damping=2",
+        "damping changes nothing on a machine without motor damping",
+    ),
+    // A discount the board's f32 would hold as a subnormal.
+    (
+        "encoder=2400/15000/1e-40",
+        "discount must be zero or a normal number in [0, 0.99], found \"1e-40\"",
+    ),
+];
+
 #[test]
 fn bad_specs_are_rejected_with_the_reason() {
-    for (spec, needle) in [
-        (
-            "wind",
-            "unknown part \"wind\" (expected nominal, or parts joined by + from noise",
-        ),
-        ("force", "force needs a value, e.g. force=F"),
-        (
-            "force=-1",
-            "factor must be zero or a normal number in [0.001, 1000], found \"-1\"",
-        ),
-        (
-            "push=0.5/0",
-            "push interval must be a whole number in [1, 4294967295], found \"0\"",
-        ),
-        (
-            "noise=x",
-            "scale must be zero or a normal number in [0, 1000], found \"x\"",
-        ),
-        (
-            "force=0",
-            "factor must be zero or a normal number in [0.001, 1000], found \"0\"",
-        ),
-        // One quantity's factors multiply: each is fine, their product is not.
-        ("length=999+length=999", "length comes to 9.98"),
-        ("length=1e300", "found \"1e300\""),
-        (
-            "push=1e9",
-            "impulse must be zero or a normal number in [0, 1000]",
-        ),
-        (
-            "delay=17",
-            "delay must be a whole number in [0, 16], found \"17\"",
-        ),
-        ("delay=-1", "delay must be a whole number"),
-        ("delay=1.5", "delay must be a whole number"),
-        // Cut at the `+` that joins parts.
-        ("delay=+2", "found \"\" (a `+` joins a spec's parts"),
-        ("noise=1e+0", "found \"1e\" (a `+` joins"),
-        (
-            "encoder=8",
-            "encoder counts per revolution must be a whole number in [16, 16777216]",
-        ),
-        (
-            "encoder=",
-            "encoder counts per revolution must be a whole number in [16, 16777216], found \"\"",
-        ),
-        (
-            "friction=2",
-            "cart coefficient must be zero or a normal number in [0, 1]",
-        ),
-        (
-            "friction=0.1/0.5",
-            "pivot coefficient must be zero or a normal number in [0, 0.1]",
-        ),
-        ("friction=0.1/0.01/3", "friction takes at most 2 values"),
-        (
-            "length=0.5..0.9",
-            "takes single values, not ranges or shares",
-        ),
-        ("noise@0.5", "takes single values, not ranges or shares"),
-        // Gymnasium's machine has no motor damping to scale.
-        (
-            "damping=2",
-            "damping changes nothing on a machine without motor damping",
-        ),
-        // A discount the board's f32 would hold as a subnormal.
-        (
-            "encoder=2400/15000/1e-40",
-            "discount must be zero or a normal number in [0, 0.99], found \"1e-40\"",
-        ),
-    ] {
+    for (spec, needle) in BAD_SPECS {
         let e = Scenario::parse(spec).unwrap_err();
         assert!(e.contains(needle), "{spec}: {e}");
     }
