@@ -199,14 +199,21 @@ fn clustered<'a>(e: &clap::Error, args: &'a [OsString]) -> Option<&'a str> {
     if !matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) {
         return None;
     }
-    let before = args.iter().skip(1).take_while(|a| *a != "--");
-    let text: Vec<&str> = before.filter_map(|a| a.to_str()).collect();
+    let text = before_dashes(args);
     let asked = ["-h", "--help", "-V", "--version", "help"];
     if text.iter().any(|a| asked.contains(a)) {
         return None;
     }
     text.into_iter()
+        .skip(1)
         .find(|a| a.len() > 2 && (a.starts_with("-h") || a.starts_with("-V")))
+}
+
+/// The arguments before any `--`, the program's name first, as text: one that is not UTF-8
+/// as empty, which no flag's name starts.
+fn before_dashes(args: &[OsString]) -> Vec<&str> {
+    let before = args.iter().take_while(|a| *a != "--");
+    before.map(|a| a.to_str().unwrap_or_default()).collect()
 }
 
 /// `cmd` with every argument that takes a value, in it and its subcommands, taking one that
@@ -313,10 +320,14 @@ fn named(arg: &clap::Arg) -> String {
     } else if let Some(short) = arg.get_short() {
         format!("-{short}")
     } else {
-        let names = arg.get_value_names().unwrap_or_default();
-        let name = names.first().map_or(arg.get_id().as_str(), |n| n.as_str());
-        format!("<{}>", name.to_uppercase())
+        format!("<{}>", value_name(arg).to_uppercase())
     }
+}
+
+/// The name of the value `arg` takes, as clap's usage shows it.
+fn value_name(arg: &clap::Arg) -> &str {
+    let names = arg.get_value_names().unwrap_or_default();
+    names.first().map_or(arg.get_id().as_str(), |n| n.as_str())
 }
 
 /// The flag (or positional, `<NAME>`) whose value holds [`MARK`] in `args`: the one clap

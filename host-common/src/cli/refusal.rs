@@ -125,8 +125,7 @@ fn dash_led(e: &clap::Error, cmd: &clap::Command, args: &[OsString]) -> Option<S
     if e.kind() != clap::error::ErrorKind::UnknownArgument || part.starts_with("--") {
         return None;
     }
-    let before = args.iter().take_while(|a| *a != "--");
-    let text: Vec<&str> = before.map(|a| a.to_str().unwrap_or_default()).collect();
+    let text = super::before_dashes(args);
     let at = (1..text.len()).find(|&i| text[i].starts_with(part.as_str()))?;
     if text[at] == part {
         return None;
@@ -239,9 +238,7 @@ pub(super) fn plus_signed(cmd: &clap::Command, m: &clap::ArgMatches) -> Option<S
         if let Some(v) = raw.filter_map(|v| v.to_str()).find(|v| v.starts_with('+')) {
             // As clap words its other refusals of a value.
             let value = weights::excerpt(v);
-            let names = arg.get_value_names().unwrap_or_default();
-            let name = names.first().map_or(arg.get_id().as_str(), |n| n.as_str());
-            let flag = super::named(arg);
+            let (flag, name) = (super::named(arg), super::value_name(arg));
             return Some(format!(
                 "invalid value '{value}' for '{flag} <{name}>': {DIGITS_ALONE}"
             ));
